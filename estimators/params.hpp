@@ -1,0 +1,71 @@
+#pragma once
+// Tuning of every estimator, with the papers' values as defaults. Plain data so that estimators/ stays pure;
+// the config loader (config/) fills these from YAML, validates bounds, and documents each key.
+// When you add a field here, add its YAML key, bounds and description in config/ as well.
+#include <array>
+
+namespace torqued {
+
+/// Na et al. time-triggered estimators (ESTIMATORS.md §1).
+struct UioParams {
+  double k_s = 0.01;  ///< filter constant k (s) (Na-9, Na-14)
+};
+struct SlidingModeParams {
+  double k_s = 0.01;            ///< output low-pass constant (s) (Na-21)
+  double lambda1_nm = 350.0;    ///< switching gain λ1 > sup|τ_e| (N m) (Na-19)
+};
+struct DirtyDiffParams {
+  double k_s = 0.01;  ///< differentiation filter constant (s) (Na-24)
+};
+struct AdaptiveParams {
+  double k_s = 0.01;                       ///< filter constant k (s)
+  double ell = 10.0;                       ///< forgetting ℓ (1/s) (Na-45)
+  std::array<double, 2> gamma{0.1, 100.0}; ///< Γ diagonal for [speed, air mass flow] (Na-50)
+  double kappa = 0.1;                      ///< κ weighting of W2 (Na-50/54)
+  bool time_varying_gain = true;           ///< law (Na-52/54) instead of (Na-50)
+  std::array<double, 2> k0{1.0, 1.0};      ///< K(0) = K0^-1 diagonal entries given as K0 (Na-52)
+  double sigma = 1e-3;                     ///< excitation threshold on λ_min(P) (Na Remark 9)
+};
+struct TimePipelineParams {
+  double step_s = 0.001;        ///< time pipeline step T_s (s)
+  bool cycle_averaged_speed = true;  ///< mean speed over the last 720° (true) or last combustion segment (false)
+};
+
+/// Chauvin angle-domain estimators (ESTIMATORS.md §2).
+struct KalmanParams {
+  double delta = 1.0;        ///< coloured-noise pole δ (1/rad) (CK-18)
+  double q = 1e4;            ///< process noise on the net torque input (N m)^2
+  double r = 1e2;            ///< measurement noise on θ̇² (rad/s)^4
+  bool periodic_gains = true;  ///< use precomputed asymptotic periodic gains (APS) instead of exact Riccati
+};
+struct FourierParams {
+  int harmonics = 5;         ///< n_h (CF §V.B)
+  double l_ke = 0.5;         ///< L_ke
+  double l_a0 = 0.05;        ///< L_a0
+  double l_ref = 0.05;       ///< L_ref: l_{a_i} = l_{b_i} = i L_ref
+};
+
+/// Energies 2019 chain (ESTIMATORS.md §3).
+struct EnergiesParams {
+  double window_start_btdc_deg = 50.0;  ///< RLS window start before TDC (deg)
+  double window_end_btdc_deg = 20.0;    ///< RLS window end before TDC (deg)
+  double polytropic_kappa = 1.3;        ///< κ for compression/expansion (-)
+  double rls_forgetting = 0.995;        ///< RLS forgetting factor (-)
+  double lowpass_hz = 300.0;            ///< speed pre-filter cut-off (Hz)
+  double eso_omega0 = 20.0;             ///< ESO bandwidth ω0 (rad/s) (EN-23)
+  double fuel_lhv_j_kg = 43e6;          ///< q_LHV (J/kg)
+};
+struct FrictionParams {
+  /// T_fric = (C1 + C2 n + C3 n²) e^{C4 t_oil}, n in rpm, t_oil in °C (EN-24); paper values as defaults.
+  std::array<double, 4> c{-23.86, 2.45e-3, -5.20e-6, -4.67e-3};
+  bool learn = true;                    ///< self-learn at idle and in fuel cut-off (EN-34)
+};
+struct CylinderParams {
+  double misfire_threshold = 0.5;   ///< misfire when a cylinder's torque < threshold × cycle mean (-)
+};
+struct ToothLearnParams {
+  bool learn = true;                ///< learn per-tooth angle corrections
+  int min_cycles = 50;              ///< cycles averaged before the table is used
+};
+
+}  // namespace torqued
