@@ -1,0 +1,211 @@
+#pragma once
+// Crank-angle-resolved 4-stroke engine simulator with ground truth (issue 2, "Engine simulator with ground truth").
+// Not real-time code: it allocates freely. Deterministic: the same Scenario (incl. seed) gives identical output.
+// Physics and parameter values: docs/simulator.md.
+//
+// Angle conventions (shared with the decoder and estimators):
+//  - "wheel angle" θ_w: crank angle measured from the first tooth after the gap (tooth 0) of the revolution in
+//    which the cam signal rises; 720° cycle = [0, 4π). Cycle k of the output covers θ_w ∈ [4πk, 4π(k+1)).
+//  - crank angle after cylinder-1 firing TDC: θ = θ_w − engine.tdc_offset_rad (CrankKinematics' theta720).
+//  - tooth index 0 .. 2·teeth−1 within 720°; tooth 0 closes the gap in the cam-phase-0 revolution.
+//  - the cam channel is high for wheel angles [cam_rise_deg, cam_fall_deg) of each 720° cycle (default 45°..225°).
+#include <array>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "engine_geometry.hpp"
+#include "records.hpp"
+#include "samples.hpp"
+
+namespace torqued::sim {
+
+/// One point of a piecewise-linear schedule; held constant before the first and after the last point.
+struct Breakpoint {
+  double t_s = 0.0;
+  double value = 0.0;
+};
+using Schedule = std::vector<Breakpoint>;
+[[nodiscard]] double evaluate(const Schedule& schedule, double t_s, double fallback) noexcept;
+
+enum class LoadMode : std::uint8_t {
+  kDynoSpeed = 0,  ///< dynamometer PI controller holds `speed_rpm` (load torque free, may go negative = motoring)
+  kTorque = 1,     ///< load torque follows `load_torque_nm` (0 = declutched / free engine)
+};
+/// From `t_start_s` on, the load works in `mode` (phases sorted by time; the first applies from t = 0).
+struct LoadPhase {
+  double t_start_s = 0.0;
+  LoadMode mode = LoadMode::kDynoSpeed;
+};
+
+struct Misfire {
+  int cycle = 0;     ///< output cycle index k (the cylinder's firing TDC lies in cycle k)
+  int cylinder = 1;  ///< 1-based cylinder number
+};
+
+/// Time interval [t_start_s, t_end_s) with fuel cut-off; fuel resumes early when speed < resume_rpm.
+struct FuelCut {
+  double t_start_s = 0.0;
+  double t_end_s = 0.0;
+  double resume_rpm = 1000.0;
+};
+
+/// Combustion and gas exchange (Wiebe, single-zone first law; docs/simulator.md §2).
+struct CombustionParams {
+  double gamma = 1.3;               ///< polytropic exponent / ratio of specific heats, IVC..EVO (-)
+  double wiebe_a = 5.0;             ///< Wiebe efficiency parameter a (-)
+  double wiebe_m = 2.0;             ///< Wiebe form factor m (-)
+  double burn_duration_deg = 50.0;  ///< Wiebe duration Δθ (deg)
+  double q_lhv_j_kg = 44.0e6;       ///< fuel lower heating value (J/kg)
+  double heat_fraction = 0.80;      ///< fraction of fuel energy released as gas heat (combustion eff. × wall losses)
+  double afr_stoich = 14.7;         ///< stoichiometric air/fuel ratio (-)
+  double lambda = 1.0;              ///< commanded air/fuel equivalence λ (-)
+  double vol_efficiency = 0.85;     ///< volumetric efficiency η_v (-)
+  double ivc_deg = 540.0;           ///< IVC, local angle after firing TDC (deg) (= BDC, 180° before TDC)
+  double evo_deg = 130.0;           ///< EVO after firing TDC (deg)
+  double blowdown_end_deg = 200.0;  ///< end of the exhaust blowdown blend (deg)
+  double exhaust_pa = 105000.0;     ///< exhaust back-pressure (Pa)
+  double charge_heating_k = 25.0;   ///< charge temperature at IVC above intake air temperature (K)
+};
+
+/// Air path: throttle orifice + manifold filling (docs/simulator.md §3).
+struct AirPathParams {
+  double ambient_pa = 100000.0;     ///< ambient pressure upstream of the throttle (Pa)
+  double manifold_volume_m3 = 2.0e-3;
+  double throttle_diameter_m = 0.055;
+  double throttle_leak_frac = 0.004;  ///< closed-throttle leakage as fraction of the full area (-)
+  double idle_kp = 2.0e-3;          ///< idle controller: throttle % per rpm of speed error (%/rpm)
+  double idle_ki = 1.0e-2;          ///< idle controller integral gain (%/rpm/s)
+};
+
+/// Dynamometer / load (docs/simulator.md §4).
+struct DynoParams {
+  double kp_nm_per_rad_s = 3.0;     ///< speed PI proportional gain (N m / (rad/s))
+  double ki_nm_per_rad = 30.0;      ///< speed PI integral gain (N m / rad)
+  double speed_filter_s = 0.02;     ///< speed low-pass for the controller (s)
+  double torque_lag_s = 0.005;      ///< actuator lag of the load torque (s)
+};
+
+/// Sensors (docs/simulator.md §5). All noise seeded from Scenario::seed.
+struct SensorParams {
+  double tooth_error_sd_deg = 0.05;  ///< per-tooth machining error, 1σ (deg), fixed per wheel
+  double jitter_sd_s = 0.3e-6;       ///< edge timestamp jitter, 1σ (s)
+  double clock_hz = 50.0e6;          ///< capture clock for timestamp quantisation (Hz); 0 = none
+  double cam_rise_deg = 45.0;        ///< cam channel rises at this wheel angle within 720° (deg)
+  double cam_fall_deg = 225.0;       ///< and falls here (deg)
+  double can_period_s = 0.01;        ///< period of every CAN message (s)
+  double can_jitter_s = 0.2e-3;      ///< uniform ± jitter of CAN timestamps (s)
+  double can_drop_prob = 0.001;      ///< probability a frame is dropped (-)
+  double map_lag_s = 0.010;          ///< first-order lag of the MAP sensor (s)
+  double map_noise_pa = 300.0;       ///< MAP noise 1σ (Pa)
+  double maf_lag_s = 0.020;          ///< MAF sensor lag (s)
+  double maf_noise_frac = 0.01;      ///< MAF noise 1σ, fraction of reading (-)
+  double speed_noise_rpm = 2.0;      ///< CAN EngineSpeed noise 1σ (rpm)
+  double load_noise_nm = 0.5;        ///< DYNO_1 LoadTorque noise 1σ (N m)
+  double load_lag_s = 0.005;         ///< torque-flange measurement lag (s)
+  double temp_noise_c = 0.2;         ///< temperature noise 1σ (°C)
+  double lambda_noise = 0.005;       ///< lambda sensor noise 1σ (-)
+};
+
+/// Mean-value (Crossley & Cook) mode exists separately (mean_value_engine.hpp, helper "time").
+struct Scenario {
+  std::string name;
+  std::uint64_t seed = 1;
+  EngineGeometry engine{};
+  WheelGeometry wheel{};
+  double duration_s = 3.0;
+  double warmup_s = 0.3;                 ///< unrecorded settling before t = 0 with the t = 0 set-points (s)
+  double step_deg = 0.1;                 ///< RK4 crank-angle step (deg); must divide 720
+  std::vector<LoadPhase> load_phases{};  ///< empty: kDynoSpeed throughout
+  Schedule speed_rpm{};                  ///< dyno speed set-point (rpm); also the initial speed
+  Schedule load_torque_nm{};             ///< load torque in kTorque mode (N m)
+  Schedule throttle_pct{};               ///< throttle position (%); if empty, the ECU follows map_target_kpa
+  Schedule map_target_kpa{};             ///< MAP set-point (kPa): throttle from the steady air balance
+  Schedule spark_advance_deg{};          ///< spark advance (deg BTDC); empty: built-in map of speed and MAP
+  bool idle_control = false;             ///< ECU idle speed controller adds throttle below idle_rpm
+  double idle_rpm = 800.0;
+  std::array<double, kMaxCylinders> fuel_factor{1, 1, 1, 1, 1, 1, 1, 1};  ///< per-cylinder fuel multiplier (-)
+  std::vector<Misfire> misfires{};
+  std::vector<FuelCut> fuel_cuts{};
+  Schedule oil_temp_c{};                 ///< oil temperature (°C); empty: 90
+  double coolant_temp_c = 88.0;
+  double intake_temp_c = 30.0;
+  CombustionParams combustion{};
+  AirPathParams air{};
+  DynoParams dyno{};
+  SensorParams sensors{};
+  int trace_every_steps = 0;             ///< >0: record a FineSample every n integration steps (tests)
+};
+
+/// Names of all built-in scenarios, and one by name (throws std::invalid_argument listing the names).
+[[nodiscard]] std::vector<std::string> scenario_names();
+[[nodiscard]] Scenario scenario_by_name(std::string_view name);
+
+/// Ground truth at one crank-tooth (marking) edge.
+struct ToothTruth {
+  double t_s = 0.0;               ///< true time of the physical edge (s), before jitter/quantisation
+  std::int64_t t_meas_ns = 0;     ///< the same edge as written to edges (jitter + quantisation) (ns)
+  int tooth = 0;                  ///< 0 .. 2·teeth−1 within 720°
+  int cycle = 0;                  ///< output cycle index
+  double angle720_rad = 0.0;      ///< physical wheel angle of this edge within 720° (nominal + machining error)
+  double speed_rad_s = 0.0;       ///< θ̇ at the edge
+  double t_ind_nm = 0.0;          ///< Σ gas torque (indicated) (N m)
+  std::array<double, kMaxCylinders> t_ind_cyl_nm{};  ///< gas torque per cylinder (index = cylinder − 1)
+  double t_mass_nm = 0.0;         ///< reciprocating torque (J − J_rot)θ̈ + ½J'θ̇² (N m)
+  double t_fric_nm = 0.0;         ///< friction (N m), positive = loss
+  double t_load_nm = 0.0;         ///< dyno / load torque (N m), positive = absorbing
+  double t_brake_nm = 0.0;        ///< t_ind − t_fric (crank output) (N m)
+};
+
+/// Ground truth per 720° cycle (θ-averages = work / 4π).
+struct CycleTruth {
+  int cycle = 0;
+  double t_start_s = 0.0, t_end_s = 0.0;
+  double speed_mean_rad_s = 0.0;  ///< 4π / (t_end − t_start)
+  double t_ind_mean_nm = 0.0, t_brake_mean_nm = 0.0, t_fric_mean_nm = 0.0, t_load_mean_nm = 0.0;
+  double t_mass_mean_nm = 0.0;
+  /// Each cylinder's indicated work / 4π over its own cycle (firing TDC ± 360°) of the combustion in this cycle.
+  std::array<double, kMaxCylinders> cyl_ind_mean_nm{};
+  std::array<double, kMaxCylinders> cyl_imep_pa{};    ///< same as IMEP (Pa)
+  std::array<double, kMaxCylinders> cyl_peak_pa{};    ///< peak cylinder pressure of that combustion (Pa)
+  std::array<double, kMaxCylinders> cyl_fuel_kg{};    ///< injected fuel (kg)
+  std::array<bool, kMaxCylinders> misfire{};          ///< injected misfire (not fuel cut)
+  bool fuel_cut = false;          ///< any cylinder of this cycle had its fuel cut
+  double map_pa = 0.0;            ///< true MAP at cylinder-1 IVC (Pa)
+  double oil_temp_c = 0.0;
+};
+
+/// Fine trace (every trace_every_steps integration steps) for physics tests.
+struct FineSample {
+  double t_s = 0.0;
+  double wheel_angle_rad = 0.0;   ///< cumulative wheel angle (rad)
+  double speed_rad_s = 0.0;
+  double kinetic_j = 0.0;         ///< ½ J(θ) θ̇²
+  double t_ind_nm = 0.0, t_fric_nm = 0.0, t_load_nm = 0.0;
+  std::array<double, kMaxCylinders> p_cyl_pa{};
+};
+
+struct SimOutput {
+  std::vector<EdgeEvent> edges;          ///< channel 0 crank, 1 cam; sorted by t_ns; t = 0 is capture start
+  std::array<std::uint8_t, 2> initial_levels{};  ///< crank, cam levels at t = 0
+  std::vector<CanFrame> can;             ///< sorted by t_ns (edge clock, µs resolution), bus 0
+  std::vector<ToothTruth> teeth;
+  std::vector<CycleTruth> cycles;        ///< complete cycles only
+  std::vector<double> tooth_error_rad;   ///< machining error of each physical tooth 0..teeth−1 (rad)
+  std::vector<FineSample> trace;         ///< empty unless trace_every_steps > 0
+};
+
+/// Run the scenario. Throws std::invalid_argument on an inconsistent scenario.
+[[nodiscard]] SimOutput simulate(const Scenario& scenario);
+
+/// Tooth samples as a synced decoder would give them: measured times (machining error + jitter + quantisation),
+/// correct tooth index / 720° phase, NOMINAL angle and width (gap tooth: (missing + 1) pitches), dt_s from the
+/// previous measured edge. The first sample has synced = false and dt_s = 0.
+[[nodiscard]] std::vector<ToothSample> ideal_tooth_samples(const SimOutput& out, const Scenario& scenario);
+
+/// EngineSignals (SI) decoded from the newest CAN frame of each message at or before t_s; a signal is valid when
+/// its frame is younger than `max_age_s`.
+[[nodiscard]] EngineSignals signals_at(const SimOutput& out, double t_s, double max_age_s = 0.05);
+
+}  // namespace torqued::sim
