@@ -1,0 +1,53 @@
+#pragma once
+// candump -l log reader: "(1700000000.123456) can0 123#DEADBEEF" (classic), 8-hex-digit extended ids,
+// remote frames "123#R" / "123#R5", CAN FD "123##<flags><data>". Optional trailing " T"/" R" direction
+// markers (candump -x) are accepted. Streams through a large buffer; exact fixed-point timestamps in ns.
+// Bad lines are reported "file:line: expected ..." (first 20 kept), counted in stats().bad_lines, skipped;
+// never fatal. Interface names map to CanFrame::bus in order of first appearance (0, 1, ...).
+// next() is real-time safe after construction (no allocation, except when a 9th new interface name appears).
+#include <array>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "line_reader.hpp"
+#include "source.hpp"
+
+namespace torqued {
+
+struct CandumpOptions {
+  std::int64_t time_offset_ns = 0;  ///< added to every timestamp (config inputs.can.time_offset_s)
+};
+
+class CandumpSource final : public CanSource {
+ public:
+  CandumpSource(std::string path, CandumpOptions options = {});
+  [[nodiscard]] bool ok() const noexcept { return ok_; }
+
+  SourceStatus next(CanFrame& out) noexcept override;
+  [[nodiscard]] const SourceStats& stats() const noexcept override { return stats_; }
+  [[nodiscard]] std::string describe() const override;
+  [[nodiscard]] std::string last_error() const override { return error_; }
+  [[nodiscard]] const std::vector<std::string>& bad_line_messages() const noexcept { return messages_; }
+  /// Interface name of bus index i ("can0"), empty if unknown.
+  [[nodiscard]] std::string_view bus_name(std::uint8_t bus) const noexcept;
+
+  /// Parse one log line into `out` (no allocation). Returns nullptr on success, else what was expected.
+  /// `bus_name` receives the interface name. Exposed for tests and the SocketCAN comparison.
+  static const char* parse_line(std::string_view line, CanFrame& out, std::string_view& bus_name) noexcept;
+
+ private:
+  std::string path_;
+  CandumpOptions opt_;
+  LineReader reader_;
+  bool ok_ = false;
+  static constexpr int kMaxBuses = 8;
+  std::array<std::array<char, 16>, kMaxBuses> bus_names_{};
+  int buses_ = 0;
+  SourceStats stats_;
+  std::string error_;
+  std::vector<std::string> messages_;
+};
+
+}  // namespace torqued
