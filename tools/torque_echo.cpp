@@ -1,0 +1,211 @@
+// torque-echo: a DDS subscriber (its own process) for the torque topics. Prints samples as a table or JSON
+// lines and/or records them to CSV (same columns as the daemon's recorder; the input of torque-eval).
+//   torque-echo --topic engine --record out/            live table of per-cycle/segment torque + CSV
+//   torque-echo --topic all --format json --count 100   first 100 samples of every topic as JSON lines
+//   torque-echo --until-done                            exit when the daemon reports the end of a replay
+// Network hygiene: run with CYCLONEDDS_URI pointing at a loopback-only configuration (config/).
+#include <signal.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <array>
+#include <cstring>
+#include <stdexcept>
+#include <type_traits>
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "dds/dds.h"
+#include "qos.hpp"
+#include "sample.hpp"
+#include "sample_recorder.hpp"
+#include "topic_format.hpp"
+
+namespace {
+volatile sig_atomic_t g_stop = 0;
+void on_signal(int) { g_stop = 1; }
+
+using namespace torqued;
+
+struct Options {
+  std::vector<std::string> topics{"engine"};
+  std::string format = "table";
+  std::string record_dir;
+  bool cycles_only = false;
+  std::uint32_t domain = 0;
+  std::string prefix = "torque";
+  double duration_s = 0.0;
+  std::uint64_t count = 0;
+  bool until_done = false;
+  double idle_exit_s = 0.0;
+  bool quiet = false;
+};
+
+template <class T> struct Reader {
+  dds_entity_t reader = 0;
+  static constexpr int kBatch = 64;
+  std::array<T, kBatch> buf{};
+  std::array<void*, kBatch> ptrs{};
+  std::array<dds_sample_info_t, kBatch> info{};
+};
+
+class Echo {
+ public:
+  explicit Echo(const Options& o) : o_(o) {
+    settings_.domain_id = o.domain;
+    settings_.topic_prefix = o.prefix;
+    if (!o.record_dir.empty()) {
+      recorder_ = std::make_unique<dds::SampleRecorder>(o.record_dir);
+      if (!recorder_->ok()) throw std::runtime_error(recorder_->error());
+    }
+    participant_ = dds_create_participant(o.domain, nullptr, nullptr);
+    if (participant_ < 0) throw std::runtime_error(std::string("dds_create_participant: ") + dds_strretcode(participant_));
+    waitset_ = dds_create_waitset(participant_);
+    for (const auto& t : o.topics) {
+      const bool all = t == "all";
+      if (all || t == "engine") make(engine_, dds::Topic::kEngineTorque);
+      if (all || t == "estimator") make(estimator_, dds::Topic::kEstimatorTorque);
+      if (all || t == "cylinder") make(cylinder_, dds::Topic::kCylinderTorque);
+      if (all || t == "crank") make(crank_, dds::Topic::kCrankState);
+      if (all || t == "status") make(status_, dds::Topic::kDaemonStatus);
+    }
+    // --until-done needs the status topic even when it is not printed.
+    if (o.until_done && status_.reader == 0) {
+      make(status_, dds::Topic::kDaemonStatus);
+      print_status_ = false;
+    }
+  }
+  ~Echo() {
+    if (recorder_) recorder_->flush(true);
+    dds_delete(participant_);
+  }
+
+  int run() {
+    const auto t0 = std::chrono::steady_clock::now();
+    auto last_data = t0;
+    while (!g_stop) {
+      dds_waitset_wait(waitset_, nullptr, 0, DDS_MSECS(100));
+      const std::uint64_t before = received_;
+      take(engine_, dds::Topic::kEngineTorque);
+      take(estimator_, dds::Topic::kEstimatorTorque);
+      take(cylinder_, dds::Topic::kCylinderTorque);
+      take(crank_, dds::Topic::kCrankState);
+      take(status_, dds::Topic::kDaemonStatus);
+      std::fflush(stdout);
+      const auto now = std::chrono::steady_clock::now();
+      if (received_ != before) last_data = now;
+      if (o_.count && received_ >= o_.count) break;
+      if (done_) break;
+      if (o_.duration_s > 0 && std::chrono::duration<double>(now - t0).count() >= o_.duration_s) break;
+      if (o_.idle_exit_s > 0 && received_ > 0 && std::chrono::duration<double>(now - last_data).count() >= o_.idle_exit_s)
+        break;
+    }
+    if (!o_.quiet)
+      std::fprintf(stderr, "torque-echo: %llu samples received%s\n", static_cast<unsigned long long>(received_),
+                   done_ ? " (daemon reported end of replay)" : "");
+    return 0;
+  }
+
+ private:
+  template <class T> void make(Reader<T>& r, dds::Topic t) {
+    if (r.reader != 0) return;
+    const dds_entity_t topic = dds::create_topic(participant_, settings_, t);
+    if (topic < 0) throw std::runtime_error("dds_create_topic " + settings_.topic_name(t) + ": " + dds_strretcode(topic));
+    dds_qos_t* qos = dds::make_qos(settings_.qos[static_cast<std::size_t>(t)]);
+    dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 1024);  // a subscriber keeps more than the writer's depth
+    r.reader = dds_create_reader(participant_, topic, qos, nullptr);
+    dds_delete_qos(qos);
+    if (r.reader < 0) throw std::runtime_error("dds_create_reader " + settings_.topic_name(t) + ": " + dds_strretcode(r.reader));
+    for (int i = 0; i < Reader<T>::kBatch; ++i) r.ptrs[static_cast<std::size_t>(i)] = &r.buf[static_cast<std::size_t>(i)];
+    const dds_entity_t rc = dds_create_readcondition(r.reader, DDS_ANY_STATE);
+    dds_waitset_attach(waitset_, rc, r.reader);
+  }
+
+  template <class T> void take(Reader<T>& r, dds::Topic t) {
+    if (r.reader == 0) return;
+    for (;;) {
+      const int n = dds_take(r.reader, r.ptrs.data(), r.info.data(), Reader<T>::kBatch, Reader<T>::kBatch);
+      if (n <= 0) return;
+      for (int i = 0; i < n; ++i) {
+        if (!r.info[static_cast<std::size_t>(i)].valid_data) continue;
+        const T& s = r.buf[static_cast<std::size_t>(i)];
+        if constexpr (std::is_same_v<T, torque_DaemonStatus>) {
+          if (s.flags & torque_STATUS_REPLAY_DONE) done_ = true;
+          if (!print_status_) continue;
+        }
+        if constexpr (std::is_same_v<T, torque_EngineTorque>) {
+          if (o_.cycles_only && s.kind != torque_KIND_CYCLE) continue;
+        }
+        ++received_;
+        dds::AnySample a;
+        a.topic = t;
+        std::memcpy(static_cast<void*>(&a.u), &s, sizeof s);
+        if (recorder_) recorder_->record(a);
+        if (o_.format == "none") continue;
+        line_.clear();
+        if (o_.format == "json") {
+          dds::append_json(line_, s);
+        } else {
+          if (!header_done_[static_cast<std::size_t>(t)]) {
+            line_ += dds::table_header<T>();
+            header_done_[static_cast<std::size_t>(t)] = true;
+          }
+          dds::append_table_row(line_, s);
+        }
+        std::fwrite(line_.data(), 1, line_.size(), stdout);
+      }
+    }
+  }
+
+  Options o_;
+  dds::DdsSettings settings_;
+  std::unique_ptr<dds::SampleRecorder> recorder_;
+  dds_entity_t participant_ = 0, waitset_ = 0;
+  Reader<torque_EngineTorque> engine_;
+  Reader<torque_EstimatorTorque> estimator_;
+  Reader<torque_CylinderTorque> cylinder_;
+  Reader<torque_CrankState> crank_;
+  Reader<torque_DaemonStatus> status_;
+  std::array<bool, dds::kTopicCount> header_done_{};
+  bool print_status_ = true;
+  bool done_ = false;
+  std::uint64_t received_ = 0;
+  std::string line_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  CLI::App app{"torque-echo: subscribe to torqued's DDS topics, print them (table or JSON lines) and/or record CSV "
+               "for torque-eval. Set CYCLONEDDS_URI to a loopback-only configuration for local use."};
+  app.add_option("--topic,-t", o.topics, "engine|estimator|cylinder|crank|status|all (repeatable)")
+      ->check(CLI::IsMember({"engine", "estimator", "cylinder", "crank", "status", "all"}));
+  app.add_option("--format,-f", o.format, "table|json|none")->check(CLI::IsMember({"table", "json", "none"}));
+  app.add_option("--record,-r", o.record_dir, "write CSV files (engine_cycle.csv, ...) into this directory");
+  app.add_flag("--cycles-only", o.cycles_only, "EngineTorque: only per-cycle samples (skip segments)");
+  app.add_option("--domain", o.domain, "DDS domain id");
+  app.add_option("--prefix", o.prefix, "topic prefix (config dds.topic_prefix)");
+  app.add_option("--duration", o.duration_s, "exit after this many seconds (0 = run until signalled)");
+  app.add_option("--count", o.count, "exit after this many samples");
+  app.add_flag("--until-done", o.until_done, "exit when the daemon's status reports the end of its replay");
+  app.add_option("--idle-exit", o.idle_exit_s, "exit when no sample arrived for this many seconds (after the first)");
+  app.add_flag("--quiet,-q", o.quiet, "no summary line on stderr");
+  CLI11_PARSE(app, argc, argv);
+
+  struct sigaction sa{};
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  try {
+    Echo echo(o);
+    return echo.run();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "torque-echo: %s\n", e.what());
+    return 1;
+  }
+}
