@@ -4,7 +4,7 @@
 // markers (candump -x) are accepted. Streams through a large buffer; exact fixed-point timestamps in ns.
 // Bad lines are reported "file:line: expected ..." (first 20 kept), counted in stats().bad_lines, skipped;
 // never fatal. Interface names map to CanFrame::bus in order of first appearance (0, 1, ...).
-// next() is real-time safe after construction (no allocation, except when a 9th new interface name appears).
+// next() is real-time safe after construction (no allocation; bad-line messages — the first 20 — allocate).
 #include <array>
 #include <cstdint>
 #include <string>
@@ -30,10 +30,13 @@ class CandumpSource final : public CanSource {
   [[nodiscard]] std::string describe() const override;
   [[nodiscard]] std::string last_error() const override { return error_; }
   [[nodiscard]] const std::vector<std::string>& bad_line_messages() const noexcept { return messages_; }
+  /// Remote (RTR) frames seen; they carry no payload and are skipped.
+  [[nodiscard]] std::uint64_t rtr_frames() const noexcept { return rtr_frames_; }
   /// Interface name of bus index i ("can0"), empty if unknown.
   [[nodiscard]] std::string_view bus_name(std::uint8_t bus) const noexcept;
 
-  /// Parse one log line into `out` (no allocation). Returns nullptr on success, else what was expected.
+  /// Parse one log line into `out` (no allocation). Returns nullptr on success, "" for a remote frame
+  /// (not decoded), else what was expected.
   /// `bus_name` receives the interface name. Exposed for tests and the SocketCAN comparison.
   static const char* parse_line(std::string_view line, CanFrame& out, std::string_view& bus_name) noexcept;
 
@@ -45,6 +48,7 @@ class CandumpSource final : public CanSource {
   static constexpr int kMaxBuses = 8;
   std::array<std::array<char, 16>, kMaxBuses> bus_names_{};
   int buses_ = 0;
+  std::uint64_t rtr_frames_ = 0;
   SourceStats stats_;
   std::string error_;
   std::vector<std::string> messages_;

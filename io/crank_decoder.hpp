@@ -142,6 +142,7 @@ class CrankDecoder {
   std::int64_t period_ns_ = 0;    ///< last accepted period
   double last_width_rad_ = 0.0;   ///< nominal width of the last accepted period (synced)
   std::int64_t ref_period_ns_ = 0;///< syncing: last period classified normal
+  bool ref_provisional_ = false;  ///< syncing: ref is the first period after a (re)start (may be a gap)
   bool have_edge_ = false;
   int since_gap_ = -1;            ///< syncing: teeth since the last gap candidate (-1: no gap seen yet)
   std::array<int, kMaxGaps> hist_{};  ///< syncing: teeth counts between recent gap candidates (newest last)

@@ -52,6 +52,7 @@ class EdgeCsvSource final : public EdgeSource {
   std::array<EdgeEvent, 2> pending_{};
   int pending_n_ = 0, pending_i_ = 0;
   std::int64_t last_t_ns_ = 0;
+  std::int64_t time_scale_div_ = 1;  ///< header time unit: [s] 1, [ms] 1e3, [us] 1e6, [ns] 1e9
   SourceStats stats_;
   std::string error_;
   std::vector<std::string> messages_;

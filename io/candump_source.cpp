@@ -1,0 +1,145 @@
+#include "candump_source.hpp"
+
+#include <algorithm>
+#include <cstring>
+
+#include "fast_parse.hpp"
+
+namespace torqued {
+namespace {
+constexpr std::size_t kMaxMessages = 20;
+
+bool valid_fd_len(int n) noexcept {
+  return n <= 8 || n == 12 || n == 16 || n == 20 || n == 24 || n == 32 || n == 48 || n == 64;
+}
+}  // namespace
+
+CandumpSource::CandumpSource(std::string path, CandumpOptions options) : path_(std::move(path)), opt_(options) {
+  messages_.reserve(kMaxMessages);
+  ok_ = reader_.open(path_);
+  if (!ok_) error_ = reader_.error();
+}
+
+std::string CandumpSource::describe() const { return "candump " + path_; }
+
+std::string_view CandumpSource::bus_name(std::uint8_t bus) const noexcept {
+  if (bus >= buses_) return {};
+  return std::string_view(bus_names_[bus].data());
+}
+
+const char* CandumpSource::parse_line(std::string_view line, CanFrame& out, std::string_view& bus_name) noexcept {
+  const char* p = line.data();
+  const char* end = p + line.size();
+  parse::skip_ws(p, end);
+  if (p == end || *p != '(') return "expected '(<seconds>) <interface> <id>#<data>'";
+  ++p;
+  std::int64_t t = 0;
+  if (!parse::seconds_to_ns(p, end, t) || p == end || *p != ')') return "expected a timestamp '(<seconds>)'";
+  ++p;
+  parse::skip_ws(p, end);
+  const char* name = p;
+  while (p < end && *p != ' ' && *p != '\t') ++p;
+  if (p == name) return "expected an interface name after the timestamp";
+  bus_name = std::string_view(name, static_cast<std::size_t>(p - name));
+  parse::skip_ws(p, end);
+  const char* id_start = p;
+  std::uint32_t id = 0;
+  int d = 0;
+  while (p < end && (d = parse::hex_digit(*p)) >= 0) {
+    id = (id << 4) | static_cast<std::uint32_t>(d);
+    ++p;
+  }
+  const auto id_len = p - id_start;
+  if (p == end || *p != '#' || id_len == 0) return "expected '<hex id>#' after the interface";
+  out = CanFrame{};
+  out.t_ns = t;
+  if (id_len == 8) {
+    if (id > 0x1FFFFFFFu) return "extended id above 0x1FFFFFFF";
+    out.extended = true;
+  } else if (id_len <= 3) {
+    if (id > 0x7FFu) return "standard id above 0x7FF";
+  } else {
+    return "expected a 3-digit (standard) or 8-digit (extended) hex id";
+  }
+  out.id = id;
+  ++p;
+  int max_len = 8;
+  if (p < end && *p == '#') {  // CAN FD: ##<flags nibble><data>
+    ++p;
+    if (p == end || parse::hex_digit(*p) < 0) return "expected the CAN FD flags nibble after '##'";
+    ++p;
+    out.fd = true;
+    max_len = 64;
+  } else if (p < end && (*p == 'R' || *p == 'r')) {
+    return "";  // remote frame: no payload to decode (the caller skips it)
+  }
+  int n = 0;
+  while (p < end && parse::hex_digit(p[0]) >= 0) {
+    const int hi = parse::hex_digit(p[0]);
+    const int lo = p + 1 < end ? parse::hex_digit(p[1]) : -1;
+    if (lo < 0) return "odd number of hex digits in the payload";
+    if (n == max_len) return out.fd ? "payload longer than 64 bytes" : "classic CAN payload longer than 8 bytes";
+    out.data[static_cast<std::size_t>(n++)] = static_cast<std::uint8_t>((hi << 4) | lo);
+    p += 2;
+  }
+  if (p < end && parse::hex_digit(*p) >= 0) return "odd number of hex digits in the payload";
+  if (out.fd && !valid_fd_len(n)) return "CAN FD payload length not one of 0-8,12,16,20,24,32,48,64";
+  out.len = static_cast<std::uint8_t>(n);
+  parse::skip_ws(p, end);
+  // candump -x direction marker / trailing comment are allowed; anything else is not.
+  if (p < end && !((*p == 'T' || *p == 'R') && p + 1 == end)) return "unexpected text after the payload";
+  return nullptr;
+}
+
+SourceStatus CandumpSource::next(CanFrame& out) noexcept {
+  if (!ok_) return SourceStatus::kError;
+  std::string_view line;
+  while (reader_.next(line)) {
+    stats_.lines = reader_.line_number();
+    if (line.empty() || line.front() == '#') continue;
+    std::string_view bus;
+    const char* err = parse_line(line, out, bus);
+    if (err != nullptr) {
+      if (*err == '\0') {  // remote frame
+        ++rtr_frames_;
+        continue;
+      }
+      ++stats_.bad_lines;
+      if (messages_.size() < kMaxMessages) {
+        try {
+          messages_.push_back(path_ + ":" + std::to_string(reader_.line_number()) + ": " + err + ": '" +
+                              std::string(line.substr(0, 80)) + "'");
+          error_ = messages_.back();
+        } catch (...) {
+        }
+      }
+      continue;
+    }
+    int b = 0;
+    while (b < buses_ && std::string_view(bus_names_[static_cast<std::size_t>(b)].data()) != bus) ++b;
+    if (b == buses_) {
+      if (buses_ < kMaxBuses) {
+        auto& slot = bus_names_[static_cast<std::size_t>(buses_++)];
+        const std::size_t n = std::min(bus.size(), slot.size() - 1);
+        std::memcpy(slot.data(), bus.data(), n);
+        slot[n] = '\0';
+      } else {
+        b = kMaxBuses - 1;  // more interfaces than we track: share the last index
+      }
+    }
+    out.bus = static_cast<std::uint8_t>(b);
+    out.t_ns += opt_.time_offset_ns;
+    stats_.bytes = reader_.bytes();
+    ++stats_.records;
+    return SourceStatus::kOk;
+  }
+  stats_.bytes = reader_.bytes();
+  stats_.lines = reader_.line_number();
+  if (!reader_.error().empty()) {
+    error_ = path_ + ": read error: " + reader_.error();
+    return SourceStatus::kError;
+  }
+  return SourceStatus::kEnd;
+}
+
+}  // namespace torqued

@@ -1,0 +1,442 @@
+// Crank decoder implementation. See crank_decoder.hpp for the model; comments here explain the why.
+#include "crank_decoder.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace torqued {
+namespace {
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+constexpr double kDegToRad = std::numbers::pi / 180.0;
+
+bool in_window_deg(double pos_deg, double start_deg, double end_deg) noexcept {
+  pos_deg = std::fmod(pos_deg, 720.0);
+  if (pos_deg < 0.0) pos_deg += 720.0;
+  if (start_deg <= end_deg) return pos_deg >= start_deg && pos_deg < end_deg;
+  return pos_deg >= start_deg || pos_deg < end_deg;  // window wraps through 720°/0°
+}
+}  // namespace
+
+const char* to_string(SyncLossReason r) noexcept {
+  switch (r) {
+    case SyncLossReason::kNone: return "none";
+    case SyncLossReason::kUnexpectedGap: return "unexpected_gap";
+    case SyncLossReason::kGapMissing: return "gap_missing";
+    case SyncLossReason::kTooManyLostTeeth: return "too_many_lost_teeth";
+    case SyncLossReason::kPeriodTooShort: return "period_too_short";
+    case SyncLossReason::kStall: return "stall";
+    case SyncLossReason::kCamPhase: return "cam_phase";
+  }
+  return "unknown";
+}
+
+const char* to_string(SyncState s) noexcept {
+  switch (s) {
+    case SyncState::kNoSignal: return "no_signal";
+    case SyncState::kSyncing: return "syncing";
+    case SyncState::kSynced: return "synced";
+    case SyncState::kLostSync: return "lost_sync";
+    case SyncState::kStalled: return "stalled";
+  }
+  return "unknown";
+}
+
+CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& params)
+    : wheel_(wheel), params_(params) {
+  const int t = wheel.teeth();
+  if (t < 2 || t > kMaxTeeth) {
+    error_ = "wheel: tooth count " + std::to_string(t) + " outside 2.." + std::to_string(kMaxTeeth);
+    return;
+  }
+  teeth_ = t;
+  if (wheel.tooth_count > 0) {
+    for (int i = 0; i < t; ++i) {
+      const double a = wheel.tooth_angles_deg[static_cast<std::size_t>(i)];
+      if (!(a >= 0.0 && a < 360.0) || (i > 0 && !(a > wheel.tooth_angles_deg[static_cast<std::size_t>(i - 1)]))) {
+        error_ = "wheel: tooth_angles_deg must be strictly increasing in [0, 360); entry " + std::to_string(i) +
+                 " is " + std::to_string(a);
+        return;
+      }
+      angle_[static_cast<std::size_t>(i)] = a * kDegToRad;
+    }
+  } else {
+    if (wheel.positions < 2 || wheel.missing < 1 || wheel.missing >= wheel.positions) {
+      error_ = "wheel: need positions >= 2 and 1 <= missing < positions (a gap is required for sync)";
+      return;
+    }
+    for (int i = 0; i < t; ++i) angle_[static_cast<std::size_t>(i)] = kTwoPi * i / wheel.positions;
+  }
+  pitch_rad_ = kTwoPi;
+  for (int i = 0; i < t; ++i) {
+    const double prev = i == 0 ? angle_[static_cast<std::size_t>(t - 1)] - kTwoPi : angle_[static_cast<std::size_t>(i - 1)];
+    width_[static_cast<std::size_t>(i)] = angle_[static_cast<std::size_t>(i)] - prev;
+    pitch_rad_ = std::min(pitch_rad_, width_[static_cast<std::size_t>(i)]);
+  }
+  // A gap is a period clearly longer than the pitch (1.5x: halfway between one and two pitches).
+  min_gap_ratio_ = 1e9;
+  for (int i = 0; i < t; ++i) {
+    const double ratio = width_[static_cast<std::size_t>(i)] / pitch_rad_;
+    if (ratio > 1.5) {
+      if (num_gaps_ == kMaxGaps) {
+        error_ = "wheel: more than " + std::to_string(kMaxGaps) + " gaps";
+        return;
+      }
+      gap_tooth_[static_cast<std::size_t>(num_gaps_++)] = i;
+      min_gap_ratio_ = std::min(min_gap_ratio_, ratio);
+    }
+  }
+  if (num_gaps_ == 0) {
+    error_ = "wheel: no gap (missing tooth) to sync on";
+    return;
+  }
+  for (int j = 0; j < num_gaps_; ++j) {
+    const int prev = gap_tooth_[static_cast<std::size_t>((j + num_gaps_ - 1) % num_gaps_)];
+    const int d = (gap_tooth_[static_cast<std::size_t>(j)] - prev + t) % t;
+    gap_count_[static_cast<std::size_t>(j)] = d == 0 ? t : d;
+  }
+  if (params.gap_ratio_min * min_gap_ratio_ <= 1.05) {
+    error_ = "decoder: gap_ratio_min x smallest gap ratio must exceed 1.05 to tell a gap from a tooth";
+    return;
+  }
+  // Smallest history of gap-to-gap tooth counts that identifies the gap uniquely (plausibility + position).
+  history_needed_ = 0;
+  for (int len = 1; len <= num_gaps_ && history_needed_ == 0; ++len) {
+    bool unique = true;
+    for (int a = 0; a < num_gaps_ && unique; ++a) {
+      for (int b = a + 1; b < num_gaps_ && unique; ++b) {
+        bool same = true;
+        for (int k = 0; k < len && same; ++k) {
+          same = gap_count_[static_cast<std::size_t>((a - k + 2 * num_gaps_) % num_gaps_)] ==
+                 gap_count_[static_cast<std::size_t>((b - k + 2 * num_gaps_) % num_gaps_)];
+        }
+        if (same) unique = false;
+      }
+    }
+    if (unique) history_needed_ = len;
+  }
+  if (history_needed_ == 0) {
+    error_ = "wheel: gap pattern is rotationally symmetric; the position cannot be identified";
+    return;
+  }
+}
+
+bool CrankDecoder::set_tooth_corrections(std::span<const double> rad) noexcept {
+  const auto t = static_cast<std::size_t>(teeth_);
+  if (t == 0 || (rad.size() != t && rad.size() != 2 * t)) return false;
+  for (const double v : rad) {
+    if (!std::isfinite(v) || std::abs(v) > 0.5 * pitch_rad_) return false;
+  }
+  for (std::size_t i = 0; i < 2 * t; ++i) corr_[i] = rad[i % rad.size()];
+  return true;
+}
+
+void CrankDecoder::clear_tooth_corrections() noexcept { corr_.fill(0.0); }
+
+void CrankDecoder::reset() noexcept {
+  state_ = SyncState::kNoSignal;
+  phase_known_ = false;
+  rev_ = 0;
+  tooth_ = 0;
+  have_edge_ = false;
+  period_ns_ = 0;
+  ref_period_ns_ = 0;
+  since_gap_ = -1;
+  hist_len_ = 0;
+  lost_this_rev_ = 0;
+  pending_flags_ = 0;
+}
+
+bool CrankDecoder::on_edge(const EdgeEvent& edge, ToothEvent& out) noexcept {
+  ++stats_.edges;
+  if (teeth_ == 0) return false;
+  if (edge.channel == params_.crank_channel) {
+    if ((edge.level != 0) != wheel_.rising_edge) return false;
+    ++stats_.crank_edges;
+    return on_crank(edge.t_ns, out);
+  }
+  if (edge.channel == params_.cam_channel && (edge.level != 0) == params_.cam_rising) {
+    ++stats_.cam_edges;
+    if (params_.use_cam) on_cam(edge.t_ns);
+  }
+  return false;
+}
+
+bool CrankDecoder::poll(std::int64_t now_ns) noexcept {
+  if (!have_edge_ || state_ == SyncState::kStalled || state_ == SyncState::kNoSignal) return false;
+  if (now_ns - last_t_ns_ <= params_.stall_timeout_ns) return false;
+  ++stats_.stalls;
+  state_ = SyncState::kStalled;
+  phase_known_ = false;
+  since_gap_ = -1;
+  hist_len_ = 0;
+  ref_period_ns_ = 0;
+  period_ns_ = 0;
+  return true;
+}
+
+bool CrankDecoder::on_crank(std::int64_t t_ns, ToothEvent& out) noexcept {
+  if (!have_edge_) {
+    have_edge_ = true;
+    last_t_ns_ = t_ns;
+    state_ = SyncState::kSyncing;
+    return false;  // one edge is no period yet
+  }
+  const std::int64_t period = t_ns - last_t_ns_;
+  if (period <= 0) {  // duplicate or backwards timestamp: cannot be a tooth
+    ++stats_.noise_edges;
+    pending_flags_ |= kToothNoiseRejected;
+    return false;
+  }
+  if (period > params_.stall_timeout_ns) {
+    // Engine stopped (or signal lost) and restarted: begin a new sync from this edge.
+    if (state_ != SyncState::kStalled) ++stats_.stalls;
+    state_ = SyncState::kSyncing;
+    phase_known_ = false;
+    since_gap_ = -1;
+    hist_len_ = 0;
+    ref_period_ns_ = 0;
+    ref_provisional_ = false;
+    period_ns_ = 0;
+    last_t_ns_ = t_ns;
+    out = ToothEvent{};
+    out.t_ns = out.source_t_ns = t_ns;
+    out.tooth = -1;
+    out.sync = SyncState::kStalled;
+    out.events = pending_flags_;
+    pending_flags_ = 0;
+    ++stats_.teeth;
+    return true;
+  }
+  if (state_ == SyncState::kStalled) state_ = SyncState::kSyncing;
+  return state_ == SyncState::kSynced ? synced_step(t_ns, period, out) : syncing_step(t_ns, period, out);
+}
+
+bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEvent& out) noexcept {
+  state_ = SyncState::kSyncing;
+  bool normal = false;
+  if (ref_period_ns_ == 0) {
+    // First period after (re)start: it may itself be a gap, so it is only a provisional reference.
+    ref_period_ns_ = period;
+    ref_provisional_ = true;
+    since_gap_ = -1;
+  } else {
+    const double r = static_cast<double>(period) / static_cast<double>(ref_period_ns_);
+    const bool provisional = ref_provisional_;
+    ref_provisional_ = false;
+    if (provisional && r < 1.0 / (params_.gap_ratio_min * min_gap_ratio_)) {
+      // The provisional reference was a gap: count it, and this (shorter) period is the reference.
+      ++stats_.gaps;
+      ref_period_ns_ = period;
+      since_gap_ = 0;
+      normal = true;
+    } else if (r < params_.runt_fraction) {
+      ++stats_.noise_edges;
+      pending_flags_ |= kToothNoiseRejected;
+      return false;
+    } else if (r >= params_.gap_ratio_min * min_gap_ratio_) {
+      if (r > params_.gap_ratio_max * (width_[static_cast<std::size_t>(gap_tooth_[0])] / pitch_rad_) * 4.0) {
+        // Far too slow for any gap: speed collapsed; start over with this period as reference.
+        since_gap_ = -1;
+        hist_len_ = 0;
+        ref_period_ns_ = period;
+      } else {
+        ++stats_.gaps;
+        if (since_gap_ >= 0) {
+          if (hist_len_ == kMaxGaps) {
+            std::copy(hist_.begin() + 1, hist_.end(), hist_.begin());
+            --hist_len_;
+          }
+          hist_[static_cast<std::size_t>(hist_len_++)] = since_gap_ + 1;
+        }
+        since_gap_ = 0;
+        // Plausibility: the recent gap-to-gap tooth counts must match exactly one position of the wheel,
+        // and this gap's size must fit that gap's nominal ratio.
+        if (hist_len_ >= history_needed_) {
+          int match = -1, matches = 0;
+          for (int j = 0; j < num_gaps_; ++j) {
+            bool ok = true;
+            for (int k = 0; k < history_needed_ && ok; ++k) {
+              ok = hist_[static_cast<std::size_t>(hist_len_ - 1 - k)] ==
+                   gap_count_[static_cast<std::size_t>((j - k + 2 * num_gaps_) % num_gaps_)];
+            }
+            const double nominal = width_[static_cast<std::size_t>(gap_tooth_[static_cast<std::size_t>(j)])] / pitch_rad_;
+            ok = ok && r >= params_.gap_ratio_min * nominal && r <= params_.gap_ratio_max * nominal;
+            if (ok) {
+              match = j;
+              ++matches;
+            }
+          }
+          if (matches == 1) {
+            state_ = SyncState::kSynced;
+            ++stats_.syncs;
+            lost_this_rev_ = 0;
+            tooth_ = gap_tooth_[static_cast<std::size_t>(match)];
+            if (tooth_ == 0) rev_ ^= 1;  // keep rev_ meaning "revolution of tooth_"; phase from the cam anyway
+            period_ns_ = period;
+            const double w = width_[static_cast<std::size_t>(tooth_)];
+            last_width_rad_ = w;
+            last_t_ns_ = t_ns;
+            pending_flags_ |= kToothGap | (stats_.syncs > 1 ? kToothResynced : 0u);
+            emit(t_ns, rev_ * teeth_ + tooth_, w, period, out);
+            return true;
+          }
+        }
+      }
+    } else {
+      normal = true;
+      ref_period_ns_ = period;
+    }
+  }
+  if (normal && since_gap_ >= 0) {
+    ++since_gap_;
+    int max_count = 0;
+    for (int j = 0; j < num_gaps_; ++j) max_count = std::max(max_count, gap_count_[static_cast<std::size_t>(j)]);
+    if (since_gap_ > max_count + 1) {  // no gap where one had to be: the last candidate was not a gap
+      since_gap_ = -1;
+      hist_len_ = 0;
+    }
+  }
+  period_ns_ = period;
+  last_t_ns_ = t_ns;
+  out = ToothEvent{};
+  out.t_ns = out.source_t_ns = t_ns;
+  out.tooth = -1;
+  out.width_rad = normal ? pitch_rad_ : 0.0;
+  out.speed_rad_s = normal ? pitch_rad_ / (static_cast<double>(period) * 1e-9) : 0.0;
+  out.sync = SyncState::kSyncing;
+  out.events = pending_flags_;
+  pending_flags_ = 0;
+  ++stats_.teeth;
+  return true;
+}
+
+bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEvent& out) noexcept {
+  int i = next_tooth(tooth_);
+  double w = width_[static_cast<std::size_t>(i)];
+  // Expected period from the last one, scaled by the true widths (constant speed over one tooth).
+  const double expected = static_cast<double>(period_ns_) * (w / last_width_rad_);
+  const double q = static_cast<double>(period) / expected;
+  if (q < params_.runt_fraction) {
+    ++stats_.noise_edges;
+    pending_flags_ |= kToothNoiseRejected;
+    return false;
+  }
+  int advance = 1;
+  const bool gap_tooth = w > 1.5 * pitch_rad_;
+  const int i2 = next_tooth(i);
+  const double q_lost = (w + width_[static_cast<std::size_t>(i2)]) / w;  // q if tooth i was not seen
+  const bool lost_possible = q_lost >= params_.lost_tooth_min_ratio && q > std::sqrt(q_lost) &&
+                             q >= q_lost * params_.sync_ratio_min && q <= q_lost * params_.sync_ratio_max;
+  if (lost_possible) {
+    ++lost_this_rev_;
+    ++stats_.lost_teeth;
+    if (lost_this_rev_ > params_.max_lost_teeth_per_rev) {
+      lose_sync(SyncLossReason::kTooManyLostTeeth, t_ns);
+    } else {
+      pending_flags_ |= kToothLostRecovered;
+      advance = 2;
+      w += width_[static_cast<std::size_t>(i2)];
+      i = i2;
+    }
+  } else if (q < params_.sync_ratio_min) {
+    lose_sync(gap_tooth ? SyncLossReason::kGapMissing : SyncLossReason::kPeriodTooShort, t_ns);
+  } else if (q > params_.sync_ratio_max) {
+    lose_sync(SyncLossReason::kUnexpectedGap, t_ns);
+  }
+  if (state_ != SyncState::kSynced) {
+    // Report the failing edge; the decoder restarts syncing from here (this period becomes the reference).
+    ref_period_ns_ = period;
+    ref_provisional_ = true;
+    period_ns_ = period;
+    last_t_ns_ = t_ns;
+    out = ToothEvent{};
+    out.t_ns = out.source_t_ns = t_ns;
+    out.tooth = -1;
+    out.sync = SyncState::kLostSync;
+    out.events = pending_flags_;
+    pending_flags_ = 0;
+    ++stats_.teeth;
+    return true;
+  }
+  // Crossing tooth 0 starts the other revolution of the 720° cycle.
+  for (int k = 0, j = tooth_; k < advance; ++k) {
+    j = next_tooth(j);
+    if (j == 0) {
+      rev_ ^= 1;
+      lost_this_rev_ = advance > 1 ? 1 : 0;
+    }
+  }
+  if (gap_tooth || (advance > 1 && width_[static_cast<std::size_t>(i)] > 1.5 * pitch_rad_)) {
+    pending_flags_ |= kToothGap;
+    ++stats_.gaps;
+  }
+  tooth_ = i;
+  period_ns_ = period;
+  last_width_rad_ = w;
+  last_t_ns_ = t_ns;
+  const int idx = rev_ * teeth_ + i;
+  const int prev = (idx - advance + 2 * teeth_) % (2 * teeth_);
+  ++stats_.synced_teeth;
+  emit(t_ns, idx, w + corr_[static_cast<std::size_t>(idx)] - corr_[static_cast<std::size_t>(prev)], period, out);
+  return true;
+}
+
+void CrankDecoder::lose_sync(SyncLossReason reason, std::int64_t t_ns) noexcept {
+  ++stats_.sync_losses;
+  stats_.last_loss_reason = reason;
+  stats_.last_loss_t_ns = t_ns;
+  state_ = SyncState::kLostSync;
+  phase_known_ = false;
+  since_gap_ = -1;
+  hist_len_ = 0;
+}
+
+void CrankDecoder::emit(std::int64_t t_ns, int tooth, double width_rad, std::int64_t period_ns,
+                        ToothEvent& out) noexcept {
+  out.t_ns = t_ns;
+  out.source_t_ns = t_ns;
+  out.tooth = tooth;
+  const int in_rev = tooth % teeth_;
+  out.angle_rad = angle_[static_cast<std::size_t>(in_rev)] + (tooth >= teeth_ ? kTwoPi : 0.0) +
+                  corr_[static_cast<std::size_t>(tooth)];
+  out.width_rad = width_rad;
+  out.speed_rad_s = width_rad / (static_cast<double>(period_ns) * 1e-9);
+  out.sync = SyncState::kSynced;
+  out.phase_known = phase_known_;
+  out.events = pending_flags_;
+  pending_flags_ = 0;
+  ++stats_.teeth;
+}
+
+void CrankDecoder::on_cam(std::int64_t t_ns) noexcept {
+  if (state_ != SyncState::kSynced || period_ns_ <= 0) return;
+  // Crank angle of the cam edge within the revolution: last tooth + elapsed time at the last tooth's speed,
+  // capped at the next tooth (the cam edge cannot be past a tooth we have not seen yet).
+  const int next = next_tooth(tooth_);
+  const double w_next = width_[static_cast<std::size_t>(next)];
+  const double dt = static_cast<double>(t_ns - last_t_ns_);
+  const double advance = std::min(dt * (last_width_rad_ / static_cast<double>(period_ns_)), w_next);
+  const double a_deg = (angle_[static_cast<std::size_t>(tooth_)] + advance) / kDegToRad;
+  const bool in_this = in_window_deg(a_deg + 360.0 * rev_, params_.cam_window_start_deg, params_.cam_window_end_deg);
+  const bool in_other =
+      in_window_deg(a_deg + 360.0 * (rev_ ^ 1), params_.cam_window_start_deg, params_.cam_window_end_deg);
+  if (in_this && (!in_other || phase_known_)) {
+    phase_known_ = true;
+    return;
+  }
+  if (in_other && !in_this) {
+    if (phase_known_) {
+      ++stats_.cam_phase_errors;  // phase flipped: trust the cam, flag the next tooth
+      stats_.last_loss_reason = SyncLossReason::kCamPhase;
+      stats_.last_loss_t_ns = t_ns;
+      pending_flags_ |= kToothResynced;
+    }
+    rev_ ^= 1;
+    phase_known_ = true;
+    return;
+  }
+  ++stats_.cam_phase_errors;  // outside the window in both revolutions (or window covers both: ambiguous)
+}
+
+}  // namespace torqued

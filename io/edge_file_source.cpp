@@ -1,0 +1,217 @@
+#include "edge_file_source.hpp"
+
+#include <cctype>
+
+#include "fast_parse.hpp"
+
+namespace torqued {
+namespace {
+constexpr std::size_t kMaxMessages = 20;
+
+bool iequals(std::string_view a, std::string_view b) noexcept {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (std::tolower(static_cast<unsigned char>(a[i])) != std::tolower(static_cast<unsigned char>(b[i]))) return false;
+  }
+  return true;
+}
+
+bool is_comment_or_blank(std::string_view line) noexcept {
+  const auto t = parse::trim(line);
+  return t.empty() || t.front() == ';' || t.front() == '#';
+}
+
+void note(std::vector<std::string>& messages, std::string& error, const std::string& path, std::uint64_t line,
+          const char* what) {
+  if (messages.size() >= kMaxMessages) return;
+  messages.push_back(path + ":" + std::to_string(line) + ": " + what);
+  error = messages.back();
+}
+}  // namespace
+
+EdgeCsvSource::EdgeCsvSource(std::string path, EdgeCsvOptions options)
+    : path_(std::move(path)), opt_(std::move(options)) {
+  messages_.reserve(kMaxMessages);
+  if (!reader_.open(path_)) {
+    error_ = reader_.error();
+    return;
+  }
+  std::string_view line;
+  while (reader_.next(line) && is_comment_or_blank(line)) {
+  }
+  if (reader_.line_number() == 0 || is_comment_or_blank(line)) {
+    error_ = path_ + ": empty file, expected a header row 'Time [s]," + opt_.crank_column + ",...'";
+    return;
+  }
+  // Header: first column is time (unit in brackets optional), then channel names.
+  int col = 0;
+  std::size_t start = 0;
+  std::string names;
+  while (start <= line.size()) {
+    std::size_t comma = line.find(',', start);
+    if (comma == std::string_view::npos) comma = line.size();
+    const auto name = parse::trim(line.substr(start, comma - start));
+    if (col == 0) {
+      if (name.find("[ms]") != std::string_view::npos) time_scale_div_ = 1000;
+      else if (name.find("[us]") != std::string_view::npos || name.find("[µs]") != std::string_view::npos) time_scale_div_ = 1'000'000;
+      else if (name.find("[ns]") != std::string_view::npos) time_scale_div_ = 1'000'000'000;
+    } else {
+      if (iequals(name, opt_.crank_column)) crank_col_ = col;
+      if (!opt_.cam_column.empty() && iequals(name, opt_.cam_column)) cam_col_ = col;
+      names += (names.empty() ? "" : ", ") + std::string(name);
+    }
+    ++col;
+    start = comma + 1;
+  }
+  columns_ = col;
+  if (crank_col_ < 0) {
+    error_ = path_ + ":" + std::to_string(reader_.line_number()) + ": no crank column named '" + opt_.crank_column +
+             "' in the header (found: " + names + ")";
+    return;
+  }
+  if (!opt_.cam_column.empty() && cam_col_ < 0) {
+    error_ = path_ + ":" + std::to_string(reader_.line_number()) + ": no cam column named '" + opt_.cam_column +
+             "' in the header (found: " + names + "); set the cam channel name to empty if there is none";
+    return;
+  }
+  ok_ = true;
+}
+
+std::string EdgeCsvSource::describe() const {
+  return "edge-csv " + path_ + " (crank=" + opt_.crank_column + ", cam=" + (opt_.cam_column.empty() ? "-" : opt_.cam_column) + ")";
+}
+
+void EdgeCsvSource::bad_line(const char* what) noexcept {
+  ++stats_.bad_lines;
+  try {
+    note(messages_, error_, path_, reader_.line_number(), what);
+  } catch (...) {  // out of memory while formatting a message: the count is what matters
+  }
+}
+
+SourceStatus EdgeCsvSource::next(EdgeEvent& out) noexcept {
+  if (!ok_) return SourceStatus::kError;
+  for (;;) {
+    if (pending_i_ < pending_n_) {
+      out = pending_[static_cast<std::size_t>(pending_i_++)];
+      ++stats_.records;
+      return SourceStatus::kOk;
+    }
+    pending_i_ = pending_n_ = 0;
+    std::string_view line;
+    if (!reader_.next(line)) {
+      stats_.bytes = reader_.bytes();
+      stats_.lines = reader_.line_number();
+      if (!reader_.error().empty()) {
+        error_ = path_ + ": read error: " + reader_.error();
+        return SourceStatus::kError;
+      }
+      return SourceStatus::kEnd;
+    }
+    stats_.bytes = reader_.bytes();
+    stats_.lines = reader_.line_number();
+    if (line.empty() || line.front() == ';' || line.front() == '#') continue;
+    const char* p = line.data();
+    const char* end = p + line.size();
+    parse::skip_ws(p, end);
+    std::int64_t t = 0;
+    if (!parse::seconds_to_ns(p, end, t)) {
+      bad_line("expected a time in seconds in the first column");
+      continue;
+    }
+    t = t / time_scale_div_ + opt_.time_offset_ns;
+    // Levels: only the configured columns are looked at.
+    int col = 1;
+    int crank = -1, cam = -1;
+    bool bad = false;
+    while (p < end) {
+      parse::skip_ws(p, end);
+      if (p == end || *p != ',') {
+        bad = true;
+        break;
+      }
+      ++p;
+      parse::skip_ws(p, end);
+      if (col == crank_col_ || col == cam_col_) {
+        if (p == end || (*p != '0' && *p != '1')) {
+          bad = true;
+          break;
+        }
+        (col == crank_col_ ? crank : cam) = *p - '0';
+        ++p;
+      } else {
+        while (p < end && *p != ',') ++p;
+      }
+      parse::skip_ws(p, end);
+      ++col;
+    }
+    if (bad || crank < 0 || (cam_col_ >= 0 && cam < 0)) {
+      bad_line("expected '<time>,<level 0|1>,...' with the header's columns");
+      continue;
+    }
+    if (!initial_ && t < last_t_ns_) {
+      bad_line("time goes backwards");
+      continue;
+    }
+    last_t_ns_ = t;
+    if (initial_) {  // first row: levels at capture start, not edges
+      initial_ = false;
+      level_[0] = static_cast<std::uint8_t>(crank);
+      level_[1] = static_cast<std::uint8_t>(cam < 0 ? 0 : cam);
+      continue;
+    }
+    if (crank != level_[0]) {
+      level_[0] = static_cast<std::uint8_t>(crank);
+      pending_[static_cast<std::size_t>(pending_n_++)] = EdgeEvent{t, opt_.crank_channel, level_[0]};
+    }
+    if (cam >= 0 && cam != level_[1]) {
+      level_[1] = static_cast<std::uint8_t>(cam);
+      pending_[static_cast<std::size_t>(pending_n_++)] = EdgeEvent{t, opt_.cam_channel, level_[1]};
+    }
+  }
+}
+
+EdgeListSource::EdgeListSource(std::string path, EdgeListOptions options) : path_(std::move(path)), opt_(options) {
+  messages_.reserve(kMaxMessages);
+  ok_ = reader_.open(path_);
+  if (!ok_) error_ = reader_.error();
+}
+
+std::string EdgeListSource::describe() const { return "edge-list " + path_; }
+
+SourceStatus EdgeListSource::next(EdgeEvent& out) noexcept {
+  if (!ok_) return SourceStatus::kError;
+  std::string_view line;
+  while (reader_.next(line)) {
+    stats_.bytes = reader_.bytes();
+    stats_.lines = reader_.line_number();
+    const char* p = line.data();
+    const char* end = p + line.size();
+    parse::skip_ws(p, end);
+    if (p == end || *p == '#' || *p == ';') continue;
+    std::int64_t t = 0;
+    const bool ok = parse::seconds_to_ns(p, end, t);
+    parse::skip_ws(p, end);
+    if (!ok || (p != end && *p != ',')) {
+      // A header line ("time") at the top is allowed.
+      if (reader_.line_number() == 1 && !ok) continue;
+      ++stats_.bad_lines;
+      try {
+        note(messages_, error_, path_, reader_.line_number(), "expected one edge time in seconds per line");
+      } catch (...) {
+      }
+      continue;
+    }
+    out = EdgeEvent{t + opt_.time_offset_ns, opt_.channel, opt_.level};
+    ++stats_.records;
+    return SourceStatus::kOk;
+  }
+  stats_.bytes = reader_.bytes();
+  if (!reader_.error().empty()) {
+    error_ = path_ + ": read error: " + reader_.error();
+    return SourceStatus::kError;
+  }
+  return SourceStatus::kEnd;
+}
+
+}  // namespace torqued

@@ -1,0 +1,104 @@
+#include "line_reader.hpp"
+
+#include <cerrno>
+#include <cstring>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+namespace torqued {
+
+LineReader::~LineReader() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+bool LineReader::open(const std::string& path, std::size_t buffer_bytes) {
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd_ < 0) {
+    error_ = path + ": " + std::strerror(errno);
+    return false;
+  }
+  struct stat st {};
+  if (::fstat(fd_, &st) == 0 && S_ISREG(st.st_mode)) {
+    size_ = static_cast<std::int64_t>(st.st_size);
+    // Sequential read-ahead: we stream large captures once.
+    (void)::posix_fadvise(fd_, 0, 0, POSIX_FADV_SEQUENTIAL);
+  }
+  cap_ = buffer_bytes < 4096 ? 4096 : buffer_bytes;
+  buf_ = std::make_unique<char[]>(cap_);
+  begin_ = end_ = 0;
+  eof_ = truncated_ = false;
+  line_no_ = bytes_ = 0;
+  error_.clear();
+  return true;
+}
+
+bool LineReader::refill() noexcept {
+  if (eof_ || fd_ < 0) return false;
+  if (begin_ > 0) {  // keep the partial line at the front
+    std::memmove(buf_.get(), buf_.get() + begin_, end_ - begin_);
+    end_ -= begin_;
+    begin_ = 0;
+  }
+  if (end_ == cap_) return false;  // a line longer than the buffer
+  for (;;) {
+    const ssize_t n = ::read(fd_, buf_.get() + end_, cap_ - end_);
+    if (n > 0) {
+      end_ += static_cast<std::size_t>(n);
+      return true;
+    }
+    if (n == 0) {
+      eof_ = true;
+      return false;
+    }
+    if (errno == EINTR) continue;
+    error_ = std::strerror(errno);
+    eof_ = true;
+    return false;
+  }
+}
+
+bool LineReader::next(std::string_view& line) noexcept {
+  truncated_ = false;
+  std::size_t scan = begin_;
+  for (;;) {
+    const void* nl = scan < end_ ? std::memchr(buf_.get() + scan, '\n', end_ - scan) : nullptr;
+    if (nl != nullptr) {
+      const std::size_t pos = static_cast<std::size_t>(static_cast<const char*>(nl) - buf_.get());
+      std::size_t len = pos - begin_;
+      bytes_ += len + 1;
+      if (len > 0 && buf_[begin_ + len - 1] == '\r') --len;
+      line = std::string_view(buf_.get() + begin_, len);
+      begin_ = pos + 1;
+      ++line_no_;
+      return true;
+    }
+    const std::size_t scanned = end_ - begin_;
+    if (!refill()) {
+      if (end_ > begin_) {  // last line without '\n', or an over-long line
+        truncated_ = (end_ - begin_) == cap_;
+        std::size_t len = end_ - begin_;
+        bytes_ += len;
+        if (buf_[begin_ + len - 1] == '\r') --len;
+        line = std::string_view(buf_.get() + begin_, len);
+        begin_ = end_;
+        ++line_no_;
+        if (truncated_) {  // skip the rest of the over-long line
+          eof_ = false;
+          char c = 0;
+          while (::read(fd_, &c, 1) == 1) {
+            ++bytes_;
+            if (c == '\n') break;
+          }
+          begin_ = end_ = 0;
+        }
+        return true;
+      }
+      return false;
+    }
+    scan = begin_ + scanned;
+  }
+}
+
+}  // namespace torqued
