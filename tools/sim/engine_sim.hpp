@@ -66,7 +66,6 @@ struct CombustionParams {
   double evo_deg = 130.0;           ///< EVO after firing TDC (deg)
   double blowdown_end_deg = 200.0;  ///< end of the exhaust blowdown blend (deg)
   double exhaust_pa = 105000.0;     ///< exhaust back-pressure (Pa)
-  double charge_heating_k = 25.0;   ///< charge temperature at IVC above intake air temperature (K)
 };
 
 /// Air path: throttle orifice + manifold filling (docs/simulator.md §3).
@@ -74,7 +73,7 @@ struct AirPathParams {
   double ambient_pa = 100000.0;     ///< ambient pressure upstream of the throttle (Pa)
   double manifold_volume_m3 = 2.0e-3;
   double throttle_diameter_m = 0.055;
-  double throttle_leak_frac = 0.004;  ///< closed-throttle leakage as fraction of the full area (-)
+  double throttle_leak_frac = 0.0025;  ///< closed-throttle leakage as fraction of the full area (-)
   double idle_kp = 2.0e-3;          ///< idle controller: throttle % per rpm of speed error (%/rpm)
   double idle_ki = 1.0e-2;          ///< idle controller integral gain (%/rpm/s)
 };
@@ -195,6 +194,9 @@ struct SimOutput {
   std::vector<double> tooth_error_rad;   ///< machining error of each physical tooth 0..teeth−1 (rad)
   std::vector<FineSample> trace;         ///< empty unless trace_every_steps > 0
 };
+
+/// Nominal marking-edge angle of each physical tooth within one revolution (rad), tooth 0 = 0 for N−M wheels.
+[[nodiscard]] std::vector<double> nominal_tooth_angles_rad(const WheelGeometry& wheel);
 
 /// Run the scenario. Throws std::invalid_argument on an inconsistent scenario.
 [[nodiscard]] SimOutput simulate(const Scenario& scenario);

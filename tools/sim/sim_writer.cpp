@@ -1,0 +1,150 @@
+#include "sim_writer.hpp"
+
+#include <cinttypes>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <numbers>
+#include <stdexcept>
+
+namespace torqued::sim {
+
+namespace {
+constexpr double kRadToDeg = 180.0 / std::numbers::pi;
+
+void appendf(std::string& s, const char* fmt, auto... args) {
+  char buf[512];
+  const int n = std::snprintf(buf, sizeof buf, fmt, args...);
+  if (n > 0) s.append(buf, static_cast<std::size_t>(std::min(n, static_cast<int>(sizeof buf) - 1)));
+}
+
+/// Non-negative ns as seconds with exactly 9 decimals (integer arithmetic: no rounding differences).
+void append_ns(std::string& s, std::int64_t t_ns) {
+  appendf(s, "%" PRId64 ".%09" PRId64, t_ns / 1000000000, t_ns % 1000000000);
+}
+}  // namespace
+
+std::string edges_csv(const SimOutput& out) {
+  std::string s;
+  s.reserve(out.edges.size() * 20 + 64);
+  s += "Time [s],crank,cam\n";
+  std::array<int, 2> lv{out.initial_levels[0], out.initial_levels[1]};
+  append_ns(s, 0);
+  appendf(s, ",%d,%d\n", lv[0], lv[1]);
+  for (const auto& e : out.edges) {
+    lv[e.channel & 1u] = e.level;
+    append_ns(s, e.t_ns);
+    appendf(s, ",%d,%d\n", lv[0], lv[1]);
+  }
+  return s;
+}
+
+std::string candump_log(const SimOutput& out) {
+  std::string s;
+  s.reserve(out.can.size() * 48);
+  for (const auto& f : out.can) {
+    const std::int64_t us = f.t_ns / 1000;
+    appendf(s, "(%" PRId64 ".%06" PRId64 ") can0 %03X#", kCandumpEpochS + us / 1000000, us % 1000000,
+            static_cast<unsigned>(f.id));
+    for (int i = 0; i < f.len; ++i) appendf(s, "%02X", static_cast<unsigned>(f.data[static_cast<std::size_t>(i)]));
+    s += '\n';
+  }
+  return s;
+}
+
+std::string truth_tooth_csv(const SimOutput& out, const Scenario& sc) {
+  const int n = sc.engine.cylinders;
+  std::string s;
+  s.reserve(out.teeth.size() * 110 + 256);
+  s += "t_s,tooth,angle720_deg,speed_rad_s,t_ind_nm";
+  for (int c = 1; c <= n; ++c) appendf(s, ",t_ind_cyl%d_nm", c);
+  s += ",t_mass_nm,t_fric_nm,t_load_nm,t_brake_nm\n";
+  for (const auto& t : out.teeth) {
+    appendf(s, "%.8f,%d,%.4f,%.4f,%.2f", t.t_s, t.tooth, t.angle720_rad * kRadToDeg, t.speed_rad_s, t.t_ind_nm);
+    for (int c = 0; c < n; ++c) appendf(s, ",%.2f", t.t_ind_cyl_nm[static_cast<std::size_t>(c)]);
+    appendf(s, ",%.2f,%.3f,%.3f,%.2f\n", t.t_mass_nm, t.t_fric_nm, t.t_load_nm, t.t_brake_nm);
+  }
+  return s;
+}
+
+std::string truth_cycle_csv(const SimOutput& out, const Scenario& sc) {
+  const int n = sc.engine.cylinders;
+  std::string s;
+  s += "cycle,t_start_s,t_end_s,speed_mean_rpm,t_ind_mean_nm,t_brake_mean_nm,t_fric_mean_nm,t_load_mean_nm";
+  for (int c = 1; c <= n; ++c) appendf(s, ",cyl%d_ind_mean_nm", c);
+  for (int c = 1; c <= n; ++c) appendf(s, ",misfire%d", c);
+  s += ",fuel_cut,t_mass_mean_nm,map_kpa,oil_temp_c";
+  for (int c = 1; c <= n; ++c) appendf(s, ",cyl%d_imep_bar", c);
+  for (int c = 1; c <= n; ++c) appendf(s, ",cyl%d_peak_bar", c);
+  for (int c = 1; c <= n; ++c) appendf(s, ",cyl%d_fuel_mg", c);
+  s += '\n';
+  for (const auto& y : out.cycles) {
+    appendf(s, "%d,%.9f,%.9f,%.3f,%.4f,%.4f,%.4f,%.4f", y.cycle, y.t_start_s, y.t_end_s,
+            y.speed_mean_rad_s * 30.0 / std::numbers::pi, y.t_ind_mean_nm, y.t_brake_mean_nm, y.t_fric_mean_nm,
+            y.t_load_mean_nm);
+    for (int c = 0; c < n; ++c) appendf(s, ",%.4f", y.cyl_ind_mean_nm[static_cast<std::size_t>(c)]);
+    for (int c = 0; c < n; ++c) appendf(s, ",%d", y.misfire[static_cast<std::size_t>(c)] ? 1 : 0);
+    appendf(s, ",%d,%.4f,%.3f,%.2f", y.fuel_cut ? 1 : 0, y.t_mass_mean_nm, y.map_pa / 1e3, y.oil_temp_c);
+    for (int c = 0; c < n; ++c) appendf(s, ",%.4f", y.cyl_imep_pa[static_cast<std::size_t>(c)] / 1e5);
+    for (int c = 0; c < n; ++c) appendf(s, ",%.3f", y.cyl_peak_pa[static_cast<std::size_t>(c)] / 1e5);
+    for (int c = 0; c < n; ++c) appendf(s, ",%.4f", y.cyl_fuel_kg[static_cast<std::size_t>(c)] * 1e6);
+    s += '\n';
+  }
+  return s;
+}
+
+std::string tooth_errors_csv(const SimOutput& out) {
+  std::string s = "tooth,error_deg\n";
+  for (std::size_t k = 0; k < out.tooth_error_rad.size(); ++k)
+    appendf(s, "%zu,%.6f\n", k, out.tooth_error_rad[k] * kRadToDeg);
+  return s;
+}
+
+std::string engine_yaml(const Scenario& sc) {
+  const auto& e = sc.engine;
+  const auto& w = sc.wheel;
+  std::string s;
+  appendf(s, "# Engine and wheel of torque-sim scenario '%s' (seed %" PRIu64 "); paste into the torqued config.\n",
+          sc.name.c_str(), sc.seed);
+  s += "engine:\n";
+  appendf(s, "  cylinders: %d\n", e.cylinders);
+  s += "  firing_order: [";
+  for (int i = 0; i < e.cylinders; ++i) appendf(s, "%s%d", i ? ", " : "", e.firing_order[static_cast<std::size_t>(i)]);
+  s += "]\n";
+  appendf(s, "  bore_m: %.6g\n  stroke_m: %.6g\n  rod_m: %.6g\n  compression_ratio: %.6g\n", e.bore_m, e.stroke_m,
+          e.rod_m, e.compression_ratio);
+  appendf(s, "  j_rot_kgm2: %.6g\n  m_osc_kg: %.6g\n  tdc_offset_deg: %.6g\n  crankcase_pressure_pa: %.6g\n",
+          e.j_rot_kgm2, e.m_osc_kg, e.tdc_offset_rad * kRadToDeg, e.crankcase_pressure_pa);
+  s += "wheel:\n";
+  if (w.tooth_count > 0) {
+    s += "  tooth_angles_deg: [";
+    for (int k = 0; k < w.tooth_count; ++k) appendf(s, "%s%.6g", k ? ", " : "", w.tooth_angles_deg[static_cast<std::size_t>(k)]);
+    s += "]\n";
+  } else {
+    appendf(s, "  teeth: %d\n  missing: %d\n", w.positions, w.missing);
+  }
+  appendf(s, "  edge: %s\n", w.rising_edge ? "rising" : "falling");
+  s += "  crank_channel: crank\n  cam_channel: cam\n  cam_edge: rising\n";
+  return s;
+}
+
+void write_text_file(const std::filesystem::path& path, const std::string& text) {
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  if (!f) throw std::runtime_error("cannot open '" + path.string() + "' for writing");
+  f.write(text.data(), static_cast<std::streamsize>(text.size()));
+  if (!f) throw std::runtime_error("write to '" + path.string() + "' failed");
+}
+
+void write_outputs(const SimOutput& out, const Scenario& sc, const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw std::runtime_error("cannot create directory '" + dir.string() + "': " + ec.message());
+  write_text_file(dir / "edges.csv", edges_csv(out));
+  write_text_file(dir / "can.log", candump_log(out));
+  write_text_file(dir / "truth_tooth.csv", truth_tooth_csv(out, sc));
+  write_text_file(dir / "truth_cycle.csv", truth_cycle_csv(out, sc));
+  write_text_file(dir / "engine.yaml", engine_yaml(sc));
+  write_text_file(dir / "tooth_errors.csv", tooth_errors_csv(out));
+}
+
+}  // namespace torqued::sim

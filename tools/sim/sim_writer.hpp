@@ -1,0 +1,26 @@
+#pragma once
+// Writes a simulation in the project's input formats (common.md, DESIGN.md "Input formats") and its truth.
+#include <filesystem>
+#include <string>
+
+#include "engine_sim.hpp"
+
+namespace torqued::sim {
+
+/// candump times are 1700000000 s + simulation time (config key inputs.can.time_offset_s = -1700000000).
+inline constexpr std::int64_t kCandumpEpochS = 1700000000;
+
+[[nodiscard]] std::string edges_csv(const SimOutput& out);          ///< "Time [s],crank,cam", 9 decimals
+[[nodiscard]] std::string candump_log(const SimOutput& out);        ///< candump -l lines on can0
+[[nodiscard]] std::string truth_tooth_csv(const SimOutput& out, const Scenario& sc);
+[[nodiscard]] std::string truth_cycle_csv(const SimOutput& out, const Scenario& sc);
+[[nodiscard]] std::string tooth_errors_csv(const SimOutput& out);
+[[nodiscard]] std::string engine_yaml(const Scenario& sc);          ///< engine: and wheel: sections of the config
+
+/// Writes edges.csv, can.log, truth_tooth.csv, truth_cycle.csv, engine.yaml, tooth_errors.csv into `dir`
+/// (created if needed). Throws std::runtime_error naming the file on failure.
+void write_outputs(const SimOutput& out, const Scenario& sc, const std::filesystem::path& dir);
+/// Writes `text` to `path`, throwing std::runtime_error naming the file on failure.
+void write_text_file(const std::filesystem::path& path, const std::string& text);
+
+}  // namespace torqued::sim
