@@ -1,0 +1,169 @@
+#pragma once
+// The validated, immutable description of one installation (issue 2 "Configuration", CONVENTIONS habit 7).
+// Filled only by config_loader.cpp from YAML, every key declared once in config_schema.cpp (type, default,
+// bounds, unit, description). Defaults here are the schema's defaults. Paths are absolute after loading
+// (relative paths in the YAML resolve against the YAML file's directory). Not used on the real-time path:
+// size everything from it before the threads start.
+#include <array>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "crank_decoder.hpp"  // DecoderParams (io/, header only)
+#include "engine_geometry.hpp"
+#include "params.hpp"
+
+namespace torqued {
+
+enum class EdgeBackend : std::uint8_t { kFile, kGpio, kCanEncoder };
+enum class EdgeFormat : std::uint8_t { kCsv, kList };
+enum class CanBackend : std::uint8_t { kFile, kSocketCan };
+enum class SchedPolicy : std::uint8_t { kFifo, kOther };
+enum class Reliability : std::uint8_t { kReliable, kBestEffort };
+enum class ReplayMode : std::uint8_t { kFast, kPaced };
+enum class LogLevel : std::uint8_t { kTrace, kDebug, kInfo, kWarn, kError, kCritical, kOff };
+
+/// Number of CAN quantities of EngineSignals; `CanSignalsConfig::signals` is indexed by torqued::Quantity
+/// (io/signal_store.hpp: map, maf, intake_temp, oil_temp, throttle, lambda, spark_advance, fuel_mass,
+/// fuel_cutoff, load_torque — the YAML keys under can.signals, same order).
+inline constexpr std::size_t kCanQuantityCount = 10;
+/// YAML name of quantity index i under `can.signals` ("map", "maf", ...); "" when out of range.
+[[nodiscard]] std::string_view can_quantity_name(std::size_t i) noexcept;
+
+/// Crank wheel and channel names (names match the header of the edge CSV).
+struct WheelConfig {
+  WheelGeometry geometry;            ///< YAML: teeth (positions), missing, tooth_angles_deg, edge
+  std::string crank_channel = "crank";  ///< edge CSV column of the crank sensor
+  std::string cam_channel = "cam";      ///< edge CSV column of the cam sensor ("" = no cam: 360° only)
+  bool cam_rising_edge = true;          ///< cam edge that marks the phase (YAML cam_edge: rising|falling)
+  /// Decoder tuning (YAML wheel.decoder.*). Its cam_rising / use_cam are set from cam_edge / cam_channel; the
+  /// channel indices are assigned by the backend factory.
+  DecoderParams decoder;
+};
+
+struct EdgeInputConfig {
+  EdgeBackend backend = EdgeBackend::kFile;
+  std::string path;                      ///< edge capture file (backend file), absolute after loading
+  EdgeFormat format = EdgeFormat::kCsv;  ///< csv = logic-analyzer export, list = one edge time per line
+  std::string gpio_chip = "/dev/gpiochip0";  ///< backend gpio
+  int gpio_crank_line = 0;               ///< GPIO line offset of the crank sensor
+  int gpio_cam_line = -1;                ///< GPIO line offset of the cam sensor (-1 = none)
+  std::uint32_t encoder_can_id = 0x300;  ///< backend can_encoder: CAN id of the tooth-timestamp frames
+};
+
+struct CanInputConfig {
+  CanBackend backend = CanBackend::kFile;
+  std::string path;                  ///< candump -l log (backend file), absolute after loading
+  std::string interface = "can0";    ///< SocketCAN interface (backend socketcan)
+  bool fd = false;                   ///< enable CAN FD frames
+  double time_offset_s = 0.0;        ///< added to CAN timestamps to put them on the edge clock (s)
+};
+
+struct InputsConfig {
+  EdgeInputConfig edges;
+  CanInputConfig can;
+};
+
+/// Where a quantity comes from: DBC message + signal. Empty message = not mapped (estimators see it invalid).
+struct SignalMapping {
+  std::string message;   ///< DBC message name (BO_)
+  std::string signal;    ///< DBC signal name (SG_); its DBC unit is converted to SI by the signal store
+  int timeout_ms = 100;  ///< older than this = invalid (ms)
+  [[nodiscard]] bool mapped() const noexcept { return !message.empty(); }
+};
+
+struct CanSignalsConfig {
+  std::string dbc;  ///< DBC file, absolute after loading ("" = none)
+  std::array<SignalMapping, kCanQuantityCount> signals{};  ///< indexed by static_cast<size_t>(Quantity)
+};
+
+template <class Params>
+struct EstimatorToggle {
+  bool enabled = true;
+  Params params{};
+};
+
+/// The enabled flags of uio/sliding_mode/dirty_diff/adaptive are mirrored into time_pipeline.{uio,...}.
+struct EstimatorsConfig {
+  TimePipelineParams time_pipeline;  ///< time-triggered pipeline step (Na estimators run on it)
+  PreprocessParams preprocess;       ///< per-tooth speed/acceleration pre-processing (angle estimators)
+  FusionParams fusion;               ///< fused best brake torque
+  EstimatorToggle<UioParams> uio;
+  EstimatorToggle<SlidingModeParams> sliding_mode;
+  EstimatorToggle<DirtyDiffParams> dirty_diff;
+  EstimatorToggle<AdaptiveParams> adaptive;
+  EstimatorToggle<KalmanParams> kalman;
+  EstimatorToggle<FourierParams> fourier;
+  EstimatorToggle<EnergiesParams> energies;
+  EstimatorToggle<FrictionParams> friction;
+  EstimatorToggle<CylinderParams> cylinder;
+  EstimatorToggle<ToothLearnParams> tooth_learn;
+};
+
+/// QoS of one DDS topic (defined in one place; the daemon maps it onto dds_qos_t).
+struct TopicQos {
+  Reliability reliability = Reliability::kReliable;
+  int history_depth = 8;   ///< KEEP_LAST depth
+  int deadline_ms = 0;     ///< 0 = no deadline
+  int lease_ms = 0;        ///< liveliness (automatic) lease, 0 = infinite
+};
+
+struct DdsConfig {
+  int domain_id = 0;
+  std::string topic_prefix = "torque";  ///< topic names are <prefix>/<Type>, e.g. torque/EngineTorque
+  int engine_id = 1;                    ///< @key of every sample (uint16 on the wire)
+  // Defaults equal idl/qos.hpp DdsSettings::default_qos().
+  TopicQos engine_torque{Reliability::kReliable, 64, 1000, 1000};
+  TopicQos estimator_torque{Reliability::kReliable, 64, 1000, 1000};
+  TopicQos cylinder_torque{Reliability::kReliable, 16, 1000, 1000};
+  TopicQos crank_state{Reliability::kBestEffort, 1, 1000, 1000};
+  TopicQos status{Reliability::kReliable, 4, 3000, 1000};
+};
+
+/// Scheduling of one daemon thread.
+struct ThreadConfig {
+  SchedPolicy policy = SchedPolicy::kFifo;
+  int priority = 50;          ///< SCHED_FIFO priority 1..99 (ignored for policy other)
+  std::vector<int> cpus;      ///< CPU affinity list (empty = any CPU)
+};
+
+struct RealtimeConfig {
+  ThreadConfig angle{SchedPolicy::kFifo, 80, {}};
+  ThreadConfig time{SchedPolicy::kFifo, 70, {}};
+  ThreadConfig source{SchedPolicy::kFifo, 85, {}};
+  ThreadConfig publisher{SchedPolicy::kOther, 0, {}};
+  bool lock_memory = true;   ///< mlockall(MCL_CURRENT|MCL_FUTURE) before the threads start
+  bool require_rt = false;   ///< refuse to start when SCHED_FIFO / mlockall are not permitted (else warn)
+};
+
+struct OutputConfig {
+  std::string record_dir;   ///< write estimate CSVs here ("" = no recording), absolute after loading
+  std::string state_dir = "/var/lib/torqued";  ///< learned state (friction, tooth corrections)
+};
+
+struct ReplayConfig {
+  ReplayMode mode = ReplayMode::kFast;
+  double speed = 1.0;       ///< paced replay speed factor (2 = twice real time)
+};
+
+struct LoggingConfig {
+  LogLevel level = LogLevel::kInfo;
+};
+
+/// The whole installation. Build it with load_config() (config_loader.hpp); treat it as const afterwards.
+struct Config {
+  std::string source_file;  ///< absolute path of the YAML it came from ("" = built-in defaults)
+  EngineGeometry engine;    ///< YAML tdc_offset_deg is stored as tdc_offset_rad
+  WheelConfig wheel;
+  InputsConfig inputs;
+  CanSignalsConfig can;
+  EstimatorsConfig estimators;
+  DdsConfig dds;
+  RealtimeConfig realtime;
+  OutputConfig output;
+  ReplayConfig replay;
+  LoggingConfig logging;
+};
+
+}  // namespace torqued

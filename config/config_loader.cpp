@@ -1,0 +1,471 @@
+// YAML → Config against the schema table (config_schema.cpp). Collects every error with file:line:col.
+#include "config_loader.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <charconv>
+#include <cstring>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <set>
+#include <sstream>
+#include <unordered_map>
+
+#include <yaml-cpp/yaml.h>
+
+#include "config_schema.hpp"
+
+namespace torqued {
+namespace {
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
+}
+
+std::size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> prev(b.size() + 1), cur(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) prev[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    cur[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j)
+      cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+    std::swap(prev, cur);
+  }
+  return prev[b.size()];
+}
+
+/// Strict number parsing: the whole scalar must be a number. YAML's .nan/.inf spellings parse to non-finite
+/// values so that the caller reports them as "not finite" rather than "not a number".
+bool parse_double(const std::string& s, double& out) {
+  const std::string l = lower(s);
+  if (l == ".nan" || l == "nan") { out = std::numeric_limits<double>::quiet_NaN(); return true; }
+  if (l == ".inf" || l == "+.inf" || l == "inf") { out = std::numeric_limits<double>::infinity(); return true; }
+  if (l == "-.inf" || l == "-inf") { out = -std::numeric_limits<double>::infinity(); return true; }
+  if (s.empty()) return false;
+  const char* b = s.data();
+  if (*b == '+') ++b;
+  auto [p, ec] = std::from_chars(b, s.data() + s.size(), out);
+  return ec == std::errc{} && p == s.data() + s.size();
+}
+
+bool parse_int(const std::string& s, std::int64_t& out) {
+  if (s.empty()) return false;
+  std::size_t k = 0;
+  bool neg = false;
+  if (s[0] == '+' || s[0] == '-') { neg = s[0] == '-'; k = 1; }
+  int base = 10;
+  if (s.size() > k + 2 && s[k] == '0' && (s[k + 1] == 'x' || s[k + 1] == 'X')) { base = 16; k += 2; }
+  std::uint64_t u = 0;
+  auto [p, ec] = std::from_chars(s.data() + k, s.data() + s.size(), u, base);
+  if (ec != std::errc{} || p != s.data() + s.size() || k == s.size()) return false;
+  if (u > static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())) return false;
+  out = neg ? -static_cast<std::int64_t>(u) : static_cast<std::int64_t>(u);
+  return true;
+}
+
+bool parse_bool(const std::string& s, bool& out) {
+  const std::string l = lower(s);
+  if (l == "true" || l == "yes" || l == "on") { out = true; return true; }
+  if (l == "false" || l == "no" || l == "off") { out = false; return true; }
+  return false;
+}
+
+bool in_bounds(const SchemaEntry& e, double x) {
+  if (!e.bounded) return true;
+  if (e.lo_open ? !(x > e.lo) : !(x >= e.lo)) return false;
+  if (e.hi_open ? !(x < e.hi) : !(x <= e.hi)) return false;
+  return true;
+}
+
+std::string node_text(const YAML::Node& n) {
+  switch (n.Type()) {
+    case YAML::NodeType::Scalar: return n.Scalar();
+    case YAML::NodeType::Sequence: {
+      std::string s = "[";
+      for (std::size_t k = 0; k < n.size(); ++k) s += (k ? ", " : "") + node_text(n[k]);
+      return s + "]";
+    }
+    case YAML::NodeType::Map: return "{...}";
+    default: return "";
+  }
+}
+
+class Loader {
+ public:
+  Loader(std::string file) : file_(std::move(file)) {
+    std::error_code ec;
+    auto abs = std::filesystem::absolute(file_, ec);
+    dir_ = ec ? std::filesystem::path(".") : abs.parent_path();
+    cfg_.source_file = ec ? file_ : abs.lexically_normal().string();
+  }
+
+  LoadResult run(const std::string& text) {
+    YAML::Node root;
+    try {
+      root = YAML::Load(text);
+    } catch (const YAML::ParserException& ex) {
+      add(ex.mark, "invalid YAML: " + ex.msg);
+      return std::move(r_);
+    } catch (const YAML::Exception& ex) {
+      add(ex.mark, std::string("invalid YAML: ") + ex.what());
+      return std::move(r_);
+    }
+    if (root.IsDefined() && !root.IsNull()) {
+      if (!root.IsMap()) add(root.Mark(), "the top level must be a mapping of sections (engine:, wheel:, ...)");
+      else walk(root, "");
+    }
+    // Derived settings (documented in config.hpp).
+    cfg_.wheel.decoder.use_cam = !cfg_.wheel.cam_channel.empty();
+    cfg_.wheel.decoder.cam_rising = cfg_.wheel.cam_rising_edge;
+    check_wheel_keys();
+    check_files();
+    for (const auto& p : check_config_physics(cfg_)) add(mark_of(p.key), p.key, p.found, p.expected);
+    if (r_.errors.empty()) r_.config = cfg_;
+    return std::move(r_);
+  }
+
+ private:
+  void add(const YAML::Mark& m, const std::string& msg) {
+    std::ostringstream os;
+    os << file_ << ":" << (m.line >= 0 ? m.line + 1 : 1) << ":" << (m.column >= 0 ? m.column + 1 : 1) << ": " << msg;
+    r_.errors.push_back(os.str());
+  }
+  void add(const YAML::Mark& m, const std::string& key, const std::string& found, const std::string& expected) {
+    add(m, "key '" + key + "': found '" + found + "', expected " + expected);
+  }
+
+  /// Mark of a key's value, or of its nearest present section (defaults have no position of their own).
+  YAML::Mark mark_of(std::string key) const {
+    for (;;) {
+      auto it = marks_.find(key);
+      if (it != marks_.end()) return it->second;
+      auto dot = key.rfind('.');
+      if (dot == std::string::npos) return YAML::Mark{};
+      key.resize(dot);
+    }
+  }
+  bool present(const std::string& key) const { return values_.count(key) != 0; }
+
+  std::vector<std::string> children_of(const std::string& prefix) const {
+    std::set<std::string> names;
+    const std::string p = prefix.empty() ? "" : prefix + ".";
+    for (const auto& e : config_schema()) {
+      if (e.key.compare(0, p.size(), p) != 0) continue;
+      names.insert(e.key.substr(p.size(), e.key.find('.', p.size()) - p.size()));
+    }
+    return {names.begin(), names.end()};
+  }
+
+  std::string suggestion(const std::string& prefix, const std::string& leaf) const {
+    std::string best;
+    std::size_t best_d = std::max<std::size_t>(2, leaf.size() / 3) + 1;
+    for (const auto& c : children_of(prefix)) {
+      const std::size_t d = edit_distance(lower(leaf), c);
+      if (d < best_d) { best_d = d; best = prefix.empty() ? c : prefix + "." + c; }
+    }
+    if (!best.empty()) return best;
+    for (const auto& e : config_schema()) {  // right name in the wrong section (engine.teeth → wheel.teeth)
+      const std::string eleaf = e.key.substr(e.key.rfind('.') + 1);
+      if (eleaf == leaf) return e.key;
+    }
+    return {};
+  }
+
+  void walk(const YAML::Node& map, const std::string& prefix) {
+    std::set<std::string> seen;
+    for (auto it = map.begin(); it != map.end(); ++it) {
+      const YAML::Node& k = it->first;
+      const YAML::Node& v = it->second;
+      const std::string name = k.IsScalar() ? k.Scalar() : node_text(k);
+      const std::string key = prefix.empty() ? name : prefix + "." + name;
+      const YAML::Mark vm = (v.IsDefined() && v.Mark().line >= 0 && !v.IsNull()) ? v.Mark() : k.Mark();
+      if (!seen.insert(name).second) {
+        add(k.Mark(), "key '" + key + "' appears twice in the same section");
+        continue;
+      }
+      if (const SchemaEntry* e = find_schema_entry(key)) {
+        marks_[key] = vm;
+        parse_value(*e, v, key, vm);
+      } else if (is_schema_section(key)) {
+        marks_[key] = k.Mark();
+        if (v.IsMap()) walk(v, key);
+        else if (!v.IsNull()) add(vm, key, node_text(v), "a section (mapping of keys: " + join(children_of(key)) + ")");
+      } else {
+        const std::string s = suggestion(prefix, name);
+        add(k.Mark(), "unknown key '" + key + "'" + (s.empty() ? "" : " (did you mean '" + s + "'?)") +
+                          (prefix.empty() || s.size() ? "" : "; keys of '" + prefix + "': " + join(children_of(prefix))));
+      }
+    }
+  }
+
+  static std::string join(const std::vector<std::string>& v) {
+    std::string s;
+    for (std::size_t k = 0; k < v.size(); ++k) s += (k ? ", " : "") + v[k];
+    return s;
+  }
+
+  bool scalar_number(const SchemaEntry& e, const YAML::Node& n, const std::string& key, const YAML::Mark& m, double& d) {
+    const bool is_int = e.kind == ValueKind::kInt || e.kind == ValueKind::kIntList;
+    if (!n.IsScalar()) { add(m, key, node_text(n), describe_expected(e)); return false; }
+    const std::string& s = n.Scalar();
+    std::int64_t i = 0;
+    bool ok = is_int ? parse_int(s, i) : parse_double(s, d);
+    if (is_int) d = static_cast<double>(i);
+    if (!ok || !std::isfinite(d) || !in_bounds(e, d)) {
+      add(m, key, s, describe_expected(e));
+      return false;
+    }
+    return true;
+  }
+
+  void parse_value(const SchemaEntry& e, const YAML::Node& n, const std::string& key, const YAML::Mark& m) {
+    ConfigValue v;
+    const bool null = !n.IsDefined() || n.IsNull();
+    switch (e.kind) {
+      case ValueKind::kDouble:
+      case ValueKind::kInt: {
+        double d = 0.0;
+        if (null) { add(m, key, "", describe_expected(e)); return; }
+        if (!scalar_number(e, n, key, m, d)) return;
+        v.d = d;
+        v.i = static_cast<std::int64_t>(d);
+        break;
+      }
+      case ValueKind::kBool:
+        if (null || !n.IsScalar() || !parse_bool(n.Scalar(), v.b)) { add(m, key, node_text(n), describe_expected(e)); return; }
+        break;
+      case ValueKind::kString:
+      case ValueKind::kPath:
+        if (!null && !n.IsScalar()) { add(m, key, node_text(n), describe_expected(e)); return; }
+        v.s = null ? "" : n.Scalar();
+        if (e.kind == ValueKind::kPath && !v.s.empty()) {
+          std::filesystem::path p(v.s);
+          if (p.is_relative()) p = dir_ / p;
+          v.s = p.lexically_normal().string();
+        }
+        break;
+      case ValueKind::kEnum: {
+        const std::string s = (!null && n.IsScalar()) ? n.Scalar() : node_text(n);
+        if (std::find(e.choices.begin(), e.choices.end(), s) == e.choices.end()) {
+          std::string hint;
+          for (const auto& c : e.choices)
+            if (edit_distance(lower(s), c) <= 2) hint = " (did you mean '" + c + "'?)";
+          add(m, key, s, describe_expected(e) + hint);
+          return;
+        }
+        v.s = s;
+        break;
+      }
+      case ValueKind::kDoubleList:
+      case ValueKind::kIntList: {
+        if (null || !n.IsSequence()) { add(m, key, node_text(n), describe_expected(e)); return; }
+        bool ok = true;
+        for (std::size_t k = 0; k < n.size(); ++k) {
+          double d = 0.0;
+          const YAML::Mark em = n[k].Mark().line >= 0 ? n[k].Mark() : m;
+          if (!scalar_number(e, n[k], key + "[" + std::to_string(k) + "]", em, d)) { ok = false; continue; }
+          v.dl.push_back(d);
+          v.il.push_back(static_cast<std::int64_t>(d));
+        }
+        if (!ok) return;
+        if (n.size() < e.min_len || (e.max_len > 0 && n.size() > e.max_len)) {
+          add(m, key, node_text(n), describe_expected(e));
+          return;
+        }
+        break;
+      }
+    }
+    values_[key] = node_text(n);
+    e.set(cfg_, v);
+  }
+
+  void check_wheel_keys() {
+    if (!present("wheel.tooth_angles_deg")) return;
+    for (const char* k : {"wheel.teeth", "wheel.missing"})
+      if (present(k))
+        add(mark_of(k), k, values_[k], "no value when wheel.tooth_angles_deg is given (use one description of the wheel)");
+  }
+
+  void require_file(const std::string& key, const std::string& path, const std::string& why) {
+    if (path.empty()) {
+      add(mark_of(key), key, "", "a file path (" + why + ")");
+      return;
+    }
+    std::error_code ec;
+    const auto st = std::filesystem::status(path, ec);
+    if (ec || !std::filesystem::exists(st)) {
+      add(mark_of(key), key, path, "an existing file (" + why + "): no such file");
+    } else if (!std::filesystem::is_regular_file(st)) {
+      add(mark_of(key), key, path, "a regular file (" + why + ")");
+    } else if (::access(path.c_str(), R_OK) != 0) {
+      add(mark_of(key), key, path, "a readable file (" + why + "): permission denied");
+    }
+  }
+
+  void check_files() {
+    const auto& in = cfg_.inputs;
+    if (in.edges.backend == EdgeBackend::kFile) require_file("inputs.edges.path", in.edges.path, "inputs.edges.backend is file");
+    if (in.can.backend == CanBackend::kFile) {
+      if (!in.can.path.empty()) require_file("inputs.can.path", in.can.path, "inputs.can.backend is file");
+      else r_.warnings.push_back(file_ + ": inputs.can.path is empty: no CAN input, CAN-based estimators hold");
+    }
+    bool any_mapped = false;
+    for (std::size_t q = 0; q < kCanQuantityCount; ++q) {
+      const auto& s = cfg_.can.signals[q];
+      const std::string base = "can.signals." + std::string(can_quantity_name(q));
+      any_mapped = any_mapped || s.mapped();
+      if (s.message.empty() != s.signal.empty()) {
+        const std::string missing = s.message.empty() ? base + ".message" : base + ".signal";
+        add(mark_of(missing), missing, "", "a DBC name (message and signal are given together)");
+      }
+    }
+    if (!cfg_.can.dbc.empty()) require_file("can.dbc", cfg_.can.dbc, "named DBC file");
+    else if (any_mapped) add(mark_of("can.dbc"), "can.dbc", "", "a DBC file path (can.signals maps DBC signals)");
+  }
+
+  std::string file_;
+  std::filesystem::path dir_;
+  Config cfg_;
+  LoadResult r_;
+  std::unordered_map<std::string, YAML::Mark> marks_;
+  std::unordered_map<std::string, std::string> values_;
+};
+
+std::string fmt(double v) {
+  std::ostringstream os;
+  os.precision(6);
+  os << v;
+  return os.str();
+}
+
+}  // namespace
+
+std::optional<std::string> check_fourier_stability(const FourierParams& p, const WheelGeometry& w) {
+  // Samples per 720° cycle: every tooth position (missing ones are interpolated) or every listed tooth.
+  const int per_rev = w.tooth_count > 0 ? w.tooth_count : w.positions;
+  const int n_samples = 2 * per_rev;
+  if (2 * p.harmonics + 1 >= n_samples)
+    return "2*harmonics+1 = " + std::to_string(2 * p.harmonics + 1) + " must be < samples per cycle " +
+           std::to_string(n_samples);
+  const double d_alpha = 4.0 * std::numbers::pi / n_samples;
+  // CF-14: L_ke > (Δα/2) Σ_k l_k f_k(n)² with l_0 = L_a0, f_0 = 1 and l_{a_i} = l_{b_i} = i L_ref.
+  double worst = 0.0;
+  for (int n = 0; n < n_samples; ++n) {
+    const double a = n * d_alpha;
+    double s = p.l_a0;
+    for (int i = 1; i <= p.harmonics; ++i) {
+      const double c = std::cos(i * a / 2.0), sn = std::sin(i * a / 2.0);
+      s += i * p.l_ref * (c * c + sn * sn);
+    }
+    worst = std::max(worst, 0.5 * d_alpha * s);
+  }
+  if (!(p.l_ke > worst)) return "L_ke must exceed (dalpha/2) sum l_k f_k^2 = " + fmt(worst) + " (CF-14)";
+  return std::nullopt;
+}
+
+std::vector<ConfigProblem> check_config_physics(const Config& c) {
+  std::vector<ConfigProblem> out;
+  const auto& e = c.engine;
+  // Firing order: a permutation of 1..n (ESTIMATORS.md §0: phases come from the firing order).
+  {
+    std::vector<int> count(kMaxCylinders + 1, 0);
+    std::string listed = "[";
+    int len = 0;
+    for (int k = 0; k < kMaxCylinders && e.firing_order[std::size_t(k)] != 0; ++k, ++len) {
+      const int cyl = e.firing_order[std::size_t(k)];
+      listed += (k ? ", " : "") + std::to_string(cyl);
+      if (cyl >= 1 && cyl <= kMaxCylinders) ++count[std::size_t(cyl)];
+    }
+    listed += "]";
+    std::string why;
+    if (len != e.cylinders) why = std::to_string(len) + " entries for " + std::to_string(e.cylinders) + " cylinders";
+    for (int cyl = 1; cyl <= e.cylinders && why.empty(); ++cyl) {
+      if (count[std::size_t(cyl)] > 1) why = "cylinder " + std::to_string(cyl) + " appears twice";
+      else if (count[std::size_t(cyl)] == 0) why = "cylinder " + std::to_string(cyl) + " is missing";
+    }
+    for (int k = 0; k < len && why.empty(); ++k)
+      if (e.firing_order[std::size_t(k)] > e.cylinders)
+        why = "cylinder " + std::to_string(e.firing_order[std::size_t(k)]) + " does not exist";
+    if (!why.empty())
+      out.push_back({"engine.firing_order", listed,
+                     "a permutation of 1.." + std::to_string(e.cylinders) + " (" + why + ")"});
+  }
+  if (!(e.rod_m > e.crank_radius_m()))
+    out.push_back({"engine.rod_m", fmt(e.rod_m),
+                   "a rod longer than the crank radius stroke_m/2 = " + fmt(e.crank_radius_m()) + " m (slider-crank)"});
+  const auto& w = c.wheel.geometry;
+  if (w.tooth_count == 0) {
+    if (w.missing >= w.positions)
+      out.push_back({"wheel.missing", std::to_string(w.missing),
+                     "fewer missing teeth than teeth = " + std::to_string(w.positions)});
+    else if (w.positions - w.missing < 2)
+      out.push_back({"wheel.missing", std::to_string(w.missing), "at least 2 real teeth per revolution"});
+  } else {
+    for (int k = 1; k < w.tooth_count; ++k)
+      if (!(w.tooth_angles_deg[std::size_t(k)] > w.tooth_angles_deg[std::size_t(k - 1)])) {
+        out.push_back({"wheel.tooth_angles_deg", fmt(w.tooth_angles_deg[std::size_t(k)]),
+                       "strictly increasing angles (element " + std::to_string(k) + " is not above the previous one)"});
+        break;
+      }
+    if (w.tooth_count < 2) out.push_back({"wheel.tooth_angles_deg", std::to_string(w.tooth_count) + " teeth", "at least 2 teeth"});
+  }
+  if (!(c.wheel.decoder.gap_ratio_min < c.wheel.decoder.gap_ratio_max))
+    out.push_back({"wheel.decoder.gap_ratio_max", fmt(c.wheel.decoder.gap_ratio_max),
+                   "more than gap_ratio_min = " + fmt(c.wheel.decoder.gap_ratio_min)});
+  if (!(c.wheel.decoder.cam_window_start_deg < c.wheel.decoder.cam_window_end_deg))
+    out.push_back({"wheel.decoder.cam_window_end_deg", fmt(c.wheel.decoder.cam_window_end_deg),
+                   "more than cam_window_start_deg = " + fmt(c.wheel.decoder.cam_window_start_deg)});
+  if (!(c.estimators.kalman.params.min_rpm < c.estimators.kalman.params.max_rpm))
+    out.push_back({"estimators.kalman.max_rpm", fmt(c.estimators.kalman.params.max_rpm),
+                   "more than min_rpm = " + fmt(c.estimators.kalman.params.min_rpm)});
+  const auto& en = c.estimators.energies.params;
+  if (!(en.window_end_btdc_deg < en.window_start_btdc_deg))
+    out.push_back({"estimators.energies.window_end_btdc_deg", fmt(en.window_end_btdc_deg),
+                   "less than window_start_btdc_deg = " + fmt(en.window_start_btdc_deg) + " deg"});
+  if (c.estimators.fourier.enabled)
+    if (auto why = check_fourier_stability(c.estimators.fourier.params, w))
+      out.push_back({"estimators.fourier.l_ke", fmt(c.estimators.fourier.params.l_ke), "stable observer gains: " + *why});
+  const std::pair<const char*, const ThreadConfig*> threads[] = {
+      {"angle", &c.realtime.angle}, {"time", &c.realtime.time}, {"source", &c.realtime.source},
+      {"publisher", &c.realtime.publisher}};
+  for (const auto& [name, t] : threads) {
+    const std::string base = std::string("realtime.") + name;
+    if (t->policy == SchedPolicy::kFifo && t->priority < 1)
+      out.push_back({base + ".priority", std::to_string(t->priority), "1..99 with policy fifo"});
+    std::set<int> seen;
+    for (int cpu : t->cpus)
+      if (!seen.insert(cpu).second) {
+        out.push_back({base + ".cpus", std::to_string(cpu), "each CPU listed once"});
+        break;
+      }
+  }
+  if (c.inputs.edges.backend == EdgeBackend::kGpio && c.inputs.edges.gpio_chip.empty())
+    out.push_back({"inputs.edges.gpio_chip", "", "a GPIO chip device (backend gpio)"});
+  if (c.inputs.can.backend == CanBackend::kSocketCan && c.inputs.can.interface.empty())
+    out.push_back({"inputs.can.interface", "", "a SocketCAN interface name (backend socketcan)"});
+  if (c.wheel.crank_channel.empty()) out.push_back({"wheel.crank_channel", "", "a channel name"});
+  return out;
+}
+
+LoadResult load_config_from_string(const std::string& yaml, const std::string& file_name) {
+  return Loader(file_name).run(yaml);
+}
+
+LoadResult load_config(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    LoadResult r;
+    r.errors.push_back(path + ": cannot open configuration file: " + std::strerror(errno));
+    return r;
+  }
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return load_config_from_string(ss.str(), path);
+}
+
+}  // namespace torqued

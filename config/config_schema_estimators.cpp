@@ -1,0 +1,138 @@
+// Estimator keys of the configuration table (estimators/params.hpp). One line per key: when a field is added to
+// params.hpp, add it here with its bounds, unit and description (the example-YAML test then demands its docs).
+#include "schema_builders.hpp"
+
+namespace torqued::schema_detail {
+namespace {
+
+Bounds open_closed(double lo, double hi) { return {lo, hi, true, false}; }
+Bounds closed_open(double lo, double hi) { return {lo, hi, false, true}; }
+Bounds open_open(double lo, double hi) { return {lo, hi, true, true}; }
+
+}  // namespace
+
+#define TQ_NUM(key, field, bounds, unit, desc) \
+  t.push_back(number("estimators." key, TQ_REF(double, estimators.field), bounds, unit, desc))
+#define TQ_INT(key, field, bounds, unit, desc) \
+  t.push_back(integer<int>("estimators." key, TQ_REF(int, estimators.field), bounds, unit, desc))
+#define TQ_BOOL(key, field, desc) t.push_back(boolean("estimators." key, TQ_REF(bool, estimators.field), desc))
+#define TQ_ARR2(key, field, bounds, unit, desc) \
+  t.push_back(fixed_list<2>("estimators." key, TQ_REF(Arr2, estimators.field), bounds, unit, desc))
+
+void add_estimators(std::vector<SchemaEntry>& t) {
+  using Arr2 = std::array<double, 2>;
+  using Arr4 = std::array<double, 4>;
+  // Time-triggered pipeline (ESTIMATORS.md §1).
+  TQ_NUM("time_pipeline.step_s", time_pipeline.step_s, closed(1e-5, 0.1), "s", "time pipeline step T_s (1 ms = 1 kHz)");
+  TQ_BOOL("time_pipeline.cycle_averaged_speed", time_pipeline.cycle_averaged_speed,
+          "mean speed over 720 deg (true) or over the last combustion segment (false)");
+  TQ_NUM("time_pipeline.inertia_kgm2", time_pipeline.inertia_kgm2, closed(0.0, 100.0), "kg m^2",
+         "J of Na-8; 0 = engine.j_rot_kgm2 + cycle-mean oscillating inertia");
+  TQ_NUM("time_pipeline.speed_timeout_s", time_pipeline.speed_timeout_s, open_closed(0.0, 10.0), "s",
+         "mean speed is stale when the newest tooth is older than this");
+  // Enabled flags of the Na estimators live in TimePipelineParams; mirrored into the toggles.
+  auto na_toggle = [&t](const char* name, bool TimePipelineParams::*flag, Ref<bool> toggle, const char* desc) {
+    SchemaEntry e = boolean(std::string("estimators.") + name + ".enabled", toggle, desc);
+    e.set = [flag, toggle](Config& c, const ConfigValue& v) {
+      toggle(c) = v.b;
+      c.estimators.time_pipeline.*flag = v.b;
+    };
+    t.push_back(std::move(e));
+  };
+  na_toggle("uio", &TimePipelineParams::uio, TQ_REF(bool, estimators.uio.enabled), "run the unknown-input observer (Na-14)");
+  TQ_NUM("uio.k_s", uio.params.k_s, open_closed(0.0, 10.0), "s", "filter constant k (Na-9)");
+  na_toggle("sliding_mode", &TimePipelineParams::sliding_mode, TQ_REF(bool, estimators.sliding_mode.enabled),
+            "run the sliding-mode estimator (Na-19..21)");
+  TQ_NUM("sliding_mode.k_s", sliding_mode.params.k_s, open_closed(0.0, 10.0), "s", "output low-pass constant (Na-21)");
+  TQ_NUM("sliding_mode.lambda1_nm", sliding_mode.params.lambda1_nm, open_closed(0.0, 1e5), "N m",
+         "switching gain, > sup|torque| (Na-19)");
+  na_toggle("dirty_diff", &TimePipelineParams::dirty_diff, TQ_REF(bool, estimators.dirty_diff.enabled),
+            "run the dirty-differentiation estimator (Na-24)");
+  TQ_NUM("dirty_diff.k_s", dirty_diff.params.k_s, open_closed(0.0, 10.0), "s", "differentiation filter constant (Na-24)");
+  na_toggle("adaptive", &TimePipelineParams::adaptive, TQ_REF(bool, estimators.adaptive.enabled),
+            "run the adaptive parameter estimator (Na-41..54)");
+  TQ_NUM("adaptive.k_s", adaptive.params.k_s, open_closed(0.0, 10.0), "s", "filter constant k");
+  TQ_NUM("adaptive.ell", adaptive.params.ell, open_closed(0.0, 1e4), "1/s", "forgetting factor l (Na-45)");
+  TQ_ARR2("adaptive.gamma", adaptive.params.gamma, open_closed(0.0, 1e9), "", "gain diagonal of law (Na-50)");
+  TQ_NUM("adaptive.kappa", adaptive.params.kappa, closed(0.0, 1e3), "", "weight of W2 (Na-50/54)");
+  TQ_BOOL("adaptive.time_varying_gain", adaptive.params.time_varying_gain, "use law (Na-52/54) instead of (Na-50)");
+  TQ_ARR2("adaptive.k0", adaptive.params.k0, open_closed(0.0, 1e9), "", "K0 diagonal, K(0) = K0^-1 (Na-52)");
+  TQ_NUM("adaptive.sigma", adaptive.params.sigma, closed(0.0, 1e9), "", "excitation threshold on lambda_min(P) (Na Remark 9)");
+  TQ_ARR2("adaptive.phi_scale", adaptive.params.phi_scale, open_closed(0.0, 1e9), "[s/rad, s/kg]",
+          "regressor normalisation [speed, air mass flow]");
+  TQ_ARR2("adaptive.gamma_tv", adaptive.params.gamma_tv, open_closed(0.0, 1e9), "1/s", "gain diagonal of law (Na-54)");
+  TQ_NUM("adaptive.k0_floor", adaptive.params.k0_floor, closed(0.0, 1.0), "", "K^-1 never decays below k0_floor K0");
+  TQ_ARR2("adaptive.theta0", adaptive.params.theta0, closed(-1e9, 1e9), "N m", "initial parameters (normalised units)");
+
+  // Angle-triggered (ESTIMATORS.md §2).
+  TQ_NUM("preprocess.lowpass_hz", preprocess.lowpass_hz, open_closed(0.0, 1e5), "Hz", "low-pass cut-off on tooth speed (EN §2.1)");
+  TQ_NUM("preprocess.accel_jerk_sd", preprocess.accel_jerk_sd, open_closed(0.0, 1e12), "rad/s^3/sqrt(s)",
+         "white-jerk intensity of the speed/acceleration Kalman filter");
+  TQ_NUM("preprocess.edge_noise_deg", preprocess.edge_noise_deg, open_closed(0.0, 10.0), "deg", "residual edge-angle error, 1 sigma");
+  TQ_NUM("preprocess.jitter_s", preprocess.jitter_s, closed(0.0, 1e-2), "s", "edge timestamp jitter, 1 sigma");
+  TQ_BOOL("kalman.enabled", kalman.enabled, "run the time-varying Kalman filter (CK)");
+  TQ_NUM("kalman.delta", kalman.params.delta, open_closed(0.0, 1e3), "1/rad", "coloured-noise pole of h(z) (CK-18)");
+  TQ_NUM("kalman.torque_sd_nm", kalman.params.torque_sd_nm, open_closed(0.0, 1e5), "N m", "stationary 1 sigma of the net torque; sets Q");
+  TQ_NUM("kalman.edge_noise_deg", kalman.params.edge_noise_deg, open_closed(0.0, 10.0), "deg", "edge-angle error used for R");
+  TQ_NUM("kalman.jitter_s", kalman.params.jitter_s, closed(0.0, 1e-2), "s", "timestamp jitter used for R");
+  TQ_INT("kalman.smoother_lag", kalman.params.smoother_lag, closed(0, 3), "teeth", "fixed-lag smoother output (0 = paper's predictor)");
+  TQ_BOOL("kalman.periodic_gains", kalman.params.periodic_gains, "precomputed periodic gains (APS) instead of exact Riccati");
+  TQ_NUM("kalman.min_rpm", kalman.params.min_rpm, open_closed(0.0, 20000.0), "rpm", "lowest speed of the APS gain schedule");
+  TQ_NUM("kalman.max_rpm", kalman.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "highest speed of the APS gain schedule");
+  TQ_INT("kalman.speed_bins", kalman.params.speed_bins, closed(1, 256), "", "APS gain sets, log-spaced in speed");
+  TQ_BOOL("fourier.enabled", fourier.enabled, "run the adaptive Fourier observer (CF)");
+  TQ_INT("fourier.harmonics", fourier.params.harmonics, closed(1, 64), "", "n_h harmonics of the 720 deg cycle (CF §V.B)");
+  TQ_NUM("fourier.l_ke", fourier.params.l_ke, open_closed(0.0, 1e6), "1/rad", "L_ke, must satisfy CF-14");
+  TQ_NUM("fourier.l_a0", fourier.params.l_a0, closed(0.0, 1e6), "1/rad^2", "L_a0");
+  TQ_NUM("fourier.l_ref", fourier.params.l_ref, closed(0.0, 1e6), "1/rad^2", "L_ref: l_ai = l_bi = i L_ref");
+
+  // Energies 2019 chain and beyond (ESTIMATORS.md §3-4).
+  TQ_BOOL("energies.enabled", energies.enabled, "run the load RLS + ESO chain (EN)");
+  TQ_NUM("energies.window_start_btdc_deg", energies.params.window_start_btdc_deg, open_closed(0.0, 180.0), "deg", "RLS window start before TDC (EN-10)");
+  TQ_NUM("energies.window_end_btdc_deg", energies.params.window_end_btdc_deg, closed_open(0.0, 180.0), "deg", "RLS window end before TDC, < start");
+  TQ_NUM("energies.polytropic_kappa", energies.params.polytropic_kappa, open_closed(1.0, 2.0), "", "polytropic exponent");
+  TQ_NUM("energies.rls_forgetting", energies.params.rls_forgetting, closed(0.5, 1.0), "", "RLS forgetting factor");
+  TQ_NUM("energies.lowpass_hz", energies.params.lowpass_hz, open_closed(0.0, 1e5), "Hz", "speed pre-filter cut-off");
+  TQ_NUM("energies.eso_omega0", energies.params.eso_omega0, open_closed(0.0, 1e5), "rad/s", "ESO bandwidth (EN-23)");
+  TQ_NUM("energies.fuel_lhv_j_kg", energies.params.fuel_lhv_j_kg, open_closed(0.0, 1e9), "J/kg", "fuel lower heating value");
+  TQ_NUM("energies.eso_base_efficiency", energies.params.eso_base_efficiency, open_closed(0.0, 1.0), "", "ignition x in-cycle efficiency at the nominal point");
+  TQ_NUM("energies.ivc_abdc_deg", energies.params.ivc_abdc_deg, closed(0.0, 180.0), "deg", "intake valve closing after BDC");
+  TQ_NUM("energies.evo_atdc_deg", energies.params.evo_atdc_deg, closed(0.0, 360.0), "deg", "exhaust valve opening after firing TDC");
+  TQ_NUM("energies.blowdown_end_atdc_deg", energies.params.blowdown_end_atdc_deg, closed(0.0, 720.0), "deg",
+         "cylinder pressure reaches the exhaust pressure here (after firing TDC)");
+  TQ_NUM("energies.exhaust_pressure_pa", energies.params.exhaust_pressure_pa, open_closed(0.0, 1e7), "Pa", "exhaust back-pressure");
+  TQ_NUM("energies.ivc_pressure_factor", energies.params.ivc_pressure_factor, open_closed(0.0, 5.0), "", "p_IVC = factor x MAP");
+  TQ_BOOL("energies.model_expansion_cylinder", energies.params.model_expansion_cylinder, "model the cylinder that fired 180 deg earlier in the RLS window");
+  TQ_BOOL("energies.rls_estimate_inertia", energies.params.rls_estimate_inertia, "regress [accel, 1] (paper) instead of [1] with known J");
+  TQ_INT("energies.rls_min_windows", energies.params.rls_min_windows, closed(1, 100000), "", "windows before the RLS load counts as converged");
+  TQ_NUM("energies.energy_window_deg", energies.params.energy_window_deg, open_closed(0.0, 180.0), "deg", "kinetic-energy averaging window");
+  TQ_NUM("energies.segment_offset_deg", energies.params.segment_offset_deg, closed(-180.0, 180.0), "deg", "segment boundary relative to firing TDC");
+  TQ_NUM("energies.idle_max_rpm", energies.params.idle_max_rpm, open_closed(0.0, 20000.0), "rpm", "idle (friction C4 learning) below this speed");
+  TQ_NUM("energies.idle_max_load_nm", energies.params.idle_max_load_nm, closed(0.0, 1e4), "N m", "and |load| below this");
+  TQ_BOOL("friction.enabled", friction.enabled, "estimate friction torque (EN-24)");
+  t.push_back(fixed_list<4>("estimators.friction.c", TQ_REF(Arr4, estimators.friction.params.c), closed(-1e6, 1e6), "",
+                            "C1..C4 of (C1 + C2 n + C3 n^2) e^(C4 t_oil), n rpm, t_oil degC (EN-24)"));
+  TQ_BOOL("friction.learn", friction.params.learn, "self-learn at idle and in fuel cut-off (EN-34)");
+  TQ_NUM("friction.sign", friction.params.sign, closed(-1.0, 1.0), "", "T_fric = sign x polynomial (paper's is negative)");
+  TQ_NUM("friction.forgetting", friction.params.forgetting, closed(0.5, 1.0), "", "RLS forgetting per observation");
+  TQ_NUM("friction.prior_sd_nm", friction.params.prior_sd_nm, open_closed(0.0, 1e6), "N m", "prior 1 sigma of each scaled coefficient");
+  TQ_INT("friction.min_observations", friction.params.min_observations, closed(1, 1000000), "cycles", "motoring cycles before the learned law is valid");
+  TQ_NUM("friction.min_rpm", friction.params.min_rpm, closed(0.0, 20000.0), "rpm", "observations accepted above this speed");
+  TQ_NUM("friction.max_rpm", friction.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "and below this speed");
+  TQ_BOOL("cylinder.enabled", cylinder.enabled, "per-cylinder torque, imbalance and misfire");
+  TQ_NUM("cylinder.misfire_threshold", cylinder.params.misfire_threshold, open_open(0.0, 1.0), "", "misfire when cylinder torque < threshold x cycle mean");
+  TQ_NUM("cylinder.imbalance_filter", cylinder.params.imbalance_filter, open_closed(0.0, 1.0), "", "EMA weight per cycle of the imbalance (1 = none)");
+  TQ_NUM("cylinder.min_mean_nm", cylinder.params.min_mean_nm, closed(0.0, 1e4), "N m", "no misfire decision below this mean torque");
+  TQ_NUM("fusion.max_can_age_s", fusion.max_can_age_s, open_closed(0.0, 60.0), "s", "CAN inputs older than this count as lost");
+  TQ_BOOL("fusion.blend", fusion.blend, "blend agreeing valid sources by inverse variance (false: pick the best)");
+  TQ_NUM("fusion.gate_sigma", fusion.gate_sigma, open_closed(0.0, 1e3), "", "a source farther than gate_sigma x sigma(difference) from the best is not blended");
+  TQ_BOOL("tooth_learn.enabled", tooth_learn.enabled, "apply the per-tooth angle correction table");
+  TQ_BOOL("tooth_learn.learn", tooth_learn.params.learn, "learn per-tooth corrections while running");
+  TQ_INT("tooth_learn.min_cycles", tooth_learn.params.min_cycles, closed(1, 100000), "cycles", "cycles averaged before the table is used");
+  TQ_INT("tooth_learn.fit_harmonics", tooth_learn.params.fit_harmonics, closed(1, 128), "", "harmonics of the per-cycle speed fit");
+  TQ_NUM("tooth_learn.max_accel_frac", tooth_learn.params.max_accel_frac, open_closed(0.0, 1.0), "", "skip cycles whose speed changes more than this fraction");
+  TQ_NUM("tooth_learn.min_rpm", tooth_learn.params.min_rpm, closed(0.0, 20000.0), "rpm", "learn only above this speed");
+  TQ_NUM("tooth_learn.max_rpm", tooth_learn.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "and below this speed");
+}
+
+}  // namespace torqued::schema_detail
