@@ -29,6 +29,12 @@ struct AdaptiveParams {
 struct TimePipelineParams {
   double step_s = 0.001;        ///< time pipeline step T_s (s)
   bool cycle_averaged_speed = true;  ///< mean speed over the last 720° (true) or last combustion segment (false)
+  double inertia_kgm2 = 0.0;    ///< J of Na-8 (kg m^2); 0: J_rot + cycle-mean oscillating inertia of the geometry
+  double speed_timeout_s = 0.2; ///< mean speed is stale when the newest tooth is older than this (s)
+  bool uio = true;              ///< run the UIO (Na-14)
+  bool sliding_mode = true;     ///< run the sliding-mode estimator (Na-21)
+  bool dirty_diff = true;       ///< run the dirty-differentiation estimator (Na-24)
+  bool adaptive = true;         ///< run the adaptive estimator (Na-50 or Na-54, see AdaptiveParams)
 };
 
 /// Chauvin angle-domain estimators (ESTIMATORS.md §2).

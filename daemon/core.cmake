@@ -1,0 +1,15 @@
+# torqued_daemon_core: stages, fast replay, runtime threads, DDS publisher, systemd glue (owned by "daemon").
+# Included from daemon/CMakeLists.txt; torqued_daemon (logging, config glue) and the torqued executable link it.
+add_library(torqued_daemon_core STATIC
+  ${CMAKE_CURRENT_LIST_DIR}/angle_stage.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/time_stage.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/fast_replay.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/dds_publisher.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/rt_setup.cpp
+)
+target_include_directories(torqued_daemon_core PUBLIC ${CMAKE_CURRENT_LIST_DIR})
+target_link_libraries(torqued_daemon_core PUBLIC torqued_io torqued_idl torqued_estimators Threads::Threads)
+if(TARGET torqued_config)
+  target_sources(torqued_daemon_core PRIVATE ${CMAKE_CURRENT_LIST_DIR}/stage_settings.cpp)
+  target_link_libraries(torqued_daemon_core PUBLIC torqued_config)
+endif()

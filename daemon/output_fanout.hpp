@@ -1,0 +1,32 @@
+#pragma once
+// Final consumer of samples: records to CSV and/or writes to DDS. NOT real-time (file writes, DDS): used by
+// the publisher thread and by the single-threaded fast replay.
+#include "dds_publisher.hpp"
+#include "sample_recorder.hpp"
+#include "sample_sink.hpp"
+
+namespace torqued {
+
+class OutputFanout final : public SampleSink {
+ public:
+  OutputFanout(dds::SampleRecorder* recorder, DdsPublisher* publisher) noexcept : rec_(recorder), pub_(publisher) {}
+  void emit(const dds::AnySample& s) noexcept override {
+    dds::AnySample copy = s;
+    if (pub_) (void)pub_->write(copy);  // stamps engine_id + publish time first, so the CSV shows them too
+    if (rec_) {
+      try {
+        rec_->record(copy);
+      } catch (...) {
+        ++record_errors_;
+      }
+    }
+  }
+  [[nodiscard]] std::uint64_t record_errors() const noexcept { return record_errors_; }
+
+ private:
+  dds::SampleRecorder* rec_;
+  DdsPublisher* pub_;
+  std::uint64_t record_errors_ = 0;
+};
+
+}  // namespace torqued

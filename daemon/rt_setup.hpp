@@ -1,0 +1,32 @@
+#pragma once
+// Real-time start-up steps, in the fixed order of ros2_control/realtime_tools (CONVENTIONS.md): lock memory
+// (mlockall), then per thread: CPU affinity, scheduling policy/priority, prefault the stack. Each failure is
+// reported with errno; "not permitted" (EPERM) is separated so the daemon can start anyway with a warning
+// and a status flag unless the config requires real-time.
+#include <cstddef>
+#include <string>
+#include <vector>
+
+namespace torqued {
+
+struct ThreadRt {
+  bool fifo = false;       ///< SCHED_FIFO (true) or SCHED_OTHER
+  int priority = 0;        ///< 1..99 for SCHED_FIFO
+  std::vector<int> cpus;   ///< affinity (empty = any)
+  const char* name = "";   ///< thread name (pthread_setname_np, max 15 chars)
+};
+
+struct RtOutcome {
+  bool ok = true;               ///< everything requested was applied
+  bool not_permitted = false;   ///< at least one step failed with EPERM/EACCES
+  std::string message;          ///< what failed and why (errno text)
+};
+
+/// mlockall(MCL_CURRENT | MCL_FUTURE).
+RtOutcome lock_memory() noexcept;
+/// Applies affinity, policy/priority and the name to the CALLING thread, then prefaults its stack.
+RtOutcome apply_to_current_thread(const ThreadRt& rt) noexcept;
+/// Touches `bytes` of the calling thread's stack so later use does not page-fault.
+void prefault_stack(std::size_t bytes = 256 * 1024) noexcept;
+
+}  // namespace torqued

@@ -1,0 +1,43 @@
+#pragma once
+// What the daemon's stages need from the Config, as plain data sized before the threads start. Built once by
+// stage_settings_from() (stage_settings.cpp, the only daemon file that reads config.hpp besides main/runtime
+// glue), so the real-time stages do not depend on the config schema's churn.
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "crank_decoder.hpp"
+#include "engine_geometry.hpp"
+#include "params.hpp"
+#include "qos.hpp"
+
+namespace torqued {
+
+struct Config;
+
+inline constexpr int kSignalCount = 10;  ///< EngineSignals quantities: map, maf, ..., load_torque (this order)
+
+struct SignalSpec {
+  std::string message;          ///< DBC message ("" = not mapped)
+  std::string signal;           ///< DBC signal
+  std::int64_t timeout_ns = 100'000'000;
+};
+
+struct StageSettings {
+  EngineGeometry engine;
+  WheelGeometry wheel;
+  DecoderParams decoder;
+  std::array<SignalSpec, kSignalCount> signals{};
+  std::string dbc_path;
+  TimePipelineParams time_pipeline;
+  int crank_decimation = 10;          ///< publish CrankState every n-th synced tooth
+  int time_decimation = 10;           ///< publish EstimatorTorque of time methods every n-th step
+  std::int64_t edge_timeout_ns = 500'000'000;  ///< no crank edge for this long: STATUS_EDGE_TIMEOUT
+  std::int64_t status_period_ns = 1'000'000'000;
+  dds::DdsSettings dds;
+};
+
+/// Maps the validated Config onto StageSettings.
+StageSettings stage_settings_from(const Config& cfg);
+
+}  // namespace torqued

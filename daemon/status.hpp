@@ -1,0 +1,55 @@
+#pragma once
+// Daemon statistics gathered into one DaemonStatus sample. Filled by the supervisor (paced/live) or the
+// fast replay loop from the stages' counters, the rings' drop counters and the sources' stats.
+#include <cstdint>
+
+#include "sample.hpp"
+
+namespace torqued {
+
+struct RuntimeCounters {
+  std::uint64_t edges = 0, teeth = 0, can_frames = 0, cycles = 0, sync_losses = 0;
+  std::uint64_t ring_drops_edge = 0, ring_drops_can = 0, ring_drops_out = 0, source_drops = 0, overruns = 0;
+  std::int64_t latency_p50_ns = 0, latency_p99_ns = 0, latency_max_ns = 0;
+  std::uint32_t flags = 0;            ///< torque_STATUS_*
+  std::uint32_t sensor_timeouts = 0;  ///< bit per EngineSignals quantity
+  bool synced = false;
+};
+
+/// Builds the status sample; health: FAILED when not synced for the whole run, DEGRADED on any flag/drop.
+inline dds::AnySample make_status(const RuntimeCounters& c, std::uint64_t seq, std::int64_t source_t_ns,
+                                  std::int64_t uptime_ns) noexcept {
+  dds::AnySample a;
+  a.topic = dds::Topic::kDaemonStatus;
+  auto& s = a.u.status;
+  s.seq = seq;
+  s.source_t_ns = source_t_ns;
+  s.uptime_ns = uptime_ns;
+  s.edges = c.edges;
+  s.teeth = c.teeth;
+  s.can_frames = c.can_frames;
+  s.cycles = c.cycles;
+  s.sync_losses = c.sync_losses;
+  s.ring_drops_edge = c.ring_drops_edge;
+  s.ring_drops_can = c.ring_drops_can;
+  s.ring_drops_out = c.ring_drops_out;
+  s.source_drops = c.source_drops;
+  s.overruns = c.overruns;
+  s.latency_p50_ns = c.latency_p50_ns;
+  s.latency_p99_ns = c.latency_p99_ns;
+  s.latency_max_ns = c.latency_max_ns;
+  s.sensor_timeouts = c.sensor_timeouts;
+  s.flags = c.flags;
+  if (!c.synced) s.flags |= torque_STATUS_NO_SYNC;
+  if (c.sensor_timeouts) s.flags |= torque_STATUS_CAN_TIMEOUT;
+  if (c.ring_drops_edge + c.ring_drops_can + c.ring_drops_out + c.overruns > 0) s.flags |= torque_STATUS_DROPS;
+  s.health = torque_DAEMON_OK;
+  if (s.flags & (torque_STATUS_NO_SYNC | torque_STATUS_CAN_TIMEOUT | torque_STATUS_DROPS | torque_STATUS_EDGE_TIMEOUT |
+                 torque_STATUS_RT_NOT_PERMITTED | torque_STATUS_MLOCK_FAILED))
+    s.health = torque_DAEMON_DEGRADED;
+  if (!c.synced && (s.flags & torque_STATUS_EDGE_TIMEOUT)) s.health = torque_DAEMON_FAILED;
+  if (!c.synced) s.validity |= torque_VALIDITY_NO_SYNC;
+  return a;
+}
+
+}  // namespace torqued
