@@ -1,0 +1,190 @@
+#include "signal_store.hpp"
+
+#include <cctype>
+#include <cmath>
+#include <limits>
+
+namespace torqued {
+namespace {
+
+constexpr const char* kNames[kQuantityCount] = {"map",      "maf",       "intake_temp", "oil_temp",    "throttle",
+                                                "lambda",   "spark_advance", "fuel_mass", "fuel_cutoff", "load_torque"};
+
+std::string norm_unit(std::string_view u) {
+  std::string s;
+  for (const char c : u) {
+    if (c == ' ' || c == '\t' || c == '_') continue;
+    s += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  }
+  // UTF-8 / Latin-1 degree signs and the "N·m" middle dot
+  for (const std::string deg : {"\xc2\xb0", "\xb0"}) {
+    for (std::size_t p; (p = s.find(deg)) != std::string::npos;) s.replace(p, deg.size(), "deg");
+  }
+  for (const std::string dot : {"\xc2\xb7", "\xb7", "."}) {
+    for (std::size_t p; (p = s.find(dot)) != std::string::npos;) s.erase(p, dot.size());
+  }
+  return s;
+}
+
+struct Conv {
+  const char* unit;
+  double scale, shift;
+};
+
+/// Physical (DBC unit) -> the SI unit of each quantity in EngineSignals.
+bool conversion(Quantity q, const std::string& u, double& scale, double& shift) {
+  static const Conv kPressure[] = {{"kpa", 1e3, 0}, {"pa", 1, 0}, {"hpa", 100, 0}, {"mbar", 100, 0},
+                                   {"bar", 1e5, 0}, {"psi", 6894.757293168, 0}};
+  static const Conv kMassFlow[] = {{"g/s", 1e-3, 0}, {"kg/s", 1, 0}, {"kg/h", 1.0 / 3600.0, 0}, {"g/min", 1e-3 / 60, 0}};
+  static const Conv kTempK[] = {{"degc", 1, 273.15}, {"c", 1, 273.15}, {"degreesc", 1, 273.15}, {"k", 1, 0}};
+  static const Conv kTempC[] = {{"degc", 1, 0}, {"c", 1, 0}, {"degreesc", 1, 0}, {"k", 1, -273.15}};
+  static const Conv kPercent[] = {{"%", 1, 0}, {"", 1, 0}, {"pct", 1, 0}};
+  static const Conv kRatio[] = {{"", 1, 0}, {"-", 1, 0}, {"lambda", 1, 0}, {"1", 1, 0}};
+  static const Conv kAngle[] = {{"deg", 1, 0}, {"degca", 1, 0}, {"degbtdc", 1, 0}, {"degcrk", 1, 0}, {"", 1, 0}};
+  static const Conv kMass[] = {{"mg", 1e-6, 0}, {"g", 1e-3, 0}, {"kg", 1, 0}, {"ug", 1e-9, 0}, {"\xc2\xb5g", 1e-9, 0}};
+  static const Conv kFlag[] = {{"", 1, 0}, {"-", 1, 0}, {"bool", 1, 0}, {"1", 1, 0}};
+  static const Conv kTorque[] = {{"nm", 1, 0}, {"knm", 1e3, 0}};
+  auto find = [&](const auto& table) {
+    for (const Conv& c : table) {
+      if (u == c.unit) {
+        scale = c.scale;
+        shift = c.shift;
+        return true;
+      }
+    }
+    return false;
+  };
+  switch (q) {
+    case Quantity::kMap: return find(kPressure);
+    case Quantity::kMaf: return find(kMassFlow);
+    case Quantity::kIntakeTemp: return find(kTempK);
+    case Quantity::kOilTemp: return find(kTempC);
+    case Quantity::kThrottle: return find(kPercent);
+    case Quantity::kLambda: return find(kRatio);
+    case Quantity::kSparkAdvance: return find(kAngle);
+    case Quantity::kFuelMass: return find(kMass);
+    case Quantity::kFuelCutoff: return find(kFlag);
+    case Quantity::kLoadTorque: return find(kTorque);
+    case Quantity::kCount: break;
+  }
+  return false;
+}
+
+}  // namespace
+
+const char* quantity_name(Quantity q) noexcept {
+  const int i = static_cast<int>(q);
+  return i >= 0 && i < kQuantityCount ? kNames[i] : "unknown";
+}
+
+bool quantity_from_name(std::string_view name, Quantity& out) noexcept {
+  for (int i = 0; i < kQuantityCount; ++i) {
+    if (name == kNames[i]) {
+      out = static_cast<Quantity>(i);
+      return true;
+    }
+  }
+  return false;
+}
+
+SignalStore::SignalStore(const DbcDatabase& db) : db_(&db) {}
+
+bool SignalStore::bind(Quantity q, std::string_view message, std::string_view signal, std::int64_t timeout_ns,
+                       std::string* error) {
+  auto fail = [&](const std::string& what) {
+    if (error != nullptr) *error = what;
+    return false;
+  };
+  if (q == Quantity::kCount) return fail("unknown quantity");
+  const DbcMessage* m = db_->find(message);
+  if (m == nullptr) return fail(std::string("can.signals.") + quantity_name(q) + ": no message '" + std::string(message) + "' in the DBC");
+  const DbcSignal* s = m->find(signal);
+  if (s == nullptr) {
+    std::string names;
+    for (const auto& x : m->signals) names += (names.empty() ? "" : ", ") + x.name;
+    return fail(std::string("can.signals.") + quantity_name(q) + ": message " + m->name + " has no signal '" +
+                std::string(signal) + "' (has: " + names + ")");
+  }
+  if (timeout_ns <= 0) return fail(std::string("can.signals.") + quantity_name(q) + ": time-out must be > 0");
+  Binding b;
+  if (!conversion(q, norm_unit(s->unit), b.scale, b.shift)) {
+    return fail(std::string("can.signals.") + quantity_name(q) + ": unit '" + s->unit + "' of " + m->name + "." + s->name +
+                " cannot be converted to the quantity's unit");
+  }
+  b.msg = m;
+  b.sig = s;
+  b.timeout_ns = timeout_ns;
+  bindings_[static_cast<std::size_t>(q)] = b;
+  values_[static_cast<std::size_t>(q)] = SignalValue{};
+  return true;
+}
+
+bool SignalStore::on_frame(const CanFrame& frame) noexcept {
+  ++stats_.frames;
+  bool any = false, used = false, bad = false;
+  for (std::size_t i = 0; i < bindings_.size(); ++i) {
+    const Binding& b = bindings_[i];
+    if (b.sig == nullptr || b.msg->id != frame.id || b.msg->extended != frame.extended) continue;
+    used = true;
+    if (frame.len < b.sig->bytes_needed()) {  // wrong DLC: the signal is not (fully) in this frame
+      bad = true;
+      continue;
+    }
+    if (!b.msg->signal_present(*b.sig, frame.data.data(), frame.len)) continue;
+    const double phys = b.sig->decode(frame.data.data(), frame.len);
+    SignalValue& v = values_[i];
+    const double eps = 1e-9 * (std::abs(b.sig->max) + std::abs(b.sig->min)) + 1e-12;
+    if (!std::isfinite(phys) || (b.sig->has_range() && (phys < b.sig->min - eps || phys > b.sig->max + eps))) {
+      ++v.rejected;
+      ++stats_.rejected_values;
+      continue;
+    }
+    v.value = phys * b.scale + b.shift;
+    v.t_ns = frame.t_ns;
+    v.seen = true;
+    ++v.updates;
+    any = true;
+  }
+  if (used) ++stats_.frames_used;
+  if (bad) ++stats_.bad_frames;
+  return any;
+}
+
+bool SignalStore::valid_at(Quantity q, std::int64_t now_ns) const noexcept {
+  const auto i = static_cast<std::size_t>(q);
+  if (i >= bindings_.size() || bindings_[i].sig == nullptr || !values_[i].seen) return false;
+  return now_ns - values_[i].t_ns <= bindings_[i].timeout_ns;
+}
+
+double SignalStore::age_s(Quantity q, std::int64_t now_ns) const noexcept {
+  const auto i = static_cast<std::size_t>(q);
+  if (i >= values_.size() || !values_[i].seen) return std::numeric_limits<double>::infinity();
+  return static_cast<double>(now_ns - values_[i].t_ns) * 1e-9;
+}
+
+EngineSignals SignalStore::signals_at(std::int64_t now_ns) const noexcept {
+  EngineSignals s;
+  std::int64_t newest = 0;
+  auto get = [&](Quantity q, double& value, bool& valid) {
+    valid = valid_at(q, now_ns);
+    const SignalValue& v = values_[static_cast<std::size_t>(q)];
+    if (v.seen) value = v.value;
+    if (valid && v.t_ns > newest) newest = v.t_ns;
+  };
+  get(Quantity::kMap, s.map_pa, s.map_valid);
+  get(Quantity::kMaf, s.maf_kg_s, s.maf_valid);
+  get(Quantity::kIntakeTemp, s.intake_temp_k, s.intake_temp_valid);
+  get(Quantity::kOilTemp, s.oil_temp_c, s.oil_temp_valid);
+  get(Quantity::kThrottle, s.throttle_pct, s.throttle_valid);
+  get(Quantity::kLambda, s.lambda, s.lambda_valid);
+  get(Quantity::kSparkAdvance, s.spark_advance_deg, s.spark_valid);
+  get(Quantity::kFuelMass, s.fuel_mass_kg, s.fuel_mass_valid);
+  double cut = 0.0;
+  get(Quantity::kFuelCutoff, cut, s.fuel_cutoff_valid);
+  s.fuel_cutoff = cut > 0.5;
+  get(Quantity::kLoadTorque, s.load_torque_nm, s.load_torque_valid);
+  s.t_ns = newest;
+  return s;
+}
+
+}  // namespace torqued
