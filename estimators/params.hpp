@@ -65,14 +65,41 @@ struct EnergiesParams {
   double lowpass_hz = 300.0;            ///< speed pre-filter cut-off (Hz)
   double eso_omega0 = 20.0;             ///< ESO bandwidth ω0 (rad/s) (EN-23)
   double fuel_lhv_j_kg = 43e6;          ///< q_LHV (J/kg)
+  double eso_base_efficiency = 0.75;    ///< η_ign·η_ig,ch at the nominal point; ΔE_ff (ESO state) corrects it (-)
+  double ivc_abdc_deg = 0.0;            ///< intake valve closing after BDC: start of polytropic compression (deg)
+  double evo_atdc_deg = 130.0;          ///< exhaust valve opening after firing TDC: end of polytropic expansion (deg)
+  double blowdown_end_atdc_deg = 200.0; ///< cylinder pressure reaches the exhaust pressure here (cosine blend) (deg)
+  double exhaust_pressure_pa = 105000.0;///< exhaust back-pressure, for the pumping loop in fuel cut-off (Pa)
+  double ivc_pressure_factor = 1.0;     ///< p_IVC = factor × MAP (volumetric-efficiency correction) (-)
+  bool model_expansion_cylinder = true; ///< model the cylinder that fired 180° earlier in the RLS window (-)
+  bool rls_estimate_inertia = false;    ///< regress [θ̈, 1] (paper) instead of [1] with the known J_rot (-)
+  int rls_min_windows = 40;             ///< windows before the RLS load is reported converged (-)
+  double energy_window_deg = 30.0;      ///< kinetic energy averaged over this window around each boundary (deg)
+  double segment_offset_deg = -20.0;    ///< segment boundary relative to each firing TDC (deg, <0: before TDC)
+  double idle_max_rpm = 1100.0;         ///< idle (friction C4 learning) below this mean speed (rpm)
+  double idle_max_load_nm = 3.0;        ///< and with |load| below this (N m)
 };
 struct FrictionParams {
   /// T_fric = (C1 + C2 n + C3 n²) e^{C4 t_oil}, n in rpm, t_oil in °C (EN-24); paper values as defaults.
   std::array<double, 4> c{-23.86, 2.45e-3, -5.20e-6, -4.67e-3};
   bool learn = true;                    ///< self-learn at idle and in fuel cut-off (EN-34)
+  double sign = -1.0;                   ///< T_fric = sign·(...): the paper's polynomial is negative (-)
+  double forgetting = 0.998;            ///< RLS forgetting factor per observation (-)
+  double prior_sd_nm = 20.0;            ///< prior 1σ of each scaled coefficient (N m) (-)
+  int min_observations = 20;            ///< motoring cycles before the learned law is reported valid (-)
+  double min_rpm = 500.0;               ///< observations accepted between min_rpm ..
+  double max_rpm = 7000.0;              ///< .. and max_rpm (rpm)
 };
 struct CylinderParams {
   double misfire_threshold = 0.5;   ///< misfire when a cylinder's torque < threshold × cycle mean (-)
+  double imbalance_filter = 0.2;    ///< EMA weight per cycle of the published imbalance (1 = no filter) (-)
+  double min_mean_nm = 1.0;         ///< no misfire decision while the mean segment torque is below this (N m)
+};
+/// Fused brake torque for the torque-split controller (ESTIMATORS.md §4; rule in torque_fusion.hpp).
+struct FusionParams {
+  double max_can_age_s = 0.1;       ///< CAN inputs older than this count as lost (s)
+  bool blend = true;                ///< blend agreeing valid sources by inverse variance (false: pick the best)
+  double gate_sigma = 3.0;          ///< a source farther than gate_sigma·σ(difference) from the best is not blended (-)
 };
 struct ToothLearnParams {
   bool learn = true;                ///< learn per-tooth angle corrections

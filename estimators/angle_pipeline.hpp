@@ -1,0 +1,134 @@
+#pragma once
+// The angle pipeline: every angle-domain method, run per crank tooth (DESIGN.md data flow; issue 5).
+// Constructed from the engine/wheel geometry and the tuning structs, sized at construction; on_tooth() is real-time
+// safe (no allocation, no locks, no exceptions, no I/O).
+//
+// Per tooth:   speed, acceleration; in-cycle indicated torque from the Chauvin Kalman and Fourier observers
+//              (when built with them, see AnglePipelineConfig).
+// Per segment (one per firing, rolling 720° window ending at the segment boundary):
+//   brake      = Δ(½Jθ̇²)/4π + load (CAN)                          [CycleEnergy, no friction model needed]
+//   indicated  = brake + learned friction, or crank-only Δ(½Jθ̇²)/4π + RLS extended load
+//   friction   = FrictionLearner law at the cycle's mean speed and oil temperature
+//   load       = CAN load (or RLS extended load − friction when CAN is lost)
+//   fused      = TorqueFusion of {energy+CAN, crank-only, ESO, external}
+// Per cycle:   per-cylinder indicated torque, imbalance, misfire (CylinderTorque).
+// Learning:    friction C1..C3 from fuel cut-off cycles (energy balance + measured load + modelled pumping loop),
+//              C4 at idle from the RLS extended load (= friction when the load is zero).
+#include <array>
+#include <cstdint>
+#include <memory>
+
+#include "cycle_energy.hpp"
+#include "cylinder_torque.hpp"
+#include "engine_geometry.hpp"
+#include "estimate.hpp"
+#include "friction_learner.hpp"
+#include "indicated_eso.hpp"
+#include "load_rls.hpp"
+#include "params.hpp"
+#include "samples.hpp"
+#include "torque_fusion.hpp"
+
+namespace torqued {
+
+struct AnglePipelineConfig {
+  EngineGeometry engine{};
+  WheelGeometry wheel{};
+  EnergiesParams energies{};
+  FrictionParams friction{};
+  CylinderParams cylinder{};
+  FusionParams fusion{};
+  double default_oil_temp_c = 90.0;  ///< used until an oil temperature arrives on CAN (°C)
+};
+
+/// Per-tooth output.
+struct ToothOutput {
+  std::int64_t t_ns = 0;
+  int tooth = 0;
+  double angle_rad = 0.0;      ///< edge angle within 720° from tooth 0 (rad)
+  double speed_rad_s = 0.0;    ///< w/dt of the period ending here (rad/s)
+  double accel_rad_s2 = 0.0;   ///< (ω_k − ω_{k−1}) / ((dt_k + dt_{k−1})/2) (rad/s²)
+  bool valid = false;
+};
+
+/// Per-segment output (rolling 720° means), with the per-cylinder record refreshed once per cycle.
+struct CycleOutput {
+  std::int64_t t_ns = 0;        ///< time of the tooth that completed the segment (ns)
+  std::uint32_t seq = 0;        ///< segments reported since reset
+  int boundary = 0;             ///< boundary index (0: cylinder-1 segment starts: a full cycle ended)
+  bool cycle_end = false;       ///< boundary == 0: `cylinders` is new
+  double speed_mean_rad_s = 0.0;  ///< 4π / duration of the 720° window (rad/s)
+  TorqueEstimate brake;         ///< best brake torque of the pipeline's own methods (N m)
+  TorqueEstimate indicated;     ///< best indicated torque (N m)
+  TorqueEstimate friction;      ///< friction at the window's speed and oil temperature (N m)
+  TorqueEstimate load;          ///< load torque: CAN, or RLS extended load − friction (N m)
+  TorqueEstimate brake_energy;  ///< Δ(½Jθ̇²)/4π + CAN load (N m)
+  TorqueEstimate indicated_crank;  ///< Δ(½Jθ̇²)/4π + RLS extended load (N m), crank only
+  TorqueEstimate load_rls;      ///< RLS extended load T_load + T_fric (N m)
+  TorqueEstimate indicated_eso; ///< ESO (N m)
+  FusedTorque fused;
+  CylinderCycle cylinders;
+};
+
+struct AnglePipelineStats {
+  std::uint64_t teeth = 0;
+  std::uint64_t not_synced = 0;
+  std::uint64_t invalid = 0;          ///< rejected samples (non-finite, out-of-range tooth)
+  std::uint64_t sequence_breaks = 0;  ///< missing teeth (windows spanning them were dropped)
+  std::uint64_t segments = 0;
+  std::uint64_t cycles = 0;
+  std::uint64_t friction_observations = 0;
+  std::uint64_t misfires = 0;
+};
+
+class AnglePipeline {
+ public:
+  static constexpr std::uint8_t kToothReady = 1;
+  static constexpr std::uint8_t kSegmentReady = 2;
+  static constexpr std::uint8_t kCycleReady = 4;
+
+  explicit AnglePipeline(const AnglePipelineConfig& config);
+
+  void reset() noexcept;
+  /// Real-time safe. Returns a mask of k*Ready flags telling which outputs are new.
+  std::uint8_t on_tooth(const ToothSample& s, const EngineSignals& sig) noexcept;
+
+  /// Optional external brake estimate for the fusion (e.g. the time pipeline's UIO); used at the next segment.
+  void set_external(const FusionSource& src) noexcept { external_ = src; }
+
+  [[nodiscard]] const ToothOutput& tooth_output() const noexcept { return tooth_; }
+  [[nodiscard]] const CycleOutput& cycle_output() const noexcept { return cycle_; }
+  [[nodiscard]] const AnglePipelineStats& stats() const noexcept { return stats_; }
+  [[nodiscard]] FrictionLearner& friction() noexcept { return friction_; }
+  [[nodiscard]] const FrictionLearner& friction() const noexcept { return friction_; }
+  [[nodiscard]] const LoadRls& load_rls() const noexcept { return rls_; }
+  [[nodiscard]] const AnglePipelineConfig& config() const noexcept { return cfg_; }
+
+ private:
+  void on_segment(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh) noexcept;
+
+  AnglePipelineConfig cfg_;
+  CycleEnergy energy_;
+  LoadRls rls_;
+  FrictionLearner friction_;
+  IndicatedEso eso_;
+  CylinderTorque cyl_;
+  TorqueFusion fusion_;
+
+  ToothOutput tooth_;
+  CycleOutput cycle_;
+  AnglePipelineStats stats_;
+  FusionSource external_{};
+  std::array<double, kMaxCylinders> cyl_work_j_{};  ///< last indicated work per firing position (J)
+  std::array<bool, kMaxCylinders> cyl_work_ok_{};
+  double oil_c_ = 90.0;
+  double prev_speed_ = 0.0, prev_dt_ = 0.0;
+  bool have_prev_ = false;
+  int cut_segments_ = 0;     ///< consecutive segments in fuel cut-off
+  int fired_segments_ = 0;   ///< consecutive segments firing
+  double brake_var_ = 4.0;   ///< running variance of segment-to-segment brake changes (N m²)
+  double prev_brake_ = 0.0;
+  bool have_prev_brake_ = false;
+};
+
+}  // namespace torqued

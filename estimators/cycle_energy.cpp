@@ -1,0 +1,226 @@
+#include "cycle_energy.hpp"
+
+#include <cmath>
+#include <numbers>
+
+namespace torqued {
+
+namespace {
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+constexpr double kFourPi = 4.0 * std::numbers::pi;
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+double wrap4pi(double a) noexcept {
+  a = std::fmod(a, kFourPi);
+  return a < 0.0 ? a + kFourPi : a;
+}
+/// Signed angular distance a − b wrapped to [−2π, 2π).
+double diff720(double a, double b) noexcept {
+  double d = wrap4pi(a - b);
+  return d >= kTwoPi ? d - kFourPi : d;
+}
+}  // namespace
+
+/// Nominal edges of one revolution: N−M wheel (tooth 0 first after the gap) or explicit angles.
+void nominal_wheel_edges(const WheelGeometry& wheel, std::vector<double>& edge, std::vector<double>& width) {
+  const int t = wheel.teeth();
+  edge.assign(static_cast<std::size_t>(t), 0.0);
+  width.assign(static_cast<std::size_t>(t), 0.0);
+  if (wheel.tooth_count > 0) {
+    const double a0 = wheel.tooth_angles_deg[0];
+    for (int k = 0; k < t; ++k) edge[static_cast<std::size_t>(k)] = (wheel.tooth_angles_deg[static_cast<std::size_t>(k)] - a0) * kDeg;
+    for (int k = 0; k < t; ++k) {
+      const double prev = k == 0 ? edge[static_cast<std::size_t>(t - 1)] - kTwoPi : edge[static_cast<std::size_t>(k - 1)];
+      width[static_cast<std::size_t>(k)] = edge[static_cast<std::size_t>(k)] - prev;
+    }
+  } else {
+    const double pitch = kTwoPi / wheel.positions;
+    for (int k = 0; k < t; ++k) {
+      edge[static_cast<std::size_t>(k)] = k * pitch;
+      width[static_cast<std::size_t>(k)] = k == 0 ? (wheel.missing + 1) * pitch : pitch;
+    }
+  }
+}
+
+CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& wheel, const EnergiesParams& params) {
+  const CrankKinematics kin(engine);
+  ncyl_ = engine.cylinders;
+  std::vector<double> e1, w1;
+  nominal_wheel_edges(wheel, e1, w1);
+  const int t = wheel.teeth();
+  samples_ = 2 * t;
+  const auto n = static_cast<std::size_t>(samples_);
+  center_.resize(n);
+  width_.resize(n);
+  j_center_.resize(n);
+  window_of_.assign(n, -1);
+  window_first_.assign(n, 0);
+  window_last_.assign(n, 0);
+  segment_of_.assign(n, 0);
+  for (int k = 0; k < samples_; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    const double e = (k / t) * kTwoPi + e1[static_cast<std::size_t>(k % t)];
+    width_[i] = w1[static_cast<std::size_t>(k % t)];
+    center_[i] = wrap4pi(e - 0.5 * width_[i] - engine.tdc_offset_rad);
+    j_center_[i] = kin.inertia(center_[i]);
+  }
+  const double seg = kFourPi / ncyl_;
+  const double half_w = 0.5 * params.energy_window_deg * kDeg;
+  for (int b = 0; b < ncyl_; ++b) boundary_[static_cast<std::size_t>(b)] = wrap4pi(b * seg + params.segment_offset_deg * kDeg);
+  for (int k = 0; k < samples_; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    for (int b = 0; b < ncyl_; ++b) {
+      const double d = diff720(center_[i], boundary_[static_cast<std::size_t>(b)]);
+      if (d >= -half_w && d < half_w) window_of_[i] = b;
+      // Segment b spans [boundary_b, boundary_b + seg).
+      const double ds = wrap4pi(center_[i] - boundary_[static_cast<std::size_t>(b)]);
+      if (ds < seg) segment_of_[i] = b;
+    }
+  }
+  // First / last tooth of each window in sequence order (windows may straddle the wrap at tooth 0).
+  for (int k = 0; k < samples_; ++k) {
+    const int w = window_of_[static_cast<std::size_t>(k)];
+    if (w < 0) continue;
+    const int prev = (k + samples_ - 1) % samples_;
+    const int next = (k + 1) % samples_;
+    if (window_of_[static_cast<std::size_t>(prev)] != w) window_first_[static_cast<std::size_t>(k)] = 1;
+    if (window_of_[static_cast<std::size_t>(next)] != w) window_last_[static_cast<std::size_t>(k)] = 1;
+  }
+  reset();
+}
+
+void CycleEnergy::reset() noexcept {
+  expected_tooth_ = -1;
+  win_ke_w_ = win_w_ = win_speed_w_ = 0.0;
+  win_open_ = false;
+  seg_load_w_.fill(0.0);
+  seg_w_.fill(0.0);
+  seg_load_ok_.fill(false);
+  ke_.fill(0.0);
+  t_.fill(0);
+  ke_valid_.fill(false);
+  seg_ok_.fill(false);
+  seg_load_mean_.fill(0.0);
+  seg_load_mean_ok_.fill(false);
+  seg_angle_.fill(0.0);
+  last_boundary_ = -1;
+  seg_ = SegmentEnergy{};
+}
+
+bool CycleEnergy::update(const ToothSample& s, double load_nm, bool load_valid) noexcept {
+  if (!s.synced || s.tooth < 0 || s.tooth >= samples_ || !(s.dt_s > 0.0) || !(s.width_rad > 0.0) ||
+      !std::isfinite(s.dt_s) || !std::isfinite(s.width_rad)) {
+    if (expected_tooth_ >= 0) ++breaks_;
+    expected_tooth_ = -1;
+    win_open_ = false;
+    ke_valid_.fill(false);
+    seg_ok_.fill(false);
+    seg_load_ok_.fill(false);
+    seg_load_mean_ok_.fill(false);
+    last_boundary_ = -1;
+    return false;
+  }
+  const int k = s.tooth;
+  const auto i = static_cast<std::size_t>(k);
+  if (expected_tooth_ >= 0 && k != expected_tooth_) {
+    // A tooth went missing: everything spanning the hole is unusable.
+    ++breaks_;
+    win_open_ = false;
+    ke_valid_.fill(false);
+    seg_ok_.fill(false);
+    seg_load_ok_.fill(false);
+    seg_load_mean_ok_.fill(false);
+    last_boundary_ = -1;
+  }
+  const bool first_after_break = expected_tooth_ < 0 || k != expected_tooth_;
+  expected_tooth_ = (k + 1) % samples_;
+
+  // Load work per segment (angle-mean load over the segment).
+  const int sg = segment_of_[i];
+  const int prev_sg = segment_of_[static_cast<std::size_t>((k + samples_ - 1) % samples_)];
+  if (sg != prev_sg || first_after_break) {
+    if (!first_after_break) {
+      const auto p = static_cast<std::size_t>(prev_sg);
+      seg_load_mean_[p] = seg_w_[p] > 0.0 ? seg_load_w_[p] / seg_w_[p] : 0.0;
+      seg_load_mean_ok_[p] = seg_load_ok_[p];
+    }
+    const auto c = static_cast<std::size_t>(sg);
+    seg_load_w_[c] = 0.0;
+    seg_w_[c] = 0.0;
+    seg_load_ok_[c] = !first_after_break;  // a segment entered mid-way (after a break) is incomplete
+  }
+  {
+    const auto c = static_cast<std::size_t>(sg);
+    const double w = width_[i];
+    if (load_valid && std::isfinite(load_nm)) {
+      seg_load_w_[c] += load_nm * w;
+    } else {
+      seg_load_ok_[c] = false;
+    }
+    seg_w_[c] += w;
+  }
+
+  // Kinetic energy window around a boundary.
+  const int b = window_of_[i];
+  if (b < 0) return false;
+  if (window_first_[i]) {
+    win_open_ = true;
+    win_ke_w_ = win_w_ = win_speed_w_ = 0.0;
+  }
+  if (!win_open_) return false;
+  const double speed = s.width_rad / s.dt_s;
+  const double w = width_[i];
+  win_ke_w_ += 0.5 * j_center_[i] * speed * speed * w;
+  win_speed_w_ += speed * w;
+  win_w_ += w;
+  if (!window_last_[i]) return false;
+  win_open_ = false;
+
+  const auto bi = static_cast<std::size_t>(b);
+  const double ke = win_ke_w_ / win_w_;
+  const int prev_b = (b + ncyl_ - 1) % ncyl_;
+  const auto pb = static_cast<std::size_t>(prev_b);
+  SegmentEnergy out;
+  out.t_ns = s.t_ns;
+  out.boundary = b;
+  out.ended_position = prev_b;
+  out.ke_j = ke;
+  out.speed_rad_s = win_speed_w_ / win_w_;
+  out.segment_valid = last_boundary_ == prev_b && ke_valid_[pb];
+  out.segment_rad = wrap4pi(boundary_[bi] - boundary_[pb]);
+  if (ncyl_ == 1) out.segment_rad = kFourPi;
+  if (out.segment_valid) {
+    out.d_ke_segment_j = ke - ke_[pb];
+    out.segment_dt_s = static_cast<double>(s.t_ns - t_[pb]) * 1e-9;
+  }
+  out.load_mean_nm = seg_load_mean_[pb];
+  out.load_valid = out.segment_valid && seg_load_mean_ok_[pb];
+  seg_ok_[pb] = out.segment_valid;
+  seg_angle_[pb] = out.segment_rad;
+  if (!out.segment_valid) seg_load_mean_ok_[pb] = false;
+
+  bool all_ok = ke_valid_[bi];
+  bool load_ok = true;
+  double load_w = 0.0;
+  for (int c = 0; c < ncyl_; ++c) {
+    const auto ci = static_cast<std::size_t>(c);
+    all_ok = all_ok && seg_ok_[ci];
+    load_ok = load_ok && seg_load_mean_ok_[ci];
+    load_w += seg_load_mean_[ci] * seg_angle_[ci];
+  }
+  out.cycle_valid = all_ok;
+  if (all_ok) {
+    out.d_ke_cycle_j = ke - ke_[bi];
+    out.cycle_dt_s = static_cast<double>(s.t_ns - t_[bi]) * 1e-9;
+    out.cycle_load_valid = load_ok;
+    out.cycle_load_mean_nm = load_w / kFourPi;
+  }
+  ke_[bi] = ke;
+  t_[bi] = s.t_ns;
+  ke_valid_[bi] = true;
+  last_boundary_ = b;
+  seg_ = out;
+  return true;
+}
+
+}  // namespace torqued

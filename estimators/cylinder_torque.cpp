@@ -1,0 +1,101 @@
+#include "cylinder_torque.hpp"
+
+#include <cmath>
+#include <numbers>
+
+namespace torqued {
+
+namespace {
+constexpr double kFourPi = 4.0 * std::numbers::pi;
+}  // namespace
+
+CylinderTorque::CylinderTorque(const EngineGeometry& engine, const CylinderParams& params) noexcept
+    : engine_(engine), params_(params) {
+  reset();
+}
+
+void CylinderTorque::reset() noexcept {
+  work_.fill(0.0);
+  valid_.fill(false);
+  fired_.fill(false);
+  ema_.fill(0.0);
+  ema_init_ = false;
+  cycles_ = 0;
+  out_ = CylinderCycle{};
+  out_.cylinders = engine_.cylinders;
+}
+
+bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, bool valid, bool fired) noexcept {
+  const int n = engine_.cylinders;
+  if (position < 0 || position >= n) return false;
+  const auto p = static_cast<std::size_t>(position);
+  work_[p] = work_j;
+  valid_[p] = valid && std::isfinite(work_j);
+  fired_[p] = fired;
+  if (position != n - 1) return false;
+
+  // Cycle complete: positions 0..n−1 hold this cycle's segments.
+  CylinderCycle o;
+  o.t_ns = t_ns;
+  o.cycle = ++cycles_;
+  o.cylinders = n;
+  bool all_valid = true, all_fired = true;
+  double sum = 0.0;
+  for (int m = 0; m < n; ++m) {
+    all_valid = all_valid && valid_[static_cast<std::size_t>(m)];
+    all_fired = all_fired && fired_[static_cast<std::size_t>(m)];
+    sum += work_[static_cast<std::size_t>(m)];
+  }
+  if (!all_valid) {
+    o.health = Health::kInvalidInput;
+    o.imbalance_filtered_pct = out_.imbalance_filtered_pct;
+    out_ = o;
+    return true;
+  }
+  const double mean_w = sum / n;
+  o.mean_nm = sum / kFourPi;
+  for (int m = 0; m < n; ++m) {
+    const auto mi = static_cast<std::size_t>(m);
+    const auto ci = static_cast<std::size_t>(engine_.firing_order[mi] - 1);
+    o.torque_nm[ci] = work_[mi] / kFourPi;
+    o.imbalance_pct[ci] = std::fabs(mean_w) > 1e-9 ? (work_[mi] / mean_w - 1.0) * 100.0 : 0.0;
+    // Misfire: compare with the median of the other cylinders (robust to a second misfire in the same cycle).
+    std::array<double, kMaxCylinders> others{};
+    int k = 0;
+    for (int j = 0; j < n; ++j) {
+      if (j != m) others[static_cast<std::size_t>(k++)] = work_[static_cast<std::size_t>(j)];
+    }
+    for (int a = 1; a < k; ++a) {  // insertion sort of ≤ 7 values
+      const double v = others[static_cast<std::size_t>(a)];
+      int b = a - 1;
+      while (b >= 0 && others[static_cast<std::size_t>(b)] > v) {
+        others[static_cast<std::size_t>(b + 1)] = others[static_cast<std::size_t>(b)];
+        --b;
+      }
+      others[static_cast<std::size_t>(b + 1)] = v;
+    }
+    const double med = (k % 2 == 1) ? others[static_cast<std::size_t>(k / 2)]
+                                    : 0.5 * (others[static_cast<std::size_t>(k / 2 - 1)] + others[static_cast<std::size_t>(k / 2)]);
+    const double seg_rad = kFourPi / n;
+    if (fired_[mi] && med / seg_rad > params_.min_mean_nm && work_[mi] < params_.misfire_threshold * med) {
+      o.misfire[ci] = true;
+      ++o.misfire_count;
+      ++misfires_;
+    }
+  }
+  // Filtered imbalance over firing cycles without misfire.
+  if (all_fired && o.misfire_count == 0 && o.mean_nm > params_.min_mean_nm) {
+    const double a = ema_init_ ? params_.imbalance_filter : 1.0;
+    for (int c = 0; c < n; ++c) {
+      const auto ci = static_cast<std::size_t>(c);
+      ema_[ci] += a * (o.imbalance_pct[ci] - ema_[ci]);
+    }
+    ema_init_ = true;
+  }
+  o.imbalance_filtered_pct = ema_;
+  o.health = ema_init_ ? Health::kValid : Health::kNotConverged;
+  out_ = o;
+  return true;
+}
+
+}  // namespace torqued

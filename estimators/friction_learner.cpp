@@ -1,0 +1,137 @@
+#include "friction_learner.hpp"
+
+#include <cmath>
+
+namespace torqued {
+
+namespace {
+// Scaled coefficients keep the 3x3 RLS well conditioned: θ = [C1, C2·1e3, C3·1e6], regressor [1, n/1e3, (n/1e3)²].
+constexpr double kS2 = 1e3;
+constexpr double kS3 = 1e6;
+bool finite4(const std::array<double, 4>& c) noexcept {
+  for (double v : c) {
+    if (!std::isfinite(v)) return false;
+  }
+  return true;
+}
+}  // namespace
+
+FrictionLearner::FrictionLearner(const FrictionParams& params) noexcept : params_(params), base_(params.c) {
+  reset();
+}
+
+void FrictionLearner::reset() noexcept {
+  theta_ = {base_[0], base_[1] * kS2, base_[2] * kS3};
+  c4_ = base_[3];
+  const double v = params_.prior_sd_nm * params_.prior_sd_nm;
+  p_ = {v, 0, 0, 0, v, 0, 0, 0, v};
+  p4_ = 1e-6;  // C4 prior 1σ = 1e-3 /°C
+  have_idle_ref_ = false;
+  n_motoring_ = n_idle_ = n_rejected_ = 0;
+}
+
+bool FrictionLearner::observe_motoring(double speed_rpm, double oil_temp_c, double friction_nm) noexcept {
+  if (!params_.learn) return false;
+  if (!std::isfinite(speed_rpm) || !std::isfinite(oil_temp_c) || !std::isfinite(friction_nm) ||
+      speed_rpm < params_.min_rpm || speed_rpm > params_.max_rpm) {
+    ++n_rejected_;
+    return false;
+  }
+  // EN-34: RLS with forgetting on y = φᵀθ, φ = s e^{C4 t} [1, n', n'²].
+  const double nk = speed_rpm / kS2;
+  const double e = params_.sign * std::exp(c4_ * oil_temp_c);
+  const double phi[3] = {e, e * nk, e * nk * nk};
+  double pphi[3];
+  for (int i = 0; i < 3; ++i) pphi[i] = p_[i * 3 + 0] * phi[0] + p_[i * 3 + 1] * phi[1] + p_[i * 3 + 2] * phi[2];
+  const double lam = params_.forgetting;
+  const double denom = lam + phi[0] * pphi[0] + phi[1] * pphi[1] + phi[2] * pphi[2];
+  if (!(denom > 0.0) || !std::isfinite(denom)) {
+    ++n_rejected_;
+    return false;
+  }
+  const double y_hat = phi[0] * theta_[0] + phi[1] * theta_[1] + phi[2] * theta_[2];
+  const double err = friction_nm - y_hat;
+  std::array<double, 9> pn{};
+  for (int i = 0; i < 3; ++i) {
+    const double k = pphi[i] / denom;
+    theta_[static_cast<std::size_t>(i)] += k * err;
+    for (int j = 0; j < 3; ++j) {
+      pn[static_cast<std::size_t>(i * 3 + j)] = (p_[static_cast<std::size_t>(i * 3 + j)] - k * pphi[j]) / lam;
+    }
+  }
+  // Keep P symmetric and bounded by the prior (forgetting without excitation would blow it up).
+  const double pmax = params_.prior_sd_nm * params_.prior_sd_nm;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = i + 1; j < 3; ++j) {
+      const double m = 0.5 * (pn[static_cast<std::size_t>(i * 3 + j)] + pn[static_cast<std::size_t>(j * 3 + i)]);
+      pn[static_cast<std::size_t>(i * 3 + j)] = pn[static_cast<std::size_t>(j * 3 + i)] = m;
+    }
+    if (pn[static_cast<std::size_t>(i * 4)] > pmax) {
+      const double s = pmax / pn[static_cast<std::size_t>(i * 4)];
+      for (int j = 0; j < 3; ++j) {
+        pn[static_cast<std::size_t>(i * 3 + j)] *= std::sqrt(s);
+        pn[static_cast<std::size_t>(j * 3 + i)] *= std::sqrt(s);
+      }
+    }
+  }
+  p_ = pn;
+  ++n_motoring_;
+  return true;
+}
+
+bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double friction_nm) noexcept {
+  if (!params_.learn) return false;
+  if (!std::isfinite(speed_rpm) || !std::isfinite(oil_temp_c) || !std::isfinite(friction_nm) ||
+      !(friction_nm > 0.0)) {
+    ++n_rejected_;
+    return false;
+  }
+  ++n_idle_;
+  const double ln = std::log(friction_nm);
+  if (!have_idle_ref_) {
+    have_idle_ref_ = true;
+    idle_ref_oil_c_ = oil_temp_c;
+    idle_ref_ln_ = ln;
+    return true;
+  }
+  // EN-30..33: Δ ln T_fric = C4 Δt_oil. Only informative once the oil temperature moved.
+  const double dt = oil_temp_c - idle_ref_oil_c_;
+  if (std::fabs(dt) < 2.0) {
+    // Same temperature: refine the reference level (slow average).
+    idle_ref_ln_ += 0.1 * (ln - idle_ref_ln_);
+    return true;
+  }
+  const double y = ln - idle_ref_ln_;
+  const double r = 0.01;  // variance of Δ ln T (≈ 10 % noise)
+  const double k = p4_ * dt / (r + dt * p4_ * dt);
+  c4_ += k * (y - c4_ * dt);
+  p4_ = (1.0 - k * dt) * p4_ + 1e-10;
+  idle_ref_oil_c_ = oil_temp_c;
+  idle_ref_ln_ = ln;
+  return true;
+}
+
+double FrictionLearner::friction_nm(double speed_rpm, double oil_temp_c) const noexcept {
+  const double nk = speed_rpm / kS2;
+  return params_.sign * std::exp(c4_ * oil_temp_c) * (theta_[0] + theta_[1] * nk + theta_[2] * nk * nk);
+}
+
+std::array<double, 4> FrictionLearner::coefficients() const noexcept {
+  return {theta_[0], theta_[1] / kS2, theta_[2] / kS3, c4_};
+}
+
+bool FrictionLearner::import_coefficients(const std::array<double, 4>& c) noexcept {
+  if (!finite4(c)) return false;
+  base_ = c;
+  reset();
+  imported_ = true;
+  return true;
+}
+
+Health FrictionLearner::health() const noexcept {
+  if (!params_.learn || imported_) return Health::kValid;
+  return n_motoring_ >= static_cast<std::uint64_t>(params_.min_observations) ? Health::kValid
+                                                                              : Health::kNotConverged;
+}
+
+}  // namespace torqued

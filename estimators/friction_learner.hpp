@@ -1,0 +1,66 @@
+#pragma once
+// Friction self-learning (Energies 2019 eq. (EN-24)..(EN-36)).
+//   T_fric = s · (C1 + C2 n + C3 n²) · e^{C4 t_oil},  n in rpm, t_oil in °C, s = FrictionParams::sign.
+// The paper prints coefficients whose polynomial is negative over 800-6000 rpm (it reports friction as a
+// negative, decelerating torque); `sign = -1` (default) turns them into a positive friction torque.
+// Learning, both by recursive least squares (EN-34):
+//  - C1..C3 from "motoring" observations: in fuel cut-off J θ̈ = −T_fric − T_load (+ pumping), so one cycle's
+//    energy balance yields T_fric at that speed (the caller forms the observation, see AnglePipeline).
+//    Regressor φ = s e^{C4 t_oil} [1, n/1000, (n/1000)²] (scaled for conditioning), forgetting factor, and
+//    prior covariance around the starting coefficients so that a narrow speed range cannot run away.
+//  - C4 at idle: T_fric = T_ind, so Δ ln T_fric = C4 Δt_oil between idle observations at different oil
+//    temperatures (EN-30..33); scalar RLS on the pairs. Without oil-temperature variation C4 stays at its prior.
+// Coefficients can be exported and imported for persistence across restarts (the daemon writes them atomically).
+#include <array>
+#include <cstdint>
+
+#include "estimate.hpp"
+#include "params.hpp"
+
+namespace torqued {
+
+class FrictionLearner {
+ public:
+  explicit FrictionLearner(const FrictionParams& params) noexcept;
+
+  /// Back to the configured (or last imported) coefficients, forgetting the learning history.
+  void reset() noexcept;
+
+  /// Motoring observation (fuel cut-off): friction torque `friction_nm` measured at `speed_rpm`, `oil_temp_c`.
+  /// Returns false (and counts) when rejected (non-finite, outside the speed range). Real-time safe.
+  bool observe_motoring(double speed_rpm, double oil_temp_c, double friction_nm) noexcept;
+
+  /// Idle observation: friction torque equals the indicated torque (no load). Learns C4 from oil-temperature
+  /// differences. Returns false when rejected. Real-time safe.
+  bool observe_idle(double speed_rpm, double oil_temp_c, double friction_nm) noexcept;
+
+  /// T_fric (N m) at the given speed and oil temperature. Real-time safe (one exp()).
+  [[nodiscard]] double friction_nm(double speed_rpm, double oil_temp_c) const noexcept;
+
+  /// Current coefficients [C1, C2, C3, C4] in the paper's units (rpm, °C).
+  [[nodiscard]] std::array<double, 4> coefficients() const noexcept;
+  /// Load persisted coefficients (also becomes the reset point). Rejects non-finite values (returns false).
+  bool import_coefficients(const std::array<double, 4>& c) noexcept;
+
+  [[nodiscard]] std::uint64_t motoring_observations() const noexcept { return n_motoring_; }
+  [[nodiscard]] std::uint64_t idle_observations() const noexcept { return n_idle_; }
+  [[nodiscard]] std::uint64_t rejected() const noexcept { return n_rejected_; }
+  /// kValid once `min_observations` motoring observations were learned (or coefficients were imported),
+  /// kNotConverged before (the prior is still used), kDisabled when learning is off (fixed law: kValid).
+  [[nodiscard]] Health health() const noexcept;
+
+ private:
+  FrictionParams params_;
+  std::array<double, 4> base_{};   ///< reset point: configured or imported coefficients
+  std::array<double, 3> theta_{};  ///< scaled [C1, C2·1000, C3·1e6]
+  std::array<double, 9> p_{};      ///< RLS covariance (row-major 3x3)
+  double c4_ = 0.0;
+  double p4_ = 0.0;                ///< C4 RLS covariance
+  bool have_idle_ref_ = false;
+  double idle_ref_oil_c_ = 0.0;
+  double idle_ref_ln_ = 0.0;
+  bool imported_ = false;
+  std::uint64_t n_motoring_ = 0, n_idle_ = 0, n_rejected_ = 0;
+};
+
+}  // namespace torqued

@@ -1,0 +1,238 @@
+#include "load_rls.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "crank_kinematics.hpp"
+#include "cycle_energy.hpp"
+
+namespace torqued {
+
+namespace {
+constexpr double kPi = std::numbers::pi;
+constexpr double kTwoPi = 2.0 * kPi;
+constexpr double kFourPi = 4.0 * kPi;
+constexpr double kDeg = kPi / 180.0;
+double wrap4pi(double a) noexcept {
+  a = std::fmod(a, kFourPi);
+  return a < 0.0 ? a + kFourPi : a;
+}
+
+/// Pressure-model weights at local angle φ after a cylinder's firing TDC: p = w_map·MAP + w_exh·p_exh + w_p3·p3.
+struct Weights {
+  double map = 0.0, exh = 0.0, p3 = 0.0;
+};
+Weights model_weights(double phi, const CrankKinematics& kin, const EnergiesParams& prm, double v_ivc,
+                      double v_c) noexcept {
+  const double evo = prm.evo_atdc_deg * kDeg;
+  const double bde = prm.blowdown_end_atdc_deg * kDeg;
+  const double ivc = (540.0 + prm.ivc_abdc_deg) * kDeg;
+  const double v = kin.volume(phi);
+  const double k = prm.polytropic_kappa;
+  Weights w;
+  if (phi < evo) {
+    w.p3 = std::pow(v_c / v, k);
+  } else if (phi < bde) {
+    // Blowdown: raised-cosine blend from the polytrope to p_exh between EVO and the blowdown end.
+    const double c = 0.5 * (1.0 + std::cos(kPi * (phi - evo) / (bde - evo)));
+    w.p3 = c * std::pow(v_c / v, k);
+    w.exh = 1.0 - c;
+  } else if (phi < kTwoPi) {
+    w.exh = 1.0;
+  } else if (phi < ivc) {
+    w.map = 1.0;
+  } else {
+    w.map = prm.ivc_pressure_factor * std::pow(v_ivc / v, k);
+  }
+  return w;
+}
+}  // namespace
+
+LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const EnergiesParams& params)
+    : engine_(engine), params_(params), kappa_(params.polytropic_kappa) {
+  const CrankKinematics kin(engine);
+  const int n = engine.cylinders;
+  v_c_ = kin.clearance_volume_m3();
+  v_ivc_ = kin.volume((540.0 + params.ivc_abdc_deg) * kDeg);
+  std::vector<double> e1, w1;
+  nominal_wheel_edges(wheel, e1, w1);
+  const int t = wheel.teeth();
+  samples_ = 2 * t;
+  std::vector<double> center(static_cast<std::size_t>(samples_));
+  for (int k = 0; k < samples_; ++k) {
+    const double e = (k / t) * kTwoPi + e1[static_cast<std::size_t>(k % t)];
+    center[static_cast<std::size_t>(k)] = wrap4pi(e - 0.5 * w1[static_cast<std::size_t>(k % t)] - engine.tdc_offset_rad);
+  }
+  window_first_of_.assign(static_cast<std::size_t>(samples_), -1);
+  window_last_of_.assign(static_cast<std::size_t>(samples_), -1);
+  const double step = 0.05 * kDeg;
+  // Full-cycle ∮p dV coefficients of one cylinder (local angle).
+  for (double phi = 0.5 * step; phi < kFourPi; phi += step) {
+    const Weights w = model_weights(phi, kin, params, v_ivc_, v_c_);
+    const double dv = kin.dvolume(phi) * step;
+    cyc_map_ += w.map * dv;
+    cyc_exh_ += w.exh * dv;
+    cyc_p3_ += w.p3 * dv;
+  }
+  for (int m = 0; m < n; ++m) {
+    const double tdc = kFourPi * m / n;
+    const double a = tdc - params.window_start_btdc_deg * kDeg;
+    const double b = tdc - params.window_end_btdc_deg * kDeg;
+    // Teeth whose period centre lies in [a, b] (relative distance from a, wrapped).
+    int first = -1, last = -1;
+    double best_first = 1e9, best_last = -1e9;
+    for (int k = 0; k < samples_; ++k) {
+      const double d = wrap4pi(center[static_cast<std::size_t>(k)] - a);
+      if (d <= b - a + 1e-9) {
+        if (d < best_first) { best_first = d; first = k; }
+        if (d > best_last) { best_last = d; last = k; }
+      }
+    }
+    if (first < 0 || last < 0 || first == last) continue;  // window narrower than a tooth: unusable
+    Window win;
+    win.first = first;
+    win.last = last;
+    win.c_first = center[static_cast<std::size_t>(first)];
+    win.c_last = center[static_cast<std::size_t>(last)];
+    win.span = wrap4pi(win.c_last - win.c_first);
+    win.j_first = kin.inertia(win.c_first);
+    win.j_last = kin.inertia(win.c_last);
+    const int steps = static_cast<int>(std::ceil(win.span / step));
+    const double h = win.span / steps;
+    for (int q = 0; q < n; ++q) {
+      const double phase = kFourPi * q / n;
+      for (int i = 0; i < steps; ++i) {
+        const double th = win.c_first + (i + 0.5) * h;
+        const double phi = wrap4pi(th - phase);
+        const Weights w = model_weights(phi, kin, params, v_ivc_, v_c_);
+        const double dv = kin.dvolume(phi) * h;  // dV_j/dθ dθ = A R f(θ − φ_j) dθ (EN-9)
+        win.k_map += w.map * dv;
+        win.k_exh += w.exh * dv;
+        win.k_p3[static_cast<std::size_t>(q)] += w.p3 * dv;
+        win.k_cc -= dv;
+      }
+    }
+    window_first_of_[static_cast<std::size_t>(first)] = static_cast<int>(windows_tab_.size());
+    window_last_of_[static_cast<std::size_t>(last)] = static_cast<int>(windows_tab_.size());
+    windows_tab_.push_back(win);
+  }
+  reset();
+}
+
+void LoadRls::reset() noexcept {
+  open_window_ = -1;
+  expected_tooth_ = -1;
+  theta_ = {engine_.j_rot_kgm2, 0.0};
+  p_ = {1e-4, 0.0, 0.0, 1e6};
+  resid_var_ = 0.0;
+  windows_ = 0;
+  est_ = TorqueEstimate{};
+}
+
+double LoadRls::expansion_p3(double work_j, double map_pa) const noexcept {
+  return (work_j - cyc_map_ * map_pa - cyc_exh_ * params_.exhaust_pressure_pa) / cyc_p3_;
+}
+
+double LoadRls::motored_p3(double map_pa) const noexcept {
+  // Motored: the compression end state p_IVC (V_IVC/V_c)^κ expands back along the same polytrope.
+  return params_.ivc_pressure_factor * map_pa * std::pow(v_ivc_ / v_c_, kappa_);
+}
+
+double LoadRls::motored_torque_nm(double map_pa) const noexcept {
+  const double w = cyc_map_ * map_pa + cyc_exh_ * params_.exhaust_pressure_pa + cyc_p3_ * motored_p3(map_pa);
+  return engine_.cylinders * w / kFourPi;
+}
+
+double LoadRls::window_gas_work(int w, double map_pa, const std::array<double, kMaxCylinders>& p3_pa) const noexcept {
+  const Window& win = windows_tab_[static_cast<std::size_t>(w)];
+  double work = win.k_map * map_pa + win.k_exh * params_.exhaust_pressure_pa + win.k_cc * engine_.crankcase_pressure_pa;
+  for (int q = 0; q < engine_.cylinders; ++q) work += win.k_p3[static_cast<std::size_t>(q)] * p3_pa[static_cast<std::size_t>(q)];
+  return work;
+}
+
+bool LoadRls::update(const ToothSample& s, double map_pa, bool map_valid,
+                     const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid) noexcept {
+  if (!s.synced || s.tooth < 0 || s.tooth >= samples_ || !(s.dt_s > 0.0) || !(s.width_rad > 0.0) ||
+      (expected_tooth_ >= 0 && s.tooth != expected_tooth_)) {
+    open_window_ = -1;
+    expected_tooth_ = s.synced && s.tooth >= 0 && s.tooth < samples_ ? (s.tooth + 1) % samples_ : -1;
+    return false;
+  }
+  expected_tooth_ = (s.tooth + 1) % samples_;
+  const auto k = static_cast<std::size_t>(s.tooth);
+  const double w2 = (s.width_rad / s.dt_s) * (s.width_rad / s.dt_s);
+  const int opened = window_first_of_[k];
+  if (opened >= 0) {
+    open_window_ = opened;
+    const Window& win = windows_tab_[static_cast<std::size_t>(opened)];
+    ke_first_ = 0.5 * (win.j_first - engine_.j_rot_kgm2) * w2;
+    w2_first_ = w2;
+    return false;
+  }
+  const int closed = window_last_of_[k];
+  if (closed < 0 || closed != open_window_) return false;
+  open_window_ = -1;
+  if (!map_valid || !std::isfinite(map_pa)) {
+    est_.health = Health::kStaleInput;
+    return false;
+  }
+  const Window& win = windows_tab_[static_cast<std::size_t>(closed)];
+  std::array<double, kMaxCylinders> p3{};
+  for (int q = 0; q < engine_.cylinders; ++q) {
+    const auto qi = static_cast<std::size_t>(q);
+    p3[qi] = params_.model_expansion_cylinder && works_valid ? expansion_p3(cyl_work_j[qi], map_pa) : motored_p3(map_pa);
+    if (!params_.model_expansion_cylinder) p3[qi] = 0.0;  // paper's simplification: no other cylinder's gas torque
+  }
+  // Paper's simplification keeps only the compressing cylinder: drop every cylinder's expansion/exhaust terms.
+  double gas = window_gas_work(closed, map_pa, p3);
+  if (!params_.model_expansion_cylinder) gas -= win.k_exh * params_.exhaust_pressure_pa;
+  const double ke_rel = 0.5 * (win.j_last - engine_.j_rot_kgm2) * w2 - ke_first_;
+  const double y = (gas - ke_rel) / win.span;                 // energy form of EN-11
+  const double phi_a = 0.5 * (w2 - w2_first_) / win.span;     // angle-mean θ̈ (rad/s²)
+  if (!std::isfinite(y) || !std::isfinite(phi_a)) {
+    est_.health = Health::kInvalidInput;
+    return false;
+  }
+  last_y_ = y;
+  const double lam = params_.rls_forgetting;
+  double err;
+  if (params_.rls_estimate_inertia) {
+    // EN-15: Q = P ψ (λ + ψᵀPψ)⁻¹, Θ += Q (y − ψᵀΘ), P = (P − Q ψᵀ P)/λ, ψ = [θ̈, 1].
+    const double psi0 = phi_a, psi1 = 1.0;
+    const double pp0 = p_[0] * psi0 + p_[1] * psi1, pp1 = p_[2] * psi0 + p_[3] * psi1;
+    const double den = lam + psi0 * pp0 + psi1 * pp1;
+    err = y - (psi0 * theta_[0] + psi1 * theta_[1]);
+    const double q0 = pp0 / den, q1 = pp1 / den;
+    theta_[0] += q0 * err;
+    theta_[1] += q1 * err;
+    const double n00 = (p_[0] - q0 * pp0) / lam, n01 = (p_[1] - q0 * pp1) / lam;
+    const double n11 = (p_[3] - q1 * pp1) / lam;
+    p_ = {n00, n01, n01, n11};
+  } else {
+    // Known J_rot: scalar RLS with forgetting on y − J_rot θ̈ = T_load*.
+    const double yy = y - engine_.j_rot_kgm2 * phi_a;
+    err = yy - theta_[1];
+    const double den = lam + p_[3];
+    const double q = p_[3] / den;
+    theta_[1] += q * err;
+    p_[3] = (p_[3] - q * p_[3]) / lam;
+  }
+  if (!std::isfinite(theta_[0]) || !std::isfinite(theta_[1])) {
+    reset();
+    est_.health = Health::kNumerical;
+    return false;
+  }
+  ++windows_;
+  const double a = windows_ < 20 ? 1.0 / static_cast<double>(windows_) : 0.05;
+  resid_var_ += a * (err * err - resid_var_);
+  est_.t_ns = s.t_ns;
+  est_.torque_nm = theta_[1];
+  // Effective sample count of the forgetting factor: (1 + λ)/(1 − λ).
+  const double n_eff = std::min<double>(static_cast<double>(windows_), (1.0 + lam) / (1.0 - lam));
+  est_.uncertainty = std::sqrt(resid_var_ / n_eff);
+  est_.health = windows_ >= static_cast<std::uint64_t>(params_.rls_min_windows) ? Health::kValid : Health::kNotConverged;
+  return true;
+}
+
+}  // namespace torqued

@@ -1,0 +1,65 @@
+#include "torque_fusion.hpp"
+
+#include <cmath>
+
+namespace torqued {
+
+const FusedTorque& TorqueFusion::update(const FusionInput& in) noexcept {
+  FusedTorque o;
+  o.t_ns = in.t_ns;
+  const double can_age_s = static_cast<double>(in.t_ns - in.can_t_ns) * 1e-9;
+  o.can_lost = !in.can_seen || can_age_s > params_.max_can_age_s;
+
+  std::array<bool, kFusionSources> usable{};
+  int primary = -1;
+  for (int i = 0; i < kFusionSources; ++i) {
+    const FusionSource& s = in.src[static_cast<std::size_t>(i)];
+    usable[static_cast<std::size_t>(i)] = s.health == Health::kValid && std::isfinite(s.brake_nm) &&
+                                          s.sd_nm > 0.0 && std::isfinite(s.sd_nm) && !(s.uses_can && o.can_lost);
+    if (primary < 0 && usable[static_cast<std::size_t>(i)]) primary = i;
+  }
+  if (primary < 0) {
+    // Nothing usable: hold the last good value, say so.
+    o.brake_nm = have_good_ ? out_.brake_nm : 0.0;
+    o.sd_nm = have_good_ ? out_.sd_nm : 0.0;
+    o.quality = FusionQuality::kInvalid;
+    o.primary = out_.primary;
+    o.health = o.can_lost ? Health::kStaleInput : Health::kNotConverged;
+    o.age_ns = have_good_ ? in.t_ns - (out_.t_ns - out_.age_ns) : 0;
+    out_ = o;
+    return out_;
+  }
+  const FusionSource& p = in.src[static_cast<std::size_t>(primary)];
+  double wsum = 1.0 / (p.sd_nm * p.sd_nm);
+  double xsum = p.brake_nm * wsum;
+  std::int64_t newest = p.newest_input_ns;
+  o.used_mask = static_cast<std::uint8_t>(1u << primary);
+  if (params_.blend) {
+    for (int i = primary + 1; i < kFusionSources; ++i) {
+      if (!usable[static_cast<std::size_t>(i)]) continue;
+      const FusionSource& s = in.src[static_cast<std::size_t>(i)];
+      const double gate = params_.gate_sigma * std::sqrt(p.sd_nm * p.sd_nm + s.sd_nm * s.sd_nm);
+      if (std::fabs(s.brake_nm - p.brake_nm) > gate) continue;
+      const double w = 1.0 / (s.sd_nm * s.sd_nm);
+      wsum += w;
+      xsum += w * s.brake_nm;
+      if (s.newest_input_ns > newest) newest = s.newest_input_ns;
+      o.used_mask = static_cast<std::uint8_t>(o.used_mask | (1u << i));
+    }
+  }
+  o.brake_nm = xsum / wsum;
+  o.sd_nm = std::sqrt(1.0 / wsum);
+  o.primary = static_cast<FusionSourceId>(primary);
+  switch (o.primary) {
+    case FusionSourceId::kEnergyCan: o.quality = FusionQuality::kFull; break;
+    case FusionSourceId::kCrankOnly: o.quality = FusionQuality::kCrankOnly; break;
+    default: o.quality = FusionQuality::kDegraded; break;
+  }
+  o.age_ns = in.t_ns - newest;
+  o.health = Health::kValid;
+  have_good_ = true;
+  out_ = o;
+  return out_;
+}
+
+}  // namespace torqued

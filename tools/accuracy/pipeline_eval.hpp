@@ -1,0 +1,71 @@
+#pragma once
+// Runs simulator scenarios through the AnglePipeline and compares every output with the simulator's truth.
+// Shared by the torque-accuracy tool and the estimator tests (not real-time code; allocates freely).
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "angle_pipeline.hpp"
+#include "engine_sim.hpp"
+
+namespace torqued::eval {
+
+struct EvalOptions {
+  bool correct_tooth_errors = true;     ///< widths corrected with the true machining errors ("perfectly learned")
+  std::optional<std::array<double, 4>> friction;  ///< import these friction coefficients before the run
+  std::array<double, 4> friction_prior{0.0, 0.0, 0.0, 0.0};  ///< start here when `friction` is empty ("not told")
+  int skip_cycles = 12;                 ///< cycles ignored at the start (RLS / ESO convergence)
+  double can_lost_after_s = -1.0;       ///< >= 0: CAN signals disappear from this time on
+  double steady_pct = 3.0, steady_nm = 2.0;     ///< issue 5 tolerances
+  double transient_pct = 5.0, transient_nm = 3.0;
+  AnglePipelineConfig base{};           ///< tuning (engine/wheel are taken from the scenario)
+};
+
+/// One compared cycle (the pipeline's rolling 720° window ending at boundary 0).
+struct CycleCompare {
+  double t_s = 0.0;
+  bool transient = false;
+  double speed_rpm = 0.0;
+  double brake = 0.0, brake_true = 0.0;
+  double indicated = 0.0, indicated_true = 0.0;
+  double friction = 0.0, friction_true = 0.0;
+  double load_rls = 0.0, load_star_true = 0.0;  ///< extended load T_load + T_fric
+  double indicated_crank = 0.0, indicated_eso = 0.0, fused = 0.0;
+  FusionQuality quality = FusionQuality::kInvalid;
+  bool brake_valid = false, indicated_valid = false, rls_valid = false, eso_valid = false;
+};
+
+struct ErrorStats {
+  int n = 0;
+  int pass = 0;             ///< cycles within tolerance
+  double max_abs_nm = 0.0;
+  double rms_nm = 0.0;
+  double max_rel_pct = 0.0; ///< max |err| / |truth| (%)
+  double worst_ratio = 0.0; ///< max |err| / allowed (≤ 1: all pass)
+};
+
+struct ScenarioResult {
+  std::string name;
+  int cycles = 0;
+  double mean_rpm = 0.0;
+  ErrorStats brake, indicated, fused, brake_crank, indicated_crank, indicated_eso, friction, load_rls;
+  double imbalance_max_pp = 0.0;          ///< |filtered imbalance − true imbalance| max over cylinders (pp)
+  std::array<double, kMaxCylinders> imbalance_est{}, imbalance_true{};
+  int misfires_true = 0, misfires_found = 0, misfires_false = 0;
+  std::array<double, 4> friction_coefficients{};
+  std::uint64_t friction_observations = 0;
+  std::vector<CycleCompare> rows;
+  AnglePipelineStats stats;
+};
+
+/// Simulate `scenario` and evaluate the pipeline on it.
+ScenarioResult evaluate(const sim::Scenario& scenario, const EvalOptions& options);
+/// Same on an already simulated output.
+ScenarioResult evaluate(const sim::Scenario& scenario, const sim::SimOutput& out, const EvalOptions& options);
+
+/// Learn friction from the "fuel_cut" coast-down starting at `prior`; returns the learned coefficients.
+std::array<double, 4> learn_friction(const EvalOptions& options);
+
+}  // namespace torqued::eval
