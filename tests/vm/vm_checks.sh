@@ -1,0 +1,27 @@
+#!/bin/sh
+# Runs inside the VM (chrooted into the host root, vcan0 up): every vcan check, one after the other.
+# Results go to $TORQUED_VM_OUT (writable 9p share): <check>.log and <check>.rc; the output is also echoed.
+#   vm_checks.sh BUILD_DIR INPUT_DIR
+build=$1
+in=$2
+out=${TORQUED_VM_OUT:-/tmp/vm-out}
+fails=0
+run_check() {
+  name=$1; shift
+  echo "=== vm check: $name"
+  "$@" >"$out/$name.log" 2>&1
+  rc=$?
+  cat "$out/$name.log"
+  echo "$rc" >"$out/$name.rc"
+  echo "=== vm check: $name -> exit $rc"
+  [ "$rc" -eq 0 ] || fails=$((fails + 1))
+}
+ip link set vcan0 mtu 72 2>/dev/null  # CAN FD
+run_check socketcan_unit "$build/tests/io/test_socketcan"
+dbc=""
+[ -f "$in/demo.dbc" ] && dbc="--dbc $in/demo.dbc"
+run_check frames "$build/tests/vm/vm_can_check" frames --log "$in/can.log" $dbc --iface vcan0
+run_check encoder "$build/tests/vm/vm_can_check" encoder --edges "$in/edges.csv" --log "$in/encoder.log" --tick-ns 1 --iface vcan0
+run_check downup "$build/tests/vm/vm_can_check" downup --iface vcan0
+echo "vm checks failed: $fails"
+exit "$fails"

@@ -1,0 +1,15 @@
+#!/bin/sh
+# One vm_* ctest test: prints what its check printed inside the VM and returns its exit code.
+#   vm_result.sh RESULTS_DIR CHECK
+results=$1
+name=$2
+if [ -f "$results/SKIPPED" ]; then
+  echo "SKIP vm check '$name': $(cat "$results/SKIPPED")"
+  exit 77
+fi
+if [ ! -f "$results/$name.rc" ]; then
+  echo "FAIL vm check '$name': no result (did the fixture test vm_boot run and boot the VM?)"
+  exit 1
+fi
+cat "$results/$name.log"
+exit "$(cat "$results/$name.rc")"
