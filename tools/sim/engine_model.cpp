@@ -26,7 +26,12 @@ EngineModel::EngineModel(const Scenario& sc)
       bd_end_rad_(sc.combustion.blowdown_end_deg * kDeg),
       dur_rad_(sc.combustion.burn_duration_deg * kDeg) {
   const CrankKinematics kin(sc.engine);
-  for (int c = 0; c < n_; ++c) tdc_base_[static_cast<std::size_t>(c)] = sc.engine.tdc_offset_rad + kin.phase(c + 1);
+  for (int c = 0; c < n_; ++c) {
+    const auto cu = static_cast<std::size_t>(c);
+    tdc_base_[cu] = sc.engine.tdc_offset_rad + kin.phase(c + 1);
+    sin_base_[cu] = std::sin(tdc_base_[cu]);
+    cos_base_[cu] = std::cos(tdc_base_[cu]);
+  }
 }
 
 double EngineModel::volume_m3(double psi) const noexcept {
@@ -50,7 +55,7 @@ double EngineModel::wiebe_dq(const CylinderEvent& e, double psi) const noexcept 
   const double x = (psi - e.soc_rad) / dur_rad_;
   if (x <= 0.0) return 0.0;
   const double a = comb_.wiebe_a, m = comb_.wiebe_m;
-  const double xm = std::pow(x, m);
+  const double xm = m == 2.0 ? x * x : std::pow(x, m);
   return e.q_total_j * a * (m + 1.0) / dur_rad_ * xm * std::exp(-a * xm * x);
 }
 
@@ -60,10 +65,13 @@ void EngineModel::derivative(double theta_w, const State& y, const HeldInputs& i
   const double gamma = comb_.gamma;
   const double p_cc = geo_.crankcase_pressure_pa;
   for (std::size_t k = 2; k < static_cast<std::size_t>(kStateSize); ++k) dy[k] = 0.0;
+  // One sincos per evaluation: sin/cos(θ − b_c) by the angle-difference identities.
+  const double st = std::sin(theta_w), ct = std::cos(theta_w);
   for (int c = 0; c < n_; ++c) {
     const auto cu = static_cast<std::size_t>(c);
     const double psi0 = theta_w - tdc_base_[cu];
-    const double s = std::sin(psi0), co = std::cos(psi0);
+    const double s = st * cos_base_[cu] - ct * sin_base_[cu];
+    const double co = ct * cos_base_[cu] + st * sin_base_[cu];
     const double q = 1.0 - lambda_ * lambda_ * s * s;
     const double root = std::sqrt(q);
     const double s2 = 2.0 * s * co;

@@ -67,7 +67,7 @@ class EngineModel {
   CombustionParams comb_;
   double r_, l_, lambda_, area_, vc_;
   double evo_rad_, bd_end_rad_, dur_rad_;
-  std::array<double, kMaxCylinders> tdc_base_{};
+  std::array<double, kMaxCylinders> tdc_base_{}, sin_base_{}, cos_base_{};
   std::array<CylinderEvent, kMaxCylinders> events_{};
 };
 
