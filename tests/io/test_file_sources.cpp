@@ -1,0 +1,220 @@
+// File backends: line reader, edge CSV / bare list, candump -l. Bad lines reported with file:line, skipped,
+// counted, never fatal; times parsed exactly to the nanosecond.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <string>
+
+#include "alloc_counter.hpp"
+#include "candump_source.hpp"
+#include "edge_file_source.hpp"
+#include "fast_parse.hpp"
+#include "io_test_util.hpp"
+#include "line_reader.hpp"
+
+namespace torqued {
+namespace {
+
+using test::TempFile;
+
+TEST(FastParse, SecondsToNanosecondsIsExact) {
+  auto ns = [](const char* s) {
+    const char* p = s;
+    std::int64_t v = 0;
+    EXPECT_TRUE(parse::seconds_to_ns(p, s + std::strlen(s), v)) << s;
+    return v;
+  };
+  EXPECT_EQ(ns("0.000000001"), 1);
+  EXPECT_EQ(ns("1700000000.123456"), 1'700'000'000'123'456'000);
+  EXPECT_EQ(ns("12.5"), 12'500'000'000);
+  EXPECT_EQ(ns("-0.25"), -250'000'000);
+  EXPECT_EQ(ns("3"), 3'000'000'000);
+  EXPECT_EQ(ns("0.0000000015"), 2);  // rounded on the 10th digit
+  const char* bad = "abc";
+  std::int64_t v = 0;
+  const char* p = bad;
+  EXPECT_FALSE(parse::seconds_to_ns(p, bad + 3, v));
+}
+
+TEST(LineReader, LinesAcrossBufferBoundariesAndCrLf) {
+  std::string content;
+  for (int i = 0; i < 3000; ++i) content += "line " + std::to_string(i) + (i % 3 ? "\n" : "\r\n");
+  content += "last-without-newline";
+  TempFile f(content);
+  LineReader r;
+  ASSERT_TRUE(r.open(f.path(), 4096));
+  std::string_view line;
+  int n = 0;
+  while (r.next(line)) {
+    if (n < 3000) {
+      ASSERT_EQ(line, "line " + std::to_string(n));
+    } else {
+      EXPECT_EQ(line, "last-without-newline");
+    }
+    ++n;
+  }
+  EXPECT_EQ(n, 3001);
+  EXPECT_EQ(r.bytes(), content.size());
+  LineReader missing;
+  EXPECT_FALSE(missing.open("/nonexistent/file.csv"));
+  EXPECT_NE(missing.error().find("/nonexistent/file.csv"), std::string::npos);
+}
+
+TEST(EdgeCsv, InitialLevelsThenOneEdgePerChange) {
+  TempFile f("Time [s],crank,cam\n"
+             "0.000000000,0,1\n"
+             "0.000100000,1,1\n"
+             "0.000200000,0,0\n"    // both change: two edges, crank first
+             "0.000300000,1,0\n"
+             "0.000300500,1,1\n");
+  EdgeCsvSource src(f.path());
+  ASSERT_TRUE(src.ok()) << src.last_error();
+  std::vector<EdgeEvent> ev;
+  EdgeEvent e;
+  while (src.next(e) == SourceStatus::kOk) ev.push_back(e);
+  ASSERT_EQ(ev.size(), 5u);
+  EXPECT_EQ(ev[0].t_ns, 100'000);
+  EXPECT_EQ(ev[0].channel, 0);
+  EXPECT_EQ(ev[0].level, 1);
+  EXPECT_EQ(ev[1].channel, 0);
+  EXPECT_EQ(ev[1].level, 0);
+  EXPECT_EQ(ev[2].channel, 1);
+  EXPECT_EQ(ev[2].level, 0);
+  EXPECT_EQ(ev[4].t_ns, 300'500);
+  EXPECT_EQ(ev[4].channel, 1);
+  EXPECT_EQ(src.stats().records, 5u);
+  EXPECT_EQ(src.stats().bad_lines, 0u);
+}
+
+TEST(EdgeCsv, SaleaeStyleConfiguredNamesAndExtraColumns) {
+  TempFile f("Time [s], Channel 0, Channel 1, Channel 2\r\n"
+             "0.0, 1, 0, 0\r\n"
+             "0.5, 0, 0, 1\r\n"
+             "1.0, 0, 1, 1\r\n");
+  EdgeCsvOptions o;
+  o.crank_column = "channel 1";  // case-insensitive
+  o.cam_column = "";
+  EdgeCsvSource src(f.path(), o);
+  ASSERT_TRUE(src.ok()) << src.last_error();
+  EdgeEvent e;
+  ASSERT_EQ(src.next(e), SourceStatus::kOk);
+  EXPECT_EQ(e.t_ns, 1'000'000'000);
+  EXPECT_EQ(e.level, 1);
+  EXPECT_EQ(src.next(e), SourceStatus::kEnd);
+}
+
+TEST(EdgeCsv, MissingColumnNamesTheHeader) {
+  TempFile f("Time [s],A,B\n0,0,0\n");
+  EdgeCsvSource src(f.path());
+  EXPECT_FALSE(src.ok());
+  EXPECT_NE(src.last_error().find(":1: no crank column named 'crank'"), std::string::npos) << src.last_error();
+  EXPECT_NE(src.last_error().find("found: A, B"), std::string::npos);
+  EdgeEvent e;
+  EXPECT_EQ(src.next(e), SourceStatus::kError);
+}
+
+TEST(EdgeCsv, BadLinesAreReportedSkippedAndCounted) {
+  TempFile f("Time [s],crank,cam\n0,0,0\n0.001,1,0\nxyz,0,0\n0.002,2,0\n0.003,0\n0.0005,0,0\n0.004,0,0\n");
+  EdgeCsvSource src(f.path());
+  ASSERT_TRUE(src.ok());
+  std::vector<EdgeEvent> ev;
+  EdgeEvent e;
+  while (src.next(e) == SourceStatus::kOk) ev.push_back(e);
+  ASSERT_EQ(ev.size(), 2u);
+  EXPECT_EQ(ev[1].t_ns, 4'000'000);
+  EXPECT_EQ(src.stats().bad_lines, 4u);
+  ASSERT_EQ(src.bad_line_messages().size(), 4u);
+  EXPECT_NE(src.bad_line_messages()[0].find(":4: expected a time"), std::string::npos) << src.bad_line_messages()[0];
+  EXPECT_NE(src.bad_line_messages()[1].find(":5: expected '<time>,<level 0|1>"), std::string::npos);
+  EXPECT_NE(src.bad_line_messages()[3].find(":7: time goes backwards"), std::string::npos);
+}
+
+TEST(EdgeCsv, TimeUnitFromHeader) {
+  TempFile f("Time [us],crank\n0,0\n1.5,1\n");
+  EdgeCsvOptions o;
+  o.cam_column = "";
+  EdgeCsvSource src(f.path(), o);
+  ASSERT_TRUE(src.ok());
+  EdgeEvent e;
+  ASSERT_EQ(src.next(e), SourceStatus::kOk);
+  EXPECT_EQ(e.t_ns, 1500);
+}
+
+TEST(EdgeList, OneTimePerLineWithHeaderAndComments) {
+  TempFile f("time\n# comment\n0.001\n0.002\n\nbad\n0.003\n");
+  EdgeListSource src(f.path());
+  ASSERT_TRUE(src.ok());
+  std::vector<std::int64_t> t;
+  EdgeEvent e;
+  while (src.next(e) == SourceStatus::kOk) t.push_back(e.t_ns);
+  EXPECT_EQ(t, (std::vector<std::int64_t>{1'000'000, 2'000'000, 3'000'000}));
+  EXPECT_EQ(src.stats().bad_lines, 1u);
+  EXPECT_NE(src.last_error().find(":6: expected one edge time"), std::string::npos) << src.last_error();
+}
+
+TEST(Candump, ClassicExtendedFdRemoteAndBadLines) {
+  TempFile f("(1700000000.000100) can0 100#0011223344556677\n"
+             "(1700000000.000200) can0 18FF0000#DEAD\n"
+             "(1700000000.000300) vcan1 123##1000102030405060708090A0B\n"
+             "(1700000000.000400) can0 7FF#R\n"
+             "(1700000000.000500) can0 100#001\n"
+             "garbage line\n"
+             "(1700000000.000600) can0 800#00\n"
+             "(1700000000.000700) can0 101#\n"
+             "(1700000000.000800) can0 102#0102030405060708090A\n"
+             "(1700000000.000900) can0 103#01 T\n");
+  CandumpOptions o;
+  o.time_offset_ns = -1'700'000'000'000'000'000;
+  CandumpSource src(f.path(), o);
+  ASSERT_TRUE(src.ok());
+  std::vector<CanFrame> fr;
+  CanFrame c;
+  while (src.next(c) == SourceStatus::kOk) fr.push_back(c);
+  ASSERT_EQ(fr.size(), 5u);
+  EXPECT_EQ(fr[0].t_ns, 100'000);
+  EXPECT_EQ(fr[0].id, 0x100u);
+  EXPECT_FALSE(fr[0].extended);
+  EXPECT_EQ(fr[0].len, 8);
+  EXPECT_EQ(fr[0].data[7], 0x77);
+  EXPECT_TRUE(fr[1].extended);
+  EXPECT_EQ(fr[1].id, 0x18FF0000u);
+  EXPECT_EQ(fr[1].len, 2);
+  EXPECT_TRUE(fr[2].fd);
+  EXPECT_EQ(fr[2].len, 12);
+  EXPECT_EQ(fr[2].data[11], 0x0B);
+  EXPECT_EQ(fr[2].bus, 1);
+  EXPECT_EQ(src.bus_name(1), "vcan1");
+  EXPECT_EQ(fr[3].len, 0);  // 101#: empty payload is legal
+  EXPECT_EQ(fr[4].id, 0x103u);
+  EXPECT_EQ(src.rtr_frames(), 1u);
+  EXPECT_EQ(src.stats().bad_lines, 4u);
+  ASSERT_EQ(src.bad_line_messages().size(), 4u);
+  EXPECT_NE(src.bad_line_messages()[0].find(":5: odd number of hex digits"), std::string::npos) << src.bad_line_messages()[0];
+  EXPECT_NE(src.bad_line_messages()[1].find(":6: expected '(<seconds>)"), std::string::npos);
+  EXPECT_NE(src.bad_line_messages()[2].find(":7: standard id above 0x7FF"), std::string::npos);
+  EXPECT_NE(src.bad_line_messages()[3].find(":9: classic CAN payload longer than 8 bytes"), std::string::npos);
+}
+
+TEST(Candump, NextDoesNotAllocate) {
+  std::string content;
+  for (int i = 0; i < 1000; ++i) content += "(1700000000.000100) can0 100#0011223344556677\n";
+  TempFile f(content);
+  CandumpSource src(f.path());
+  CanFrame c;
+  int n = 0;
+  const test::AllocationScope scope;
+  while (src.next(c) == SourceStatus::kOk) ++n;
+  EXPECT_EQ(scope.count(), 0u);
+  EXPECT_EQ(n, 1000);
+}
+
+TEST(Candump, MissingFileIsAnErrorNotACrash) {
+  CandumpSource src("/nonexistent/can.log");
+  EXPECT_FALSE(src.ok());
+  CanFrame c;
+  EXPECT_EQ(src.next(c), SourceStatus::kError);
+  EXPECT_NE(src.last_error().find("/nonexistent/can.log"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace torqued
