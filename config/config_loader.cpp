@@ -97,7 +97,7 @@ std::string node_text(const YAML::Node& n) {
 
 class Loader {
  public:
-  Loader(std::string file) : file_(std::move(file)) {
+  Loader(std::string file, LoadOptions options) : file_(std::move(file)), options_(options) {
     std::error_code ec;
     auto abs = std::filesystem::absolute(file_, ec);
     dir_ = ec ? std::filesystem::path(".") : abs.parent_path();
@@ -124,7 +124,11 @@ class Loader {
     cfg_.wheel.decoder.cam_rising = cfg_.wheel.cam_rising_edge;
     check_wheel_keys();
     check_files();
-    for (const auto& p : check_config_physics(cfg_)) add(mark_of(p.key), p.key, p.found, p.expected);
+    for (const auto& p : check_config_physics(cfg_)) {
+      if (failed_.count(p.key)) continue;  // already reported as a bad value
+      if (present(p.key)) add(mark_of(p.key), p.key, p.found, p.expected);
+      else add(mark_of(p.key), "key '" + p.key + "': found '" + p.found + "' (default), expected " + p.expected);
+    }
     if (r_.errors.empty()) r_.config = cfg_;
     return std::move(r_);
   }
@@ -150,6 +154,7 @@ class Loader {
     }
   }
   bool present(const std::string& key) const { return values_.count(key) != 0; }
+  bool failed(const std::string& key) const { return failed_.count(key) != 0; }
 
   std::vector<std::string> children_of(const std::string& prefix) const {
     std::set<std::string> names;
@@ -190,7 +195,9 @@ class Loader {
       }
       if (const SchemaEntry* e = find_schema_entry(key)) {
         marks_[key] = vm;
+        const std::size_t before = r_.errors.size();
         parse_value(*e, v, key, vm);
+        if (r_.errors.size() != before) failed_.insert(key);
       } else if (is_schema_section(key)) {
         marks_[key] = k.Mark();
         if (v.IsMap()) walk(v, key);
@@ -285,13 +292,18 @@ class Loader {
   }
 
   void check_wheel_keys() {
-    if (!present("wheel.tooth_angles_deg")) return;
+    if (!present("wheel.tooth_angles_deg") || cfg_.wheel.geometry.tooth_count == 0) return;  // [] = N-M wheel
     for (const char* k : {"wheel.teeth", "wheel.missing"})
       if (present(k))
         add(mark_of(k), k, values_[k], "no value when wheel.tooth_angles_deg is given (use one description of the wheel)");
   }
 
   void require_file(const std::string& key, const std::string& path, const std::string& why) {
+    if (!options_.check_files) return;
+    const std::string shown = values_.count(key) && values_.at(key) != path ? values_.at(key) + "' (= " + path + ")" : path + "'";
+    auto fail = [&](const std::string& expected) {
+      add(mark_of(key), "key '" + key + "': found '" + shown + ", expected " + expected);
+    };
     if (path.empty()) {
       add(mark_of(key), key, "", "a file path (" + why + ")");
       return;
@@ -299,19 +311,19 @@ class Loader {
     std::error_code ec;
     const auto st = std::filesystem::status(path, ec);
     if (ec || !std::filesystem::exists(st)) {
-      add(mark_of(key), key, path, "an existing file (" + why + "): no such file");
+      fail("an existing file (" + why + "): no such file");
     } else if (!std::filesystem::is_regular_file(st)) {
-      add(mark_of(key), key, path, "a regular file (" + why + ")");
+      fail("a regular file (" + why + ")");
     } else if (::access(path.c_str(), R_OK) != 0) {
-      add(mark_of(key), key, path, "a readable file (" + why + "): permission denied");
+      fail("a readable file (" + why + "): permission denied");
     }
   }
 
   void check_files() {
     const auto& in = cfg_.inputs;
-    if (in.edges.backend == EdgeBackend::kFile) require_file("inputs.edges.path", in.edges.path, "inputs.edges.backend is file");
-    if (in.can.backend == CanBackend::kFile) {
-      if (!in.can.path.empty()) require_file("inputs.can.path", in.can.path, "inputs.can.backend is file");
+    if (in.edges.backend == EdgeBackend::kFile && !failed("inputs.edges.backend")) require_file("inputs.edges.path", in.edges.path, "inputs.edges.backend is file");
+    if (in.can.backend == CanBackend::kFile && !failed("inputs.can.backend")) {
+      if (!in.can.path.empty() || !options_.check_files) require_file("inputs.can.path", in.can.path, "inputs.can.backend is file");
       else r_.warnings.push_back(file_ + ": inputs.can.path is empty: no CAN input, CAN-based estimators hold");
     }
     bool any_mapped = false;
@@ -325,15 +337,17 @@ class Loader {
       }
     }
     if (!cfg_.can.dbc.empty()) require_file("can.dbc", cfg_.can.dbc, "named DBC file");
-    else if (any_mapped) add(mark_of("can.dbc"), "can.dbc", "", "a DBC file path (can.signals maps DBC signals)");
+    else if (any_mapped && options_.check_files) add(mark_of("can.dbc"), "can.dbc", "", "a DBC file path (can.signals maps DBC signals)");
   }
 
   std::string file_;
+  LoadOptions options_;
   std::filesystem::path dir_;
   Config cfg_;
   LoadResult r_;
   std::unordered_map<std::string, YAML::Mark> marks_;
-  std::unordered_map<std::string, std::string> values_;
+  std::unordered_map<std::string, std::string> values_;  ///< raw YAML text of every key given
+  std::set<std::string> failed_;                          ///< keys whose value was refused
 };
 
 std::string fmt(double v) {
@@ -452,11 +466,11 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
   return out;
 }
 
-LoadResult load_config_from_string(const std::string& yaml, const std::string& file_name) {
-  return Loader(file_name).run(yaml);
+LoadResult load_config_from_string(const std::string& yaml, const std::string& file_name, const LoadOptions& options) {
+  return Loader(file_name, options).run(yaml);
 }
 
-LoadResult load_config(const std::string& path) {
+LoadResult load_config(const std::string& path, const LoadOptions& options) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     LoadResult r;
@@ -465,7 +479,7 @@ LoadResult load_config(const std::string& path) {
   }
   std::ostringstream ss;
   ss << in.rdbuf();
-  return load_config_from_string(ss.str(), path);
+  return load_config_from_string(ss.str(), path, options);
 }
 
 }  // namespace torqued

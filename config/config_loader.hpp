@@ -17,10 +17,15 @@ struct LoadResult {
   [[nodiscard]] bool ok() const noexcept { return config.has_value() && errors.empty(); }
 };
 
+struct LoadOptions {
+  bool check_files = true;  ///< require the input files named in the config to exist (off: validate for another machine)
+};
+
 /// Load and validate a YAML configuration file. Never throws.
-[[nodiscard]] LoadResult load_config(const std::string& path);
+[[nodiscard]] LoadResult load_config(const std::string& path, const LoadOptions& options = {});
 /// Same, from text; `file_name` is used in messages and its directory resolves relative paths.
-[[nodiscard]] LoadResult load_config_from_string(const std::string& yaml, const std::string& file_name);
+[[nodiscard]] LoadResult load_config_from_string(const std::string& yaml, const std::string& file_name,
+                                                 const LoadOptions& options = {});
 
 /// Cross-field checks that only need the Config (no YAML marks); each problem is a "key: reason" pair.
 struct ConfigProblem {

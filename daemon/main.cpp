@@ -19,8 +19,8 @@
 
 namespace {
 
-int check_config(const std::string& path) {
-  const torqued::LoadResult r = torqued::load_config(path);
+int check_config(const std::string& path, bool check_files) {
+  const torqued::LoadResult r = torqued::load_config(path, torqued::LoadOptions{check_files});
   for (const auto& w : r.warnings) std::cerr << "warning: " << w << "\n";
   if (!r.ok()) {
     for (const auto& e : r.errors) std::cerr << e << "\n";
@@ -47,6 +47,8 @@ int main(int argc, char** argv) {
   auto* schema_opt = app.add_option("--print-schema", schema_format, "print every configuration key (yaml|text) and exit")
                          ->expected(0, 1)
                          ->default_str("yaml");
+  bool no_file_checks = false;
+  app.add_flag("--no-file-checks", no_file_checks, "with --check-config: do not require the input files to exist");
   check_opt->excludes(run_opt);
   schema_opt->excludes(run_opt)->excludes(check_opt);
   try {
@@ -64,7 +66,7 @@ int main(int argc, char** argv) {
     }
     return 0;
   }
-  if (*check_opt) return check_config(check_path);
+  if (*check_opt) return check_config(check_path, !no_file_checks);
   if (!*run_opt) {
     std::cerr << app.help();
     return 2;
