@@ -27,7 +27,7 @@
 namespace torqued {
 
 struct CanEncoderConfig {
-  std::uint32_t id = 0x0F0;          ///< CAN identifier of the encoder frames
+  std::uint32_t id = 0x300;          ///< CAN identifier of the encoder frames (config inputs.edges.encoder_can_id)
   bool extended = false;             ///< 29-bit identifier
   bool fd = true;                    ///< CAN FD frames (up to 15 entries) or classic (1 entry per frame)
   std::int64_t tick_ns = 10;         ///< encoder counter tick (ns), 1 .. 1'000'000

@@ -1,5 +1,5 @@
 // torque-canreplay: produce and send CAN traffic for live-backend tests and bench set-ups.
-//   torque-canreplay encode --edges edges.csv -o encoder.log [--id 0xF0] [--classic] [--tick-ns 10]
+//   torque-canreplay encode --edges edges.csv -o encoder.log [--id 0x300] [--classic] [--tick-ns 10]
 //       turns an edge capture into the encoder-over-CAN frames an encoder interface would send
 //       (layout: io/can_encoder.hpp, docs/live.md), written as a `candump -l` log (replay it with canplayer or
 //       `torque-canreplay send`).
@@ -147,7 +147,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
 
   auto* enc = app.add_subcommand("encode", "edge CSV -> candump log of encoder frames (docs/live.md)");
-  std::string edges_path, out_path = "-", iface = "can0", id_text = "0xF0";
+  std::string edges_path, out_path = "-", iface = "can0", id_text = "0x300";
   torqued::CanEncoderConfig cfg;
   torqued::EdgeCsvOptions csv;
   bool classic = false;

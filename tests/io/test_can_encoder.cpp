@@ -74,7 +74,7 @@ TEST(CanEncoderFrame, RoundTripFullFdFrame) {
   ASSERT_EQ(ce::encode_frame(edges.data(), edges.size(), 200, ce::kFlagOverflow, cfg, f), 15u);
   EXPECT_TRUE(f.fd);
   EXPECT_EQ(f.len, 64);
-  EXPECT_EQ(f.id, 0x0F0u);
+  EXPECT_EQ(f.id, 0x300u);
   EXPECT_EQ(f.data[0], 200);
   ce::FrameView v;
   ASSERT_EQ(ce::decode_frame(f, cfg, v), nullptr);

@@ -266,7 +266,7 @@ int cmd_encoder(int argc, char** argv) {
   const std::string ifname = arg(argc, argv, "--iface", "vcan0");
   CanEncoderConfig enc;
   enc.tick_ns = std::stoll(arg(argc, argv, "--tick-ns", "1"));
-  enc.id = static_cast<std::uint32_t>(std::stoul(arg(argc, argv, "--id", "0xF0"), nullptr, 0));
+  enc.id = static_cast<std::uint32_t>(std::stoul(arg(argc, argv, "--id", "0x300"), nullptr, 0));
 
   EdgeCsvSource file(edges_path);
   check(file.ok(), "encoder: edge CSV " + edges_path + " opened " + file.last_error());
