@@ -1,0 +1,281 @@
+// torque-decode: decode an edge capture and/or a candump log to CSV for people to inspect their recordings
+// (issue 3 "Inspecting recordings"). Streams; progress on a terminal; one-line summary at the end.
+//   torque-decode --edges edges.csv [--can can.log --dbc demo.dbc] [--wheel 60-2] [--config torqued.yaml]
+//                 --out-teeth teeth.csv --out-can can.csv
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cinttypes>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <numbers>
+#include <optional>
+#include <string>
+#include <unistd.h>
+
+#include "backend_factory.hpp"
+#include "candump_source.hpp"
+#include "config_loader.hpp"
+#include "crank_decoder.hpp"
+#include "dbc.hpp"
+#include "edge_file_source.hpp"
+#include "replay_merger.hpp"
+#include "wheel_names.hpp"
+
+namespace {
+
+using namespace torqued;
+
+struct Options {
+  std::string edges, can, dbc, config, wheel = "60-2", format = "csv", crank = "crank", cam = "cam";
+  std::string out_teeth, out_can;
+  double can_offset_s = 0.0;
+  bool can_offset_given = false;
+  bool falling = false, quiet = false;
+};
+
+std::string events_text(std::uint32_t e) {
+  std::string s;
+  auto add = [&](const char* t) { s += (s.empty() ? "" : "|"), s += t; };
+  if (e & kToothNoiseRejected) add("noise");
+  if (e & kToothLostRecovered) add("lost_tooth");
+  if (e & kToothResynced) add("resync");
+  if (e & kToothGap) add("gap");
+  return s;
+}
+
+/// Buffered CSV file (large stdio buffer; nothing is flushed per line).
+struct CsvOut {
+  std::FILE* f = nullptr;
+  std::unique_ptr<char[]> buf;
+  bool open(const std::string& path, const char* header) {
+    if (path.empty()) return true;
+    f = std::fopen(path.c_str(), "w");
+    if (f == nullptr) return false;
+    buf = std::make_unique<char[]>(1 << 20);
+    std::setvbuf(f, buf.get(), _IOFBF, 1 << 20);
+    std::fputs(header, f);
+    return true;
+  }
+  ~CsvOut() {
+    if (f != nullptr) std::fclose(f);
+  }
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  CLI::App app{"torque-decode: decode a crank/cam edge capture and/or a candump log to CSV.\n"
+               "Per tooth: time, tooth index in 720 deg, angle, rpm, sync state, events (noise edge, lost tooth, "
+               "gap, resync). Per CAN frame: time and every DBC signal by name. Ends with a one-line summary."};
+  app.add_option("--edges", o.edges, "edge capture: logic-analyzer CSV (Time [s],crank,cam) or bare list");
+  app.add_option("--format", o.format, "edge file format: csv | list")->check(CLI::IsMember({"csv", "list"}));
+  app.add_option("--can", o.can, "candump -l log");
+  app.add_option("--dbc", o.dbc, "DBC file to decode the CAN frames");
+  app.add_option("--wheel", o.wheel, "crank wheel: N-M (60-2, 36-1, ...), 36-2-1, 36-2-2-2");
+  app.add_flag("--falling", o.falling, "teeth are marked by falling crank edges");
+  app.add_option("--crank", o.crank, "crank column name in the edge CSV");
+  app.add_option("--cam", o.cam, "cam column name in the edge CSV (\"\" = none)");
+  app.add_option("--can-offset", o.can_offset_s, "seconds added to CAN times (e.g. -1700000000 for the demo)");
+  app.add_option("--config", o.config, "torqued YAML: wheel, decoder, inputs, DBC from there (other options override paths)");
+  app.add_option("--out-teeth", o.out_teeth, "per-tooth CSV output");
+  app.add_option("--out-can", o.out_can, "per-signal CAN CSV output (one row per decoded signal)");
+  app.add_flag("-q,--quiet", o.quiet, "no progress display");
+  CLI11_PARSE(app, argc, argv);
+  o.can_offset_given = app.count("--can-offset") > 0;
+
+  WheelGeometry wheel;
+  DecoderParams params;
+  std::unique_ptr<EdgeSource> edges;
+  std::unique_ptr<CanSource> can;
+  std::optional<DbcDatabase> dbc;
+  std::int64_t can_offset_ns = static_cast<std::int64_t>(std::llround(o.can_offset_s * 1e9));
+  std::string err;
+
+  if (!o.config.empty()) {
+    LoadResult lr = load_config(o.config);
+    if (!lr.ok()) {
+      for (const auto& e : lr.errors) std::fprintf(stderr, "%s\n", e.c_str());
+      return 1;
+    }
+    Config cfg = *lr.config;
+    if (!o.edges.empty()) cfg.inputs.edges.path = o.edges;
+    if (!o.can.empty()) cfg.inputs.can.path = o.can;
+    if (!o.dbc.empty()) cfg.can.dbc = o.dbc;
+    wheel = cfg.wheel.geometry;
+    params = decoder_params(cfg);
+    if (!cfg.inputs.edges.path.empty() || cfg.inputs.edges.backend != EdgeBackend::kFile) {
+      edges = make_edge_source(cfg, &err);
+      if (!edges) {
+        std::fprintf(stderr, "torque-decode: %s\n", err.c_str());
+        return 1;
+      }
+    }
+    can = make_can_source(cfg, &err);
+    if (!can && !err.empty()) {
+      std::fprintf(stderr, "torque-decode: %s\n", err.c_str());
+      return 1;
+    }
+    dbc = load_dbc(cfg, &err);
+    if (!o.can_offset_given) can_offset_ns = can_time_offset_ns(cfg);
+  } else {
+    if (!wheel_from_name(o.wheel, wheel, &err)) {
+      std::fprintf(stderr, "torque-decode: %s\n", err.c_str());
+      return 2;
+    }
+    wheel.rising_edge = !o.falling;
+    params.use_cam = !o.cam.empty();
+    if (!o.edges.empty()) {
+      if (o.format == "csv") {
+        EdgeCsvOptions eo;
+        eo.crank_column = o.crank;
+        eo.cam_column = o.cam;
+        auto s = std::make_unique<EdgeCsvSource>(o.edges, eo);
+        if (!s->ok()) err = s->last_error();
+        edges = std::move(s);
+      } else {
+        EdgeListOptions lo;
+        lo.level = o.falling ? 0 : 1;
+        auto s = std::make_unique<EdgeListSource>(o.edges, lo);
+        if (!s->ok()) err = s->last_error();
+        edges = std::move(s);
+      }
+      if (!err.empty()) {
+        std::fprintf(stderr, "torque-decode: %s\n", err.c_str());
+        return 1;
+      }
+    }
+    if (!o.can.empty()) {
+      auto s = std::make_unique<CandumpSource>(o.can);
+      if (!s->ok()) {
+        std::fprintf(stderr, "torque-decode: %s\n", s->last_error().c_str());
+        return 1;
+      }
+      can = std::move(s);
+    }
+    if (!o.dbc.empty()) {
+      DbcParseResult r = DbcDatabase::parse_file(o.dbc);
+      if (!r.errors.empty()) err = r.errors.front();
+      dbc = std::move(r.db);
+    }
+  }
+  if (!err.empty() && !dbc) {
+    std::fprintf(stderr, "torque-decode: %s\n", err.c_str());
+    return 1;
+  }
+  if (!edges && !can) {
+    std::fprintf(stderr, "torque-decode: nothing to decode: give --edges and/or --can (or --config)\n%s",
+                 app.help().c_str());
+    return 2;
+  }
+  CrankDecoder decoder(wheel, params);
+  if (!decoder.valid()) {
+    std::fprintf(stderr, "torque-decode: %s\n", decoder.error().c_str());
+    return 2;
+  }
+
+  CsvOut teeth_csv, can_csv;
+  if (!teeth_csv.open(o.out_teeth, "t_ns,t_s,tooth,angle_deg,rpm,sync,phase_known,events\n") ||
+      !can_csv.open(o.out_can, "t_ns,t_s,bus,id,message,signal,value,unit,label\n")) {
+    std::fprintf(stderr, "torque-decode: cannot write output: %s\n", std::strerror(errno));
+    return 1;
+  }
+
+  // Progress on a terminal only (never in pipes/tests): fraction of input bytes consumed.
+  const bool tty = !o.quiet && ::isatty(STDERR_FILENO) != 0;
+  std::uint64_t total_bytes = 0;
+  std::error_code ec;
+  for (const auto* s : {&o.edges, &o.can}) {
+    if (!s->empty()) total_bytes += std::filesystem::file_size(*s, ec);
+  }
+  auto last_progress = std::chrono::steady_clock::now();
+
+  ReplayMerger merger(edges.get(), can.get(), can_offset_ns);
+  ReplayMerger::Item item;
+  ToothEvent tooth;
+  double rpm_min = 1e300, rpm_max = 0;
+  std::uint64_t frames_decoded = 0, frames_unknown = 0, frames_bad_dlc = 0, n = 0;
+  constexpr double kRadSToRpm = 60.0 / (2.0 * std::numbers::pi);
+  for (;;) {
+    const SourceStatus st = merger.next(item);
+    if (st == SourceStatus::kEnd) break;
+    if (st == SourceStatus::kError) {
+      std::fprintf(stderr, "torque-decode: input error: %s %s\n", edges ? edges->last_error().c_str() : "",
+                   can ? can->last_error().c_str() : "");
+      continue;
+    }
+    if (st != SourceStatus::kOk) continue;
+    if (item.kind == ReplayMerger::Kind::kEdge) {
+      if (decoder.on_edge(item.edge, tooth)) {
+        const double rpm = tooth.speed_rad_s * kRadSToRpm;
+        if (tooth.sync == SyncState::kSynced) {
+          rpm_min = std::min(rpm_min, rpm);
+          rpm_max = std::max(rpm_max, rpm);
+        }
+        if (teeth_csv.f != nullptr) {
+          std::fprintf(teeth_csv.f, "%" PRId64 ",%.9f,%d,%.4f,%.2f,%s,%d,%s\n", tooth.t_ns, tooth.t_ns * 1e-9,
+                       tooth.tooth, tooth.sync == SyncState::kSynced ? tooth.angle_rad * 180.0 / std::numbers::pi : -1.0,
+                       rpm, to_string(tooth.sync), tooth.phase_known ? 1 : 0, events_text(tooth.events).c_str());
+        }
+      }
+    } else {
+      const CanFrame& f = item.frame;
+      const DbcMessage* m = dbc ? dbc->find(f.id, f.extended) : nullptr;
+      if (m == nullptr) {
+        ++frames_unknown;
+      } else {
+        bool bad = false;
+        for (const auto& s : m->signals) {
+          if (f.len < s.bytes_needed()) {
+            bad = true;
+            continue;
+          }
+          if (!m->signal_present(s, f.data.data(), f.len)) continue;
+          if (can_csv.f != nullptr) {
+            const std::int64_t raw = s.raw(f.data.data(), f.len);
+            const std::string* label = s.value_name(raw);
+            std::fprintf(can_csv.f, "%" PRId64 ",%.6f,%u,0x%X,%s,%s,%.10g,%s,%s\n", f.t_ns, f.t_ns * 1e-9, f.bus, f.id,
+                         m->name.c_str(), s.name.c_str(), s.decode(f.data.data(), f.len), s.unit.c_str(),
+                         label ? label->c_str() : "");
+          }
+        }
+        bad ? ++frames_bad_dlc : ++frames_decoded;
+      }
+    }
+    if (tty && (++n & 0xFFFF) == 0) {
+      const auto now = std::chrono::steady_clock::now();
+      if (now - last_progress > std::chrono::milliseconds(250) && total_bytes > 0) {
+        last_progress = now;
+        const std::uint64_t done = (edges ? edges->stats().bytes : 0) + (can ? can->stats().bytes : 0);
+        std::fprintf(stderr, "\r%5.1f %%  %" PRIu64 " teeth  %" PRIu64 " frames", 100.0 * done / total_bytes,
+                     decoder.stats().teeth, merger.frames_out());
+      }
+    }
+  }
+  if (tty) std::fprintf(stderr, "\r%60s\r", "");
+
+  // Bad-line messages (first few of each source), then the one-line summary on stdout.
+  auto report = [](const char* what, const std::vector<std::string>& msgs) {
+    for (const auto& m : msgs) std::fprintf(stderr, "%s: %s\n", what, m.c_str());
+  };
+  if (auto* s = dynamic_cast<EdgeCsvSource*>(edges.get())) report("bad line", s->bad_line_messages());
+  if (auto* s = dynamic_cast<EdgeListSource*>(edges.get())) report("bad line", s->bad_line_messages());
+  if (auto* s = dynamic_cast<CandumpSource*>(can.get())) report("bad line", s->bad_line_messages());
+
+  const DecoderStats& ds = decoder.stats();
+  std::printf("edges %" PRIu64 " (crank %" PRIu64 ", cam %" PRIu64 "), teeth %" PRIu64 " (synced %" PRIu64
+              "), syncs %" PRIu64 ", sync losses %" PRIu64 " (last: %s), stalls %" PRIu64 ", noise edges %" PRIu64
+              ", lost teeth %" PRIu64 ", cam phase errors %" PRIu64 ", rpm %.0f-%.0f, frames %" PRIu64
+              " (decoded %" PRIu64 ", unknown id %" PRIu64 ", bad dlc %" PRIu64 "), bad lines %" PRIu64 " edges / %" PRIu64
+              " can\n",
+              ds.edges, ds.crank_edges, ds.cam_edges, ds.teeth, ds.synced_teeth, ds.syncs, ds.sync_losses,
+              to_string(ds.last_loss_reason), ds.stalls, ds.noise_edges, ds.lost_teeth, ds.cam_phase_errors,
+              rpm_max > 0 ? rpm_min : 0.0, rpm_max, merger.frames_out(), frames_decoded, frames_unknown, frames_bad_dlc,
+              edges ? edges->stats().bad_lines : 0, can ? can->stats().bad_lines : 0);
+  return 0;
+}
