@@ -42,18 +42,32 @@ struct TimePipelineParams {
   bool adaptive = true;         ///< run the adaptive estimator (Na-50 or Na-54, see AdaptiveParams)
 };
 
+/// Per-tooth pre-processing shared by the angle estimators (speed, low-pass, small Kalman filter for θ̈; EN §2.1).
+struct PreprocessParams {
+  double lowpass_hz = 300.0;        ///< first-order low-pass cut-off on tooth speed (Hz) (EN §2.1 uses a 300 Hz FIR)
+  double accel_jerk_sd = 2.0e5;     ///< white-jerk intensity of the [θ̇, θ̈] Kalman filter (rad/s^3/sqrt(s))
+  double edge_noise_deg = 0.01;     ///< residual edge-angle error after tooth-error learning, 1σ (deg)
+  double jitter_s = 0.3e-6;         ///< edge timestamp jitter, 1σ (s)
+};
 /// Chauvin angle-domain estimators (ESTIMATORS.md §2).
 struct KalmanParams {
-  double delta = 1.0;        ///< coloured-noise pole δ (1/rad) (CK-18)
-  double q = 1e4;            ///< process noise on the net torque input (N m)^2
-  double r = 1e2;            ///< measurement noise on θ̇² (rad/s)^4
+  double delta = 3.0;          ///< coloured-noise pole δ (1/rad) of h(z) (CK-18)
+  double torque_sd_nm = 300.0; ///< stationary 1σ of the net torque x2 under h(z); sets Q (N m)
+  double edge_noise_deg = 0.01;  ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.01 learned)
+  double jitter_s = 0.3e-6;    ///< timestamp jitter used for R (s)
+  int smoother_lag = 4;        ///< output x2(n-lag | n), 0..6 teeth (fixed-lag smoother; 0 = paper's predictor)
   bool periodic_gains = true;  ///< use precomputed asymptotic periodic gains (APS) instead of exact Riccati
+  double min_rpm = 500.0;      ///< lowest speed of the APS gain schedule (rpm)
+  double max_rpm = 8000.0;     ///< highest speed of the APS gain schedule (rpm)
+  int speed_bins = 32;         ///< APS gain sets, log-spaced in speed, interpolated (R depends on speed)
 };
 struct FourierParams {
-  int harmonics = 5;         ///< n_h (CF §V.B)
-  double l_ke = 0.5;         ///< L_ke
-  double l_a0 = 0.05;        ///< L_a0
-  double l_ref = 0.05;       ///< L_ref: l_{a_i} = l_{b_i} = i L_ref
+  int harmonics = 20;        ///< n_h (CF §V.B); 4-cyl fires at i = 4: keep 4, 8, …, 20 and the imbalance sub-harmonics
+  double l_ke = 6.0;         ///< L_ke (1/rad)
+  double l_a0 = 0.3;         ///< L_a0 (1/rad^2)
+  double l_ref = 0.05;       ///< L_ref: l_{a_i} = l_{b_i} = i L_ref (1/rad^2)
+  double gain_ref_rpm = 1500.0; ///< >0: coefficient gains × min(1, (gain_ref_rpm/rpm)²), keeping the noise of the energy
+                             ///< innovation (∝ θ̇²) constant above that speed; 0 = fixed gains as in the paper
 };
 
 /// Energies 2019 chain (ESTIMATORS.md §3).
@@ -104,6 +118,10 @@ struct FusionParams {
 struct ToothLearnParams {
   bool learn = true;                ///< learn per-tooth angle corrections
   int min_cycles = 50;              ///< cycles averaged before the table is used
+  int fit_harmonics = 16;           ///< per-cycle smooth fit of the speed waveform: harmonics of the 720° cycle (-)
+  double max_accel_frac = 0.05;     ///< skip cycles whose speed changes by more than this fraction (-)
+  double min_rpm = 600.0;           ///< learn only above this speed (rpm)
+  double max_rpm = 7000.0;          ///< and below this one (rpm)
 };
 
 }  // namespace torqued

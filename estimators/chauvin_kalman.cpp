@@ -1,0 +1,214 @@
+#include "chauvin_kalman.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace torqued {
+
+namespace {
+constexpr double kDeg = std::numbers::pi / 180.0;
+constexpr double kRpm = std::numbers::pi / 30.0;
+}  // namespace
+
+ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& wheel, const KalmanParams& params)
+    : params_(params), table_(ToothAngleTable::build(engine, wheel)) {
+  params_.smoother_lag = std::clamp(params_.smoother_lag, 0, kMaxLag);  // config loader rejects; guard anyway
+  edge_sd_rad_ = params_.edge_noise_deg * kDeg;
+  const int kk = table_.samples;
+  a11_.resize(static_cast<std::size_t>(kk));
+  b12_.resize(static_cast<std::size_t>(kk));
+  acol_.resize(static_cast<std::size_t>(kk));
+  for (int k = 0; k < kk; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    const auto n = static_cast<std::size_t>((k + 1) % kk);
+    // Energy balance over Δ_k (CF-2), the exact form of (CK-3): ½J_{k+1}x1(k+1) = ½J_k x1(k) + Δ_k x2(k).
+    a11_[i] = table_.j_center[i] / table_.j_center[n];
+    b12_[i] = 2.0 * table_.step_rad[i] / table_.j_center[n];
+    acol_[i] = std::exp(-params_.delta * table_.step_rad[i]);  // pole of h(z) (CK-18)
+  }
+  // Q from the stationary variance of x2 under h(z) at the nominal step: for x(n+1) = 2a x(n) − a² x(n−1) +
+  // (1−a)² u, var x = (1−a)⁴ q (1+a²)/(1−a²)³  →  q = σ² (1−a²)³ / ((1−a)⁴ (1+a²)).
+  std::vector<double> steps(table_.step_rad);
+  std::nth_element(steps.begin(), steps.begin() + kk / 2, steps.end());
+  const double a = std::exp(-params_.delta * steps[static_cast<std::size_t>(kk / 2)]);
+  const double s2 = params_.torque_sd_nm * params_.torque_sd_nm;
+  qu_ = s2 * std::pow(1.0 - a * a, 3) / (std::pow(1.0 - a, 4) * (1.0 + a * a));
+
+  // APS (CK §VI): iterate the periodic Riccati equation to its periodic solution for each speed bin.
+  const int bins = std::max(2, params_.speed_bins);
+  bin_log_speed_.resize(static_cast<std::size_t>(bins));
+  const double l0 = std::log(params_.min_rpm * kRpm), l1 = std::log(params_.max_rpm * kRpm);
+  for (int b = 0; b < bins; ++b) bin_log_speed_[static_cast<std::size_t>(b)] = l0 + (l1 - l0) * b / (bins - 1);
+  if (params_.periodic_gains) {
+    aps_gain_.assign(static_cast<std::size_t>(bins * kk), Vec::Zero());
+    for (int b = 0; b < bins; ++b) {
+      const double w = std::exp(bin_log_speed_[static_cast<std::size_t>(b)]);
+      Mat p = Mat::Identity() * s2;
+      p(0, 0) = measurement_var(0, w);
+      Vec g;
+      double change = 1.0;
+      for (int cycle = 0; cycle < 500 && change > 1e-12; ++cycle) {
+        change = 0.0;
+        for (int k = 0; k < kk; ++k) {
+          riccati_step(k, w, p, g);
+          Vec& slot = aps_gain_[static_cast<std::size_t>(b * kk + k)];
+          const double scale = std::max(1e-300, g.cwiseAbs().maxCoeff());
+          change = std::max(change, (g - slot).cwiseAbs().maxCoeff() / scale);
+          slot = g;
+        }
+      }
+    }
+  }
+  reset();
+}
+
+double ChauvinKalman::measurement_var(int k, double speed_rad_s) const noexcept {
+  const double rel = ToothPreprocessor::speed_sq_rel_sd(table_.width_rad[static_cast<std::size_t>(k)], speed_rad_s,
+                                                        edge_sd_rad_, params_.jitter_s);
+  const double sd = rel * speed_rad_s * speed_rad_s;
+  return sd * sd + 1e-9;
+}
+
+ChauvinKalman::Mat ChauvinKalman::transition(int k) const noexcept {
+  const auto i = static_cast<std::size_t>(k);
+  const double a = acol_[i];
+  Mat m = Mat::Zero();
+  m(0, 0) = a11_[i];
+  m(0, 1) = b12_[i];
+  m(1, 1) = 2.0 * a;
+  m(1, 2) = -a * a;
+  for (int i = 2; i < kStates; ++i) m(i, i - 1) = 1.0;  // shift register of past x2
+  return m;
+}
+
+void ChauvinKalman::riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) const noexcept {
+  // (CK-12): filter gain K = P Cᵀ (C P Cᵀ + R)⁻¹ with C = [1 0 0 0 0]; the predictor gain is L = A K.
+  const double r = measurement_var(k, speed_rad_s);
+  const double s = p(0, 0) + r;
+  gain = p.col(0) / s;
+  // (CK-13): P_{k+1} = A (P − K S Kᵀ) Aᵀ + B Q Bᵀ.
+  const Mat post = p - gain * gain.transpose() * s;
+  const Mat a = transition(k);
+  p = a * post * a.transpose();
+  const double bq = std::pow(1.0 - acol_[static_cast<std::size_t>(k)], 2);
+  p(1, 1) += bq * bq * qu_;
+  p = 0.5 * (p + p.transpose()).eval();  // keep symmetric (CONVENTIONS habit 12)
+}
+
+ChauvinKalman::Vec ChauvinKalman::periodic_gain(int k, double speed_rad_s) const noexcept {
+  const int kk = table_.samples;
+  const int bins = static_cast<int>(bin_log_speed_.size());
+  const double l = std::log(std::max(speed_rad_s, 1e-3));
+  double pos = (l - bin_log_speed_.front()) / (bin_log_speed_.back() - bin_log_speed_.front()) * (bins - 1);
+  pos = std::clamp(pos, 0.0, static_cast<double>(bins - 1) - 1e-12);
+  const int b = static_cast<int>(pos);
+  const double t = pos - b;
+  return (1.0 - t) * aps_gain_[static_cast<std::size_t>(b * kk + k)] +
+         t * aps_gain_[static_cast<std::size_t>((b + 1) * kk + k)];
+}
+
+void ChauvinKalman::reset() noexcept {
+  x_.setZero();
+  p_.setZero();
+  last_gain_.setZero();
+  est_ = TorqueEstimate{};
+  est_.health = Health::kNotConverged;
+  est_tooth_ = 0;
+  mean_speed_ = 0.0;
+  expected_tooth_ = -1;
+  teeth_seen_ = 0;
+  edge_t_ns_.fill(0);
+}
+
+void ChauvinKalman::predict(int k) noexcept {
+  const auto i = static_cast<std::size_t>(k);
+  const double a = acol_[i];
+  // x ← A_k x with the sparse A_k of the header comment.
+  const double x1 = a11_[i] * x_(0) + b12_[i] * x_(1);
+  const double x2 = 2.0 * a * x_(1) - a * a * x_(2);
+  for (int j = kStates - 1; j >= 2; --j) x_(j) = x_(j - 1);
+  x_(1) = x2;
+  x_(0) = x1;
+}
+
+bool ChauvinKalman::update(const ToothSample& s) noexcept {
+  const int kk = table_.samples;
+  if (!s.synced || !(s.dt_s > 0.0) || !(s.width_rad > 0.0) || !std::isfinite(s.dt_s) ||
+      !std::isfinite(s.width_rad) || s.tooth < 0 || s.tooth >= kk) {
+    ++stats_.rejected;
+    expected_tooth_ = -1;
+    est_.health = s.synced ? Health::kInvalidInput : Health::kNoSync;
+    return false;
+  }
+  const int k = s.tooth;
+  const double omega = s.width_rad / s.dt_s;
+  const double y = omega * omega;
+  if (expected_tooth_ >= 0 && k != expected_tooth_) {
+    const int missing = (k - expected_tooth_ + kk) % kk;
+    ++stats_.skipped_teeth;
+    if (missing > kk / 8) {
+      expected_tooth_ = -1;
+    } else {
+      for (int m = 0; m < missing; ++m) {
+        const int km = (expected_tooth_ + m) % kk;
+        predict(km);
+        if (!params_.periodic_gains) {  // no measurement at a lost tooth: propagate P only
+          const Mat am = transition(km);
+          p_ = am * p_ * am.transpose();
+          p_(1, 1) += std::pow(1.0 - acol_[static_cast<std::size_t>(km)], 4) * qu_;
+        }
+        for (int i = kMaxLag; i > 0; --i) {
+          edge_t_ns_[static_cast<std::size_t>(i)] = edge_t_ns_[static_cast<std::size_t>(i - 1)];
+        }
+        edge_t_ns_[0] = 0;  // unknown time of the lost edge
+      }
+    }
+  }
+  if (expected_tooth_ < 0) {
+    // (Re)start: x̂ = [y, 0, ...], P0 = diag(R, σ², ...) (CK (11) initial condition m0).
+    x_.setZero();
+    x_(0) = y;
+    mean_speed_ = omega;
+    p_ = Mat::Identity() * params_.torque_sd_nm * params_.torque_sd_nm;
+    p_(0, 0) = measurement_var(k, omega);
+    teeth_seen_ = 0;
+  }
+  mean_speed_ += (omega - mean_speed_) / kk;
+  Vec gain;
+  double out_var = 0.0;
+  const int o = 1 + params_.smoother_lag;
+  if (params_.periodic_gains) {
+    gain = periodic_gain(k, mean_speed_);
+  } else {
+    const double r = measurement_var(k, mean_speed_);
+    const double sres = p_(0, 0) + r;
+    Mat pn = p_;
+    riccati_step(k, mean_speed_, pn, gain);
+    out_var = p_(o, o) - gain(o) * gain(o) * sres;
+    p_ = pn;
+  }
+  // (CK-11) split into measurement update and prediction: x̂_{k|k} = x̂_{k|k−1} + K (y − C x̂_{k|k−1}).
+  x_ += gain * (y - x_(0));
+  last_gain_ = gain;
+  for (int i = kMaxLag; i > 0; --i) edge_t_ns_[static_cast<std::size_t>(i)] = edge_t_ns_[static_cast<std::size_t>(i - 1)];
+  edge_t_ns_[0] = s.t_ns;
+  ++teeth_seen_;
+  ++stats_.updates;
+  if (!x_.allFinite() || !p_.allFinite()) {
+    ++stats_.resets;
+    reset();
+    est_.health = Health::kNumerical;
+    return false;
+  }
+  est_.torque_nm = x_(o) + load_star_nm_;
+  est_.t_ns = edge_t_ns_[static_cast<std::size_t>(params_.smoother_lag)];
+  est_.uncertainty = std::sqrt(std::max(0.0, out_var));
+  est_tooth_ = (k - params_.smoother_lag + kk) % kk;
+  est_.health = teeth_seen_ >= kk ? Health::kValid : Health::kNotConverged;
+  predict(k);
+  expected_tooth_ = (k + 1) % kk;
+  return true;
+}
+
+}  // namespace torqued

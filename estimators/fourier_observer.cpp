@@ -1,0 +1,191 @@
+#include "fourier_observer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <sstream>
+
+#include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
+
+namespace torqued {
+
+namespace {
+
+/// l_j of (CF-10): l_0 = L_a0, l_{2i−1} = l_{2i} = i L_ref (CF §V.B tuning rule).
+double gain_of(const FourierParams& p, int j) {
+  if (j == 0) return p.l_a0;
+  const int i = (j + 1) / 2;
+  return i * p.l_ref;
+}
+
+/// f_j(α) with f_0 = 1, f_{2i−1} = cos(iα/2), f_{2i} = sin(iα/2) (CF §III).
+double basis_of(int j, double alpha) {
+  if (j == 0) return 1.0;
+  const int i = (j + 1) / 2;
+  return (j % 2 == 1) ? std::cos(i * alpha / 2.0) : std::sin(i * alpha / 2.0);
+}
+
+}  // namespace
+
+FourierObserver::FourierObserver(const EngineGeometry& engine, const WheelGeometry& wheel,
+                                 const FourierParams& params)
+    : params_(params), table_(ToothAngleTable::build(engine, wheel)) {
+  const int nh = std::clamp(params_.harmonics, 1, kMaxHarmonics);  // loader rejects; guard anyway
+  nc_ = 2 * nh + 1;
+  basis_.resize(static_cast<std::size_t>(table_.samples * nc_));
+  for (int k = 0; k < table_.samples; ++k) {
+    const double alpha = table_.edge_rad[static_cast<std::size_t>(k)] - engine.tdc_offset_rad;
+    for (int j = 0; j < nc_; ++j) basis_[static_cast<std::size_t>(k * nc_ + j)] = basis_of(j, alpha);
+  }
+  for (int j = 0; j < nc_; ++j) l_[static_cast<std::size_t>(j)] = gain_of(params_, j);
+  ref_speed_ = params_.gain_ref_rpm * std::numbers::pi / 30.0;
+  reset();
+}
+
+double FourierObserver::cycle_spectral_radius(const FourierParams& params, const EngineGeometry& engine,
+                                              const WheelGeometry& wheel) {
+  const ToothAngleTable t = ToothAngleTable::build(engine, wheel);
+  const int nc = 2 * params.harmonics + 1;
+  const int n = nc + 1;
+  Eigen::MatrixXd phi = Eigen::MatrixXd::Identity(n, n);
+  Eigen::MatrixXd step(n, n);
+  for (int k = 0; k < t.samples; ++k) {
+    const double alpha = t.edge_rad[static_cast<std::size_t>(k)] - engine.tdc_offset_rad;
+    const double d = t.step_rad[static_cast<std::size_t>(k)];
+    // Error dynamics (CF-12): x̃_{k+1} = (I + Ξ_k) x̃_k, Ξ_k = Δ_k [[−L_ke, fᵀ], [−l∘f, 0]].
+    step.setIdentity();
+    step(0, 0) -= d * params.l_ke;
+    for (int j = 0; j < nc; ++j) {
+      const double f = basis_of(j, alpha);
+      step(0, 1 + j) += d * f;
+      step(1 + j, 0) -= d * gain_of(params, j) * f;
+    }
+    phi = step * phi;
+  }
+  const Eigen::EigenSolver<Eigen::MatrixXd> es(phi, false);
+  return es.eigenvalues().cwiseAbs().maxCoeff();
+}
+
+std::optional<std::string> FourierObserver::check_stability(const FourierParams& params,
+                                                            const EngineGeometry& engine,
+                                                            const WheelGeometry& wheel) {
+  std::ostringstream why;
+  if (params.harmonics < 1 || params.harmonics > kMaxHarmonics) {
+    why << "fourier.harmonics = " << params.harmonics << " outside [1, " << kMaxHarmonics << "]";
+    return why.str();
+  }
+  const ToothAngleTable t = ToothAngleTable::build(engine, wheel);
+  const int nc = 2 * params.harmonics + 1;
+  if (nc >= t.samples) {
+    why << "fourier.harmonics = " << params.harmonics << ": 2 n_h + 1 = " << nc
+        << " must be below the " << t.samples << " samples per cycle of this wheel";
+    return why.str();
+  }
+  if (!(params.l_ke > 0.0) || !(params.l_a0 > 0.0) || !(params.l_ref > 0.0)) {
+    why << "fourier gains must be strictly positive (l_ke = " << params.l_ke << ", l_a0 = " << params.l_a0
+        << ", l_ref = " << params.l_ref << ")";
+    return why.str();
+  }
+  // (CF-14): L_ke > (Δα/2) Σ_k l_k f_k(n)² for every sample n of the cycle.
+  for (int k = 0; k < t.samples; ++k) {
+    const double alpha = t.edge_rad[static_cast<std::size_t>(k)] - engine.tdc_offset_rad;
+    const double d = t.step_rad[static_cast<std::size_t>(k)];
+    double sum = 0.0;
+    for (int j = 0; j < nc; ++j) {
+      const double f = basis_of(j, alpha);
+      sum += gain_of(params, j) * f * f;
+    }
+    const double bound = 0.5 * d * sum;
+    if (!(params.l_ke > bound)) {
+      why << "fourier gains break the stability condition (CF-14) at tooth " << k << ": l_ke = " << params.l_ke
+          << " must exceed (dalpha/2) sum l_k f_k^2 = " << bound << " (lower l_a0/l_ref or raise l_ke)";
+      return why.str();
+    }
+  }
+  const double rho = cycle_spectral_radius(params, engine, wheel);
+  if (!(rho < 1.0)) {
+    why << "fourier gains give an unstable observer over one cycle: spectral radius of the error transition "
+        << rho << " >= 1 (l_ke * dalpha must stay well below 2; lower l_ke)";
+    return why.str();
+  }
+  return std::nullopt;
+}
+
+void FourierObserver::reset() noexcept {
+  c_.fill(0.0);
+  phi_ = 0.0;
+  mean_speed_ = 0.0;
+  est_ = TorqueEstimate{};
+  est_.health = Health::kNotConverged;
+  est_tooth_ = 0;
+  expected_tooth_ = -1;
+  teeth_seen_ = 0;
+}
+
+double FourierObserver::net_torque_at(int k) const noexcept {
+  const double* f = &basis_[static_cast<std::size_t>(k * nc_)];
+  double t = 0.0;
+  for (int j = 0; j < nc_; ++j) t += c_[static_cast<std::size_t>(j)] * f[j];
+  return t;
+}
+
+bool FourierObserver::update(const ToothSample& s) noexcept {
+  const int kk = table_.samples;
+  if (!s.synced || !(s.dt_s > 0.0) || !(s.width_rad > 0.0) || !std::isfinite(s.dt_s) ||
+      !std::isfinite(s.width_rad) || s.tooth < 0 || s.tooth >= kk) {
+    ++stats_.rejected;
+    expected_tooth_ = -1;
+    est_.health = s.synced ? Health::kInvalidInput : Health::kNoSync;
+    return false;
+  }
+  const int k = s.tooth;
+  const double omega = s.width_rad / s.dt_s;
+  const double phi_meas = 0.5 * table_.j_center[static_cast<std::size_t>(k)] * omega * omega;
+  if (expected_tooth_ >= 0 && k != expected_tooth_) {
+    const int missing = (k - expected_tooth_ + kk) % kk;
+    ++stats_.skipped_teeth;
+    if (missing > kk / 8) {
+      expected_tooth_ = -1;
+    } else {
+      for (int m = 0; m < missing; ++m) {  // lost teeth: integrate the model open loop (CF-7)
+        const int km = (expected_tooth_ + m) % kk;
+        phi_ += table_.step_rad[static_cast<std::size_t>(km)] * net_torque_at(km);
+      }
+    }
+  }
+  if (expected_tooth_ < 0) {
+    phi_ = phi_meas;  // restart from the measured energy; keep the coefficients (warm start)
+    teeth_seen_ = 0;
+    mean_speed_ = omega;
+  }
+  mean_speed_ += (omega - mean_speed_) / kk;
+  // Beyond the paper: scale the gains by (ω_ref/ω̄)² above ω_ref, so that the energy innovation, whose noise from
+  // edge-angle error grows as θ̇², moves the coefficients by the same relative amount at every speed.
+  double scale = 1.0;
+  if (ref_speed_ > 0.0 && mean_speed_ > ref_speed_) scale = (ref_speed_ / mean_speed_) * (ref_speed_ / mean_speed_);
+  const double d = table_.step_rad[static_cast<std::size_t>(k)] * scale;
+  const double err = phi_ - phi_meas;  // (CF-8): L_n (ŷ_n − y_n) = Δα [L_ke, l_j f_j]ᵀ (φ̂ − ½ J y)
+  const double t_model = net_torque_at(k);
+  phi_ += table_.step_rad[static_cast<std::size_t>(k)] * (t_model - params_.l_ke * err);
+  const double* f = &basis_[static_cast<std::size_t>(k * nc_)];
+  for (int j = 0; j < nc_; ++j) c_[static_cast<std::size_t>(j)] -= d * l_[static_cast<std::size_t>(j)] * f[j] * err;
+  ++stats_.updates;
+  ++teeth_seen_;
+  const double t_net = net_torque_at(k);
+  if (!std::isfinite(phi_) || !std::isfinite(t_net)) {
+    ++stats_.resets;
+    reset();
+    est_.health = Health::kNumerical;
+    return false;
+  }
+  est_.t_ns = s.t_ns;
+  est_.torque_nm = t_net + load_star_nm_;
+  est_.uncertainty = 0.0;
+  est_tooth_ = k;
+  est_.health = teeth_seen_ >= 2 * kk ? Health::kValid : Health::kNotConverged;
+  expected_tooth_ = (k + 1) % kk;
+  return true;
+}
+
+}  // namespace torqued

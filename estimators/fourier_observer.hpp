@@ -1,0 +1,86 @@
+#pragma once
+// Chauvin's adaptive Fourier-basis observer of the mass torque (Chauvin et al., "Periodic input estimation for
+// linear periodic systems: automotive engine applications" / Fourier observer paper, eqs. (2)-(14));
+// ESTIMATORS.md §2.2.
+//   φ = ½ J(α) α̇²,  dφ/dα = T_ind − T*_load ≈ a0 + Σ_{i=1..n_h} a_i cos(iα/2) + b_i sin(iα/2)   (CF-2, CF-3)
+// Discrete observer (CF-8/10) per tooth sample k (step Δ_k between period centres, basis at the edge e_k):
+//   e_k = φ̂_k − ½ J(c_k) y_k                              (L_n (ŷ_n − y_n) = Δα [L_ke, l_j f_j]ᵀ e_k)
+//   φ̂_{k+1} = φ̂_k + Δ_k m(e_k)·ĉ − Δ_k L_ke e_k
+//   ĉ_j ← ĉ_j − Δ_k l_j f_j(e_k) e_k,  l_0 = L_a0, l_{2i−1} = l_{2i} = i L_ref (CF §V.B)
+// Basis values are tabulated per tooth at start-up (no trigonometry per tooth).
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "engine_geometry.hpp"
+#include "estimate.hpp"
+#include "params.hpp"
+#include "samples.hpp"
+#include "tooth_preprocessor.hpp"
+
+namespace torqued {
+
+struct FourierStats {
+  std::uint64_t updates = 0;
+  std::uint64_t rejected = 0;       ///< not synced / invalid sample
+  std::uint64_t skipped_teeth = 0;  ///< tooth index jumps (integrated open loop)
+  std::uint64_t resets = 0;         ///< numerical resets
+};
+
+class FourierObserver {
+ public:
+  static constexpr int kMaxHarmonics = 24;
+  static constexpr int kMaxCoeffs = 2 * kMaxHarmonics + 1;
+
+  /// Gains must have passed check_stability(); the constructor does not re-check (config loader's job).
+  FourierObserver(const EngineGeometry& engine, const WheelGeometry& wheel, const FourierParams& params);
+
+  /// Why these gains must be refused, or nullopt when acceptable. Checks, for the configured wheel and engine:
+  /// 1 ≤ n_h ≤ kMaxHarmonics, 2n_h + 1 < samples per cycle, strictly positive gains, the paper's condition (CF-14)
+  /// L_ke > (Δα/2) Σ_k l_k f_k(n)² at every tooth n, and (beyond the paper, because (CF-14) alone does not bound
+  /// the discrete error dynamics) the spectral radius of the closed-loop error transition over one cycle < 1.
+  /// Runs at configuration load (allocates, uses an eigen-solver): never call it on the real-time path.
+  [[nodiscard]] static std::optional<std::string> check_stability(const FourierParams& params,
+                                                                  const EngineGeometry& engine,
+                                                                  const WheelGeometry& wheel);
+  /// Spectral radius of Π_k (I + Ξ_k) over one 720° cycle (CF-12): < 1 means the observer error decays.
+  [[nodiscard]] static double cycle_spectral_radius(const FourierParams& params, const EngineGeometry& engine,
+                                                    const WheelGeometry& wheel);
+
+  void reset() noexcept;
+  /// Extended load T*_load = T_load + T_fric (N m), added to give T̂_ind (CF eq. (1)). Default 0.
+  void set_extended_load(double torque_nm) noexcept { load_star_nm_ = torque_nm; }
+  /// Real-time safe. Returns false if the sample was rejected.
+  bool update(const ToothSample& s) noexcept;
+
+  /// T̂_ind at this sample's edge (t_ns of the edge): m(e_k)·ĉ + T*_load (uncertainty not modelled: 0).
+  [[nodiscard]] TorqueEstimate estimate() const noexcept { return est_; }
+  [[nodiscard]] int estimate_tooth() const noexcept { return est_tooth_; }
+  /// T̂_mass (= net torque) at any tooth k from the current coefficients (reconstructs the whole cycle).
+  [[nodiscard]] double net_torque_at(int k) const noexcept;
+  [[nodiscard]] int coefficients() const noexcept { return nc_; }
+  [[nodiscard]] double coefficient(int j) const noexcept { return c_[static_cast<std::size_t>(j)]; }
+  [[nodiscard]] double kinetic_energy_j() const noexcept { return phi_; }
+  [[nodiscard]] const FourierStats& stats() const noexcept { return stats_; }
+
+ private:
+  FourierParams params_;
+  ToothAngleTable table_;
+  int nc_ = 0;                     ///< 2 n_h + 1
+  std::vector<double> basis_;      ///< f_j(e_k) at [k * nc_ + j]
+  std::array<double, kMaxCoeffs> l_{};
+  std::array<double, kMaxCoeffs> c_{};
+  double phi_ = 0.0;
+  double mean_speed_ = 0.0;        ///< running mean speed over ≈ one cycle (rad/s), for gain_ref_rpm
+  double ref_speed_ = 0.0;         ///< gain_ref_rpm in rad/s (0: off)
+  double load_star_nm_ = 0.0;
+  TorqueEstimate est_;
+  int est_tooth_ = 0;
+  int expected_tooth_ = -1;
+  int teeth_seen_ = 0;
+  FourierStats stats_;
+};
+
+}  // namespace torqued

@@ -1,0 +1,228 @@
+#include "tooth_error_learner.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include <Eigen/Dense>
+
+namespace torqued {
+
+namespace {
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+constexpr double kRpm = std::numbers::pi / 30.0;
+constexpr double kRefSpeed = 100.0;  ///< x = (ω_ref/ω̄)² keeps the regression sums O(1) (rad/s)
+}  // namespace
+
+ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGeometry& wheel,
+                                     const ToothLearnParams& params)
+    : params_(params), table_(ToothAngleTable::build(engine, wheel)) {
+  const int kk = table_.samples;
+  const int h = std::clamp(params_.fit_harmonics, 1, std::min(kMaxFitHarmonics, kk / 4));
+  nb_ = 2 * h + 2;
+  const auto ks = static_cast<std::size_t>(kk);
+  const auto nbs = static_cast<std::size_t>(nb_);
+  basis_.resize(ks * nbs);
+  half_log_j_.resize(ks);
+  log_w_.resize(ks);
+  Eigen::MatrixXd b(kk, nb_);
+  for (int k = 0; k < kk; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    const double c = table_.edge_rad[i] - 0.5 * table_.width_rad[i];  // period centre, wheel angle in 720°
+    b(k, 0) = 1.0;
+    b(k, 1) = (c - kTwoPi) / kTwoPi;  // linear trend: acceleration within the cycle
+    for (int hh = 1; hh <= h; ++hh) {
+      b(k, 2 * hh) = std::cos(hh * c / 2.0);
+      b(k, 2 * hh + 1) = std::sin(hh * c / 2.0);
+    }
+    for (int j = 0; j < nb_; ++j) basis_[i * nbs + static_cast<std::size_t>(j)] = b(k, j);
+    half_log_j_[i] = 0.5 * std::log(table_.j_center[i]);
+    log_w_[i] = std::log(table_.width_rad[i]);
+  }
+  const Eigen::MatrixXd g = (b.transpose() * b).ldlt().solve(b.transpose());
+  pinv_.resize(nbs * ks);
+  for (int j = 0; j < nb_; ++j)
+    for (int k = 0; k < kk; ++k) pinv_[static_cast<std::size_t>(j) * ks + static_cast<std::size_t>(k)] = g(j, k);
+  z_.assign(ks, 0.0);
+  resid_sum_.assign(ks, 0.0);
+  coef_.assign(nbs, 0.0);
+  sx_.assign(nbs, 0.0);
+  sxx_.assign(nbs, 0.0);
+  sb_.assign(nbs, 0.0);
+  sxb_.assign(nbs, 0.0);
+  const auto ts = static_cast<std::size_t>(table_.teeth);
+  eps_.assign(ts, 0.0);
+  eps_import_.assign(ts, 0.0);
+  ratio_.assign(ts, 1.0);
+  reset();
+}
+
+void ToothErrorLearner::reset() noexcept {
+  std::fill(resid_sum_.begin(), resid_sum_.end(), 0.0);
+  std::fill(sx_.begin(), sx_.end(), 0.0);
+  std::fill(sxx_.begin(), sxx_.end(), 0.0);
+  std::fill(sb_.begin(), sb_.end(), 0.0);
+  std::fill(sxb_.begin(), sxb_.end(), 0.0);
+  std::fill(eps_.begin(), eps_.end(), 0.0);
+  std::fill(eps_import_.begin(), eps_import_.end(), 0.0);
+  std::fill(ratio_.begin(), ratio_.end(), 1.0);
+  import_weight_ = 0.0;
+  n_ = 0.0;
+  next_tooth_ = -1;
+  collected_ = 0;
+  low_orders_ok_ = false;
+  stats_ = ToothLearnStats{};
+}
+
+bool ToothErrorLearner::ready() const noexcept { return n_ + import_weight_ >= params_.min_cycles; }
+
+void ToothErrorLearner::update(const ToothSample& s) noexcept {
+  const int kk = table_.samples;
+  if (!params_.learn) return;
+  const bool ok = s.synced && s.dt_s > 0.0 && std::isfinite(s.dt_s) && s.tooth >= 0 && s.tooth < kk;
+  if (!ok) {
+    if (collected_ > 0) ++stats_.cycles_rejected;
+    next_tooth_ = -1;
+    collected_ = 0;
+    return;
+  }
+  if (s.tooth == 0) {
+    if (collected_ == kk) finish_cycle();
+    collected_ = 0;
+    cycle_time_s_ = 0.0;
+    first_dt_s_ = 0.0;
+    last_dt_s_ = 0.0;
+    cycle_cutoff_ = cutoff_;
+    next_tooth_ = 0;
+  }
+  if (s.tooth != next_tooth_) {
+    if (collected_ > 0) ++stats_.cycles_rejected;
+    next_tooth_ = -1;
+    collected_ = 0;
+    return;
+  }
+  const auto i = static_cast<std::size_t>(s.tooth);
+  z_[i] = std::log(s.dt_s) - log_w_[i] + half_log_j_[i];
+  // time of the first and second revolution (equal angle spans) measure the change of speed over the cycle
+  if (s.tooth < table_.teeth) first_dt_s_ += s.dt_s; else last_dt_s_ += s.dt_s;
+  cycle_time_s_ += s.dt_s;
+  cycle_cutoff_ = cycle_cutoff_ || cutoff_;
+  ++collected_;
+  next_tooth_ = (s.tooth + 1) % kk;
+}
+
+void ToothErrorLearner::finish_cycle() noexcept {
+  const int kk = table_.samples;
+  const auto ks = static_cast<std::size_t>(kk);
+  const double omega = 2.0 * kTwoPi / cycle_time_s_;
+  const double accel_frac = std::abs(last_dt_s_ - first_dt_s_) / first_dt_s_;
+  if (omega < params_.min_rpm * kRpm || omega > params_.max_rpm * kRpm || accel_frac > params_.max_accel_frac) {
+    ++stats_.cycles_rejected;
+    return;
+  }
+  // Least-squares fit of the smooth part: β = G z (G = (BᵀB)⁻¹Bᵀ precomputed), residual r = z − Bβ.
+  for (int j = 0; j < nb_; ++j) {
+    const double* g = &pinv_[static_cast<std::size_t>(j) * ks];
+    double acc = 0.0;
+    for (std::size_t k = 0; k < ks; ++k) acc += g[k] * z_[k];
+    coef_[static_cast<std::size_t>(j)] = acc;
+  }
+  for (std::size_t k = 0; k < ks; ++k) {
+    const double* b = &basis_[k * static_cast<std::size_t>(nb_)];
+    double fit = 0.0;
+    for (int j = 0; j < nb_; ++j) fit += b[j] * coef_[static_cast<std::size_t>(j)];
+    resid_sum_[k] += z_[k] - fit;
+  }
+  // The speed ripple in each coefficient scales as ΔE/E ∝ 1/ω̄²; the tooth-error part does not.
+  const double x = (kRefSpeed / omega) * (kRefSpeed / omega);
+  for (std::size_t j = 0; j < static_cast<std::size_t>(nb_); ++j) {
+    sx_[j] += x;
+    sxx_[j] += x * x;
+    sb_[j] += coef_[j];
+    sxb_[j] += x * coef_[j];
+  }
+  n_ += 1.0;
+  ++stats_.cycles_used;
+  if (cycle_cutoff_) ++stats_.cycles_cutoff;
+  recompute();
+}
+
+void ToothErrorLearner::recompute() noexcept {
+  const int t = table_.teeth;
+  const auto nbs = static_cast<std::size_t>(nb_);
+  // Low orders: intercept of the regression β_j = β_j0 + γ_j x, needs a real spread of speeds
+  // (1σ of x above 20 % of its mean, e.g. cycles at 1000 and 2000 rpm).
+  const double sx = sx_[0], sxx = sxx_[0];
+  const double vx = n_ * sxx - sx * sx;
+  low_orders_ok_ = n_ >= 3.0 && vx > 0.04 * sx * sx;
+  for (int p = 0; p < t; ++p) {
+    double e = 0.0;
+    for (int rev = 0; rev < 2; ++rev) {
+      const auto k = static_cast<std::size_t>(p + rev * t);
+      e += resid_sum_[k] / n_;
+      if (low_orders_ok_) {
+        const double* b = &basis_[k * nbs];
+        // columns 0 (constant: ln ω̄) and 1 (trend: acceleration) carry no tooth information
+        for (std::size_t j = 2; j < nbs; ++j) {
+          const double beta0 = (sxx_[j] * sb_[j] - sx_[j] * sxb_[j]) / vx;
+          e += b[j] * beta0;
+        }
+      }
+    }
+    eps_[static_cast<std::size_t>(p)] = 0.5 * e;
+  }
+  double norm = 0.0;
+  for (int p = 0; p < t; ++p) {
+    const auto i = static_cast<std::size_t>(p);
+    const double e = (import_weight_ * eps_import_[i] + n_ * eps_[i]) / (import_weight_ + n_);
+    ratio_[i] = std::exp(e);
+    norm += ratio_[i] * table_.width_rad[i];
+  }
+  norm /= kTwoPi;  // the true widths add up to one revolution
+  for (auto& r : ratio_) r /= norm;
+}
+
+double ToothErrorLearner::width_ratio(int p) const noexcept {
+  return ready() ? ratio_[static_cast<std::size_t>(p)] : 1.0;
+}
+
+double ToothErrorLearner::corrected_width(int k) const noexcept {
+  return table_.width_rad[static_cast<std::size_t>(k)] * width_ratio(k % table_.teeth);
+}
+
+void ToothErrorLearner::edge_corrections(std::span<double> out_rad) const noexcept {
+  const int t = std::min<int>(table_.teeth, static_cast<int>(out_rad.size()));
+  double delta = 0.0;
+  for (int p = 0; p < t; ++p) {
+    if (p > 0) delta += (width_ratio(p) - 1.0) * table_.width_rad[static_cast<std::size_t>(p)];
+    out_rad[static_cast<std::size_t>(p)] = delta;
+  }
+}
+
+bool ToothErrorLearner::import_table(std::span<const double> edge_rad, int weight_cycles) noexcept {
+  const int t = table_.teeth;
+  if (static_cast<int>(edge_rad.size()) != t || weight_cycles <= 0) return false;
+  for (int p = 0; p < t; ++p) {
+    const auto i = static_cast<std::size_t>(p);
+    const double prev = edge_rad[static_cast<std::size_t>((p + t - 1) % t)];
+    const double w_true = table_.width_rad[i] + edge_rad[i] - prev;
+    if (!(w_true > 0.0) || !std::isfinite(w_true)) return false;
+    eps_import_[i] = std::log(w_true / table_.width_rad[i]);
+  }
+  import_weight_ = weight_cycles;
+  if (n_ == 0.0) {
+    n_ = 0.0;
+    double norm = 0.0;
+    for (int p = 0; p < t; ++p) {
+      const auto i = static_cast<std::size_t>(p);
+      ratio_[i] = std::exp(eps_import_[i]);
+      norm += ratio_[i] * table_.width_rad[i];
+    }
+    for (auto& r : ratio_) r /= norm / kTwoPi;
+  } else {
+    recompute();
+  }
+  return true;
+}
+
+}  // namespace torqued

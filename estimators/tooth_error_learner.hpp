@@ -1,0 +1,95 @@
+#pragma once
+// Crank-wheel tooth-error learning (issue 5 item 6, ESTIMATORS.md §4). A per-tooth machining error changes the
+// true width of a tooth period by a FIXED FRACTION, so it appears in the measured speed as the same relative
+// pattern at every speed and load, repeating every revolution. The engine's own speed ripple does not:
+//  - the inertia part (θ̇² ∝ 1/J(θ) from the reciprocating masses, ½J'θ̇²) is known: removed with ½ ln J(c_k);
+//  - the torque part (gas and load) is a smooth function of the 720° angle whose relative size falls as 1/ω²
+//    (ΔE/E with E = ½Jω²); in fuel cut-off it is only the compression/expansion of the motored cylinders.
+// Per complete, steady cycle we form z_k = ln(dt_k / w_k) + ½ ln J(c_k) (w_k nominal) and fit the smooth
+// basis [1, linear trend, cos/sin(hα/2), h = 1..H]. The residual, averaged per physical tooth, is the
+// high-order part of the tooth error (orders > H/2 per revolution). The low-order part sits in the fitted
+// coefficients together with the ripple: each coefficient is regressed on x = 1/ω̄² across all learned cycles
+// (several speeds, firing or cut-off); the intercept (x → 0, no ripple) is the tooth-error part.
+// The table is absolute (nominal widths, measured times), so the decoder may apply it to its output without
+// disturbing learning. Real-time safe update(); the table is recomputed at each cycle end (O(teeth·H)).
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "engine_geometry.hpp"
+#include "params.hpp"
+#include "samples.hpp"
+#include "tooth_preprocessor.hpp"
+
+namespace torqued {
+
+struct ToothLearnStats {
+  std::uint64_t cycles_used = 0;      ///< cycles accumulated
+  std::uint64_t cycles_cutoff = 0;    ///< of which in fuel cut-off
+  std::uint64_t cycles_rejected = 0;  ///< incomplete (lost/invalid teeth), unsteady or out of speed range
+};
+
+class ToothErrorLearner {
+ public:
+  static constexpr int kMaxFitHarmonics = 24;
+
+  ToothErrorLearner(const EngineGeometry& engine, const WheelGeometry& wheel, const ToothLearnParams& params);
+
+  void reset() noexcept;
+  /// Fuel cut-off flag of the current cycle (counted in stats; learning runs firing and in cut-off).
+  void set_fuel_cutoff(bool cutoff) noexcept { cutoff_ = cutoff; }
+  /// Real-time safe. Uses s.tooth, s.dt_s, s.t_ns, s.synced; ignores s.width_rad (learns against nominal widths).
+  void update(const ToothSample& s) noexcept;
+
+  /// Table usable: at least min_cycles cycles learned (or imported).
+  [[nodiscard]] bool ready() const noexcept;
+  /// Low orders learned too: the cycles spread enough in speed to separate tooth error from ripple.
+  [[nodiscard]] bool low_orders_learned() const noexcept { return low_orders_ok_; }
+  [[nodiscard]] const ToothLearnStats& stats() const noexcept { return stats_; }
+  [[nodiscard]] int teeth() const noexcept { return table_.teeth; }
+
+  /// True width / nominal width of physical tooth p (period ending at tooth p), 1 when not ready.
+  [[nodiscard]] double width_ratio(int p) const noexcept;
+  /// Corrected width of the period ending at 720° sample k (rad): what ToothSample::width_rad should carry.
+  [[nodiscard]] double corrected_width(int k) const noexcept;
+  /// Edge-angle corrections δ_p (rad) per physical tooth, δ_0 = 0: true edge angle = nominal + δ_p.
+  /// This is the table CrankDecoder::set_tooth_corrections() takes and the daemon persists. out.size() = teeth().
+  void edge_corrections(std::span<double> out_rad) const noexcept;
+  /// Restore a persisted table (edge corrections, rad) with the weight of `weight_cycles` learned cycles;
+  /// learning continues and blends with it. Returns false if the size does not match.
+  bool import_table(std::span<const double> edge_rad, int weight_cycles) noexcept;
+
+ private:
+  void finish_cycle() noexcept;
+  void recompute() noexcept;
+
+  ToothLearnParams params_;
+  ToothAngleTable table_;
+  int nb_ = 0;                       ///< fit columns 2H + 2
+  std::vector<double> basis_;        ///< B[k * nb_ + j] at period centres c_k
+  std::vector<double> pinv_;         ///< G = (BᵀB)⁻¹Bᵀ, [j * K + k]
+  std::vector<double> half_log_j_;   ///< ½ ln J(c_k)
+  std::vector<double> log_w_;        ///< ln w_k (nominal)
+  // current cycle
+  std::vector<double> z_;            ///< z_k of the cycle being collected
+  int next_tooth_ = -1;
+  int collected_ = 0;
+  double cycle_time_s_ = 0.0;
+  double first_dt_s_ = 0.0, last_dt_s_ = 0.0;
+  bool cutoff_ = false;
+  bool cycle_cutoff_ = false;
+  // accumulators
+  std::vector<double> resid_sum_;    ///< Σ residual per 720° sample
+  std::vector<double> coef_;         ///< scratch: coefficients of the last cycle
+  std::vector<double> sx_, sxx_, sb_, sxb_;  ///< per column: Σx, Σx², Σβ, Σxβ (x = 1/ω̄²)
+  double n_ = 0.0;
+  // result
+  std::vector<double> eps_;          ///< ln(true/nominal width) per physical tooth (learned)
+  std::vector<double> eps_import_;   ///< imported prior
+  double import_weight_ = 0.0;
+  std::vector<double> ratio_;        ///< exp(ε) normalised so that Σ ratio·w = 2π
+  bool low_orders_ok_ = false;
+  ToothLearnStats stats_;
+};
+
+}  // namespace torqued
