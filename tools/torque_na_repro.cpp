@@ -3,6 +3,7 @@
 // speed-stepped scenario with Gaussian noise on speed and load, and prints ISE, MAE, SD over 5-30 s.
 #include <CLI/CLI.hpp>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -13,8 +14,9 @@ int main(int argc, char** argv) {
   using namespace torqued::sim;
   NaScenarioConfig scenario;
   NaReproConfig repro;
-  scenario.speed_noise_rpm = 5.0;
-  scenario.load_noise_nm = 5.0;
+  // Na §VI: w1 = N(0, 20), w2 = N(0, 20); read as variances (σ = √20) on speed (rpm) and load (N m).
+  scenario.speed_noise_rpm = std::sqrt(20.0);
+  scenario.load_noise_nm = std::sqrt(20.0);
   bool square = false;
   std::string csv_path;
 
