@@ -112,7 +112,7 @@ std::string format_na_tables(const std::vector<NaMethodResult>& results) {
                                             find("law54_kappa0.1")};
   s += "\nTABLE IV. Adaptive laws (window 5-30 s)\n";
   s += "             Constant gain (50)                  Time-varying gain (54)\n";
-  s += "Index        k=0             k=0.1               k=0             k=0.1\n";
+  s += "Index      kappa=0       kappa=0.1          kappa=0       kappa=0.1\n";
   row("ISE", t4, [](const ErrorMetrics& m) { return m.ise; }, " %16.4e");
   row("MAE", t4, [](const ErrorMetrics& m) { return m.mae; }, " %16.4f");
   row("SD", t4, [](const ErrorMetrics& m) { return m.sd; }, " %16.4f");
