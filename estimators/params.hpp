@@ -122,6 +122,7 @@ struct ToothLearnParams {
   double max_accel_frac = 0.05;     ///< skip cycles whose speed changes by more than this fraction (-)
   double min_rpm = 600.0;           ///< learn only above this speed (rpm)
   double max_rpm = 7000.0;          ///< and below this one (rpm)
+  bool learn_low_orders = true;     ///< also learn orders <= fit_harmonics/2 per rev from the spread of speeds
 };
 
 }  // namespace torqued

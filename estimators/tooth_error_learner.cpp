@@ -46,10 +46,9 @@ ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGe
   z_.assign(ks, 0.0);
   resid_sum_.assign(ks, 0.0);
   coef_.assign(nbs, 0.0);
-  sx_.assign(nbs, 0.0);
-  sxx_.assign(nbs, 0.0);
   sb_.assign(nbs, 0.0);
   sxb_.assign(nbs, 0.0);
+  sxxb_.assign(nbs, 0.0);
   const auto ts = static_cast<std::size_t>(table_.teeth);
   eps_.assign(ts, 0.0);
   eps_import_.assign(ts, 0.0);
@@ -59,10 +58,10 @@ ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGe
 
 void ToothErrorLearner::reset() noexcept {
   std::fill(resid_sum_.begin(), resid_sum_.end(), 0.0);
-  std::fill(sx_.begin(), sx_.end(), 0.0);
-  std::fill(sxx_.begin(), sxx_.end(), 0.0);
+  sx_ = sxx_ = sx3_ = sx4_ = 0.0;
   std::fill(sb_.begin(), sb_.end(), 0.0);
   std::fill(sxb_.begin(), sxb_.end(), 0.0);
+  std::fill(sxxb_.begin(), sxxb_.end(), 0.0);
   std::fill(eps_.begin(), eps_.end(), 0.0);
   std::fill(eps_import_.begin(), eps_import_.end(), 0.0);
   std::fill(ratio_.begin(), ratio_.end(), 1.0);
@@ -102,7 +101,8 @@ void ToothErrorLearner::update(const ToothSample& s) noexcept {
     return;
   }
   const auto i = static_cast<std::size_t>(s.tooth);
-  z_[i] = std::log(s.dt_s) - log_w_[i] + half_log_j_[i];
+  const double w = table_.width_rad[i] / s.dt_s;  // speed from the nominal width
+  z_[i] = table_.j_center[i] * w * w;             // 2 × kinetic energy, normalised at the cycle end
   // time of the first and second revolution (equal angle spans) measure the change of speed over the cycle
   if (s.tooth < table_.teeth) first_dt_s_ += s.dt_s; else last_dt_s_ += s.dt_s;
   cycle_time_s_ += s.dt_s;
@@ -120,6 +120,11 @@ void ToothErrorLearner::finish_cycle() noexcept {
     ++stats_.cycles_rejected;
     return;
   }
+  // z_k = −½ (E_k/Ē − 1): E = ½J(w/dt)² is E0 + W(θ) (linear in the ripple W) times (1 + ε_p)^−2 ≈ 1 − 2ε_p.
+  double mean = 0.0;
+  for (std::size_t k = 0; k < ks; ++k) mean += z_[k];
+  mean /= kk;
+  for (std::size_t k = 0; k < ks; ++k) z_[k] = -0.5 * (z_[k] / mean - 1.0);
   // Least-squares fit of the smooth part: β = G z (G = (BᵀB)⁻¹Bᵀ precomputed), residual r = z − Bβ.
   for (int j = 0; j < nb_; ++j) {
     const double* g = &pinv_[static_cast<std::size_t>(j) * ks];
@@ -135,11 +140,14 @@ void ToothErrorLearner::finish_cycle() noexcept {
   }
   // The speed ripple in each coefficient scales as ΔE/E ∝ 1/ω̄²; the tooth-error part does not.
   const double x = (kRefSpeed / omega) * (kRefSpeed / omega);
+  sx_ += x;
+  sxx_ += x * x;
+  sx3_ += x * x * x;
+  sx4_ += x * x * x * x;
   for (std::size_t j = 0; j < static_cast<std::size_t>(nb_); ++j) {
-    sx_[j] += x;
-    sxx_[j] += x * x;
     sb_[j] += coef_[j];
     sxb_[j] += x * coef_[j];
+    sxxb_[j] += x * x * coef_[j];
   }
   n_ += 1.0;
   ++stats_.cycles_used;
@@ -150,11 +158,12 @@ void ToothErrorLearner::finish_cycle() noexcept {
 void ToothErrorLearner::recompute() noexcept {
   const int t = table_.teeth;
   const auto nbs = static_cast<std::size_t>(nb_);
-  // Low orders: intercept of the regression β_j = β_j0 + γ_j x, needs a real spread of speeds
-  // (1σ of x above 20 % of its mean, e.g. cycles at 1000 and 2000 rpm).
-  const double sx = sx_[0], sxx = sxx_[0];
-  const double vx = n_ * sxx - sx * sx;
-  low_orders_ok_ = n_ >= 3.0 && vx > 0.04 * sx * sx;
+  // Low orders: intercept of the regression β_j = β_j0 + γ_j x + η_j x² (normal equations, Cramer's rule on the
+  // 3×3 moment matrix shared by all columns); needs a real spread of speeds (1σ of x above 20 % of its mean).
+  const double vx = n_ * sxx_ - sx_ * sx_;
+  const double m00 = n_, m01 = sx_, m02 = sxx_, m11 = sxx_, m12 = sx3_, m22 = sx4_;
+  const double det = m00 * (m11 * m22 - m12 * m12) - m01 * (m01 * m22 - m12 * m02) + m02 * (m01 * m12 - m11 * m02);
+  low_orders_ok_ = params_.learn_low_orders && n_ >= 6.0 && vx > 0.04 * sx_ * sx_ && std::abs(det) > 1e-12 * n_;
   for (int p = 0; p < t; ++p) {
     double e = 0.0;
     for (int rev = 0; rev < 2; ++rev) {
@@ -164,7 +173,9 @@ void ToothErrorLearner::recompute() noexcept {
         const double* b = &basis_[k * nbs];
         // columns 0 (constant: ln ω̄) and 1 (trend: acceleration) carry no tooth information
         for (std::size_t j = 2; j < nbs; ++j) {
-          const double beta0 = (sxx_[j] * sb_[j] - sx_[j] * sxb_[j]) / vx;
+          const double r0 = sb_[j], r1 = sxb_[j], r2 = sxxb_[j];
+          const double beta0 = (r0 * (m11 * m22 - m12 * m12) - m01 * (r1 * m22 - m12 * r2) +
+                                m02 * (r1 * m12 - m11 * r2)) / det;
           e += b[j] * beta0;
         }
       }

@@ -2,14 +2,16 @@
 // Crank-wheel tooth-error learning (issue 5 item 6, ESTIMATORS.md §4). A per-tooth machining error changes the
 // true width of a tooth period by a FIXED FRACTION, so it appears in the measured speed as the same relative
 // pattern at every speed and load, repeating every revolution. The engine's own speed ripple does not:
-//  - the inertia part (θ̇² ∝ 1/J(θ) from the reciprocating masses, ½J'θ̇²) is known: removed with ½ ln J(c_k);
+//  - the inertia part (θ̇² ∝ 1/J(θ) from the reciprocating masses, ½J'θ̇²) is known: removed by using ½J(θ)θ̇²;
 //  - the torque part (gas and load) is a smooth function of the 720° angle whose relative size falls as 1/ω²
 //    (ΔE/E with E = ½Jω²); in fuel cut-off it is only the compression/expansion of the motored cylinders.
-// Per complete, steady cycle we form z_k = ln(dt_k / w_k) + ½ ln J(c_k) (w_k nominal) and fit the smooth
+// Per complete, steady cycle we form z_k = −½(E_k/Ē − 1), E_k = ½J(c_k)(w_k/dt_k)² with nominal w_k (the inertia
+// part cancels, the torque part W(θ) enters linearly, the tooth error as −2ε_p), and fit the smooth
 // basis [1, linear trend, cos/sin(hα/2), h = 1..H]. The residual, averaged per physical tooth, is the
 // high-order part of the tooth error (orders > H/2 per revolution). The low-order part sits in the fitted
-// coefficients together with the ripple: each coefficient is regressed on x = 1/ω̄² across all learned cycles
-// (several speeds, firing or cut-off); the intercept (x → 0, no ripple) is the tooth-error part.
+// coefficients together with the ripple: each coefficient is regressed on x = 1/ω̄² (and x², since ln(E0 + ΔE)
+// is not linear in ΔE/E0 at low speed) across all learned cycles (several speeds, firing or cut-off); the
+// intercept (x → 0, no ripple) is the tooth-error part.
 // The table is absolute (nominal widths, measured times), so the decoder may apply it to its output without
 // disturbing learning. Real-time safe update(); the table is recomputed at each cycle end (O(teeth·H)).
 #include <cstdint>
@@ -81,7 +83,8 @@ class ToothErrorLearner {
   // accumulators
   std::vector<double> resid_sum_;    ///< Σ residual per 720° sample
   std::vector<double> coef_;         ///< scratch: coefficients of the last cycle
-  std::vector<double> sx_, sxx_, sb_, sxb_;  ///< per column: Σx, Σx², Σβ, Σxβ (x = 1/ω̄²)
+  double sx_ = 0.0, sxx_ = 0.0, sx3_ = 0.0, sx4_ = 0.0;  ///< Σx, Σx², Σx³, Σx⁴ (x = (ω_ref/ω̄)²)
+  std::vector<double> sb_, sxb_, sxxb_;  ///< per column: Σβ, Σxβ, Σx²β
   double n_ = 0.0;
   // result
   std::vector<double> eps_;          ///< ln(true/nominal width) per physical tooth (learned)
