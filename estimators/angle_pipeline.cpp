@@ -48,6 +48,7 @@ void AnglePipeline::reset() noexcept {
   cut_segments_ = fired_segments_ = 0;
   brake_var_ = 4.0;
   have_prev_brake_ = false;
+  have_prev_load_ = false;
 }
 
 std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& sig) noexcept {
@@ -56,7 +57,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
     ++stats_.not_synced;
     have_prev_ = false;
     energy_.update(s, 0.0, false);
-    rls_.update(s, 0.0, false, cyl_work_j_, false);
+    rls_.update(s, 0.0, false, 0.0, cyl_work_j_, false);
     tooth_.valid = false;
     return 0;
   }
@@ -67,7 +68,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
     ToothSample bad = s;
     bad.synced = false;  // breaks the sequence in the estimators
     energy_.update(bad, 0.0, false);
-    rls_.update(bad, 0.0, false, cyl_work_j_, false);
+    rls_.update(bad, 0.0, false, 0.0, cyl_work_j_, false);
     tooth_.valid = false;
     return 0;
   }
@@ -89,7 +90,8 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
 
   bool works_ok = true;
   for (int m = 0; m < cfg_.engine.cylinders; ++m) works_ok = works_ok && cyl_work_ok_[static_cast<std::size_t>(m)];
-  rls_.update(s, sig.map_pa, can_fresh && sig.map_valid, cyl_work_j_, works_ok);
+  const double spark = can_fresh && sig.spark_valid ? sig.spark_advance_deg : std::nan("");
+  rls_.update(s, sig.map_pa, can_fresh && sig.map_valid, spark, cyl_work_j_, works_ok);
 
   const std::uint64_t breaks_before = energy_.breaks();
   if (energy_.update(s, sig.load_torque_nm, load_ok)) {
@@ -209,7 +211,10 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
   // --- Friction learning (EN-24..36) -------------------------------------------------------------------------------
   // Fuel cut-off for the whole window (+1 segment margin for the CAN flag's delay): T_ind = motored (pumping)
   // torque, so T_fric = T_motored − Δ(½Jθ̇²)/4π − T_load.
-  if (cut_segments_ > n + 1 && can_load && sig.map_valid) {
+  const bool load_steady = have_prev_load_ && std::fabs(seg.cycle_load_mean_nm - prev_load_) <= cfg_.friction.max_load_change_nm;
+  prev_load_ = seg.cycle_load_mean_nm;
+  have_prev_load_ = can_load;
+  if (cut_segments_ > n + 1 && can_load && load_steady && sig.map_valid) {
     const double obs = rls_.motored_torque_nm(sig.map_pa) - dke_nm - seg.cycle_load_mean_nm;
     if (friction_.observe_motoring(rpm, oil_c_, obs)) ++stats_.friction_observations;
   }

@@ -129,6 +129,8 @@ class AnglePipeline {
   double brake_var_ = 4.0;   ///< running variance of segment-to-segment brake changes (N m²)
   double prev_brake_ = 0.0;
   bool have_prev_brake_ = false;
+  double prev_load_ = 0.0;   ///< previous window's mean CAN load (N m)
+  bool have_prev_load_ = false;
 };
 
 }  // namespace torqued

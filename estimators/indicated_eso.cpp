@@ -21,6 +21,8 @@ void IndicatedEso::reset() noexcept {
   z1_ = z2_ = 0.0;
   init_ = false;
   run_s_ = 0.0;
+  recent_.fill(0.0);
+  recent_n_ = recent_i_ = 0;
   est_ = TorqueEstimate{};
 }
 
@@ -64,7 +66,13 @@ bool IndicatedEso::update(const EsoInput& in) noexcept {
   }
   run_s_ += in.segment_dt_s;
   est_.t_ns = in.t_ns;
-  est_.torque_nm = (e_ff + z2_) * q_mass;
+  const int n = engine_.cylinders;
+  recent_[static_cast<std::size_t>(recent_i_)] = (e_ff + z2_) * q_mass;
+  recent_i_ = (recent_i_ + 1) % n;
+  if (recent_n_ < n) ++recent_n_;
+  double sum = 0.0;
+  for (int i = 0; i < recent_n_; ++i) sum += recent_[static_cast<std::size_t>(i)];
+  est_.torque_nm = sum / recent_n_;
   est_.uncertainty = 0.05 * std::fabs(est_.torque_nm) + 1.0;
   est_.health = run_s_ * params_.eso_omega0 > 4.0 ? Health::kValid : Health::kNotConverged;
   return true;

@@ -9,6 +9,9 @@
 //   dz1/dθ = (E_ff + z2) Q_mass − T_fric − T_load + β1 (y − z1),   dz2/dθ = β2 (y − z1),   y = ½Jθ̇² at each boundary.
 // Discretised per segment (Δθ) with both error poles at p = e^{−ω0 Δt} (bandwidth tuning (s + ω0)², EN-23):
 //   l1 = 2 − 2p,  l2 = (1 − p)² / (Δθ Q_mass).
+// The per-segment z2 carries the cylinder-to-cylinder ripple of the energy (imbalance, boundary phase), so the
+// reported torque is the mean of (E_ff + z2) Q_mass over the last n_cyl segments (one cycle).
+#include <array>
 #include <cstdint>
 
 #include "engine_geometry.hpp"
@@ -47,6 +50,8 @@ class IndicatedEso {
   double z1_ = 0.0, z2_ = 0.0;
   bool init_ = false;
   double run_s_ = 0.0;
+  std::array<double, kMaxCylinders> recent_{};  ///< last n_cyl segment torques (N m)
+  int recent_n_ = 0, recent_i_ = 0;
   TorqueEstimate est_;
 };
 

@@ -24,14 +24,19 @@ struct Weights {
   double map = 0.0, exh = 0.0, p3 = 0.0;
 };
 Weights model_weights(double phi, const CrankKinematics& kin, const EnergiesParams& prm, double v_ivc,
-                      double v_c) noexcept {
+                      double v_c, double burn_rad) noexcept {
   const double evo = prm.evo_atdc_deg * kDeg;
   const double bde = prm.blowdown_end_atdc_deg * kDeg;
   const double ivc = (540.0 + prm.ivc_abdc_deg) * kDeg;
   const double v = kin.volume(phi);
   const double k = prm.polytropic_kappa;
+  const double burn = burn_rad;
   Weights w;
-  if (phi < evo) {
+  if (phi < burn) {
+    // Before the burn centroid the charge follows the compression polytrope back out (heat release lumped at
+    // the centroid: a constant-volume burn at TDC would understate the late expansion pressure for a given work).
+    w.map = prm.ivc_pressure_factor * std::pow(v_ivc / v, k);
+  } else if (phi < evo) {
     w.p3 = std::pow(v_c / v, k);
   } else if (phi < bde) {
     // Blowdown: raised-cosine blend from the polytrope to p_exh between EVO and the blowdown end.
@@ -67,16 +72,24 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
   window_first_of_.assign(static_cast<std::size_t>(samples_), -1);
   window_last_of_.assign(static_cast<std::size_t>(samples_), -1);
   const double step = 0.05 * kDeg;
-  // Full-cycle ∮p dV coefficients of one cylinder (local angle).
-  for (double phi = 0.5 * step; phi < kFourPi; phi += step) {
-    const Weights w = model_weights(phi, kin, params, v_ivc_, v_c_);
-    const double dv = kin.dvolume(phi) * step;
-    cyc_map_ += w.map * dv;
-    cyc_exh_ += w.exh * dv;
-    cyc_p3_ += w.p3 * dv;
+  // Full-cycle ∮p dV coefficients of one cylinder (local angle), one set per burn centroid 0..kCentroids−1 deg.
+  for (int ci = 0; ci < kCentroids; ++ci) {
+    double cm = 0.0, ce = 0.0, cp = 0.0;
+    for (double phi = 0.5 * step; phi < kFourPi; phi += step) {
+      const Weights w = model_weights(phi, kin, params, v_ivc_, v_c_, ci * kDeg);
+      const double dv = kin.dvolume(phi) * step;
+      cm += w.map * dv;
+      ce += w.exh * dv;
+      cp += w.p3 * dv;
+    }
+    cyc_map_[static_cast<std::size_t>(ci)] = cm;
+    cyc_exh_ = ce;
+    cyc_p3_[static_cast<std::size_t>(ci)] = cp;
   }
-  for (int m = 0; m < n; ++m) {
-    const double tdc = kFourPi * m / n;
+  const double pitch = kFourPi / samples_;
+  for (int m = 0; m < n; ++m)
+  for (int shift = 0; shift < std::max(1, params.rls_window_shifts); ++shift) {
+    const double tdc = kFourPi * m / n - shift * pitch;
     const double a = tdc - params.window_start_btdc_deg * kDeg;
     const double b = tdc - params.window_end_btdc_deg * kDeg;
     // Teeth whose period centre lies in [a, b] (relative distance from a, wrapped).
@@ -105,7 +118,7 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
       for (int i = 0; i < steps; ++i) {
         const double th = win.c_first + (i + 0.5) * h;
         const double phi = wrap4pi(th - phase);
-        const Weights w = model_weights(phi, kin, params, v_ivc_, v_c_);
+        const Weights w = model_weights(phi, kin, params, v_ivc_, v_c_, params.burn_centroid_atdc_deg * kDeg);
         const double dv = kin.dvolume(phi) * h;  // dV_j/dθ dθ = A R f(θ − φ_j) dθ (EN-9)
         win.k_map += w.map * dv;
         win.k_exh += w.exh * dv;
@@ -113,15 +126,21 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
         win.k_cc -= dv;
       }
     }
+    if (window_first_of_[static_cast<std::size_t>(first)] >= 0 || window_last_of_[static_cast<std::size_t>(last)] >= 0) {
+      continue;  // irregular wheel: two shifts mapped onto the same teeth
+    }
     window_first_of_[static_cast<std::size_t>(first)] = static_cast<int>(windows_tab_.size());
     window_last_of_[static_cast<std::size_t>(last)] = static_cast<int>(windows_tab_.size());
     windows_tab_.push_back(win);
   }
+  open_.assign(windows_tab_.size(), 0);
+  ke_first_.assign(windows_tab_.size(), 0.0);
+  w2_first_.assign(windows_tab_.size(), 0.0);
   reset();
 }
 
 void LoadRls::reset() noexcept {
-  open_window_ = -1;
+  std::fill(open_.begin(), open_.end(), 0);
   expected_tooth_ = -1;
   theta_ = {engine_.j_rot_kgm2, 0.0};
   p_ = {1e-4, 0.0, 0.0, 1e6};
@@ -130,8 +149,27 @@ void LoadRls::reset() noexcept {
   est_ = TorqueEstimate{};
 }
 
-double LoadRls::expansion_p3(double work_j, double map_pa) const noexcept {
-  return (work_j - cyc_map_ * map_pa - cyc_exh_ * params_.exhaust_pressure_pa) / cyc_p3_;
+double LoadRls::centroid_deg(double spark_advance_deg) const noexcept {
+  const double c = std::isfinite(spark_advance_deg) ? params_.burn_delay_deg - spark_advance_deg
+                                                    : params_.burn_centroid_atdc_deg;
+  return std::clamp(c, 0.0, static_cast<double>(kCentroids - 1));
+}
+
+double LoadRls::expansion_p3(double work_j, double map_pa, double spark_advance_deg) const noexcept {
+  // Linear interpolation of the closure coefficients in the burn centroid.
+  const double c = centroid_deg(spark_advance_deg);
+  const int i = std::min(static_cast<int>(c), kCentroids - 2);
+  const double f = c - i;
+  const auto ii = static_cast<std::size_t>(i);
+  const double cm = cyc_map_[ii] + f * (cyc_map_[ii + 1] - cyc_map_[ii]);
+  const double cp = cyc_p3_[ii] + f * (cyc_p3_[ii + 1] - cyc_p3_[ii]);
+  return (work_j - cm * map_pa - cyc_exh_ * params_.exhaust_pressure_pa) / cp;
+}
+
+double LoadRls::model_pressure(double local_rad, double map_pa, double p3_pa, double spark_advance_deg) const noexcept {
+  const CrankKinematics kin(engine_);
+  const Weights w = model_weights(wrap4pi(local_rad), kin, params_, v_ivc_, v_c_, centroid_deg(spark_advance_deg) * kDeg);
+  return w.map * map_pa + w.exh * params_.exhaust_pressure_pa + w.p3 * p3_pa;
 }
 
 double LoadRls::motored_p3(double map_pa) const noexcept {
@@ -140,7 +178,8 @@ double LoadRls::motored_p3(double map_pa) const noexcept {
 }
 
 double LoadRls::motored_torque_nm(double map_pa) const noexcept {
-  const double w = cyc_map_ * map_pa + cyc_exh_ * params_.exhaust_pressure_pa + cyc_p3_ * motored_p3(map_pa);
+  // Motored: no heat release, the centroid does not matter (use 0).
+  const double w = cyc_map_[0] * map_pa + cyc_exh_ * params_.exhaust_pressure_pa + cyc_p3_[0] * motored_p3(map_pa);
   return engine_.cylinders * w / kFourPi;
 }
 
@@ -151,11 +190,11 @@ double LoadRls::window_gas_work(int w, double map_pa, const std::array<double, k
   return work;
 }
 
-bool LoadRls::update(const ToothSample& s, double map_pa, bool map_valid,
+bool LoadRls::update(const ToothSample& s, double map_pa, bool map_valid, double spark_advance_deg,
                      const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid) noexcept {
   if (!s.synced || s.tooth < 0 || s.tooth >= samples_ || !(s.dt_s > 0.0) || !(s.width_rad > 0.0) ||
       (expected_tooth_ >= 0 && s.tooth != expected_tooth_)) {
-    open_window_ = -1;
+    std::fill(open_.begin(), open_.end(), 0);
     expected_tooth_ = s.synced && s.tooth >= 0 && s.tooth < samples_ ? (s.tooth + 1) % samples_ : -1;
     return false;
   }
@@ -164,15 +203,15 @@ bool LoadRls::update(const ToothSample& s, double map_pa, bool map_valid,
   const double w2 = (s.width_rad / s.dt_s) * (s.width_rad / s.dt_s);
   const int opened = window_first_of_[k];
   if (opened >= 0) {
-    open_window_ = opened;
-    const Window& win = windows_tab_[static_cast<std::size_t>(opened)];
-    ke_first_ = 0.5 * (win.j_first - engine_.j_rot_kgm2) * w2;
-    w2_first_ = w2;
-    return false;
+    const auto oi = static_cast<std::size_t>(opened);
+    open_[oi] = 1;
+    ke_first_[oi] = 0.5 * (windows_tab_[oi].j_first - engine_.j_rot_kgm2) * w2;
+    w2_first_[oi] = w2;
   }
   const int closed = window_last_of_[k];
-  if (closed < 0 || closed != open_window_) return false;
-  open_window_ = -1;
+  if (closed < 0 || !open_[static_cast<std::size_t>(closed)]) return false;
+  const auto ci = static_cast<std::size_t>(closed);
+  open_[ci] = 0;
   if (!map_valid || !std::isfinite(map_pa)) {
     est_.health = Health::kStaleInput;
     return false;
@@ -181,15 +220,16 @@ bool LoadRls::update(const ToothSample& s, double map_pa, bool map_valid,
   std::array<double, kMaxCylinders> p3{};
   for (int q = 0; q < engine_.cylinders; ++q) {
     const auto qi = static_cast<std::size_t>(q);
-    p3[qi] = params_.model_expansion_cylinder && works_valid ? expansion_p3(cyl_work_j[qi], map_pa) : motored_p3(map_pa);
+    p3[qi] = params_.model_expansion_cylinder && works_valid ? expansion_p3(cyl_work_j[qi], map_pa, spark_advance_deg)
+                                                                       : motored_p3(map_pa);
     if (!params_.model_expansion_cylinder) p3[qi] = 0.0;  // paper's simplification: no other cylinder's gas torque
   }
   // Paper's simplification keeps only the compressing cylinder: drop every cylinder's expansion/exhaust terms.
   double gas = window_gas_work(closed, map_pa, p3);
   if (!params_.model_expansion_cylinder) gas -= win.k_exh * params_.exhaust_pressure_pa;
-  const double ke_rel = 0.5 * (win.j_last - engine_.j_rot_kgm2) * w2 - ke_first_;
+  const double ke_rel = 0.5 * (win.j_last - engine_.j_rot_kgm2) * w2 - ke_first_[ci];
   const double y = (gas - ke_rel) / win.span;                 // energy form of EN-11
-  const double phi_a = 0.5 * (w2 - w2_first_) / win.span;     // angle-mean θ̈ (rad/s²)
+  const double phi_a = 0.5 * (w2 - w2_first_[ci]) / win.span; // angle-mean θ̈ (rad/s²)
   if (!std::isfinite(y) || !std::isfinite(phi_a)) {
     est_.health = Health::kInvalidInput;
     return false;

@@ -20,7 +20,12 @@
 //                           p_IVC = factor · MAP (EN-7)
 //     p3 is found "from the observed cycle": the cycle's indicated work of that cylinder W_j (energy balance of its
 //     segment, CylinderTorque) closes the cycle integral ∮p dV = W_j, which is linear in p3. Without a measured W_j
-//     the cylinder is assumed motored. All window integrals are linear in (MAP, p3_j, p_exh, p_cc) and are
+//     the cylinder is assumed motored. The heat release is lumped at a burn centroid (default 8° ATDC, a typical
+//     50 %-burned angle = spark + burn_delay_deg, with the spark advance from CAN) rather than at TDC, which would
+//     understate the late expansion pressure for a given work. Checked against the simulator's single-zone
+//     Wiebe pressure trace in test_load_rls.
+//  3. Each window is repeated shifted by 1..rls_window_shifts−1 teeth earlier: averaging the shifted windows
+//     averages θ̇² over consecutive teeth at both ends, whose timestamp jitter telescopes (noise ÷ shifts). All window integrals are linear in (MAP, p3_j, p_exh, p_cc) and are
 //     precomputed at construction, so the per-tooth cost is a few multiply-adds.
 #include <array>
 #include <cstdint>
@@ -41,7 +46,8 @@ class LoadRls {
   /// Real-time safe. `cyl_work_j[position]`: last measured indicated work per cycle of each firing position (J),
   /// `works_valid`: use them for the expansion pressure (else motored). Returns true when a window completed and
   /// the estimate was updated.
-  bool update(const ToothSample& s, double map_pa, bool map_valid,
+  /// `spark_advance_deg`: NaN when unknown (then burn_centroid_atdc_deg is used).
+  bool update(const ToothSample& s, double map_pa, bool map_valid, double spark_advance_deg,
               const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid) noexcept;
 
   /// Extended load T_load + T_fric (N m); uncertainty = 1σ of the mean from the residuals.
@@ -52,8 +58,13 @@ class LoadRls {
   [[nodiscard]] double last_y() const noexcept { return last_y_; }
   /// Gas work over window `w` (J) for the given pressures; exposed for tests of the pressure model.
   [[nodiscard]] double window_gas_work(int w, double map_pa, const std::array<double, kMaxCylinders>& p3_pa) const noexcept;
-  /// p3 (Pa) that closes ∮p dV = work_j for one cylinder at this MAP.
-  [[nodiscard]] double expansion_p3(double work_j, double map_pa) const noexcept;
+  /// p3 (Pa) that closes ∮p dV = work_j for one cylinder at this MAP and spark advance (NaN: unknown).
+  [[nodiscard]] double expansion_p3(double work_j, double map_pa, double spark_advance_deg) const noexcept;
+  /// Burn centroid (deg ATDC) used for a spark advance (NaN: unknown).
+  [[nodiscard]] double centroid_deg(double spark_advance_deg) const noexcept;
+  /// Modelled cylinder pressure (Pa) at `local_rad` after that cylinder's firing TDC (tests, diagnostics).
+  [[nodiscard]] double model_pressure(double local_rad, double map_pa, double p3_pa,
+                                      double spark_advance_deg) const noexcept;
   /// p3 of a motored cylinder (no combustion) at this MAP.
   [[nodiscard]] double motored_p3(double map_pa) const noexcept;
   /// Cycle-mean indicated torque of the whole engine when motored (fuel cut-off) at this MAP: the pumping loop and
@@ -74,13 +85,15 @@ class LoadRls {
   std::vector<Window> windows_tab_;
   std::vector<int> window_first_of_;  ///< window index opened by tooth k, −1 if none
   std::vector<int> window_last_of_;   ///< window index closed by tooth k, −1 if none
-  double cyc_map_ = 0.0, cyc_exh_ = 0.0, cyc_p3_ = 0.0;  ///< full-cycle ∮p dV coefficients of one cylinder (m³)
+  static constexpr int kCentroids = 61;  ///< closure tables for burn centroids 0..60° ATDC
+  std::array<double, kCentroids> cyc_map_{}, cyc_p3_{};  ///< full-cycle ∮p dV coefficients of one cylinder (m³)
+  double cyc_exh_ = 0.0;
   double v_ivc_ = 0.0, v_c_ = 0.0;
   double kappa_ = 1.3;
 
-  int open_window_ = -1;
+  std::vector<std::uint8_t> open_;   ///< per window: first tooth seen, last not yet
+  std::vector<double> ke_first_, w2_first_;
   int expected_tooth_ = -1;
-  double ke_first_ = 0.0, w2_first_ = 0.0;
   std::array<double, 2> theta_{};   ///< [J_e, T_load*]
   std::array<double, 4> p_{};       ///< RLS covariance (2x2, row-major)
   double resid_var_ = 0.0;

@@ -75,7 +75,7 @@ struct EnergiesParams {
   double window_start_btdc_deg = 50.0;  ///< RLS window start before TDC (deg)
   double window_end_btdc_deg = 20.0;    ///< RLS window end before TDC (deg)
   double polytropic_kappa = 1.3;        ///< κ for compression/expansion (-)
-  double rls_forgetting = 0.995;        ///< RLS forgetting factor (-)
+  double rls_forgetting = 0.998;        ///< RLS forgetting factor per window (-)
   double lowpass_hz = 300.0;            ///< speed pre-filter cut-off (Hz)
   double eso_omega0 = 20.0;             ///< ESO bandwidth ω0 (rad/s) (EN-23)
   double fuel_lhv_j_kg = 43e6;          ///< q_LHV (J/kg)
@@ -87,7 +87,11 @@ struct EnergiesParams {
   double ivc_pressure_factor = 1.0;     ///< p_IVC = factor × MAP (volumetric-efficiency correction) (-)
   bool model_expansion_cylinder = true; ///< model the cylinder that fired 180° earlier in the RLS window (-)
   bool rls_estimate_inertia = false;    ///< regress [θ̈, 1] (paper) instead of [1] with the known J_rot (-)
-  int rls_min_windows = 40;             ///< windows before the RLS load is reported converged (-)
+  int rls_min_windows = 120;            ///< windows before the RLS load is reported converged (-)
+  int rls_window_shifts = 5;            ///< each window also shifted 1..n−1 teeth earlier (telescoping noise average)
+  double burn_centroid_atdc_deg = 10.0; ///< heat release lumped here in the expansion-pressure closure when the
+                                        ///< spark advance is unknown (deg after TDC)
+  double burn_delay_deg = 29.0;         ///< spark to equivalent burn centroid (deg): centroid = delay − advance
   double energy_window_deg = 30.0;      ///< kinetic energy averaged over this window around each boundary (deg)
   double segment_offset_deg = -20.0;    ///< segment boundary relative to each firing TDC (deg, <0: before TDC)
   double idle_max_rpm = 1100.0;         ///< idle (friction C4 learning) below this mean speed (rpm)
@@ -103,6 +107,8 @@ struct FrictionParams {
   int min_observations = 20;            ///< motoring cycles before the learned law is reported valid (-)
   double min_rpm = 500.0;               ///< observations accepted between min_rpm ..
   double max_rpm = 7000.0;              ///< .. and max_rpm (rpm)
+  double max_load_change_nm = 1.0;      ///< skip observations while the measured load moves more than this per
+                                        ///< segment (the CAN load lags the flange; dyno transients) (N m)
 };
 struct CylinderParams {
   double misfire_threshold = 0.5;   ///< misfire when a cylinder's torque < threshold × cycle mean (-)

@@ -240,11 +240,17 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
 }
 
 std::array<double, 4> learn_friction(const EvalOptions& options) {
+  // The daemon keeps learning over its life and persists the coefficients; here: the fuel_cut coast-down from the
+  // prior, then the demo run (whose fuel cut-off starts at 3500 rpm) continuing from the persisted coefficients.
   EvalOptions o = options;
   o.friction.reset();
-  const sim::Scenario sc = sim::scenario_by_name("fuel_cut");
-  const ScenarioResult r = evaluate(sc, o);
-  return r.friction_coefficients;
+  std::array<double, 4> c{};
+  for (const char* name : {"fuel_cut", "demo"}) {
+    const ScenarioResult r = evaluate(sim::scenario_by_name(name), o);
+    c = r.friction_coefficients;
+    o.friction = c;
+  }
+  return c;
 }
 
 }  // namespace torqued::eval

@@ -65,7 +65,7 @@ ScenarioResult evaluate(const sim::Scenario& scenario, const EvalOptions& option
 /// Same on an already simulated output.
 ScenarioResult evaluate(const sim::Scenario& scenario, const sim::SimOutput& out, const EvalOptions& options);
 
-/// Learn friction from the "fuel_cut" coast-down starting at `prior`; returns the learned coefficients.
+/// Learn friction on the "fuel_cut" coast-down, then on "demo", starting at the prior; returns the coefficients.
 std::array<double, 4> learn_friction(const EvalOptions& options);
 
 }  // namespace torqued::eval
