@@ -24,7 +24,7 @@ struct AdaptiveParams {
   double kappa = 0.1;                      ///< κ weighting of W2 (Na-50/54)
   bool time_varying_gain = true;           ///< law (Na-52/54) instead of (Na-50)
   std::array<double, 2> k0{10.0, 10.0};    ///< K(0) = K0^-1 diagonal entries given as K0 (Na-52), normalised units
-  double sigma = 1e-3;                     ///< excitation threshold on λ_min(P) (Na Remark 9)
+  double sigma = 1e-6;                     ///< excitation threshold on λ_min(P) of the normalised regressor (Na Remark 9)
   /// Regressor normalisation: φ = [ω·s0, ṁ_air·s1] so both entries are O(1) and Γ, K0, σ are unit-free.
   std::array<double, 2> phi_scale{0.01, 100.0};  ///< s0 (s/rad), s1 (s/kg)
   std::array<double, 2> gamma_tv{20.0, 20.0};    ///< Γ diagonal of law (Na-54) (1/s: K ≈ P^-1 makes Γ a rate)
