@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <string>
 
+#include <unistd.h>
+
 #include "can_codec.hpp"
 #include "engine_sim.hpp"
 #include "mean_value_engine.hpp"
@@ -91,7 +93,11 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "torque-sim: scenario %s, %.1f s simulated, seed %llu ...\n", sc.name.c_str(), sc.duration_s,
                  static_cast<unsigned long long>(sc.seed));
     const auto t0 = std::chrono::steady_clock::now();
-    const SimOutput out = simulate(sc);
+    const bool tty = isatty(STDERR_FILENO) != 0;
+    const SimOutput out = simulate(sc, [&](double t) {
+      if (tty) std::fprintf(stderr, "\r  %.1f / %.1f s simulated", t, sc.duration_s);
+    });
+    if (tty) std::fprintf(stderr, "\r%40s\r", "");
     const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     write_outputs(out, sc, out_dir);
     std::fprintf(stderr, "torque-sim: %zu edges, %zu CAN frames, %zu teeth, %zu cycles in %.2f s -> %s\n",

@@ -119,7 +119,7 @@ std::vector<double> nominal_tooth_angles_rad(const WheelGeometry& wheel) {
   return a;
 }
 
-SimOutput simulate(const Scenario& sc) {
+SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& progress) {
   validate(sc);
   SimOutput out;
   const int ncyl = sc.engine.cylinders;
@@ -225,7 +225,7 @@ SimOutput simulate(const Scenario& sc) {
 
   const double v_cyl = model.displacement_m3() / ncyl;
   double lock_acc = 0.0;
-  double t_zero = 0.0, t_prev = 0.0;
+  double t_zero = 0.0, t_prev = 0.0, next_progress = 0.5;
   const int trace_every = sc.trace_every_steps;
   EngineModel::State k1, k2, k3, k4, yt, ye;
   ModelEval ev, ev_e;
@@ -240,6 +240,10 @@ SimOutput simulate(const Scenario& sc) {
     }
     const double t_rel = rec ? y[0] - t_zero : 0.0;  // schedules are held at t = 0 during warm-up
     if (rec && t_rel >= sc.duration_s) break;
+    if (progress && rec && t_rel >= next_progress) {
+      progress(t_rel);
+      next_progress += 0.5;
+    }
 
     // Fuel cut-off state (time intervals, early resume below resume_rpm).
     fuel_cut_now = false;

@@ -11,6 +11,7 @@
 //  - the cam channel is high for wheel angles [cam_rise_deg, cam_fall_deg) of each 720° cycle (default 45°..225°).
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -198,8 +199,9 @@ struct SimOutput {
 /// Nominal marking-edge angle of each physical tooth within one revolution (rad), tooth 0 = 0 for N−M wheels.
 [[nodiscard]] std::vector<double> nominal_tooth_angles_rad(const WheelGeometry& wheel);
 
-/// Run the scenario. Throws std::invalid_argument on an inconsistent scenario.
-[[nodiscard]] SimOutput simulate(const Scenario& scenario);
+/// Run the scenario. Throws std::invalid_argument on an inconsistent scenario, std::runtime_error on a stall.
+/// `progress`, when set, is called with the simulated time about every 0.5 s of simulation.
+[[nodiscard]] SimOutput simulate(const Scenario& scenario, const std::function<void(double t_s)>& progress = {});
 
 /// Tooth samples as a synced decoder would give them: measured times (machining error + jitter + quantisation),
 /// correct tooth index / 720° phase, NOMINAL angle and width (gap tooth: (missing + 1) pitches), dt_s from the
