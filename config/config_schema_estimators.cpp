@@ -75,7 +75,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("kalman.torque_sd_nm", kalman.params.torque_sd_nm, open_closed(0.0, 1e5), "N m", "stationary 1 sigma of the net torque; sets Q");
   TQ_NUM("kalman.edge_noise_deg", kalman.params.edge_noise_deg, open_closed(0.0, 10.0), "deg", "edge-angle error used for R");
   TQ_NUM("kalman.jitter_s", kalman.params.jitter_s, closed(0.0, 1e-2), "s", "timestamp jitter used for R");
-  TQ_INT("kalman.smoother_lag", kalman.params.smoother_lag, closed(0, 3), "teeth", "fixed-lag smoother output (0 = paper's predictor)");
+  TQ_INT("kalman.smoother_lag", kalman.params.smoother_lag, closed(0, 6), "teeth", "fixed-lag smoother output (0 = paper's predictor)");
   TQ_BOOL("kalman.periodic_gains", kalman.params.periodic_gains, "precomputed periodic gains (APS) instead of exact Riccati");
   TQ_NUM("kalman.min_rpm", kalman.params.min_rpm, open_closed(0.0, 20000.0), "rpm", "lowest speed of the APS gain schedule");
   TQ_NUM("kalman.max_rpm", kalman.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "highest speed of the APS gain schedule");
@@ -85,6 +85,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("fourier.l_ke", fourier.params.l_ke, open_closed(0.0, 1e6), "1/rad", "L_ke, must satisfy CF-14");
   TQ_NUM("fourier.l_a0", fourier.params.l_a0, closed(0.0, 1e6), "1/rad^2", "L_a0");
   TQ_NUM("fourier.l_ref", fourier.params.l_ref, closed(0.0, 1e6), "1/rad^2", "L_ref: l_ai = l_bi = i L_ref");
+  TQ_NUM("fourier.gain_ref_rpm", fourier.params.gain_ref_rpm, closed(0.0, 20000.0), "rpm",
+         ">0: coefficient gains x min(1, (gain_ref_rpm/rpm)^2); 0 = fixed gains as in the paper");
 
   // Energies 2019 chain and beyond (ESTIMATORS.md §3-4).
   TQ_BOOL("energies.enabled", energies.enabled, "run the load RLS + ESO chain (EN)");

@@ -137,6 +137,25 @@ TEST(ConfigLoader, EmptyDocumentGivesDefaults) {
   }
 }
 
+TEST(ConfigLoader, EveryDefaultIsInsideItsBounds) {
+  // Catches a default changed in estimators/params.hpp without updating the schema table.
+  const Config defaults;
+  for (const auto& e : config_schema()) {
+    if (!e.bounded) continue;
+    const ConfigValue v = e.get(defaults);
+    std::vector<double> xs;
+    if (e.kind == ValueKind::kDouble) xs = {v.d};
+    else if (e.kind == ValueKind::kInt) xs = {static_cast<double>(v.i)};
+    else if (e.kind == ValueKind::kDoubleList) xs = v.dl;
+    else if (e.kind == ValueKind::kIntList) xs.assign(v.il.begin(), v.il.end());
+    for (double x : xs) {
+      EXPECT_TRUE(e.lo_open ? x > e.lo : x >= e.lo) << e.key << " default " << x << " vs " << describe_expected(e);
+      EXPECT_TRUE(e.hi_open ? x < e.hi : x <= e.hi) << e.key << " default " << x << " vs " << describe_expected(e);
+    }
+  }
+  EXPECT_TRUE(check_config_physics(defaults).empty());
+}
+
 TEST(ConfigLoader, EnabledFlagsOfNaEstimatorsReachTheTimePipeline) {
   const LoadResult r = load_config_from_string(
       "inputs: {edges: {backend: gpio}}\nestimators: {uio: {enabled: false}, adaptive: {enabled: false}}\n", "/tmp/x.yaml");
