@@ -1,15 +1,39 @@
 #include "angle_stage.hpp"
 
-#include "estimate.hpp"
-
 #include <cmath>
 #include <limits>
 #include <numbers>
 
+#include "estimate.hpp"
+
 namespace torqued {
 namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+std::uint32_t validity_of(const TorqueEstimate& e) noexcept {
+  std::uint32_t v = 0;
+  switch (e.health) {
+    case Health::kValid: break;
+    case Health::kNotConverged:
+    case Health::kNotExcited: v |= torque_VALIDITY_NOT_CONVERGED; break;
+    case Health::kStaleInput: v |= torque_VALIDITY_STALE_CAN; break;
+    case Health::kNoSync: v |= torque_VALIDITY_NO_SYNC; break;
+    default: v |= torque_VALIDITY_ESTIMATOR_FAULT; break;
+  }
+  if (!std::isfinite(e.torque_nm)) v |= torque_VALIDITY_ESTIMATOR_FAULT;  // NaN never leaves silently
+  return v;
 }
+
+std::uint8_t method_of(FusionSourceId id) noexcept {
+  switch (id) {
+    case FusionSourceId::kEnergyCan: return torque_METHOD_CYCLE_ENERGY;
+    case FusionSourceId::kCrankOnly: return torque_METHOD_LOAD_RLS;
+    case FusionSourceId::kEso: return torque_METHOD_INDICATED_ESO;
+    case FusionSourceId::kExternal: return torque_METHOD_UIO;
+  }
+  return torque_METHOD_FUSED;
+}
+}  // namespace
 
 AngleStage::AngleStage(const StageSettings& s, const DbcDatabase* dbc, SampleSink& out, ToothSink* teeth)
     : s_(s), out_(out), teeth_(teeth), decoder_(s.wheel, s.decoder) {
@@ -29,6 +53,13 @@ AngleStage::AngleStage(const StageSettings& s, const DbcDatabase* dbc, SampleSin
       }
     }
   }
+  if (s_.angle_enabled) {
+    AnglePipelineConfig ac = s_.angle;
+    ac.engine = s_.engine;
+    ac.wheel = s_.wheel;
+    pipeline_ = std::make_unique<AnglePipeline>(ac);
+  }
+  if (s_.tooth_learn_enabled) learner_ = std::make_unique<ToothErrorLearner>(s_.engine, s_.wheel, s_.tooth_learn);
 }
 
 AngleStage::~AngleStage() = default;
@@ -41,7 +72,6 @@ std::uint32_t AngleStage::validity_now() const noexcept {
 }
 
 void AngleStage::on_edge(const EdgeEvent& e, std::int64_t ingest_ns) noexcept {
-  ++edges_;
   last_t_ns_ = e.t_ns;
   ToothEvent te{};
   if (decoder_.on_edge(e, te)) on_tooth(te, ingest_ns);
@@ -54,7 +84,6 @@ void AngleStage::on_frame(const CanFrame& f) noexcept {
 void AngleStage::poll(std::int64_t now_ns) noexcept {
   if (decoder_.poll(now_ns)) {
     prev_tooth_t_ns_ = -1;
-    cycle_start_t_ns_ = -1;
     prev_tooth_ = -1;
   }
 }
@@ -80,13 +109,18 @@ void AngleStage::on_tooth(const ToothEvent& te, std::int64_t ingest_ns) noexcept
     }
   }
   stale_mask_ = stale;
-  (void)sig;  // consumed by the angle-domain estimators
 
   if (teeth_) teeth_->tooth(ts);
+  if (learner_) {
+    learner_->set_fuel_cutoff(sig.fuel_cutoff_valid && sig.fuel_cutoff);
+    learner_->update(ts);
+  }
+  const std::uint8_t ready = pipeline_ ? pipeline_->on_tooth(ts, sig) : 0;
 
-  // Crank state, decimated; acceleration from consecutive tooth speeds.
+  // Crank state, decimated.
   double accel = 0.0;
-  if (ts.dt_s > 0.0) accel = (te.speed_rad_s - prev_speed_rad_s_) / ts.dt_s;
+  if (pipeline_ && pipeline_->tooth_output().valid) accel = pipeline_->tooth_output().accel_rad_s2;
+  else if (ts.dt_s > 0.0) accel = (te.speed_rad_s - prev_speed_rad_s_) / ts.dt_s;
   if (++crank_count_ >= s_.crank_decimation) {
     crank_count_ = 0;
     dds::AnySample a;
@@ -106,41 +140,160 @@ void AngleStage::on_tooth(const ToothEvent& te, std::int64_t ingest_ns) noexcept
     out_.emit(a);
   }
 
-  // Cycle boundary: tooth index wrapped to the start of the 720° cycle.
-  if (synced) {
-    if (prev_tooth_ >= 0 && te.tooth < prev_tooth_) end_of_cycle(te, ingest_ns);
-    if (cycle_start_t_ns_ < 0 || te.tooth < prev_tooth_) cycle_start_t_ns_ = te.t_ns;
-    prev_tooth_ = te.tooth;
-  } else {
-    prev_tooth_ = -1;
-    cycle_start_t_ns_ = -1;
+  if (ready & AnglePipeline::kSegmentReady) on_segment(te, ingest_ns);
+
+  // Cycle boundary (tooth index wrapped): apply the learned tooth table, publish the learned state.
+  if (synced && prev_tooth_ >= 0 && te.tooth < prev_tooth_) {
+    ++cycles_;
+    if (learner_ && learner_->ready()) {
+      const int n = learner_->teeth();
+      learner_->edge_corrections(std::span<double>(corr_.data(), static_cast<std::size_t>(n)));
+      corrections_applied_ = decoder_.set_tooth_corrections(std::span<const double>(corr_.data(), static_cast<std::size_t>(n)));
+    }
+    publish_snapshot();
   }
+  prev_tooth_ = synced ? te.tooth : -1;
   prev_tooth_t_ns_ = te.t_ns;
   prev_speed_rad_s_ = te.speed_rad_s;
 }
 
-void AngleStage::end_of_cycle(const ToothEvent& te, std::int64_t ingest_ns) noexcept {
-  if (cycle_start_t_ns_ < 0 || te.t_ns <= cycle_start_t_ns_) return;
-  ++cycles_;
-  const double period_s = static_cast<double>(te.t_ns - cycle_start_t_ns_) * 1e-9;
+void AngleStage::emit_method(std::uint8_t method, const TorqueEstimate& e, std::int64_t t_ns,
+                             std::int64_t ingest_ns) noexcept {
+  if (e.health == Health::kDisabled) return;
+  dds::AnySample a;
+  a.topic = dds::Topic::kEstimatorTorque;
+  auto& m = a.u.estimator;
+  m.method = method;
+  m.seq = ++seq_method_[method];
+  m.source_t_ns = t_ns;
+  m.ingest_t_ns = ingest_ns;
+  m.value_nm = e.torque_nm;
+  m.uncertainty = e.uncertainty;
+  m.health = static_cast<std::uint8_t>(e.health);
+  m.validity = validity_of(e);
+  out_.emit(a);
+}
+
+void AngleStage::on_segment(const ToothEvent& te, std::int64_t ingest_ns) noexcept {
+  const CycleOutput& o = pipeline_->cycle_output();
+  const int n = s_.engine.cylinders;
+  const int pos = ((o.boundary - 1) % n + n) % n;  // firing position whose segment just ended
+  const std::int64_t window_ns =
+      o.speed_mean_rad_s > 0.0 ? static_cast<std::int64_t>(4.0 * std::numbers::pi / o.speed_mean_rad_s * 1e9) : 0;
+
   dds::AnySample a;
   a.topic = dds::Topic::kEngineTorque;
   auto& m = a.u.engine;
-  m.seq = ++seq_engine_;
   m.source_t_ns = te.source_t_ns;
   m.ingest_t_ns = ingest_ns;
-  m.kind = torque_KIND_CYCLE;
+  m.kind = torque_KIND_SEGMENT;
+  m.cylinder = static_cast<std::uint8_t>(s_.engine.firing_order[static_cast<std::size_t>(pos)]);
   m.cycle = static_cast<std::uint32_t>(cycles_);
-  m.speed_rad_s = 4.0 * std::numbers::pi / period_s;
-  // Torques come from the angle-domain estimators; until they run here the values are NaN and flagged.
-  m.brake_nm = m.indicated_nm = m.friction_nm = m.fused_nm = kNaN;
-  m.load_nm = kNaN;
-  if (store_ && store_->valid_at(Quantity::kLoadTorque, te.t_ns)) m.load_nm = store_->value(Quantity::kLoadTorque).value;
-  m.quality = static_cast<std::uint8_t>(Health::kDisabled);
-  m.validity = validity_now() | torque_VALIDITY_ESTIMATOR_FAULT;
-  m.fused_source = torque_METHOD_FUSED;
-  m.input_age_ns = 0;
+  m.window_start_t_ns = te.source_t_ns - window_ns;
+  m.speed_rad_s = o.speed_mean_rad_s;
+  m.brake_nm = o.brake.torque_nm;
+  m.indicated_nm = o.indicated.torque_nm;
+  m.friction_nm = o.friction.torque_nm;
+  m.load_nm = o.load.torque_nm;
+  m.fused_nm = o.fused.brake_nm;
+  m.quality = static_cast<std::uint8_t>(o.fused.health);
+  m.fused_source = method_of(o.fused.primary);
+  m.input_age_ns = o.fused.age_ns;
+  m.validity = validity_now() | validity_of(o.brake) | validity_of(TorqueEstimate{0, o.fused.brake_nm, 0, o.fused.health});
+  if (o.fused.can_lost) m.validity |= torque_VALIDITY_STALE_CAN;
+  if (!std::isfinite(m.indicated_nm) || !std::isfinite(m.friction_nm) || !std::isfinite(m.load_nm))
+    m.validity |= torque_VALIDITY_ESTIMATOR_FAULT;
+  m.seq = ++seq_engine_;
   out_.emit(a);
+  if (o.cycle_end) {
+    m.kind = torque_KIND_CYCLE;
+    m.cylinder = 0;
+    m.seq = ++seq_engine_;
+    out_.emit(a);
+  }
+
+  emit_method(torque_METHOD_CYCLE_ENERGY, o.brake_energy, te.source_t_ns, ingest_ns);
+  emit_method(torque_METHOD_LOAD_RLS, o.load_rls, te.source_t_ns, ingest_ns);
+  emit_method(torque_METHOD_INDICATED_ESO, o.indicated_eso, te.source_t_ns, ingest_ns);
+  emit_method(torque_METHOD_FRICTION, o.friction, te.source_t_ns, ingest_ns);
+  emit_method(torque_METHOD_FUSED, TorqueEstimate{o.fused.t_ns, o.fused.brake_nm, o.fused.sd_nm, o.fused.health},
+              te.source_t_ns, ingest_ns);
+
+  if (o.cycle_end) {
+    const CylinderCycle& cc = o.cylinders;
+    dds::AnySample b;
+    b.topic = dds::Topic::kCylinderTorque;
+    auto& c = b.u.cylinder;
+    c.seq = ++seq_cyl_;
+    c.source_t_ns = te.source_t_ns;
+    c.ingest_t_ns = ingest_ns;
+    c.cycle = static_cast<std::uint32_t>(cycles_);
+    c.cylinders = static_cast<std::uint8_t>(cc.cylinders);
+    for (int i = 0; i < 8; ++i) {
+      const bool used = i < cc.cylinders;
+      c.indicated_nm[i] = used ? cc.torque_nm[static_cast<std::size_t>(i)] : 0.0;
+      c.imbalance_pct[i] = used ? cc.imbalance_pct[static_cast<std::size_t>(i)] : 0.0;
+      if (used && cc.misfire[static_cast<std::size_t>(i)]) c.misfire_mask = static_cast<std::uint8_t>(c.misfire_mask | (1u << i));
+    }
+    c.health = static_cast<std::uint8_t>(cc.health);
+    c.validity = validity_now() | validity_of(TorqueEstimate{0, cc.mean_nm, 0, cc.health});
+    out_.emit(b);
+  }
+}
+
+void AngleStage::publish_snapshot() noexcept {
+  const bool fric = pipeline_ && pipeline_->friction().health() == Health::kValid &&
+                    (friction_imported_ || pipeline_->friction().motoring_observations() + pipeline_->friction().idle_observations() > 0);
+  const int n = corrections_applied_ && learner_ ? learner_->teeth() : 0;
+  if (!fric && n == 0) return;
+  snap_seq_.fetch_add(1, std::memory_order_acq_rel);  // odd: writing
+  if (fric) {
+    const auto c = pipeline_->friction().coefficients();
+    for (int i = 0; i < 4; ++i) snap_friction_[static_cast<std::size_t>(i)].store(c[static_cast<std::size_t>(i)], std::memory_order_relaxed);
+  }
+  snap_friction_valid_.store(fric, std::memory_order_relaxed);
+  for (int i = 0; i < n; ++i) snap_teeth_[static_cast<std::size_t>(i)].store(corr_[static_cast<std::size_t>(i)], std::memory_order_relaxed);
+  snap_n_teeth_.store(n, std::memory_order_relaxed);
+  snap_seq_.fetch_add(1, std::memory_order_release);  // even: consistent
+}
+
+bool AngleStage::export_state(LearnedState& st) const {
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    const std::uint32_t s0 = snap_seq_.load(std::memory_order_acquire);
+    if (s0 == 0) return false;
+    if (s0 & 1u) continue;
+    LearnedState tmp;
+    if (snap_friction_valid_.load(std::memory_order_relaxed)) {
+      std::array<double, 4> c{};
+      for (int i = 0; i < 4; ++i) c[static_cast<std::size_t>(i)] = snap_friction_[static_cast<std::size_t>(i)].load(std::memory_order_relaxed);
+      tmp.friction = c;
+    }
+    const int n = snap_n_teeth_.load(std::memory_order_relaxed);
+    tmp.tooth_corrections_rad.resize(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) tmp.tooth_corrections_rad[static_cast<std::size_t>(i)] = snap_teeth_[static_cast<std::size_t>(i)].load(std::memory_order_relaxed);
+    std::atomic_thread_fence(std::memory_order_acquire);
+    if (snap_seq_.load(std::memory_order_relaxed) == s0) {
+      st = std::move(tmp);
+      return true;
+    }
+  }
+  return false;
+}
+
+void AngleStage::import_state(const LearnedState& st) {
+  bool any = false;
+  if (st.friction && pipeline_ && pipeline_->friction().import_coefficients(*st.friction)) any = friction_imported_ = true;
+  const auto n = st.tooth_corrections_rad.size();
+  if (n > 0 && n <= corr_.size()) {
+    const std::span<const double> tab(st.tooth_corrections_rad.data(), n);
+    if (learner_) (void)learner_->import_table(tab, s_.tooth_learn.min_cycles);
+    if (decoder_.set_tooth_corrections(tab)) {
+      std::copy(st.tooth_corrections_rad.begin(), st.tooth_corrections_rad.end(), corr_.begin());
+      corrections_applied_ = true;
+      any = true;
+    }
+  }
+  if (any) publish_snapshot();
 }
 
 }  // namespace torqued

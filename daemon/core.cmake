@@ -6,10 +6,13 @@ add_library(torqued_daemon_core STATIC
   ${CMAKE_CURRENT_LIST_DIR}/fast_replay.cpp
   ${CMAKE_CURRENT_LIST_DIR}/dds_publisher.cpp
   ${CMAKE_CURRENT_LIST_DIR}/rt_setup.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/runtime.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/state_store.cpp
 )
 target_include_directories(torqued_daemon_core PUBLIC ${CMAKE_CURRENT_LIST_DIR})
 target_link_libraries(torqued_daemon_core PUBLIC torqued_io torqued_idl torqued_estimators Threads::Threads)
-if(TARGET torqued_config)
-  target_sources(torqued_daemon_core PRIVATE ${CMAKE_CURRENT_LIST_DIR}/stage_settings.cpp)
-  target_link_libraries(torqued_daemon_core PUBLIC torqued_config)
-endif()
+target_sources(torqued_daemon_core PRIVATE ${CMAKE_CURRENT_LIST_DIR}/stage_settings.cpp)
+target_link_libraries(torqued_daemon_core PUBLIC torqued_config PkgConfig::SYSTEMD)
+# The supervisor (config, logging, sd_notify) lives in torqued_daemon with logging.cpp.
+target_sources(torqued_daemon PRIVATE ${CMAKE_CURRENT_LIST_DIR}/daemon_run.cpp)
+target_link_libraries(torqued_daemon PUBLIC torqued_daemon_core)

@@ -11,6 +11,7 @@
 
 #include "config_loader.hpp"
 #include "config_schema.hpp"
+#include "daemon_run.hpp"
 #include "logging.hpp"
 
 #ifndef TORQUED_VERSION
@@ -49,6 +50,17 @@ int main(int argc, char** argv) {
                          ->default_str("yaml");
   bool no_file_checks = false;
   app.add_flag("--no-file-checks", no_file_checks, "with --check-config: do not require the input files to exist");
+  torqued::RunOptions run;
+  std::string mode;
+  double speed = 0.0;
+  std::string record_dir, state_dir;
+  auto* mode_opt = app.add_option("--replay", mode, "override replay.mode: fast | paced")->check(CLI::IsMember({"fast", "paced"}));
+  auto* speed_opt = app.add_option("--speed", speed, "override replay.speed (paced replay speed factor)")->check(CLI::PositiveNumber);
+  auto* record_opt = app.add_option("--record", record_dir, "override output.record_dir (CSV recording)");
+  auto* state_opt = app.add_option("--state-dir", state_dir, "override output.state_dir (learned state)");
+  app.add_flag("--no-dds", run.no_dds, "do not publish on DDS (record only)");
+  app.add_flag("--exit-when-done", run.exit_when_done, "paced replay: exit once the recording is consumed");
+  app.add_option("--wait-subscribers", run.wait_subscribers, "wait (up to 10 s) for this many EngineTorque readers");
   check_opt->excludes(run_opt);
   schema_opt->excludes(run_opt)->excludes(check_opt);
   try {
@@ -80,6 +92,10 @@ int main(int argc, char** argv) {
   torqued::logging::init(r.config->logging.level);
   for (const auto& w : r.warnings) spdlog::warn("{}", w);
   spdlog::info("torqued {} configuration {} loaded", TORQUED_VERSION, r.config->source_file);
-  spdlog::error("the real-time pipelines are not wired into this build yet; nothing to run");
-  return 3;
+  run.config_path = config_path;
+  if (*mode_opt) run.mode = mode;
+  if (*speed_opt) run.speed = speed;
+  if (*record_opt) run.record_dir = record_dir;
+  if (*state_opt) run.state_dir = state_dir;
+  return torqued::run_daemon(*r.config, run);
 }

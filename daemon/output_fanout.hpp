@@ -9,9 +9,11 @@ namespace torqued {
 
 class OutputFanout final : public SampleSink {
  public:
-  OutputFanout(dds::SampleRecorder* recorder, DdsPublisher* publisher) noexcept : rec_(recorder), pub_(publisher) {}
+  OutputFanout(dds::SampleRecorder* recorder, DdsPublisher* publisher, std::uint16_t engine_id = 0) noexcept
+      : rec_(recorder), pub_(publisher), engine_id_(engine_id) {}
   void emit(const dds::AnySample& s) noexcept override {
     dds::AnySample copy = s;
+    copy.visit([this](auto& v) { v.engine_id = engine_id_; });
     if (pub_) (void)pub_->write(copy);  // stamps engine_id + publish time first, so the CSV shows them too
     if (rec_) {
       try {
@@ -26,6 +28,7 @@ class OutputFanout final : public SampleSink {
  private:
   dds::SampleRecorder* rec_;
   DdsPublisher* pub_;
+  std::uint16_t engine_id_;
   std::uint64_t record_errors_ = 0;
 };
 

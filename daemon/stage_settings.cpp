@@ -28,6 +28,23 @@ StageSettings stage_settings_from(const Config& cfg) {
   }
   s.dbc_path = cfg.can.dbc;
   s.time_pipeline = cfg.estimators.time_pipeline;
+  s.time_pipeline.uio = s.time_pipeline.uio && cfg.estimators.uio.enabled;
+  s.time_pipeline.sliding_mode = s.time_pipeline.sliding_mode && cfg.estimators.sliding_mode.enabled;
+  s.time_pipeline.dirty_diff = s.time_pipeline.dirty_diff && cfg.estimators.dirty_diff.enabled;
+  s.time_pipeline.adaptive = s.time_pipeline.adaptive && cfg.estimators.adaptive.enabled;
+  s.uio = cfg.estimators.uio.params;
+  s.sliding_mode = cfg.estimators.sliding_mode.params;
+  s.dirty_diff = cfg.estimators.dirty_diff.params;
+  s.adaptive = cfg.estimators.adaptive.params;
+  s.angle.engine = cfg.engine;
+  s.angle.wheel = cfg.wheel.geometry;
+  s.angle.energies = cfg.estimators.energies.params;
+  s.angle.friction = cfg.estimators.friction.params;
+  s.angle.cylinder = cfg.estimators.cylinder.params;
+  s.angle.fusion = cfg.estimators.fusion;
+  s.angle_enabled = cfg.estimators.energies.enabled;
+  s.tooth_learn = cfg.estimators.tooth_learn.params;
+  s.tooth_learn_enabled = cfg.estimators.tooth_learn.enabled && cfg.estimators.tooth_learn.params.learn;
   s.dds.domain_id = static_cast<std::uint32_t>(cfg.dds.domain_id);
   s.dds.topic_prefix = cfg.dds.topic_prefix;
   s.dds.engine_id = static_cast<std::uint16_t>(cfg.dds.engine_id);

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <string>
 
+#include "angle_pipeline.hpp"
 #include "crank_decoder.hpp"
 #include "engine_geometry.hpp"
 #include "params.hpp"
@@ -30,6 +31,14 @@ struct StageSettings {
   std::array<SignalSpec, kSignalCount> signals{};
   std::string dbc_path;
   TimePipelineParams time_pipeline;
+  UioParams uio;
+  SlidingModeParams sliding_mode;
+  DirtyDiffParams dirty_diff;
+  AdaptiveParams adaptive;
+  AnglePipelineConfig angle;          ///< energies chain, friction, cylinders, fusion (engine/wheel filled too)
+  bool angle_enabled = true;          ///< run the angle pipeline (estimators.energies.enabled)
+  ToothLearnParams tooth_learn;
+  bool tooth_learn_enabled = true;    ///< learn tooth corrections and feed them to the decoder
   int crank_decimation = 10;          ///< publish CrankState every n-th synced tooth
   int time_decimation = 10;           ///< publish EstimatorTorque of time methods every n-th step
   std::int64_t edge_timeout_ns = 500'000'000;  ///< no crank edge for this long: STATUS_EDGE_TIMEOUT

@@ -4,14 +4,10 @@
 
 namespace torqued {
 
-// Placeholder until estimators/time_pipeline.hpp lands: no time-domain method runs.
-class TimePipelineAdapter {};
-
-TimeStage::TimeStage(const StageSettings& s, const DbcDatabase* dbc, SampleSink& out) : s_(s), out_(out) {
+TimeStage::TimeStage(const StageSettings& s, const DbcDatabase* dbc, SampleSink& out)
+    : s_(s), out_(out), pipeline_(s.time_pipeline, s.uio, s.sliding_mode, s.dirty_diff, s.adaptive, s.engine) {
   step_ns_ = static_cast<std::int64_t>(std::llround(s.time_pipeline.step_s * 1e9));
   if (step_ns_ <= 0) error_ = "time pipeline step must be > 0";
-  ring_len_ = 2 * s.wheel.teeth();
-  if (ring_len_ <= 0 || ring_len_ > static_cast<int>(dt_ring_.size())) error_ = "wheel tooth count out of range";
   if (dbc) {
     store_ = std::make_unique<SignalStore>(*dbc);
     for (int i = 0; i < kSignalCount; ++i) {
@@ -26,37 +22,43 @@ TimeStage::TimeStage(const StageSettings& s, const DbcDatabase* dbc, SampleSink&
 
 TimeStage::~TimeStage() = default;
 
-void TimeStage::on_tooth(const ToothSample& t) noexcept {
-  if (!t.synced || !(t.dt_s > 0.0)) {
-    ring_n_ = ring_i_ = 0;
-    sum_dt_ = sum_w_ = 0.0;
-    mean_speed_rad_s_ = 0.0;
-    return;
-  }
-  // Sliding sum over the last 720° (ring_len_ teeth): mean speed = Σ width / Σ dt.
-  if (ring_n_ == ring_len_) {
-    sum_dt_ -= dt_ring_[static_cast<std::size_t>(ring_i_)];
-    sum_w_ -= w_ring_[static_cast<std::size_t>(ring_i_)];
-  } else {
-    ++ring_n_;
-  }
-  dt_ring_[static_cast<std::size_t>(ring_i_)] = t.dt_s;
-  w_ring_[static_cast<std::size_t>(ring_i_)] = t.width_rad;
-  sum_dt_ += t.dt_s;
-  sum_w_ += t.width_rad;
-  ring_i_ = ring_i_ + 1 == ring_len_ ? 0 : ring_i_ + 1;
-  mean_speed_rad_s_ = ring_n_ == ring_len_ && sum_dt_ > 0.0 ? sum_w_ / sum_dt_ : 0.0;
-  last_tooth_t_ns_ = t.t_ns;
-}
+void TimeStage::on_tooth(const ToothSample& t) noexcept { pipeline_.on_tooth(t); }
 
 void TimeStage::on_frame(const CanFrame& f) noexcept {
   if (store_) (void)store_->on_frame(f);
 }
 
+void TimeStage::emit(std::uint8_t method, const TorqueEstimate& e, std::int64_t t_ns, std::int64_t ingest_ns) noexcept {
+  if (e.health == Health::kDisabled) return;
+  dds::AnySample a;
+  a.topic = dds::Topic::kEstimatorTorque;
+  auto& m = a.u.estimator;
+  m.method = method;
+  m.seq = ++seq_method_[method];
+  m.source_t_ns = t_ns;
+  m.ingest_t_ns = ingest_ns;
+  m.value_nm = e.torque_nm;
+  m.uncertainty = e.uncertainty;
+  m.health = static_cast<std::uint8_t>(e.health);
+  if (e.health == Health::kNotConverged || e.health == Health::kNotExcited) m.validity |= torque_VALIDITY_NOT_CONVERGED;
+  if (e.health == Health::kStaleInput) m.validity |= torque_VALIDITY_STALE_CAN;
+  if (e.health == Health::kInvalidInput || e.health == Health::kNumerical) m.validity |= torque_VALIDITY_ESTIMATOR_FAULT;
+  if (e.health == Health::kNoSync) m.validity |= torque_VALIDITY_NO_SYNC;
+  // NaN never leaves silently: a non-finite value is always flagged.
+  if (!std::isfinite(m.value_nm)) m.validity |= torque_VALIDITY_ESTIMATOR_FAULT;
+  out_.emit(a);
+}
+
 void TimeStage::step(std::int64_t t_ns, std::int64_t ingest_ns) noexcept {
   ++steps_;
-  (void)t_ns;
-  (void)ingest_ns;
+  const EngineSignals sig = store_ ? store_->signals_at(t_ns) : EngineSignals{};
+  const TimePipelineOutput& o = pipeline_.step(t_ns, sig);
+  if (++decim_count_ < s_.time_decimation) return;
+  decim_count_ = 0;
+  emit(torque_METHOD_UIO, o.uio, t_ns, ingest_ns);
+  emit(torque_METHOD_SLIDING_MODE, o.sliding_mode, t_ns, ingest_ns);
+  emit(torque_METHOD_DIRTY_DIFF, o.dirty_diff, t_ns, ingest_ns);
+  emit(torque_METHOD_ADAPTIVE, o.adaptive, t_ns, ingest_ns);
 }
 
 }  // namespace torqued

@@ -14,7 +14,8 @@ namespace torqued::dds {
 template <class F> void visit_fields(const torque_EngineTorque& s, F&& f) {
   f("engine_id", s.engine_id); f("seq", s.seq); f("source_t_ns", s.source_t_ns); f("ingest_t_ns", s.ingest_t_ns);
   f("publish_t_ns", s.publish_t_ns); f("validity", s.validity); f("kind", s.kind); f("cylinder", s.cylinder);
-  f("cycle", s.cycle); f("speed_rad_s", s.speed_rad_s); f("brake_nm", s.brake_nm); f("indicated_nm", s.indicated_nm);
+  f("cycle", s.cycle); f("window_start_t_ns", s.window_start_t_ns); f("speed_rad_s", s.speed_rad_s);
+  f("brake_nm", s.brake_nm); f("indicated_nm", s.indicated_nm);
   f("friction_nm", s.friction_nm); f("load_nm", s.load_nm); f("fused_nm", s.fused_nm); f("quality", s.quality);
   f("fused_source", s.fused_source); f("input_age_ns", s.input_age_ns);
 }

@@ -1,0 +1,15 @@
+#pragma once
+// Clock reads used by the runtime (vDSO: no system call on x86-64; real-time safe).
+#include <time.h>
+
+#include <cstdint>
+
+namespace torqued {
+inline std::int64_t clock_ns(clockid_t id) noexcept {
+  timespec ts{};
+  clock_gettime(id, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+inline std::int64_t mono_ns() noexcept { return clock_ns(CLOCK_MONOTONIC); }
+inline std::int64_t realtime_ns() noexcept { return clock_ns(CLOCK_REALTIME); }
+}  // namespace torqued

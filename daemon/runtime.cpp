@@ -1,0 +1,357 @@
+#include "runtime.hpp"
+
+#include <sys/timerfd.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+
+#include "angle_stage.hpp"
+#include "clocks.hpp"
+#include "replay_merger.hpp"
+#include "replay_pacer.hpp"
+#include "time_stage.hpp"
+
+namespace torqued {
+
+/// Stage output -> SPSC ring towards the publisher (drop newest + count when full), then wake it.
+class Runtime::RingSink final : public SampleSink {
+ public:
+  RingSink(SpscRing<dds::AnySample>& r, Wakeup& w) : r_(r), w_(w) {}
+  void emit(const dds::AnySample& s) noexcept override {
+    if (r_.try_push(s)) w_.notify();
+  }
+
+ private:
+  SpscRing<dds::AnySample>& r_;
+  Wakeup& w_;
+};
+
+/// Angle stage tooth samples -> time thread (which polls on its timer; no wake-up needed).
+class Runtime::ToothRingSink final : public ToothSink {
+ public:
+  explicit ToothRingSink(SpscRing<ToothSample>& r) : r_(r) {}
+  void tooth(const ToothSample& t) noexcept override { (void)r_.try_push(t); }
+
+ private:
+  SpscRing<ToothSample>& r_;
+};
+
+Runtime::Runtime(const StageSettings& s, const RuntimeOptions& opt, EdgeSource* edges, CanSource* can,
+                 std::int64_t can_offset_ns, const DbcDatabase* dbc, SampleSink& final_out)
+    : s_(s), opt_(opt), edges_(edges), can_(can), can_offset_ns_(can_offset_ns), final_out_(final_out),
+      edge_ring_(opt.edge_ring), can_angle_ring_(opt.can_ring), can_time_ring_(opt.can_ring),
+      tooth_ring_(opt.tooth_ring), out_angle_ring_(opt.out_ring), out_time_ring_(opt.out_ring), out_status_ring_(64),
+      lat_hist_(new std::uint32_t[kLatBuckets + 1]()) {
+  angle_sink_ = std::make_unique<RingSink>(out_angle_ring_, pub_wake_);
+  time_sink_ = std::make_unique<RingSink>(out_time_ring_, pub_wake_);
+  tooth_sink_ = std::make_unique<ToothRingSink>(tooth_ring_);
+  time_ = std::make_unique<TimeStage>(s_, dbc, *time_sink_);
+  angle_ = std::make_unique<AngleStage>(s_, dbc, *angle_sink_, tooth_sink_.get());
+  if (!angle_->ok()) error_ = angle_->error();
+  else if (!time_->ok()) error_ = time_->error();
+}
+
+Runtime::~Runtime() {
+  if (pub_thread_.joinable() || angle_thread_.joinable()) stop_and_drain(500'000'000);
+}
+
+void Runtime::start_thread(std::thread& t, const ThreadRt& rt, void (Runtime::*fn)(), bool realtime) {
+  t = std::thread([this, rt, fn, realtime] {
+    const RtOutcome o = apply_to_current_thread(rt);
+    if (!o.ok && o.not_permitted) flags_.fetch_or(torque_STATUS_RT_NOT_PERMITTED, std::memory_order_relaxed);
+    if (realtime && opt_.rt_thread_hook) opt_.rt_thread_hook(rt.name, false);
+    (this->*fn)();
+    if (realtime && opt_.rt_thread_hook) opt_.rt_thread_hook(rt.name, true);
+  });
+}
+
+bool Runtime::start() {
+  if (!ok()) return false;
+  if (opt_.lock_memory) {
+    const RtOutcome o = lock_memory();
+    if (!o.ok) {
+      flags_.fetch_or(torque_STATUS_MLOCK_FAILED, std::memory_order_relaxed);
+      if (opt_.require_rt) {
+        error_ = o.message + " (realtime.require_rt is set)";
+        return false;
+      }
+      warnings_.push_back(o.message + ": running without locked memory");
+    }
+  }
+  // Probe SCHED_FIFO once from this thread so a refusal is reported before the threads run.
+  if (opt_.angle.fifo) {
+    std::thread probe([&] {
+      ThreadRt p = opt_.angle;
+      p.name = "torqued-probe";
+      const RtOutcome o = apply_to_current_thread(p);
+      if (!o.ok) {
+        flags_.fetch_or(torque_STATUS_RT_NOT_PERMITTED, std::memory_order_relaxed);
+        if (!opt_.require_rt) warnings_.push_back(o.message + ": running the pipelines with SCHED_OTHER");
+        else error_ = o.message + " (realtime.require_rt is set)";
+      }
+    });
+    probe.join();
+    if (!error_.empty()) return false;
+  }
+  start_thread(pub_thread_, opt_.publisher, &Runtime::publisher_loop, false);
+  start_thread(time_thread_, opt_.time, &Runtime::time_loop, true);
+  start_thread(angle_thread_, opt_.angle, &Runtime::angle_loop, true);
+  if (opt_.replay) {
+    sources_running_.store(1);
+    start_thread(src_thread_, opt_.source, &Runtime::replay_source_loop, true);
+  } else {
+    sources_running_.store((edges_ ? 1 : 0) + (can_ ? 1 : 0));
+    if (edges_) start_thread(src_thread_, opt_.source, &Runtime::live_edge_loop, true);
+    if (can_) {
+      ThreadRt rt = opt_.source;
+      rt.name = "torqued-can";
+      start_thread(src2_thread_, rt, &Runtime::live_can_loop, true);
+    }
+  }
+  return true;
+}
+
+// ---- sources -------------------------------------------------------------------------------------------
+
+void Runtime::replay_source_loop() {
+  ReplayMerger merger(edges_, can_, can_offset_ns_);
+  ReplayPacer pacer(opt_.speed);
+  ReplayMerger::Item item;
+  while (!stop_sources_.load(std::memory_order_relaxed)) {
+    const SourceStatus st = merger.next(item);
+    if (st == SourceStatus::kEnd) break;
+    if (st != SourceStatus::kOk) continue;
+    const std::int64_t t = item.t_ns();
+    pacer.wait_until(t);
+    if (!anchored_.load(std::memory_order_relaxed)) {
+      anchor_rec_ns_.store(t, std::memory_order_relaxed);
+      anchor_mono_ns_.store(pacer.due_ns(t), std::memory_order_relaxed);
+      anchored_.store(true, std::memory_order_release);
+    }
+    // The edge "happens" at its due time: latency is measured from there (includes our own wake-up delay).
+    const std::int64_t ingest = realtime_ns() - (mono_ns() - pacer.due_ns(t));
+    if (item.kind == ReplayMerger::Kind::kEdge) {
+      (void)edge_ring_.try_push(EdgeIn{item.edge, ingest});
+    } else {
+      (void)can_angle_ring_.try_push(FrameIn{item.frame, ingest});
+      (void)can_time_ring_.try_push(FrameIn{item.frame, ingest});
+    }
+    angle_wake_.notify();
+  }
+  std::uint64_t drops = 0;
+  if (edges_) drops += edges_->stats().bad_lines + edges_->stats().dropped;
+  if (can_) drops += can_->stats().bad_lines + can_->stats().dropped;
+  source_drops_.store(drops, std::memory_order_relaxed);
+  sources_running_.fetch_sub(1);
+  angle_wake_.notify();
+}
+
+void Runtime::live_edge_loop() {
+  EdgeEvent e{};
+  while (!stop_sources_.load(std::memory_order_relaxed)) {
+    const SourceStatus st = edges_->next(e);
+    if (st == SourceStatus::kEnd || st == SourceStatus::kError) break;
+    if (st != SourceStatus::kOk) continue;
+    if (!anchored_.load(std::memory_order_relaxed)) {
+      anchor_rec_ns_.store(e.t_ns, std::memory_order_relaxed);
+      anchor_mono_ns_.store(mono_ns(), std::memory_order_relaxed);
+      anchored_.store(true, std::memory_order_release);
+    }
+    (void)edge_ring_.try_push(EdgeIn{e, realtime_ns()});
+    angle_wake_.notify();
+  }
+  sources_running_.fetch_sub(1);
+}
+
+void Runtime::live_can_loop() {
+  CanFrame f{};
+  while (!stop_sources_.load(std::memory_order_relaxed)) {
+    const SourceStatus st = can_->next(f);
+    if (st == SourceStatus::kEnd || st == SourceStatus::kError) break;
+    if (st != SourceStatus::kOk) continue;
+    f.t_ns += can_offset_ns_;
+    (void)can_angle_ring_.try_push(FrameIn{f, realtime_ns()});
+    (void)can_time_ring_.try_push(FrameIn{f, realtime_ns()});
+    angle_wake_.notify();
+  }
+  sources_running_.fetch_sub(1);
+}
+
+// ---- pipelines ------------------------------------------------------------------------------------------
+
+void Runtime::angle_loop() {
+  FrameIn fi{};
+  auto has_work = [this] { return !edge_ring_.empty() || !can_angle_ring_.empty(); };
+  for (;;) {
+    hb_angle_.fetch_add(1, std::memory_order_relaxed);
+    while (stall_.load(std::memory_order_relaxed) && !stop_pipelines_.load(std::memory_order_relaxed))
+      usleep(10'000);  // test hook only: a stalled pipeline makes no progress
+    // Edges in order; CAN frames up to each edge's time first, so the stage sees the replay's order.
+    while (const EdgeIn* e = edge_ring_.front()) {
+      while (const FrameIn* f = can_angle_ring_.front()) {
+        if (f->f.t_ns > e->e.t_ns) break;
+        angle_->on_frame(f->f);
+        can_angle_ring_.pop_front();
+      }
+      angle_->on_edge(e->e, e->ingest_ns);
+      last_t_ns_.store(e->e.t_ns, std::memory_order_relaxed);
+      edge_ring_.pop_front();
+    }
+    while (can_angle_ring_.try_pop(fi)) angle_->on_frame(fi.f);
+    const auto& ds = angle_->decoder().stats();
+    n_edges_.store(ds.edges, std::memory_order_relaxed);
+    teeth_.store(ds.teeth, std::memory_order_relaxed);
+    sync_losses_.store(ds.sync_losses, std::memory_order_relaxed);
+    cycles_.store(angle_->cycles(), std::memory_order_relaxed);
+    stale_mask_.store(angle_->stale_mask(), std::memory_order_relaxed);
+    synced_.store(angle_->decoder().state() == SyncState::kSynced, std::memory_order_relaxed);
+    if (stop_pipelines_.load(std::memory_order_acquire) && !has_work()) break;
+    angle_wake_.wait_for(50'000'000, has_work);
+  }
+}
+
+void Runtime::time_loop() {
+  const int fd = timerfd_create(CLOCK_MONOTONIC, TFD_CLOEXEC);
+  if (fd < 0) return;
+  const std::int64_t step = time_->step_ns();
+  itimerspec its{};
+  its.it_interval.tv_sec = step / 1'000'000'000;
+  its.it_interval.tv_nsec = step % 1'000'000'000;
+  its.it_value = its.it_interval;
+  timerfd_settime(fd, 0, &its, nullptr);
+  ToothSample ts{};
+  FrameIn fi{};
+  while (!stop_pipelines_.load(std::memory_order_acquire)) {
+    std::uint64_t expirations = 0;
+    if (read(fd, &expirations, sizeof expirations) != static_cast<ssize_t>(sizeof expirations)) continue;
+    hb_time_.fetch_add(1, std::memory_order_relaxed);
+    if (expirations > 1) overruns_.fetch_add(expirations - 1, std::memory_order_relaxed);
+    while (tooth_ring_.try_pop(ts)) time_->on_tooth(ts);
+    while (can_time_ring_.try_pop(fi)) time_->on_frame(fi.f);
+    if (!anchored_.load(std::memory_order_acquire)) continue;
+    // Edge-clock time of this tick, from the source anchor (recording time ↔ monotonic time).
+    const double speed = opt_.replay && opt_.speed > 0 ? opt_.speed : 1.0;
+    const std::int64_t t_edge =
+        anchor_rec_ns_.load(std::memory_order_relaxed) +
+        static_cast<std::int64_t>(static_cast<double>(mono_ns() - anchor_mono_ns_.load(std::memory_order_relaxed)) * speed);
+    time_->step(t_edge, realtime_ns());
+  }
+  close(fd);
+}
+
+// ---- publisher ------------------------------------------------------------------------------------------
+
+void Runtime::note_latency(std::int64_t lat_ns) noexcept {
+  const std::int64_t us = lat_ns / 1000;
+  const int b = us < 0 ? 0 : (us >= kLatBuckets ? kLatBuckets : static_cast<int>(us));
+  ++lat_hist_[static_cast<std::size_t>(b)];
+  ++lat_n_;
+  if (lat_ns > lat_max_period_) lat_max_period_ = lat_ns;
+}
+
+bool Runtime::drain_out() noexcept {
+  bool any = false;
+  dds::AnySample s;
+  for (SpscRing<dds::AnySample>* r : {&out_status_ring_, &out_angle_ring_, &out_time_ring_}) {
+    while (r->try_pop(s)) {
+      any = true;
+      final_out_.emit(s);
+      const std::int64_t ingest = s.visit([](const auto& v) { return v.ingest_t_ns; });
+      if (ingest > 0 && s.topic != dds::Topic::kDaemonStatus) note_latency(realtime_ns() - ingest);
+    }
+  }
+  return any;
+}
+
+void Runtime::publisher_loop() {
+  lat_period_start_ns_ = mono_ns();
+  auto has_work = [this] { return !out_angle_ring_.empty() || !out_time_ring_.empty() || !out_status_ring_.empty(); };
+  for (;;) {
+    hb_pub_.fetch_add(1, std::memory_order_relaxed);
+    drain_out();
+    // Latency percentiles over the status period (the supervisor publishes them in DaemonStatus).
+    if (mono_ns() - lat_period_start_ns_ >= s_.status_period_ns && lat_n_ > 0) {
+      const std::uint64_t k50 = (lat_n_ + 1) / 2, k99 = lat_n_ - lat_n_ / 100;
+      std::uint64_t acc = 0;
+      std::int64_t p50 = -1, p99 = -1;
+      for (int b = 0; b <= kLatBuckets; ++b) {
+        acc += lat_hist_[static_cast<std::size_t>(b)];
+        if (p50 < 0 && acc >= k50) p50 = b * 1000LL;
+        if (p99 < 0 && acc >= k99) p99 = b * 1000LL;
+        lat_hist_[static_cast<std::size_t>(b)] = 0;
+      }
+      lat_p50_.store(p50, std::memory_order_relaxed);
+      lat_p99_.store(p99, std::memory_order_relaxed);
+      lat_max_.store(lat_max_period_, std::memory_order_relaxed);
+      lat_n_ = 0;
+      lat_max_period_ = 0;
+      lat_period_start_ns_ = mono_ns();
+    }
+    if (stop_publisher_.load(std::memory_order_acquire) && !has_work()) break;
+    pub_wake_.wait_for(100'000'000, has_work);
+  }
+  drain_out();
+}
+
+// ---- supervisor interface --------------------------------------------------------------------------------
+
+void Runtime::push_status(const dds::AnySample& s) noexcept {
+  if (out_status_ring_.try_push(s)) pub_wake_.notify();
+}
+
+bool Runtime::input_done() const noexcept {
+  return sources_running_.load() == 0 && edge_ring_.empty() && can_angle_ring_.empty();
+}
+
+RuntimeCounters Runtime::counters() const noexcept {
+  RuntimeCounters c;
+  c.edges = n_edges_.load(std::memory_order_relaxed);
+  c.teeth = teeth_.load(std::memory_order_relaxed);
+  c.cycles = cycles_.load(std::memory_order_relaxed);
+  c.sync_losses = sync_losses_.load(std::memory_order_relaxed);
+  c.ring_drops_edge = edge_ring_.drops() + tooth_ring_.drops();
+  c.ring_drops_can = can_angle_ring_.drops() + can_time_ring_.drops();
+  c.ring_drops_out = out_angle_ring_.drops() + out_time_ring_.drops() + out_status_ring_.drops();
+  c.source_drops = source_drops_.load(std::memory_order_relaxed);
+  c.overruns = overruns_.load(std::memory_order_relaxed);
+  c.latency_p50_ns = lat_p50_.load(std::memory_order_relaxed);
+  c.latency_p99_ns = lat_p99_.load(std::memory_order_relaxed);
+  c.latency_max_ns = lat_max_.load(std::memory_order_relaxed);
+  c.flags = flags_.load(std::memory_order_relaxed);
+  c.sensor_timeouts = static_cast<std::uint32_t>(stale_mask_.load(std::memory_order_relaxed));
+  c.synced = synced_.load(std::memory_order_relaxed);
+  return c;
+}
+
+Heartbeats Runtime::heartbeats() const noexcept {
+  return {hb_angle_.load(std::memory_order_relaxed), hb_time_.load(std::memory_order_relaxed),
+          hb_pub_.load(std::memory_order_relaxed)};
+}
+
+bool Runtime::stop_and_drain(std::int64_t timeout_ns) {
+  const std::int64_t deadline = mono_ns() + timeout_ns;
+  stop_sources_.store(true);
+  if (edges_) edges_->request_stop();
+  if (can_) can_->request_stop();
+  if (src_thread_.joinable()) src_thread_.join();
+  if (src2_thread_.joinable()) src2_thread_.join();
+  // Let the pipelines empty their input rings, bounded in time.
+  while ((!edge_ring_.empty() || !can_angle_ring_.empty()) && mono_ns() < deadline) {
+    angle_wake_.notify();
+    usleep(1000);
+  }
+  const bool drained = edge_ring_.empty() && can_angle_ring_.empty();
+  stop_pipelines_.store(true, std::memory_order_release);
+  stall_.store(false);
+  angle_wake_.notify();
+  if (angle_thread_.joinable()) angle_thread_.join();
+  if (time_thread_.joinable()) time_thread_.join();
+  stop_publisher_.store(true, std::memory_order_release);
+  pub_wake_.notify();
+  if (pub_thread_.joinable()) pub_thread_.join();
+  return drained;
+}
+
+}  // namespace torqued

@@ -1,0 +1,142 @@
+#pragma once
+// Paced replay / live runtime: the threads of DESIGN.md.
+//   source thread(s)  replay: merger + pacer (one thread keeps edge/CAN order); live: one per source.
+//                     -> edge ring -> angle thread;  CAN -> one ring per consumer (angle, time)
+//   angle thread      SCHED_FIFO: AngleStage per edge; tooth samples -> tooth ring -> time thread
+//   time thread       SCHED_FIFO, timerfd at the time pipeline rate: TimeStage::step
+//   publisher thread  SCHED_OTHER: the only DDS caller; drains the output rings into the OutputFanout
+// The supervisor is the caller's thread (daemon_run.cpp): it polls counters(), pushes status samples with
+// push_status(), pings the watchdog while heartbeats() advance, and stops/drains on signals.
+// Every buffer is allocated in the constructor; the real-time threads never allocate, lock or wait for DDS.
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "dbc.hpp"
+#include "rt_setup.hpp"
+#include "sample_sink.hpp"
+#include "source.hpp"
+#include "spsc_ring.hpp"
+#include "stage_settings.hpp"
+#include "status.hpp"
+#include "wakeup.hpp"
+
+namespace torqued {
+
+class AngleStage;
+class TimeStage;
+
+struct RuntimeOptions {
+  double speed = 1.0;           ///< replay speed factor (paced replay); ignored for live sources
+  bool replay = true;           ///< file sources paced by their timestamps (false: live sources)
+  bool lock_memory = true;
+  bool require_rt = false;      ///< start() fails when SCHED_FIFO/mlockall are not permitted
+  ThreadRt angle{true, 80, {}, "torqued-angle"};
+  ThreadRt time{true, 70, {}, "torqued-time"};
+  ThreadRt source{true, 85, {}, "torqued-source"};
+  ThreadRt publisher{false, 0, {}, "torqued-pub"};
+  std::size_t edge_ring = 1 << 16, can_ring = 1 << 12, tooth_ring = 1 << 13, out_ring = 1 << 13;
+  /// Test hook: called on each real-time thread right after its set-up and right before it exits.
+  std::function<void(const char* thread, bool exiting)> rt_thread_hook;
+};
+
+/// Liveness counters of the threads (monotonic; the supervisor pings the watchdog only while they move).
+struct Heartbeats {
+  std::uint64_t angle = 0, time = 0, publisher = 0;
+};
+
+class Runtime {
+ public:
+  Runtime(const StageSettings& s, const RuntimeOptions& opt, EdgeSource* edges, CanSource* can,
+          std::int64_t can_offset_ns, const DbcDatabase* dbc, SampleSink& final_out);
+  ~Runtime();
+  Runtime(const Runtime&) = delete;
+  Runtime& operator=(const Runtime&) = delete;
+
+  [[nodiscard]] bool ok() const noexcept { return error_.empty(); }
+  [[nodiscard]] const std::string& error() const noexcept { return error_; }
+
+  /// Locks memory and starts the threads. Returns false (error()) only when RT is required but refused, or
+  /// a thread could not start. Warnings (RT refused, running anyway) in warnings(); flags in counters().
+  bool start();
+  [[nodiscard]] const std::vector<std::string>& warnings() const noexcept { return warnings_; }
+
+  /// Stops the sources, lets the pipelines drain the rings and the publisher write everything, joins.
+  /// Returns false when the drain did not finish within timeout_ns (threads are stopped anyway).
+  bool stop_and_drain(std::int64_t timeout_ns);
+
+  /// All input consumed (replay reached the end of its files and the rings are empty).
+  [[nodiscard]] bool input_done() const noexcept;
+  [[nodiscard]] RuntimeCounters counters() const noexcept;
+  [[nodiscard]] Heartbeats heartbeats() const noexcept;
+  /// Newest edge-clock time processed by the angle stage.
+  [[nodiscard]] std::int64_t last_source_t_ns() const noexcept { return last_t_ns_.load(std::memory_order_relaxed); }
+  /// Supervisor -> publisher (status samples). Non-blocking.
+  void push_status(const dds::AnySample& s) noexcept;
+  /// Test-only: freeze the angle thread (it stops making progress) to check the watchdog stops pinging.
+  void test_stall(bool on) noexcept { stall_.store(on, std::memory_order_relaxed); }
+  /// Applies learned tooth corrections in the angle thread at its next wake-up (copied; not real-time).
+  [[nodiscard]] AngleStage& angle_stage() noexcept { return *angle_; }
+
+ private:
+  struct EdgeIn { EdgeEvent e; std::int64_t ingest_ns; };
+  struct FrameIn { CanFrame f; std::int64_t ingest_ns; };
+  class RingSink;
+  class ToothRingSink;
+
+  void replay_source_loop();
+  void live_edge_loop();
+  void live_can_loop();
+  void angle_loop();
+  void time_loop();
+  void publisher_loop();
+  bool drain_out() noexcept;
+  void note_latency(std::int64_t lat_ns) noexcept;
+  void start_thread(std::thread& t, const ThreadRt& rt, void (Runtime::*fn)(), bool realtime);
+
+  StageSettings s_;
+  RuntimeOptions opt_;
+  EdgeSource* edges_;
+  CanSource* can_;
+  std::int64_t can_offset_ns_;
+  SampleSink& final_out_;
+  std::string error_;
+  std::vector<std::string> warnings_;
+
+  SpscRing<EdgeIn> edge_ring_;
+  SpscRing<FrameIn> can_angle_ring_, can_time_ring_;
+  SpscRing<ToothSample> tooth_ring_;
+  SpscRing<dds::AnySample> out_angle_ring_, out_time_ring_, out_status_ring_;
+  Wakeup angle_wake_, pub_wake_;
+  std::unique_ptr<RingSink> angle_sink_, time_sink_;
+  std::unique_ptr<ToothRingSink> tooth_sink_;
+  std::unique_ptr<AngleStage> angle_;
+  std::unique_ptr<TimeStage> time_;
+
+  std::thread src_thread_, src2_thread_, angle_thread_, time_thread_, pub_thread_;
+  std::atomic<bool> stop_sources_{false}, stop_pipelines_{false}, stop_publisher_{false}, stall_{false};
+  std::atomic<int> sources_running_{0};
+  std::atomic<bool> anchored_{false};
+  std::atomic<std::int64_t> anchor_rec_ns_{0}, anchor_mono_ns_{0};
+  std::atomic<std::uint32_t> flags_{0};
+
+  // Counters published by the threads (relaxed atomics; read by the supervisor).
+  std::atomic<std::uint64_t> hb_angle_{0}, hb_time_{0}, hb_pub_{0};
+  std::atomic<std::uint64_t> n_edges_{0}, teeth_{0}, frames_{0}, cycles_{0}, sync_losses_{0}, overruns_{0};
+  std::atomic<std::uint64_t> source_drops_{0}, stale_mask_{0};
+  std::atomic<bool> synced_{false};
+  std::atomic<std::int64_t> last_t_ns_{0};
+  std::atomic<std::int64_t> lat_p50_{0}, lat_p99_{0}, lat_max_{0};
+  // Publisher-thread latency histogram: 1 µs buckets up to 10 ms (fixed size, no allocation).
+  static constexpr int kLatBuckets = 10000;
+  std::unique_ptr<std::uint32_t[]> lat_hist_;
+  std::uint64_t lat_n_ = 0;
+  std::int64_t lat_max_period_ = 0;
+  std::int64_t lat_period_start_ns_ = 0;
+};
+
+}  // namespace torqued
