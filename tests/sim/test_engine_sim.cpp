@@ -140,6 +140,32 @@ TEST(EngineSim, ToothTimesMonotonicAndGapVisible) {
   }
 }
 
+TEST(EngineSim, FallingEdgeAndExplicitToothListWheels) {
+  // GIVEN the 36-1 wheel written as an explicit tooth list with falling marking edges, THEN the marking edges
+  // have level 0 and the tooth truth equals that of the N−M description (same seed, same machining errors).
+  const auto& nm = run("wheel_36_1", 0.2);
+  const auto& ex = run("wheel_36_1", 0.2, [](Scenario& s) {
+    s.wheel.tooth_count = 35;
+    for (int k = 0; k < 35; ++k) s.wheel.tooth_angles_deg[k] = 10.0 * k;
+    s.wheel.rising_edge = false;
+  }, "wheel_36_1_explicit_falling");
+  ASSERT_EQ(nm.out.teeth.size(), ex.out.teeth.size());
+  for (std::size_t i = 0; i < nm.out.teeth.size(); ++i) {
+    ASSERT_EQ(nm.out.teeth[i].tooth, ex.out.teeth[i].tooth);
+    ASSERT_NEAR(nm.out.teeth[i].t_s, ex.out.teeth[i].t_s, 1e-12);
+  }
+  std::set<std::int64_t> marking;
+  for (const auto& t : ex.out.teeth) marking.insert(t.t_meas_ns);
+  int checked = 0;
+  for (const auto& e : ex.out.edges) {
+    if (e.channel == 0 && marking.count(e.t_ns)) {
+      EXPECT_EQ(e.level, 0);
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, static_cast<int>(ex.out.teeth.size()));
+}
+
 TEST(EngineSim, EdgeTimesConvergeWithTheIntegrationStep) {
   // Integration error on edge times must be << the 0.3 µs jitter: halve the step and compare true times.
   const auto tweak = [](double step) {
