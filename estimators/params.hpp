@@ -124,11 +124,12 @@ struct FusionParams {
 struct ToothLearnParams {
   bool learn = true;                ///< learn per-tooth angle corrections
   int min_cycles = 50;              ///< cycles averaged before the table is used
-  int fit_harmonics = 16;           ///< per-cycle smooth fit of the speed waveform: harmonics of the 720° cycle (-)
+  int fit_harmonics = 8;            ///< per-cycle smooth fit of the speed waveform: harmonics of the 720° cycle (-)
   double max_accel_frac = 0.05;     ///< skip cycles whose speed changes by more than this fraction (-)
   double min_rpm = 600.0;           ///< learn only above this speed (rpm)
   double max_rpm = 7000.0;          ///< and below this one (rpm)
-  bool learn_low_orders = true;     ///< also learn orders <= fit_harmonics/2 per rev from the spread of speeds
+  bool learn_low_orders = false;    ///< also learn orders <= fit_harmonics/2 per rev from the spread of speeds
+                                    ///< (needs a speed-independent torque waveform; worse on the simulator)
 };
 
 }  // namespace torqued

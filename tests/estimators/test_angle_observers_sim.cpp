@@ -1,0 +1,84 @@
+// Chauvin Kalman and Fourier observers on the physics simulator (helper "sim") with the 0.05° wheel, tooth errors
+// learned by ToothErrorLearner (defaults) from steady 1000..4000 rpm scenarios of the same wheel. Label slow.
+// Asserts what is reached (docs/angle_estimators.md has the table); the target (15 %, 6°) is met by the
+// Kalman filter up to 2000 rpm only on the simulator.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "chauvin_kalman.hpp"
+#include "engine_sim.hpp"
+#include "fourier_observer.hpp"
+#include "synthetic_crank.hpp"
+#include "tooth_error_learner.hpp"
+
+namespace torqued {
+namespace {
+
+TEST(AngleObserversOnSimulator, LearnedWheelAtOneToFourThousandRpm) {
+  const char* names[] = {"steady_1000_mid", "steady_2000_mid", "steady_3000_mid", "steady_4000_mid"};
+  const double max_kalman_pct[] = {6.0, 13.0, 21.0, 28.0};
+  const double max_fourier_pct[] = {8.0, 20.0, 45.0, 75.0};
+  ToothLearnParams lp;
+  lp.min_cycles = 20;
+  ToothErrorLearner learner(EngineGeometry{}, WheelGeometry{}, lp);
+  std::vector<sim::SimOutput> outs;
+  std::vector<sim::Scenario> scs;
+  for (const char* n : names) {
+    auto sc = sim::scenario_by_name(n);
+    sc.seed = 42;  // one wheel (machining errors come from the seed)
+    outs.push_back(sim::simulate(sc));
+    scs.push_back(sc);
+    for (const auto& s : sim::ideal_tooth_samples(outs.back(), sc)) learner.update(s);
+  }
+  ASSERT_TRUE(learner.ready());
+  const auto& err = outs[0].tooth_error_rad;
+  double se = 0.0, st = 0.0;
+  const double w = 6.0 * std::numbers::pi / 180.0;
+  for (int p = 1; p < learner.teeth(); ++p) {
+    const double t = err[static_cast<std::size_t>(p)] - err[static_cast<std::size_t>(p - 1)];
+    const double e = (learner.width_ratio(p) - 1.0) * w - t;
+    se += e * e;
+    st += t * t;
+  }
+  const double resid_deg = std::sqrt(se / 57) * 180.0 / std::numbers::pi;
+  std::printf("simulator wheel: width error %.4f -> %.4f deg RMS\n", std::sqrt(st / 57) * 180.0 / std::numbers::pi,
+              resid_deg);
+  EXPECT_LT(resid_deg, 0.015);
+  for (std::size_t i = 0; i < outs.size(); ++i) {
+    const auto samples = sim::ideal_tooth_samples(outs[i], scs[i]);
+    const KalmanParams kp;
+    ChauvinKalman kf(scs[i].engine, scs[i].wheel, kp);
+    FourierObserver fo(scs[i].engine, scs[i].wheel, FourierParams{});
+    const auto& tt = outs[i].teeth;
+    std::vector<double> ek, tk, ef, tf;
+    std::size_t off = 0;
+    for (std::size_t n = 0; n < samples.size(); ++n) {
+      auto s = samples[n];
+      s.width_rad = learner.corrected_width(s.tooth);
+      while (off < tt.size() && tt[off].t_meas_ns < s.t_ns) ++off;  // truth of the same edge
+      if (off >= tt.size()) break;
+      const double load_star = tt[off].t_load_nm + tt[off].t_fric_nm;  // T*_load known (CK/CF eq. (1))
+      kf.set_extended_load(load_star);
+      fo.set_extended_load(load_star);
+      kf.update(s);
+      fo.update(s);
+      if (n < samples.size() / 2 || off < static_cast<std::size_t>(kp.smoother_lag)) continue;
+      ek.push_back(kf.estimate().torque_nm);
+      tk.push_back(tt[off - static_cast<std::size_t>(kp.smoother_lag)].t_ind_nm);
+      ef.push_back(fo.estimate().torque_nm);
+      tf.push_back(tt[off].t_ind_nm);
+    }
+    const auto a = test::accuracy(ek, tk, 6.0), b = test::accuracy(ef, tf, 6.0);
+    std::printf("%s: kalman %.1f %% of p2p %.0f N m, lag %.1f deg | fourier %.1f %%, lag %.1f deg\n", names[i],
+                a.rms_pct_p2p, a.p2p_nm, a.lag_deg, b.rms_pct_p2p, b.lag_deg);
+    EXPECT_LE(a.rms_pct_p2p, max_kalman_pct[i]) << names[i];
+    EXPECT_LE(std::abs(a.lag_deg), 6.0) << names[i];
+    EXPECT_LE(b.rms_pct_p2p, max_fourier_pct[i]) << names[i];
+  }
+}
+
+}  // namespace
+}  // namespace torqued
