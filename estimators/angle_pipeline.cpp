@@ -49,6 +49,9 @@ void AnglePipeline::reset() noexcept {
   brake_var_ = 4.0;
   have_prev_brake_ = false;
   have_prev_load_ = false;
+  held_map_pa_ = 0.0;
+  have_map_ = false;
+  held_spark_deg_ = std::nan("");
 }
 
 std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& sig) noexcept {
@@ -90,8 +93,14 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
 
   bool works_ok = true;
   for (int m = 0; m < cfg_.engine.cylinders; ++m) works_ok = works_ok && cyl_work_ok_[static_cast<std::size_t>(m)];
-  const double spark = can_fresh && sig.spark_valid ? sig.spark_advance_deg : std::nan("");
-  rls_.update(s, sig.map_pa, can_fresh && sig.map_valid, spark, cyl_work_j_, works_ok);
+  // CAN lost: the RLS keeps running on the last MAP / spark advance it saw (they move slowly at a steady
+  // operating point); the fusion marks the result crank-only with can_lost set.
+  if (can_fresh && sig.map_valid && std::isfinite(sig.map_pa)) {
+    held_map_pa_ = sig.map_pa;
+    have_map_ = true;
+  }
+  if (can_fresh && sig.spark_valid && std::isfinite(sig.spark_advance_deg)) held_spark_deg_ = sig.spark_advance_deg;
+  rls_.update(s, held_map_pa_, have_map_, held_spark_deg_, cyl_work_j_, works_ok);
 
   const std::uint64_t breaks_before = energy_.breaks();
   if (energy_.update(s, sig.load_torque_nm, load_ok)) {

@@ -130,6 +130,9 @@ class AnglePipeline {
   double prev_brake_ = 0.0;
   bool have_prev_brake_ = false;
   double prev_load_ = 0.0;   ///< previous window's mean CAN load (N m)
+  double held_map_pa_ = 0.0; ///< last fresh MAP (Pa), held while CAN is lost
+  bool have_map_ = false;
+  double held_spark_deg_ = 0.0;  ///< last fresh spark advance (deg), NaN until one arrived
   bool have_prev_load_ = false;
 };
 

@@ -25,7 +25,7 @@ void FrictionLearner::reset() noexcept {
   c4_ = base_[3];
   const double v = params_.prior_sd_nm * params_.prior_sd_nm;
   p_ = {v, 0, 0, 0, v, 0, 0, 0, v};
-  p4_ = 1e-6;  // C4 prior 1σ = 1e-3 /°C
+  p4_ = 2.5e-5;  // C4 prior 1σ = 5e-3 /°C
   have_idle_ref_ = false;
   n_motoring_ = n_idle_ = n_rejected_ = 0;
 }
@@ -102,7 +102,7 @@ bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double f
     return true;
   }
   const double y = ln - idle_ref_ln_;
-  const double r = 0.01;  // variance of Δ ln T (≈ 10 % noise)
+  const double r = 1e-4;  // variance of Δ ln T (≈ 1 % noise on an averaged idle friction)
   const double k = p4_ * dt / (r + dt * p4_ * dt);
   c4_ += k * (y - c4_ * dt);
   p4_ = (1.0 - k * dt) * p4_ + 1e-10;

@@ -1,0 +1,144 @@
+// AnglePipeline on the simulator's short scenarios: the issue-5 accuracy targets for the cycle-mean torques,
+// per-cylinder imbalance and misfire, crank-only fallback, no allocation per tooth, determinism.
+// Tooth widths are corrected with the simulator's true machining errors ("learned"; the angle helper's
+// ToothErrorLearner does this in the daemon). Friction is learned on the fuel_cut coast-down from a zero prior.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "alloc_counter.hpp"
+#include "angle_pipeline.hpp"
+#include "engine_sim.hpp"
+#include "pipeline_eval.hpp"
+
+using namespace torqued;
+using eval::EvalOptions;
+using eval::ScenarioResult;
+
+class AnglePipelineSim : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    EvalOptions o;
+    o.friction.reset();
+    // Not told the friction law: start at zero, learn on the coast-down, persist (export) the coefficients.
+    const ScenarioResult r = eval::evaluate(sim::scenario_by_name("fuel_cut"), o);
+    friction_ = r.friction_coefficients;
+    observations_ = r.friction_observations;
+  }
+  static EvalOptions options() {
+    EvalOptions o;
+    o.friction = friction_;
+    return o;
+  }
+  static std::array<double, 4> friction_;
+  static std::uint64_t observations_;
+};
+std::array<double, 4> AnglePipelineSim::friction_{};
+std::uint64_t AnglePipelineSim::observations_ = 0;
+
+TEST_F(AnglePipelineSim, FrictionIsLearnedInFuelCutOff) {
+  EXPECT_GT(observations_, 30u);
+  // −(C1 + C2 n + C3 n²) at 2000 rpm, 90 °C vs the simulator's law (26.2 N m).
+  const double n = 2000.0;
+  const double learned = -(friction_[0] + friction_[1] * n + friction_[2] * n * n) * std::exp(friction_[3] * 90.0);
+  EXPECT_NEAR(learned, 26.2, 0.8);
+}
+
+TEST_F(AnglePipelineSim, SteadyCycleMeansWithinThreePercentOrTwoNm) {
+  for (const char* name : {"steady_2000_mid", "steady_3000_high"}) {
+    const ScenarioResult r = eval::evaluate(sim::scenario_by_name(name), options());
+    ASSERT_GT(r.brake.n, 10) << name;
+    EXPECT_EQ(r.brake.pass, r.brake.n) << name << " brake max err " << r.brake.max_abs_nm;
+    EXPECT_EQ(r.indicated.pass, r.indicated.n) << name << " indicated max err " << r.indicated.max_abs_nm;
+    EXPECT_EQ(r.fused.pass, r.fused.n) << name << " fused max err " << r.fused.max_abs_nm;
+    EXPECT_EQ(r.indicated_eso.pass, r.indicated_eso.n) << name << " ESO max err " << r.indicated_eso.max_abs_nm;
+    EXPECT_LT(r.load_rls.max_abs_nm, 5.0) << name;  // crank-only extended load (paper: ±3 N m)
+  }
+}
+
+TEST_F(AnglePipelineSim, ImbalanceWithinThreePercentagePoints) {
+  const ScenarioResult r = eval::evaluate(sim::scenario_by_name("imbalance"), options());
+  // Simulator: fuel +10/0/0/−20 % on cylinders 1..4.
+  EXPECT_GT(r.imbalance_true[0], 5.0);
+  EXPECT_LT(r.imbalance_true[3], -15.0);
+  EXPECT_LE(r.imbalance_max_pp, 3.0);
+}
+
+TEST_F(AnglePipelineSim, EveryMisfireFoundNoFalseAlarmUpTo4000Rpm) {
+  const ScenarioResult r = eval::evaluate(sim::scenario_by_name("misfire"), options());
+  EXPECT_GE(r.misfires_true, 6);
+  EXPECT_EQ(r.misfires_found, r.misfires_true);
+  EXPECT_EQ(r.misfires_false, 0);
+}
+
+TEST_F(AnglePipelineSim, ThreeCylinderAnd36Minus1ByConfigurationOnly) {
+  for (const char* name : {"three_cyl", "wheel_36_1"}) {
+    const ScenarioResult r = eval::evaluate(sim::scenario_by_name(name), options());
+    ASSERT_GT(r.brake.n, 10) << name;
+    EXPECT_EQ(r.brake.pass, r.brake.n) << name << " brake max err " << r.brake.max_abs_nm;
+    EXPECT_EQ(r.indicated.pass, r.indicated.n) << name << " indicated max err " << r.indicated.max_abs_nm;
+  }
+}
+
+TEST_F(AnglePipelineSim, CanLostFallsBackToCrankOnlyAndSaysSo) {
+  EvalOptions o = options();
+  o.can_lost_after_s = 1.0;
+  const ScenarioResult r = eval::evaluate(sim::scenario_by_name("steady_2000_mid"), o);
+  int crank_only = 0;
+  for (const auto& row : r.rows) {
+    if (row.t_s > 1.2) {
+      EXPECT_EQ(row.quality, FusionQuality::kCrankOnly) << row.t_s;
+      EXPECT_NEAR(row.fused, row.brake_true, std::max(3.0, 0.05 * std::fabs(row.brake_true))) << row.t_s;
+      ++crank_only;
+    }
+  }
+  EXPECT_GT(crank_only, 5);
+}
+
+TEST_F(AnglePipelineSim, OnToothDoesNotAllocateAndIsDeterministic) {
+  sim::Scenario sc = sim::scenario_by_name("misfire");
+  sc.duration_s = 1.0;
+  const auto out = sim::simulate(sc);
+  const auto samples = sim::ideal_tooth_samples(out, sc);
+  std::vector<EngineSignals> sigs;
+  sigs.reserve(samples.size());
+  for (const auto& s : samples) sigs.push_back(sim::signals_at(out, static_cast<double>(s.t_ns) * 1e-9));
+  AnglePipelineConfig cfg;
+  cfg.engine = sc.engine;
+  cfg.wheel = sc.wheel;
+  AnglePipeline a(cfg), b(cfg);
+  std::vector<double> first;
+  first.reserve(4096);
+  {
+    torqued::test::AllocationScope scope;
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      if (a.on_tooth(samples[i], sigs[i]) & AnglePipeline::kSegmentReady) first.push_back(a.cycle_output().fused.brake_nm);
+    }
+    EXPECT_EQ(scope.count(), 0u);
+  }
+  ASSERT_GT(first.size(), 20u);
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    if (b.on_tooth(samples[i], sigs[i]) & AnglePipeline::kSegmentReady) {
+      ASSERT_LT(k, first.size());
+      EXPECT_EQ(b.cycle_output().fused.brake_nm, first[k++]);  // bit-identical
+    }
+  }
+  EXPECT_EQ(a.stats().teeth, samples.size());
+}
+
+TEST_F(AnglePipelineSim, UnsyncedAndBadSamplesAreCountedNeverNan) {
+  AnglePipelineConfig cfg;
+  AnglePipeline p(cfg);
+  ToothSample s;
+  s.synced = false;
+  EngineSignals sig;
+  EXPECT_EQ(p.on_tooth(s, sig), 0);
+  s.synced = true;
+  s.dt_s = std::nan("");
+  s.width_rad = 0.1;
+  EXPECT_EQ(p.on_tooth(s, sig), 0);
+  EXPECT_EQ(p.stats().not_synced, 1u);
+  EXPECT_EQ(p.stats().invalid, 1u);
+  EXPECT_TRUE(std::isfinite(p.cycle_output().fused.brake_nm));
+}

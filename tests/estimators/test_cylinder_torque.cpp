@@ -1,0 +1,87 @@
+// CylinderTorque: per-cylinder share of the cycle-mean indicated torque, imbalance, misfire (ESTIMATORS.md §4).
+#include <gtest/gtest.h>
+
+#include <numbers>
+
+#include "alloc_counter.hpp"
+#include "cylinder_torque.hpp"
+
+using torqued::CylinderParams;
+using torqued::CylinderTorque;
+using torqued::EngineGeometry;
+
+namespace {
+constexpr double kFourPi = 4.0 * std::numbers::pi;
+// Feed one cycle: works by firing position.
+bool feed(CylinderTorque& ct, const std::array<double, 4>& w, bool fired = true) {
+  bool done = false;
+  for (int m = 0; m < 4; ++m) done = ct.on_segment(1000 + m, m, w[static_cast<std::size_t>(m)], true, fired);
+  return done;
+}
+}  // namespace
+
+TEST(CylinderTorque, SharesAddUpAndImbalanceIsExact) {
+  EngineGeometry g;  // firing order 1-3-4-2
+  CylinderTorque ct(g, CylinderParams{});
+  // Works by firing position (cyl 1, 3, 4, 2): cyl1 +10 %, cyl4 −20 %.
+  const double base = 300.0;
+  const std::array<double, 4> w{1.1 * base, base, 0.8 * base, base};
+  ASSERT_TRUE(feed(ct, w));
+  const auto& c = ct.cycle();
+  const double mean = (1.1 + 1.0 + 0.8 + 1.0) / 4.0 * base;
+  EXPECT_NEAR(c.mean_nm, 4.0 * mean / kFourPi, 1e-9);
+  EXPECT_NEAR(c.torque_nm[0], 1.1 * base / kFourPi, 1e-9);
+  EXPECT_NEAR(c.imbalance_pct[0], (1.1 * base / mean - 1.0) * 100.0, 1e-9);
+  EXPECT_NEAR(c.imbalance_pct[3], (0.8 * base / mean - 1.0) * 100.0, 1e-9);  // cylinder 4
+  EXPECT_NEAR(c.imbalance_pct[2], (base / mean - 1.0) * 100.0, 1e-9);        // cylinder 3
+  EXPECT_EQ(c.misfire_count, 0);
+  EXPECT_EQ(c.health, torqued::Health::kValid);
+}
+
+TEST(CylinderTorque, FlagsMisfiresIncludingTwoInOneCycle) {
+  EngineGeometry g;
+  CylinderTorque ct(g, CylinderParams{});
+  ASSERT_TRUE(feed(ct, {300.0, 300.0, -40.0, 300.0}));  // cylinder 4 (position 2) misfires
+  EXPECT_TRUE(ct.cycle().misfire[3]);
+  EXPECT_EQ(ct.cycle().misfire_count, 1);
+  ASSERT_TRUE(feed(ct, {-40.0, 300.0, -35.0, 300.0}));  // cylinders 1 and 4
+  EXPECT_TRUE(ct.cycle().misfire[0]);
+  EXPECT_TRUE(ct.cycle().misfire[3]);
+  EXPECT_EQ(ct.misfires(), 3u);
+  // A −20 % cylinder is imbalance, not a misfire.
+  ASSERT_TRUE(feed(ct, {300.0, 300.0, 240.0, 300.0}));
+  EXPECT_EQ(ct.cycle().misfire_count, 0);
+}
+
+TEST(CylinderTorque, NoMisfireDecisionInFuelCutOffOrWithInvalidSegments) {
+  EngineGeometry g;
+  CylinderTorque ct(g, CylinderParams{});
+  ASSERT_TRUE(feed(ct, {-40.0, -40.0, -40.0, -40.0}, false));
+  EXPECT_EQ(ct.cycle().misfire_count, 0);
+  ct.on_segment(1, 0, 300.0, true, true);
+  ct.on_segment(2, 1, 300.0, false, true);  // a tooth went missing
+  ct.on_segment(3, 2, -40.0, true, true);
+  ASSERT_TRUE(ct.on_segment(4, 3, 300.0, true, true));
+  EXPECT_EQ(ct.cycle().health, torqued::Health::kInvalidInput);
+  EXPECT_EQ(ct.cycle().misfire_count, 0);
+}
+
+TEST(CylinderTorque, ThreeCylindersByConfigurationOnly) {
+  EngineGeometry g;
+  g.cylinders = 3;
+  g.firing_order = {1, 2, 3, 0, 0, 0, 0, 0};
+  CylinderTorque ct(g, CylinderParams{});
+  ct.on_segment(1, 0, 200.0, true, true);
+  ct.on_segment(2, 1, 200.0, true, true);
+  ASSERT_TRUE(ct.on_segment(3, 2, 0.0, true, true));
+  EXPECT_TRUE(ct.cycle().misfire[2]);
+  EXPECT_NEAR(ct.cycle().mean_nm, 400.0 / kFourPi, 1e-9);
+}
+
+TEST(CylinderTorque, DoesNotAllocate) {
+  EngineGeometry g;
+  CylinderTorque ct(g, CylinderParams{});
+  torqued::test::AllocationScope scope;
+  for (int i = 0; i < 50; ++i) feed(ct, {300.0, 290.0, 310.0 - i, 300.0});
+  EXPECT_EQ(scope.count(), 0u);
+}

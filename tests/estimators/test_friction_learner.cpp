@@ -1,0 +1,82 @@
+// FrictionLearner (Energies 2019 EN-24..36): learns the law from motoring observations, C4 from idle, persists.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include <cmath>
+
+#include "alloc_counter.hpp"
+#include "friction_learner.hpp"
+
+using torqued::FrictionLearner;
+using torqued::FrictionParams;
+using torqued::Health;
+
+namespace {
+// The simulator's law: the paper's coefficients as a positive loss (sign = −1).
+double true_friction(double rpm, double oil_c) {
+  return -(-23.86 + 2.45e-3 * rpm - 5.20e-6 * rpm * rpm) * std::exp(-4.67e-3 * oil_c);
+}
+}  // namespace
+
+TEST(FrictionLearner, LearnsTheLawFromMotoringObservationsStartingAtZero) {
+  // GIVEN a learner that is not told the law (all coefficients 0)
+  FrictionParams p;
+  p.c = {0.0, 0.0, 0.0, -4.67e-3};
+  FrictionLearner fl(p);
+  EXPECT_EQ(fl.health(), Health::kNotConverged);
+  // WHEN a coast-down 3000 -> 1100 rpm at 90 °C feeds one observation per cycle (with ±0.5 N m noise)
+  int k = 0;
+  for (double rpm = 3000.0; rpm > 1100.0; rpm -= 15.0, ++k) {
+    const double noise = 0.5 * std::sin(12.9898 * k);
+    EXPECT_TRUE(fl.observe_motoring(rpm, 90.0, true_friction(rpm, 90.0) + noise));
+  }
+  // THEN friction inside the learned range is within 2 % and the learner reports valid
+  EXPECT_EQ(fl.health(), Health::kValid);
+  for (double rpm : {1200.0, 2000.0, 2900.0}) {
+    EXPECT_NEAR(fl.friction_nm(rpm, 90.0), true_friction(rpm, 90.0), 0.02 * true_friction(rpm, 90.0)) << rpm;
+  }
+}
+
+TEST(FrictionLearner, LearnsC4FromIdleAtTwoOilTemperatures) {
+  FrictionParams p;
+  p.c[3] = 0.0;  // wrong oil dependence
+  FrictionLearner fl(p);
+  // Idle friction at 800 rpm while the oil warms 40 -> 90 °C.
+  for (double oil = 40.0; oil <= 90.0; oil += 5.0) fl.observe_idle(800.0, oil, true_friction(800.0, oil));
+  EXPECT_NEAR(fl.coefficients()[3], -4.67e-3, 0.3e-3);
+}
+
+TEST(FrictionLearner, RejectsBadObservationsAndCountsThem) {
+  FrictionLearner fl(FrictionParams{});
+  EXPECT_FALSE(fl.observe_motoring(std::nan(""), 90.0, 20.0));
+  EXPECT_FALSE(fl.observe_motoring(2000.0, 90.0, std::numeric_limits<double>::infinity()));
+  EXPECT_FALSE(fl.observe_motoring(100.0, 90.0, 20.0));  // below min_rpm
+  EXPECT_FALSE(fl.observe_idle(800.0, 90.0, -3.0));      // friction must be positive for ln
+  EXPECT_EQ(fl.rejected(), 4u);
+  EXPECT_TRUE(std::isfinite(fl.friction_nm(2000.0, 90.0)));
+}
+
+TEST(FrictionLearner, ExportImportRoundTripSurvivesRestart) {
+  FrictionParams p;
+  p.c = {0.0, 0.0, 0.0, -4.67e-3};
+  FrictionLearner a(p);
+  for (double rpm = 3000.0; rpm > 1100.0; rpm -= 20.0) a.observe_motoring(rpm, 90.0, true_friction(rpm, 90.0));
+  const auto c = a.coefficients();
+  FrictionLearner b(p);  // "restart"
+  ASSERT_TRUE(b.import_coefficients(c));
+  EXPECT_EQ(b.health(), Health::kValid);
+  EXPECT_DOUBLE_EQ(b.friction_nm(2000.0, 90.0), a.friction_nm(2000.0, 90.0));
+  EXPECT_FALSE(b.import_coefficients({std::nan(""), 0.0, 0.0, 0.0}));
+}
+
+TEST(FrictionLearner, UpdateDoesNotAllocate) {
+  FrictionLearner fl(FrictionParams{});
+  torqued::test::AllocationScope scope;
+  for (int i = 0; i < 100; ++i) {
+    fl.observe_motoring(1000.0 + 10.0 * i, 90.0, 20.0);
+    fl.observe_idle(800.0, 80.0 + 0.1 * i, 15.0);
+  }
+  EXPECT_EQ(scope.count(), 0u);
+}

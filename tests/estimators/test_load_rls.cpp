@@ -1,0 +1,123 @@
+// LoadRls (Energies 2019 EN-10..15 in energy form, with the expansion cylinder modelled) against the simulator.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "alloc_counter.hpp"
+#include "crank_kinematics.hpp"
+#include "engine_sim.hpp"
+#include "load_rls.hpp"
+#include "pipeline_eval.hpp"
+
+using namespace torqued;
+
+namespace {
+constexpr double kDeg = std::numbers::pi / 180.0;
+}
+
+TEST(LoadRls, PressureModelMatchesTheSimulatorWhereTheWindowNeedsIt) {
+  // GIVEN the simulator's single-zone Wiebe cylinder pressure at full load, 2000 rpm
+  sim::Scenario sc = sim::scenario_by_name("steady_2000_high");
+  sc.duration_s = 0.4;
+  sc.trace_every_steps = 1;
+  const sim::SimOutput out = sim::simulate(sc);
+  ASSERT_GE(out.cycles.size(), 3u);
+  const sim::CycleTruth& c = out.cycles[2];
+  const EngineSignals sig = sim::signals_at(out, 0.5 * (c.t_start_s + c.t_end_s));
+  ASSERT_TRUE(sig.spark_valid);
+  LoadRls rls(sc.engine, sc.wheel, EnergiesParams{});
+  const CrankKinematics kin(sc.engine);
+  int checked = 0;
+  for (const auto& f : out.trace) {
+    const double th = f.wheel_angle_rad - sc.engine.tdc_offset_rad;
+    if (f.wheel_angle_rad < 4.0 * std::numbers::pi * 2 || f.wheel_angle_rad >= 4.0 * std::numbers::pi * 3) continue;
+    for (int cyl = 1; cyl <= 4; ++cyl) {
+      const double loc = kin.local_angle(th, cyl) / kDeg;
+      const double work = c.cyl_ind_mean_nm[static_cast<std::size_t>(cyl - 1)] * 4.0 * std::numbers::pi;
+      const double p_model = rls.model_pressure(loc * kDeg, c.map_pa, rls.expansion_p3(work, c.map_pa, sig.spark_advance_deg),
+                                                sig.spark_advance_deg);
+      const double p_sim = f.p_cyl_pa[static_cast<std::size_t>(cyl - 1)];
+      // THEN the compressing cylinder (50°..20° BTDC) is within 1 %, and the cylinder that fired 180° earlier
+      // (130°..160° ATDC, blowdown) within 5 % — ignoring it would be a 100 % error of several bar.
+      if (loc >= 670.0 && loc <= 700.0) {
+        EXPECT_NEAR(p_model, p_sim, 0.01 * p_sim) << "compression, cyl " << cyl << " at " << loc;
+        ++checked;
+      }
+      if (loc >= 130.0 && loc <= 160.0) {
+        EXPECT_NEAR(p_model, p_sim, 0.05 * p_sim) << "expansion, cyl " << cyl << " at " << loc;
+        EXPECT_GT(p_sim, 2.0e5);
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(checked, 100);
+}
+
+namespace {
+double rls_error(bool model_expansion, double* load_star_true = nullptr) {
+  sim::Scenario sc = sim::scenario_by_name("steady_2000_mid");
+  const sim::SimOutput out = sim::simulate(sc);
+  auto samples = sim::ideal_tooth_samples(out, sc);
+  const int teeth = sc.wheel.teeth();
+  for (auto& s : samples) {  // tooth errors "learned" (the issue: learning is not optional)
+    const int p = s.tooth % teeth;
+    s.width_rad += out.tooth_error_rad[static_cast<std::size_t>(p)] -
+                   out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
+  }
+  EnergiesParams ep;
+  ep.model_expansion_cylinder = model_expansion;
+  LoadRls rls(sc.engine, sc.wheel, ep);
+  std::array<double, kMaxCylinders> works{};
+  // Per-cylinder works from the truth of the first cycle (the pipeline measures them; here: isolate the RLS).
+  for (int m = 0; m < 4; ++m) {
+    const int cyl = sc.engine.firing_order[static_cast<std::size_t>(m)];
+    works[static_cast<std::size_t>(m)] = out.cycles[1].cyl_ind_mean_nm[static_cast<std::size_t>(cyl - 1)] * 4.0 * std::numbers::pi;
+  }
+  for (const auto& s : samples) {
+    const EngineSignals sig = sim::signals_at(out, static_cast<double>(s.t_ns) * 1e-9);
+    rls.update(s, sig.map_pa, sig.map_valid, sig.spark_advance_deg, works, true);
+  }
+  EXPECT_EQ(rls.estimate().health, Health::kValid);
+  const auto& last = out.cycles.back();
+  const double truth = last.t_load_mean_nm + last.t_fric_mean_nm;
+  if (load_star_true != nullptr) *load_star_true = truth;
+  return rls.estimate().torque_nm - truth;
+}
+}  // namespace
+
+TEST(LoadRls, ConvergesToTheExtendedLoadWithinThreeNm) {
+  double truth = 0.0;
+  const double err = rls_error(true, &truth);
+  EXPECT_GT(truth, 50.0);
+  EXPECT_LT(std::fabs(err), 3.0) << "truth " << truth;
+}
+
+TEST(LoadRls, PaperSimplificationIsBiasedByTheExpansionCylinder) {
+  // The issue's fact: the cylinder 130°-160° after its TDC biases the load by 10-20 N m when ignored.
+  EXPECT_GT(std::fabs(rls_error(false)), 5.0);
+}
+
+TEST(LoadRls, MotoredTorqueIsThePumpingLoss) {
+  // Fuel cut-off at 30 kPa: the motored engine loses about (p_exh − MAP)·V_d / 4π plus the expansion cut at EVO.
+  const EngineGeometry g;
+  LoadRls rls(g, WheelGeometry{}, EnergiesParams{});
+  const CrankKinematics kin(g);
+  const double pump = -(105000.0 - 30000.0) * kin.displacement_m3() / (4.0 * std::numbers::pi);
+  const double m = rls.motored_torque_nm(30000.0);
+  EXPECT_LT(m, 0.8 * pump);  // more negative than the ideal pumping loop
+  EXPECT_GT(m, 2.0 * pump);
+}
+
+TEST(LoadRls, UpdateDoesNotAllocate) {
+  sim::Scenario sc = sim::scenario_by_name("steady_2000_mid");
+  sc.duration_s = 0.3;
+  const auto out = sim::simulate(sc);
+  const auto samples = sim::ideal_tooth_samples(out, sc);
+  LoadRls rls(sc.engine, sc.wheel, EnergiesParams{});
+  std::array<double, kMaxCylinders> works{300, 300, 300, 300};
+  torqued::test::AllocationScope scope;
+  for (const auto& s : samples) rls.update(s, 65000.0, true, 20.0, works, true);
+  EXPECT_EQ(scope.count(), 0u);
+  EXPECT_GT(rls.windows(), 0u);
+}

@@ -1,0 +1,84 @@
+// TorqueFusion: the documented rule (torque_fusion.hpp) — priority, CAN loss, blending gate, invalid hold.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "alloc_counter.hpp"
+#include "torque_fusion.hpp"
+
+using namespace torqued;
+
+namespace {
+FusionInput inputs(std::int64_t t_ns, std::int64_t can_ns) {
+  FusionInput in;
+  in.t_ns = t_ns;
+  in.can_t_ns = can_ns;
+  in.can_seen = true;
+  auto& e = in.src[0];
+  e = {100.0, 1.0, Health::kValid, true, can_ns};
+  in.src[1] = {104.0, 4.0, Health::kValid, false, t_ns};
+  in.src[2] = {150.0, 5.0, Health::kValid, true, can_ns};  // far off: outside the gate
+  return in;
+}
+}  // namespace
+
+TEST(TorqueFusion, PrefersEnergyWithCanAndBlendsOnlyAgreeingSources) {
+  TorqueFusion f(FusionParams{});
+  const auto& o = f.update(inputs(1'000'000'000, 995'000'000));
+  EXPECT_EQ(o.quality, FusionQuality::kFull);
+  EXPECT_EQ(o.primary, FusionSourceId::kEnergyCan);
+  EXPECT_EQ(o.used_mask, 0b011);  // ESO at 150 N m is 50 N m away: not blended
+  const double w0 = 1.0, w1 = 1.0 / 16.0;
+  EXPECT_NEAR(o.brake_nm, (100.0 * w0 + 104.0 * w1) / (w0 + w1), 1e-9);
+  EXPECT_FALSE(o.can_lost);
+  EXPECT_EQ(o.age_ns, 0);  // the crank-only source went in: its newest input is the current tooth
+}
+
+TEST(TorqueFusion, FallsBackToCrankOnlyWhenCanIsLostAndSaysSo) {
+  TorqueFusion f(FusionParams{});
+  const auto& o = f.update(inputs(2'000'000'000, 1'500'000'000));  // CAN 0.5 s old > 0.1 s
+  EXPECT_TRUE(o.can_lost);
+  EXPECT_EQ(o.quality, FusionQuality::kCrankOnly);
+  EXPECT_EQ(o.primary, FusionSourceId::kCrankOnly);
+  EXPECT_DOUBLE_EQ(o.brake_nm, 104.0);
+  EXPECT_EQ(o.age_ns, 0);
+}
+
+TEST(TorqueFusion, PickOnlyWhenBlendingIsOff) {
+  FusionParams p;
+  p.blend = false;
+  TorqueFusion f(p);
+  const auto& o = f.update(inputs(1'000'000'000, 995'000'000));
+  EXPECT_DOUBLE_EQ(o.brake_nm, 100.0);
+  EXPECT_EQ(o.age_ns, 5'000'000);  // newest input of the energy+CAN source: the CAN frame
+}
+
+TEST(TorqueFusion, NothingUsableHoldsLastValueAndIsInvalid) {
+  TorqueFusion f(FusionParams{});
+  f.update(inputs(1'000'000'000, 995'000'000));
+  FusionInput in = inputs(1'050'000'000, 1'000'000'000);
+  for (auto& s : in.src) s.health = Health::kNotConverged;
+  const auto& o = f.update(in);
+  EXPECT_EQ(o.quality, FusionQuality::kInvalid);
+  EXPECT_NE(o.health, Health::kValid);
+  EXPECT_TRUE(std::isfinite(o.brake_nm));
+  EXPECT_GT(o.age_ns, 50'000'000 - 1);
+}
+
+TEST(TorqueFusion, NanSourceIsNeverUsed) {
+  TorqueFusion f(FusionParams{});
+  FusionInput in = inputs(1'000'000'000, 995'000'000);
+  in.src[0].brake_nm = std::nan("");
+  const auto& o = f.update(in);
+  EXPECT_EQ(o.primary, FusionSourceId::kCrankOnly);
+  EXPECT_TRUE(std::isfinite(o.brake_nm));
+}
+
+TEST(TorqueFusion, DoesNotAllocate) {
+  TorqueFusion f(FusionParams{});
+  const FusionInput in = inputs(1'000'000'000, 995'000'000);
+  torqued::test::AllocationScope scope;
+  for (int i = 0; i < 100; ++i) f.update(in);
+  EXPECT_EQ(scope.count(), 0u);
+}
