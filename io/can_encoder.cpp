@@ -1,5 +1,8 @@
 #include "can_encoder.hpp"
 
+#include <climits>
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
 
 namespace torqued {
@@ -10,6 +13,10 @@ const char* validate(const CanEncoderConfig& cfg) noexcept {
   }
   if (cfg.tick_ns < 1 || cfg.tick_ns > 1'000'000) return "encoder tick_ns must be 1 .. 1000000 ns";
   if (cfg.crank_channel == cfg.cam_channel) return "encoder crank_channel and cam_channel must differ";
+  if (!(cfg.max_slew_ppm >= 0.0 && cfg.max_slew_ppm <= 10000.0)) return "encoder max_slew_ppm must be 0 .. 10000";
+  if (cfg.align_window_frames < 8 || cfg.align_window_frames > 100000) {
+    return "encoder align_window_frames must be 8 .. 100000";
+  }
   return nullptr;
 }
 
@@ -173,10 +180,67 @@ void CanEncoderEdgeSource::accept(const CanFrame& frame) noexcept {
     last_raw_ = e.ticks;
     last_rx_ns_ = frame.t_ns;
     EdgeEvent& out = out_[static_cast<std::size_t>(out_n_++)];
-    out.t_ns = ticks * cfg_.tick_ns + cfg_.time_offset_ns;
+    out.t_ns = ticks * cfg_.tick_ns;  // encoder clock; offsets are added below, once the whole frame is known
     out.channel = e.cam ? cfg_.cam_channel : cfg_.crank_channel;
     out.level = e.level;
   }
+  if (cfg_.align_to_receive_time && out_n_ > 0) align(frame.t_ns);
+  for (int k = 0; k < out_n_; ++k) out_[static_cast<std::size_t>(k)].t_ns += cfg_.time_offset_ns;
+}
+
+void CanEncoderEdgeSource::align(std::int64_t rx_ns) noexcept {
+  // Maps encoder time e onto the receive clock: t = e + offset. The receive latency rx − e_last of a frame is
+  // transport floor + jitter ≥ floor, so the lower envelope of raw = rx − e_last over a window of frames is the
+  // offset we want (up to the constant floor, which time_offset_ns can remove). The envelope's slope is the
+  // oscillator drift. The applied offset is never stepped after the first frame: it is slewed at
+  // rate = drift + error/window, at most max_slew_ppm, so tooth periods change by at most that rate.
+  const std::int64_t e_first = out_[0].t_ns;
+  const std::int64_t e_last = out_[static_cast<std::size_t>(out_n_ - 1)].t_ns;
+  const double max_rate = cfg_.max_slew_ppm * 1e-6;
+  if (!aligned_) {
+    aligned_ = true;
+    offset_base_ns_ = rx_ns - e_last;  // integer part: receive clocks are ~1.7e18 ns, beyond double's ns precision
+    offset_ns_ = 0.0;
+    slew_ref_ns_ = e_first;
+    win_start_ns_ = e_last;
+    win_frames_ = 0;
+    win_min_ = 1e300;
+  }
+  for (int k = 0; k < out_n_; ++k) {
+    EdgeEvent& out = out_[static_cast<std::size_t>(k)];
+    offset_ns_ += rate_ * static_cast<double>(out.t_ns - slew_ref_ns_);
+    slew_ref_ns_ = out.t_ns;
+    out.t_ns += offset_base_ns_ + static_cast<std::int64_t>(std::llround(offset_ns_));
+  }
+  const double raw = static_cast<double>(rx_ns - e_last - offset_base_ns_);
+  const double detrended = raw - drift_ * static_cast<double>(e_last - win_start_ns_);
+  if (detrended < win_min_) win_min_ = detrended;
+  if (++win_frames_ < cfg_.align_window_frames) return;
+  const double span = static_cast<double>(e_last - win_start_ns_);
+  if (span <= 0.0) return;
+  const double mid = static_cast<double>(win_start_ns_) + 0.5 * span;
+  const double floor_mid = win_min_ + drift_ * 0.5 * span;  // envelope at the window's middle
+  if (have_floor_) {
+    const double d_meas = (floor_mid - floor_prev_) / (mid - mid_prev_);
+    drift_ += 0.5 * (d_meas - drift_);
+    if (drift_ > max_rate) drift_ = max_rate;
+    if (drift_ < -max_rate) drift_ = -max_rate;
+  }
+  have_floor_ = true;
+  floor_prev_ = floor_mid;
+  mid_prev_ = mid;
+  const double error = floor_mid + drift_ * (static_cast<double>(e_last) - mid) - offset_ns_;
+  double rate = drift_ + error / span;
+  if (rate > max_rate) rate = max_rate;
+  if (rate < -max_rate) rate = -max_rate;
+  rate_ = rate;
+  enc_.align_offset_ns = static_cast<double>(offset_base_ns_) + offset_ns_;
+  enc_.align_rate_ppm = rate * 1e6;
+  enc_.align_drift_ppm = drift_ * 1e6;
+  enc_.align_error_ns = error;
+  win_frames_ = 0;
+  win_min_ = 1e300;
+  win_start_ns_ = e_last;
 }
 
 SourceStatus CanEncoderEdgeSource::next(EdgeEvent& out) noexcept {

@@ -32,6 +32,13 @@ struct CanEncoderConfig {
   bool fd = true;                    ///< CAN FD frames (up to 15 entries) or classic (1 entry per frame)
   std::int64_t tick_ns = 10;         ///< encoder counter tick (ns), 1 .. 1'000'000
   std::int64_t time_offset_ns = 0;   ///< added to the unwrapped encoder time (maps it onto the edge clock)
+  /// Live use: put the edges on the clock of the frames' receive times (SocketCAN: CLOCK_REALTIME), so tooth
+  /// times and CAN signal times compare. The offset is set at the first frame and then slewed (never stepped,
+  /// at most max_slew_ppm) so that the smallest receive latency seen in each window of frames goes to zero;
+  /// this follows the drift between the encoder's oscillator and the host clock.
+  bool align_to_receive_time = false;
+  double max_slew_ppm = 200.0;       ///< largest rate correction of the alignment (ppm), 0 .. 10000
+  int align_window_frames = 200;     ///< frames per latency-minimum window, 8 .. 100000
   std::uint8_t crank_channel = 0;    ///< EdgeEvent::channel for entries with channel bit 0
   std::uint8_t cam_channel = 1;      ///< EdgeEvent::channel for entries with channel bit 1
 };
@@ -118,6 +125,10 @@ struct CanEncoderStats {
   std::uint64_t restarts = 0;        ///< frames with the restart flag (unwrap restarted)
   std::uint64_t backwards = 0;       ///< entries earlier than the previous one (dropped)
   std::uint64_t long_pauses = 0;     ///< unwraps resolved from receive times (pause > half a wrap)
+  double align_offset_ns = 0.0;      ///< align_to_receive_time: current encoder -> receive clock offset (ns)
+  double align_rate_ppm = 0.0;       ///< align_to_receive_time: current slew rate (ppm)
+  double align_drift_ppm = 0.0;      ///< align_to_receive_time: estimated encoder-vs-host clock drift (ppm)
+  double align_error_ns = 0.0;       ///< align_to_receive_time: offset error at the last window end (ns)
 };
 
 /// EdgeSource reading encoder frames from a CanSource (SocketCAN live, or a candump log in replay).
@@ -138,6 +149,7 @@ class CanEncoderEdgeSource final : public EdgeSource {
 
  private:
   void accept(const CanFrame& frame) noexcept;
+  void align(std::int64_t rx_ns) noexcept;
 
   CanSource& can_;
   CanEncoderConfig cfg_;
@@ -151,6 +163,18 @@ class CanEncoderEdgeSource final : public EdgeSource {
   std::int64_t last_ticks_ = 0;      ///< unwrapped ticks of the last entry
   std::uint32_t last_raw_ = 0;       ///< its 30-bit wire value
   std::int64_t last_rx_ns_ = 0;      ///< receive time of the frame holding the last entry
+  // Receive-time alignment (align_to_receive_time).
+  bool aligned_ = false;
+  std::int64_t offset_base_ns_ = 0;  ///< encoder time -> receive clock: integer part set at the first frame (ns)
+  double offset_ns_ = 0.0;           ///< ... plus the slewed part (ns)
+  double rate_ = 0.0;                ///< d(offset)/d(encoder time), |rate_| <= max_slew_ppm
+  double drift_ = 0.0;               ///< estimated slope of the latency envelope (encoder vs host clock)
+  std::int64_t slew_ref_ns_ = 0;     ///< encoder time up to which the offset has been integrated
+  std::int64_t win_start_ns_ = 0;    ///< encoder time at the window's start
+  double win_min_ = 0.0;             ///< lower envelope (detrended) of the current window (ns)
+  int win_frames_ = 0;
+  bool have_floor_ = false;
+  double floor_prev_ = 0.0, mid_prev_ = 0.0;  ///< previous window's envelope value and time (ns)
   SourceStats stats_;
   CanEncoderStats enc_;
   std::array<char, 160> bad_msg_{};  ///< last bad frame, fixed buffer (no allocation in next())
