@@ -27,7 +27,12 @@ AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
       friction_(config.friction),
       eso_(config.engine, config.energies),
       cyl_(config.engine, config.cylinder),
-      fusion_(config.fusion) {
+      fusion_(config.fusion),
+      pre_(config.engine, config.wheel, config.preprocess),
+      kalman_(config.engine, config.wheel, config.kalman),
+      fourier_(config.engine, config.wheel, config.fourier) {
+  // CF-14: refuse unstable Fourier gains (the config loader reports the reason; here the method is just off).
+  fourier_ok_ = config.run_fourier && !FourierObserver::check_stability(config.fourier, config.engine, config.wheel);
   reset();
 }
 
@@ -37,6 +42,10 @@ void AnglePipeline::reset() noexcept {
   eso_.reset();
   cyl_.reset();
   fusion_.reset();
+  pre_.reset();
+  kalman_.reset();
+  fourier_.reset();
+  load_star_nm_ = 0.0;
   // The friction learner keeps what it learned (persisted state); call friction().reset() to forget.
   tooth_ = ToothOutput{};
   cycle_ = CycleOutput{};
@@ -59,6 +68,9 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   if (!s.synced) {
     ++stats_.not_synced;
     have_prev_ = false;
+    pre_.update(s);
+    if (cfg_.run_kalman) kalman_.update(s);
+    if (fourier_ok_) fourier_.update(s);
     energy_.update(s, 0.0, false);
     rls_.update(s, 0.0, false, 0.0, cyl_work_j_, false);
     tooth_.valid = false;
@@ -70,6 +82,9 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
     have_prev_ = false;
     ToothSample bad = s;
     bad.synced = false;  // breaks the sequence in the estimators
+    pre_.update(bad);
+    if (cfg_.run_kalman) kalman_.update(bad);
+    if (fourier_ok_) fourier_.update(bad);
     energy_.update(bad, 0.0, false);
     rls_.update(bad, 0.0, false, 0.0, cyl_work_j_, false);
     tooth_.valid = false;
@@ -81,8 +96,27 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   tooth_.tooth = s.tooth;
   tooth_.angle_rad = s.angle_rad;
   tooth_.speed_rad_s = speed;
-  tooth_.accel_rad_s2 = have_prev_ ? (speed - prev_speed_) / (0.5 * (s.dt_s + prev_dt_)) : 0.0;
+  pre_.update(s);
+  const ToothKinematics& kin = pre_.state();
+  tooth_.accel_rad_s2 = kin.valid ? kin.accel_rad_s2
+                                  : (have_prev_ ? (speed - prev_speed_) / (0.5 * (s.dt_s + prev_dt_)) : 0.0);
+  tooth_.speed_lp_rad_s = kin.valid ? kin.speed_lp_rad_s : speed;
   tooth_.valid = have_prev_;
+  // In-cycle observers (Chauvin): they estimate the net torque; the extended load turns it into T_ind.
+  if (cfg_.run_kalman) {
+    kalman_.set_extended_load(load_star_nm_);
+    kalman_.update(s);
+    tooth_.kalman_ind = kalman_.estimate();
+  } else {
+    tooth_.kalman_ind.health = Health::kDisabled;
+  }
+  if (fourier_ok_) {
+    fourier_.set_extended_load(load_star_nm_);
+    fourier_.update(s);
+    tooth_.fourier_ind = fourier_.estimate();
+  } else {
+    tooth_.fourier_ind.health = Health::kDisabled;
+  }
   prev_speed_ = speed;
   prev_dt_ = s.dt_s;
   have_prev_ = true;
@@ -216,6 +250,9 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
     o.brake = make(seg.t_ns, o.indicated_crank.torque_nm - fric, o.indicated_crank.uncertainty + 2.0,
                    worst(rls.health, fric_h));
   }
+
+  // Extended load for the in-cycle observers: measured load + friction, or the RLS estimate without CAN.
+  load_star_nm_ = can_load ? seg.cycle_load_mean_nm + fric : rls.torque_nm;
 
   // --- Friction learning (EN-24..36) -------------------------------------------------------------------------------
   // Fuel cut-off for the whole window (+1 segment margin for the CAN flag's delay): T_ind = motored (pumping)

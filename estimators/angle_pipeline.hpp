@@ -3,8 +3,9 @@
 // Constructed from the engine/wheel geometry and the tuning structs, sized at construction; on_tooth() is real-time
 // safe (no allocation, no locks, no exceptions, no I/O).
 //
-// Per tooth:   speed, acceleration; in-cycle indicated torque from the Chauvin Kalman and Fourier observers
-//              (when built with them, see AnglePipelineConfig).
+// Per tooth:   speed, acceleration (ToothPreprocessor); in-cycle indicated torque from the Chauvin TV-Kalman
+//              (APS gains) and Fourier observers (helper "angle"), each given the latest extended load
+//              T_load + T_fric of this pipeline so that they report T_ind (CK eq. (1), CF eq. (1)).
 // Per segment (one per firing, rolling 720° window ending at the segment boundary):
 //   brake      = Δ(½Jθ̇²)/4π + load (CAN)                          [CycleEnergy, no friction model needed]
 //   indicated  = brake + learned friction, or crank-only Δ(½Jθ̇²)/4π + RLS extended load
@@ -18,15 +19,18 @@
 #include <cstdint>
 #include <memory>
 
+#include "chauvin_kalman.hpp"
 #include "cycle_energy.hpp"
 #include "cylinder_torque.hpp"
 #include "engine_geometry.hpp"
 #include "estimate.hpp"
+#include "fourier_observer.hpp"
 #include "friction_learner.hpp"
 #include "indicated_eso.hpp"
 #include "load_rls.hpp"
 #include "params.hpp"
 #include "samples.hpp"
+#include "tooth_preprocessor.hpp"
 #include "torque_fusion.hpp"
 
 namespace torqued {
@@ -38,6 +42,11 @@ struct AnglePipelineConfig {
   FrictionParams friction{};
   CylinderParams cylinder{};
   FusionParams fusion{};
+  PreprocessParams preprocess{};
+  KalmanParams kalman{};
+  FourierParams fourier{};
+  bool run_kalman = true;            ///< Chauvin TV-Kalman in-cycle indicated torque per tooth
+  bool run_fourier = true;           ///< Chauvin Fourier observer per tooth (disabled if its gains fail CF-14)
   double default_oil_temp_c = 90.0;  ///< used until an oil temperature arrives on CAN (°C)
 };
 
@@ -47,7 +56,10 @@ struct ToothOutput {
   int tooth = 0;
   double angle_rad = 0.0;      ///< edge angle within 720° from tooth 0 (rad)
   double speed_rad_s = 0.0;    ///< w/dt of the period ending here (rad/s)
-  double accel_rad_s2 = 0.0;   ///< (ω_k − ω_{k−1}) / ((dt_k + dt_{k−1})/2) (rad/s²)
+  double accel_rad_s2 = 0.0;   ///< θ̈ from the pre-processor's [θ̇, θ̈] Kalman filter (rad/s²)
+  double speed_lp_rad_s = 0.0; ///< low-passed speed (rad/s)
+  TorqueEstimate kalman_ind;   ///< Chauvin TV-Kalman T̂_ind; its t_ns is the edge it refers to (fixed-lag smoother)
+  TorqueEstimate fourier_ind;  ///< Fourier observer T̂_ind at this edge
   bool valid = false;
 };
 
@@ -114,6 +126,11 @@ class AnglePipeline {
   IndicatedEso eso_;
   CylinderTorque cyl_;
   TorqueFusion fusion_;
+  ToothPreprocessor pre_;
+  ChauvinKalman kalman_;
+  FourierObserver fourier_;
+  bool fourier_ok_ = false;  ///< gains passed check_stability() at construction
+  double load_star_nm_ = 0.0;  ///< latest extended load handed to the in-cycle observers (N m)
 
   ToothOutput tooth_;
   CycleOutput cycle_;
