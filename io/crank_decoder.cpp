@@ -141,6 +141,8 @@ void CrankDecoder::reset() noexcept {
   have_edge_ = false;
   period_ns_ = 0;
   ref_period_ns_ = 0;
+  ref_prev_ns_ = 0;
+  u1_ = u2_ = 0.0;
   since_gap_ = -1;
   hist_len_ = 0;
   lost_this_rev_ = 0;
@@ -171,6 +173,8 @@ bool CrankDecoder::poll(std::int64_t now_ns) noexcept {
   since_gap_ = -1;
   hist_len_ = 0;
   ref_period_ns_ = 0;
+  ref_prev_ns_ = 0;
+  u1_ = u2_ = 0.0;
   period_ns_ = 0;
   return true;
 }
@@ -196,6 +200,8 @@ bool CrankDecoder::on_crank(std::int64_t t_ns, ToothEvent& out) noexcept {
     since_gap_ = -1;
     hist_len_ = 0;
     ref_period_ns_ = 0;
+    ref_prev_ns_ = 0;
+    u1_ = u2_ = 0.0;
     ref_provisional_ = false;
     period_ns_ = 0;
     last_t_ns_ = t_ns;
@@ -218,15 +224,21 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
   if (ref_period_ns_ == 0) {
     // First period after (re)start: it may itself be a gap, so it is only a provisional reference.
     ref_period_ns_ = period;
+    ref_prev_ns_ = 0;
     ref_provisional_ = true;
+    u1_ = u2_ = 0.0;
     since_gap_ = -1;
   } else {
-    const double r = static_cast<double>(period) / static_cast<double>(ref_period_ns_);
+    // Predicted normal period: the last one times the trend of the last two (clamped).
+    double pred = static_cast<double>(ref_period_ns_);
+    if (ref_prev_ns_ > 0) pred *= clamp_trend(static_cast<double>(ref_period_ns_) / static_cast<double>(ref_prev_ns_));
+    const double r = static_cast<double>(period) / pred;
     const bool provisional = ref_provisional_;
     ref_provisional_ = false;
     if (provisional && r < 1.0 / (params_.gap_ratio_min * min_gap_ratio_)) {
       // The provisional reference was a gap: count it, and this (shorter) period is the reference.
       ++stats_.gaps;
+      ref_prev_ns_ = 0;
       ref_period_ns_ = period;
       since_gap_ = 0;
       normal = true;
@@ -239,9 +251,11 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
         // Far too slow for any gap: speed collapsed; start over with this period as reference.
         since_gap_ = -1;
         hist_len_ = 0;
+        ref_prev_ns_ = 0;
         ref_period_ns_ = period;
       } else {
         ++stats_.gaps;
+        ref_prev_ns_ = 0;  // the trend does not carry across a gap
         if (since_gap_ >= 0) {
           if (hist_len_ == kMaxGaps) {
             std::copy(hist_.begin() + 1, hist_.end(), hist_.begin());
@@ -276,6 +290,8 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
             period_ns_ = period;
             const double w = width_[static_cast<std::size_t>(tooth_)];
             last_width_rad_ = w;
+            u1_ = static_cast<double>(period) / w;
+            u2_ = 0.0;
             last_t_ns_ = t_ns;
             pending_flags_ |= kToothGap | (stats_.syncs > 1 ? kToothResynced : 0u);
             emit(t_ns, rev_ * teeth_ + tooth_, w, period, out);
@@ -285,6 +301,7 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
       }
     } else {
       normal = true;
+      ref_prev_ns_ = ref_period_ns_;
       ref_period_ns_ = period;
     }
   }
@@ -315,7 +332,8 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   int i = next_tooth(tooth_);
   double w = width_[static_cast<std::size_t>(i)];
   // Expected period from the last one, scaled by the true widths (constant speed over one tooth).
-  const double expected = static_cast<double>(period_ns_) * (w / last_width_rad_);
+  const double trend = u2_ > 0.0 ? clamp_trend(u1_ / u2_) : 1.0;
+  const double expected = u1_ * w * trend;
   const double q = static_cast<double>(period) / expected;
   if (q < params_.runt_fraction) {
     ++stats_.noise_edges;
@@ -326,7 +344,11 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   const bool gap_tooth = w > 1.5 * pitch_rad_;
   const int i2 = next_tooth(i);
   const double q_lost = (w + width_[static_cast<std::size_t>(i2)]) / w;  // q if tooth i was not seen
-  const bool lost_possible = q_lost >= params_.lost_tooth_min_ratio && q > std::sqrt(q_lost) &&
+  // At low speed (cranking, stopping) a period can double from one tooth to the next: then a long period is a
+  // slowdown and must not be explained by a lost tooth (that would shift every index after it).
+  const double speed_rpm = last_width_rad_ / (static_cast<double>(period_ns_) * 1e-9) * (60.0 / kTwoPi);
+  const bool lost_possible = speed_rpm >= params_.lost_tooth_min_rpm && q_lost >= params_.lost_tooth_min_ratio &&
+                             q > std::sqrt(q_lost) &&
                              q >= q_lost * params_.sync_ratio_min && q <= q_lost * params_.sync_ratio_max;
   if (lost_possible) {
     ++lost_this_rev_;
@@ -347,7 +369,9 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   if (state_ != SyncState::kSynced) {
     // Report the failing edge; the decoder restarts syncing from here (this period becomes the reference).
     ref_period_ns_ = period;
+    ref_prev_ns_ = 0;
     ref_provisional_ = true;
+    u1_ = u2_ = 0.0;
     period_ns_ = period;
     last_t_ns_ = t_ns;
     out = ToothEvent{};
@@ -374,6 +398,8 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   tooth_ = i;
   period_ns_ = period;
   last_width_rad_ = w;
+  u2_ = u1_;
+  u1_ = static_cast<double>(period) / w;
   last_t_ns_ = t_ns;
   const int idx = rev_ * teeth_ + i;
   const int prev = (idx - advance + 2 * teeth_) % (2 * teeth_);

@@ -6,11 +6,12 @@
 // Wheel model: T real teeth at angles a[0..T-1] in [0, 2π) (tooth 0 = first tooth after the (first) gap), from
 // an N-M WheelGeometry or an explicit tooth-angle list. w[i] = a[i] - a[i-1] (mod 2π) is the true angular width
 // of the period ending at tooth i; teeth whose w[i] exceeds 1.5 pitch close a gap.
-// Sync: a period P is a gap candidate when P / P_ref >= gap_ratio_min × (smallest gap size), P_ref being the last
-// normal period (so two gaps separated by one tooth, as on 36-2-2-2, are both seen). The count of teeth between
+// Sync: a period P is a gap candidate when P / P_pred >= gap_ratio_min × (smallest gap size), P_pred being the last
+// normal period extrapolated by the period trend of the last two normal periods (cranking accelerates and
+// decelerates by tens of percent per tooth; two gaps separated by one tooth, as on 36-2-2-2, are both seen). The count of teeth between
 // consecutive gap candidates must match the wheel's pattern (plausibility) — which also identifies which gap
 // it was on multi-gap wheels. Once synced each period is checked against the expected one
-// E = w[i]·(P_prev / w[i-1]); q = P / E: q < runt_fraction → noise edge rejected; q near 1 → tooth; q near
+// E = w[i]·(P_prev / w[i-1])·trend; q = P / E: q < runt_fraction → noise edge rejected; q near 1 → tooth; q near
 // (w[i]+w[i+1])/w[i] → one lost tooth, interpolated; anything else → lost sync with a reason.
 // 720° phase: a cam edge whose estimated crank angle falls into [cam_window_start_deg, cam_window_end_deg)
 // (angles in 0..720 from tooth 0 of the cycle's first revolution) fixes which revolution we are in.
@@ -26,13 +27,15 @@ namespace torqued {
 
 /// Decoder tuning; defaults work for the simulator and common Hall sensors. Validated by config/.
 struct DecoderParams {
-  double gap_ratio_min = 0.6;   ///< gap candidate if P/P_ref >= gap_ratio_min × nominal gap ratio (cranking/first-combustion squeeze)
+  double gap_ratio_min = 0.7;   ///< gap candidate if P/P_pred >= gap_ratio_min × nominal gap ratio (cranking/first-combustion squeeze)
   double gap_ratio_max = 2.0;   ///< and <= gap_ratio_max × nominal gap ratio (-), else "too slow" (stall-like)
   double sync_ratio_min = 0.6;  ///< synced: q = P/E accepted down to this (-)
   double sync_ratio_max = 1.6;  ///< synced: q accepted up to this (-), beyond: lost-tooth hypothesis or sync loss
   double runt_fraction = 0.3;   ///< an edge earlier than runt_fraction × expected period is noise (-)
   double lost_tooth_min_ratio = 1.5;  ///< lost-tooth hypothesis only where it makes q at least this large (-)
   int max_lost_teeth_per_rev = 2;     ///< more lost teeth than this in one revolution -> lost sync
+  double max_trend = 1.5;             ///< period trend (ratio of the last two normalised periods) clamped to [1/x, x] (-)
+  double lost_tooth_min_rpm = 400.0;  ///< below this speed a long period is a slowdown, never a lost tooth (rpm)
   std::int64_t stall_timeout_ns = 500'000'000;  ///< no crank edge for this long -> stalled (ns)
   bool use_cam = true;                 ///< use the cam channel for the 720° phase
   bool cam_rising = true;              ///< which cam edge marks the phase
@@ -117,6 +120,9 @@ class CrankDecoder {
   void lose_sync(SyncLossReason reason, std::int64_t t_ns) noexcept;
   void emit(std::int64_t t_ns, int tooth, double width_rad, std::int64_t period_ns, ToothEvent& out) noexcept;
   [[nodiscard]] int next_tooth(int i) const noexcept { return i + 1 == teeth_ ? 0 : i + 1; }
+  [[nodiscard]] double clamp_trend(double x) const noexcept {
+    return x > params_.max_trend ? params_.max_trend : (x * params_.max_trend < 1.0 ? 1.0 / params_.max_trend : x);
+  }
 
   // Wheel tables (built once).
   WheelGeometry wheel_;
@@ -143,6 +149,8 @@ class CrankDecoder {
   double last_width_rad_ = 0.0;   ///< nominal width of the last accepted period (synced)
   std::int64_t ref_period_ns_ = 0;///< syncing: last period classified normal
   bool ref_provisional_ = false;  ///< syncing: ref is the first period after a (re)start (may be a gap)
+  std::int64_t ref_prev_ns_ = 0;  ///< syncing: normal period before ref (0: not consecutive)
+  double u1_ = 0.0, u2_ = 0.0;    ///< synced: last two periods per radian of true width (ns/rad); 0 = unknown
   bool have_edge_ = false;
   int since_gap_ = -1;            ///< syncing: teeth since the last gap candidate (-1: no gap seen yet)
   std::array<int, kMaxGaps> hist_{};  ///< syncing: teeth counts between recent gap candidates (newest last)

@@ -319,3 +319,29 @@ TEST(CrankDecoder, CorrectionTableValidation) {
 
 }  // namespace
 }  // namespace torqued
+
+namespace torqued {
+namespace {
+
+TEST(CrankDecoder, StoppingEngineIsNeverMisIndexed) {
+  // GIVEN an engine coasting down from 600 rpm to 30 rpm with strong compression ripple (long periods at the
+  // end, each longer than the one before: looks like missing teeth)
+  for (const auto& w : {test::wheel_nm(60, 2), test::wheel_nm(36, 1)}) {
+    test::SynthOptions o;
+    o.wheel = w;
+    o.rpm0 = 600;
+    o.rpm1 = 30;
+    o.ripple = 0.8;  // the speed drops to a fifth at every compression
+    o.duration_s = 1.2;
+    o.step_s = 5e-6;
+    const auto d = run(test::synthesize(o), w);
+    // THEN every tooth claimed synced has the true index (sync may be dropped, never wrong), and no long
+    // period was taken for a lost tooth
+    EXPECT_EQ(d.mismatches, 0) << w.positions;
+    EXPECT_EQ(d.stats.lost_teeth, 0u) << w.positions;
+    EXPECT_GT(d.checked, w.teeth()) << w.positions;
+  }
+}
+
+}  // namespace
+}  // namespace torqued
