@@ -40,6 +40,7 @@ FourierObserver::FourierObserver(const EngineGeometry& engine, const WheelGeomet
   }
   for (int j = 0; j < nc_; ++j) l_[static_cast<std::size_t>(j)] = gain_of(params_, j);
   ref_speed_ = params_.gain_ref_rpm * std::numbers::pi / 30.0;
+  lag_ = std::clamp(params_.output_lag, 0, kMaxLag);
   reset();
 }
 
@@ -121,6 +122,7 @@ void FourierObserver::reset() noexcept {
   est_tooth_ = 0;
   expected_tooth_ = -1;
   teeth_seen_ = 0;
+  edge_t_ns_.fill(0);
 }
 
 double FourierObserver::net_torque_at(int k) const noexcept {
@@ -172,17 +174,22 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
   for (int j = 0; j < nc_; ++j) c_[static_cast<std::size_t>(j)] -= d * l_[static_cast<std::size_t>(j)] * f[j] * err;
   ++stats_.updates;
   ++teeth_seen_;
-  const double t_net = net_torque_at(k);
+  // Torque at e_k reaches the energy error only at later teeth: evaluating the waveform `lag` teeth back with the
+  // newest coefficients is a fixed-lag smoother (beyond the paper).
+  const int k_out = (k - lag_ + kk) % kk;
+  const double t_net = net_torque_at(k_out);
+  for (int i = kMaxLag; i > 0; --i) edge_t_ns_[static_cast<std::size_t>(i)] = edge_t_ns_[static_cast<std::size_t>(i - 1)];
+  edge_t_ns_[0] = s.t_ns;
   if (!std::isfinite(phi_) || !std::isfinite(t_net)) {
     ++stats_.resets;
     reset();
     est_.health = Health::kNumerical;
     return false;
   }
-  est_.t_ns = s.t_ns;
+  est_.t_ns = edge_t_ns_[static_cast<std::size_t>(lag_)];
   est_.torque_nm = t_net + load_star_nm_;
   est_.uncertainty = 0.0;
-  est_tooth_ = k;
+  est_tooth_ = k_out;
   est_.health = teeth_seen_ >= 2 * kk ? Health::kValid : Health::kNotConverged;
   expected_tooth_ = (k + 1) % kk;
   return true;

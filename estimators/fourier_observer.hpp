@@ -33,6 +33,7 @@ class FourierObserver {
  public:
   static constexpr int kMaxHarmonics = 24;
   static constexpr int kMaxCoeffs = 2 * kMaxHarmonics + 1;
+  static constexpr int kMaxLag = 6;
 
   /// Gains must have passed check_stability(); the constructor does not re-check (config loader's job).
   FourierObserver(const EngineGeometry& engine, const WheelGeometry& wheel, const FourierParams& params);
@@ -55,7 +56,7 @@ class FourierObserver {
   /// Real-time safe. Returns false if the sample was rejected.
   bool update(const ToothSample& s) noexcept;
 
-  /// T̂_ind at this sample's edge (t_ns of the edge): m(e_k)·ĉ + T*_load (uncertainty not modelled: 0).
+  /// T̂_ind at edge k − output_lag (t_ns of that edge): m(e)·ĉ + T*_load (uncertainty not modelled: 0).
   [[nodiscard]] TorqueEstimate estimate() const noexcept { return est_; }
   [[nodiscard]] int estimate_tooth() const noexcept { return est_tooth_; }
   /// T̂_mass (= net torque) at any tooth k from the current coefficients (reconstructs the whole cycle).
@@ -80,6 +81,8 @@ class FourierObserver {
   int est_tooth_ = 0;
   int expected_tooth_ = -1;
   int teeth_seen_ = 0;
+  int lag_ = 0;
+  std::array<std::int64_t, kMaxLag + 1> edge_t_ns_{};  ///< edge times of the last teeth, [0] = newest
   FourierStats stats_;
 };
 

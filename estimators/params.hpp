@@ -46,14 +46,14 @@ struct TimePipelineParams {
 struct PreprocessParams {
   double lowpass_hz = 300.0;        ///< first-order low-pass cut-off on tooth speed (Hz) (EN §2.1 uses a 300 Hz FIR)
   double accel_jerk_sd = 2.0e5;     ///< white-jerk intensity of the [θ̇, θ̈] Kalman filter (rad/s^3/sqrt(s))
-  double edge_noise_deg = 0.01;     ///< residual edge-angle error after tooth-error learning, 1σ (deg)
+  double edge_noise_deg = 0.005;    ///< residual edge-angle error after tooth-error learning, 1σ (deg)
   double jitter_s = 0.3e-6;         ///< edge timestamp jitter, 1σ (s)
 };
 /// Chauvin angle-domain estimators (ESTIMATORS.md §2).
 struct KalmanParams {
   double delta = 3.0;          ///< coloured-noise pole δ (1/rad) of h(z) (CK-18)
   double torque_sd_nm = 300.0; ///< stationary 1σ of the net torque x2 under h(z); sets Q (N m)
-  double edge_noise_deg = 0.01;  ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.01 learned)
+  double edge_noise_deg = 0.005; ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.005 learned)
   double jitter_s = 0.3e-6;    ///< timestamp jitter used for R (s)
   int smoother_lag = 4;        ///< output x2(n-lag | n), 0..6 teeth (fixed-lag smoother; 0 = paper's predictor)
   bool periodic_gains = true;  ///< use precomputed asymptotic periodic gains (APS) instead of exact Riccati
@@ -66,6 +66,7 @@ struct FourierParams {
   double l_ke = 6.0;         ///< L_ke (1/rad)
   double l_a0 = 0.3;         ///< L_a0 (1/rad^2)
   double l_ref = 0.05;       ///< L_ref: l_{a_i} = l_{b_i} = i L_ref (1/rad^2)
+  int output_lag = 0;        ///< report T̂ at tooth k−lag from the coefficients after tooth k (0..6; latency, less noise)
   double gain_ref_rpm = 1500.0; ///< >0: coefficient gains × min(1, (gain_ref_rpm/rpm)²), keeping the noise of the energy
                              ///< innovation (∝ θ̇²) constant above that speed; 0 = fixed gains as in the paper
 };
@@ -128,8 +129,10 @@ struct ToothLearnParams {
   double max_accel_frac = 0.05;     ///< skip cycles whose speed changes by more than this fraction (-)
   double min_rpm = 600.0;           ///< learn only above this speed (rpm)
   double max_rpm = 7000.0;          ///< and below this one (rpm)
-  bool learn_low_orders = false;    ///< also learn orders <= fit_harmonics/2 per rev from the spread of speeds
-                                    ///< (needs a speed-independent torque waveform; worse on the simulator)
+  double speed_weight_exp = 4.0;    ///< residuals weighted by speed^p (ripple ∝ 1/speed²): high speeds dominate
+  bool fit_all_even = false;        ///< also fit even non-firing cycle harmonics (then their tooth orders are lost)
+  bool learn_low_orders = true;     ///< also learn the firing orders (2, 4 per rev for 4-cyl) from the spread of
+                                    ///< speeds: intercept of a quadratic regression on 1/speed² (needs ≥ 2 speeds)
 };
 
 }  // namespace torqued

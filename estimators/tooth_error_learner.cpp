@@ -19,25 +19,32 @@ ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGe
     : params_(params), table_(ToothAngleTable::build(engine, wheel)) {
   const int kk = table_.samples;
   const int h = std::clamp(params_.fit_harmonics, 1, std::min(kMaxFitHarmonics, kk / 4));
-  nb_ = 2 * h + 2;
+  // Smooth basis of the engine's speed ripple: odd cycle harmonics (half orders; a wheel error repeats every
+  // revolution and has none) and the firing harmonics (multiples of n_cyl per cycle). Even non-firing harmonics
+  // are left out so the low orders of the tooth error stay in the residual; only imbalance ripple shares them.
+  std::vector<int> harmonics;
+  for (int hh = 1; hh <= h; ++hh) {
+    if (hh % 2 == 1 || hh % engine.cylinders == 0 || params_.fit_all_even) harmonics.push_back(hh);
+  }
+  nb_ = 2 * static_cast<int>(harmonics.size()) + 2;
+  col_per_rev_.assign(static_cast<std::size_t>(nb_), 0);
+  for (std::size_t q = 0; q < harmonics.size(); ++q) {
+    col_per_rev_[2 * q + 2] = col_per_rev_[2 * q + 3] = harmonics[q] % 2 == 0 ? 1 : 0;
+  }
   const auto ks = static_cast<std::size_t>(kk);
   const auto nbs = static_cast<std::size_t>(nb_);
   basis_.resize(ks * nbs);
-  half_log_j_.resize(ks);
-  log_w_.resize(ks);
   Eigen::MatrixXd b(kk, nb_);
   for (int k = 0; k < kk; ++k) {
     const auto i = static_cast<std::size_t>(k);
     const double c = table_.edge_rad[i] - 0.5 * table_.width_rad[i];  // period centre, wheel angle in 720°
     b(k, 0) = 1.0;
     b(k, 1) = (c - kTwoPi) / kTwoPi;  // linear trend: acceleration within the cycle
-    for (int hh = 1; hh <= h; ++hh) {
-      b(k, 2 * hh) = std::cos(hh * c / 2.0);
-      b(k, 2 * hh + 1) = std::sin(hh * c / 2.0);
+    for (std::size_t q = 0; q < harmonics.size(); ++q) {
+      b(k, static_cast<int>(2 * q + 2)) = std::cos(harmonics[q] * c / 2.0);
+      b(k, static_cast<int>(2 * q + 3)) = std::sin(harmonics[q] * c / 2.0);
     }
     for (int j = 0; j < nb_; ++j) basis_[i * nbs + static_cast<std::size_t>(j)] = b(k, j);
-    half_log_j_[i] = 0.5 * std::log(table_.j_center[i]);
-    log_w_[i] = std::log(table_.width_rad[i]);
   }
   const Eigen::MatrixXd g = (b.transpose() * b).ldlt().solve(b.transpose());
   pinv_.resize(nbs * ks);
@@ -67,6 +74,7 @@ void ToothErrorLearner::reset() noexcept {
   std::fill(ratio_.begin(), ratio_.end(), 1.0);
   import_weight_ = 0.0;
   n_ = 0.0;
+  wsum_ = 0.0;
   next_tooth_ = -1;
   collected_ = 0;
   low_orders_ok_ = false;
@@ -132,12 +140,16 @@ void ToothErrorLearner::finish_cycle() noexcept {
     for (std::size_t k = 0; k < ks; ++k) acc += g[k] * z_[k];
     coef_[static_cast<std::size_t>(j)] = acc;
   }
+  // The leftover ripple (orders above the fit) falls as 1/ω̄², jitter noise grows with ω̄ but averages out:
+  // weight the residuals by (ω̄/ω_ref)^p so that high-speed (and cut-off) cycles dominate.
+  const double wgt = std::pow(omega / (1000.0 * kRpm), params_.speed_weight_exp);
   for (std::size_t k = 0; k < ks; ++k) {
     const double* b = &basis_[k * static_cast<std::size_t>(nb_)];
     double fit = 0.0;
     for (int j = 0; j < nb_; ++j) fit += b[j] * coef_[static_cast<std::size_t>(j)];
-    resid_sum_[k] += z_[k] - fit;
+    resid_sum_[k] += wgt * (z_[k] - fit);
   }
+  wsum_ += wgt;
   // The speed ripple in each coefficient scales as ΔE/E ∝ 1/ω̄²; the tooth-error part does not.
   const double x = (kRefSpeed / omega) * (kRefSpeed / omega);
   sx_ += x;
@@ -168,14 +180,16 @@ void ToothErrorLearner::recompute() noexcept {
     double e = 0.0;
     for (int rev = 0; rev < 2; ++rev) {
       const auto k = static_cast<std::size_t>(p + rev * t);
-      e += resid_sum_[k] / n_;
+      e += resid_sum_[k] / wsum_;
       if (low_orders_ok_) {
         const double* b = &basis_[k * nbs];
         // columns 0 (constant: ln ω̄) and 1 (trend: acceleration) carry no tooth information
+        // only the per-revolution columns (even cycle harmonics) can hold wheel error
         for (std::size_t j = 2; j < nbs; ++j) {
+          if (col_per_rev_[j] == 0) continue;
           const double r0 = sb_[j], r1 = sxb_[j], r2 = sxxb_[j];
-          const double beta0 = (r0 * (m11 * m22 - m12 * m12) - m01 * (r1 * m22 - m12 * r2) +
-                                m02 * (r1 * m12 - m11 * r2)) / det;
+          const double beta0 =
+              (r0 * (m11 * m22 - m12 * m12) - m01 * (r1 * m22 - m12 * r2) + m02 * (r1 * m12 - m11 * r2)) / det;
           e += b[j] * beta0;
         }
       }

@@ -7,8 +7,9 @@
 //    (ΔE/E with E = ½Jω²); in fuel cut-off it is only the compression/expansion of the motored cylinders.
 // Per complete, steady cycle we form z_k = −½(E_k/Ē − 1), E_k = ½J(c_k)(w_k/dt_k)² with nominal w_k (the inertia
 // part cancels, the torque part W(θ) enters linearly, the tooth error as −2ε_p), and fit the smooth
-// basis [1, linear trend, cos/sin(hα/2), h = 1..H]. The residual, averaged per physical tooth, is the
-// high-order part of the tooth error (orders > H/2 per revolution). The low-order part sits in the fitted
+// basis [1, linear trend, cos/sin(hα/2) for odd h and firing multiples h = n_cyl·i up to H]. The residual,
+// averaged per physical tooth (weighted by speed⁴: the ripple falls as 1/ω̄²), is the tooth error except its
+// orders that coincide with firing harmonics (4-cyl: 2, 4, 6, … per rev up to H/2). The low-order part sits in the fitted
 // coefficients together with the ripple: each coefficient is regressed on x = 1/ω̄² (and x², since ln(E0 + ΔE)
 // is not linear in ΔE/E0 at low speed) across all learned cycles (several speeds, firing or cut-off); the
 // intercept (x → 0, no ripple) is the tooth-error part.
@@ -33,7 +34,7 @@ struct ToothLearnStats {
 
 class ToothErrorLearner {
  public:
-  static constexpr int kMaxFitHarmonics = 24;
+  static constexpr int kMaxFitHarmonics = 48;
 
   ToothErrorLearner(const EngineGeometry& engine, const WheelGeometry& wheel, const ToothLearnParams& params);
 
@@ -69,9 +70,8 @@ class ToothErrorLearner {
   ToothAngleTable table_;
   int nb_ = 0;                       ///< fit columns 2H + 2
   std::vector<double> basis_;        ///< B[k * nb_ + j] at period centres c_k
+  std::vector<int> col_per_rev_;     ///< 1 where column j is an even cycle harmonic (can hold wheel error)
   std::vector<double> pinv_;         ///< G = (BᵀB)⁻¹Bᵀ, [j * K + k]
-  std::vector<double> half_log_j_;   ///< ½ ln J(c_k)
-  std::vector<double> log_w_;        ///< ln w_k (nominal)
   // current cycle
   std::vector<double> z_;            ///< z_k of the cycle being collected
   int next_tooth_ = -1;
@@ -86,6 +86,7 @@ class ToothErrorLearner {
   double sx_ = 0.0, sxx_ = 0.0, sx3_ = 0.0, sx4_ = 0.0;  ///< Σx, Σx², Σx³, Σx⁴ (x = (ω_ref/ω̄)²)
   std::vector<double> sb_, sxb_, sxxb_;  ///< per column: Σβ, Σxβ, Σx²β
   double n_ = 0.0;
+  double wsum_ = 0.0;                ///< Σ weights of the residuals
   // result
   std::vector<double> eps_;          ///< ln(true/nominal width) per physical tooth (learned)
   std::vector<double> eps_import_;   ///< imported prior

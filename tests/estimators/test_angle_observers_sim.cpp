@@ -1,7 +1,7 @@
 // Chauvin Kalman and Fourier observers on the physics simulator (helper "sim") with the 0.05° wheel, tooth errors
 // learned by ToothErrorLearner (defaults) from steady 1000..4000 rpm scenarios of the same wheel. Label slow.
-// Asserts what is reached (docs/angle_estimators.md has the table); the target (15 %, 6°) is met by the
-// Kalman filter up to 2000 rpm only on the simulator.
+// The target (RMS <= 15 % of p2p, |lag| <= 6°) is asserted for the Kalman filter at every speed and for
+// the Fourier observer up to 3000 rpm; at 4000 rpm the Fourier observer reaches ~20 % (asserted: 25 %).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -19,8 +19,8 @@ namespace {
 
 TEST(AngleObserversOnSimulator, LearnedWheelAtOneToFourThousandRpm) {
   const char* names[] = {"steady_1000_mid", "steady_2000_mid", "steady_3000_mid", "steady_4000_mid"};
-  const double max_kalman_pct[] = {6.0, 13.0, 21.0, 28.0};
-  const double max_fourier_pct[] = {8.0, 20.0, 45.0, 75.0};
+  const double max_kalman_pct[] = {15.0, 15.0, 15.0, 15.0};  // the target
+  const double max_fourier_pct[] = {15.0, 15.0, 15.0, 25.0};  // reached: 3.4, 6.0, 12.3, 20.4 %
   ToothLearnParams lp;
   lp.min_cycles = 20;
   ToothErrorLearner learner(EngineGeometry{}, WheelGeometry{}, lp);
@@ -46,7 +46,7 @@ TEST(AngleObserversOnSimulator, LearnedWheelAtOneToFourThousandRpm) {
   const double resid_deg = std::sqrt(se / 57) * 180.0 / std::numbers::pi;
   std::printf("simulator wheel: width error %.4f -> %.4f deg RMS\n", std::sqrt(st / 57) * 180.0 / std::numbers::pi,
               resid_deg);
-  EXPECT_LT(resid_deg, 0.015);
+  EXPECT_LT(resid_deg, 0.005);
   for (std::size_t i = 0; i < outs.size(); ++i) {
     const auto samples = sim::ideal_tooth_samples(outs[i], scs[i]);
     const KalmanParams kp;
@@ -77,6 +77,7 @@ TEST(AngleObserversOnSimulator, LearnedWheelAtOneToFourThousandRpm) {
     EXPECT_LE(a.rms_pct_p2p, max_kalman_pct[i]) << names[i];
     EXPECT_LE(std::abs(a.lag_deg), 6.0) << names[i];
     EXPECT_LE(b.rms_pct_p2p, max_fourier_pct[i]) << names[i];
+    EXPECT_LE(std::abs(b.lag_deg), 6.0) << names[i];
   }
 }
 

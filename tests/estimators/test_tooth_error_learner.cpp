@@ -97,9 +97,8 @@ TEST(ToothErrorLearner, ObserversMeetTheInCycleTargetsWithLearnedWidths) {
     // THEN the Kalman filter meets RMS <= 15 % of p2p and |lag| <= 6° at every speed
     EXPECT_LE(a.rms_pct_p2p, 15.0) << rpm;
     EXPECT_LE(std::abs(a.lag_deg), 6.0) << rpm;
-    // and the Fourier observer up to 3000 rpm; at 4000 rpm the residual tooth pattern inside its 10/rev basis
-    // costs it ~30 % (documented in docs/angle_estimators.md): assert what it reaches.
-    EXPECT_LE(b.rms_pct_p2p, rpm <= 3000.0 ? 15.0 : 40.0) << rpm;
+    // and so does the Fourier observer
+    EXPECT_LE(b.rms_pct_p2p, 15.0) << rpm;
     EXPECT_LE(std::abs(b.lag_deg), 6.0) << rpm;
   }
 }
