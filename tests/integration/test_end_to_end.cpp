@@ -1,0 +1,119 @@
+// tests/integration/test_end_to_end.cpp: the whole chain in separate processes.
+//   torqued (paced replay of data/demo, 4x) -> DDS on loopback -> torque-echo (another process) -> CSV,
+// compared with the simulator's truth (data/demo/truth_cycle.csv), and with the daemon's own recording
+// (nothing lost or changed on the way through DDS).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <sstream>
+
+#include "process.hpp"
+
+namespace torqued {
+namespace {
+namespace fs = std::filesystem;
+
+struct Csv {
+  std::vector<std::string> cols;
+  std::vector<std::vector<std::string>> rows;
+  [[nodiscard]] int col(const std::string& name) const {
+    for (std::size_t i = 0; i < cols.size(); ++i)
+      if (cols[i] == name) return static_cast<int>(i);
+    return -1;
+  }
+};
+
+Csv read_csv(const std::string& path) {
+  Csv c;
+  std::istringstream in(test::slurp(path));
+  std::string line;
+  bool header = true;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ls(line);
+    for (std::string x; std::getline(ls, x, ',');) f.push_back(x);
+    if (header) c.cols = f, header = false;
+    else c.rows.push_back(f);
+  }
+  return c;
+}
+
+class EndToEnd : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("torqued_e2e_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+  fs::path dir_;
+};
+
+TEST_F(EndToEnd, ReplayThroughDdsToSubscriberMatchesTruth) {
+  const std::string echo_dir = (dir_ / "echo").string(), daemon_dir = (dir_ / "daemon").string();
+  test::Process echo({TORQUE_ECHO_EXE, "--topic", "engine", "--cycles-only", "--until-done", "--format", "none",
+                      "--record", echo_dir, "--duration", "60"},
+                     {}, (dir_ / "echo.log").string());
+  test::Process daemon({TORQUED_EXE, "--config", std::string(TORQUED_SOURCE_DIR) + "/config/demo.yaml", "--speed", "4",
+                        "--exit-when-done", "--wait-subscribers", "1", "--record", daemon_dir, "--state-dir",
+                        (dir_ / "state").string()},
+                       {}, (dir_ / "daemon.log").string());
+  ASSERT_TRUE(daemon.wait(60)) << test::slurp((dir_ / "daemon.log").string());
+  EXPECT_EQ(daemon.exit_code(), 0) << test::slurp((dir_ / "daemon.log").string());
+  ASSERT_TRUE(echo.wait(20)) << test::slurp((dir_ / "echo.log").string());
+  EXPECT_EQ(echo.exit_code(), 0);
+
+  const Csv got = read_csv(echo_dir + "/engine_cycle.csv");
+  const Csv mine = read_csv(daemon_dir + "/engine_cycle.csv");
+  ASSERT_GT(mine.rows.size(), 300u) << "demo is ~20 s: expected ~350 cycles";
+  // Everything the daemon recorded crossed DDS unchanged (same seq, same fused value text).
+  ASSERT_EQ(got.rows.size(), mine.rows.size()) << test::slurp((dir_ / "echo.log").string());
+  const int seq = got.col("seq"), fused = got.col("fused_nm");
+  ASSERT_GE(seq, 0);
+  ASSERT_GE(fused, 0);
+  for (std::size_t i = 0; i < got.rows.size(); ++i) {
+    EXPECT_EQ(got.rows[i][static_cast<std::size_t>(seq)], mine.rows[i][static_cast<std::size_t>(seq)]);
+    EXPECT_EQ(got.rows[i][static_cast<std::size_t>(fused)], mine.rows[i][static_cast<std::size_t>(fused)]);
+  }
+
+  // Accuracy against the truth: the estimate's window [window_start_t_ns, t_ns] (720° from tooth 0) is
+  // compared with the time-weighted mean of the truth cycles (TDC-aligned) it overlaps.
+  const Csv truth = read_csv(std::string(TORQUED_SOURCE_DIR) + "/data/demo/truth_cycle.csv");
+  const int ts = truth.col("t_start_s"), te = truth.col("t_end_s"), tb = truth.col("t_brake_mean_nm");
+  const int ws = got.col("window_start_t_ns"), q = got.col("quality");
+  ASSERT_TRUE(ts >= 0 && te >= 0 && tb >= 0 && ws >= 0 && q >= 0);
+  std::vector<double> abs_err;
+  int within = 0;
+  for (const auto& r : got.rows) {
+    if (std::stoi(r[static_cast<std::size_t>(q)]) != 0) continue;  // only samples the daemon calls valid
+    const double t1 = std::stod(r[0]) * 1e-9, t0 = std::stod(r[static_cast<std::size_t>(ws)]) * 1e-9;
+    if (!(t1 > t0)) continue;
+    double acc = 0, tot = 0;
+    for (const auto& c : truth.rows) {
+      const double o = std::min(std::stod(c[static_cast<std::size_t>(te)]), t1) - std::max(std::stod(c[static_cast<std::size_t>(ts)]), t0);
+      if (o > 0) acc += o * std::stod(c[static_cast<std::size_t>(tb)]), tot += o;
+    }
+    if (tot < 0.99 * (t1 - t0)) continue;
+    const double ref = acc / tot, err = std::stod(r[static_cast<std::size_t>(fused)]) - ref;
+    abs_err.push_back(std::abs(err));
+    if (std::abs(err) <= std::max(3.0, 0.05 * std::abs(ref))) ++within;
+  }
+  ASSERT_GT(abs_err.size(), 250u) << "too few valid cycles";
+  std::sort(abs_err.begin(), abs_err.end());
+  const double median = abs_err[abs_err.size() / 2];
+  const double frac = static_cast<double>(within) / static_cast<double>(abs_err.size());
+  std::printf("end-to-end: %zu valid cycles, median |error| %.2f N m, %.0f %% within 5 %% or 3 N m\n", abs_err.size(),
+              median, 100 * frac);
+  // Tolerance (issue 5 transient target: 5 % or 3 N m) on 80 % of the cycles of a demo full of steps, ramps,
+  // misfires and a fuel cut; the window is 90° off the truth's TDC-aligned cycles, which costs in transients.
+  EXPECT_LT(median, 1.5);
+  EXPECT_GE(frac, 0.80);
+}
+
+}  // namespace
+}  // namespace torqued
