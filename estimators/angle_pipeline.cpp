@@ -55,6 +55,7 @@ void AnglePipeline::reset() noexcept {
   oil_c_ = cfg_.default_oil_temp_c;
   have_prev_ = false;
   cut_segments_ = fired_segments_ = 0;
+  since_cut_segments_ = 1 << 30;  // no fuel cut-off seen yet
   brake_var_ = 4.0;
   have_prev_brake_ = false;
   have_prev_load_ = false;
@@ -153,10 +154,12 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
   const bool fired = !(cut_known && sig.fuel_cutoff);
   if (fired) {
     ++fired_segments_;
+    ++since_cut_segments_;
     cut_segments_ = 0;
   } else {
     ++cut_segments_;
     fired_segments_ = 0;
+    since_cut_segments_ = 0;
   }
   CycleOutput o;
   o.t_ns = seg.t_ns;
@@ -265,9 +268,15 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
     if (friction_.observe_motoring(rpm, oil_c_, obs)) ++stats_.friction_observations;
   }
   // Idle: no load, firing, RLS converged -> its extended load is the friction (EN-30..33 learn C4 from it).
-  if (fired_segments_ > n && can_load && rls_ok && rpm < cfg_.energies.idle_max_rpm &&
+  // The same value is also a point of the friction curve at idle speed (below the fuel cut-off resume speed,
+  // which motoring observations never reach). Only with a tight, settled RLS (tooth errors learned, 1σ < 1.5 N m,
+  // 25 firing cycles after a fuel cut-off so that its memory holds no coasting windows).
+  if (o.cycle_end && fired_segments_ > n && since_cut_segments_ > 25 * n && can_load && rls_ok && rls.uncertainty < 1.5 &&
+      rpm < cfg_.energies.idle_max_rpm &&
       std::fabs(seg.cycle_load_mean_nm) < cfg_.energies.idle_max_load_nm) {
-    friction_.observe_idle(rpm, oil_c_, rls.torque_nm - seg.cycle_load_mean_nm);
+    const double idle_fric = rls.torque_nm - seg.cycle_load_mean_nm;
+    friction_.observe_idle(rpm, oil_c_, idle_fric);
+    if (friction_.observe_motoring(rpm, oil_c_, idle_fric)) ++stats_.friction_observations;
   }
 
   // --- Fusion -------------------------------------------------------------------------------------------------------

@@ -143,6 +143,7 @@ class AnglePipeline {
   bool have_prev_ = false;
   int cut_segments_ = 0;     ///< consecutive segments in fuel cut-off
   int fired_segments_ = 0;   ///< consecutive segments firing
+  int since_cut_segments_ = 0;  ///< firing segments since the last fuel cut-off (large: none seen)
   double brake_var_ = 4.0;   ///< running variance of segment-to-segment brake changes (N m²)
   double prev_brake_ = 0.0;
   bool have_prev_brake_ = false;

@@ -70,10 +70,13 @@ CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& whee
   for (int k = 0; k < samples_; ++k) {
     const auto i = static_cast<std::size_t>(k);
     for (int b = 0; b < ncyl_; ++b) {
-      const double d = diff720(center_[i], boundary_[static_cast<std::size_t>(b)]);
+      // Half-open windows [−w/2, +w/2) with a tolerance: a centre exactly on a window edge (36-1 wheel: 10° pitch,
+      // ±15° window) must fall on the same side at every boundary despite rounding.
+      constexpr double kEps = 1e-9;
+      const double d = diff720(center_[i] + kEps, boundary_[static_cast<std::size_t>(b)]);
       if (d >= -half_w && d < half_w) window_of_[i] = b;
       // Segment b spans [boundary_b, boundary_b + seg).
-      const double ds = wrap4pi(center_[i] - boundary_[static_cast<std::size_t>(b)]);
+      const double ds = wrap4pi(center_[i] + kEps - boundary_[static_cast<std::size_t>(b)]);
       if (ds < seg) segment_of_[i] = b;
     }
   }

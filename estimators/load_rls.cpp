@@ -96,7 +96,7 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
     int first = -1, last = -1;
     double best_first = 1e9, best_last = -1e9;
     for (int k = 0; k < samples_; ++k) {
-      const double d = wrap4pi(center[static_cast<std::size_t>(k)] - a);
+      const double d = wrap4pi(center[static_cast<std::size_t>(k)] - a + 1e-9);  // rounding-safe edges
       if (d <= b - a + 1e-9) {
         if (d < best_first) { best_first = d; first = k; }
         if (d > best_last) { best_last = d; last = k; }
