@@ -95,8 +95,11 @@ CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& para
     const int d = (gap_tooth_[static_cast<std::size_t>(j)] - prev + t) % t;
     gap_count_[static_cast<std::size_t>(j)] = d == 0 ? t : d;
   }
-  if (params.gap_ratio_min * min_gap_ratio_ <= 1.05) {
-    error_ = "decoder: gap_ratio_min x smallest gap ratio must exceed 1.05 to tell a gap from a tooth";
+  // Gap candidate threshold: gap_ratio_min x the smallest gap, but never below the geometric midpoint between a
+  // tooth (1) and that gap (on 36-1 a cranking period may grow 30 % from one tooth to the next).
+  gap_threshold_ = std::max(params.gap_ratio_min * min_gap_ratio_, std::sqrt(min_gap_ratio_));
+  if (gap_threshold_ <= 1.05) {
+    error_ = "decoder: the gap threshold must exceed 1.05 to tell a gap from a tooth";
     return;
   }
   // Smallest history of gap-to-gap tooth counts that identifies the gap uniquely (plausibility + position).
@@ -235,7 +238,7 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
     const double r = static_cast<double>(period) / pred;
     const bool provisional = ref_provisional_;
     ref_provisional_ = false;
-    if (provisional && r < 1.0 / (params_.gap_ratio_min * min_gap_ratio_)) {
+    if (provisional && r < 1.0 / gap_threshold_) {
       // The provisional reference was a gap: count it, and this (shorter) period is the reference.
       ++stats_.gaps;
       ref_prev_ns_ = 0;
@@ -246,7 +249,7 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
       ++stats_.noise_edges;
       pending_flags_ |= kToothNoiseRejected;
       return false;
-    } else if (r >= params_.gap_ratio_min * min_gap_ratio_) {
+    } else if (r >= gap_threshold_) {
       if (r > params_.gap_ratio_max * (width_[static_cast<std::size_t>(gap_tooth_[0])] / pitch_rad_) * 4.0) {
         // Far too slow for any gap: speed collapsed; start over with this period as reference.
         since_gap_ = -1;

@@ -6,7 +6,7 @@
 // Wheel model: T real teeth at angles a[0..T-1] in [0, 2π) (tooth 0 = first tooth after the (first) gap), from
 // an N-M WheelGeometry or an explicit tooth-angle list. w[i] = a[i] - a[i-1] (mod 2π) is the true angular width
 // of the period ending at tooth i; teeth whose w[i] exceeds 1.5 pitch close a gap.
-// Sync: a period P is a gap candidate when P / P_pred >= gap_ratio_min × (smallest gap size), P_pred being the last
+// Sync: a period P is a gap candidate when P / P_pred >= max(gap_ratio_min × g, √g), g = smallest gap ratio, P_pred the last
 // normal period extrapolated by the period trend of the last two normal periods (cranking accelerates and
 // decelerates by tens of percent per tooth; two gaps separated by one tooth, as on 36-2-2-2, are both seen). The count of teeth between
 // consecutive gap candidates must match the wheel's pattern (plausibility) — which also identifies which gap
@@ -27,7 +27,7 @@ namespace torqued {
 
 /// Decoder tuning; defaults work for the simulator and common Hall sensors. Validated by config/.
 struct DecoderParams {
-  double gap_ratio_min = 0.7;   ///< gap candidate if P/P_pred >= gap_ratio_min × nominal gap ratio (cranking/first-combustion squeeze)
+  double gap_ratio_min = 0.6;   /// gap candidate if P/P_pred >= gap_ratio_min × nominal gap ratio (cranking/first-combustion squeeze)
   double gap_ratio_max = 2.0;   ///< and <= gap_ratio_max × nominal gap ratio (-), else "too slow" (stall-like)
   double sync_ratio_min = 0.6;  ///< synced: q = P/E accepted down to this (-)
   double sync_ratio_max = 1.6;  ///< synced: q accepted up to this (-), beyond: lost-tooth hypothesis or sync loss
@@ -137,6 +137,7 @@ class CrankDecoder {
   std::array<int, kMaxGaps> gap_tooth_{};           ///< tooth index closing gap j
   std::array<int, kMaxGaps> gap_count_{};           ///< teeth from the previous gap's tooth to this one
   double min_gap_ratio_ = 0.0;                      ///< smallest gap width / pitch
+  double gap_threshold_ = 0.0;                      ///< syncing: P/P_pred at or above this is a gap candidate
   int history_needed_ = 1;                          ///< gap counts needed to identify the position
 
   // Run state.
