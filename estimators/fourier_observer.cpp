@@ -107,7 +107,7 @@ std::optional<std::string> FourierObserver::check_stability(const FourierParams&
   const double rho = cycle_spectral_radius(params, engine, wheel);
   if (!(rho < 1.0)) {
     why << "fourier gains give an unstable observer over one cycle: spectral radius of the error transition "
-        << rho << " >= 1 (l_ke * dalpha must stay well below 2; lower l_ke)";
+        << rho << " >= 1 (lower fourier.harmonics or l_ref; keep l_ke * dalpha well below 2)";
     return why.str();
   }
   return std::nullopt;

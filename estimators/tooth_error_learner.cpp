@@ -58,6 +58,7 @@ ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGe
   sxxb_.assign(nbs, 0.0);
   const auto ts = static_cast<std::size_t>(table_.teeth);
   eps_.assign(ts, 0.0);
+  lf_.assign(ts, 0.0);
   eps_import_.assign(ts, 0.0);
   ratio_.assign(ts, 1.0);
   reset();
@@ -74,6 +75,7 @@ void ToothErrorLearner::reset() noexcept {
   std::fill(ratio_.begin(), ratio_.end(), 1.0);
   import_weight_ = 0.0;
   n_ = 0.0;
+  nreg_ = 0.0;
   wsum_ = 0.0;
   next_tooth_ = -1;
   collected_ = 0;
@@ -150,8 +152,17 @@ void ToothErrorLearner::finish_cycle() noexcept {
     resid_sum_[k] += wgt * (z_[k] - fit);
   }
   wsum_ += wgt;
+  n_ += 1.0;
+  ++stats_.cycles_used;
+  if (cycle_cutoff_) ++stats_.cycles_cutoff;
+  if (!cycle_cutoff_) regress(omega);  // the ripple of motored cycles follows another law: firing cycles only
+  recompute();
+}
+
+void ToothErrorLearner::regress(double omega) noexcept {
   // The speed ripple in each coefficient scales as ΔE/E ∝ 1/ω̄²; the tooth-error part does not.
   const double x = (kRefSpeed / omega) * (kRefSpeed / omega);
+  nreg_ += 1.0;
   sx_ += x;
   sxx_ += x * x;
   sx3_ += x * x * x;
@@ -161,10 +172,6 @@ void ToothErrorLearner::finish_cycle() noexcept {
     sxb_[j] += x * coef_[j];
     sxxb_[j] += x * x * coef_[j];
   }
-  n_ += 1.0;
-  ++stats_.cycles_used;
-  if (cycle_cutoff_) ++stats_.cycles_cutoff;
-  recompute();
 }
 
 void ToothErrorLearner::recompute() noexcept {
@@ -172,29 +179,41 @@ void ToothErrorLearner::recompute() noexcept {
   const auto nbs = static_cast<std::size_t>(nb_);
   // Low orders: intercept of the regression β_j = β_j0 + γ_j x + η_j x² (normal equations, Cramer's rule on the
   // 3×3 moment matrix shared by all columns); needs a real spread of speeds (1σ of x above 20 % of its mean).
-  const double vx = n_ * sxx_ - sx_ * sx_;
-  const double m00 = n_, m01 = sx_, m02 = sxx_, m11 = sxx_, m12 = sx3_, m22 = sx4_;
+  const double vx = nreg_ * sxx_ - sx_ * sx_;
+  const double m00 = nreg_, m01 = sx_, m02 = sxx_, m11 = sxx_, m12 = sx3_, m22 = sx4_;
   const double det = m00 * (m11 * m22 - m12 * m12) - m01 * (m01 * m22 - m12 * m02) + m02 * (m01 * m12 - m11 * m02);
-  low_orders_ok_ = params_.learn_low_orders && n_ >= 6.0 && vx > 0.04 * sx_ * sx_ && std::abs(det) > 1e-12 * n_;
+  bool low = params_.learn_low_orders && nreg_ >= 6.0 && vx > 0.04 * sx_ * sx_ && std::abs(det) > 1e-12 * nreg_;
+  double hf_ss = 0.0, lf_ss = 0.0;
   for (int p = 0; p < t; ++p) {
-    double e = 0.0;
+    double hf = 0.0, lf = 0.0;
     for (int rev = 0; rev < 2; ++rev) {
       const auto k = static_cast<std::size_t>(p + rev * t);
-      e += resid_sum_[k] / wsum_;
-      if (low_orders_ok_) {
+      hf += resid_sum_[k] / wsum_;
+      if (low) {
+        // only the per-revolution columns (even cycle harmonics) can hold wheel error; columns 0 (constant) and
+        // 1 (trend: acceleration) never do
         const double* b = &basis_[k * nbs];
-        // columns 0 (constant: ln ω̄) and 1 (trend: acceleration) carry no tooth information
-        // only the per-revolution columns (even cycle harmonics) can hold wheel error
         for (std::size_t j = 2; j < nbs; ++j) {
           if (col_per_rev_[j] == 0) continue;
           const double r0 = sb_[j], r1 = sxb_[j], r2 = sxxb_[j];
           const double beta0 =
               (r0 * (m11 * m22 - m12 * m12) - m01 * (r1 * m22 - m12 * r2) + m02 * (r1 * m12 - m11 * r2)) / det;
-          e += b[j] * beta0;
+          lf += b[j] * beta0;
         }
       }
     }
-    eps_[static_cast<std::size_t>(p)] = 0.5 * e;
+    eps_[static_cast<std::size_t>(p)] = 0.5 * hf;
+    lf_[static_cast<std::size_t>(p)] = 0.5 * lf;
+    hf_ss += hf * hf;
+    lf_ss += lf * lf;
+  }
+  // Plausibility: machining errors are independent per edge, so the width error holds little at the firing orders
+  // (a few % of its RMS). A larger low-order part means the ripple did not follow 1/ω̄² (mixed loads, transients):
+  // do not use it.
+  low = low && lf_ss < 0.25 * hf_ss;
+  low_orders_ok_ = low;
+  if (low) {
+    for (int p = 0; p < t; ++p) eps_[static_cast<std::size_t>(p)] += lf_[static_cast<std::size_t>(p)];
   }
   double norm = 0.0;
   for (int p = 0; p < t; ++p) {

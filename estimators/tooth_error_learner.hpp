@@ -64,6 +64,7 @@ class ToothErrorLearner {
 
  private:
   void finish_cycle() noexcept;
+  void regress(double omega) noexcept;
   void recompute() noexcept;
 
   ToothLearnParams params_;
@@ -87,8 +88,10 @@ class ToothErrorLearner {
   std::vector<double> sb_, sxb_, sxxb_;  ///< per column: Σβ, Σxβ, Σx²β
   double n_ = 0.0;
   double wsum_ = 0.0;                ///< Σ weights of the residuals
+  double nreg_ = 0.0;                ///< firing cycles in the low-order regression
   // result
   std::vector<double> eps_;          ///< ln(true/nominal width) per physical tooth (learned)
+  std::vector<double> lf_;           ///< low-order (firing-order) part of eps_
   std::vector<double> eps_import_;   ///< imported prior
   double import_weight_ = 0.0;
   std::vector<double> ratio_;        ///< exp(ε) normalised so that Σ ratio·w = 2π

@@ -86,6 +86,19 @@ TEST(FourierObserver, RefusesGainsThatAreUnstableOverACycleEvenIfCf14Holds) {
   EXPECT_GT(FourierObserver::cycle_spectral_radius(p, EngineGeometry{}, WheelGeometry{}), 1.0);
 }
 
+TEST(FourierObserver, DefaultHarmonicsAreRefusedOnA36Minus1WheelWithTheReason) {
+  // 70 samples per cycle: n_h = 20 passes (CF-14) but its periodic error dynamics diverge; n_h = 12 is accepted.
+  WheelGeometry w;
+  w.positions = 36;
+  w.missing = 1;
+  const auto why = FourierObserver::check_stability(FourierParams{}, EngineGeometry{}, w);
+  ASSERT_TRUE(why.has_value());
+  std::printf("36-1, n_h = 20: %s\n", why->c_str());
+  FourierParams p;
+  p.harmonics = 12;
+  EXPECT_FALSE(FourierObserver::check_stability(p, EngineGeometry{}, w).has_value());
+}
+
 TEST(FourierObserver, RefusesTooManyHarmonicsAndNonPositiveGains) {
   FourierParams p;
   p.harmonics = 0;
