@@ -343,5 +343,46 @@ TEST(CrankDecoder, StoppingEngineIsNeverMisIndexed) {
   }
 }
 
+TEST(CrankDecoder, FirstCombustionSqueezesTheGapWithoutLosingSync) {
+  // GIVEN a 60-2 wheel turning at 300 rpm (cranking), and the first combustion accelerating it to 500 rpm
+  // during a gap: that gap lasts 2.25 pitches of the previous speed instead of 3
+  const WheelGeometry w;
+  const double pitch = 2.0 * std::numbers::pi / 60.0;
+  std::vector<EdgeEvent> edges;
+  std::vector<int> truth;  // tooth720 per crank edge
+  double t = 0.001;
+  const auto omega = [](double rpm) { return rpm * 2.0 * std::numbers::pi / 60.0; };
+  for (int rev = 0; rev < 16; ++rev) {
+    for (int i = 0; i < 58; ++i) {
+      const bool squeezed = rev >= 8;
+      const double width = (i == 0 ? 3.0 : 1.0) * pitch;
+      const double speed = (rev == 8 && i == 0) ? omega(400.0) : omega(squeezed ? 500.0 : 300.0);
+      t += width / speed;
+      edges.push_back(EdgeEvent{static_cast<std::int64_t>(t * 1e9), 0, 1});
+      truth.push_back((rev % 2) * 58 + i);
+      if (rev % 2 == 0 && i == 7) edges.push_back(EdgeEvent{static_cast<std::int64_t>(t * 1e9) + 1000, 1, 1});  // cam ~45°
+    }
+  }
+  CrankDecoder dec(w, DecoderParams{});
+  ToothEvent ev;
+  std::size_t k = 0;
+  int checked = 0, wrong = 0;
+  for (const auto& e : edges) {
+    const bool crank = e.channel == 0;
+    const bool tooth = dec.on_edge(e, ev);
+    if (!crank) continue;
+    if (tooth && ev.sync == SyncState::kSynced && ev.phase_known) {
+      ++checked;
+      wrong += ev.tooth == truth[k] ? 0 : 1;
+    }
+    ++k;
+  }
+  // THEN synced during cranking, no sync loss at the squeeze, every index right
+  EXPECT_EQ(dec.stats().sync_losses, 0u) << to_string(dec.stats().last_loss_reason);
+  EXPECT_EQ(dec.stats().syncs, 1u);
+  EXPECT_EQ(wrong, 0);
+  EXPECT_GT(checked, 12 * 58);
+}
+
 }  // namespace
 }  // namespace torqued
