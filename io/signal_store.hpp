@@ -44,6 +44,7 @@ struct SignalStoreStats {
 
 class SignalStore {
  public:
+  /// `db` must outlive the store and not be copied away (bindings point into its messages; moving is fine).
   explicit SignalStore(const DbcDatabase& db);
 
   /// Map quantity `q` to DBC `message`.`signal` with time-out (ns). The signal's unit is converted to the SI
