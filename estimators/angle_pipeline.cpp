@@ -276,7 +276,9 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
       std::fabs(seg.cycle_load_mean_nm) < cfg_.energies.idle_max_load_nm) {
     const double idle_fric = rls.torque_nm - seg.cycle_load_mean_nm;
     friction_.observe_idle(rpm, oil_c_, idle_fric);
-    if (friction_.observe_motoring(rpm, oil_c_, idle_fric)) ++stats_.friction_observations;
+    if (cfg_.friction.learn_at_idle && friction_.observe_motoring(rpm, oil_c_, idle_fric)) {
+      ++stats_.friction_observations;
+    }
   }
 
   // --- Fusion -------------------------------------------------------------------------------------------------------

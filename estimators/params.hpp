@@ -76,7 +76,7 @@ struct EnergiesParams {
   double window_start_btdc_deg = 50.0;  ///< RLS window start before TDC (deg)
   double window_end_btdc_deg = 20.0;    ///< RLS window end before TDC (deg)
   double polytropic_kappa = 1.3;        ///< κ for compression/expansion (-)
-  double rls_forgetting = 0.998;        ///< RLS forgetting factor per window (-)
+  double rls_forgetting = 0.995;        ///< RLS forgetting factor per window (-) (memory ≈ 10 cycles)
   double lowpass_hz = 300.0;            ///< speed pre-filter cut-off (Hz)
   double eso_omega0 = 20.0;             ///< ESO bandwidth ω0 (rad/s) (EN-23)
   double fuel_lhv_j_kg = 43e6;          ///< q_LHV (J/kg)
@@ -108,6 +108,8 @@ struct FrictionParams {
   int min_observations = 20;            ///< motoring cycles before the learned law is reported valid (-)
   double min_rpm = 500.0;               ///< observations accepted between min_rpm ..
   double max_rpm = 7000.0;              ///< .. and max_rpm (rpm)
+  bool learn_at_idle = false;           ///< also fit C1..C3 to the idle friction (RLS load at zero load); off: the
+                                        ///< idle point pulls the quadratic at high speed (only C4 learns there)
   double max_load_change_nm = 1.0;      ///< skip observations while the measured load moves more than this per
                                         ///< segment (the CAN load lags the flange; dyno transients) (N m)
 };
