@@ -7,6 +7,9 @@
 //       canplayer replays encoder frames (made by torque-canreplay encode); CanEncoderEdgeSource over
 //       SocketCanSource must give the same edges as the edge CSV, and the crank decoder the same teeth and no
 //       sync loss.
+//   vm_can_check compare --a sent.log --b captured.log
+//       the frames of two candump logs (id, type, length, payload, order) are equal; used with candump capturing
+//       what torque-canreplay send put on vcan0.
 //   vm_can_check downup [--iface vcan0]
 //       a sender thread writes frames every ms; vcan0 is set down and up, then deleted and re-created; the source
 //       must report each loss (link state, counters, last_error) and receive again after each recovery.
@@ -311,6 +314,22 @@ int cmd_encoder(int argc, char** argv) {
   return g_failures == 0 ? 0 : 1;
 }
 
+int cmd_compare(int argc, char** argv) {
+  const std::string a_path = arg(argc, argv, "--a", "");
+  const std::string b_path = arg(argc, argv, "--b", "");
+  std::string ia, ib;
+  std::uint64_t bad_a = 0, bad_b = 0;
+  const auto a = read_log(a_path, ia, bad_a);
+  const auto b = read_log(b_path, ib, bad_b);
+  check(!a.empty() && a.size() == b.size(), "compare: " + std::to_string(b.size()) + " frames captured on " + ib +
+                                                " of " + std::to_string(a.size()) + " sent");
+  std::size_t diff = 0;
+  for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) diff += !same_frame(a[i], b[i]);
+  check(diff == 0 && bad_b == 0, "compare: frames equal (" + std::to_string(diff) + " differ, " +
+                                     std::to_string(bad_b) + " bad lines in the capture)");
+  return g_failures == 0 ? 0 : 1;
+}
+
 /// Raw sender with reopen: writes id 0x123 frames carrying a 32-bit counter.
 void sender(const std::string& ifname, std::atomic<bool>& stop, std::atomic<std::uint32_t>& sent) {
   int fd = -1;
@@ -428,13 +447,14 @@ int cmd_downup(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: vm_can_check frames|encoder|downup [options]\n");
+    std::fprintf(stderr, "usage: vm_can_check frames|encoder|downup|compare [options]\n");
     return 2;
   }
   const std::string cmd = argv[1];
   if (cmd == "frames") return torqued::cmd_frames(argc, argv);
   if (cmd == "encoder") return torqued::cmd_encoder(argc, argv);
   if (cmd == "downup") return torqued::cmd_downup(argc, argv);
-  std::fprintf(stderr, "vm_can_check: unknown command '%s' (expected frames, encoder or downup)\n", cmd.c_str());
+  if (cmd == "compare") return torqued::cmd_compare(argc, argv);
+  std::fprintf(stderr, "vm_can_check: unknown command '%s' (expected frames, encoder, downup or compare)\n", cmd.c_str());
   return 2;
 }
