@@ -18,6 +18,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "config_schema.hpp"
+#include "fourier_observer.hpp"
 
 namespace torqued {
 namespace {
@@ -184,8 +185,8 @@ class Loader {
   void walk(const YAML::Node& map, const std::string& prefix) {
     std::set<std::string> seen;
     for (auto it = map.begin(); it != map.end(); ++it) {
-      const YAML::Node& k = it->first;
-      const YAML::Node& v = it->second;
+      const YAML::Node k = it->first;  // copies: it-> yields a temporary proxy
+      const YAML::Node v = it->second;
       const std::string name = k.IsScalar() ? k.Scalar() : node_text(k);
       const std::string key = prefix.empty() ? name : prefix + "." + name;
       const YAML::Mark vm = (v.IsDefined() && v.Mark().line >= 0 && !v.IsNull()) ? v.Mark() : k.Mark();
@@ -336,8 +337,48 @@ class Loader {
         add(mark_of(missing), missing, "", "a DBC name (message and signal are given together)");
       }
     }
-    if (!cfg_.can.dbc.empty()) require_file("can.dbc", cfg_.can.dbc, "named DBC file");
+    if (!cfg_.can.dbc.empty()) {
+      const std::size_t before = r_.errors.size();
+      require_file("can.dbc", cfg_.can.dbc, "named DBC file");
+      if (r_.errors.size() == before && options_.check_files) check_dbc_names();
+    }
     else if (any_mapped && options_.check_files) add(mark_of("can.dbc"), "can.dbc", "", "a DBC file path (can.signals maps DBC signals)");
+  }
+
+  /// Every mapped message/signal must exist in the DBC (a light scan of BO_/SG_ lines; io/dbc.cpp parses fully).
+  void check_dbc_names() {
+    std::ifstream in(cfg_.can.dbc);
+    std::unordered_map<std::string, std::vector<std::string>> messages;
+    std::vector<std::string>* current = nullptr;
+    for (std::string line; std::getline(in, line);) {
+      std::istringstream is(line);
+      std::string tag, a, b;
+      is >> tag;
+      if (tag == "BO_" && (is >> a >> b)) {
+        if (!b.empty() && b.back() == ':') b.pop_back();
+        current = &messages[b];
+      } else if (tag == "SG_" && current && (is >> a)) {
+        current->push_back(a);
+      } else if (!tag.empty() && tag != "SG_") {
+        current = nullptr;
+      }
+    }
+    const std::string dbc_name = std::filesystem::path(cfg_.can.dbc).filename().string();
+    for (std::size_t q = 0; q < kCanQuantityCount; ++q) {
+      const auto& m = cfg_.can.signals[q];
+      if (!m.mapped() || m.signal.empty()) continue;
+      const std::string base = "can.signals." + std::string(can_quantity_name(q));
+      auto it = messages.find(m.message);
+      if (it == messages.end()) {
+        std::vector<std::string> names;
+        for (const auto& [n, sigs] : messages) names.push_back(n);
+        std::sort(names.begin(), names.end());
+        add(mark_of(base + ".message"), base + ".message", m.message, "a message of " + dbc_name + " (" + join(names) + ")");
+      } else if (std::find(it->second.begin(), it->second.end(), m.signal) == it->second.end()) {
+        add(mark_of(base + ".signal"), base + ".signal", m.signal,
+            "a signal of message " + m.message + " in " + dbc_name + " (" + join(it->second) + ")");
+      }
+    }
   }
 
   std::string file_;
@@ -428,6 +469,7 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
       }
     if (w.tooth_count < 2) out.push_back({"wheel.tooth_angles_deg", std::to_string(w.tooth_count) + " teeth", "at least 2 teeth"});
   }
+  const bool geometry_ok = out.empty();  // the Fourier observer's check needs a valid engine and wheel
   if (!(c.wheel.decoder.gap_ratio_min < c.wheel.decoder.gap_ratio_max))
     out.push_back({"wheel.decoder.gap_ratio_max", fmt(c.wheel.decoder.gap_ratio_max),
                    "more than gap_ratio_min = " + fmt(c.wheel.decoder.gap_ratio_min)});
@@ -441,8 +483,10 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
   if (!(en.window_end_btdc_deg < en.window_start_btdc_deg))
     out.push_back({"estimators.energies.window_end_btdc_deg", fmt(en.window_end_btdc_deg),
                    "less than window_start_btdc_deg = " + fmt(en.window_start_btdc_deg) + " deg"});
-  if (c.estimators.fourier.enabled)
-    if (auto why = check_fourier_stability(c.estimators.fourier.params, w))
+  // The estimator's own check (CF-14 at every tooth + spectral radius of the cycle map) when the Fourier
+  // observer runs; check_fourier_stability() above is the paper's bound alone.
+  if (c.estimators.fourier.enabled && geometry_ok)
+    if (auto why = FourierObserver::check_stability(c.estimators.fourier.params, c.engine, w))
       out.push_back({"estimators.fourier.l_ke", fmt(c.estimators.fourier.params.l_ke), "stable observer gains: " + *why});
   const std::pair<const char*, const ThreadConfig*> threads[] = {
       {"angle", &c.realtime.angle}, {"time", &c.realtime.time}, {"source", &c.realtime.source},

@@ -87,6 +87,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("fourier.l_ref", fourier.params.l_ref, closed(0.0, 1e6), "1/rad^2", "L_ref: l_ai = l_bi = i L_ref");
   TQ_NUM("fourier.gain_ref_rpm", fourier.params.gain_ref_rpm, closed(0.0, 20000.0), "rpm",
          ">0: coefficient gains x min(1, (gain_ref_rpm/rpm)^2); 0 = fixed gains as in the paper");
+  TQ_INT("fourier.output_lag", fourier.params.output_lag, closed(0, 6), "teeth", "report the torque at tooth k-lag from the coefficients after tooth k");
 
   // Energies 2019 chain and beyond (ESTIMATORS.md §3-4).
   TQ_BOOL("energies.enabled", energies.enabled, "run the load RLS + ESO chain (EN)");
@@ -111,6 +112,9 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("energies.segment_offset_deg", energies.params.segment_offset_deg, closed(-180.0, 180.0), "deg", "segment boundary relative to firing TDC");
   TQ_NUM("energies.idle_max_rpm", energies.params.idle_max_rpm, open_closed(0.0, 20000.0), "rpm", "idle (friction C4 learning) below this speed");
   TQ_NUM("energies.idle_max_load_nm", energies.params.idle_max_load_nm, closed(0.0, 1e4), "N m", "and |load| below this");
+  TQ_INT("energies.rls_window_shifts", energies.params.rls_window_shifts, closed(1, 64), "", "each RLS window also shifted 1..n-1 teeth earlier");
+  TQ_NUM("energies.burn_centroid_atdc_deg", energies.params.burn_centroid_atdc_deg, closed(-90.0, 180.0), "deg", "heat release lumped here when the spark advance is unknown");
+  TQ_NUM("energies.burn_delay_deg", energies.params.burn_delay_deg, closed(0.0, 180.0), "deg", "spark to equivalent burn centroid: centroid = delay - advance");
   TQ_BOOL("friction.enabled", friction.enabled, "estimate friction torque (EN-24)");
   t.push_back(fixed_list<4>("estimators.friction.c", TQ_REF(Arr4, estimators.friction.params.c), closed(-1e6, 1e6), "",
                             "C1..C4 of (C1 + C2 n + C3 n^2) e^(C4 t_oil), n rpm, t_oil degC (EN-24)"));
@@ -121,6 +125,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_INT("friction.min_observations", friction.params.min_observations, closed(1, 1000000), "cycles", "motoring cycles before the learned law is valid");
   TQ_NUM("friction.min_rpm", friction.params.min_rpm, closed(0.0, 20000.0), "rpm", "observations accepted above this speed");
   TQ_NUM("friction.max_rpm", friction.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "and below this speed");
+  TQ_NUM("friction.max_load_change_nm", friction.params.max_load_change_nm, open_closed(0.0, 1e4), "N m", "skip observations while the measured load moves more than this per segment");
   TQ_BOOL("cylinder.enabled", cylinder.enabled, "per-cylinder torque, imbalance and misfire");
   TQ_NUM("cylinder.misfire_threshold", cylinder.params.misfire_threshold, open_open(0.0, 1.0), "", "misfire when cylinder torque < threshold x cycle mean");
   TQ_NUM("cylinder.imbalance_filter", cylinder.params.imbalance_filter, open_closed(0.0, 1.0), "", "EMA weight per cycle of the imbalance (1 = none)");
@@ -135,6 +140,9 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("tooth_learn.max_accel_frac", tooth_learn.params.max_accel_frac, open_closed(0.0, 1.0), "", "skip cycles whose speed changes more than this fraction");
   TQ_NUM("tooth_learn.min_rpm", tooth_learn.params.min_rpm, closed(0.0, 20000.0), "rpm", "learn only above this speed");
   TQ_NUM("tooth_learn.max_rpm", tooth_learn.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "and below this speed");
+  TQ_NUM("tooth_learn.speed_weight_exp", tooth_learn.params.speed_weight_exp, closed(0.0, 10.0), "", "residuals weighted by speed^p");
+  TQ_BOOL("tooth_learn.fit_all_even", tooth_learn.params.fit_all_even, "also fit even non-firing cycle harmonics");
+  TQ_BOOL("tooth_learn.learn_low_orders", tooth_learn.params.learn_low_orders, "also learn the firing orders from the spread across speeds");
 }
 
 }  // namespace torqued::schema_detail

@@ -52,13 +52,14 @@ const BadCase kBad[] = {
     {"infinite_value", "infinite_value.yaml:4:15: key 'engine.j_rot_kgm2': found '.inf', expected a finite number (kg m^2", 1},
     {"compression_ratio_le_1", "compression_ratio_le_1.yaml:4:22: key 'engine.compression_ratio': found '0.9', expected a finite number (range (1, 40])", 1},
     {"unknown_enum_typo", "unknown_enum_typo.yaml:4:9: key 'wheel.edge': found 'risin', expected one of rising|falling (did you mean 'rising'?)", 1},
-    {"fourier_unstable", "fourier_unstable.yaml:5:11: key 'estimators.fourier.l_ke': found '0.001', expected stable observer gains: L_ke must exceed", 1},
+    {"fourier_unstable", "fourier_unstable.yaml:5:11: key 'estimators.fourier.l_ke': found '0.001', expected stable observer gains: ", 1},
     {"duplicate_key", "duplicate_key.yaml:5:3: key 'engine.bore_m' appears twice in the same section", 1},
     {"tooth_angles_and_teeth", "tooth_angles_and_teeth.yaml:4:10: key 'wheel.teeth': found '36', expected no value when wheel.tooth_angles_deg is given", 1},
     {"tooth_angles_not_increasing", "tooth_angles_not_increasing.yaml:4:21: key 'wheel.tooth_angles_deg': found '205', expected strictly increasing angles", 1},
     {"cpus_not_a_list", "cpus_not_a_list.yaml:5:11: key 'realtime.angle.cpus': found '0,1', expected a list of integers", 1},
     {"signal_without_dbc", "signal_without_dbc.yaml:3:1: key 'can.dbc': found '', expected a DBC file path", 1},
     {"section_is_scalar", "section_is_scalar.yaml:3:9: key 'engine': found '4', expected a section (mapping of keys: bore_m,", 1},
+    {"dbc_signal_typo", "dbc_signal_typo.yaml:6:38: key 'can.signals.map.signal': found 'MAPP', expected a signal of message ENGINE_1 in test.dbc (MAP)", 2},
     {"many_errors", "many_errors.yaml:12:10: key 'logging.level': found 'verbose', expected one of trace|debug|info|warn|error|critical|off", 6},
 };
 
