@@ -244,6 +244,7 @@ std::array<double, 4> learn_friction(const EvalOptions& options) {
   // prior, then the demo run (whose fuel cut-off starts at 3500 rpm) continuing from the persisted coefficients.
   EvalOptions o = options;
   o.friction.reset();
+  o.can_lost_after_s = -1.0;  // learning runs see CAN
   std::array<double, 4> c{};
   for (const char* name : {"fuel_cut", "demo"}) {
     const ScenarioResult r = evaluate(sim::scenario_by_name(name), o);
