@@ -150,6 +150,22 @@ TEST(EvalJoin, SampleTimeWithoutWindowUsesTheCycleContainingIt) {
   EXPECT_EQ(r.pairs[0].stats.n, 3u);
 }
 
+TEST(EvalJoin, EndTimeRefStepsBackHalfACycle) {
+  // Rows stamped 6 ms after the truth cycle end (the daemon's cycle boundary lags the truth's) still match
+  // their own cycle with --time-ref end.
+  const CsvTable est = table("t_ns,v\n66000000,100\n126000000,101\n", "est.csv");
+  EvalOptions opt;
+  opt.time_ref = TimeRef::kEnd;
+  EvalReport r;
+  std::string error;
+  ASSERT_TRUE(evaluate(est, cycle_truth(), {{"v", "t_brake_mean_nm"}}, opt, r, error)) << error;
+  EXPECT_EQ(r.pairs[0].stats.n, 2u);
+  EXPECT_NEAR(r.pairs[0].stats.rms, 0.0, 1e-12);  // cycles 0 and 1
+  opt.time_ref = TimeRef::kSample;
+  ASSERT_TRUE(evaluate(est, cycle_truth(), {{"v", "t_brake_mean_nm"}}, opt, r, error)) << error;
+  EXPECT_NEAR(r.pairs[0].stats.bias, -1.0, 1e-12);  // matched one cycle late
+}
+
 TEST(EvalJoin, PerToothInterpolationWhereFilterAndWindow) {
   // Truth ramp 10 N m/s sampled every 10 ms; estimate rows of two methods; method 4 is exact, method 0 is +1.
   std::ostringstream tt;

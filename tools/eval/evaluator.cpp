@@ -87,7 +87,14 @@ bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpe
       const double ws = est.col(c_ws)[i] * 1e-9;
       if (std::isfinite(ws) && ws >= 0.0 && ws < t[i]) tq = 0.5 * (ws + t[i]);  // else: no window, sample time
     }
-    return find_cycle(c_t0, c_t1, tq, ref == TimeRef::kEnd);
+    if (ref == TimeRef::kEnd) {
+      // The row closes a cycle whose boundaries need not match the truth's: step back half a cycle.
+      long c = find_cycle(c_t0, c_t1, tq, false);
+      if (c < 0) c = find_cycle(c_t0, c_t1, tq, true);
+      if (c < 0) return -1;
+      tq -= 0.5 * (c_t1[std::size_t(c)] - c_t0[std::size_t(c)]);
+    }
+    return find_cycle(c_t0, c_t1, tq, false);
   };
   // Truth teeth: time and unwrapped angle.
   const CsvTable* tooth = truth.tooth ? &*truth.tooth : nullptr;

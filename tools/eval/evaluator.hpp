@@ -33,7 +33,7 @@ enum class TimeRef {
   kAuto,    ///< window midpoint if the estimate has window_start_t_ns (0 <= start < t), else the sample time
   kSample,  ///< t_ns as is
   kMid,     ///< (window_start_t_ns + t_ns)/2
-  kEnd,     ///< t_ns closes its cycle: matched to the cycle (t_start, t_end] containing it
+  kEnd,     ///< t_ns closes its cycle (e.g. cylinder_torque.csv): matched at t_ns minus half a truth cycle
 };
 
 struct EvalOptions {
