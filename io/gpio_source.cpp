@@ -161,6 +161,19 @@ int GpioEdgeSource::read_line(Line& l) noexcept {
 SourceStatus GpioEdgeSource::next(EdgeEvent& out) noexcept {
   if (!error_.empty()) return SourceStatus::kError;
   for (int round = 0; round < 2; ++round) {
+    // Two lines: before handing out a buffered event, pick up what the other (empty) line has pending, so a
+    // cam edge is never handed out after a later crank edge (the decoder needs non-decreasing times). One
+    // zero-time-out poll per edge, only while the other line's buffer is empty.
+    if (num_lines_ == 2) {
+      for (int k = 0; k < 2; ++k) {
+        Line& other = lines_[static_cast<std::size_t>(1 - k)];
+        const Line& mine = lines_[static_cast<std::size_t>(k)];
+        if (mine.i < mine.n && other.i >= other.n) {
+          pollfd q{other.fd, POLLIN, 0};
+          if (::poll(&q, 1, 0) > 0 && (q.revents & (POLLIN | POLLPRI)) && read_line(other) < 0) ++stats_.bad_lines;
+        }
+      }
+    }
     // Hand out the earliest buffered event over both lines (each line's events are in order).
     int best = -1;
     for (int k = 0; k < num_lines_; ++k) {
