@@ -62,10 +62,10 @@ struct KalmanParams {
   int speed_bins = 32;         ///< APS gain sets, log-spaced in speed, interpolated (R depends on speed)
 };
 struct FourierParams {
-  int harmonics = 20;        ///< n_h (CF §V.B); 4-cyl fires at i = 4: keep 4, 8, …, 20 and the imbalance sub-harmonics
+  int harmonics = 12;        ///< n_h (CF §V.B); 4-cyl fires at i = 4: keep 4, 8, 12 and the imbalance sub-harmonics
   double l_ke = 6.0;         ///< L_ke (1/rad)
   double l_a0 = 0.3;         ///< L_a0 (1/rad^2)
-  double l_ref = 0.05;       ///< L_ref: l_{a_i} = l_{b_i} = i L_ref (1/rad^2)
+  double l_ref = 0.07;       ///< L_ref: l_{a_i} = l_{b_i} = i L_ref (1/rad^2)
   int output_lag = 0;        ///< report T̂ at tooth k−lag from the coefficients after tooth k (0..6; latency, less noise)
   double gain_ref_rpm = 1500.0; ///< >0: coefficient gains × min(1, (gain_ref_rpm/rpm)²), keeping the noise of the energy
                              ///< innovation (∝ θ̇²) constant above that speed; 0 = fixed gains as in the paper

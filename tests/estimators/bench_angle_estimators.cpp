@@ -71,7 +71,7 @@ BENCHMARK(BM_ToothPreprocessor);
 BENCHMARK(BM_KalmanAps);
 BENCHMARK(BM_KalmanExactRiccati);
 BENCHMARK(BM_KalmanApsPaperOrder);
-BENCHMARK(BM_FourierObserver)->Arg(5)->Arg(20);
+BENCHMARK(BM_FourierObserver)->Arg(5)->Arg(12)->Arg(20);
 BENCHMARK(BM_ToothErrorLearner);
 
 }  // namespace

@@ -1,7 +1,6 @@
 // Chauvin Kalman and Fourier observers on the physics simulator (helper "sim") with the 0.05° wheel, tooth errors
 // learned by ToothErrorLearner (defaults) from steady 1000..4000 rpm scenarios of the same wheel. Label slow.
-// The target (RMS <= 15 % of p2p, |lag| <= 6°) is asserted for the Kalman filter at every speed and for
-// the Fourier observer up to 3000 rpm; at 4000 rpm the Fourier observer reaches ~20 % (asserted: 25 %).
+// The target (RMS <= 15 % of p2p, |lag| <= 6°) is asserted for both observers at every speed.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -20,7 +19,7 @@ namespace {
 TEST(AngleObserversOnSimulator, LearnedWheelAtOneToFourThousandRpm) {
   const char* names[] = {"steady_1000_mid", "steady_2000_mid", "steady_3000_mid", "steady_4000_mid"};
   const double max_kalman_pct[] = {15.0, 15.0, 15.0, 15.0};  // the target
-  const double max_fourier_pct[] = {15.0, 15.0, 15.0, 25.0};  // reached: 3.4, 6.0, 12.3, 20.4 %
+  const double max_fourier_pct[] = {15.0, 15.0, 15.0, 15.0};
   ToothLearnParams lp;
   lp.min_cycles = 20;
   ToothErrorLearner learner(EngineGeometry{}, WheelGeometry{}, lp);
@@ -154,7 +153,7 @@ TEST(AngleObserversOnSimulator, ThreeCylinderByConfigurationOnly) {
 }
 
 TEST(AngleObserversOnSimulator, ThirtySixMinusOneWheelByConfigurationOnly) {
-  const auto r = run_scenario("wheel_36_1", 12);  // 70 samples per cycle: n_h = 20 is refused (unstable), 12 is not
+  const auto r = run_scenario("wheel_36_1", 12);  // 70 samples per cycle: n_h = 20 would be refused (unstable)
   EXPECT_LT(r.width_after_deg, 0.02);
   EXPECT_LE(r.kalman.rms_pct_p2p, 15.0);
   EXPECT_LE(std::abs(r.kalman.lag_deg), 10.0);  // one tooth = 10°
@@ -165,7 +164,7 @@ TEST(AngleObserversOnSimulator, ThirtySixMinusOneWheelByConfigurationOnly) {
 TEST(AngleObserversOnSimulator, LearnsToothErrorsInFuelCutOffCoastDown) {
   // A coast-down mixes motored and firing cycles at changing speed: the low-order regression must not be used
   // (plausibility guard), the high orders are learned.
-  const auto r = run_scenario("fuel_cut", 20);
+  const auto r = run_scenario("fuel_cut", FourierParams{}.harmonics);
   EXPECT_LT(r.width_after_deg, 0.008);
   EXPECT_LT(r.width_after_deg, 0.15 * r.width_before_deg);
 }

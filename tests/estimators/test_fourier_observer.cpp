@@ -86,12 +86,15 @@ TEST(FourierObserver, RefusesGainsThatAreUnstableOverACycleEvenIfCf14Holds) {
   EXPECT_GT(FourierObserver::cycle_spectral_radius(p, EngineGeometry{}, WheelGeometry{}), 1.0);
 }
 
-TEST(FourierObserver, DefaultHarmonicsAreRefusedOnA36Minus1WheelWithTheReason) {
+TEST(FourierObserver, TwentyHarmonicsAreRefusedOnA36Minus1WheelWithTheReason) {
   // 70 samples per cycle: n_h = 20 passes (CF-14) but its periodic error dynamics diverge; n_h = 12 is accepted.
   WheelGeometry w;
   w.positions = 36;
   w.missing = 1;
-  const auto why = FourierObserver::check_stability(FourierParams{}, EngineGeometry{}, w);
+  FourierParams p20;
+  p20.harmonics = 20;
+  p20.l_ref = 0.05;
+  const auto why = FourierObserver::check_stability(p20, EngineGeometry{}, w);
   ASSERT_TRUE(why.has_value());
   std::printf("36-1, n_h = 20: %s\n", why->c_str());
   FourierParams p;
