@@ -19,8 +19,8 @@ inline bool seconds_to_ns(const char*& p, const char* end, std::int64_t& ns) noe
   std::int64_t whole = 0;
   int digits = 0;
   while (p < end && static_cast<unsigned>(*p - '0') < 10u) {
-    if (whole > 9'000'000'000) return false;  // > ~285 years in ns
     whole = whole * 10 + (*p++ - '0');
+    if (whole > 9'200'000'000) return false;  // whole * 1e9 + frac must fit in int64 (~292 years)
     ++digits;
   }
   std::int64_t frac = 0;

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
 #include "dbc.hpp"
 
@@ -208,6 +209,27 @@ TEST(Dbc, RawExtractionEdgeCases) {
   const std::uint8_t d[2] = {0x0A, 0xBC};  // bits: byte0 low nibble A, byte1 BC -> 0xABC
   EXPECT_EQ(s.raw(d, 2), 0xABC);
   EXPECT_EQ(s.bytes_needed(), 2u);
+}
+
+TEST(Dbc, MutatedFilesNeverCrash) {
+  // Random edits of the three style samples: the parser reports errors or warnings, never crashes or hangs.
+  std::mt19937 rng(5);
+  for (const char* sample : {kCandb, kCantools, kKvaser}) {
+    for (int i = 0; i < 300; ++i) {
+      std::string text = sample;
+      for (int k = 0; k < 5; ++k) {
+        const std::size_t pos = rng() % text.size();
+        if (rng() % 2) text[pos] = "\"|;:@+-()[], \nM0123456789abcdef_"[rng() % 32];
+        else text.erase(pos, 1 + rng() % 8);
+      }
+      const auto r = DbcDatabase::parse_string(text, "mutated.dbc");
+      if (r.db) {
+        for (const auto& m : r.db->messages()) {
+          for (const auto& s : m.signals) EXPECT_LE(s.bytes_needed(), 64u);
+        }
+      }
+    }
+  }
 }
 
 TEST(Dbc, DemoDbcParsesWhenPresent) {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <random>
 #include <string>
 
 #include "alloc_counter.hpp"
@@ -30,6 +31,11 @@ TEST(FastParse, SecondsToNanosecondsIsExact) {
   EXPECT_EQ(ns("-0.25"), -250'000'000);
   EXPECT_EQ(ns("3"), 3'000'000'000);
   EXPECT_EQ(ns("0.0000000015"), 2);  // rounded on the 10th digit
+  const char* huge = "17000000000.5";  // would overflow int64 ns
+  const char* q = huge;
+  std::int64_t h = 0;
+  EXPECT_FALSE(parse::seconds_to_ns(q, huge + std::strlen(huge), h));
+  EXPECT_EQ(ns("9200000000.999999999"), 9'200'000'000'999'999'999);
   const char* bad = "abc";
   std::int64_t v = 0;
   const char* p = bad;
@@ -206,6 +212,43 @@ TEST(Candump, NextDoesNotAllocate) {
   while (src.next(c) == SourceStatus::kOk) ++n;
   EXPECT_EQ(scope.count(), 0u);
   EXPECT_EQ(n, 1000);
+}
+
+TEST(Candump, RandomGarbageNeverCrashesAndIsCounted) {
+  // Mutated valid lines and random bytes: every line is either a frame or a counted bad line.
+  std::mt19937 rng(11);
+  const std::string base = "(1700000000.000100) can0 18FF0000##1001122334455667788";
+  std::string content;
+  std::uint64_t comments = 0;
+  const int n = 5000;
+  for (int i = 0; i < n; ++i) {
+    std::string l = base;
+    const int edits = 1 + static_cast<int>(rng() % 4);
+    for (int k = 0; k < edits; ++k) {
+      const std::size_t pos = rng() % l.size();
+      switch (rng() % 3) {
+        case 0: l[pos] = static_cast<char>(1 + rng() % 255); break;
+        case 1: l.erase(pos, 1 + rng() % 5); break;
+        default: l.insert(pos, 1, "#()R 0F"[rng() % 7]); break;
+      }
+      if (l.empty()) l = "x";
+    }
+    std::erase(l, '\n');
+    std::erase(l, '\r');
+    if (l.empty()) l = "x";
+    comments += l.front() == '#' ? 1 : 0;  // comment lines are skipped silently
+    content += l + "\n";
+  }
+  TempFile f(content);
+  CandumpSource src(f.path());
+  CanFrame c;
+  std::uint64_t frames = 0;
+  while (src.next(c) == SourceStatus::kOk) {
+    ++frames;
+    EXPECT_LE(c.len, c.fd ? 64 : 8);
+  }
+  EXPECT_EQ(frames + src.stats().bad_lines + src.rtr_frames() + comments, static_cast<std::uint64_t>(n));
+  EXPECT_GT(src.stats().bad_lines, 0u);
 }
 
 TEST(Candump, MissingFileIsAnErrorNotACrash) {
