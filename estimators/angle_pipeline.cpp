@@ -193,7 +193,8 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
     cyl_work_ok_[pos] = false;
   }
   // Per-cylinder work per cycle = segment work (its share of the cycle); CylinderTorque divides by 4π.
-  if (cyl_.on_segment(seg.t_ns, seg.ended_position, work, seg_ok, fired && fired_segments_ > n)) {
+  // Misfire decisions only after two firing cycles: the CAN flag leads the injections that actually resume.
+  if (cyl_.on_segment(seg.t_ns, seg.ended_position, work, seg_ok, fired && fired_segments_ > 2 * n)) {
     o.cylinders = cyl_.cycle();
     stats_.misfires = cyl_.misfires();
     ++stats_.cycles;

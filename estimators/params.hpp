@@ -116,7 +116,7 @@ struct FrictionParams {
 struct CylinderParams {
   double misfire_threshold = 0.5;   ///< misfire when a cylinder's torque < threshold × cycle mean (-)
   double imbalance_filter = 0.2;    ///< EMA weight per cycle of the published imbalance (1 = no filter) (-)
-  double min_mean_nm = 1.0;         ///< no misfire decision while the mean segment torque is below this (N m)
+  double min_mean_nm = 5.0;         ///< no misfire decision while the median segment-mean torque is below this (N m)
 };
 /// Fused brake torque for the torque-split controller (ESTIMATORS.md §4; rule in torque_fusion.hpp).
 struct FusionParams {
