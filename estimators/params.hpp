@@ -121,7 +121,7 @@ struct CylinderParams {
 /// Fused brake torque for the torque-split controller (ESTIMATORS.md §4; rule in torque_fusion.hpp).
 struct FusionParams {
   double max_can_age_s = 0.1;       ///< CAN inputs older than this count as lost (s)
-  bool blend = true;                ///< blend agreeing valid sources by inverse variance (false: pick the best)
+  bool blend = false;               ///< blend agreeing valid sources by inverse variance (false: pick the best)
   double gate_sigma = 3.0;          ///< a source farther than gate_sigma·σ(difference) from the best is not blended (-)
 };
 struct ToothLearnParams {

@@ -23,8 +23,14 @@ FusionInput inputs(std::int64_t t_ns, std::int64_t can_ns) {
 }
 }  // namespace
 
+FusionParams blending() {
+  FusionParams p;
+  p.blend = true;
+  return p;
+}
+
 TEST(TorqueFusion, PrefersEnergyWithCanAndBlendsOnlyAgreeingSources) {
-  TorqueFusion f(FusionParams{});
+  TorqueFusion f(blending());
   const auto& o = f.update(inputs(1'000'000'000, 995'000'000));
   EXPECT_EQ(o.quality, FusionQuality::kFull);
   EXPECT_EQ(o.primary, FusionSourceId::kEnergyCan);
@@ -46,9 +52,7 @@ TEST(TorqueFusion, FallsBackToCrankOnlyWhenCanIsLostAndSaysSo) {
 }
 
 TEST(TorqueFusion, PickOnlyWhenBlendingIsOff) {
-  FusionParams p;
-  p.blend = false;
-  TorqueFusion f(p);
+  TorqueFusion f(FusionParams{});  // default: pick the primary
   const auto& o = f.update(inputs(1'000'000'000, 995'000'000));
   EXPECT_DOUBLE_EQ(o.brake_nm, 100.0);
   EXPECT_EQ(o.age_ns, 5'000'000);  // newest input of the energy+CAN source: the CAN frame
