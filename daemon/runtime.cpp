@@ -200,6 +200,16 @@ void Runtime::angle_loop() {
       edge_ring_.pop_front();
     }
     while (can_angle_ring_.try_pop(fi)) angle_->on_frame(fi.f);
+    // No edge for a while: let the decoder time out (stalled) on the edge clock, flag the edge time-out.
+    if (anchored_.load(std::memory_order_acquire)) {
+      const double speed = opt_.replay && opt_.speed > 0 ? opt_.speed : 1.0;
+      const std::int64_t now_edge =
+          anchor_rec_ns_.load(std::memory_order_relaxed) +
+          static_cast<std::int64_t>(static_cast<double>(mono_ns() - anchor_mono_ns_.load(std::memory_order_relaxed)) * speed);
+      const bool timed_out = now_edge - last_t_ns_.load(std::memory_order_relaxed) > s_.edge_timeout_ns;
+      if (timed_out) angle_->poll(now_edge);
+      edge_timeout_.store(timed_out, std::memory_order_relaxed);
+    }
     const auto& ds = angle_->decoder().stats();
     n_edges_.store(ds.edges, std::memory_order_relaxed);
     teeth_.store(ds.teeth, std::memory_order_relaxed);
@@ -320,6 +330,7 @@ RuntimeCounters Runtime::counters() const noexcept {
   c.latency_p99_ns = lat_p99_.load(std::memory_order_relaxed);
   c.latency_max_ns = lat_max_.load(std::memory_order_relaxed);
   c.flags = flags_.load(std::memory_order_relaxed);
+  if (edge_timeout_.load(std::memory_order_relaxed)) c.flags |= torque_STATUS_EDGE_TIMEOUT;
   c.sensor_timeouts = static_cast<std::uint32_t>(stale_mask_.load(std::memory_order_relaxed));
   c.synced = synced_.load(std::memory_order_relaxed);
   return c;
