@@ -116,7 +116,12 @@ done
 mount -t 9p -o trans=virtio,version=9p2000.L,ro,msize=512000,cache=loose hostroot /mnt/host || fail "mount hostroot"
 H=/mnt/host
 mount -t proc proc $H/proc && mount -t sysfs sys $H/sys && mount -o bind /dev $H/dev || fail "mount proc/sys/dev"
+# A writable /tmp must not hide the host's /tmp: checkouts and build trees often live there (CI clones into
+# /tmp). Keep the host's /tmp reachable under /run/hosttmp and link each of its entries into the new tmpfs.
+mount -t tmpfs tmpfs $H/run || fail "mount /run"
+mkdir -p $H/run/hosttmp && mount -o bind $H/tmp $H/run/hosttmp || fail "bind host /tmp"
 mount -t tmpfs tmpfs $H/tmp || fail "mount /tmp"
+for e in $(ls -A $H/run/hosttmp); do ln -s "/run/hosttmp/$e" "$H/tmp/$e"; done
 mkdir -p $H/tmp/vm-out $H/dev/shm && mount -t tmpfs tmpfs $H/dev/shm
 mount -t 9p -o trans=virtio,version=9p2000.L,msize=512000 vmout $H/tmp/vm-out || fail "mount vm-out share"
 cp /run.sh $H/tmp/torqued-vm-run.sh
@@ -128,6 +133,7 @@ rc=$?
 echo "@@TORQUED_VM_EXIT=$rc@@"
 sync
 umount $H/tmp/vm-out 2>/dev/null
+umount $H/run/hosttmp 2>/dev/null
 poweroff -f
 EOF
   chmod +x "$ir/init"
