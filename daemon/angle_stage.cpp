@@ -140,6 +140,16 @@ void AngleStage::on_tooth(const ToothEvent& te, std::int64_t ingest_ns) noexcept
     out_.emit(a);
   }
 
+  // In-cycle indicated torque (Chauvin Kalman / Fourier observers), every n-th tooth. The Kalman estimate is a
+  // fixed-lag smoother: its t_ns is the edge it refers to (k-4), so each method is stamped with its own t_ns.
+  if (pipeline_ && pipeline_->tooth_output().valid && s_.tooth_estimator_decimation > 0 &&
+      ++tooth_est_count_ >= s_.tooth_estimator_decimation) {
+    tooth_est_count_ = 0;
+    const ToothOutput& to = pipeline_->tooth_output();
+    emit_method(torque_METHOD_KALMAN, to.kalman_ind, to.kalman_ind.t_ns, ingest_ns);
+    emit_method(torque_METHOD_FOURIER, to.fourier_ind, to.fourier_ind.t_ns, ingest_ns);
+  }
+
   if (ready & AnglePipeline::kSegmentReady) on_segment(te, ingest_ns);
 
   // Cycle boundary (tooth index wrapped): apply the learned tooth table, publish the learned state.

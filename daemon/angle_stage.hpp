@@ -71,6 +71,7 @@ class AngleStage {
   double prev_speed_rad_s_ = 0.0;
   int prev_tooth_ = -1;
   int crank_count_ = 0;
+  int tooth_est_count_ = 0;
   std::uint32_t stale_mask_ = 0;
   std::uint64_t seq_engine_ = 0, seq_cyl_ = 0, seq_crank_ = 0;
   std::array<std::uint64_t, 16> seq_method_{};

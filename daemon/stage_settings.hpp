@@ -41,6 +41,7 @@ struct StageSettings {
   bool tooth_learn_enabled = true;    ///< learn tooth corrections and feed them to the decoder
   int crank_decimation = 10;          ///< publish CrankState every n-th synced tooth
   int time_decimation = 10;           ///< publish EstimatorTorque of time methods every n-th step
+  int tooth_estimator_decimation = 2; ///< publish per-tooth Kalman/Fourier T_ind every n-th tooth (0 = never)
   std::int64_t edge_timeout_ns = 500'000'000;  ///< no crank edge for this long: STATUS_EDGE_TIMEOUT
   std::int64_t status_period_ns = 1'000'000'000;
   dds::DdsSettings dds;

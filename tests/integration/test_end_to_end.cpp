@@ -6,9 +6,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <map>
 #include <sstream>
+#include <vector>
 
 #include "process.hpp"
 
@@ -113,6 +115,51 @@ TEST_F(EndToEnd, ReplayThroughDdsToSubscriberMatchesTruth) {
   // misfires and a fuel cut; the window is 90° off the truth's TDC-aligned cycles, which costs in transients.
   EXPECT_LT(median, 1.5);
   EXPECT_GE(frac, 0.80);
+
+  // In-cycle indicated torque per tooth (Chauvin Kalman, method 4, stamped at the edge it refers to; Fourier,
+  // method 5) from the daemon's recording vs data/demo/truth_tooth.csv interpolated at each sample's t_ns.
+  // Issue 5's steady-state target is RMS <= 15 % of peak-to-peak; the demo also holds cranking, idle, ramps,
+  // misfires and a fuel cut, and starts with an unlearned wheel: 25 % and correlation >= 0.5 after the first 2 s.
+  const Csv tooth = read_csv(std::string(TORQUED_SOURCE_DIR) + "/data/demo/truth_tooth.csv");
+  const int tt = tooth.col("t_s"), ti = tooth.col("t_ind_nm");
+  ASSERT_TRUE(tt >= 0 && ti >= 0);
+  std::vector<double> truth_t, truth_v;
+  for (const auto& r : tooth.rows) {
+    truth_t.push_back(std::stod(r[static_cast<std::size_t>(tt)]));
+    truth_v.push_back(std::stod(r[static_cast<std::size_t>(ti)]));
+  }
+  const Csv est = read_csv(daemon_dir + "/estimator_torque.csv");
+  const int em = est.col("method"), ev = est.col("value_nm");
+  ASSERT_TRUE(em >= 0 && ev >= 0);
+  for (const int method : {4, 5}) {
+    std::vector<double> v, ref;
+    for (const auto& r : est.rows) {
+      if (std::stoi(r[static_cast<std::size_t>(em)]) != method) continue;
+      const double t = std::stod(r[0]) * 1e-9;
+      if (t < 2.0) continue;
+      const auto it = std::lower_bound(truth_t.begin(), truth_t.end(), t);
+      if (it == truth_t.begin() || it == truth_t.end()) continue;
+      const auto i = static_cast<std::size_t>(it - truth_t.begin());
+      const double a = (t - truth_t[i - 1]) / (truth_t[i] - truth_t[i - 1]);
+      v.push_back(std::stod(r[static_cast<std::size_t>(ev)]));
+      ref.push_back(truth_v[i - 1] + a * (truth_v[i] - truth_v[i - 1]));
+    }
+    ASSERT_GT(v.size(), 10000u) << "method " << method << ": expected a sample every 2nd tooth (~20 per 720 deg)";
+    const double n = static_cast<double>(v.size());
+    double mv = 0, mr = 0, sse = 0;
+    for (std::size_t i = 0; i < v.size(); ++i) mv += v[i] / n, mr += ref[i] / n, sse += (v[i] - ref[i]) * (v[i] - ref[i]);
+    double cov = 0, vv = 0, rr = 0;
+    for (std::size_t i = 0; i < v.size(); ++i)
+      cov += (v[i] - mv) * (ref[i] - mr), vv += (v[i] - mv) * (v[i] - mv), rr += (ref[i] - mr) * (ref[i] - mr);
+    std::vector<double> q = ref;
+    std::sort(q.begin(), q.end());
+    const double p2p = q[static_cast<std::size_t>(0.99 * n)] - q[static_cast<std::size_t>(0.01 * n)];
+    const double corr = cov / std::sqrt(vv * rr), rms = std::sqrt(sse / n);
+    std::printf("in-cycle method %d: %zu samples, correlation %.3f, RMS %.1f N m = %.1f %% of p2p %.0f N m\n", method,
+                v.size(), corr, rms, 100 * rms / p2p, p2p);
+    EXPECT_GE(corr, 0.5) << "method " << method;
+    EXPECT_LE(rms, 0.25 * p2p) << "method " << method;
+  }
 }
 
 }  // namespace
