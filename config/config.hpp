@@ -50,6 +50,7 @@ struct EdgeInputConfig {
   int gpio_crank_line = 0;               ///< GPIO line offset of the crank sensor
   int gpio_cam_line = -1;                ///< GPIO line offset of the cam sensor (-1 = none)
   std::uint32_t encoder_can_id = 0x300;  ///< backend can_encoder: CAN id of the tooth-timestamp frames
+  double timeout_s = 0.5;                ///< no crank edge for this long: DaemonStatus EDGE_TIMEOUT flag (s)
 };
 
 struct CanInputConfig {
@@ -119,6 +120,10 @@ struct DdsConfig {
   TopicQos cylinder_torque{Reliability::kReliable, 16, 1000, 1000};
   TopicQos crank_state{Reliability::kBestEffort, 1, 1000, 1000};
   TopicQos status{Reliability::kReliable, 4, 3000, 1000};
+  int crank_state_decimation = 10;      ///< CrankState every n-th tooth
+  int time_estimator_decimation = 10;   ///< EstimatorTorque of the time methods every n-th time step
+  int tooth_estimator_decimation = 2;   ///< EstimatorTorque of the in-cycle Kalman/Fourier every n-th tooth (0 = off)
+  double status_period_s = 1.0;         ///< DaemonStatus (and sd_notify STATUS=) period (s)
 };
 
 /// Scheduling of one daemon thread.

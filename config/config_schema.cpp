@@ -100,6 +100,8 @@ void add_wheel(std::vector<SchemaEntry>& t) {
   dn("sync_ratio_max", &DecoderParams::sync_ratio_max, {1.0, 10.0, false, false}, "synced: period/expected accepted up to this");
   dn("runt_fraction", &DecoderParams::runt_fraction, {0.0, 1.0, false, true}, "edge earlier than this x expected period is noise");
   dn("lost_tooth_min_ratio", &DecoderParams::lost_tooth_min_ratio, {1.0, 10.0, false, false}, "lost-tooth hypothesis only above this period ratio");
+  dn("max_trend", &DecoderParams::max_trend, {1.0, 10.0, false, false}, "period trend clamped to [1/x, x] when predicting the next period (cranking ripple)");
+  dn("lost_tooth_min_rpm", &DecoderParams::lost_tooth_min_rpm, closed(0.0, 20000.0), "below this speed (rpm) a long period is a slowdown, never a lost tooth");
   t.push_back(integer(d + "max_lost_teeth_per_rev", TQ_REF(int, wheel.decoder.max_lost_teeth_per_rev), closed(0, kMaxTeeth), "",
                       "more lost teeth than this in one revolution = lost sync"));
   SchemaEntry stall = entry(d + "stall_timeout_s", ValueKind::kDouble, "s", "no crank edge for this long = stalled");
@@ -130,6 +132,8 @@ void add_inputs(std::vector<SchemaEntry>& t) {
                                  {{"csv", EdgeFormat::kCsv}, {"list", EdgeFormat::kList}},
                                  "csv = logic-analyzer export, list = one edge time (s) per line"));
   t.push_back(text("inputs.edges.gpio_chip", TQ_REF(std::string, inputs.edges.gpio_chip), "GPIO chip (backend gpio)"));
+  t.push_back(number("inputs.edges.timeout_s", TQ_REF(double, inputs.edges.timeout_s), {0.001, 3600.0, false, false}, "s",
+                     "no crank edge for this long = DaemonStatus EDGE_TIMEOUT"));
   t.push_back(integer("inputs.edges.gpio_crank_line", TQ_REF(int, inputs.edges.gpio_crank_line), closed(0, 1023), "",
                       "GPIO line offset of the crank sensor"));
   t.push_back(integer("inputs.edges.gpio_cam_line", TQ_REF(int, inputs.edges.gpio_cam_line), closed(-1, 1023), "",
@@ -203,6 +207,14 @@ void add_dds(std::vector<SchemaEntry>& t) {
   add_topic_qos(t, "cylinder_torque", TQ_REF(TopicQos, dds.cylinder_torque));
   add_topic_qos(t, "crank_state", TQ_REF(TopicQos, dds.crank_state));
   add_topic_qos(t, "status", TQ_REF(TopicQos, dds.status));
+  t.push_back(integer("dds.crank_state_decimation", TQ_REF(int, dds.crank_state_decimation), closed(1, 100000), "teeth",
+                      "publish CrankState every n-th tooth"));
+  t.push_back(integer("dds.time_estimator_decimation", TQ_REF(int, dds.time_estimator_decimation), closed(1, 100000), "steps",
+                      "publish the time methods' EstimatorTorque every n-th time-pipeline step"));
+  t.push_back(integer("dds.tooth_estimator_decimation", TQ_REF(int, dds.tooth_estimator_decimation), closed(0, 100000), "teeth",
+                      "publish the in-cycle Kalman/Fourier EstimatorTorque every n-th tooth (0 = off)"));
+  t.push_back(number("dds.status_period_s", TQ_REF(double, dds.status_period_s), {0.01, 60.0, false, false}, "s",
+                     "DaemonStatus and sd_notify STATUS= period"));
 }
 
 void add_thread(std::vector<SchemaEntry>& t, const std::string& name, Ref<ThreadConfig> ref, const std::string& what) {

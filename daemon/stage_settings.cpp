@@ -15,6 +15,7 @@ StageSettings stage_settings_from(const Config& cfg) {
   StageSettings s;
   s.engine = cfg.engine;
   s.wheel = cfg.wheel.geometry;
+  s.decoder = cfg.wheel.decoder;  // YAML wheel.decoder.* (run_daemon also applies io's decoder_params())
   s.decoder.use_cam = !cfg.wheel.cam_channel.empty();
   s.decoder.cam_rising = cfg.wheel.cam_rising_edge;
   s.decoder.crank_channel = 0;  // EdgeCsvSource/backends map the configured crank column to channel 0
@@ -43,6 +44,16 @@ StageSettings stage_settings_from(const Config& cfg) {
   s.angle.cylinder = cfg.estimators.cylinder.params;
   s.angle.fusion = cfg.estimators.fusion;
   s.angle_enabled = cfg.estimators.energies.enabled;
+  s.angle.preprocess = cfg.estimators.preprocess;
+  s.angle.kalman = cfg.estimators.kalman.params;
+  s.angle.fourier = cfg.estimators.fourier.params;
+  s.angle.run_kalman = cfg.estimators.kalman.enabled;
+  s.angle.run_fourier = cfg.estimators.fourier.enabled;
+  s.crank_decimation = cfg.dds.crank_state_decimation;
+  s.time_decimation = cfg.dds.time_estimator_decimation;
+  s.tooth_estimator_decimation = cfg.dds.tooth_estimator_decimation;
+  s.edge_timeout_ns = static_cast<std::int64_t>(std::llround(cfg.inputs.edges.timeout_s * 1e9));
+  s.status_period_ns = static_cast<std::int64_t>(std::llround(cfg.dds.status_period_s * 1e9));
   s.tooth_learn = cfg.estimators.tooth_learn.params;
   s.tooth_learn_enabled = cfg.estimators.tooth_learn.enabled && cfg.estimators.tooth_learn.params.learn;
   s.dds.domain_id = static_cast<std::uint32_t>(cfg.dds.domain_id);
