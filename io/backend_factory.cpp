@@ -34,6 +34,19 @@ void set(std::string* error, std::string what) {
 
 }  // namespace
 
+CanEncoderConfig can_encoder_config(const Config& config) noexcept {
+  const EdgeInputConfig& in = config.inputs.edges;
+  CanEncoderConfig e;
+  e.id = in.encoder_can_id;
+  e.fd = config.inputs.can.fd;
+  e.extended = in.encoder_can_id > 0x7FFu;
+  e.crank_channel = kCrankChannel;
+  e.cam_channel = kCamChannel;
+  // Live only: SocketCAN receive times are CLOCK_REALTIME, the encoder's ticks are its own oscillator's.
+  e.align_to_receive_time = config.inputs.can.backend == CanBackend::kSocketCan;
+  return e;
+}
+
 std::int64_t can_time_offset_ns(const Config& config) noexcept {
   return static_cast<std::int64_t>(std::llround(config.inputs.can.time_offset_s * 1e9));
 }
@@ -109,13 +122,7 @@ std::unique_ptr<EdgeSource> make_edge_source(const Config& config, std::string* 
         }
         can = std::move(file);
       }
-      CanEncoderConfig e;
-      e.id = in.encoder_can_id;
-      e.fd = config.inputs.can.fd;
-      e.extended = in.encoder_can_id > 0x7FFu;
-      e.crank_channel = kCrankChannel;
-      e.cam_channel = kCamChannel;
-      auto src = std::make_unique<OwningEncoderSource>(std::move(can), e);
+      auto src = std::make_unique<OwningEncoderSource>(std::move(can), can_encoder_config(config));
       if (!src->ok()) {
         set(error, "inputs.edges (can_encoder): " + src->last_error());
         return nullptr;

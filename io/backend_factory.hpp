@@ -10,6 +10,7 @@
 #include <optional>
 #include <string>
 
+#include "can_encoder.hpp"
 #include "config.hpp"
 #include "dbc.hpp"
 #include "signal_store.hpp"
@@ -35,6 +36,11 @@ inline constexpr std::uint8_t kCamChannel = 1;
 
 /// Decoder parameters from the config with the factory's channel indices and cam settings filled in.
 [[nodiscard]] DecoderParams decoder_params(const Config& config) noexcept;
+
+/// Encoder settings for inputs.edges.backend can_encoder. align_to_receive_time is on only for the live
+/// SocketCAN path (edges moved onto the frames' receive clock, like the CAN signals; docs/live.md); a candump
+/// replay keeps the encoder's own clock, so replays stay deterministic.
+[[nodiscard]] CanEncoderConfig can_encoder_config(const Config& config) noexcept;
 
 /// Parse config.can.dbc (nullopt + error when it fails; nullopt and empty error when no DBC is configured).
 [[nodiscard]] std::optional<DbcDatabase> load_dbc(const Config& config, std::string* error);

@@ -78,6 +78,26 @@ TEST(BackendFactory, DecoderParamsFollowTheWheelConfig) {
   EXPECT_EQ(p.cam_channel, kCamChannel);
 }
 
+TEST(BackendFactory, EncoderAlignsToReceiveTimeOnlyLive) {
+  // GIVEN the can_encoder edge backend WHEN CAN is a candump replay THEN the encoder's own clock is kept
+  // (deterministic replay); WHEN CAN is SocketCAN (live) THEN edges are aligned to the frames' receive clock.
+  Config c = default_config();
+  c.inputs.edges.backend = EdgeBackend::kCanEncoder;
+  c.inputs.edges.encoder_can_id = 0x18FF0001u;
+  c.inputs.can.backend = CanBackend::kFile;
+  CanEncoderConfig e = can_encoder_config(c);
+  EXPECT_FALSE(e.align_to_receive_time);
+  EXPECT_EQ(e.id, 0x18FF0001u);
+  EXPECT_TRUE(e.extended);
+  EXPECT_EQ(e.crank_channel, kCrankChannel);
+  EXPECT_EQ(e.cam_channel, kCamChannel);
+  EXPECT_EQ(validate(e), nullptr);
+  c.inputs.can.backend = CanBackend::kSocketCan;
+  e = can_encoder_config(c);
+  EXPECT_TRUE(e.align_to_receive_time);
+  EXPECT_EQ(validate(e), nullptr);
+}
+
 TEST(BackendFactory, DbcAndSignalBindingErrors) {
   test::TempFile dbc("BO_ 256 E1: 8 ECU\n SG_ MAP : 0|16@1+ (0.01,0) [0|655.35] \"kPa\" X\n", ".dbc");
   Config c = default_config();
