@@ -72,6 +72,8 @@ class ChauvinKalman {
  private:
   void predict(int k) noexcept;  // x ← A_k x (and P in exact mode)
   [[nodiscard]] Mat transition(int k) const noexcept;
+  /// A_k P A_kᵀ using the sparsity of A_k (per-tooth covariance propagation, CK-13).
+  [[nodiscard]] Mat propagate(int k, const Mat& p) const noexcept;
 
   KalmanParams params_;
   ToothAngleTable table_;

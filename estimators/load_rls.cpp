@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include "crank_kinematics.hpp"
 #include "cycle_energy.hpp"
@@ -19,36 +20,58 @@ double wrap4pi(double a) noexcept {
   return a < 0.0 ? a + kFourPi : a;
 }
 
+/// Burn-independent pieces of the pressure model at local angle φ (volume powers, blowdown blend, dV/dθ):
+/// evaluated once per integration angle and shared by every burn centroid (no trigonometry/pow in the inner loops).
+struct AngleTerms {
+  double phi = 0.0;
+  double dvol = 0.0;       ///< dV/dθ (m³/rad)
+  double ivc_poly = 0.0;   ///< (V_IVC/V)^κ
+  double c_poly = 0.0;     ///< (V_c/V)^κ
+  double blend = 0.0;      ///< raised-cosine blowdown blend (only meaningful in [EVO, blowdown end))
+};
+AngleTerms angle_terms(double phi, const CrankKinematics& kin, const EnergiesParams& prm, double v_ivc,
+                       double v_c) noexcept {
+  const double evo = prm.evo_atdc_deg * kDeg;
+  const double bde = prm.blowdown_end_atdc_deg * kDeg;
+  const double v = kin.volume(phi);
+  const double k = prm.polytropic_kappa;
+  AngleTerms t;
+  t.phi = phi;
+  t.dvol = kin.dvolume(phi);
+  t.ivc_poly = std::pow(v_ivc / v, k);
+  t.c_poly = std::pow(v_c / v, k);
+  t.blend = (phi >= evo && phi < bde) ? 0.5 * (1.0 + std::cos(kPi * (phi - evo) / (bde - evo))) : 0.0;
+  return t;
+}
+
 /// Pressure-model weights at local angle φ after a cylinder's firing TDC: p = w_map·MAP + w_exh·p_exh + w_p3·p3.
 struct Weights {
   double map = 0.0, exh = 0.0, p3 = 0.0;
 };
-Weights model_weights(double phi, const CrankKinematics& kin, const EnergiesParams& prm, double v_ivc,
-                      double v_c, double burn_rad) noexcept {
+Weights model_weights(const AngleTerms& t, const EnergiesParams& prm, double burn_rad) noexcept {
+  const double phi = t.phi;
   const double evo = prm.evo_atdc_deg * kDeg;
   const double bde = prm.blowdown_end_atdc_deg * kDeg;
   const double ivc = (540.0 + prm.ivc_abdc_deg) * kDeg;
-  const double v = kin.volume(phi);
-  const double k = prm.polytropic_kappa;
   const double burn = burn_rad;
   Weights w;
   if (phi < burn) {
     // Before the burn centroid the charge follows the compression polytrope back out (heat release lumped at
     // the centroid: a constant-volume burn at TDC would understate the late expansion pressure for a given work).
-    w.map = prm.ivc_pressure_factor * std::pow(v_ivc / v, k);
+    w.map = prm.ivc_pressure_factor * t.ivc_poly;
   } else if (phi < evo) {
-    w.p3 = std::pow(v_c / v, k);
+    w.p3 = t.c_poly;
   } else if (phi < bde) {
     // Blowdown: raised-cosine blend from the polytrope to p_exh between EVO and the blowdown end.
-    const double c = 0.5 * (1.0 + std::cos(kPi * (phi - evo) / (bde - evo)));
-    w.p3 = c * std::pow(v_c / v, k);
+    const double c = t.blend;
+    w.p3 = c * t.c_poly;
     w.exh = 1.0 - c;
   } else if (phi < kTwoPi) {
     w.exh = 1.0;
   } else if (phi < ivc) {
     w.map = 1.0;
   } else {
-    w.map = prm.ivc_pressure_factor * std::pow(v_ivc / v, k);
+    w.map = prm.ivc_pressure_factor * t.ivc_poly;
   }
   return w;
 }
@@ -73,11 +96,15 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
   window_last_of_.assign(static_cast<std::size_t>(samples_), -1);
   const double step = 0.05 * kDeg;
   // Full-cycle ∮p dV coefficients of one cylinder (local angle), one set per burn centroid 0..kCentroids−1 deg.
+  // The burn-independent terms are tabulated once over the integration grid (same φ sequence for every centroid).
+  std::vector<AngleTerms> grid;
+  grid.reserve(static_cast<std::size_t>(kFourPi / step) + 2);
+  for (double phi = 0.5 * step; phi < kFourPi; phi += step) grid.push_back(angle_terms(phi, kin, params, v_ivc_, v_c_));
   for (int ci = 0; ci < kCentroids; ++ci) {
     double cm = 0.0, ce = 0.0, cp = 0.0;
-    for (double phi = 0.5 * step; phi < kFourPi; phi += step) {
-      const Weights w = model_weights(phi, kin, params, v_ivc_, v_c_, ci * kDeg);
-      const double dv = kin.dvolume(phi) * step;
+    for (const AngleTerms& at : grid) {
+      const Weights w = model_weights(at, params, ci * kDeg);
+      const double dv = at.dvol * step;
       cm += w.map * dv;
       ce += w.exh * dv;
       cp += w.p3 * dv;
@@ -118,8 +145,9 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
       for (int i = 0; i < steps; ++i) {
         const double th = win.c_first + (i + 0.5) * h;
         const double phi = wrap4pi(th - phase);
-        const Weights w = model_weights(phi, kin, params, v_ivc_, v_c_, params.burn_centroid_atdc_deg * kDeg);
-        const double dv = kin.dvolume(phi) * h;  // dV_j/dθ dθ = A R f(θ − φ_j) dθ (EN-9)
+        const AngleTerms at = angle_terms(phi, kin, params, v_ivc_, v_c_);
+        const Weights w = model_weights(at, params, params.burn_centroid_atdc_deg * kDeg);
+        const double dv = at.dvol * h;  // dV_j/dθ dθ = A R f(θ − φ_j) dθ (EN-9)
         win.k_map += w.map * dv;
         win.k_exh += w.exh * dv;
         win.k_p3[static_cast<std::size_t>(q)] += w.p3 * dv;
@@ -168,7 +196,8 @@ double LoadRls::expansion_p3(double work_j, double map_pa, double spark_advance_
 
 double LoadRls::model_pressure(double local_rad, double map_pa, double p3_pa, double spark_advance_deg) const noexcept {
   const CrankKinematics kin(engine_);
-  const Weights w = model_weights(wrap4pi(local_rad), kin, params_, v_ivc_, v_c_, centroid_deg(spark_advance_deg) * kDeg);
+  const Weights w = model_weights(angle_terms(wrap4pi(local_rad), kin, params_, v_ivc_, v_c_), params_,
+                                  centroid_deg(spark_advance_deg) * kDeg);
   return w.map * map_pa + w.exh * params_.exhaust_pressure_pa + w.p3 * p3_pa;
 }
 
