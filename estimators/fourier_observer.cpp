@@ -134,11 +134,10 @@ double FourierObserver::net_torque_at(int k) const noexcept {
 
 bool FourierObserver::update(const ToothSample& s) noexcept {
   const int kk = table_.samples;
-  if (!s.synced || !(s.dt_s > 0.0) || !(s.width_rad > 0.0) || !std::isfinite(s.dt_s) ||
-      !std::isfinite(s.width_rad) || s.tooth < 0 || s.tooth >= kk) {
+  if (const Health input = check_tooth_sample(s, kk); input != Health::kValid) {
     ++stats_.rejected;
     expected_tooth_ = -1;
-    est_.health = s.synced ? Health::kInvalidInput : Health::kNoSync;
+    est_.health = input;
     return false;
   }
   const int k = s.tooth;

@@ -1,7 +1,10 @@
 #pragma once
 // Inputs of the estimators, in SI units, decoupled from io/ (estimators/ depends on nothing but Eigen).
 // The daemon converts io::ToothEvent and signal-store values into these.
+#include <cmath>
 #include <cstdint>
+
+#include "estimate.hpp"
 
 namespace torqued {
 
@@ -14,6 +17,17 @@ struct ToothSample {
   double dt_s = 0.0;          ///< duration of that period (s)
   bool synced = false;        ///< decoder synced with 720° phase known; estimators hold when false
 };
+
+/// Shared input check of the per-tooth estimators: kNoSync when the decoder is not synced, kInvalidInput for a
+/// non-positive or non-finite period/width or a tooth index outside [0, samples_per_cycle), else kValid.
+[[nodiscard]] inline Health check_tooth_sample(const ToothSample& s, int samples_per_cycle) noexcept {
+  if (!s.synced) return Health::kNoSync;
+  if (!(s.dt_s > 0.0) || !(s.width_rad > 0.0) || !std::isfinite(s.dt_s) || !std::isfinite(s.width_rad) ||
+      s.tooth < 0 || s.tooth >= samples_per_cycle) {
+    return Health::kInvalidInput;
+  }
+  return Health::kValid;
+}
 
 /// Slow quantities from CAN (signal store), SI units, each with validity (stale or rejected -> false).
 struct EngineSignals {
