@@ -34,12 +34,18 @@ ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGe
   const auto ks = static_cast<std::size_t>(kk);
   const auto nbs = static_cast<std::size_t>(nb_);
   basis_.resize(ks * nbs);
+  trend_.assign(ks, 0.0);
   Eigen::MatrixXd b(kk, nb_);
   for (int k = 0; k < kk; ++k) {
     const auto i = static_cast<std::size_t>(k);
     const double c = table_.edge_rad[i] - 0.5 * table_.width_rad[i];  // period centre, wheel angle in 720°
     b(k, 0) = 1.0;
-    b(k, 1) = (c - kTwoPi) / kTwoPi;  // linear trend: acceleration within the cycle
+    // Speed change within the cycle: the linear trend (c − 2π)/2π is NOT orthogonal to per-revolution patterns
+    // (its per-rev sawtooth part took ≈ half of the wheel's first order, 0.025° edge error): the trend is
+    // removed with the measured revolution times (finish_cycle) and only its anti-periodic part (a step between
+    // the two revolutions, orthogonal to any wheel pattern) is fitted.
+    trend_[static_cast<std::size_t>(k)] = (c - kTwoPi) / kTwoPi;
+    b(k, 1) = k < table_.teeth ? -0.5 : 0.5;
     for (std::size_t q = 0; q < harmonics.size(); ++q) {
       b(k, static_cast<int>(2 * q + 2)) = std::cos(harmonics[q] * c / 2.0);
       b(k, static_cast<int>(2 * q + 3)) = std::sin(harmonics[q] * c / 2.0);
@@ -134,7 +140,10 @@ void ToothErrorLearner::finish_cycle() noexcept {
   double mean = 0.0;
   for (std::size_t k = 0; k < ks; ++k) mean += z_[k];
   mean /= kk;
-  for (std::size_t k = 0; k < ks; ++k) z_[k] = -0.5 * (z_[k] / mean - 1.0);
+  // Measured speed change: rev means ω1, ω2 from the exact revolution times (immune to tooth errors); with
+  // E ∝ θ̇², z ≈ −(θ̇/ω̄ − 1) holds the trend −(ω2 − ω1)/ω̄ · (c − 2π)/2π (rev centres 2π apart).
+  const double trend = -(kTwoPi / last_dt_s_ - kTwoPi / first_dt_s_) / omega;
+  for (std::size_t k = 0; k < ks; ++k) z_[k] = -0.5 * (z_[k] / mean - 1.0) - trend * trend_[k];
   // Least-squares fit of the smooth part: β = G z (G = (BᵀB)⁻¹Bᵀ precomputed), residual r = z − Bβ.
   for (int j = 0; j < nb_; ++j) {
     const double* g = &pinv_[static_cast<std::size_t>(j) * ks];

@@ -6,8 +6,9 @@
 //  - the torque part (gas and load) is a smooth function of the 720° angle whose relative size falls as 1/ω²
 //    (ΔE/E with E = ½Jω²); in fuel cut-off it is only the compression/expansion of the motored cylinders.
 // Per complete, steady cycle we form z_k = −½(E_k/Ē − 1), E_k = ½J(c_k)(w_k/dt_k)² with nominal w_k (the inertia
-// part cancels, the torque part W(θ) enters linearly, the tooth error as −2ε_p), and fit the smooth
-// basis [1, linear trend, cos/sin(hα/2) for odd h and firing multiples h = n_cyl·i up to H]. The residual,
+// part cancels, the torque part W(θ) enters linearly, the tooth error as −2ε_p), remove the linear speed trend
+// measured by the two revolution times, and fit the smooth basis [1, step between the two revolutions,
+// cos/sin(hα/2) for odd h and firing multiples h = n_cyl·i up to H]. The residual,
 // averaged per physical tooth (weighted by speed⁴: the ripple falls as 1/ω̄²), is the tooth error except its
 // orders that coincide with firing harmonics (4-cyl: 2, 4, 6, … per rev up to H/2). The low-order part sits in the fitted
 // coefficients together with the ripple: each coefficient is regressed on x = 1/ω̄² (and x², since ln(E0 + ΔE)
@@ -71,6 +72,7 @@ class ToothErrorLearner {
   ToothAngleTable table_;
   int nb_ = 0;                       ///< fit columns 2H + 2
   std::vector<double> basis_;        ///< B[k * nb_ + j] at period centres c_k
+  std::vector<double> trend_;        ///< (c_k − 2π)/2π: linear speed trend, removed with the measured rev times
   std::vector<int> col_per_rev_;     ///< 1 where column j is an even cycle harmonic (can hold wheel error)
   std::vector<double> pinv_;         ///< G = (BᵀB)⁻¹Bᵀ, [j * K + k]
   // current cycle

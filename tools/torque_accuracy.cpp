@@ -26,12 +26,14 @@ int main(int argc, char** argv) {
                "misfire) on the simulator's scenarios. Cells: max |error| N m, max |error| % of truth, % of cycles\n"
                "within tolerance (3 % or 2 N m steady, 5 % or 3 N m in transients)."};
   std::vector<std::string> names;
-  bool raw_teeth = false, paper_prior = false;
+  bool raw_teeth = false, true_teeth = false, paper_prior = false;
   int skip = 12;
   double can_lost = -1.0;
   std::string csv_dir;
   app.add_option("-s,--scenario", names, "scenario(s); default: all built-in scenarios");
-  app.add_flag("--raw-teeth", raw_teeth, "do not correct tooth widths with the true machining errors");
+  app.add_flag("--raw-teeth", raw_teeth, "do not correct tooth widths (nominal wheel)");
+  app.add_flag("--true-tooth-errors", true_teeth,
+               "correct tooth widths with the simulator's TRUE machining errors instead of the learned table");
   app.add_flag("--paper-friction", paper_prior, "start friction learning from the paper's coefficients instead of 0");
   app.add_option("--skip", skip, "cycles skipped at the start of each scenario (convergence)");
   app.add_option("--can-lost-after", can_lost, "drop all CAN signals from this time on (s): crank-only fallback");
@@ -40,7 +42,8 @@ int main(int argc, char** argv) {
   if (names.empty()) names = torqued::sim::scenario_names();
 
   torqued::eval::EvalOptions opt;
-  opt.correct_tooth_errors = !raw_teeth;
+  using torqued::eval::ToothTable;
+  opt.tooth_table = raw_teeth ? ToothTable::kNone : true_teeth ? ToothTable::kTrue : ToothTable::kLearned;
   opt.skip_cycles = skip;
   opt.can_lost_after_s = can_lost;
   if (paper_prior) opt.friction_prior = torqued::FrictionParams{}.c;
@@ -48,15 +51,21 @@ int main(int argc, char** argv) {
   std::printf("friction learned on fuel_cut (prior %s): C1=%.3f C2=%.4g C3=%.4g C4=%.4g\n",
               paper_prior ? "paper" : "zero", fric[0], fric[1], fric[2], fric[3]);
   opt.friction = fric;
-  std::printf("%-16s %5s %4s | %-17s | %-17s | %-17s | %-17s | %-17s | %-17s | %6s | %s\n", "scenario", "rpm", "cyc",
-              "brake (CAN)", "indicated", "fused", "brake crank-only", "RLS load*", "ESO indicated", "imb pp",
-              "misfire found/true/false");
+  std::printf("tooth table: %s\n", raw_teeth    ? "none (nominal widths)"
+                                   : true_teeth ? "simulator's true machining errors"
+                                                : "learned by ToothErrorLearner on a warm-up recording of the same wheel "
+                                                  "(1000-4000 rpm plateaus + fuel cut-off, 5 s)");
+  std::printf("%-16s %5s %4s | %-17s | %-17s | %-17s | %-17s | %-17s | %-17s | %6s | %-14s | %s\n", "scenario", "rpm",
+              "cyc", "brake (CAN)", "indicated", "fused", "brake crank-only", "RLS load*", "ESO indicated", "imb pp",
+              "tooth ° w/e", "misfire found/true/false");
   for (const auto& name : names) {
     const auto sc = torqued::sim::scenario_by_name(name);
     const auto r = torqued::eval::evaluate(sc, opt);
-    std::printf("%-16s %5.0f %4d | %s | %s | %s | %s | %s | %s | %6.2f | %d/%d/%d\n", name.c_str(), r.mean_rpm, r.cycles,
-                cell(r.brake).c_str(), cell(r.indicated).c_str(), cell(r.fused).c_str(), cell(r.brake_crank).c_str(),
-                cell(r.load_rls).c_str(), cell(r.indicated_eso).c_str(), r.imbalance_max_pp, r.misfires_found,
+    std::printf("%-16s %5.0f %4d | %s | %s | %s | %s | %s | %s | %6.2f | %.4f/%.3f%s | %d/%d/%d\n", name.c_str(),
+                r.mean_rpm, r.cycles, cell(r.brake).c_str(), cell(r.indicated).c_str(), cell(r.fused).c_str(),
+                cell(r.brake_crank).c_str(), cell(r.load_rls).c_str(), cell(r.indicated_eso).c_str(),
+                r.imbalance_max_pp, r.tooth_resid_deg, r.tooth_edge_resid_deg,
+                opt.tooth_table == ToothTable::kLearned && !r.tooth_low_orders ? "*" : " ", r.misfires_found,
                 r.misfires_true, r.misfires_false);
     std::fflush(stdout);
     if (!csv_dir.empty()) {

@@ -1,7 +1,10 @@
 // AnglePipeline on the simulator's short scenarios: the issue-5 accuracy targets for the cycle-mean torques,
 // per-cylinder imbalance and misfire, crank-only fallback, no allocation per tooth, determinism.
-// Tooth widths are corrected with the simulator's true machining errors ("learned"; the angle helper's
-// ToothErrorLearner does this in the daemon). Friction is learned on the fuel_cut coast-down from a zero prior.
+// Tooth widths: the ToothErrorLearner table learned on a warm-up recording of the same wheel (eval::warmup_scenario,
+// as the daemon learns and persists it) for friction learning, imbalance, misfire, 3-cyl/36-1; the steady-target
+// test uses the simulator's true machining errors (its crank-only RLS bound of 5 N m needs the firing orders of
+// the wheel error better than the learner gets them at 3000 rpm: 5.3 N m learned). Friction is learned on the
+// fuel_cut coast-down from a zero prior.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -19,7 +22,7 @@ using eval::ScenarioResult;
 class AnglePipelineSim : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    EvalOptions o;
+    EvalOptions o;  // learned tooth table (default)
     o.friction.reset();
     // Not told the friction law: start at zero, learn on the coast-down, persist (export) the coefficients.
     const ScenarioResult r = eval::evaluate(sim::scenario_by_name("fuel_cut"), o);
@@ -29,6 +32,12 @@ class AnglePipelineSim : public ::testing::Test {
   static EvalOptions options() {
     EvalOptions o;
     o.friction = friction_;
+    o.tooth_table = eval::ToothTable::kLearned;
+    return o;
+  }
+  static EvalOptions options_true_teeth() {
+    EvalOptions o = options();
+    o.tooth_table = eval::ToothTable::kTrue;
     return o;
   }
   static std::array<double, 4> friction_;
@@ -47,7 +56,7 @@ TEST_F(AnglePipelineSim, FrictionIsLearnedInFuelCutOff) {
 
 TEST_F(AnglePipelineSim, SteadyCycleMeansWithinThreePercentOrTwoNm) {
   for (const char* name : {"steady_2000_mid", "steady_3000_high"}) {
-    const ScenarioResult r = eval::evaluate(sim::scenario_by_name(name), options());
+    const ScenarioResult r = eval::evaluate(sim::scenario_by_name(name), options_true_teeth());
     ASSERT_GT(r.brake.n, 10) << name;
     EXPECT_EQ(r.brake.pass, r.brake.n) << name << " brake max err " << r.brake.max_abs_nm;
     EXPECT_EQ(r.indicated.pass, r.indicated.n) << name << " indicated max err " << r.indicated.max_abs_nm;
@@ -82,7 +91,7 @@ TEST_F(AnglePipelineSim, ThreeCylinderAnd36Minus1ByConfigurationOnly) {
 }
 
 TEST_F(AnglePipelineSim, CanLostFallsBackToCrankOnlyAndSaysSo) {
-  EvalOptions o = options();
+  EvalOptions o = options_true_teeth();
   o.can_lost_after_s = 1.0;
   const ScenarioResult r = eval::evaluate(sim::scenario_by_name("steady_2000_mid"), o);
   int crank_only = 0;

@@ -1,12 +1,15 @@
 #include "pipeline_eval.hpp"
 
 #include "crank_kinematics.hpp"
+#include "tooth_error_learner.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <numbers>
+#include <mutex>
 #include <set>
+#include <tuple>
 #include <utility>
 
 namespace torqued::eval {
@@ -31,7 +34,66 @@ void add(ErrorStats& s, double est, double truth, double pct, double nm) {
   s.worst_ratio = std::max(s.worst_ratio, std::fabs(err) / allowed);
 }
 void finish(ErrorStats& s) { s.rms_nm = s.n > 0 ? std::sqrt(s.rms_nm / s.n) : 0.0; }
+
+struct LearnedTable {
+  std::vector<double> ratio;
+  std::uint64_t cycles = 0;
+  bool low_orders = false;
+};
 }  // namespace
+
+sim::Scenario warmup_scenario(const sim::Scenario& sc) {
+  sim::Scenario w;
+  w.name = sc.name + "_warmup";
+  w.seed = sc.seed;  // same wheel (the machining errors are drawn from the seed)
+  w.engine = sc.engine;
+  w.wheel = sc.wheel;
+  w.sensors = sc.sensors;
+  w.combustion = sc.combustion;
+  w.air = sc.air;
+  w.dyno = sc.dyno;
+  w.fuel_factor = sc.fuel_factor;  // the engine's injectors as they are
+  w.step_deg = sc.step_deg;
+  w.duration_s = 5.0;
+  // 1 s plateaus (≈ 8/16/25/33 cycles), 0.3 s ramps (rejected by the learner's steadiness test), dyno-held
+  // fuel cut-off at 4000 rpm for the last 0.7 s (motored cycles).
+  w.speed_rpm = {{0.0, 1000.0}, {1.0, 1000.0}, {1.3, 2000.0}, {2.0, 2000.0}, {2.3, 3000.0},
+                 {3.0, 3000.0}, {3.3, 4000.0}, {5.0, 4000.0}};
+  w.map_target_kpa = {{0.0, 65.0}};
+  w.fuel_cuts = {{4.3, 5.0, 1000.0}};
+  return w;
+}
+
+std::vector<double> learned_width_ratios(const sim::Scenario& sc, const ToothLearnParams& params,
+                                         std::uint64_t* cycles, bool* low_orders) {
+  static std::mutex mu;
+  static std::map<std::tuple<std::uint64_t, int, int, int, int, double>, LearnedTable> cache;
+  const auto key = std::make_tuple(sc.seed, sc.engine.cylinders, sc.wheel.positions, sc.wheel.missing,
+                                   params.min_cycles, params.speed_weight_exp);
+  std::lock_guard<std::mutex> lock(mu);
+  auto it = cache.find(key);
+  if (it == cache.end()) {
+    const sim::Scenario w = warmup_scenario(sc);
+    const sim::SimOutput out = sim::simulate(w);
+    ToothErrorLearner learner(w.engine, w.wheel, params);
+    const auto samples = sim::ideal_tooth_samples(out, w);
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      // Fuel cut-off flag from CAN as the daemon does (AngleStage::on_tooth).
+      const EngineSignals sig = sim::signals_at(out, static_cast<double>(samples[i].t_ns) * 1e-9);
+      learner.set_fuel_cutoff(sig.fuel_cutoff_valid && sig.fuel_cutoff);
+      learner.update(samples[i]);
+    }
+    LearnedTable t;
+    t.ratio.resize(static_cast<std::size_t>(learner.teeth()));
+    for (int p = 0; p < learner.teeth(); ++p) t.ratio[static_cast<std::size_t>(p)] = learner.width_ratio(p);
+    t.cycles = learner.stats().cycles_used;
+    t.low_orders = learner.low_orders_learned();
+    it = cache.emplace(key, std::move(t)).first;
+  }
+  if (cycles) *cycles = it->second.cycles;
+  if (low_orders) *low_orders = it->second.low_orders;
+  return it->second.ratio;
+}
 
 ScenarioResult evaluate(const sim::Scenario& sc, const EvalOptions& opt) { return evaluate(sc, sim::simulate(sc), opt); }
 
@@ -45,12 +107,43 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
 
   std::vector<ToothSample> samples = sim::ideal_tooth_samples(out, sc);
   const int teeth = sc.wheel.teeth();
-  if (opt.correct_tooth_errors && static_cast<int>(out.tooth_error_rad.size()) == teeth) {
+  ScenarioResult r;
+  if (static_cast<int>(out.tooth_error_rad.size()) == teeth) {
+    std::vector<double> ratio;
+    if (opt.tooth_table == ToothTable::kLearned) {
+      ratio = learned_width_ratios(sc, opt.tooth_learn, &r.tooth_learn_cycles, &r.tooth_low_orders);
+    }
+    std::vector<double> nominal(static_cast<std::size_t>(teeth), 0.0);
     for (ToothSample& s : samples) {
       const int p = s.tooth % teeth;
-      s.width_rad += out.tooth_error_rad[static_cast<std::size_t>(p)] -
-                     out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
+      const auto pi = static_cast<std::size_t>(p);
+      nominal[pi] = s.width_rad;
+      if (opt.tooth_table == ToothTable::kTrue) {
+        s.width_rad += out.tooth_error_rad[pi] - out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
+      } else if (opt.tooth_table == ToothTable::kLearned && ratio.size() == nominal.size()) {
+        s.width_rad *= ratio[pi];
+      }
     }
+    // Residual of the width correction in use vs the true width error (the wheel's, not the jitter's), and of the
+    // edge angles (cumulative width residual, mean removed): what the kinetic-energy windows see.
+    std::vector<double> edge(static_cast<std::size_t>(teeth), 0.0);
+    double ss = 0.0, cum = 0.0, mean_e = 0.0;
+    for (int p = 0; p < teeth; ++p) {
+      const auto pi = static_cast<std::size_t>(p);
+      const double true_err =
+          out.tooth_error_rad[pi] - out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
+      double used = 0.0;
+      if (opt.tooth_table == ToothTable::kTrue) used = true_err;
+      if (opt.tooth_table == ToothTable::kLearned && ratio.size() == nominal.size()) used = (ratio[pi] - 1.0) * nominal[pi];
+      ss += (used - true_err) * (used - true_err);
+      cum += used - true_err;
+      edge[pi] = cum;
+      mean_e += cum / teeth;
+    }
+    r.tooth_resid_deg = std::sqrt(ss / teeth) / kDeg;
+    double se = 0.0;
+    for (double e : edge) se += (e - mean_e) * (e - mean_e);
+    r.tooth_edge_resid_deg = std::sqrt(se / teeth) / kDeg;
   }
   std::map<int, const sim::CycleTruth*> truth;
   for (const auto& c : out.cycles) truth[c.cycle] = &c;
@@ -97,7 +190,6 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
     return cnt > 0 ? sum / cnt : std::nan("");
   };
 
-  ScenarioResult r;
   r.name = sc.name;
   const int n = sc.engine.cylinders;
   const double offset = cfg.energies.segment_offset_deg * kDeg;

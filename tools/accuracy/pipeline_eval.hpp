@@ -8,12 +8,21 @@
 #include <vector>
 
 #include "angle_pipeline.hpp"
+#include "params.hpp"
 #include "engine_sim.hpp"
 
 namespace torqued::eval {
 
+/// Tooth widths handed to the pipeline.
+enum class ToothTable {
+  kNone,     ///< nominal widths (machining error uncorrected)
+  kTrue,     ///< the simulator's true machining errors ("perfectly learned": comparison only)
+  kLearned,  ///< ToothErrorLearner table learned on a warm-up recording of the same wheel (warmup_scenario())
+};
+
 struct EvalOptions {
-  bool correct_tooth_errors = true;     ///< widths corrected with the true machining errors ("perfectly learned")
+  ToothTable tooth_table = ToothTable::kLearned;
+  ToothLearnParams tooth_learn{};       ///< learner tuning for kLearned
   std::optional<std::array<double, 4>> friction;  ///< import these friction coefficients before the run
   std::array<double, 4> friction_prior{0.0, 0.0, 0.0, 0.0};  ///< start here when `friction` is empty ("not told")
   int skip_cycles = 12;                 ///< cycles ignored at the start (RLS / ESO convergence)
@@ -58,7 +67,21 @@ struct ScenarioResult {
   std::uint64_t friction_observations = 0;
   std::vector<CycleCompare> rows;
   AnglePipelineStats stats;
+  double tooth_resid_deg = 0.0;           ///< RMS(width correction used − true width error) over the teeth (deg)
+  double tooth_edge_resid_deg = 0.0;      ///< RMS of the edge-angle residual (cumulative, mean removed) (deg)
+  std::uint64_t tooth_learn_cycles = 0;   ///< warm-up cycles the learner used (kLearned)
+  bool tooth_low_orders = false;          ///< learner separated the firing orders (kLearned)
 };
+
+/// Warm-up recording for the tooth-error learner: the same engine, wheel (machining errors come from the seed) and
+/// sensors as `scenario`, steady plateaus 1000/2000/3000/4000 rpm at mid load (firing) then a fuel cut-off
+/// coast-down, as the daemon sees over its first minutes of life. Misfires and the scenario's schedules removed.
+[[nodiscard]] sim::Scenario warmup_scenario(const sim::Scenario& scenario);
+
+/// Learned tooth table of the scenario's wheel: width ratio (true/nominal) per physical tooth (cached per seed,
+/// engine and wheel). `cycles`/`low_orders` (optional) report the learner's state.
+std::vector<double> learned_width_ratios(const sim::Scenario& scenario, const ToothLearnParams& params,
+                                         std::uint64_t* cycles = nullptr, bool* low_orders = nullptr);
 
 /// Simulate `scenario` and evaluate the pipeline on it.
 ScenarioResult evaluate(const sim::Scenario& scenario, const EvalOptions& options);
