@@ -7,6 +7,8 @@
 #include <numbers>
 #include <type_traits>
 
+#include "csv_number.hpp"
+
 namespace torqued::dds {
 namespace {
 
@@ -45,8 +47,10 @@ struct HeaderVisitor {
   }
 };
 
-/// CSV row writer: formats into a fixed stack buffer with std::to_chars and appends to the string once per row
-/// (the per-field std::string appends were a third of the fast-replay recorder's cost). Same text as append_number.
+/// CSV row writer: formats into a fixed stack buffer and appends to the string once per row (the per-field
+/// std::string appends were a third of the fast-replay recorder's cost). Numbers: csv_number.hpp (integers in
+/// decimal, doubles in fixed point at the column's resolution; the shortest round-trip std::to_chars form was
+/// the recorder's main cost).
 struct RowWriter {
   explicit RowWriter(std::string& o) : out(o) {}  // buf deliberately left uninitialised
   std::string& out;
@@ -57,32 +61,32 @@ struct RowWriter {
     out.append(buf, p);
     p = buf;
   }
-  template <class V> void number(V v) {
+  template <class V> [[gnu::always_inline]] void number(V v, int decimals = 6) {
     if (static_cast<std::size_t>(buf + sizeof buf - p) < kRoom) spill();
     if constexpr (std::is_same_v<V, bool>) {
       *p++ = v ? '1' : '0';
     } else if constexpr (std::is_floating_point_v<V>) {
-      if (std::isnan(v)) { p = std::copy_n("nan", 3, p); return; }
-      if (std::isinf(v)) { p = v > 0 ? std::copy_n("inf", 3, p) : std::copy_n("-inf", 4, p); return; }
-      p = std::to_chars(p, buf + sizeof buf, v).ptr;
+      p = csv::write_column_double(p, static_cast<double>(v), decimals);
+    } else if constexpr (std::is_signed_v<V>) {
+      p = csv::write_int(p, static_cast<std::int64_t>(v));
     } else {
-      using W = std::conditional_t<std::is_signed_v<V>, long long, unsigned long long>;
-      p = std::to_chars(p, buf + sizeof buf, static_cast<W>(v)).ptr;
+      p = csv::write_uint(p, static_cast<std::uint64_t>(v));
     }
   }
 };
 
 struct RowVisitor {
   RowWriter& w;
-  template <class V> void operator()(std::string_view name, const V& v) {
+  template <class V> [[gnu::always_inline]] void operator()(std::string_view name, const V& v) {
     if (name == "source_t_ns") return;
     *w.p++ = ',';
-    w.number(v);
+    w.number(v, csv::csv_decimals(name));
   }
-  template <class V> void operator()(std::string_view, const V* a, int n) {
+  template <class V> [[gnu::always_inline]] void operator()(std::string_view name, const V* a, int n) {
+    const int d = csv::csv_decimals(name);
     for (int i = 0; i < n; ++i) {
       *w.p++ = ',';
-      w.number(a[i]);
+      w.number(a[i], d);
     }
   }
 };

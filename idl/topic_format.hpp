@@ -1,8 +1,10 @@
 #pragma once
 // Text forms of torque samples: CSV (first column t_ns = source_t_ns, then every field by name; arrays expand
 // to name_1..name_8), JSON lines, and a short human line. Used by the daemon's recorder and torque-echo, so
-// both write the same columns. Not real-time code (appends to a std::string); numbers via std::to_chars
-// (shortest round-trip form, locale-free): the same sample always gives the same bytes.
+// both write the same columns. Not real-time code (appends to a std::string); locale-free numbers: the same
+// sample always gives the same bytes. CSV: integers exact, doubles rounded to the column's resolution
+// (csv_number.hpp: 6 decimals, 9 for *_rad, 3 for *_rad_s2; shortest round-trip when smaller than 4 significant
+// digits at that resolution); JSON: shortest round-trip (std::to_chars).
 #include <string>
 #include <string_view>
 

@@ -1,6 +1,7 @@
 #include "edge_file_source.hpp"
 
 #include <cctype>
+#include <cstring>
 
 #include "fast_parse.hpp"
 
@@ -20,6 +21,58 @@ bool is_comment_or_blank(std::string_view line) noexcept {
   const auto t = parse::trim(line);
   return t.empty() || t.front() == ';' || t.front() == '#';
 }
+
+/// Eight ASCII digits at p -> value, or false if any is not a digit (SWAR, little-endian; Lemire's trick).
+inline bool eight_digits(const char* p, std::uint64_t& out) noexcept {
+  std::uint64_t v;
+  std::memcpy(&v, p, 8);
+  // every byte in '0'..'9': high nibble 3 and (byte + 6) still has high nibble 3
+  if (((v & 0xF0F0F0F0F0F0F0F0ull) | (((v + 0x0606060606060606ull) & 0xF0F0F0F0F0F0F0F0ull) >> 4)) !=
+      0x3333333333333333ull)
+    return false;
+  v -= 0x3030303030303030ull;
+  v = (v * 10) + (v >> 8);  // pairs
+  v = (((v & 0x000000FF000000FFull) * (100 + (1000000ull << 32))) +
+       (((v >> 16) & 0x000000FF000000FFull) * (1 + (10000ull << 32)))) >> 32;
+  out = v;
+  return true;
+}
+
+}  // namespace
+
+/// Fast path for the common export row "<s>.<9 digits>,<c>,<c>..." (no spaces/sign, exactly 9 decimals, one
+/// character per level column, exactly the header's column count): raw time in header units x 1e9, and the
+/// crank/cam levels. Returns false for anything else: the general parser then handles (or reports) the line,
+/// so both paths agree on every line the fast one accepts (tests/io: EdgeCsv.FastPathAgreesWithGeneralParser).
+bool EdgeCsvSource::parse_row_fast(std::string_view line, std::int64_t& t, int& crank, int& cam) const noexcept {
+  const char* p = line.data();
+  const char* end = p + line.size();
+  std::int64_t whole = 0;
+  const char* s = p;
+  while (p < end && static_cast<unsigned>(*p - '0') < 10u) whole = whole * 10 + (*p++ - '0');
+  const auto int_digits = p - s;
+  // integer part 1..9 digits (no overflow), '.', 9 digits, then 2 characters per further column
+  if (int_digits < 1 || int_digits > 9 || end - p != 10 + 2 * static_cast<std::ptrdiff_t>(columns_ - 1) || *p != '.')
+    return false;
+  std::uint64_t frac8 = 0;
+  if (!eight_digits(p + 1, frac8) || static_cast<unsigned>(p[9] - '0') >= 10u) return false;
+  const char* c = p + 10;  // ",x,y..."
+  crank = cam = -1;
+  for (int col = 1; col < columns_; ++col, c += 2) {
+    if (c[0] != ',') return false;
+    const unsigned d = static_cast<unsigned>(c[1] - '0');
+    if (col == crank_col_ || col == cam_col_) {
+      if (d > 1u) return false;
+      (col == crank_col_ ? crank : cam) = static_cast<int>(d);
+    } else if (d >= 10u) {
+      return false;
+    }
+  }
+  t = whole * 1'000'000'000 + static_cast<std::int64_t>(frac8 * 10 + static_cast<unsigned>(p[9] - '0'));
+  return true;
+}
+
+namespace {
 
 void note(std::vector<std::string>& messages, std::string& error, const std::string& path, std::uint64_t line,
           const char* what) {
@@ -89,6 +142,49 @@ void EdgeCsvSource::bad_line(const char* what) noexcept {
   }
 }
 
+/// General row parser (spaces, signs, any number of decimals, longer level fields): raw time (header units
+/// x 1e9) and the crank/cam levels; reports and counts a bad line and returns false.
+bool EdgeCsvSource::parse_row(std::string_view line, std::int64_t& t, int& crank, int& cam) noexcept {
+  if (line.empty() || line.front() == ';' || line.front() == '#') return false;
+  const char* p = line.data();
+  const char* end = p + line.size();
+  parse::skip_ws(p, end);
+  if (!parse::seconds_to_ns(p, end, t)) {
+    bad_line("expected a time in seconds in the first column");
+    return false;
+  }
+  // Levels: only the configured columns are looked at.
+  int col = 1;
+  crank = cam = -1;
+  bool bad = false;
+  while (p < end) {
+    parse::skip_ws(p, end);
+    if (p == end || *p != ',') {
+      bad = true;
+      break;
+    }
+    ++p;
+    parse::skip_ws(p, end);
+    if (col == crank_col_ || col == cam_col_) {
+      if (p == end || (*p != '0' && *p != '1')) {
+        bad = true;
+        break;
+      }
+      (col == crank_col_ ? crank : cam) = *p - '0';
+      ++p;
+    } else {
+      while (p < end && *p != ',') ++p;
+    }
+    parse::skip_ws(p, end);
+    ++col;
+  }
+  if (bad || crank < 0 || (cam_col_ >= 0 && cam < 0)) {
+    bad_line("expected '<time>,<level 0|1>,...' with the header's columns");
+    return false;
+  }
+  return true;
+}
+
 SourceStatus EdgeCsvSource::next(EdgeEvent& out) noexcept {
   if (!ok_) return SourceStatus::kError;
   for (;;) {
@@ -110,45 +206,10 @@ SourceStatus EdgeCsvSource::next(EdgeEvent& out) noexcept {
     }
     stats_.bytes = reader_.bytes();
     stats_.lines = reader_.line_number();
-    if (line.empty() || line.front() == ';' || line.front() == '#') continue;
-    const char* p = line.data();
-    const char* end = p + line.size();
-    parse::skip_ws(p, end);
     std::int64_t t = 0;
-    if (!parse::seconds_to_ns(p, end, t)) {
-      bad_line("expected a time in seconds in the first column");
-      continue;
-    }
-    t = t / time_scale_div_ + opt_.time_offset_ns;
-    // Levels: only the configured columns are looked at.
-    int col = 1;
     int crank = -1, cam = -1;
-    bool bad = false;
-    while (p < end) {
-      parse::skip_ws(p, end);
-      if (p == end || *p != ',') {
-        bad = true;
-        break;
-      }
-      ++p;
-      parse::skip_ws(p, end);
-      if (col == crank_col_ || col == cam_col_) {
-        if (p == end || (*p != '0' && *p != '1')) {
-          bad = true;
-          break;
-        }
-        (col == crank_col_ ? crank : cam) = *p - '0';
-        ++p;
-      } else {
-        while (p < end && *p != ',') ++p;
-      }
-      parse::skip_ws(p, end);
-      ++col;
-    }
-    if (bad || crank < 0 || (cam_col_ >= 0 && cam < 0)) {
-      bad_line("expected '<time>,<level 0|1>,...' with the header's columns");
-      continue;
-    }
+    if (!parse_row_fast(line, t, crank, cam) && !parse_row(line, t, crank, cam)) continue;
+    t = (time_scale_div_ == 1 ? t : t / time_scale_div_) + opt_.time_offset_ns;
     if (!initial_ && t < last_t_ns_) {
       bad_line("time goes backwards");
       continue;

@@ -41,6 +41,8 @@ class EdgeCsvSource final : public EdgeSource {
 
  private:
   void bad_line(const char* what) noexcept;
+  bool parse_row_fast(std::string_view line, std::int64_t& t, int& crank, int& cam) const noexcept;
+  bool parse_row(std::string_view line, std::int64_t& t, int& crank, int& cam) noexcept;
 
   std::string path_;
   EdgeCsvOptions opt_;

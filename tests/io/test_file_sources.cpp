@@ -2,6 +2,7 @@
 // counted, never fatal; times parsed exactly to the nanosecond.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <cstring>
 #include <random>
 #include <string>
@@ -144,6 +145,84 @@ TEST(EdgeCsv, TimeUnitFromHeader) {
   EdgeEvent e;
   ASSERT_EQ(src.next(e), SourceStatus::kOk);
   EXPECT_EQ(e.t_ns, 1500);
+}
+
+// The fixed-format fast path ("<s>.<9 digits>,c,c") and the general parser must agree on every line: the same
+// rows with a leading space (always the general path) give the same events, bad-line count and messages.
+TEST(EdgeCsv, FastPathAgreesWithGeneralParser) {
+  std::mt19937 rng(20261121);
+  const std::string alphabet = "0123456789.,- x+e";
+  std::string fast = "Time [s],crank,cam\n", general = fast;
+  std::int64_t t = 0;
+  int crank = 0, cam = 0;
+  for (int i = 0; i < 20000; ++i) {
+    t += 1 + static_cast<std::int64_t>(rng() % 200'000'000);  // a mutated fraction moves < 1 s
+    if (rng() % 3 == 0) crank ^= 1;
+    if (rng() % 50 == 0) cam ^= 1;
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%lld.%09lld,%d,%d", static_cast<long long>(t / 1'000'000'000),
+                  static_cast<long long>(t % 1'000'000'000), crank, cam);
+    std::string line = buf;
+    // Mutations after the '.' (a larger integer part would make every later row "time goes backwards"):
+    // some still valid in another format, most bad.
+    const std::size_t dot = line.find('.') + 1;
+    auto pos = [&](std::size_t extra) { return dot + rng() % (line.size() - dot + extra); };
+    switch (rng() % 16) {
+      case 0: line[pos(0)] = alphabet[rng() % alphabet.size()]; break;
+      case 1: line.erase(pos(0), 1); break;
+      case 2: line.insert(pos(1), 1, alphabet[rng() % alphabet.size()]); break;
+      case 3: line += ",1"; break;                                   // extra column
+      case 4: line.insert(line.find(','), "0"); break;               // 10 decimals (rounded)
+      case 5: line.erase(line.find(',') - 1, 1); break;              // 8 decimals
+      case 6: line = "0000000000" + line; break;                     // 10+ integer digits
+      case 7: line = (rng() % 2 ? "+" : "-") + line; break;          // signs
+      default: break;
+    }
+    fast += line + "\n";
+    general += " " + line + "\n";
+  }
+  TempFile ff(fast), fg(general);
+  EdgeCsvSource a(ff.path()), b(fg.path());
+  ASSERT_TRUE(a.ok() && b.ok());
+  EdgeEvent ea, eb;
+  std::size_t n = 0;
+  for (;;) {
+    const SourceStatus sa = a.next(ea), sb = b.next(eb);
+    ASSERT_EQ(sa, sb) << "record " << n;
+    if (sa != SourceStatus::kOk) break;
+    ASSERT_EQ(ea.t_ns, eb.t_ns) << "record " << n;
+    ASSERT_EQ(ea.channel, eb.channel) << "record " << n;
+    ASSERT_EQ(ea.level, eb.level) << "record " << n;
+    ++n;
+  }
+  EXPECT_GT(n, 5000u);
+  EXPECT_GT(a.stats().bad_lines, 100u);
+  EXPECT_EQ(a.stats().bad_lines, b.stats().bad_lines);
+  ASSERT_EQ(a.bad_line_messages().size(), b.bad_line_messages().size());
+  for (std::size_t i = 0; i < a.bad_line_messages().size(); ++i) {  // same line numbers and texts
+    const auto& ma = a.bad_line_messages()[i];
+    const auto& mb = b.bad_line_messages()[i];
+    EXPECT_EQ(ma.substr(ma.find(':')), mb.substr(mb.find(':')));
+  }
+}
+
+TEST(EdgeCsv, FastPathExactNanosecondsAndHeaderUnits) {
+  TempFile f("Time [ms],crank,cam\n0.000000000,0,0\n1.000000001,1,0\n123456789.999999999,0,1\n");
+  EdgeCsvSource src(f.path());
+  ASSERT_TRUE(src.ok());
+  EdgeEvent e;
+  ASSERT_EQ(src.next(e), SourceStatus::kOk);
+  EXPECT_EQ(e.t_ns, 1'000'000);  // 1.000000001 ms, truncated to ns like the general parser
+  ASSERT_EQ(src.next(e), SourceStatus::kOk);
+  EXPECT_EQ(e.t_ns, 123'456'789'999'999);
+  EXPECT_EQ(e.channel, 0);
+  ASSERT_EQ(src.next(e), SourceStatus::kOk);
+  EXPECT_EQ(e.channel, 1);
+  EXPECT_EQ(e.level, 1);
+  TempFile g("Time [s],crank,cam\n0.000000000,0,0\n9.123456789,1,0\n");
+  EdgeCsvSource s2(g.path());
+  ASSERT_EQ(s2.next(e), SourceStatus::kOk);
+  EXPECT_EQ(e.t_ns, 9'123'456'789);
 }
 
 TEST(EdgeList, OneTimePerLineWithHeaderAndComments) {
