@@ -23,6 +23,7 @@ Health worst(Health a, Health b) noexcept { return static_cast<std::uint8_t>(a) 
 AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
     : cfg_(config),
       energy_(config.engine, config.wheel, config.energies),
+      wide_(energy_, config.energies.cycle_ke_window_deg, 0.5 * config.energies.energy_window_deg),
       rls_(config.engine, config.wheel, config.energies),
       friction_(config.friction),
       eso_(config.engine, config.energies),
@@ -38,6 +39,7 @@ AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
 
 void AnglePipeline::reset() noexcept {
   energy_.reset();
+  wide_.reset();
   rls_.reset();
   eso_.reset();
   cyl_.reset();
@@ -73,6 +75,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
     if (cfg_.run_kalman) kalman_.update(s);
     if (fourier_ok_) fourier_.update(s);
     energy_.update(s, 0.0, false);
+    wide_.update(s);
     rls_.update(s, 0.0, false, 0.0, cyl_work_j_, false);
     tooth_.valid = false;
     return 0;
@@ -87,6 +90,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
     if (cfg_.run_kalman) kalman_.update(bad);
     if (fourier_ok_) fourier_.update(bad);
     energy_.update(bad, 0.0, false);
+    wide_.update(bad);
     rls_.update(bad, 0.0, false, 0.0, cyl_work_j_, false);
     tooth_.valid = false;
     return 0;
@@ -137,6 +141,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   if (can_fresh && sig.spark_valid && std::isfinite(sig.spark_advance_deg)) held_spark_deg_ = sig.spark_advance_deg;
   rls_.update(s, held_map_pa_, have_map_, held_spark_deg_, cyl_work_j_, works_ok);
 
+  wide_done_ = wide_.update(s);  // completes on the same tooth as boundary 0's per-cylinder window
   const std::uint64_t breaks_before = energy_.breaks();
   if (energy_.update(s, sig.load_torque_nm, load_ok)) {
     on_segment(energy_.segment(), sig, can_fresh);
@@ -222,7 +227,9 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
   }
   o.speed_mean_rad_s = kFourPi / seg.cycle_dt_s;
   const double rpm = o.speed_mean_rad_s * kRadSToRpm;
-  const double dke_nm = seg.d_ke_cycle_j / kFourPi;  // Δ(½Jθ̇²)/4π
+  // Δ(½Jθ̇²)/4π; at boundary 0 from the wide window when it completed here (jitter noise / ≈ 4, CycleKeWindow)
+  const bool wide = o.cycle_end && wide_done_ && wide_.cycle_valid();
+  const double dke_nm = (wide ? wide_.d_ke_cycle_j() : seg.d_ke_cycle_j) / kFourPi;
   const double fric = friction_.friction_nm(rpm, oil_c_);
   const Health fric_h = friction_.health();
   o.friction = make(seg.t_ns, fric, 2.0, fric_h);

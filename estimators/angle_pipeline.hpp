@@ -21,6 +21,7 @@
 
 #include "chauvin_kalman.hpp"
 #include "cycle_energy.hpp"
+#include "cycle_ke_window.hpp"
 #include "cylinder_torque.hpp"
 #include "engine_geometry.hpp"
 #include "estimate.hpp"
@@ -121,6 +122,7 @@ class AnglePipeline {
 
   AnglePipelineConfig cfg_;
   CycleEnergy energy_;
+  CycleKeWindow wide_;  ///< wide KE window for the 720° balance (energies.cycle_ke_window_deg)
   LoadRls rls_;
   FrictionLearner friction_;
   IndicatedEso eso_;
@@ -129,6 +131,7 @@ class AnglePipeline {
   ToothPreprocessor pre_;
   ChauvinKalman kalman_;
   FourierObserver fourier_;
+  bool wide_done_ = false;   ///< wide_ completed on the current tooth
   bool fourier_ok_ = false;  ///< gains passed check_stability() at construction
   double load_star_nm_ = 0.0;  ///< latest extended load handed to the in-cycle observers (N m)
 

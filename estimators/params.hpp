@@ -97,6 +97,8 @@ struct EnergiesParams {
   double segment_offset_deg = -20.0;    ///< segment boundary relative to each firing TDC (deg, <0: before TDC)
   double idle_max_rpm = 1100.0;         ///< idle (friction C4 learning) below this mean speed (rpm)
   double idle_max_load_nm = 3.0;        ///< and with |load| below this (N m)
+  double cycle_ke_window_deg = 120.0;   ///< 720° balance (brake/indicated): KE averaged over this window ending
+                                        ///< energy_window/2 after boundary 0; jitter noise ∝ 1/window; 0: off (deg)
 };
 struct FrictionParams {
   /// T_fric = (C1 + C2 n + C3 n²) e^{C4 t_oil}, n in rpm, t_oil in °C (EN-24); paper values as defaults.

@@ -179,8 +179,12 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
     const double f = (a - abs_a[j - 1]) / (abs_a[j] - abs_a[j - 1]);
     return cum[j - 1] + f * (cum[j] - cum[j - 1]);
   };
+  // The pipeline's 720° balance averages KE over [b + w/2 − W, b + w/2) (energies.cycle_ke_window_deg = W, or ±w/2
+  // when 0): the truth uses the same window (an exact balance averaged over the same boundary shifts).
+  const double wide_w = cfg.energies.cycle_ke_window_deg * kDeg;
+  const double lo_w = wide_w > 0.0 && wide_w < 2.0 * std::numbers::pi ? half_w - wide_w : -half_w;
   const auto ke_at = [&](double a) {
-    auto it = std::lower_bound(abs_a.begin(), abs_a.end(), a - half_w);
+    auto it = std::lower_bound(abs_a.begin(), abs_a.end(), a + lo_w);
     double sum = 0.0;
     int cnt = 0;
     for (; it != abs_a.end() && *it <= a + half_w; ++it) {
