@@ -11,6 +11,15 @@
 // interior edges cancel (the sum telescopes), only the two outer edges remain, divided by the window width. The
 // mean over a window equals the exact balance averaged over boundary shifts within the window, so it stays unbiased.
 //
+// CAN load latency (EnergiesParams::can_load_latency_s = τ). The measured load reaches us τ late (torque-flange
+// lag + the sample-and-hold of a 100 Hz CAN frame: ≈ 5 ms + 5 ms on the bench/simulator): the value seen at time t
+// is the flange torque of t − τ. The balance pairs ΔKE over [t_a, t_b] with the load over the same interval, so each
+// tooth period's load is taken τ after the tooth (a delay line of pending teeth, filled in when the load of their
+// time has arrived). At a segment end the teeth of its last τ are still pending; they get the newest load (hold
+// extrapolation). On a load ramp r the cycle-mean error drops from r·τ to r·τ²/(2·T_seg) while τ < T_seg (segment
+// duration; r·(τ − T_seg/2) above, e.g. 4000 rpm); a load step is booked in the segment where the flange saw it.
+// The load of a segment therefore stays in its own segment: per-cylinder works and the ESO get the same alignment.
+//
 // Real-time safe update(); tables built at construction.
 #include <array>
 #include <cstdint>
@@ -69,6 +78,8 @@ class CycleEnergy {
   [[nodiscard]] double boundary_rad(int b) const noexcept { return boundary_[static_cast<std::size_t>(b)]; }
   /// Number of tooth-sequence breaks (missing / out-of-order teeth) seen (each invalidates the open windows).
   [[nodiscard]] std::uint64_t breaks() const noexcept { return breaks_; }
+  /// Teeth whose load had to be extrapolated because the delay line was full (τ longer than its capacity).
+  [[nodiscard]] std::uint64_t latency_overflows() const noexcept { return overflows_; }
 
  private:
   int samples_ = 0, ncyl_ = 0;
@@ -78,6 +89,20 @@ class CycleEnergy {
   std::vector<int> window_last_;     ///< 1 if tooth k closes its window
   std::vector<int> segment_of_;      ///< firing position whose segment holds tooth k's centre
   std::array<double, kMaxCylinders> boundary_{};
+
+  /// A tooth period waiting for the load of its time (t + τ) to arrive.
+  struct PendingTooth {
+    std::int64_t t_ns = 0;
+    int segment = 0;
+    double width_rad = 0.0;
+  };
+  void add_load(int segment, double width_rad, double load_nm, bool load_valid) noexcept;
+  void flush_pending(double load_nm, bool load_valid) noexcept;
+
+  std::int64_t latency_ns_ = 0;
+  std::vector<PendingTooth> pending_;  ///< ring buffer, sized at construction
+  std::size_t pend_head_ = 0, pend_count_ = 0;
+  std::uint64_t overflows_ = 0;
 
   // Running state.
   int expected_tooth_ = -1;

@@ -99,6 +99,8 @@ struct EnergiesParams {
   double idle_max_load_nm = 3.0;        ///< and with |load| below this (N m)
   double cycle_ke_window_deg = 120.0;   ///< 720° balance (brake/indicated): KE averaged over this window ending
                                         ///< energy_window/2 after boundary 0; jitter noise ∝ 1/window; 0: off (deg)
+  double can_load_latency_s = 0.010;    ///< the CAN load torque lags the flange by this (sensor lag + half the frame
+                                        ///< period); the energy balance takes each tooth's load this much later (s)
 };
 struct FrictionParams {
   /// T_fric = (C1 + C2 n + C3 n²) e^{C4 t_oil}, n in rpm, t_oil in °C (EN-24); paper values as defaults.

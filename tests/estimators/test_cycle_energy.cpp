@@ -1,13 +1,17 @@
 // CycleEnergy: Δ(½Jθ̇²) per segment and per 720° against an analytic crank motion (ESTIMATORS.md §0 energy form).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <vector>
 
 #include "alloc_counter.hpp"
 #include "crank_kinematics.hpp"
 #include "cycle_energy.hpp"
+#include "engine_sim.hpp"
+#include "pipeline_eval.hpp"
 
 using namespace torqued;
 
@@ -136,4 +140,128 @@ TEST(CycleEnergy, UpdateDoesNotAllocate) {
   torqued::test::AllocationScope scope;
   for (const auto& s : samples) ce.update(s, 1.0, true);
   EXPECT_EQ(scope.count(), 0u);
+}
+
+namespace {
+/// Flange load of the latency tests: 20 N m, a 300 N m/s ramp from 0.1 s to 0.25 s, a +15 N m step at 0.35 s.
+double flange_load(double t) { return 20.0 + 300.0 * std::clamp(t - 0.1, 0.0, 0.15) + (t >= 0.35 ? 15.0 : 0.0); }
+
+struct LatencyRun {
+  double max_err_ramp = 0.0;  ///< cycles entirely inside the ramp
+  double max_err = 0.0;       ///< every cycle
+  double step_err_sum = 0.0;  ///< Σ|error| over the reports around the step (N m)
+  int cycles = 0;
+};
+
+/// Runs CycleEnergy with the load as a 100 Hz CAN frame would give it (5 ms sensor lag, sample and hold) and
+/// compares the 720° load mean with the angle-mean of the flange load over the same teeth.
+LatencyRun run_latency(double latency_s) {
+  EngineGeometry eng;
+  WheelGeometry wheel;
+  EnergiesParams p;
+  p.can_load_latency_s = latency_s;
+  CycleEnergy ce(eng, wheel, p);
+  const auto samples = analytic_samples(eng, wheel, 2000.0, 0.0, 200.0, 9);
+  const int n = eng.cylinders;
+  const double seg_rad = 4.0 * kPi / n;
+  const auto segment_of = [&](int k) {
+    int sg = 0;
+    for (int b = 0; b < n; ++b) {
+      double d = std::fmod(ce.center_rad(k) + 1e-9 - ce.boundary_rad(b), 4.0 * kPi);
+      if (d < 0.0) d += 4.0 * kPi;
+      if (d < seg_rad) sg = b;
+    }
+    return sg;
+  };
+  std::vector<double> done;  // completed segments' true angle-mean load, in order
+  double acc = 0.0, acc_w = 0.0;
+  int cur = -1;
+  std::vector<double> seg_start_t;
+  LatencyRun r;
+  for (const auto& s : samples) {
+    const double t = static_cast<double>(s.t_ns) * 1e-9;
+    if (s.synced) {
+      const int sg = segment_of(s.tooth);
+      if (sg != cur) {
+        if (cur >= 0 && acc_w > 0.0) done.push_back(acc / acc_w);
+        seg_start_t.push_back(t);
+        cur = sg;
+        acc = acc_w = 0.0;
+      }
+      const double w = ce.nominal_width_rad(s.tooth);
+      acc += flange_load(t - 0.5 * s.dt_s) * w;
+      acc_w += w;
+    }
+    // CAN: frames at 3.7 ms + k·10 ms carry the flange load of 5 ms earlier; the newest one is held.
+    const double t_frame = 0.0037 + 0.01 * std::floor((t - 0.0037) / 0.01);
+    const double can_load = flange_load(t_frame - 0.005);
+    if (!ce.update(s, can_load, t_frame >= 0.0)) continue;
+    const SegmentEnergy& seg = ce.segment();
+    if (!seg.cycle_load_valid || done.size() < static_cast<std::size_t>(n)) continue;
+    double truth = 0.0;
+    for (int j = 0; j < n; ++j) truth += done[done.size() - 1 - static_cast<std::size_t>(j)] / n;
+    const double err = std::fabs(seg.cycle_load_mean_nm - truth);
+    const double window_start = seg_start_t[seg_start_t.size() - 1 - static_cast<std::size_t>(n)];
+    ++r.cycles;
+    r.max_err = std::max(r.max_err, err);
+    if (window_start > 0.1 + 0.012 && t < 0.25) r.max_err_ramp = std::max(r.max_err_ramp, err);
+    if (t > 0.3) r.step_err_sum += err;
+  }
+  return r;
+}
+}  // namespace
+
+TEST(CycleEnergy, CanLoadLatencyIsCompensated) {
+  // GIVEN the load of a torque flange seen through CAN (5 ms lag, 100 Hz sample-and-hold: ≈ 10 ms latency)
+  const LatencyRun raw = run_latency(0.0);
+  const LatencyRun comp = run_latency(0.010);
+  ASSERT_GT(comp.cycles, 20);
+  // WITHOUT compensation a 300 N m/s ramp is under-read by r·τ ≈ 3 N m
+  EXPECT_GT(raw.max_err_ramp, 2.5);
+  // WITH the 10 ms latency the residual is the hold extrapolation of each segment's last τ: r·τ²/(2·T_seg) ≈ 1 N m
+  // on average (the frame phase makes the actual latency 5..15 ms)
+  EXPECT_LT(comp.max_err_ramp, 1.6);
+  // AND a 15 N m step is booked in the right segment: it shows in fewer rolling windows (the one window whose last
+  // segment had to extrapolate it can still be off by up to S·τ/T_cycle ≈ 2.5..3.8 N m)
+  EXPECT_LT(comp.step_err_sum, 0.7 * raw.step_err_sum);
+  EXPECT_LT(comp.max_err, 4.0);
+  std::printf("latency: raw ramp %.2f all %.2f step sum %.2f | compensated ramp %.2f all %.2f step sum %.2f N m\n",
+              raw.max_err_ramp, raw.max_err, raw.step_err_sum, comp.max_err_ramp, comp.max_err, comp.step_err_sum);
+}
+
+TEST(CycleEnergy, LatencyDelayLineDoesNotAllocate) {
+  EngineGeometry eng;
+  WheelGeometry wheel;
+  EnergiesParams p;
+  p.can_load_latency_s = 0.015;
+  CycleEnergy ce(eng, wheel, p);
+  const auto samples = analytic_samples(eng, wheel, 2000.0, 1.0, 100.0, 3);
+  torqued::test::AllocationScope scope;
+  for (const auto& s : samples) ce.update(s, 1.0, true);
+  EXPECT_EQ(scope.count(), 0u);
+  EXPECT_EQ(ce.latency_overflows(), 0u);
+}
+
+TEST(CycleEnergy, BrakeWithinIssueTolerancesThroughSimulatorTransients) {
+  // GIVEN the simulator's throttle step (dyno holds 2000 rpm: its torque rises by ~90 N m within two cycles) and the
+  // e-machine load step (+15 N m), CAN at 100 Hz with 5 ms flange lag
+  for (const char* name : {"throttle_step", "load_step"}) {
+    const sim::Scenario sc = sim::scenario_by_name(name);
+    const sim::SimOutput out = sim::simulate(sc);
+    eval::EvalOptions o;  // brake from the energy balance needs no friction law
+    const eval::ScenarioResult comp = eval::evaluate(sc, out, o);
+    o.base.energies.can_load_latency_s = 0.0;
+    const eval::ScenarioResult raw = eval::evaluate(sc, out, o);
+    ASSERT_GT(comp.brake.n, 30) << name;
+    int transient = 0;
+    for (const auto& row : comp.rows) transient += row.transient ? 1 : 0;
+    EXPECT_GT(transient, 3) << name;
+    // THEN every cycle is within 3 % / 2 N m (steady, incl. within 30 cycles of the step) or 5 % / 3 N m (cycles
+    // where the true torque or speed moves): the issue-5 targets
+    EXPECT_EQ(comp.brake.pass, comp.brake.n) << name << " max err " << comp.brake.max_abs_nm;
+    EXPECT_EQ(comp.fused.pass, comp.fused.n) << name << " max err " << comp.fused.max_abs_nm;
+    EXPECT_LE(comp.brake.max_abs_nm, raw.brake.max_abs_nm + 0.2) << name;
+    std::printf("%s: brake max err %.2f N m (%.1f %%) with the latency, %.2f N m without\n", name,
+                comp.brake.max_abs_nm, comp.brake.max_rel_pct, raw.brake.max_abs_nm);
+  }
 }
