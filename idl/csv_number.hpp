@@ -21,21 +21,37 @@ inline constexpr char kDigitPairs[201] =
     "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
     "8081828384858687888990919293949596979899";
 
-/// Decimal digits of v (1 for 0).
-inline int digit_count(std::uint64_t v) noexcept {
-  int n = 1;
-  for (;;) {
-    if (v < 10) return n;
-    if (v < 100) return n + 1;
-    if (v < 1000) return n + 2;
-    if (v < 10000) return n + 3;
-    v /= 10000;
-    n += 4;
-  }
+#define TORQUED_CSV_INLINE [[gnu::always_inline]] inline
+
+inline constexpr std::uint64_t kPow10[20] = {1ull,
+                                             10ull,
+                                             100ull,
+                                             1000ull,
+                                             10000ull,
+                                             100000ull,
+                                             1000000ull,
+                                             10000000ull,
+                                             100000000ull,
+                                             1000000000ull,
+                                             10000000000ull,
+                                             100000000000ull,
+                                             1000000000000ull,
+                                             10000000000000ull,
+                                             100000000000000ull,
+                                             1000000000000000ull,
+                                             10000000000000000ull,
+                                             100000000000000000ull,
+                                             1000000000000000000ull,
+                                             10000000000000000000ull};
+
+/// Decimal digits of v (1 for 0): from the bit length (log10(2) ~ 1233/4096), one table compare.
+TORQUED_CSV_INLINE int digit_count(std::uint64_t v) noexcept {
+  const int t = ((64 - __builtin_clzll(v | 1)) * 1233) >> 12;
+  return t - (v < kPow10[t]) + 1;
 }
 
 /// Writes exactly `n` digits of v (zero-padded on the left, v < 10^n) at p; returns p + n.
-inline char* write_digits(char* p, std::uint64_t v, int n) noexcept {
+TORQUED_CSV_INLINE char* write_digits(char* p, std::uint64_t v, int n) noexcept {
   char* q = p + n;
   while (q - p >= 2) {
     const auto r = static_cast<unsigned>(v % 100);
@@ -48,7 +64,7 @@ inline char* write_digits(char* p, std::uint64_t v, int n) noexcept {
 }
 
 /// Unsigned decimal; returns the end. Needs 20 bytes of room.
-inline char* write_uint(char* p, std::uint64_t v) noexcept {
+TORQUED_CSV_INLINE char* write_uint(char* p, std::uint64_t v) noexcept {
   if (v < 10) {
     *p = static_cast<char>('0' + v);
     return p + 1;
@@ -56,8 +72,8 @@ inline char* write_uint(char* p, std::uint64_t v) noexcept {
   return write_digits(p, v, digit_count(v));
 }
 
-/// Signed decimal; returns the end. Needs 20 bytes of room.
-inline char* write_int(char* p, std::int64_t v) noexcept {
+/// Signed decimal; returns the end. Needs 21 bytes of room.
+TORQUED_CSV_INLINE char* write_int(char* p, std::int64_t v) noexcept {
   if (v < 0) {
     *p++ = '-';
     return write_uint(p, 0u - static_cast<std::uint64_t>(v));
@@ -73,11 +89,8 @@ inline char* write_shortest(char* p, double v) noexcept {
   return std::to_chars(p, p + 32, v).ptr;
 }
 
-inline constexpr std::uint64_t kPow10[] = {1ull, 10ull, 100ull, 1000ull, 10000ull, 100000ull, 1000000ull,
-                                           10000000ull, 100000000ull, 1000000000ull, 10000000000ull};
-
-/// Fixed point with D decimals (see the file comment for the fall-backs). Needs 32 bytes of room.
-template <int D> inline char* write_fixed(char* p, double v) noexcept {
+/// Fixed point with D decimals (see the file comment for the fall-backs). Needs 40 bytes of room.
+template <int D> TORQUED_CSV_INLINE char* write_fixed(char* p, double v) noexcept {
   static_assert(D >= 1 && D <= 10);
   constexpr double kScale = static_cast<double>(kPow10[D]);
   constexpr double kMin = 1e4 / kScale;                  // >= 4 significant digits
@@ -87,20 +100,19 @@ template <int D> inline char* write_fixed(char* p, double v) noexcept {
     *p = '0';
     return p + 1;
   }
-  if (!(a >= kMin && a < kMax)) return write_shortest(p, v);  // also NaN/Inf
-  const auto n = static_cast<std::uint64_t>(a * kScale + 0.5);
-  if (v < 0) *p++ = '-';
+  if (!(a >= kMin && a < kMax)) [[unlikely]] return write_shortest(p, v);  // also NaN/Inf
+  const auto n = static_cast<std::uint64_t>(a * kScale + 0.5);  // 10^4 <= n < 2^53 + 1
+  *p = '-';
+  p += v < 0;
+  // Whole part (at least "0"), '.', exactly D fraction digits, then trailing zeros dropped. Written in place
+  // (a digit buffer copied with wide loads stalled on store forwarding).
   const std::uint64_t whole = n / kPow10[D];
-  std::uint64_t frac = n % kPow10[D];
   p = write_uint(p, whole);
-  if (frac == 0) return p;
-  int nd = D;
-  while (frac % 10 == 0) {  // drop trailing zeros
-    frac /= 10;
-    --nd;
-  }
-  *p++ = '.';
-  return write_digits(p, frac, nd);
+  *p = '.';
+  write_digits(p + 1, n - whole * kPow10[D], D);
+  char* e = p + 1 + D;
+  while (e[-1] == '0') --e;  // drop trailing zeros, and the '.' if nothing is left
+  return e[-1] == '.' ? e - 1 : e;
 }
 
 /// Decimals of a CSV column of doubles, from its unit suffix: angles in rad 9 (1 nrad), angular
@@ -112,7 +124,7 @@ constexpr int csv_decimals(std::string_view name) noexcept {
 }
 
 /// Formats a double for column `name`'s resolution.
-inline char* write_column_double(char* p, double v, int decimals) noexcept {
+TORQUED_CSV_INLINE char* write_column_double(char* p, double v, int decimals) noexcept {
   switch (decimals) {
     case 3: return write_fixed<3>(p, v);
     case 9: return write_fixed<9>(p, v);
@@ -121,3 +133,5 @@ inline char* write_column_double(char* p, double v, int decimals) noexcept {
 }
 
 }  // namespace torqued::dds::csv
+
+#undef TORQUED_CSV_INLINE
