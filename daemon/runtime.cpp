@@ -3,6 +3,7 @@
 #include <sys/timerfd.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
@@ -10,7 +11,6 @@
 #include "angle_stage.hpp"
 #include "clocks.hpp"
 #include "replay_merger.hpp"
-#include "replay_pacer.hpp"
 #include "time_stage.hpp"
 
 namespace torqued {
@@ -115,30 +115,46 @@ bool Runtime::start() {
 
 // ---- sources -------------------------------------------------------------------------------------------
 
+// Paced replay: this thread only reads ahead. It keeps the rings filled up to kReadAheadNs (recording time / speed)
+// ahead of the wall clock, in batches (one wake-up per ~kReadAheadNs/2, not one per edge), and the angle thread
+// does the fine pacing itself: it sleeps until each edge's due time and processes it when it wakes. That is one
+// thread wake-up per edge (the timer) instead of two (source timer + futex to the angle thread). Items carry
+// ingest_ns = 0; the consumer stamps them with their due time. Fast replay does not use this thread.
 void Runtime::replay_source_loop() {
   ReplayMerger merger(edges_, can_, can_offset_ns_);
-  ReplayPacer pacer(opt_.speed);
+  const double speed = opt_.speed > 0 ? opt_.speed : 1.0;
   ReplayMerger::Item item;
+  bool pushed_since_wake = false;
   while (!stop_sources_.load(std::memory_order_relaxed)) {
     const SourceStatus st = merger.next(item);
     if (st == SourceStatus::kEnd) break;
     if (st != SourceStatus::kOk) continue;
     const std::int64_t t = item.t_ns();
-    pacer.wait_until(t);
     if (!anchored_.load(std::memory_order_relaxed)) {
       anchor_rec_ns_.store(t, std::memory_order_relaxed);
-      anchor_mono_ns_.store(pacer.due_ns(t), std::memory_order_relaxed);
+      anchor_mono_ns_.store(mono_ns() + kReplayStartNs, std::memory_order_relaxed);
       anchored_.store(true, std::memory_order_release);
     }
-    // The edge "happens" at its due time: latency is measured from there (includes our own wake-up delay).
-    const std::int64_t ingest = realtime_ns() - (mono_ns() - pacer.due_ns(t));
-    if (item.kind == ReplayMerger::Kind::kEdge) {
-      (void)edge_ring_.try_push(EdgeIn{item.edge, ingest});
-    } else {
-      (void)can_angle_ring_.try_push(FrameIn{item.frame, ingest});
-      (void)can_time_ring_.try_push(FrameIn{item.frame, ingest});
+    const std::int64_t due = anchor_mono_ns_.load(std::memory_order_relaxed) +
+                             static_cast<std::int64_t>(static_cast<double>(t - anchor_rec_ns_.load(std::memory_order_relaxed)) / speed);
+    if (due - mono_ns() > kReadAheadNs) {
+      // Far enough ahead: hand what we have to the angle thread, sleep until this item is half a window away.
+      if (pushed_since_wake) angle_wake_.notify();
+      pushed_since_wake = false;
+      const std::int64_t wake = due - kReadAheadNs / 2;
+      while (!stop_sources_.load(std::memory_order_relaxed) && mono_ns() < wake) {
+        const std::int64_t until = std::min(wake, mono_ns() + 50'000'000);  // bounded: notice a stop request
+        timespec ts{static_cast<time_t>(until / 1'000'000'000), static_cast<long>(until % 1'000'000'000)};
+        clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
+      }
     }
-    angle_wake_.notify();
+    if (item.kind == ReplayMerger::Kind::kEdge) {
+      (void)edge_ring_.try_push(EdgeIn{item.edge, 0});
+    } else {
+      (void)can_angle_ring_.try_push(FrameIn{item.frame, 0});
+      (void)can_time_ring_.try_push(FrameIn{item.frame, 0});
+    }
+    pushed_since_wake = true;
   }
   std::uint64_t drops = 0;
   if (edges_) drops += edges_->stats().bad_lines + edges_->stats().dropped;
@@ -182,24 +198,46 @@ void Runtime::live_can_loop() {
 // ---- pipelines ------------------------------------------------------------------------------------------
 
 void Runtime::angle_loop() {
-  FrameIn fi{};
   auto has_work = [this] { return !edge_ring_.empty() || !can_angle_ring_.empty(); };
   for (;;) {
     hb_angle_.fetch_add(1, std::memory_order_relaxed);
     while (stall_.load(std::memory_order_relaxed) && !stop_pipelines_.load(std::memory_order_relaxed))
       usleep(10'000);  // test hook only: a stalled pipeline makes no progress
     // Edges in order; CAN frames up to each edge's time first, so the stage sees the replay's order.
+    // Read-ahead replay items (ingest_ns == 0) are processed at their due time: sleep until then (bounded, so
+    // stop requests and heartbeats are still seen); once the sources stop, drain without waiting.
+    std::int64_t wait_due = 0;
     while (const EdgeIn* e = edge_ring_.front()) {
+      std::int64_t ingest = e->ingest_ns;
+      if (ingest == 0) {
+        const std::int64_t due = due_mono_ns(e->e.t_ns);
+        const std::int64_t early = due - mono_ns();
+        if (early > 0 && !stop_sources_.load(std::memory_order_relaxed)) {
+          wait_due = due;
+          break;
+        }
+        ingest = realtime_ns() + (due - mono_ns());  // the edge "happens" at its due time (includes our wake-up)
+      }
       while (const FrameIn* f = can_angle_ring_.front()) {
         if (f->f.t_ns > e->e.t_ns) break;
         angle_->on_frame(f->f);
         can_angle_ring_.pop_front();
       }
-      angle_->on_edge(e->e, e->ingest_ns);
+      angle_->on_edge(e->e, ingest);
       last_t_ns_.store(e->e.t_ns, std::memory_order_relaxed);
       edge_ring_.pop_front();
     }
-    while (can_angle_ring_.try_pop(fi)) angle_->on_frame(fi.f);
+    while (const FrameIn* f = can_angle_ring_.front()) {  // frames with no later edge yet: at their due time
+      if (f->ingest_ns == 0 && !stop_sources_.load(std::memory_order_relaxed)) {
+        const std::int64_t due = due_mono_ns(f->f.t_ns);
+        if (due > mono_ns() || (wait_due != 0 && due > wait_due)) {
+          if (wait_due == 0 || due < wait_due) wait_due = due;
+          break;
+        }
+      }
+      angle_->on_frame(f->f);
+      can_angle_ring_.pop_front();
+    }
     // No edge for a while: let the decoder time out (stalled) on the edge clock, flag the edge time-out.
     if (anchored_.load(std::memory_order_acquire)) {
       const double speed = opt_.replay && opt_.speed > 0 ? opt_.speed : 1.0;
@@ -218,8 +256,20 @@ void Runtime::angle_loop() {
     stale_mask_.store(angle_->stale_mask(), std::memory_order_relaxed);
     synced_.store(angle_->decoder().state() == SyncState::kSynced, std::memory_order_relaxed);
     if (stop_pipelines_.load(std::memory_order_acquire) && !has_work()) break;
-    angle_wake_.wait_for(50'000'000, has_work);
+    if (wait_due != 0) {  // paced replay: the next item is due at wait_due; the timer is this thread's only wake-up
+      const std::int64_t until = std::min(wait_due, mono_ns() + 50'000'000);
+      timespec ts{static_cast<time_t>(until / 1'000'000'000), static_cast<long>(until % 1'000'000'000)};
+      clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
+    } else {
+      angle_wake_.wait_for(50'000'000, has_work);
+    }
   }
+}
+
+std::int64_t Runtime::due_mono_ns(std::int64_t t_ns) const noexcept {
+  const double speed = opt_.speed > 0 ? opt_.speed : 1.0;
+  return anchor_mono_ns_.load(std::memory_order_relaxed) +
+         static_cast<std::int64_t>(static_cast<double>(t_ns - anchor_rec_ns_.load(std::memory_order_relaxed)) / speed);
 }
 
 void Runtime::time_loop() {
@@ -239,13 +289,21 @@ void Runtime::time_loop() {
     hb_time_.fetch_add(1, std::memory_order_relaxed);
     if (expirations > 1) overruns_.fetch_add(expirations - 1, std::memory_order_relaxed);
     while (tooth_ring_.try_pop(ts)) time_->on_tooth(ts);
-    while (can_time_ring_.try_pop(fi)) time_->on_frame(fi.f);
-    if (!anchored_.load(std::memory_order_acquire)) continue;
+    if (!anchored_.load(std::memory_order_acquire)) {
+      while (can_time_ring_.try_pop(fi)) time_->on_frame(fi.f);
+      continue;
+    }
     // Edge-clock time of this tick, from the source anchor (recording time ↔ monotonic time).
     const double speed = opt_.replay && opt_.speed > 0 ? opt_.speed : 1.0;
     const std::int64_t t_edge =
         anchor_rec_ns_.load(std::memory_order_relaxed) +
         static_cast<std::int64_t>(static_cast<double>(mono_ns() - anchor_mono_ns_.load(std::memory_order_relaxed)) * speed);
+    // Paced replay reads ahead: frames later than this tick wait for their time (live frames are never early).
+    while (const FrameIn* f = can_time_ring_.front()) {
+      if (f->ingest_ns == 0 && f->f.t_ns > t_edge && !stop_sources_.load(std::memory_order_relaxed)) break;
+      time_->on_frame(f->f);
+      can_time_ring_.pop_front();
+    }
     time_->step(t_edge, realtime_ns());
   }
   close(fd);

@@ -92,6 +92,10 @@ class Runtime {
   void live_edge_loop();
   void live_can_loop();
   void angle_loop();
+  /// Paced replay: CLOCK_MONOTONIC time (ns) at which recording time t_ns is due (after the anchor is set).
+  [[nodiscard]] std::int64_t due_mono_ns(std::int64_t t_ns) const noexcept;
+  static constexpr std::int64_t kReadAheadNs = 20'000'000;  ///< paced replay: source reads this far ahead (wall)
+  static constexpr std::int64_t kReplayStartNs = 2'000'000;  ///< paced replay: first item due this long after start
   void time_loop();
   void publisher_loop();
   bool drain_out() noexcept;

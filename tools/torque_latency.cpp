@@ -3,14 +3,16 @@
 // EngineTorque, and measures receive time - ingest_t_ns (the edge's due time on CLOCK_REALTIME). Optionally
 // loads the other core (stress-ng --cpu 1) and runs cyclictest and ddsperf alongside, printing their figures
 // side by side with ours.
-//   CYCLONEDDS_URI=file://$PWD/config/cyclonedds-loopback.xml \
-//   torque-latency --torqued build/daemon/torqued --config config/demo.yaml --duration 15 --stress --cyclictest
+//   CYCLONEDDS_URI=file://$PWD/config/cyclonedds-loopback.xml torque-latency --torqued build/daemon/torqued --config config/demo.yaml --duration 15 --stress --cyclictest
+#include <sched.h>
 #include <signal.h>
+#include <sys/mman.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cerrno>
 #include <array>
 #include <chrono>
 #include <cstdio>
@@ -35,6 +37,8 @@ std::int64_t now_realtime() {
 pid_t spawn(const std::vector<std::string>& argv, const char* log) {
   const pid_t p = fork();
   if (p == 0) {
+    sched_param sp{};  // children (daemon, stress-ng, ...) pick their own scheduling, not this subscriber's FIFO
+    sched_setscheduler(0, SCHED_OTHER, &sp);
     if (log) {
       FILE* f = std::fopen(log, "w");
       if (f) {
@@ -62,6 +66,48 @@ struct Stats {
     return s[i];
   }
   [[nodiscard]] double max() const { return us.empty() ? 0 : *std::max_element(us.begin(), us.end()); }
+};
+
+/// Takes CrankState/EngineTorque samples and time-stamps them on arrival (from a listener or a waitset).
+struct Receiver {
+  dds_entity_t crank = 0, engine = 0;
+  Stats crank_us, engine_us, crank_in, crank_dds;
+  std::array<torque_CrankState, 64> cb{};
+  std::array<torque_EngineTorque, 64> eb{};
+  std::array<void*, 64> cp{}, ep{};
+  std::array<dds_sample_info_t, 64> info{};
+  Receiver() {
+    for (std::size_t i = 0; i < 64; ++i) cp[i] = &cb[i], ep[i] = &eb[i];
+    crank_us.us.reserve(1 << 20);
+    crank_in.us.reserve(1 << 20);
+    crank_dds.us.reserve(1 << 20);
+    engine_us.us.reserve(1 << 16);
+  }
+  void take(dds_entity_t r, std::int64_t now) {
+    if (r == crank) {
+      const int n = dds_take(crank, cp.data(), info.data(), 64, 64);
+      for (int i = 0; i < n; ++i) {
+        const auto& v = cb[static_cast<std::size_t>(i)];
+        if (!info[static_cast<std::size_t>(i)].valid_data || v.ingest_t_ns <= 0) continue;
+        crank_us.add(static_cast<double>(now - v.ingest_t_ns) * 1e-3);
+        if (v.publish_t_ns > 0) {
+          crank_in.add(static_cast<double>(v.publish_t_ns - v.ingest_t_ns) * 1e-3);
+          crank_dds.add(static_cast<double>(now - v.publish_t_ns) * 1e-3);
+        }
+      }
+    } else if (r == engine) {
+      const int n = dds_take(engine, ep.data(), info.data(), 64, 64);
+      for (int i = 0; i < n; ++i)
+        if (info[static_cast<std::size_t>(i)].valid_data && eb[static_cast<std::size_t>(i)].ingest_t_ns > 0)
+          engine_us.add(static_cast<double>(now - eb[static_cast<std::size_t>(i)].ingest_t_ns) * 1e-3);
+    }
+  }
+  void take_all() {
+    const std::int64_t now = now_realtime();
+    take(crank, now);
+    take(engine, now);
+  }
+  static void on_data(dds_entity_t r, void* arg) { static_cast<Receiver*>(arg)->take(r, now_realtime()); }
 };
 
 void histogram(const Stats& s, const char* title) {
@@ -117,7 +163,8 @@ void cyclictest_summary(const char* log, double& p50, double& p99, double& p999,
 int main(int argc, char** argv) {
   std::string torqued = "torqued", config, ddsperf_log = "/tmp/torque-latency-ddsperf.log";
   double duration_s = 15, speed = 1.0;
-  bool stress = false, cyclic = false, ddsperf = false;
+  bool stress = false, cyclic = false, ddsperf = false, use_waitset = false;
+  int sub_prio = 70;
   CLI::App app{"torque-latency: tooth edge -> subscriber latency of torqued in paced replay (p50/p99/p99.9/max + "
                "histogram), optionally with stress-ng --cpu 1, cyclictest and ddsperf alongside"};
   app.add_option("--torqued", torqued, "torqued executable");
@@ -129,11 +176,31 @@ int main(int argc, char** argv) {
   app.add_flag("--ddsperf", ddsperf, "run Cyclone's ddsperf ping/pong alongside (raw output in a log)");
   CLI11_PARSE(app, argc, argv);
 
+  // The subscriber's own scheduling: Cyclone's receive threads inherit the policy of the thread that creates the
+  // participant, so a SCHED_FIFO main thread makes the whole receive path real-time (as a real supervisory
+  // controller would configure it). Refused (not root, no CAP_SYS_NICE): measured with SCHED_OTHER, said so.
+  if (sub_prio > 0) {
+    sched_param sp{};
+    sp.sched_priority = sub_prio;
+    if (sched_setscheduler(0, SCHED_FIFO, &sp) != 0)
+      std::fprintf(stderr, "torque-latency: SCHED_FIFO %d refused (%s): subscriber runs SCHED_OTHER\n", sub_prio,
+                   std::strerror(errno));
+    else
+      mlockall(MCL_CURRENT | MCL_FUTURE);
+  }
   dds::DdsSettings s;
   const dds_entity_t pp = dds_create_participant(s.domain_id, nullptr, nullptr);
   if (pp < 0) {
     std::fprintf(stderr, "dds_create_participant failed\n");
     return 1;
+  }
+  // Listener mode (default): samples are taken and time-stamped in Cyclone's receive thread, no extra wake-up.
+  // --waitset: a waitset in this thread (one more wake-up, what a simple polling subscriber sees).
+  Receiver rx;
+  dds_listener_t* lis = nullptr;
+  if (!use_waitset) {
+    lis = dds_create_listener(&rx);
+    dds_lset_data_available(lis, &Receiver::on_data);
   }
   auto reader = [&](dds::Topic t) {
     const dds_entity_t topic = dds::create_topic(pp, s, t);
@@ -141,14 +208,18 @@ int main(int argc, char** argv) {
     dds_qset_deadline(q, DDS_INFINITY);
     dds_qset_liveliness(q, DDS_LIVELINESS_AUTOMATIC, DDS_INFINITY);
     dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 256);
-    const dds_entity_t r = dds_create_reader(pp, topic, q, nullptr);
+    const dds_entity_t r = dds_create_reader(pp, topic, q, lis);
     dds_delete_qos(q);
     return r;
   };
-  const dds_entity_t crank = reader(dds::Topic::kCrankState), engine = reader(dds::Topic::kEngineTorque);
+  rx.crank = reader(dds::Topic::kCrankState);
+  rx.engine = reader(dds::Topic::kEngineTorque);
+  if (lis) dds_delete_listener(lis);
   const dds_entity_t ws = dds_create_waitset(pp);
-  dds_waitset_attach(ws, dds_create_readcondition(crank, DDS_ANY_STATE), 1);
-  dds_waitset_attach(ws, dds_create_readcondition(engine, DDS_ANY_STATE), 2);
+  if (use_waitset) {
+    dds_waitset_attach(ws, dds_create_readcondition(rx.crank, DDS_ANY_STATE), 1);
+    dds_waitset_attach(ws, dds_create_readcondition(rx.engine, DDS_ANY_STATE), 2);
+  }
 
   std::vector<pid_t> helpers;
   const std::string dur = std::to_string(static_cast<int>(duration_s + 3));
@@ -163,25 +234,21 @@ int main(int argc, char** argv) {
                               "--state-dir", "/tmp/torque-latency-state"},
                              "/tmp/torque-latency-torqued.log");
 
-  Stats crank_us, engine_us;
-  std::array<torque_CrankState, 64> cb{};
-  std::array<torque_EngineTorque, 64> eb{};
-  std::array<void*, 64> cp{}, ep{};
-  std::array<dds_sample_info_t, 64> info{};
-  for (std::size_t i = 0; i < 64; ++i) cp[i] = &cb[i], ep[i] = &eb[i];
   const auto t_end = std::chrono::steady_clock::now() + std::chrono::duration<double>(duration_s + 1.5);
   while (std::chrono::steady_clock::now() < t_end) {
-    dds_waitset_wait(ws, nullptr, 0, DDS_MSECS(100));
-    const std::int64_t now = now_realtime();
-    int n = dds_take(crank, cp.data(), info.data(), 64, 64);
-    for (int i = 0; i < n; ++i)
-      if (info[static_cast<std::size_t>(i)].valid_data && cb[static_cast<std::size_t>(i)].ingest_t_ns > 0)
-        crank_us.add(static_cast<double>(now - cb[static_cast<std::size_t>(i)].ingest_t_ns) * 1e-3);
-    n = dds_take(engine, ep.data(), info.data(), 64, 64);
-    for (int i = 0; i < n; ++i)
-      if (info[static_cast<std::size_t>(i)].valid_data && eb[static_cast<std::size_t>(i)].ingest_t_ns > 0)
-        engine_us.add(static_cast<double>(now - eb[static_cast<std::size_t>(i)].ingest_t_ns) * 1e-3);
+    if (use_waitset) {
+      dds_waitset_wait(ws, nullptr, 0, DDS_MSECS(100));
+      rx.take_all();
+    } else {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
   }
+  if (!use_waitset) {  // stop the listener before reading its statistics
+    dds_set_listener(rx.crank, nullptr);
+    dds_set_listener(rx.engine, nullptr);
+  }
+  const Stats& crank_us = rx.crank_us;
+  const Stats& engine_us = rx.engine_us;
   kill(daemon, SIGTERM);
   int st = 0;
   waitpid(daemon, &st, 0);
@@ -197,6 +264,12 @@ int main(int argc, char** argv) {
               crank_us.pct(50), crank_us.pct(99), crank_us.pct(99.9), crank_us.max());
   std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "tooth edge -> EngineTorque (subscr.)", engine_us.us.size(),
               engine_us.pct(50), engine_us.pct(99), engine_us.pct(99.9), engine_us.max());
+  std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "  of which edge -> dds_write (daemon)", rx.crank_in.us.size(),
+              rx.crank_in.pct(50), rx.crank_in.pct(99), rx.crank_in.pct(99.9), rx.crank_in.max());
+  std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "  of which dds_write -> received", rx.crank_dds.us.size(),
+              rx.crank_dds.pct(50), rx.crank_dds.pct(99), rx.crank_dds.pct(99.9), rx.crank_dds.max());
+  std::printf("subscriber: %s, %s\n", use_waitset ? "waitset" : "listener (receive thread)",
+              sub_prio > 0 ? "SCHED_FIFO requested" : "SCHED_OTHER");
   if (cyclic) {
     double p50 = 0, p99 = 0, p999 = 0, mx = 0;
     cyclictest_summary("/tmp/torque-latency-cyclictest.log", p50, p99, p999, mx);
