@@ -158,13 +158,41 @@ void cyclictest_summary(const char* log, double& p50, double& p99, double& p999,
   }
 }
 
+/// ddsperf ping prints one line per second: "... mean X us min X us 50% X us 90% X us 99% X us max X us cnt N";
+/// returns the medians of the per-second p50 and p99 round trips (the first second, discovery, is skipped).
+void ddsperf_summary(const char* log, double& p50, double& p99, std::size_t& n) {
+  FILE* f = std::fopen(log, "r");
+  if (!f) return;
+  std::vector<double> a, b;
+  char line[1024];
+  while (std::fgets(line, sizeof line, f)) {
+    const char* q50 = std::strstr(line, " 50% ");
+    const char* q99 = std::strstr(line, " 99% ");
+    if (q50 && q99) {
+      a.push_back(std::atof(q50 + 5));
+      b.push_back(std::atof(q99 + 5));
+    }
+  }
+  std::fclose(f);
+  if (a.size() > 1) {
+    a.erase(a.begin());
+    b.erase(b.begin());
+  }
+  n = a.size();
+  if (n == 0) return;
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  p50 = a[n / 2];
+  p99 = b[n / 2];
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   std::string torqued = "torqued", config, ddsperf_log = "/tmp/torque-latency-ddsperf.log";
   double duration_s = 15, speed = 1.0;
   bool stress = false, cyclic = false, ddsperf = false, use_waitset = false;
-  int sub_prio = 70;
+  int sub_prio = 70, ddsperf_rate_hz = 500;
   CLI::App app{"torque-latency: tooth edge -> subscriber latency of torqued in paced replay (p50/p99/p99.9/max + "
                "histogram), optionally with stress-ng --cpu 1, cyclictest and ddsperf alongside"};
   app.add_option("--torqued", torqued, "torqued executable");
@@ -173,7 +201,8 @@ int main(int argc, char** argv) {
   app.add_option("--speed", speed, "replay speed factor");
   app.add_flag("--stress", stress, "load one core with stress-ng --cpu 1 during the run");
   app.add_flag("--cyclictest", cyclic, "run cyclictest (rt-tests) alongside and print its percentiles");
-  app.add_flag("--ddsperf", ddsperf, "run Cyclone's ddsperf ping/pong alongside (raw output in a log)");
+  app.add_flag("--ddsperf", ddsperf, "run Cyclone's ddsperf ping/pong alongside and print its one-way latency");
+  app.add_option("--ddsperf-rate", ddsperf_rate_hz, "ddsperf ping rate (Hz), comparable to the sample rate");
   CLI11_PARSE(app, argc, argv);
 
   // The subscriber's own scheduling: Cyclone's receive threads inherit the policy of the thread that creates the
@@ -227,8 +256,17 @@ int main(int argc, char** argv) {
   if (cyclic)
     helpers.push_back(spawn({"cyclictest", "-m", "-q", "-p", "80", "-i", "1000", "-h", "2000", "-D", dur}, "/tmp/torque-latency-cyclictest.log"));
   if (ddsperf) {
-    helpers.push_back(spawn({"ddsperf", "-D", dur, "pong"}, "/dev/null"));
-    helpers.push_back(spawn({"ddsperf", "-D", dur, "ping"}, ddsperf_log.c_str()));
+    // Same scheduling as our subscriber, and pinged at a rate like the tooth rate (a CPU woken from idle for each
+    // sample is much slower than back-to-back ping-pong, so the unpaced figure is not a fair floor).
+    const std::string prio = std::to_string(sub_prio > 0 ? sub_prio : 1);
+    const std::string rate = std::to_string(ddsperf_rate_hz) + "Hz";
+    if (sub_prio > 0) {
+      helpers.push_back(spawn({"chrt", "-f", prio, "ddsperf", "-D", dur, "pong"}, "/dev/null"));
+      helpers.push_back(spawn({"chrt", "-f", prio, "ddsperf", "-D", dur, "ping", rate}, ddsperf_log.c_str()));
+    } else {
+      helpers.push_back(spawn({"ddsperf", "-D", dur, "pong"}, "/dev/null"));
+      helpers.push_back(spawn({"ddsperf", "-D", dur, "ping", rate}, ddsperf_log.c_str()));
+    }
   }
   const pid_t daemon = spawn({torqued, "--config", config, "--speed", std::to_string(speed), "--wait-subscribers", "1",
                               "--state-dir", "/tmp/torque-latency-state"},
@@ -275,7 +313,15 @@ int main(int argc, char** argv) {
     cyclictest_summary("/tmp/torque-latency-cyclictest.log", p50, p99, p999, mx);
     std::printf("%-34s %8s %8.1f %8.1f %8.1f %8.1f\n", "cyclictest (same run)", "-", p50, p99, p999, mx);
   }
-  if (ddsperf) std::printf("ddsperf ping/pong output: %s\n", ddsperf_log.c_str());
+  if (ddsperf) {
+    double p50 = 0, p99 = 0;
+    std::size_t n = 0;
+    ddsperf_summary(ddsperf_log.c_str(), p50, p99, n);
+    if (n > 0)
+      std::printf("%-34s %8s %8.1f %8.1f %8s %8s\n", "ddsperf one-way (round trip / 2)", "-", p50 / 2, p99 / 2, "-", "-");
+    std::printf("ddsperf ping %d Hz / pong (round trip p50 %.1f us, p99 %.1f us; median of %zu one-second reports): %s\n",
+                ddsperf_rate_hz, p50, p99, n, ddsperf_log.c_str());
+  }
   histogram(crank_us, "tooth edge -> CrankState");
   return crank_us.us.empty() ? 1 : 0;
 }
