@@ -306,4 +306,11 @@ void AngleStage::import_state(const LearnedState& st) {
   if (any) publish_snapshot();
 }
 
+void AngleStage::apply(const RuntimeTunables& t) noexcept {
+  apply_tunables(s_, t);
+  if (store_)
+    for (std::size_t i = 0; i < t.signal_timeout_ns.size(); ++i)
+      store_->set_timeout(static_cast<Quantity>(i), t.signal_timeout_ns[i]);
+}
+
 }  // namespace torqued

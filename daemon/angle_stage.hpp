@@ -34,6 +34,8 @@ class AngleStage {
   /// ingest_ns: CLOCK_REALTIME at which the edge became available (0 in fast replay).
   void on_edge(const EdgeEvent& e, std::int64_t ingest_ns) noexcept;
   void on_frame(const CanFrame& f) noexcept;
+  /// SIGHUP: new decimations / sensor time-outs, applied between two events on this stage's thread.
+  void apply(const RuntimeTunables& t) noexcept;
   /// Stall detection on the edge clock (live: call when no edge arrived for a while).
   void poll(std::int64_t now_ns) noexcept;
 

@@ -54,7 +54,11 @@ void wait_for_subscribers(DdsPublisher& pub, const RunOptions& opt) {
 }
 
 /// SIGHUP: reload the file; apply what is safe to change at run time, report the rest.
-void reload(const std::string& path, Config& current) {
+/// Applied live: logging.level; dds.crank_state_decimation, dds.time_estimator_decimation,
+/// dds.tooth_estimator_decimation; inputs.edges.timeout_s; every can.signals.<q>.timeout_s (the real-time threads
+/// take them between two events). Everything else (inputs, engine, wheel, DDS domain/QoS, estimator tuning,
+/// realtime) needs a restart: reported, not applied.
+void reload(const std::string& path, Config& current, StageSettings& settings, Runtime& rt) {
   const LoadResult r = load_config(path);
   if (!r.ok()) {
     for (const auto& e : r.errors) spdlog::error("SIGHUP: {}", e);
@@ -67,6 +71,21 @@ void reload(const std::string& path, Config& current) {
                  static_cast<int>(n.logging.level));
     logging::set_level(n.logging.level);
     current.logging = n.logging;
+  }
+  const RuntimeTunables was = tunables_of(settings);
+  const RuntimeTunables now = tunables_of(stage_settings_from(n));
+  if (now != was) {
+    if (rt.request_tunables(now)) {
+      apply_tunables(settings, now);
+      spdlog::info("SIGHUP: applied decimation crank/time/tooth {}/{}/{} -> {}/{}/{}, edge time-out {} -> {} ms, "
+                   "sensor time-outs {}",
+                   was.crank_decimation, was.time_decimation, was.tooth_estimator_decimation, now.crank_decimation,
+                   now.time_decimation, now.tooth_estimator_decimation, was.edge_timeout_ns / 1'000'000,
+                   now.edge_timeout_ns / 1'000'000,
+                   now.signal_timeout_ns == was.signal_timeout_ns ? "unchanged" : "changed");
+    } else {
+      spdlog::error("SIGHUP: the pipelines did not take the new decimations/time-outs within 0.5 s; not applied");
+    }
   }
   if (n.inputs.edges.path != current.inputs.edges.path || n.inputs.can.path != current.inputs.can.path ||
       n.dds.domain_id != current.dds.domain_id || n.dds.topic_prefix != current.dds.topic_prefix ||
@@ -237,7 +256,7 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
     }
     if (sig == SIGHUP) {
       sd_notify(0, "RELOADING=1");
-      reload(opt.config_path, cfg);
+      reload(opt.config_path, cfg, s, rt);
       sd_notify(0, "READY=1");
     }
     const std::int64_t now = mono_ns();

@@ -44,6 +44,7 @@ Runtime::Runtime(const StageSettings& s, const RuntimeOptions& opt, EdgeSource* 
       edge_ring_(opt.edge_ring), can_angle_ring_(opt.can_ring), can_time_ring_(opt.can_ring),
       tooth_ring_(opt.tooth_ring), out_angle_ring_(opt.out_ring), out_time_ring_(opt.out_ring), out_status_ring_(64),
       lat_hist_(new std::uint32_t[kLatBuckets + 1]()) {
+  edge_timeout_ns_.store(s_.edge_timeout_ns, std::memory_order_relaxed);
   angle_sink_ = std::make_unique<RingSink>(out_angle_ring_, pub_wake_);
   time_sink_ = std::make_unique<RingSink>(out_time_ring_, pub_wake_);
   tooth_sink_ = std::make_unique<ToothRingSink>(tooth_ring_);
@@ -203,6 +204,11 @@ void Runtime::angle_loop() {
     hb_angle_.fetch_add(1, std::memory_order_relaxed);
     while (stall_.load(std::memory_order_relaxed) && !stop_pipelines_.load(std::memory_order_relaxed))
       usleep(10'000);  // test hook only: a stalled pipeline makes no progress
+    if (angle_tunables_.full.load(std::memory_order_acquire) != 0) {
+      angle_->apply(angle_tunables_.value);
+      edge_timeout_ns_.store(angle_tunables_.value.edge_timeout_ns, std::memory_order_relaxed);
+      angle_tunables_.full.store(0, std::memory_order_release);
+    }
     // Edges in order; CAN frames up to each edge's time first, so the stage sees the replay's order.
     // Read-ahead replay items (ingest_ns == 0) are processed at their due time: sleep until then (bounded, so
     // stop requests and heartbeats are still seen); once the sources stop, drain without waiting.
@@ -244,7 +250,8 @@ void Runtime::angle_loop() {
       const std::int64_t now_edge =
           anchor_rec_ns_.load(std::memory_order_relaxed) +
           static_cast<std::int64_t>(static_cast<double>(mono_ns() - anchor_mono_ns_.load(std::memory_order_relaxed)) * speed);
-      const bool timed_out = now_edge - last_t_ns_.load(std::memory_order_relaxed) > s_.edge_timeout_ns;
+      const bool timed_out =
+          now_edge - last_t_ns_.load(std::memory_order_relaxed) > edge_timeout_ns_.load(std::memory_order_relaxed);
       if (timed_out) angle_->poll(now_edge);
       edge_timeout_.store(timed_out, std::memory_order_relaxed);
     }
@@ -287,6 +294,10 @@ void Runtime::time_loop() {
     std::uint64_t expirations = 0;
     if (read(fd, &expirations, sizeof expirations) != static_cast<ssize_t>(sizeof expirations)) continue;
     hb_time_.fetch_add(1, std::memory_order_relaxed);
+    if (time_tunables_.full.load(std::memory_order_acquire) != 0) {
+      time_->apply(time_tunables_.value);
+      time_tunables_.full.store(0, std::memory_order_release);
+    }
     if (expirations > 1) overruns_.fetch_add(expirations - 1, std::memory_order_relaxed);
     while (tooth_ring_.try_pop(ts)) time_->on_tooth(ts);
     if (!anchored_.load(std::memory_order_acquire)) {
@@ -364,6 +375,22 @@ void Runtime::publisher_loop() {
 }
 
 // ---- supervisor interface --------------------------------------------------------------------------------
+
+bool Runtime::request_tunables(const RuntimeTunables& t, std::int64_t timeout_ns) {
+  const std::int64_t deadline = mono_ns() + timeout_ns;
+  bool ok = true;
+  for (TunablesMailbox* mb : {&angle_tunables_, &time_tunables_}) {
+    while (mb->full.load(std::memory_order_acquire) != 0 && mono_ns() < deadline) usleep(1000);
+    if (mb->full.load(std::memory_order_acquire) != 0) {
+      ok = false;
+      continue;
+    }
+    mb->value = t;
+    mb->full.store(1, std::memory_order_release);
+  }
+  angle_wake_.notify();
+  return ok;
+}
 
 void Runtime::push_status(const dds::AnySample& s) noexcept {
   if (out_status_ring_.try_push(s)) pub_wake_.notify();

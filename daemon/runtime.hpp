@@ -69,6 +69,10 @@ class Runtime {
   /// Returns false when the drain did not finish within timeout_ns (threads are stopped anyway).
   bool stop_and_drain(std::int64_t timeout_ns);
 
+  /// SIGHUP (supervisor thread): hand new tunables to the angle and time threads, which apply them before
+  /// their next event. Waits (up to timeout_ns) for a previous request to be taken; false if it was not.
+  bool request_tunables(const RuntimeTunables& t, std::int64_t timeout_ns = 500'000'000);
+
   /// All input consumed (replay reached the end of its files and the rings are empty).
   [[nodiscard]] bool input_done() const noexcept;
   [[nodiscard]] RuntimeCounters counters() const noexcept;
@@ -91,6 +95,12 @@ class Runtime {
   void replay_source_loop();
   void live_edge_loop();
   void live_can_loop();
+  /// One-slot mailbox from the supervisor to one real-time thread: the writer fills `value` only while `full` is
+  /// 0 and then publishes it (release); the reader copies it (acquire) and clears `full`. No lock, no allocation.
+  struct TunablesMailbox {
+    RuntimeTunables value;
+    std::atomic<int> full{0};
+  };
   void angle_loop();
   /// Paced replay: CLOCK_MONOTONIC time (ns) at which recording time t_ns is due (after the anchor is set).
   [[nodiscard]] std::int64_t due_mono_ns(std::int64_t t_ns) const noexcept;
@@ -124,6 +134,8 @@ class Runtime {
   std::thread src_thread_, src2_thread_, angle_thread_, time_thread_, pub_thread_;
   std::atomic<bool> stop_sources_{false}, stop_pipelines_{false}, stop_publisher_{false}, stall_{false};
   std::atomic<int> sources_running_{0};
+  TunablesMailbox angle_tunables_, time_tunables_;
+  std::atomic<std::int64_t> edge_timeout_ns_{0};
   std::atomic<bool> anchored_{false};
   std::atomic<std::int64_t> anchor_rec_ns_{0}, anchor_mono_ns_{0};
   std::atomic<std::uint32_t> flags_{0};

@@ -47,6 +47,22 @@ struct StageSettings {
   dds::DdsSettings dds;
 };
 
+/// The part of StageSettings that may change while the pipelines run (SIGHUP): plain data, applied by the
+/// real-time threads themselves between two events (no allocation, no lock).
+struct RuntimeTunables {
+  int crank_decimation = 10;
+  int time_decimation = 10;
+  int tooth_estimator_decimation = 2;
+  std::int64_t edge_timeout_ns = 500'000'000;
+  std::array<std::int64_t, kSignalCount> signal_timeout_ns{};
+  bool operator==(const RuntimeTunables&) const = default;
+};
+
+/// The tunables of `s`.
+RuntimeTunables tunables_of(const StageSettings& s) noexcept;
+/// Copies the tunables into `s` (no allocation).
+void apply_tunables(StageSettings& s, const RuntimeTunables& t) noexcept;
+
 /// Maps the validated Config onto StageSettings.
 StageSettings stage_settings_from(const Config& cfg);
 

@@ -61,4 +61,11 @@ void TimeStage::step(std::int64_t t_ns, std::int64_t ingest_ns) noexcept {
   emit(torque_METHOD_ADAPTIVE, o.adaptive, t_ns, ingest_ns);
 }
 
+void TimeStage::apply(const RuntimeTunables& t) noexcept {
+  apply_tunables(s_, t);
+  if (store_)
+    for (std::size_t i = 0; i < t.signal_timeout_ns.size(); ++i)
+      store_->set_timeout(static_cast<Quantity>(i), t.signal_timeout_ns[i]);
+}
+
 }  // namespace torqued

@@ -26,6 +26,8 @@ class TimeStage {
 
   void on_tooth(const ToothSample& t) noexcept;
   void on_frame(const CanFrame& f) noexcept;
+  /// SIGHUP: new decimations / sensor time-outs, applied between two events on this stage's thread.
+  void apply(const RuntimeTunables& t) noexcept;
   /// One step at edge-clock time t_ns; ingest_ns: CLOCK_REALTIME of the tick (0 in fast replay).
   void step(std::int64_t t_ns, std::int64_t ingest_ns) noexcept;
 

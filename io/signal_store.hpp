@@ -53,6 +53,12 @@ class SignalStore {
   bool bind(Quantity q, std::string_view message, std::string_view signal, std::int64_t timeout_ns,
             std::string* error);
 
+  /// Change the time-out of an already bound quantity (SIGHUP reload). Real-time safe; ignored if not bound or <= 0.
+  void set_timeout(Quantity q, std::int64_t timeout_ns) noexcept {
+    Binding& b = bindings_[static_cast<std::size_t>(q)];
+    if (b.sig != nullptr && timeout_ns > 0) b.timeout_ns = timeout_ns;
+  }
+
   /// Decode every bound signal carried by this frame. Returns true if any value was accepted. Real-time safe.
   bool on_frame(const CanFrame& frame) noexcept;
 

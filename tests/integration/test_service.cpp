@@ -12,6 +12,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <thread>
 
 #include "process.hpp"
 #include "state_store.hpp"
@@ -149,6 +150,58 @@ TEST_F(Service, SighupReloadsLoggingLevel) {
   d.signal(SIGTERM);
   ASSERT_TRUE(d.wait(5));
   EXPECT_EQ(d.exit_code(), 0);
+}
+
+TEST_F(Service, SighupAppliesDecimationLive) {
+  // GIVEN a paced replay recording CrankState every 10th tooth WHEN the file is changed to every tooth and the
+  // daemon gets SIGHUP THEN later CrankState rows are one tooth apart, earlier ones ten, without a restart.
+  const std::string rec = (dir_ / "rec").string();
+  test::Process d(args({"--record", rec}), {}, (dir_ / "daemon.log").string());
+  ASSERT_TRUE(test::eventually(10, [&] { return log().find("running") != std::string::npos; })) << log();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  std::string y = test::slurp(config_);
+  y.replace(y.find("  engine_id: 1"), 14, "  engine_id: 1\n  crank_state_decimation: 1");
+  std::ofstream(config_) << y;
+  d.signal(SIGHUP);
+  ASSERT_TRUE(test::eventually(5, [&] { return log().find("SIGHUP: applied decimation") != std::string::npos; }))
+      << log();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  d.signal(SIGTERM);
+  ASSERT_TRUE(d.wait(5));
+  EXPECT_EQ(d.exit_code(), 0);
+  // Tooth index is column 7 of crank_state.csv (t_ns, engine_id, seq, source_t_ns, ingest_t_ns, publish_t_ns,
+  // validity, tooth, ...): count steps of 10 and of 1 (modulo the 58 teeth of a 60-2 wheel, 116 per cycle).
+  std::ifstream in(rec + "/crank_state.csv");
+  std::string line;
+  std::getline(in, line);
+  const auto header = line;
+  std::size_t col = 0;
+  {
+    std::size_t pos = 0, k = 0;
+    for (std::size_t q; (q = header.find(',', pos)) != std::string::npos || pos < header.size(); ++k) {
+      const std::string name = header.substr(pos, q == std::string::npos ? std::string::npos : q - pos);
+      if (name == "tooth") col = k;
+      if (q == std::string::npos) break;
+      pos = q + 1;
+    }
+  }
+  ASSERT_GT(col, 0u) << header;
+  int prev = -1, steps10 = 0, steps1 = 0, last_step = 0;
+  while (std::getline(in, line)) {
+    std::size_t pos = 0;
+    for (std::size_t k = 0; k < col; ++k) pos = line.find(',', pos) + 1;
+    const int tooth = std::atoi(line.c_str() + pos);
+    if (prev >= 0 && tooth >= 0) {
+      const int step = (tooth - prev + 116) % 116;
+      if (step == 10) ++steps10;
+      if (step == 1) ++steps1;
+      last_step = step;
+    }
+    prev = tooth;
+  }
+  EXPECT_GT(steps10, 20) << "every 10th tooth before the reload";
+  EXPECT_GT(steps1, 200) << "every tooth after the reload";
+  EXPECT_EQ(last_step, 1) << "the last rows come after the reload";
 }
 
 TEST_F(Service, LearnedStateSurvivesKill9) {
