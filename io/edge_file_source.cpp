@@ -41,35 +41,39 @@ inline bool eight_digits(const char* p, std::uint64_t& out) noexcept {
 }  // namespace
 
 /// Fast path for the common export row "<s>.<9 digits>,<c>,<c>..." (no spaces/sign, exactly 9 decimals, one
-/// character per level column, exactly the header's column count): raw time in header units x 1e9, and the
-/// crank/cam levels. Returns false for anything else: the general parser then handles (or reports) the line,
-/// so both paths agree on every line the fast one accepts (tests/io: EdgeCsv.FastPathAgreesWithGeneralParser).
-bool EdgeCsvSource::parse_row_fast(std::string_view line, std::int64_t& t, int& crank, int& cam) const noexcept {
-  const char* p = line.data();
-  const char* end = p + line.size();
+/// character per level column, exactly the header's column count) at the start of [p, p + avail): raw time in
+/// header units x 1e9 and the crank/cam levels. Returns the row's length (the caller checks what ends it:
+/// '\n' in the reader's buffer, or the end of a line), 0 for anything else: the general parser then handles
+/// (or reports) the line, so both paths agree on every row the fast one accepts (tests/io:
+/// EdgeCsv.FastPathAgreesWithGeneralParser).
+std::size_t EdgeCsvSource::parse_row_fast(const char* p, std::size_t avail, std::int64_t& t, int& crank,
+                                          int& cam) const noexcept {
+  const char* const begin = p;
+  const char* const end = p + avail;
   std::int64_t whole = 0;
-  const char* s = p;
   while (p < end && static_cast<unsigned>(*p - '0') < 10u) whole = whole * 10 + (*p++ - '0');
-  const auto int_digits = p - s;
+  const auto int_digits = p - begin;
   // integer part 1..9 digits (no overflow), '.', 9 digits, then 2 characters per further column
-  if (int_digits < 1 || int_digits > 9 || end - p != 10 + 2 * static_cast<std::ptrdiff_t>(columns_ - 1) || *p != '.')
-    return false;
+  const std::ptrdiff_t len = int_digits + 10 + 2 * static_cast<std::ptrdiff_t>(columns_ - 1);
+  if (int_digits < 1 || int_digits > 9 || end - begin < len || *p != '.') return 0;
   std::uint64_t frac8 = 0;
-  if (!eight_digits(p + 1, frac8) || static_cast<unsigned>(p[9] - '0') >= 10u) return false;
+  if (!eight_digits(p + 1, frac8) || static_cast<unsigned>(p[9] - '0') >= 10u) return 0;
   const char* c = p + 10;  // ",x,y..."
-  crank = cam = -1;
+  int lv[2] = {-1, -1};
   for (int col = 1; col < columns_; ++col, c += 2) {
-    if (c[0] != ',') return false;
+    if (c[0] != ',') return 0;
     const unsigned d = static_cast<unsigned>(c[1] - '0');
     if (col == crank_col_ || col == cam_col_) {
-      if (d > 1u) return false;
-      (col == crank_col_ ? crank : cam) = static_cast<int>(d);
+      if (d > 1u) return 0;
+      lv[col == crank_col_ ? 0 : 1] = static_cast<int>(d);
     } else if (d >= 10u) {
-      return false;
+      return 0;
     }
   }
+  crank = lv[0];
+  cam = lv[1];
   t = whole * 1'000'000'000 + static_cast<std::int64_t>(frac8 * 10 + static_cast<unsigned>(p[9] - '0'));
-  return true;
+  return static_cast<std::size_t>(len);
 }
 
 namespace {
@@ -194,21 +198,31 @@ SourceStatus EdgeCsvSource::next(EdgeEvent& out) noexcept {
       return SourceStatus::kOk;
     }
     pending_i_ = pending_n_ = 0;
-    std::string_view line;
-    if (!reader_.next(line)) {
+    std::int64_t t = 0;
+    int crank = -1, cam = -1;
+    // Fast path straight from the reader's buffer (no line search); anything else through next(line).
+    const std::string_view buf = reader_.buffered();
+    const std::size_t len = parse_row_fast(buf.data(), buf.size(), t, crank, cam);
+    if (len != 0 && len < buf.size() && buf[len] == '\n') {
+      reader_.consume_line(len + 1);
+    } else {
+      std::string_view line;
+      if (!reader_.next(line)) {
+        stats_.bytes = reader_.bytes();
+        stats_.lines = reader_.line_number();
+        if (!reader_.error().empty()) {
+          error_ = path_ + ": read error: " + reader_.error();
+          return SourceStatus::kError;
+        }
+        return SourceStatus::kEnd;
+      }
       stats_.bytes = reader_.bytes();
       stats_.lines = reader_.line_number();
-      if (!reader_.error().empty()) {
-        error_ = path_ + ": read error: " + reader_.error();
-        return SourceStatus::kError;
-      }
-      return SourceStatus::kEnd;
+      const std::size_t n = parse_row_fast(line.data(), line.size(), t, crank, cam);
+      if ((n == 0 || n != line.size()) && !parse_row(line, t, crank, cam)) continue;
     }
     stats_.bytes = reader_.bytes();
     stats_.lines = reader_.line_number();
-    std::int64_t t = 0;
-    int crank = -1, cam = -1;
-    if (!parse_row_fast(line, t, crank, cam) && !parse_row(line, t, crank, cam)) continue;
     t = (time_scale_div_ == 1 ? t : t / time_scale_div_) + opt_.time_offset_ns;
     if (!initial_ && t < last_t_ns_) {
       bad_line("time goes backwards");

@@ -41,7 +41,7 @@ class EdgeCsvSource final : public EdgeSource {
 
  private:
   void bad_line(const char* what) noexcept;
-  bool parse_row_fast(std::string_view line, std::int64_t& t, int& crank, int& cam) const noexcept;
+  std::size_t parse_row_fast(const char* p, std::size_t avail, std::int64_t& t, int& crank, int& cam) const noexcept;
   bool parse_row(std::string_view line, std::int64_t& t, int& crank, int& cam) noexcept;
 
   std::string path_;

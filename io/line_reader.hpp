@@ -24,6 +24,18 @@ class LineReader {
   /// Next line; false at end of file or on a read error (then error() is set). Real-time safe (read(2) only).
   bool next(std::string_view& line) noexcept;
 
+  /// Fast-path parsers: the bytes read but not yet consumed, without reading more (may end mid-line).
+  [[nodiscard]] std::string_view buffered() const noexcept {
+    return std::string_view(buf_.get() + begin_, end_ - begin_);
+  }
+  /// Consumes the first `n` bytes of buffered() as one complete line (the caller checked its '\n' is
+  /// at n - 1): what next() would have returned, without the memchr.
+  void consume_line(std::size_t n) noexcept {
+    begin_ += n;
+    bytes_ += n;
+    ++line_no_;
+    truncated_ = false;
+  }
   [[nodiscard]] std::uint64_t line_number() const noexcept { return line_no_; }  ///< 1-based, of the last line
   [[nodiscard]] std::uint64_t bytes() const noexcept { return bytes_; }          ///< bytes consumed so far
   [[nodiscard]] bool truncated() const noexcept { return truncated_; }            ///< last line was cut
