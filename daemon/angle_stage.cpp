@@ -13,12 +13,21 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 std::uint32_t validity_of(const TorqueEstimate& e) noexcept {
   std::uint32_t v = 0;
   switch (e.health) {
-    case Health::kValid: break;
+    case Health::kValid:
+      break;
     case Health::kNotConverged:
-    case Health::kNotExcited: v |= torque_VALIDITY_NOT_CONVERGED; break;
-    case Health::kStaleInput: v |= torque_VALIDITY_STALE_CAN; break;
-    case Health::kNoSync: v |= torque_VALIDITY_NO_SYNC; break;
-    default: v |= torque_VALIDITY_ESTIMATOR_FAULT; break;
+    case Health::kNotExcited:
+      v |= torque_VALIDITY_NOT_CONVERGED;
+      break;
+    case Health::kStaleInput:
+      v |= torque_VALIDITY_STALE_CAN;
+      break;
+    case Health::kNoSync:
+      v |= torque_VALIDITY_NO_SYNC;
+      break;
+    default:
+      v |= torque_VALIDITY_ESTIMATOR_FAULT;
+      break;
   }
   if (!std::isfinite(e.torque_nm)) v |= torque_VALIDITY_ESTIMATOR_FAULT;  // NaN never leaves silently
   return v;
@@ -26,10 +35,14 @@ std::uint32_t validity_of(const TorqueEstimate& e) noexcept {
 
 std::uint8_t method_of(FusionSourceId id) noexcept {
   switch (id) {
-    case FusionSourceId::kEnergyCan: return torque_METHOD_CYCLE_ENERGY;
-    case FusionSourceId::kCrankOnly: return torque_METHOD_LOAD_RLS;
-    case FusionSourceId::kEso: return torque_METHOD_INDICATED_ESO;
-    case FusionSourceId::kExternal: return torque_METHOD_UIO;
+    case FusionSourceId::kEnergyCan:
+      return torque_METHOD_CYCLE_ENERGY;
+    case FusionSourceId::kCrankOnly:
+      return torque_METHOD_LOAD_RLS;
+    case FusionSourceId::kEso:
+      return torque_METHOD_INDICATED_ESO;
+    case FusionSourceId::kExternal:
+      return torque_METHOD_UIO;
   }
   return torque_METHOD_FUSED;
 }
@@ -59,7 +72,8 @@ AngleStage::AngleStage(const StageSettings& s, const DbcDatabase* dbc, SampleSin
     ac.wheel = s_.wheel;
     pipeline_ = std::make_unique<AnglePipeline>(ac);
   }
-  if (s_.tooth_learn_enabled) learner_ = std::make_unique<ToothErrorLearner>(s_.engine, s_.wheel, s_.tooth_learn);
+  if (s_.tooth_learn_enabled)
+    learner_ = std::make_unique<ToothErrorLearner>(s_.engine, s_.wheel, s_.tooth_learn);
 }
 
 AngleStage::~AngleStage() = default;
@@ -119,8 +133,10 @@ void AngleStage::on_tooth(const ToothEvent& te, std::int64_t ingest_ns) noexcept
 
   // Crank state, decimated.
   double accel = 0.0;
-  if (pipeline_ && pipeline_->tooth_output().valid) accel = pipeline_->tooth_output().accel_rad_s2;
-  else if (ts.dt_s > 0.0) accel = (te.speed_rad_s - prev_speed_rad_s_) / ts.dt_s;
+  if (pipeline_ && pipeline_->tooth_output().valid)
+    accel = pipeline_->tooth_output().accel_rad_s2;
+  else if (ts.dt_s > 0.0)
+    accel = (te.speed_rad_s - prev_speed_rad_s_) / ts.dt_s;
   if (++crank_count_ >= s_.crank_decimation) {
     crank_count_ = 0;
     dds::AnySample a;
@@ -140,8 +156,9 @@ void AngleStage::on_tooth(const ToothEvent& te, std::int64_t ingest_ns) noexcept
     out_.emit(a);
   }
 
-  // In-cycle indicated torque (Chauvin Kalman / Fourier observers), every n-th tooth. The Kalman estimate is a
-  // fixed-lag smoother: its t_ns is the edge it refers to (k-4), so each method is stamped with its own t_ns.
+  // In-cycle indicated torque (Chauvin Kalman / Fourier observers), every n-th tooth. The Kalman estimate is
+  // a fixed-lag smoother: its t_ns is the edge it refers to (k-4), so each method is stamped with its own
+  // t_ns.
   if (pipeline_ && pipeline_->tooth_output().valid && s_.tooth_estimator_decimation > 0 &&
       ++tooth_est_count_ >= s_.tooth_estimator_decimation) {
     tooth_est_count_ = 0;
@@ -158,7 +175,8 @@ void AngleStage::on_tooth(const ToothEvent& te, std::int64_t ingest_ns) noexcept
     if (learner_ && learner_->ready()) {
       const int n = learner_->teeth();
       learner_->edge_corrections(std::span<double>(corr_.data(), static_cast<std::size_t>(n)));
-      corrections_applied_ = decoder_.set_tooth_corrections(std::span<const double>(corr_.data(), static_cast<std::size_t>(n)));
+      corrections_applied_ =
+          decoder_.set_tooth_corrections(std::span<const double>(corr_.data(), static_cast<std::size_t>(n)));
     }
     publish_snapshot();
   }
@@ -189,7 +207,8 @@ void AngleStage::on_segment(const ToothEvent& te, std::int64_t ingest_ns) noexce
   const int n = s_.engine.cylinders;
   const int pos = ((o.boundary - 1) % n + n) % n;  // firing position whose segment just ended
   const std::int64_t window_ns =
-      o.speed_mean_rad_s > 0.0 ? static_cast<std::int64_t>(4.0 * std::numbers::pi / o.speed_mean_rad_s * 1e9) : 0;
+      o.speed_mean_rad_s > 0.0 ? static_cast<std::int64_t>(4.0 * std::numbers::pi / o.speed_mean_rad_s * 1e9)
+                               : 0;
 
   dds::AnySample a;
   a.topic = dds::Topic::kEngineTorque;
@@ -209,7 +228,8 @@ void AngleStage::on_segment(const ToothEvent& te, std::int64_t ingest_ns) noexce
   m.quality = static_cast<std::uint8_t>(o.fused.health);
   m.fused_source = method_of(o.fused.primary);
   m.input_age_ns = o.fused.age_ns;
-  m.validity = validity_now() | validity_of(o.brake) | validity_of(TorqueEstimate{0, o.fused.brake_nm, 0, o.fused.health});
+  m.validity = validity_now() | validity_of(o.brake) |
+               validity_of(TorqueEstimate{0, o.fused.brake_nm, 0, o.fused.health});
   if (o.fused.can_lost) m.validity |= torque_VALIDITY_STALE_CAN;
   if (!std::isfinite(m.indicated_nm) || !std::isfinite(m.friction_nm) || !std::isfinite(m.load_nm))
     m.validity |= torque_VALIDITY_ESTIMATOR_FAULT;
@@ -226,8 +246,9 @@ void AngleStage::on_segment(const ToothEvent& te, std::int64_t ingest_ns) noexce
   emit_method(torque_METHOD_LOAD_RLS, o.load_rls, te.source_t_ns, ingest_ns);
   emit_method(torque_METHOD_INDICATED_ESO, o.indicated_eso, te.source_t_ns, ingest_ns);
   emit_method(torque_METHOD_FRICTION, o.friction, te.source_t_ns, ingest_ns);
-  emit_method(torque_METHOD_FUSED, TorqueEstimate{o.fused.t_ns, o.fused.brake_nm, o.fused.sd_nm, o.fused.health},
-              te.source_t_ns, ingest_ns);
+  emit_method(torque_METHOD_FUSED,
+              TorqueEstimate{o.fused.t_ns, o.fused.brake_nm, o.fused.sd_nm, o.fused.health}, te.source_t_ns,
+              ingest_ns);
 
   if (o.cycle_end) {
     const CylinderCycle& cc = o.cylinders;
@@ -243,7 +264,8 @@ void AngleStage::on_segment(const ToothEvent& te, std::int64_t ingest_ns) noexce
       const bool used = i < cc.cylinders;
       c.indicated_nm[i] = used ? cc.torque_nm[static_cast<std::size_t>(i)] : 0.0;
       c.imbalance_pct[i] = used ? cc.imbalance_pct[static_cast<std::size_t>(i)] : 0.0;
-      if (used && cc.misfire[static_cast<std::size_t>(i)]) c.misfire_mask = static_cast<std::uint8_t>(c.misfire_mask | (1u << i));
+      if (used && cc.misfire[static_cast<std::size_t>(i)])
+        c.misfire_mask = static_cast<std::uint8_t>(c.misfire_mask | (1u << i));
     }
     c.health = static_cast<std::uint8_t>(cc.health);
     c.validity = validity_now() | validity_of(TorqueEstimate{0, cc.mean_nm, 0, cc.health});
@@ -252,17 +274,23 @@ void AngleStage::on_segment(const ToothEvent& te, std::int64_t ingest_ns) noexce
 }
 
 void AngleStage::publish_snapshot() noexcept {
-  const bool fric = pipeline_ && pipeline_->friction().health() == Health::kValid &&
-                    (friction_imported_ || pipeline_->friction().motoring_observations() + pipeline_->friction().idle_observations() > 0);
+  const bool fric =
+      pipeline_ && pipeline_->friction().health() == Health::kValid &&
+      (friction_imported_ ||
+       pipeline_->friction().motoring_observations() + pipeline_->friction().idle_observations() > 0);
   const int n = corrections_applied_ && learner_ ? learner_->teeth() : 0;
   if (!fric && n == 0) return;
   snap_seq_.fetch_add(1, std::memory_order_acq_rel);  // odd: writing
   if (fric) {
     const auto c = pipeline_->friction().coefficients();
-    for (int i = 0; i < 4; ++i) snap_friction_[static_cast<std::size_t>(i)].store(c[static_cast<std::size_t>(i)], std::memory_order_relaxed);
+    for (int i = 0; i < 4; ++i)
+      snap_friction_[static_cast<std::size_t>(i)].store(c[static_cast<std::size_t>(i)],
+                                                        std::memory_order_relaxed);
   }
   snap_friction_valid_.store(fric, std::memory_order_relaxed);
-  for (int i = 0; i < n; ++i) snap_teeth_[static_cast<std::size_t>(i)].store(corr_[static_cast<std::size_t>(i)], std::memory_order_relaxed);
+  for (int i = 0; i < n; ++i)
+    snap_teeth_[static_cast<std::size_t>(i)].store(corr_[static_cast<std::size_t>(i)],
+                                                   std::memory_order_relaxed);
   snap_n_teeth_.store(n, std::memory_order_relaxed);
   snap_seq_.fetch_add(1, std::memory_order_release);  // even: consistent
 }
@@ -275,12 +303,16 @@ bool AngleStage::export_state(LearnedState& st) const {
     LearnedState tmp;
     if (snap_friction_valid_.load(std::memory_order_relaxed)) {
       std::array<double, 4> c{};
-      for (int i = 0; i < 4; ++i) c[static_cast<std::size_t>(i)] = snap_friction_[static_cast<std::size_t>(i)].load(std::memory_order_relaxed);
+      for (int i = 0; i < 4; ++i)
+        c[static_cast<std::size_t>(i)] =
+            snap_friction_[static_cast<std::size_t>(i)].load(std::memory_order_relaxed);
       tmp.friction = c;
     }
     const int n = snap_n_teeth_.load(std::memory_order_relaxed);
     tmp.tooth_corrections_rad.resize(static_cast<std::size_t>(n));
-    for (int i = 0; i < n; ++i) tmp.tooth_corrections_rad[static_cast<std::size_t>(i)] = snap_teeth_[static_cast<std::size_t>(i)].load(std::memory_order_relaxed);
+    for (int i = 0; i < n; ++i)
+      tmp.tooth_corrections_rad[static_cast<std::size_t>(i)] =
+          snap_teeth_[static_cast<std::size_t>(i)].load(std::memory_order_relaxed);
     std::atomic_thread_fence(std::memory_order_acquire);
     if (snap_seq_.load(std::memory_order_relaxed) == s0) {
       st = std::move(tmp);
@@ -292,7 +324,8 @@ bool AngleStage::export_state(LearnedState& st) const {
 
 void AngleStage::import_state(const LearnedState& st) {
   bool any = false;
-  if (st.friction && pipeline_ && pipeline_->friction().import_coefficients(*st.friction)) any = friction_imported_ = true;
+  if (st.friction && pipeline_ && pipeline_->friction().import_coefficients(*st.friction))
+    any = friction_imported_ = true;
   const auto n = st.tooth_corrections_rad.size();
   if (n > 0 && n <= corr_.size()) {
     const std::span<const double> tab(st.tooth_corrections_rad.data(), n);

@@ -54,7 +54,8 @@ class AngleStage {
  private:
   void on_tooth(const ToothEvent& te, std::int64_t ingest_ns) noexcept;
   void on_segment(const ToothEvent& te, std::int64_t ingest_ns) noexcept;
-  void emit_method(std::uint8_t method, const TorqueEstimate& e, std::int64_t t_ns, std::int64_t ingest_ns) noexcept;
+  void emit_method(std::uint8_t method, const TorqueEstimate& e, std::int64_t t_ns,
+                   std::int64_t ingest_ns) noexcept;
   void publish_snapshot() noexcept;
   std::uint32_t validity_now() const noexcept;
 

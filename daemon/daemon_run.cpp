@@ -1,10 +1,9 @@
 #include "daemon_run.hpp"
 
 #include <signal.h>
+#include <spdlog/spdlog.h>
 #include <systemd/sd-daemon.h>
 #include <time.h>
-
-#include <spdlog/spdlog.h>
 
 #include <chrono>
 #include <cinttypes>
@@ -42,22 +41,26 @@ ThreadRt thread_rt(const ThreadConfig& t, const char* name) {
 
 void wait_for_subscribers(DdsPublisher& pub, const RunOptions& opt) {
   if (opt.wait_subscribers <= 0) return;
-  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(opt.wait_subscribers_timeout_s);
-  while (pub.matched_readers(dds::Topic::kEngineTorque) < opt.wait_subscribers && std::chrono::steady_clock::now() < until)
+  const auto until =
+      std::chrono::steady_clock::now() + std::chrono::duration<double>(opt.wait_subscribers_timeout_s);
+  while (pub.matched_readers(dds::Topic::kEngineTorque) < opt.wait_subscribers &&
+         std::chrono::steady_clock::now() < until)
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   const int n = pub.matched_readers(dds::Topic::kEngineTorque);
-  if (n < opt.wait_subscribers) spdlog::warn("only {} of {} subscribers matched after {} s; starting anyway", n,
-                                             opt.wait_subscribers, opt.wait_subscribers_timeout_s);
-  else spdlog::info("{} subscriber(s) matched", n);
+  if (n < opt.wait_subscribers)
+    spdlog::warn("only {} of {} subscribers matched after {} s; starting anyway", n, opt.wait_subscribers,
+                 opt.wait_subscribers_timeout_s);
+  else
+    spdlog::info("{} subscriber(s) matched", n);
   // Readers matched on one topic; give discovery a moment to finish matching the others.
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
 }
 
 /// SIGHUP: reload the file; apply what is safe to change at run time, report the rest.
 /// Applied live: logging.level; dds.crank_state_decimation, dds.time_estimator_decimation,
-/// dds.tooth_estimator_decimation; inputs.edges.timeout_s; every can.signals.<q>.timeout_s (the real-time threads
-/// take them between two events). Everything else (inputs, engine, wheel, DDS domain/QoS, estimator tuning,
-/// realtime) needs a restart: reported, not applied.
+/// dds.tooth_estimator_decimation; inputs.edges.timeout_s; every can.signals.<q>.timeout_s (the real-time
+/// threads take them between two events). Everything else (inputs, engine, wheel, DDS domain/QoS, estimator
+/// tuning, realtime) needs a restart: reported, not applied.
 void reload(const std::string& path, Config& current, StageSettings& settings, Runtime& rt) {
   const LoadResult r = load_config(path);
   if (!r.ok()) {
@@ -77,14 +80,16 @@ void reload(const std::string& path, Config& current, StageSettings& settings, R
   if (now != was) {
     if (rt.request_tunables(now)) {
       apply_tunables(settings, now);
-      spdlog::info("SIGHUP: applied decimation crank/time/tooth {}/{}/{} -> {}/{}/{}, edge time-out {} -> {} ms, "
-                   "sensor time-outs {}",
-                   was.crank_decimation, was.time_decimation, was.tooth_estimator_decimation, now.crank_decimation,
-                   now.time_decimation, now.tooth_estimator_decimation, was.edge_timeout_ns / 1'000'000,
-                   now.edge_timeout_ns / 1'000'000,
-                   now.signal_timeout_ns == was.signal_timeout_ns ? "unchanged" : "changed");
+      spdlog::info(
+          "SIGHUP: applied decimation crank/time/tooth {}/{}/{} -> {}/{}/{}, edge time-out {} -> {} ms, "
+          "sensor time-outs {}",
+          was.crank_decimation, was.time_decimation, was.tooth_estimator_decimation, now.crank_decimation,
+          now.time_decimation, now.tooth_estimator_decimation, was.edge_timeout_ns / 1'000'000,
+          now.edge_timeout_ns / 1'000'000,
+          now.signal_timeout_ns == was.signal_timeout_ns ? "unchanged" : "changed");
     } else {
-      spdlog::error("SIGHUP: the pipelines did not take the new decimations/time-outs within 0.5 s; not applied");
+      spdlog::error(
+          "SIGHUP: the pipelines did not take the new decimations/time-outs within 0.5 s; not applied");
     }
   }
   if (n.inputs.edges.path != current.inputs.edges.path || n.inputs.can.path != current.inputs.can.path ||
@@ -96,14 +101,15 @@ void reload(const std::string& path, Config& current, StageSettings& settings, R
 }
 
 void notify_status(const RuntimeCounters& c, double uptime_s) {
-  sd_notifyf(0, "STATUS=%s; uptime %.0f s; edges %" PRIu64 " cycles %" PRIu64 " drops %" PRIu64 " overruns %" PRIu64,
-             c.synced ? "synced" : "not synced", uptime_s, c.edges, c.cycles,
-             c.ring_drops_edge + c.ring_drops_can + c.ring_drops_out, c.overruns);
+  sd_notifyf(
+      0, "STATUS=%s; uptime %.0f s; edges %" PRIu64 " cycles %" PRIu64 " drops %" PRIu64 " overruns %" PRIu64,
+      c.synced ? "synced" : "not synced", uptime_s, c.edges, c.cycles,
+      c.ring_drops_edge + c.ring_drops_can + c.ring_drops_out, c.overruns);
 }
 
-int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, EdgeSource* edges, CanSource* can,
-             const DbcDatabase* dbc, SampleSink& out) {
-  struct sigaction sa{};
+int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, EdgeSource* edges,
+             CanSource* can, const DbcDatabase* dbc, SampleSink& out) {
+  struct sigaction sa {};
   sa.sa_handler = on_fast_signal;
   sigaction(SIGTERM, &sa, nullptr);
   sigaction(SIGINT, &sa, nullptr);
@@ -111,10 +117,11 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
   const ReplayResult r = run_fast_replay(s, edges, can, can_time_offset_ns(cfg), dbc, out, &g_fast_stop);
   if (!r.error.empty()) spdlog::error("replay: {}", r.error);
   const double rec_s = static_cast<double>(r.last_t_ns - r.first_t_ns) * 1e-9;
-  spdlog::info("fast replay: {:.3f} s of recording in {:.3f} s ({:.0f}x real time), {} edges, {} teeth, {} cycles, "
-               "{} CAN frames, {} samples, {} sync losses, {} source drops",
-               rec_s, r.wall_s, r.speedup(), r.counters.edges, r.counters.teeth, r.counters.cycles,
-               r.counters.can_frames, r.samples, r.counters.sync_losses, r.counters.source_drops);
+  spdlog::info(
+      "fast replay: {:.3f} s of recording in {:.3f} s ({:.0f}x real time), {} edges, {} teeth, {} cycles, "
+      "{} CAN frames, {} samples, {} sync losses, {} source drops",
+      rec_s, r.wall_s, r.speedup(), r.counters.edges, r.counters.teeth, r.counters.cycles,
+      r.counters.can_frames, r.samples, r.counters.sync_losses, r.counters.source_drops);
   (void)opt;
   return r.error.empty() ? 0 : 1;
 }
@@ -166,7 +173,8 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
       spdlog::critical("dds: {}", publisher->error());
       return 1;
     }
-    spdlog::info("DDS domain {} topics {}/* engine_id {}", s.dds.domain_id, s.dds.topic_prefix, s.dds.engine_id);
+    spdlog::info("DDS domain {} topics {}/* engine_id {}", s.dds.domain_id, s.dds.topic_prefix,
+                 s.dds.engine_id);
     wait_for_subscribers(*publisher, opt);
   }
   OutputFanout fanout(recorder.get(), publisher.get(), s.dds.engine_id);
@@ -208,8 +216,8 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
     std::string serr;
     if (auto st = load_state(spath, &serr)) {
       rt.angle_stage().import_state(*st);
-      spdlog::info("learned state loaded from {} ({} tooth corrections{})", spath, st->tooth_corrections_rad.size(),
-                   st->friction ? ", friction" : "");
+      spdlog::info("learned state loaded from {} ({} tooth corrections{})", spath,
+                   st->tooth_corrections_rad.size(), st->friction ? ", friction" : "");
     } else {
       spdlog::info("no learned state loaded: {}", serr);
     }
@@ -300,10 +308,11 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   save();
   if (recorder) recorder->flush(true);
   const RuntimeCounters c = rt.counters();
-  spdlog::info("stopped: {} edges, {} teeth, {} cycles, drops edge/can/out {}/{}/{}, overruns {}, latency p50/p99/max "
-               "{:.1f}/{:.1f}/{:.1f} us",
-               c.edges, c.teeth, c.cycles, c.ring_drops_edge, c.ring_drops_can, c.ring_drops_out, c.overruns,
-               c.latency_p50_ns * 1e-3, c.latency_p99_ns * 1e-3, c.latency_max_ns * 1e-3);
+  spdlog::info(
+      "stopped: {} edges, {} teeth, {} cycles, drops edge/can/out {}/{}/{}, overruns {}, latency p50/p99/max "
+      "{:.1f}/{:.1f}/{:.1f} us",
+      c.edges, c.teeth, c.cycles, c.ring_drops_edge, c.ring_drops_can, c.ring_drops_out, c.overruns,
+      c.latency_p50_ns * 1e-3, c.latency_p99_ns * 1e-3, c.latency_max_ns * 1e-3);
   return exit_code;
 }
 

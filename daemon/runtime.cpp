@@ -40,9 +40,19 @@ class Runtime::ToothRingSink final : public ToothSink {
 
 Runtime::Runtime(const StageSettings& s, const RuntimeOptions& opt, EdgeSource* edges, CanSource* can,
                  std::int64_t can_offset_ns, const DbcDatabase* dbc, SampleSink& final_out)
-    : s_(s), opt_(opt), edges_(edges), can_(can), can_offset_ns_(can_offset_ns), final_out_(final_out),
-      edge_ring_(opt.edge_ring), can_angle_ring_(opt.can_ring), can_time_ring_(opt.can_ring),
-      tooth_ring_(opt.tooth_ring), out_angle_ring_(opt.out_ring), out_time_ring_(opt.out_ring), out_status_ring_(64),
+    : s_(s),
+      opt_(opt),
+      edges_(edges),
+      can_(can),
+      can_offset_ns_(can_offset_ns),
+      final_out_(final_out),
+      edge_ring_(opt.edge_ring),
+      can_angle_ring_(opt.can_ring),
+      can_time_ring_(opt.can_ring),
+      tooth_ring_(opt.tooth_ring),
+      out_angle_ring_(opt.out_ring),
+      out_time_ring_(opt.out_ring),
+      out_status_ring_(64),
       lat_hist_(new std::uint32_t[kLatBuckets + 1]()) {
   edge_timeout_ns_.store(s_.edge_timeout_ns, std::memory_order_relaxed);
   angle_sink_ = std::make_unique<RingSink>(out_angle_ring_, pub_wake_);
@@ -50,8 +60,10 @@ Runtime::Runtime(const StageSettings& s, const RuntimeOptions& opt, EdgeSource* 
   tooth_sink_ = std::make_unique<ToothRingSink>(tooth_ring_);
   time_ = std::make_unique<TimeStage>(s_, dbc, *time_sink_);
   angle_ = std::make_unique<AngleStage>(s_, dbc, *angle_sink_, tooth_sink_.get());
-  if (!angle_->ok()) error_ = angle_->error();
-  else if (!time_->ok()) error_ = time_->error();
+  if (!angle_->ok())
+    error_ = angle_->error();
+  else if (!time_->ok())
+    error_ = time_->error();
 }
 
 Runtime::~Runtime() {
@@ -89,8 +101,10 @@ bool Runtime::start() {
       const RtOutcome o = apply_to_current_thread(p);
       if (!o.ok) {
         flags_.fetch_or(torque_STATUS_RT_NOT_PERMITTED, std::memory_order_relaxed);
-        if (!opt_.require_rt) warnings_.push_back(o.message + ": running the pipelines with SCHED_OTHER");
-        else error_ = o.message + " (realtime.require_rt is set)";
+        if (!opt_.require_rt)
+          warnings_.push_back(o.message + ": running the pipelines with SCHED_OTHER");
+        else
+          error_ = o.message + " (realtime.require_rt is set)";
       }
     });
     probe.join();
@@ -116,11 +130,12 @@ bool Runtime::start() {
 
 // ---- sources -------------------------------------------------------------------------------------------
 
-// Paced replay: this thread only reads ahead. It keeps the rings filled up to kReadAheadNs (recording time / speed)
-// ahead of the wall clock, in batches (one wake-up per ~kReadAheadNs/2, not one per edge), and the angle thread
-// does the fine pacing itself: it sleeps until each edge's due time and processes it when it wakes. That is one
-// thread wake-up per edge (the timer) instead of two (source timer + futex to the angle thread). Items carry
-// ingest_ns = 0; the consumer stamps them with their due time. Fast replay does not use this thread.
+// Paced replay: this thread only reads ahead. It keeps the rings filled up to kReadAheadNs (recording time /
+// speed) ahead of the wall clock, in batches (one wake-up per ~kReadAheadNs/2, not one per edge), and the
+// angle thread does the fine pacing itself: it sleeps until each edge's due time and processes it when it
+// wakes. That is one thread wake-up per edge (the timer) instead of two (source timer + futex to the angle
+// thread). Items carry ingest_ns = 0; the consumer stamps them with their due time. Fast replay does not use
+// this thread.
 void Runtime::replay_source_loop() {
   ReplayMerger merger(edges_, can_, can_offset_ns_);
   const double speed = opt_.speed > 0 ? opt_.speed : 1.0;
@@ -136,8 +151,10 @@ void Runtime::replay_source_loop() {
       anchor_mono_ns_.store(mono_ns() + kReplayStartNs, std::memory_order_relaxed);
       anchored_.store(true, std::memory_order_release);
     }
-    const std::int64_t due = anchor_mono_ns_.load(std::memory_order_relaxed) +
-                             static_cast<std::int64_t>(static_cast<double>(t - anchor_rec_ns_.load(std::memory_order_relaxed)) / speed);
+    const std::int64_t due =
+        anchor_mono_ns_.load(std::memory_order_relaxed) +
+        static_cast<std::int64_t>(static_cast<double>(t - anchor_rec_ns_.load(std::memory_order_relaxed)) /
+                                  speed);
     if (due - mono_ns() > kReadAheadNs) {
       // Far enough ahead: hand what we have to the angle thread, sleep until this item is half a window away.
       if (pushed_since_wake) angle_wake_.notify();
@@ -222,7 +239,8 @@ void Runtime::angle_loop() {
           wait_due = due;
           break;
         }
-        ingest = realtime_ns() + (due - mono_ns());  // the edge "happens" at its due time (includes our wake-up)
+        ingest =
+            realtime_ns() + (due - mono_ns());  // the edge "happens" at its due time (includes our wake-up)
       }
       while (const FrameIn* f = can_angle_ring_.front()) {
         if (f->f.t_ns > e->e.t_ns) break;
@@ -249,9 +267,10 @@ void Runtime::angle_loop() {
       const double speed = opt_.replay && opt_.speed > 0 ? opt_.speed : 1.0;
       const std::int64_t now_edge =
           anchor_rec_ns_.load(std::memory_order_relaxed) +
-          static_cast<std::int64_t>(static_cast<double>(mono_ns() - anchor_mono_ns_.load(std::memory_order_relaxed)) * speed);
-      const bool timed_out =
-          now_edge - last_t_ns_.load(std::memory_order_relaxed) > edge_timeout_ns_.load(std::memory_order_relaxed);
+          static_cast<std::int64_t>(
+              static_cast<double>(mono_ns() - anchor_mono_ns_.load(std::memory_order_relaxed)) * speed);
+      const bool timed_out = now_edge - last_t_ns_.load(std::memory_order_relaxed) >
+                             edge_timeout_ns_.load(std::memory_order_relaxed);
       if (timed_out) angle_->poll(now_edge);
       edge_timeout_.store(timed_out, std::memory_order_relaxed);
     }
@@ -263,7 +282,8 @@ void Runtime::angle_loop() {
     stale_mask_.store(angle_->stale_mask(), std::memory_order_relaxed);
     synced_.store(angle_->decoder().state() == SyncState::kSynced, std::memory_order_relaxed);
     if (stop_pipelines_.load(std::memory_order_acquire) && !has_work()) break;
-    if (wait_due != 0) {  // paced replay: the next item is due at wait_due; the timer is this thread's only wake-up
+    if (wait_due !=
+        0) {  // paced replay: the next item is due at wait_due; the timer is this thread's only wake-up
       const std::int64_t until = std::min(wait_due, mono_ns() + 50'000'000);
       timespec ts{static_cast<time_t>(until / 1'000'000'000), static_cast<long>(until % 1'000'000'000)};
       clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
@@ -276,7 +296,8 @@ void Runtime::angle_loop() {
 std::int64_t Runtime::due_mono_ns(std::int64_t t_ns) const noexcept {
   const double speed = opt_.speed > 0 ? opt_.speed : 1.0;
   return anchor_mono_ns_.load(std::memory_order_relaxed) +
-         static_cast<std::int64_t>(static_cast<double>(t_ns - anchor_rec_ns_.load(std::memory_order_relaxed)) / speed);
+         static_cast<std::int64_t>(
+             static_cast<double>(t_ns - anchor_rec_ns_.load(std::memory_order_relaxed)) / speed);
 }
 
 void Runtime::time_loop() {
@@ -308,8 +329,10 @@ void Runtime::time_loop() {
     const double speed = opt_.replay && opt_.speed > 0 ? opt_.speed : 1.0;
     const std::int64_t t_edge =
         anchor_rec_ns_.load(std::memory_order_relaxed) +
-        static_cast<std::int64_t>(static_cast<double>(mono_ns() - anchor_mono_ns_.load(std::memory_order_relaxed)) * speed);
-    // Paced replay reads ahead: frames later than this tick wait for their time (live frames are never early).
+        static_cast<std::int64_t>(
+            static_cast<double>(mono_ns() - anchor_mono_ns_.load(std::memory_order_relaxed)) * speed);
+    // Paced replay reads ahead: frames later than this tick wait for their time (live frames are never
+    // early).
     while (const FrameIn* f = can_time_ring_.front()) {
       if (f->ingest_ns == 0 && f->f.t_ns > t_edge && !stop_sources_.load(std::memory_order_relaxed)) break;
       time_->on_frame(f->f);
@@ -346,7 +369,9 @@ bool Runtime::drain_out() noexcept {
 
 void Runtime::publisher_loop() {
   lat_period_start_ns_ = mono_ns();
-  auto has_work = [this] { return !out_angle_ring_.empty() || !out_time_ring_.empty() || !out_status_ring_.empty(); };
+  auto has_work = [this] {
+    return !out_angle_ring_.empty() || !out_time_ring_.empty() || !out_status_ring_.empty();
+  };
   for (;;) {
     hb_pub_.fetch_add(1, std::memory_order_relaxed);
     drain_out();

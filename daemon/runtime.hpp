@@ -31,10 +31,10 @@ class AngleStage;
 class TimeStage;
 
 struct RuntimeOptions {
-  double speed = 1.0;           ///< replay speed factor (paced replay); ignored for live sources
-  bool replay = true;           ///< file sources paced by their timestamps (false: live sources)
+  double speed = 1.0;  ///< replay speed factor (paced replay); ignored for live sources
+  bool replay = true;  ///< file sources paced by their timestamps (false: live sources)
   bool lock_memory = true;
-  bool require_rt = false;      ///< start() fails when SCHED_FIFO/mlockall are not permitted
+  bool require_rt = false;  ///< start() fails when SCHED_FIFO/mlockall are not permitted
   ThreadRt angle{true, 80, {}, "torqued-angle"};
   ThreadRt time{true, 70, {}, "torqued-time"};
   ThreadRt source{true, 85, {}, "torqued-source"};
@@ -78,7 +78,9 @@ class Runtime {
   [[nodiscard]] RuntimeCounters counters() const noexcept;
   [[nodiscard]] Heartbeats heartbeats() const noexcept;
   /// Newest edge-clock time processed by the angle stage.
-  [[nodiscard]] std::int64_t last_source_t_ns() const noexcept { return last_t_ns_.load(std::memory_order_relaxed); }
+  [[nodiscard]] std::int64_t last_source_t_ns() const noexcept {
+    return last_t_ns_.load(std::memory_order_relaxed);
+  }
   /// Supervisor -> publisher (status samples). Non-blocking.
   void push_status(const dds::AnySample& s) noexcept;
   /// Test-only: freeze the angle thread (it stops making progress) to check the watchdog stops pinging.
@@ -87,16 +89,23 @@ class Runtime {
   [[nodiscard]] AngleStage& angle_stage() noexcept { return *angle_; }
 
  private:
-  struct EdgeIn { EdgeEvent e; std::int64_t ingest_ns; };
-  struct FrameIn { CanFrame f; std::int64_t ingest_ns; };
+  struct EdgeIn {
+    EdgeEvent e;
+    std::int64_t ingest_ns;
+  };
+  struct FrameIn {
+    CanFrame f;
+    std::int64_t ingest_ns;
+  };
   class RingSink;
   class ToothRingSink;
 
   void replay_source_loop();
   void live_edge_loop();
   void live_can_loop();
-  /// One-slot mailbox from the supervisor to one real-time thread: the writer fills `value` only while `full` is
-  /// 0 and then publishes it (release); the reader copies it (acquire) and clears `full`. No lock, no allocation.
+  /// One-slot mailbox from the supervisor to one real-time thread: the writer fills `value` only while `full`
+  /// is 0 and then publishes it (release); the reader copies it (acquire) and clears `full`. No lock, no
+  /// allocation.
   struct TunablesMailbox {
     RuntimeTunables value;
     std::atomic<int> full{0};
@@ -104,8 +113,10 @@ class Runtime {
   void angle_loop();
   /// Paced replay: CLOCK_MONOTONIC time (ns) at which recording time t_ns is due (after the anchor is set).
   [[nodiscard]] std::int64_t due_mono_ns(std::int64_t t_ns) const noexcept;
-  static constexpr std::int64_t kReadAheadNs = 20'000'000;  ///< paced replay: source reads this far ahead (wall)
-  static constexpr std::int64_t kReplayStartNs = 2'000'000;  ///< paced replay: first item due this long after start
+  static constexpr std::int64_t kReadAheadNs =
+      20'000'000;  ///< paced replay: source reads this far ahead (wall)
+  static constexpr std::int64_t kReplayStartNs =
+      2'000'000;  ///< paced replay: first item due this long after start
   void time_loop();
   void publisher_loop();
   bool drain_out() noexcept;

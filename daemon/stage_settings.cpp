@@ -73,7 +73,8 @@ RuntimeTunables tunables_of(const StageSettings& s) noexcept {
   t.time_decimation = s.time_decimation;
   t.tooth_estimator_decimation = s.tooth_estimator_decimation;
   t.edge_timeout_ns = s.edge_timeout_ns;
-  for (std::size_t i = 0; i < t.signal_timeout_ns.size(); ++i) t.signal_timeout_ns[i] = s.signals[i].timeout_ns;
+  for (std::size_t i = 0; i < t.signal_timeout_ns.size(); ++i)
+    t.signal_timeout_ns[i] = s.signals[i].timeout_ns;
   return t;
 }
 
@@ -82,7 +83,8 @@ void apply_tunables(StageSettings& s, const RuntimeTunables& t) noexcept {
   s.time_decimation = t.time_decimation;
   s.tooth_estimator_decimation = t.tooth_estimator_decimation;
   s.edge_timeout_ns = t.edge_timeout_ns;
-  for (std::size_t i = 0; i < t.signal_timeout_ns.size(); ++i) s.signals[i].timeout_ns = t.signal_timeout_ns[i];
+  for (std::size_t i = 0; i < t.signal_timeout_ns.size(); ++i)
+    s.signals[i].timeout_ns = t.signal_timeout_ns[i];
 }
 
 }  // namespace torqued

@@ -16,11 +16,12 @@ namespace torqued {
 
 struct Config;
 
-inline constexpr int kSignalCount = 10;  ///< EngineSignals quantities: map, maf, ..., load_torque (this order)
+inline constexpr int kSignalCount =
+    10;  ///< EngineSignals quantities: map, maf, ..., load_torque (this order)
 
 struct SignalSpec {
-  std::string message;          ///< DBC message ("" = not mapped)
-  std::string signal;           ///< DBC signal
+  std::string message;  ///< DBC message ("" = not mapped)
+  std::string signal;   ///< DBC signal
   std::int64_t timeout_ns = 100'000'000;
 };
 
@@ -35,13 +36,14 @@ struct StageSettings {
   SlidingModeParams sliding_mode;
   DirtyDiffParams dirty_diff;
   AdaptiveParams adaptive;
-  AnglePipelineConfig angle;          ///< energies chain, friction, cylinders, fusion (engine/wheel filled too)
-  bool angle_enabled = true;          ///< run the angle pipeline (estimators.energies.enabled)
+  AnglePipelineConfig angle;  ///< energies chain, friction, cylinders, fusion (engine/wheel filled too)
+  bool angle_enabled = true;  ///< run the angle pipeline (estimators.energies.enabled)
   ToothLearnParams tooth_learn;
-  bool tooth_learn_enabled = true;    ///< learn tooth corrections and feed them to the decoder
-  int crank_decimation = 10;          ///< publish CrankState every n-th synced tooth
-  int time_decimation = 10;           ///< publish EstimatorTorque of time methods every n-th step
-  int tooth_estimator_decimation = 2; ///< publish per-tooth Kalman/Fourier T_ind every n-th tooth (0 = never)
+  bool tooth_learn_enabled = true;  ///< learn tooth corrections and feed them to the decoder
+  int crank_decimation = 10;        ///< publish CrankState every n-th synced tooth
+  int time_decimation = 10;         ///< publish EstimatorTorque of time methods every n-th step
+  int tooth_estimator_decimation =
+      2;  ///< publish per-tooth Kalman/Fourier T_ind every n-th tooth (0 = never)
   std::int64_t edge_timeout_ns = 500'000'000;  ///< no crank edge for this long: STATUS_EDGE_TIMEOUT
   std::int64_t status_period_ns = 1'000'000'000;
   dds::DdsSettings dds;

@@ -5,7 +5,9 @@
 namespace torqued {
 
 TimeStage::TimeStage(const StageSettings& s, const DbcDatabase* dbc, SampleSink& out)
-    : s_(s), out_(out), pipeline_(s.time_pipeline, s.uio, s.sliding_mode, s.dirty_diff, s.adaptive, s.engine) {
+    : s_(s),
+      out_(out),
+      pipeline_(s.time_pipeline, s.uio, s.sliding_mode, s.dirty_diff, s.adaptive, s.engine) {
   step_ns_ = static_cast<std::int64_t>(std::llround(s.time_pipeline.step_s * 1e9));
   if (step_ns_ <= 0) error_ = "time pipeline step must be > 0";
   if (dbc) {
@@ -28,7 +30,8 @@ void TimeStage::on_frame(const CanFrame& f) noexcept {
   if (store_) (void)store_->on_frame(f);
 }
 
-void TimeStage::emit(std::uint8_t method, const TorqueEstimate& e, std::int64_t t_ns, std::int64_t ingest_ns) noexcept {
+void TimeStage::emit(std::uint8_t method, const TorqueEstimate& e, std::int64_t t_ns,
+                     std::int64_t ingest_ns) noexcept {
   if (e.health == Health::kDisabled) return;
   dds::AnySample a;
   a.topic = dds::Topic::kEstimatorTorque;
@@ -40,9 +43,11 @@ void TimeStage::emit(std::uint8_t method, const TorqueEstimate& e, std::int64_t 
   m.value_nm = e.torque_nm;
   m.uncertainty = e.uncertainty;
   m.health = static_cast<std::uint8_t>(e.health);
-  if (e.health == Health::kNotConverged || e.health == Health::kNotExcited) m.validity |= torque_VALIDITY_NOT_CONVERGED;
+  if (e.health == Health::kNotConverged || e.health == Health::kNotExcited)
+    m.validity |= torque_VALIDITY_NOT_CONVERGED;
   if (e.health == Health::kStaleInput) m.validity |= torque_VALIDITY_STALE_CAN;
-  if (e.health == Health::kInvalidInput || e.health == Health::kNumerical) m.validity |= torque_VALIDITY_ESTIMATOR_FAULT;
+  if (e.health == Health::kInvalidInput || e.health == Health::kNumerical)
+    m.validity |= torque_VALIDITY_ESTIMATOR_FAULT;
   if (e.health == Health::kNoSync) m.validity |= torque_VALIDITY_NO_SYNC;
   // NaN never leaves silently: a non-finite value is always flagged.
   if (!std::isfinite(m.value_nm)) m.validity |= torque_VALIDITY_ESTIMATOR_FAULT;

@@ -1,7 +1,7 @@
 #pragma once
 // Time stage: the time-triggered estimators of Na et al. (estimators/time_pipeline.hpp) stepped at a fixed
-// rate (default 1 kHz) on the edge clock. Inputs: tooth samples from the angle stage (mean speed), load torque
-// and MAF from its own SignalStore copy. Outputs: EstimatorTorque per time method, decimated
+// rate (default 1 kHz) on the edge clock. Inputs: tooth samples from the angle stage (mean speed), load
+// torque and MAF from its own SignalStore copy. Outputs: EstimatorTorque per time method, decimated
 // (StageSettings::time_decimation). Runs on the time pipeline thread (timerfd) or inline in fast replay.
 // on_tooth/on_frame/step are real-time safe (no allocation, no lock, no blocking).
 #include <array>

@@ -16,30 +16,39 @@ namespace torqued {
 
 /// Quantities of EngineSignals (estimators/samples.hpp). Config names in quantity_name().
 enum class Quantity : std::uint8_t {
-  kMap = 0, kMaf, kIntakeTemp, kOilTemp, kThrottle, kLambda, kSparkAdvance, kFuelMass, kFuelCutoff, kLoadTorque,
+  kMap = 0,
+  kMaf,
+  kIntakeTemp,
+  kOilTemp,
+  kThrottle,
+  kLambda,
+  kSparkAdvance,
+  kFuelMass,
+  kFuelCutoff,
+  kLoadTorque,
   kCount
 };
 inline constexpr int kQuantityCount = static_cast<int>(Quantity::kCount);
 
-/// "map", "maf", "intake_temp", "oil_temp", "throttle", "lambda", "spark_advance", "fuel_mass", "fuel_cutoff",
-/// "load_torque" (the config keys under can.signals).
+/// "map", "maf", "intake_temp", "oil_temp", "throttle", "lambda", "spark_advance", "fuel_mass",
+/// "fuel_cutoff", "load_torque" (the config keys under can.signals).
 [[nodiscard]] const char* quantity_name(Quantity q) noexcept;
 [[nodiscard]] bool quantity_from_name(std::string_view name, Quantity& out) noexcept;
 
 /// Latest state of one quantity.
 struct SignalValue {
-  double value = 0.0;            ///< SI (Pa, kg/s, K, ...) as in EngineSignals
-  std::int64_t t_ns = 0;         ///< source time of the frame it came from (ns)
-  bool seen = false;             ///< at least one accepted value
-  std::uint64_t updates = 0;     ///< accepted values
-  std::uint64_t rejected = 0;    ///< NaN / out of range
+  double value = 0.0;          ///< SI (Pa, kg/s, K, ...) as in EngineSignals
+  std::int64_t t_ns = 0;       ///< source time of the frame it came from (ns)
+  bool seen = false;           ///< at least one accepted value
+  std::uint64_t updates = 0;   ///< accepted values
+  std::uint64_t rejected = 0;  ///< NaN / out of range
 };
 
 struct SignalStoreStats {
-  std::uint64_t frames = 0;          ///< frames offered
-  std::uint64_t frames_used = 0;     ///< frames that carried at least one bound signal
-  std::uint64_t bad_frames = 0;      ///< bound message with a payload too short (wrong DLC)
-  std::uint64_t rejected_values = 0; ///< NaN / out-of-range values
+  std::uint64_t frames = 0;           ///< frames offered
+  std::uint64_t frames_used = 0;      ///< frames that carried at least one bound signal
+  std::uint64_t bad_frames = 0;       ///< bound message with a payload too short (wrong DLC)
+  std::uint64_t rejected_values = 0;  ///< NaN / out-of-range values
 };
 
 class SignalStore {
@@ -48,12 +57,14 @@ class SignalStore {
   explicit SignalStore(const DbcDatabase& db);
 
   /// Map quantity `q` to DBC `message`.`signal` with time-out (ns). The signal's unit is converted to the SI
-  /// unit of the quantity (kPa/Pa/bar/hPa, g/s/kg/s/kg/h, degC/°C/C/K, mg/g/kg, %, -, deg, Nm, ...). Returns false with
-  /// `error` set when the message/signal is unknown or the unit is not convertible. Load-time only.
+  /// unit of the quantity (kPa/Pa/bar/hPa, g/s/kg/s/kg/h, degC/°C/C/K, mg/g/kg, %, -, deg, Nm, ...). Returns
+  /// false with `error` set when the message/signal is unknown or the unit is not convertible. Load-time
+  /// only.
   bool bind(Quantity q, std::string_view message, std::string_view signal, std::int64_t timeout_ns,
             std::string* error);
 
-  /// Change the time-out of an already bound quantity (SIGHUP reload). Real-time safe; ignored if not bound or <= 0.
+  /// Change the time-out of an already bound quantity (SIGHUP reload). Real-time safe; ignored if not bound
+  /// or <= 0.
   void set_timeout(Quantity q, std::int64_t timeout_ns) noexcept {
     Binding& b = bindings_[static_cast<std::size_t>(q)];
     if (b.sig != nullptr && timeout_ns > 0) b.timeout_ns = timeout_ns;
@@ -65,7 +76,9 @@ class SignalStore {
   [[nodiscard]] const SignalValue& value(Quantity q) const noexcept {
     return values_[static_cast<std::size_t>(q)];
   }
-  [[nodiscard]] bool bound(Quantity q) const noexcept { return bindings_[static_cast<std::size_t>(q)].sig != nullptr; }
+  [[nodiscard]] bool bound(Quantity q) const noexcept {
+    return bindings_[static_cast<std::size_t>(q)].sig != nullptr;
+  }
   /// Valid at `now_ns`: bound, seen, and now_ns - t_ns <= time-out (a value from the future also counts).
   [[nodiscard]] bool valid_at(Quantity q, std::int64_t now_ns) const noexcept;
   /// Age in seconds at now_ns (+inf if never seen).
@@ -78,7 +91,7 @@ class SignalStore {
   struct Binding {
     const DbcMessage* msg = nullptr;
     const DbcSignal* sig = nullptr;
-    double scale = 1.0;   ///< SI = physical × scale + shift
+    double scale = 1.0;  ///< SI = physical × scale + shift
     double shift = 0.0;
     std::int64_t timeout_ns = 0;
   };

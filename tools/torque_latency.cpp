@@ -3,7 +3,8 @@
 // EngineTorque, and measures receive time - ingest_t_ns (the edge's due time on CLOCK_REALTIME). Optionally
 // loads the other core (stress-ng --cpu 1) and runs cyclictest and ddsperf alongside, printing their figures
 // side by side with ours.
-//   CYCLONEDDS_URI=file://$PWD/config/cyclonedds-loopback.xml torque-latency --torqued build/daemon/torqued --config config/demo.yaml --duration 15 --stress --cyclictest
+//   CYCLONEDDS_URI=file://$PWD/config/cyclonedds-loopback.xml torque-latency --torqued build/daemon/torqued
+//   --config config/demo.yaml --duration 15 --stress --cyclictest
 #include <sched.h>
 #include <signal.h>
 #include <sys/mman.h>
@@ -12,8 +13,8 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <cerrno>
 #include <array>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -37,7 +38,8 @@ std::int64_t now_realtime() {
 pid_t spawn(const std::vector<std::string>& argv, const char* log) {
   const pid_t p = fork();
   if (p == 0) {
-    sched_param sp{};  // children (daemon, stress-ng, ...) pick their own scheduling, not this subscriber's FIFO
+    sched_param
+        sp{};  // children (daemon, stress-ng, ...) pick their own scheduling, not this subscriber's FIFO
     sched_setscheduler(0, SCHED_OTHER, &sp);
     if (log) {
       FILE* f = std::fopen(log, "w");
@@ -62,7 +64,8 @@ struct Stats {
     if (us.empty()) return 0;
     std::vector<double> s = us;
     std::sort(s.begin(), s.end());
-    const auto i = static_cast<std::size_t>(std::min<double>(static_cast<double>(s.size() - 1), p / 100.0 * static_cast<double>(s.size())));
+    const auto i = static_cast<std::size_t>(
+        std::min<double>(static_cast<double>(s.size() - 1), p / 100.0 * static_cast<double>(s.size())));
     return s[i];
   }
   [[nodiscard]] double max() const { return us.empty() ? 0 : *std::max_element(us.begin(), us.end()); }
@@ -123,9 +126,14 @@ void histogram(const Stats& s, const char* title) {
   std::printf("%s histogram (us):\n", title);
   double lo = 0;
   for (std::size_t i = 0; i < 14; ++i) {
-    const int bar = static_cast<int>(60.0 * static_cast<double>(n[i]) / static_cast<double>(s.us.size()) + 0.5);
-    if (i < 13) std::printf("  %6.0f-%-6.0f %8zu %s\n", lo, edges[i], n[i], std::string(static_cast<std::size_t>(bar), '#').c_str());
-    else std::printf("  %6.0f-       %8zu %s\n", lo, n[i], std::string(static_cast<std::size_t>(bar), '#').c_str());
+    const int bar =
+        static_cast<int>(60.0 * static_cast<double>(n[i]) / static_cast<double>(s.us.size()) + 0.5);
+    if (i < 13)
+      std::printf("  %6.0f-%-6.0f %8zu %s\n", lo, edges[i], n[i],
+                  std::string(static_cast<std::size_t>(bar), '#').c_str());
+    else
+      std::printf("  %6.0f-       %8zu %s\n", lo, n[i],
+                  std::string(static_cast<std::size_t>(bar), '#').c_str());
     lo = edges[i];
   }
 }
@@ -158,8 +166,9 @@ void cyclictest_summary(const char* log, double& p50, double& p99, double& p999,
   }
 }
 
-/// ddsperf ping prints one line per second: "... mean X us min X us 50% X us 90% X us 99% X us max X us cnt N";
-/// returns the medians of the per-second p50 and p99 round trips (the first second, discovery, is skipped).
+/// ddsperf ping prints one line per second: "... mean X us min X us 50% X us 90% X us 99% X us max X us cnt
+/// N"; returns the medians of the per-second p50 and p99 round trips (the first second, discovery, is
+/// skipped).
 void ddsperf_summary(const char* log, double& p50, double& p99, std::size_t& n) {
   FILE* f = std::fopen(log, "r");
   if (!f) return;
@@ -193,27 +202,30 @@ int main(int argc, char** argv) {
   double duration_s = 15, speed = 1.0;
   bool stress = false, cyclic = false, ddsperf = false, use_waitset = false;
   int sub_prio = 70, ddsperf_rate_hz = 500;
-  CLI::App app{"torque-latency: tooth edge -> subscriber latency of torqued in paced replay (p50/p99/p99.9/max + "
-               "histogram), optionally with stress-ng --cpu 1, cyclictest and ddsperf alongside"};
+  CLI::App app{
+      "torque-latency: tooth edge -> subscriber latency of torqued in paced replay (p50/p99/p99.9/max + "
+      "histogram), optionally with stress-ng --cpu 1, cyclictest and ddsperf alongside"};
   app.add_option("--torqued", torqued, "torqued executable");
   app.add_option("--config", config, "daemon configuration (paced replay)")->required();
   app.add_option("--duration", duration_s, "measurement time (s)");
   app.add_option("--speed", speed, "replay speed factor");
   app.add_flag("--stress", stress, "load one core with stress-ng --cpu 1 during the run");
   app.add_flag("--cyclictest", cyclic, "run cyclictest (rt-tests) alongside and print its percentiles");
-  app.add_flag("--ddsperf", ddsperf, "run Cyclone's ddsperf ping/pong alongside and print its one-way latency");
+  app.add_flag("--ddsperf", ddsperf,
+               "run Cyclone's ddsperf ping/pong alongside and print its one-way latency");
   app.add_option("--ddsperf-rate", ddsperf_rate_hz, "ddsperf ping rate (Hz), comparable to the sample rate");
   CLI11_PARSE(app, argc, argv);
 
-  // The subscriber's own scheduling: Cyclone's receive threads inherit the policy of the thread that creates the
-  // participant, so a SCHED_FIFO main thread makes the whole receive path real-time (as a real supervisory
-  // controller would configure it). Refused (not root, no CAP_SYS_NICE): measured with SCHED_OTHER, said so.
+  // The subscriber's own scheduling: Cyclone's receive threads inherit the policy of the thread that creates
+  // the participant, so a SCHED_FIFO main thread makes the whole receive path real-time (as a real
+  // supervisory controller would configure it). Refused (not root, no CAP_SYS_NICE): measured with
+  // SCHED_OTHER, said so.
   if (sub_prio > 0) {
     sched_param sp{};
     sp.sched_priority = sub_prio;
     if (sched_setscheduler(0, SCHED_FIFO, &sp) != 0)
-      std::fprintf(stderr, "torque-latency: SCHED_FIFO %d refused (%s): subscriber runs SCHED_OTHER\n", sub_prio,
-                   std::strerror(errno));
+      std::fprintf(stderr, "torque-latency: SCHED_FIFO %d refused (%s): subscriber runs SCHED_OTHER\n",
+                   sub_prio, std::strerror(errno));
     else
       mlockall(MCL_CURRENT | MCL_FUTURE);
   }
@@ -223,7 +235,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "dds_create_participant failed\n");
     return 1;
   }
-  // Listener mode (default): samples are taken and time-stamped in Cyclone's receive thread, no extra wake-up.
+  // Listener mode (default): samples are taken and time-stamped in Cyclone's receive thread, no extra
+  // wake-up.
   // --waitset: a waitset in this thread (one more wake-up, what a simple polling subscriber sees).
   Receiver rx;
   dds_listener_t* lis = nullptr;
@@ -252,12 +265,14 @@ int main(int argc, char** argv) {
 
   std::vector<pid_t> helpers;
   const std::string dur = std::to_string(static_cast<int>(duration_s + 3));
-  if (stress) helpers.push_back(spawn({"stress-ng", "--cpu", "1", "--timeout", dur + "s", "--quiet"}, "/dev/null"));
+  if (stress)
+    helpers.push_back(spawn({"stress-ng", "--cpu", "1", "--timeout", dur + "s", "--quiet"}, "/dev/null"));
   if (cyclic)
-    helpers.push_back(spawn({"cyclictest", "-m", "-q", "-p", "80", "-i", "1000", "-h", "2000", "-D", dur}, "/tmp/torque-latency-cyclictest.log"));
+    helpers.push_back(spawn({"cyclictest", "-m", "-q", "-p", "80", "-i", "1000", "-h", "2000", "-D", dur},
+                            "/tmp/torque-latency-cyclictest.log"));
   if (ddsperf) {
-    // Same scheduling as our subscriber, and pinged at a rate like the tooth rate (a CPU woken from idle for each
-    // sample is much slower than back-to-back ping-pong, so the unpaced figure is not a fair floor).
+    // Same scheduling as our subscriber, and pinged at a rate like the tooth rate (a CPU woken from idle for
+    // each sample is much slower than back-to-back ping-pong, so the unpaced figure is not a fair floor).
     const std::string prio = std::to_string(sub_prio > 0 ? sub_prio : 1);
     const std::string rate = std::to_string(ddsperf_rate_hz) + "Hz";
     if (sub_prio > 0) {
@@ -268,8 +283,8 @@ int main(int argc, char** argv) {
       helpers.push_back(spawn({"ddsperf", "-D", dur, "ping", rate}, ddsperf_log.c_str()));
     }
   }
-  const pid_t daemon = spawn({torqued, "--config", config, "--speed", std::to_string(speed), "--wait-subscribers", "1",
-                              "--state-dir", "/tmp/torque-latency-state"},
+  const pid_t daemon = spawn({torqued, "--config", config, "--speed", std::to_string(speed),
+                              "--wait-subscribers", "1", "--state-dir", "/tmp/torque-latency-state"},
                              "/tmp/torque-latency-torqued.log");
 
   const auto t_end = std::chrono::steady_clock::now() + std::chrono::duration<double>(duration_s + 1.5);
@@ -296,16 +311,20 @@ int main(int argc, char** argv) {
   }
   dds_delete(pp);
 
-  std::printf("torque-latency: %.0f s paced replay at %.1fx%s\n", duration_s, speed, stress ? ", stress-ng --cpu 1" : "");
+  std::printf("torque-latency: %.0f s paced replay at %.1fx%s\n", duration_s, speed,
+              stress ? ", stress-ng --cpu 1" : "");
   std::printf("%-34s %8s %8s %8s %8s %8s\n", "path", "n", "p50_us", "p99_us", "p99.9_us", "max_us");
-  std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "tooth edge -> CrankState (subscr.)", crank_us.us.size(),
-              crank_us.pct(50), crank_us.pct(99), crank_us.pct(99.9), crank_us.max());
-  std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "tooth edge -> EngineTorque (subscr.)", engine_us.us.size(),
-              engine_us.pct(50), engine_us.pct(99), engine_us.pct(99.9), engine_us.max());
-  std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "  of which edge -> dds_write (daemon)", rx.crank_in.us.size(),
-              rx.crank_in.pct(50), rx.crank_in.pct(99), rx.crank_in.pct(99.9), rx.crank_in.max());
-  std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "  of which dds_write -> received", rx.crank_dds.us.size(),
-              rx.crank_dds.pct(50), rx.crank_dds.pct(99), rx.crank_dds.pct(99.9), rx.crank_dds.max());
+  std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "tooth edge -> CrankState (subscr.)",
+              crank_us.us.size(), crank_us.pct(50), crank_us.pct(99), crank_us.pct(99.9), crank_us.max());
+  std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "tooth edge -> EngineTorque (subscr.)",
+              engine_us.us.size(), engine_us.pct(50), engine_us.pct(99), engine_us.pct(99.9),
+              engine_us.max());
+  std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "  of which edge -> dds_write (daemon)",
+              rx.crank_in.us.size(), rx.crank_in.pct(50), rx.crank_in.pct(99), rx.crank_in.pct(99.9),
+              rx.crank_in.max());
+  std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "  of which dds_write -> received",
+              rx.crank_dds.us.size(), rx.crank_dds.pct(50), rx.crank_dds.pct(99), rx.crank_dds.pct(99.9),
+              rx.crank_dds.max());
   std::printf("subscriber: %s, %s\n", use_waitset ? "waitset" : "listener (receive thread)",
               sub_prio > 0 ? "SCHED_FIFO requested" : "SCHED_OTHER");
   if (cyclic) {
@@ -318,9 +337,12 @@ int main(int argc, char** argv) {
     std::size_t n = 0;
     ddsperf_summary(ddsperf_log.c_str(), p50, p99, n);
     if (n > 0)
-      std::printf("%-34s %8s %8.1f %8.1f %8s %8s\n", "ddsperf one-way (round trip / 2)", "-", p50 / 2, p99 / 2, "-", "-");
-    std::printf("ddsperf ping %d Hz / pong (round trip p50 %.1f us, p99 %.1f us; median of %zu one-second reports): %s\n",
-                ddsperf_rate_hz, p50, p99, n, ddsperf_log.c_str());
+      std::printf("%-34s %8s %8.1f %8.1f %8s %8s\n", "ddsperf one-way (round trip / 2)", "-", p50 / 2,
+                  p99 / 2, "-", "-");
+    std::printf(
+        "ddsperf ping %d Hz / pong (round trip p50 %.1f us, p99 %.1f us; median of %zu one-second reports): "
+        "%s\n",
+        ddsperf_rate_hz, p50, p99, n, ddsperf_log.c_str());
   }
   histogram(crank_us, "tooth edge -> CrankState");
   return crank_us.us.empty() ? 1 : 0;

@@ -36,7 +36,8 @@ class Service : public ::testing::Test {
   }
   std::string log() const { return test::slurp((dir_ / "daemon.log").string()); }
   std::vector<std::string> args(std::vector<std::string> extra) const {
-    std::vector<std::string> a{TORQUED_EXE, "--config", config_, "--no-dds", "--state-dir", (dir_ / "state").string()};
+    std::vector<std::string> a{TORQUED_EXE, "--config",    config_,
+                               "--no-dds",  "--state-dir", (dir_ / "state").string()};
     a.insert(a.end(), extra.begin(), extra.end());
     return a;
   }
@@ -68,7 +69,9 @@ class NotifySocket {
     char buf[4096];
     while (Clock::now() < until) {
       const ssize_t n = ::recv(fd_, buf, sizeof buf - 1, 0);
-      if (n > 0) msgs.emplace_back(std::chrono::duration<double>(Clock::now() - t0).count(), std::string(buf, static_cast<std::size_t>(n)));
+      if (n > 0)
+        msgs.emplace_back(std::chrono::duration<double>(Clock::now() - t0).count(),
+                          std::string(buf, static_cast<std::size_t>(n)));
     }
   }
   std::vector<std::pair<double, std::string>> msgs;
@@ -111,8 +114,8 @@ TEST_F(Service, NotifyReadyStatusWatchdogAndPingsStopOnStall) {
     }
   EXPECT_GT(last, 0.0);
   EXPECT_LT(max_gap, 0.4);
-  // The stall starts 2 s after the daemon's own start (which is a few 100 ms after ours); after that, no ping:
-  // the last one comes before 3 s and then nothing for the remaining 2 s of the observation.
+  // The stall starts 2 s after the daemon's own start (which is a few 100 ms after ours); after that, no
+  // ping: the last one comes before 3 s and then nothing for the remaining 2 s of the observation.
   EXPECT_LT(pings.back(), 3.0) << "watchdog pinged while the angle pipeline was stalled";
 }
 
@@ -143,7 +146,8 @@ TEST_F(Service, SighupReloadsLoggingLevel) {
   y.replace(y.find("domain_id: 0"), 12, "domain_id: 7");
   std::ofstream(config_) << y;
   d.signal(SIGHUP);
-  EXPECT_TRUE(test::eventually(5, [&] { return log().find("SIGHUP: configuration") != std::string::npos; })) << log();
+  EXPECT_TRUE(test::eventually(5, [&] { return log().find("SIGHUP: configuration") != std::string::npos; }))
+      << log();
   EXPECT_NE(log().find("SIGHUP: logging.level"), std::string::npos) << log();
   EXPECT_NE(log().find("need a restart"), std::string::npos) << log();
   EXPECT_TRUE(d.running()) << "SIGHUP must not stop the daemon";
@@ -153,8 +157,9 @@ TEST_F(Service, SighupReloadsLoggingLevel) {
 }
 
 TEST_F(Service, SighupAppliesDecimationLive) {
-  // GIVEN a paced replay recording CrankState every 10th tooth WHEN the file is changed to every tooth and the
-  // daemon gets SIGHUP THEN later CrankState rows are one tooth apart, earlier ones ten, without a restart.
+  // GIVEN a paced replay recording CrankState every 10th tooth WHEN the file is changed to every tooth and
+  // the daemon gets SIGHUP THEN later CrankState rows are one tooth apart, earlier ones ten, without a
+  // restart.
   const std::string rec = (dir_ / "rec").string();
   test::Process d(args({"--record", rec}), {}, (dir_ / "daemon.log").string());
   ASSERT_TRUE(test::eventually(10, [&] { return log().find("running") != std::string::npos; })) << log();
@@ -163,8 +168,9 @@ TEST_F(Service, SighupAppliesDecimationLive) {
   y.replace(y.find("  engine_id: 1"), 14, "  engine_id: 1\n  crank_state_decimation: 1");
   std::ofstream(config_) << y;
   d.signal(SIGHUP);
-  ASSERT_TRUE(test::eventually(5, [&] { return log().find("SIGHUP: applied decimation") != std::string::npos; }))
-      << log();
+  ASSERT_TRUE(test::eventually(5, [&] {
+    return log().find("SIGHUP: applied decimation") != std::string::npos;
+  })) << log();
   std::this_thread::sleep_for(std::chrono::milliseconds(1000));
   d.signal(SIGTERM);
   ASSERT_TRUE(d.wait(5));
@@ -227,8 +233,9 @@ TEST_F(Service, LearnedStateSurvivesKill9) {
   const std::string log2 = (dir_ / "daemon2.log").string();
   ASSERT_TRUE(test::eventually(10, [&] { return test::slurp(log2).find("running") != std::string::npos; }))
       << test::slurp(log2);
-  EXPECT_NE(test::slurp(log2).find("learned state loaded from " + state + " (58 tooth corrections, friction)"),
-            std::string::npos)
+  EXPECT_NE(
+      test::slurp(log2).find("learned state loaded from " + state + " (58 tooth corrections, friction)"),
+      std::string::npos)
       << test::slurp(log2);
   d2.signal(SIGTERM);
   EXPECT_TRUE(d2.wait(5));
