@@ -140,7 +140,6 @@ void Runtime::replay_source_loop() {
   ReplayMerger merger(edges_, can_, can_offset_ns_);
   const double speed = opt_.speed > 0 ? opt_.speed : 1.0;
   ReplayMerger::Item item;
-  bool pushed_since_wake = false;
   while (!stop_sources_.load(std::memory_order_relaxed)) {
     const SourceStatus st = merger.next(item);
     if (st == SourceStatus::kEnd) break;
@@ -157,8 +156,7 @@ void Runtime::replay_source_loop() {
                                   speed);
     if (due - mono_ns() > kReadAheadNs) {
       // Far enough ahead: hand what we have to the angle thread, sleep until this item is half a window away.
-      if (pushed_since_wake) angle_wake_.notify();
-      pushed_since_wake = false;
+      angle_wake_.notify();
       const std::int64_t wake = due - kReadAheadNs / 2;
       while (!stop_sources_.load(std::memory_order_relaxed) && mono_ns() < wake) {
         const std::int64_t until = std::min(wake, mono_ns() + 50'000'000);  // bounded: notice a stop request
@@ -172,7 +170,6 @@ void Runtime::replay_source_loop() {
       (void)can_angle_ring_.try_push(FrameIn{item.frame, 0});
       (void)can_time_ring_.try_push(FrameIn{item.frame, 0});
     }
-    pushed_since_wake = true;
   }
   std::uint64_t drops = 0;
   if (edges_) drops += edges_->stats().bad_lines + edges_->stats().dropped;
