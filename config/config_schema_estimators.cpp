@@ -128,7 +128,9 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("friction.min_rpm", friction.params.min_rpm, closed(0.0, 20000.0), "rpm", "observations accepted above this speed");
   TQ_NUM("friction.max_rpm", friction.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "and below this speed");
   TQ_NUM("friction.max_load_change_nm", friction.params.max_load_change_nm, open_closed(0.0, 1e4), "N m", "skip observations while the measured load moves more than this per segment");
-  TQ_BOOL("friction.learn_at_idle", friction.params.learn_at_idle, "also fit C1..C3 to the idle friction (off: only C4 learns at idle)");
+  TQ_BOOL("friction.learn_at_idle", friction.params.learn_at_idle, "learn a local idle correction of the law from the steady-idle friction (off: only C4 learns at idle)");
+  TQ_INT("friction.idle_steady_cycles", friction.params.idle_steady_cycles, closed(1, 100000), "cycles", "idle observations only after this many cycles of steady idle");
+  TQ_NUM("friction.idle_fade_rpm", friction.params.idle_fade_rpm, closed(0.0, 20000.0), "rpm", "the idle correction fades linearly from the idle speed to 0 at this speed");
   TQ_BOOL("cylinder.enabled", cylinder.enabled, "per-cylinder torque, imbalance and misfire");
   TQ_NUM("cylinder.misfire_threshold", cylinder.params.misfire_threshold, open_open(0.0, 1.0), "", "misfire when cylinder torque < threshold x cycle mean");
   TQ_NUM("cylinder.imbalance_filter", cylinder.params.imbalance_filter, open_closed(0.0, 1.0), "", "EMA weight per cycle of the imbalance (1 = none)");

@@ -58,6 +58,8 @@ void AnglePipeline::reset() noexcept {
   have_prev_ = false;
   cut_segments_ = fired_segments_ = 0;
   since_cut_segments_ = 1 << 30;  // no fuel cut-off seen yet
+  idle_steady_cycles_ = 0;
+  prev_cycle_rpm_ = 0.0;
   brake_var_ = 4.0;
   have_prev_brake_ = false;
   have_prev_load_ = false;
@@ -276,17 +278,23 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
     if (friction_.observe_motoring(rpm, oil_c_, obs)) ++stats_.friction_observations;
   }
   // Idle: no load, firing, RLS converged -> its extended load is the friction (EN-30..33 learn C4 from it).
-  // The same value is also a point of the friction curve at idle speed (below the fuel cut-off resume speed,
-  // which motoring observations never reach). Only with a tight, settled RLS (tooth errors learned, 1σ < 1.5 N m,
+  // The same value sets the friction learner's local idle correction (below the fuel cut-off resume speed, which
+  // motoring observations never reach). Only with a tight, settled RLS (tooth errors learned, 1σ < 1.5 N m,
   // 25 firing cycles after a fuel cut-off so that its memory holds no coasting windows).
+  // Steady idle only: the RLS remembers ≈ 10 cycles, so the speed (±3 %) and load must have held for
+  // friction.idle_steady_cycles cycles (idle-controller undershoots and ramps through idle gave ±1.5 N m outliers).
+  if (o.cycle_end) {
+    const bool steady = rpm < cfg_.energies.idle_max_rpm && can_load && load_steady &&
+                        std::fabs(rpm - prev_cycle_rpm_) < 0.03 * rpm;
+    idle_steady_cycles_ = steady ? idle_steady_cycles_ + 1 : 0;
+    prev_cycle_rpm_ = rpm;
+  }
   if (o.cycle_end && fired_segments_ > n && since_cut_segments_ > 25 * n && can_load && rls_ok && rls.uncertainty < 1.5 &&
+      idle_steady_cycles_ >= cfg_.friction.idle_steady_cycles &&
       rpm < cfg_.energies.idle_max_rpm &&
       std::fabs(seg.cycle_load_mean_nm) < cfg_.energies.idle_max_load_nm) {
     const double idle_fric = rls.torque_nm - seg.cycle_load_mean_nm;
-    friction_.observe_idle(rpm, oil_c_, idle_fric);
-    if (cfg_.friction.learn_at_idle && friction_.observe_motoring(rpm, oil_c_, idle_fric)) {
-      ++stats_.friction_observations;
-    }
+    friction_.observe_idle(rpm, oil_c_, idle_fric);  // C4 (EN-30..33) and the local idle correction
   }
 
   // --- Fusion -------------------------------------------------------------------------------------------------------

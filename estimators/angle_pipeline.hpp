@@ -147,6 +147,8 @@ class AnglePipeline {
   int cut_segments_ = 0;     ///< consecutive segments in fuel cut-off
   int fired_segments_ = 0;   ///< consecutive segments firing
   int since_cut_segments_ = 0;  ///< firing segments since the last fuel cut-off (large: none seen)
+  int idle_steady_cycles_ = 0;  ///< consecutive cycles at steady idle (speed ±3 %, load steady)
+  double prev_cycle_rpm_ = 0.0;
   double brake_var_ = 4.0;   ///< running variance of segment-to-segment brake changes (N m²)
   double prev_brake_ = 0.0;
   bool have_prev_brake_ = false;

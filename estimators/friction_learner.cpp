@@ -1,5 +1,6 @@
 #include "friction_learner.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace torqued {
@@ -27,6 +28,8 @@ void FrictionLearner::reset() noexcept {
   p_ = {v, 0, 0, 0, v, 0, 0, 0, v};
   p4_ = 2.5e-5;  // C4 prior 1σ = 5e-3 /°C
   have_idle_ref_ = false;
+  idle_corr_nm_ = 0.0;
+  idle_rpm_ = 0.0;
   n_motoring_ = n_idle_ = n_rejected_ = 0;
 }
 
@@ -87,6 +90,12 @@ bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double f
     return false;
   }
   ++n_idle_;
+  if (params_.learn_at_idle) {
+    // Local correction: running mean of (observed − law) over the idle observations (gain 1/n, floor 0.1).
+    const double g = std::max(0.1, 1.0 / static_cast<double>(n_idle_));
+    idle_rpm_ = idle_rpm_ > 0.0 ? idle_rpm_ + g * (speed_rpm - idle_rpm_) : speed_rpm;
+    idle_corr_nm_ += g * ((friction_nm - law_nm(speed_rpm, oil_temp_c)) - idle_corr_nm_);
+  }
   const double ln = std::log(friction_nm);
   if (!have_idle_ref_) {
     have_idle_ref_ = true;
@@ -111,9 +120,19 @@ bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double f
   return true;
 }
 
-double FrictionLearner::friction_nm(double speed_rpm, double oil_temp_c) const noexcept {
+double FrictionLearner::law_nm(double speed_rpm, double oil_temp_c) const noexcept {
   const double nk = speed_rpm / kS2;
   return params_.sign * std::exp(c4_ * oil_temp_c) * (theta_[0] + theta_[1] * nk + theta_[2] * nk * nk);
+}
+
+double FrictionLearner::friction_nm(double speed_rpm, double oil_temp_c) const noexcept {
+  double f = law_nm(speed_rpm, oil_temp_c);
+  if (idle_rpm_ > 0.0 && speed_rpm < params_.idle_fade_rpm) {
+    const double span = params_.idle_fade_rpm - idle_rpm_;
+    const double w = speed_rpm <= idle_rpm_ || !(span > 0.0) ? 1.0 : (params_.idle_fade_rpm - speed_rpm) / span;
+    f += w * idle_corr_nm_;
+  }
+  return f;
 }
 
 std::array<double, 4> FrictionLearner::coefficients() const noexcept {

@@ -10,6 +10,12 @@
 //    prior covariance around the starting coefficients so that a narrow speed range cannot run away.
 //  - C4 at idle: T_fric = T_ind, so Δ ln T_fric = C4 Δt_oil between idle observations at different oil
 //    temperatures (EN-30..33); scalar RLS on the pairs. Without oil-temperature variation C4 stays at its prior.
+//  - Idle correction (learn_at_idle): motoring never reaches idle (fuel resumes at ≈ 1100 rpm), so the quadratic
+//    is extrapolated there (≈ 1.2 N m off on the simulator). Fitting the idle point into C1..C3 tilts the whole
+//    quadratic (a correction Δ at 800 rpm moves 4000 rpm by ≈ 7Δ). Instead the steady-idle friction (EN-30: T_fric =
+//    T_ind at zero load) sets a LOCAL additive correction δ = T_idle − law(n_idle) (running mean), applied fully at
+//    and below the idle speed and faded linearly to 0 at idle_fade_rpm. It is not persisted (the four coefficients
+//    are); it is relearned after idle_steady_cycles of steady idle in each run.
 // Coefficients can be exported and imported for persistence across restarts (the daemon writes them atomically).
 #include <array>
 #include <cstdint>
@@ -34,14 +40,19 @@ class FrictionLearner {
   /// differences. Returns false when rejected. Real-time safe.
   bool observe_idle(double speed_rpm, double oil_temp_c, double friction_nm) noexcept;
 
-  /// T_fric (N m) at the given speed and oil temperature. Real-time safe (one exp()).
+  /// T_fric (N m) at the given speed and oil temperature (law + faded idle correction). Real-time safe (one exp()).
   [[nodiscard]] double friction_nm(double speed_rpm, double oil_temp_c) const noexcept;
+  /// The EN-24 law alone (no idle correction).
+  [[nodiscard]] double law_nm(double speed_rpm, double oil_temp_c) const noexcept;
 
   /// Current coefficients [C1, C2, C3, C4] in the paper's units (rpm, °C).
   [[nodiscard]] std::array<double, 4> coefficients() const noexcept;
   /// Load persisted coefficients (also becomes the reset point). Rejects non-finite values (returns false).
   bool import_coefficients(const std::array<double, 4>& c) noexcept;
 
+  /// Local idle correction δ (N m) and the idle speed it was learned at (rpm); 0 / 0 before any idle observation.
+  [[nodiscard]] double idle_correction_nm() const noexcept { return idle_corr_nm_; }
+  [[nodiscard]] double idle_speed_rpm() const noexcept { return idle_rpm_; }
   [[nodiscard]] std::uint64_t motoring_observations() const noexcept { return n_motoring_; }
   [[nodiscard]] std::uint64_t idle_observations() const noexcept { return n_idle_; }
   [[nodiscard]] std::uint64_t rejected() const noexcept { return n_rejected_; }
@@ -59,6 +70,8 @@ class FrictionLearner {
   bool have_idle_ref_ = false;
   double idle_ref_oil_c_ = 0.0;
   double idle_ref_ln_ = 0.0;
+  double idle_corr_nm_ = 0.0;      ///< local idle correction δ (N m)
+  double idle_rpm_ = 0.0;          ///< speed of the idle observations (rpm), 0: none yet
   bool imported_ = false;
   std::uint64_t n_motoring_ = 0, n_idle_ = 0, n_rejected_ = 0;
 };

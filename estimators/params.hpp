@@ -112,8 +112,10 @@ struct FrictionParams {
   int min_observations = 20;            ///< motoring cycles before the learned law is reported valid (-)
   double min_rpm = 500.0;               ///< observations accepted between min_rpm ..
   double max_rpm = 7000.0;              ///< .. and max_rpm (rpm)
-  bool learn_at_idle = false;           ///< also fit C1..C3 to the idle friction (RLS load at zero load); off: the
-                                        ///< idle point pulls the quadratic at high speed (only C4 learns there)
+  bool learn_at_idle = true;            ///< learn a local idle correction from the steady-idle friction (RLS load at
+                                        ///< zero load) below the motoring range (off: idle only learns C4)
+  int idle_steady_cycles = 10;          ///< idle observations only after this many cycles of steady idle (-)
+  double idle_fade_rpm = 1500.0;        ///< the idle correction fades linearly from the idle speed to 0 here (rpm)
   double max_load_change_nm = 1.0;      ///< skip observations while the measured load moves more than this per
                                         ///< segment (the CAN load lags the flange; dyno transients) (N m)
 };

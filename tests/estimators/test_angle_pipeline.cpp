@@ -87,6 +87,28 @@ TEST_F(AnglePipelineSim, FourThousandRpmLowLoadBrakeWithinTwoNmWithTheWideKineti
   EXPECT_LT(r.brake.rms_nm, 0.5 * n.brake.rms_nm);
 }
 
+TEST_F(AnglePipelineSim, IdleIndicatedTorqueWithinTwoNmWithTheLocalIdleCorrection) {
+  // Motoring (fuel cut-off) never reaches idle: the friction law is extrapolated below ≈ 1100 rpm. Steady idle
+  // (zero load) teaches the learner a local correction (FrictionLearner, EN-30: T_fric = T_ind at idle).
+  sim::Scenario sc = sim::scenario_by_name("idle");
+  sc.duration_s = 5.0;
+  const auto out = sim::simulate(sc);
+  EvalOptions o = options();
+  o.skip_cycles = 10;
+  const ScenarioResult r = eval::evaluate(sc, out, o);
+  EvalOptions no_idle = o;
+  no_idle.base.friction.learn_at_idle = false;
+  const ScenarioResult n = eval::evaluate(sc, out, no_idle);
+  ASSERT_GE(r.indicated.n, 6);
+  std::printf("idle indicated: max %.2f N m (idle correction) vs %.2f N m (extrapolated law); last row %.2f vs %.2f\n",
+              r.indicated.max_abs_nm, n.indicated.max_abs_nm, r.rows.back().indicated - r.rows.back().indicated_true,
+              n.rows.back().indicated - n.rows.back().indicated_true);
+  EXPECT_EQ(r.indicated.pass, r.indicated.n);
+  EXPECT_LT(r.indicated.max_abs_nm, 2.0);
+  EXPECT_LT(std::fabs(r.rows.back().indicated - r.rows.back().indicated_true),
+            std::fabs(n.rows.back().indicated - n.rows.back().indicated_true));
+}
+
 TEST_F(AnglePipelineSim, ImbalanceWithinThreePercentagePoints) {
   const ScenarioResult r = eval::evaluate(sim::scenario_by_name("imbalance"), options());
   // Simulator: fuel +10/0/0/−20 % on cylinders 1..4.

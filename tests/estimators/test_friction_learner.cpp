@@ -80,3 +80,36 @@ TEST(FrictionLearner, UpdateDoesNotAllocate) {
   }
   EXPECT_EQ(scope.count(), 0u);
 }
+
+TEST(FrictionLearner, IdleCorrectionIsLocalAndLeavesTheMotoringRangeAlone) {
+  // GIVEN a law learned in a 3000 -> 1100 rpm coast-down, and an engine whose friction at idle is 1.5 N m above
+  // the quadratic (motoring never reaches idle: the law is extrapolated there)
+  FrictionParams p;
+  p.c = {0.0, 0.0, 0.0, -4.67e-3};
+  FrictionLearner fl(p);
+  FrictionParams p_off = p;
+  p_off.learn_at_idle = false;
+  FrictionLearner no_corr(p_off);
+  for (FrictionLearner* l : {&fl, &no_corr}) {
+    for (double rpm = 3000.0; rpm > 1100.0; rpm -= 15.0) EXPECT_TRUE(l->observe_motoring(rpm, 90.0, true_friction(rpm, 90.0)));
+  }
+  const double law800 = fl.friction_nm(800.0, 90.0), law1200 = fl.friction_nm(1200.0, 90.0);
+  const double law2000 = fl.friction_nm(2000.0, 90.0), law4000 = fl.friction_nm(4000.0, 90.0);
+  // WHEN steady idle at 800 rpm reports the true idle friction (T_ind at zero load), ±0.3 N m noise
+  const double idle_true = true_friction(800.0, 90.0) + 1.5;
+  for (int k = 0; k < 30; ++k) {
+    const double noise = 0.3 * std::sin(12.9898 * k);
+    EXPECT_TRUE(fl.observe_idle(800.0, 90.0, idle_true + noise));
+    EXPECT_TRUE(no_corr.observe_idle(800.0, 90.0, idle_true + noise));
+  }
+  // THEN the idle friction is right, the correction fades out by idle_fade_rpm and the motoring range is unchanged
+  EXPECT_NEAR(fl.friction_nm(800.0, 90.0), idle_true, 0.15);
+  EXPECT_NEAR(fl.idle_correction_nm(), idle_true - law800, 0.15);
+  EXPECT_NEAR(fl.idle_speed_rpm(), 800.0, 1e-9);
+  const double mid = fl.friction_nm(1200.0, 90.0) - law1200;  // 300 of the 700 rpm fade left: 3/7 of δ
+  EXPECT_NEAR(mid, fl.idle_correction_nm() * 3.0 / 7.0, 1e-9);
+  EXPECT_DOUBLE_EQ(fl.friction_nm(2000.0, 90.0), law2000);
+  EXPECT_DOUBLE_EQ(fl.friction_nm(4000.0, 90.0), law4000);
+  // AND with learn_at_idle off the law stays extrapolated (1.5 N m off at idle)
+  EXPECT_NEAR(no_corr.friction_nm(800.0, 90.0) - idle_true, -1.5, 0.1);
+}
