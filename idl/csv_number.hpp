@@ -50,16 +50,35 @@ TORQUED_CSV_INLINE int digit_count(std::uint64_t v) noexcept {
   return t - (v < kPow10[t]) + 1;
 }
 
-/// Writes exactly `n` digits of v (zero-padded on the left, v < 10^n) at p; returns p + n.
+/// Exactly 4 digits of y < 10000 at p.
+TORQUED_CSV_INLINE void write4(char* p, std::uint32_t y) noexcept {
+  const std::uint32_t hi = (y * 5243u) >> 19;  // y / 100 for y < 10000
+  std::memcpy(p, kDigitPairs + 2 * hi, 2);
+  std::memcpy(p + 2, kDigitPairs + 2 * (y - hi * 100), 2);
+}
+
+/// Writes exactly `n` digits of v (zero-padded on the left, v < 10^n) at p; returns p + n. Four digits per
+/// step from the right (one multiply-shift division by 10^4, two table pairs).
 TORQUED_CSV_INLINE char* write_digits(char* p, std::uint64_t v, int n) noexcept {
   char* q = p + n;
-  while (q - p >= 2) {
-    const auto r = static_cast<unsigned>(v % 100);
-    v /= 100;
-    q -= 2;
-    std::memcpy(q, kDigitPairs + 2 * r, 2);
+  while (q - p >= 4) {
+    const std::uint64_t d = v / 10000;
+    q -= 4;
+    write4(q, static_cast<std::uint32_t>(v - d * 10000));
+    v = d;
   }
-  if (q != p) *p = static_cast<char>('0' + v);
+  const auto r = static_cast<std::uint32_t>(v);  // < 1000
+  switch (q - p) {
+    case 3: {
+      const std::uint32_t hi = (r * 41u) >> 12;  // r / 100 for r < 1000
+      *p = static_cast<char>('0' + hi);
+      std::memcpy(p + 1, kDigitPairs + 2 * (r - hi * 100), 2);
+      break;
+    }
+    case 2: std::memcpy(p, kDigitPairs + 2 * r, 2); break;
+    case 1: *p = static_cast<char>('0' + r); break;
+    default: break;
+  }
   return p + n;
 }
 
