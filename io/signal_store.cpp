@@ -150,12 +150,6 @@ bool SignalStore::on_frame(const CanFrame& frame) noexcept {
   return any;
 }
 
-bool SignalStore::valid_at(Quantity q, std::int64_t now_ns) const noexcept {
-  const auto i = static_cast<std::size_t>(q);
-  if (i >= bindings_.size() || bindings_[i].sig == nullptr || !values_[i].seen) return false;
-  return now_ns - values_[i].t_ns <= bindings_[i].timeout_ns;
-}
-
 double SignalStore::age_s(Quantity q, std::int64_t now_ns) const noexcept {
   const auto i = static_cast<std::size_t>(q);
   if (i >= values_.size() || !values_[i].seen) return std::numeric_limits<double>::infinity();

@@ -80,7 +80,11 @@ class SignalStore {
     return bindings_[static_cast<std::size_t>(q)].sig != nullptr;
   }
   /// Valid at `now_ns`: bound, seen, and now_ns - t_ns <= time-out (a value from the future also counts).
-  [[nodiscard]] bool valid_at(Quantity q, std::int64_t now_ns) const noexcept;
+  [[nodiscard]] bool valid_at(Quantity q, std::int64_t now_ns) const noexcept {  // inline: per tooth x quantity
+    const auto i = static_cast<std::size_t>(q);
+    if (i >= bindings_.size() || bindings_[i].sig == nullptr || !values_[i].seen) return false;
+    return now_ns - values_[i].t_ns <= bindings_[i].timeout_ns;
+  }
   /// Age in seconds at now_ns (+inf if never seen).
   [[nodiscard]] double age_s(Quantity q, std::int64_t now_ns) const noexcept;
   /// Snapshot for the estimators at `now_ns` (validity = valid_at). Real-time safe.
