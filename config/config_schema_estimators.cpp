@@ -113,6 +113,9 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("energies.segment_offset_deg", energies.params.segment_offset_deg, closed(-180.0, 180.0), "deg", "segment boundary relative to firing TDC");
   TQ_NUM("energies.idle_max_rpm", energies.params.idle_max_rpm, open_closed(0.0, 20000.0), "rpm", "idle (friction C4 learning) below this speed");
   TQ_NUM("energies.idle_max_load_nm", energies.params.idle_max_load_nm, closed(0.0, 1e4), "N m", "and |load| below this");
+  TQ_NUM("energies.rls_change_threshold", energies.params.rls_change_threshold, closed(0.0, 1000.0), "", "crank-only load change: CUSUM of the per-firing load innovations (sigma units) above this re-seeds the RLS at the cycle mean (0: RLS alone)");
+  TQ_NUM("energies.rls_step_min_sd_nm", energies.params.rls_step_min_sd_nm, open_closed(0.0, 1e3), "N m", "floor of the sigma of the load innovations");
+  TQ_NUM("energies.rls_change_max_sd_nm", energies.params.rls_change_max_sd_nm, open_closed(0.0, 1e3), "N m", "no crank-only load-change tracking while the cycle-mean load's steady sigma exceeds this");
   TQ_NUM("energies.can_load_latency_s", energies.params.can_load_latency_s, closed(0.0, 0.1), "s", "CAN load torque lag behind the flange (sensor lag + half the frame period); the energy balance is aligned to it");
   TQ_INT("energies.rls_window_shifts", energies.params.rls_window_shifts, closed(1, 64), "", "each RLS window also shifted 1..n-1 teeth earlier");
   TQ_NUM("energies.burn_centroid_atdc_deg", energies.params.burn_centroid_atdc_deg, closed(-90.0, 180.0), "deg", "heat release lumped here when the spark advance is unknown");

@@ -250,15 +250,16 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
   } else {
     o.brake_energy = make(seg.t_ns, 0.0, 0.0, Health::kStaleInput);
   }
-  // Crank only: indicated from the RLS extended load.
-  o.indicated_crank = make(seg.t_ns, dke_nm + rls.torque_nm, rls.uncertainty + 1.0, rls.health);
+  // Crank only: indicated from the extended load tracked through load changes (LoadRls rule 4; the plain RLS lags).
+  const TorqueEstimate trk = rls_.tracked();
+  o.indicated_crank = make(seg.t_ns, dke_nm + trk.torque_nm, trk.uncertainty + 1.0, trk.health);
 
   if (can_load) {
     o.load = make(seg.t_ns, seg.cycle_load_mean_nm, 0.5, Health::kValid);
     o.brake = o.brake_energy;
     o.indicated = make(seg.t_ns, o.brake_energy.torque_nm + fric, o.brake_energy.uncertainty + 2.0, fric_h);
   } else {
-    o.load = make(seg.t_ns, rls.torque_nm - fric, rls.uncertainty + 2.0, worst(rls.health, fric_h));
+    o.load = make(seg.t_ns, trk.torque_nm - fric, trk.uncertainty + 2.0, worst(trk.health, fric_h));
     o.indicated = o.indicated_crank;
     o.brake = make(seg.t_ns, o.indicated_crank.torque_nm - fric, o.indicated_crank.uncertainty + 2.0,
                    worst(rls.health, fric_h));

@@ -159,7 +159,17 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
     }
     window_first_of_[static_cast<std::size_t>(first)] = static_cast<int>(windows_tab_.size());
     window_last_of_[static_cast<std::size_t>(last)] = static_cast<int>(windows_tab_.size());
+    win.position = m;
     windows_tab_.push_back(win);
+  }
+  // The group's closing window: the smallest shift kept (it ends at window_end_btdc, the latest).
+  for (int m = 0; m < n; ++m) {
+    for (std::size_t w = 0; w < windows_tab_.size(); ++w) {
+      if (windows_tab_[w].position == m) {
+        windows_tab_[w].closes_group = true;
+        break;  // pushed in shift order: the first one of a position has the smallest shift
+      }
+    }
   }
   open_.assign(windows_tab_.size(), 0);
   ke_first_.assign(windows_tab_.size(), 0.0);
@@ -175,6 +185,95 @@ void LoadRls::reset() noexcept {
   resid_var_ = 0.0;
   windows_ = 0;
   est_ = TorqueEstimate{};
+  grp_sum_.fill(0.0);
+  grp_n_.fill(0);
+  hist_head_ = hist_count_ = 0;
+  z_cycle_ = 0.0;
+  z_valid_ = false;
+  d_var_ = 0.0;
+  zd_var_ = 0.0;
+  d_n_ = 0;
+  blend_ = 0.0;
+  hold_groups_ = 0;
+  load_changes_ = 0;
+  fast_windows_ = 0;
+  cusum_pos_ = cusum_neg_ = 0.0;
+  trk_theta_ = 0.0;
+  trk_p_ = 1e6;
+  trk_ = TorqueEstimate{};
+}
+
+namespace {
+constexpr int kFastCycles = 4;        // tracker memory held at one cycle for this many cycles after a load change
+constexpr double kZConfirm = 3.0;     // |z − tracker| must exceed this many σ of its steady spread
+constexpr int kStatsCycles = 10;      // steady cycles of innovation statistics before changes are detected
+}  // namespace
+
+void LoadRls::track(double obs, const Window& win) noexcept {
+  const auto m = static_cast<std::size_t>(win.position);
+  grp_sum_[m] += obs;
+  ++grp_n_[m];
+  if (!win.closes_group) return;
+  const int n = engine_.cylinders;
+  const double h = grp_sum_[m] / grp_n_[m];
+  grp_sum_[m] = 0.0;
+  grp_n_[m] = 0;
+  constexpr int kHist = kMaxCylinders + 1;
+  hist_head_ = (hist_head_ + 1) % kHist;
+  hist_[static_cast<std::size_t>(hist_head_)] = h;
+  hist_count_ = std::min(hist_count_ + 1, n + 1);
+  if (hist_count_ < n + 1) return;
+  // Trapezoid over the n firing intervals spanned by the last n + 1 firings (the same 720° as the energy balance).
+  double z = 0.0;
+  for (int j = 0; j <= n; ++j) {
+    const double v = hist_[static_cast<std::size_t>((hist_head_ - j + kHist) % kHist)];
+    z += (j == 0 || j == n) ? 0.5 * v : v;
+  }
+  z_cycle_ = z / n;
+  z_valid_ = true;
+  if (params_.rls_change_threshold <= 0.0) return;  // rule 4 off: the RLS alone
+  // Two-sided CUSUM (Page) on the per-firing innovations e = h − RLS in units of their steady 1σ: persistent
+  // shifts add up, zero-mean noise drains by the allowance of 0.5σ per firing.
+  const double e = h - trk_theta_;
+  const double floor_sd = params_.rls_step_min_sd_nm;
+  const double sd = std::sqrt(std::max(d_var_, floor_sd * floor_sd));
+  const bool ready = windows_ >= static_cast<std::uint64_t>(params_.rls_min_windows) && d_n_ >= kStatsCycles * n;
+  constexpr double kAllowance = 0.5;
+  cusum_pos_ = std::max(0.0, cusum_pos_ + e / sd - kAllowance);
+  cusum_neg_ = std::max(0.0, cusum_neg_ - e / sd - kAllowance);
+  // The cycle mean must also have left the tracker by 3σ of its own steady spread: z − RLS is correlated from firing
+  // to firing (z spans n + 1 firings, and at 4000 rpm the jitter noise wanders over several cycles), which alone
+  // would let the CUSUM fire on noise.
+  const double zd = z_cycle_ - trk_theta_;
+  const double zsd = std::sqrt(std::max(zd_var_, floor_sd * floor_sd));
+  // Only where the cycle mean is informative: at high speed its jitter noise (±10-20 N m at 4000 rpm) is larger than
+  // the changes worth tracking, and the RLS average is the better value even in transients.
+  const bool informative = zsd <= params_.rls_change_max_sd_nm;
+  if (ready && informative && std::fabs(zd) > kZConfirm * zsd &&
+      (cusum_pos_ > params_.rls_change_threshold || cusum_neg_ > params_.rls_change_threshold)) {
+    // A load change: restart the tracker's memory at the cycle mean (worth one cycle of windows) and report the
+    // cycle mean for one cycle.
+    trk_theta_ = z_cycle_;
+    trk_p_ = 1.0 / std::max(1.0, static_cast<double>(windows_tab_.size()));
+    fast_windows_ = kFastCycles * static_cast<int>(windows_tab_.size());
+    blend_ = 1.0;
+    hold_groups_ = n;
+    cusum_pos_ = cusum_neg_ = 0.0;
+    ++load_changes_;
+    return;
+  }
+  if (hold_groups_ > 0) {
+    --hold_groups_;
+    blend_ = 1.0;
+    cusum_pos_ = cusum_neg_ = 0.0;
+    return;
+  }
+  blend_ = 0.0;
+  if (std::fabs(e) > 3.0 * sd && d_n_ >= kStatsCycles * n) return;  // an outlier or a change: not a steady sample
+  ++d_n_;
+  const double a = std::max(1.0 / d_n_, 0.02);
+  d_var_ += a * (e * e - d_var_);
+  zd_var_ += a * (zd * zd - zd_var_);
 }
 
 double LoadRls::centroid_deg(double spark_advance_deg) const noexcept {
@@ -225,6 +324,11 @@ bool LoadRls::update(const ToothSample& s, double map_pa, bool map_valid, double
       (expected_tooth_ >= 0 && s.tooth != expected_tooth_)) {
     std::fill(open_.begin(), open_.end(), 0);
     expected_tooth_ = s.synced && s.tooth >= 0 && s.tooth < samples_ ? (s.tooth + 1) % samples_ : -1;
+    grp_sum_.fill(0.0);  // no cycle mean across a hole
+    grp_n_.fill(0);
+    hist_count_ = 0;
+    z_valid_ = false;
+    blend_ = 0.0;
     return false;
   }
   expected_tooth_ = (s.tooth + 1) % samples_;
@@ -272,6 +376,7 @@ bool LoadRls::update(const ToothSample& s, double map_pa, bool map_valid, double
     const double pp0 = p_[0] * psi0 + p_[1] * psi1, pp1 = p_[2] * psi0 + p_[3] * psi1;
     const double den = lam + psi0 * pp0 + psi1 * pp1;
     err = y - (psi0 * theta_[0] + psi1 * theta_[1]);
+    last_obs_ = y - theta_[0] * psi0;
     const double q0 = pp0 / den, q1 = pp1 / den;
     theta_[0] += q0 * err;
     theta_[1] += q1 * err;
@@ -281,6 +386,7 @@ bool LoadRls::update(const ToothSample& s, double map_pa, bool map_valid, double
   } else {
     // Known J_rot: scalar RLS with forgetting on y − J_rot θ̈ = T_load*.
     const double yy = y - engine_.j_rot_kgm2 * phi_a;
+    last_obs_ = yy;
     err = yy - theta_[1];
     const double den = lam + p_[3];
     const double q = p_[3] / den;
@@ -295,12 +401,35 @@ bool LoadRls::update(const ToothSample& s, double map_pa, bool map_valid, double
   ++windows_;
   const double a = windows_ < 20 ? 1.0 / static_cast<double>(windows_) : 0.05;
   resid_var_ += a * (err * err - resid_var_);
+  // Tracker RLS (rule 4): the same scalar recursion on the same observation, re-seeded at load changes.
+  {
+    const double yt = last_obs_;
+    const double q = trk_p_ / (lam + trk_p_);
+    trk_theta_ += q * (yt - trk_theta_);
+    trk_p_ = (trk_p_ - q * trk_p_) / lam;
+    if (fast_windows_ > 0) {
+      // After a load change the load keeps moving (dyno controller settling): hold the memory at one cycle of
+      // windows for a few cycles, then let it grow back to the RLS memory.
+      --fast_windows_;
+      trk_p_ = std::max(trk_p_, 1.0 / std::max(1.0, static_cast<double>(windows_tab_.size())));
+    }
+  }
+  track(last_obs_, win);
   est_.t_ns = s.t_ns;
   est_.torque_nm = theta_[1];
   // Effective sample count of the forgetting factor: (1 + λ)/(1 − λ).
   const double n_eff = std::min<double>(static_cast<double>(windows_), (1.0 + lam) / (1.0 - lam));
-  est_.uncertainty = std::sqrt(resid_var_ / n_eff);
+  const double sd_rls = std::sqrt(resid_var_ / n_eff);
+  est_.uncertainty = sd_rls;
   est_.health = windows_ >= static_cast<std::uint64_t>(params_.rls_min_windows) ? Health::kValid : Health::kNotConverged;
+  trk_ = est_;
+  if (z_valid_ && blend_ > 0.0) {
+    const double floor_sd = params_.rls_step_min_sd_nm;
+    trk_.torque_nm = z_cycle_;
+    trk_.uncertainty = std::sqrt(std::max(d_var_, floor_sd * floor_sd));
+  } else {
+    trk_.torque_nm = trk_theta_;
+  }
   return true;
 }
 

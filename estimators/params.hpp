@@ -99,6 +99,10 @@ struct EnergiesParams {
   double idle_max_load_nm = 3.0;        ///< and with |load| below this (N m)
   double cycle_ke_window_deg = 120.0;   ///< 720° balance (brake/indicated): KE averaged over this window ending
                                         ///< energy_window/2 after boundary 0; jitter noise ∝ 1/window; 0: off (deg)
+  double rls_change_threshold = 4.0;    ///< crank-only load change: CUSUM of the per-firing load innovations (in σ)
+                                        ///< above this re-seeds the RLS at the cycle mean (0: RLS alone) (-)
+  double rls_step_min_sd_nm = 1.0;      ///< floor of the innovations' 1σ (N m)
+  double rls_change_max_sd_nm = 6.0;    ///< no load-change tracking while the cycle mean's steady 1σ exceeds this (N m)
   double can_load_latency_s = 0.010;    ///< the CAN load torque lags the flange by this (sensor lag + half the frame
                                         ///< period); the energy balance takes each tooth's load this much later (s)
 };
