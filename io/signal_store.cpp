@@ -1,5 +1,6 @@
 #include "signal_store.hpp"
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <limits>
@@ -116,6 +117,7 @@ bool SignalStore::bind(Quantity q, std::string_view message, std::string_view si
   b.timeout_ns = timeout_ns;
   bindings_[static_cast<std::size_t>(q)] = b;
   values_[static_cast<std::size_t>(q)] = SignalValue{};
+  cache_ok_ = false;
   return true;
 }
 
@@ -147,6 +149,7 @@ bool SignalStore::on_frame(const CanFrame& frame) noexcept {
   }
   if (used) ++stats_.frames_used;
   if (bad) ++stats_.bad_frames;
+  if (any) cache_ok_ = false;
   return any;
 }
 
@@ -157,13 +160,22 @@ double SignalStore::age_s(Quantity q, std::int64_t now_ns) const noexcept {
 }
 
 EngineSignals SignalStore::signals_at(std::int64_t now_ns) const noexcept {
+  // Validity only changes with a frame (on_frame), a time-out change, or when now passes t + time-out of a
+  // valid quantity; an invalid one stays invalid for a later now. So the snapshot holds for a later now_ns
+  // up to the first such time-out.
+  if (cache_ok_ && now_ns >= cache_from_ns_ && now_ns < cache_until_ns_) return cache_;
   EngineSignals s;
   std::int64_t newest = 0;
+  std::int64_t until = std::numeric_limits<std::int64_t>::max();
   auto get = [&](Quantity q, double& value, bool& valid) {
     valid = valid_at(q, now_ns);
-    const SignalValue& v = values_[static_cast<std::size_t>(q)];
+    const auto i = static_cast<std::size_t>(q);
+    const SignalValue& v = values_[i];
     if (v.seen) value = v.value;
     if (valid && v.t_ns > newest) newest = v.t_ns;
+    const std::int64_t to = bindings_[i].timeout_ns;  // valid while now - t <= time-out (no overflow below)
+    if (valid && (v.t_ns < 0 || to < std::numeric_limits<std::int64_t>::max() - 1 - v.t_ns))
+      until = std::min(until, v.t_ns + to + 1);
   };
   get(Quantity::kMap, s.map_pa, s.map_valid);
   get(Quantity::kMaf, s.maf_kg_s, s.maf_valid);
@@ -178,6 +190,10 @@ EngineSignals SignalStore::signals_at(std::int64_t now_ns) const noexcept {
   s.fuel_cutoff = cut > 0.5;
   get(Quantity::kLoadTorque, s.load_torque_nm, s.load_torque_valid);
   s.t_ns = newest;
+  cache_ = s;
+  cache_from_ns_ = now_ns;
+  cache_until_ns_ = until;
+  cache_ok_ = true;
   return s;
 }
 

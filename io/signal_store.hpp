@@ -68,6 +68,7 @@ class SignalStore {
   void set_timeout(Quantity q, std::int64_t timeout_ns) noexcept {
     Binding& b = bindings_[static_cast<std::size_t>(q)];
     if (b.sig != nullptr && timeout_ns > 0) b.timeout_ns = timeout_ns;
+    cache_ok_ = false;
   }
 
   /// Decode every bound signal carried by this frame. Returns true if any value was accepted. Real-time safe.
@@ -87,7 +88,10 @@ class SignalStore {
   }
   /// Age in seconds at now_ns (+inf if never seen).
   [[nodiscard]] double age_s(Quantity q, std::int64_t now_ns) const noexcept;
-  /// Snapshot for the estimators at `now_ns` (validity = valid_at). Real-time safe.
+  /// Snapshot for the estimators at `now_ns` (validity = valid_at). Real-time safe. Cached: the same snapshot
+  /// is returned while no value was accepted, no time-out changed and now_ns stays in [the time it was built,
+  /// the first time-out of a valid quantity) (per tooth and time step, frames are 10x rarer). Like on_frame(),
+  /// not for concurrent use from several threads (each stage owns its store).
   [[nodiscard]] EngineSignals signals_at(std::int64_t now_ns) const noexcept;
   [[nodiscard]] const SignalStoreStats& stats() const noexcept { return stats_; }
 
@@ -103,6 +107,9 @@ class SignalStore {
   std::array<Binding, kQuantityCount> bindings_{};
   std::array<SignalValue, kQuantityCount> values_{};
   SignalStoreStats stats_;
+  mutable EngineSignals cache_{};  ///< signals_at() result valid for now in [cache_from_ns_, cache_until_ns_)
+  mutable std::int64_t cache_from_ns_ = 0, cache_until_ns_ = 0;
+  mutable bool cache_ok_ = false;
 };
 
 }  // namespace torqued

@@ -2,6 +2,8 @@
 // rejected and counted; short frames counted as bad frames.
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include "alloc_counter.hpp"
 #include "signal_store.hpp"
 
@@ -121,6 +123,59 @@ TEST_F(SignalStoreTest, RealTimePathDoesNotAllocate) {
   }
   EXPECT_EQ(scope.count(), 0u);
   EXPECT_GT(sum, 0);
+}
+
+// signals_at() caches its snapshot between frames: it must equal the snapshot rebuilt from value()/valid_at()
+// for any query order (time going back and forth, as the angle and time stages interleave), across
+// time-outs, accepted and rejected frames and a time-out change.
+TEST_F(SignalStoreTest, CachedSnapshotEqualsFreshOneAtAnyTime) {
+  std::mt19937_64 rng(5);
+  auto expect_fresh = [&](std::int64_t now) {
+    const EngineSignals s = store_->signals_at(now);
+    std::int64_t newest = 0;
+    auto check = [&](Quantity q, double value, bool valid, double dflt) {
+      const SignalValue& v = store_->value(q);
+      ASSERT_EQ(valid, store_->valid_at(q, now)) << quantity_name(q) << " at " << now;
+      ASSERT_EQ(value, v.seen ? v.value : dflt) << quantity_name(q) << " at " << now;
+      if (valid && v.t_ns > newest) newest = v.t_ns;
+    };
+    check(Quantity::kMap, s.map_pa, s.map_valid, 0.0);
+    check(Quantity::kMaf, s.maf_kg_s, s.maf_valid, 0.0);
+    check(Quantity::kIntakeTemp, s.intake_temp_k, s.intake_temp_valid, 0.0);
+    check(Quantity::kFuelMass, s.fuel_mass_kg, s.fuel_mass_valid, 0.0);
+    check(Quantity::kFuelCutoff, s.fuel_cutoff ? 1.0 : 0.0, s.fuel_cutoff_valid, 0.0);
+    check(Quantity::kLoadTorque, s.load_torque_nm, s.load_torque_valid, 0.0);
+    ASSERT_EQ(s.t_ns, newest) << "at " << now;
+  };
+  // Exactly at the time-out boundary, with the snapshot built before it.
+  (void)store_->on_frame(frame(0x100, 1'000'000'000, {0, 0, 0x92, 0x27, 30, 0, 0, 0}));
+  expect_fresh(1'000'000'000);
+  EXPECT_TRUE(store_->signals_at(1'050'000'000).map_valid);
+  EXPECT_FALSE(store_->signals_at(1'050'000'001).map_valid);
+  expect_fresh(1'000'000'000);
+  expect_fresh(1'050'000'001);
+  std::int64_t t = 1'100'000'000;
+  int hits = 0;
+  for (int i = 0; i < 20000; ++i) {
+    t += static_cast<std::int64_t>(rng() % 2'000'000);
+    const unsigned what = static_cast<unsigned>(rng() % 100);
+    if (what < 8) {  // frames: engine_1, engine_2 (sometimes out of range), dyno; sometimes a gap (stale)
+      const auto b = static_cast<std::uint8_t>(rng());
+      if (what < 3) (void)store_->on_frame(frame(0x100, t, {0, 0, b, 0x27, static_cast<std::uint8_t>(b % 100), 0, 0, 0}));
+      else if (what < 6) (void)store_->on_frame(frame(0x101, t, {b, 0xD2, 0x50, 0x14, 0, static_cast<std::uint8_t>(b & 1), 0, 0}));
+      else (void)store_->on_frame(frame(0x200, t, {b, static_cast<std::uint8_t>(rng() % 2 ? 0x7F : 0x01), 0, 0}));
+    } else if (what == 8) {
+      t += 80'000'000;  // everything times out
+    } else if (what == 9) {
+      store_->set_timeout(Quantity::kMap, 10'000'000 + static_cast<std::int64_t>(rng() % 90'000'000));
+    }
+    expect_fresh(t);
+    expect_fresh(t - static_cast<std::int64_t>(rng() % 60'000'000));  // the other stage, slightly behind
+    expect_fresh(t + static_cast<std::int64_t>(rng() % 60'000'000));  // a value from the future counts
+    if (HasFatalFailure()) return;
+    ++hits;
+  }
+  EXPECT_EQ(hits, 20000);
 }
 
 }  // namespace
