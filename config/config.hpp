@@ -137,9 +137,10 @@ struct RealtimeConfig {
   ThreadConfig angle{SchedPolicy::kFifo, 80, {}};
   ThreadConfig time{SchedPolicy::kFifo, 70, {}};
   ThreadConfig source{SchedPolicy::kFifo, 85, {}};
-  ThreadConfig publisher{SchedPolicy::kOther, 0, {}};
+  ThreadConfig publisher{SchedPolicy::kFifo, 60, {}};  // below the pipelines; not allocation-free (DDS)
   bool lock_memory = true;   ///< mlockall(MCL_CURRENT|MCL_FUTURE) before the threads start
   bool require_rt = false;   ///< refuse to start when SCHED_FIFO / mlockall are not permitted (else warn)
+  int publisher_spin_us = 150;  ///< paced replay: publisher wakes at the next edge's due time and polls this long
 };
 
 struct OutputConfig {

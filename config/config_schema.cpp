@@ -243,6 +243,9 @@ void add_rest(std::vector<SchemaEntry>& t) {
   t.push_back(boolean("realtime.lock_memory", TQ_REF(bool, realtime.lock_memory), "mlockall before the threads start"));
   t.push_back(boolean("realtime.require_rt", TQ_REF(bool, realtime.require_rt),
                       "refuse to start when SCHED_FIFO/mlockall are not permitted (else warn)"));
+  t.push_back(integer("realtime.publisher_spin_us", TQ_REF(int, realtime.publisher_spin_us), closed(0, 10000), "us",
+                      "paced replay: the publisher wakes at the next edge's due time and polls for its samples this "
+                      "long instead of waiting to be woken (one thread wake-up less per sample; 0 = off)"));
   t.push_back(text("output.record_dir", TQ_REF(std::string, output.record_dir),
                    "write estimate CSVs into this directory (\"\" = off); relative to this YAML file", true));
   t.push_back(text("output.state_dir", TQ_REF(std::string, output.state_dir),

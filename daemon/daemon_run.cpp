@@ -204,6 +204,7 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   ro.time = thread_rt(cfg.realtime.time, "torqued-time");
   ro.source = thread_rt(cfg.realtime.source, "torqued-source");
   ro.publisher = thread_rt(cfg.realtime.publisher, "torqued-pub");
+  ro.publisher_spin_ns = static_cast<std::int64_t>(cfg.realtime.publisher_spin_us) * 1000;
   Runtime rt(s, ro, edges.get(), can.get(), can_time_offset_ns(cfg), dbc ? &*dbc : nullptr, fanout);
   if (!rt.ok()) {
     spdlog::critical("{}", rt.error());

@@ -1,5 +1,6 @@
 #include "runtime.hpp"
 
+#include <sys/prctl.h>
 #include <sys/timerfd.h>
 #include <unistd.h>
 
@@ -227,6 +228,7 @@ void Runtime::angle_loop() {
     // Read-ahead replay items (ingest_ns == 0) are processed at their due time: sleep until then (bounded, so
     // stop requests and heartbeats are still seen); once the sources stop, drain without waiting.
     std::int64_t wait_due = 0;
+    bool wait_tooth = false;  // the item waited for is a crank tooth edge (it may produce samples)
     while (const EdgeIn* e = edge_ring_.front()) {
       std::int64_t ingest = e->ingest_ns;
       if (ingest == 0) {
@@ -234,6 +236,7 @@ void Runtime::angle_loop() {
         const std::int64_t early = due - mono_ns();
         if (early > 0 && !stop_sources_.load(std::memory_order_relaxed)) {
           wait_due = due;
+          wait_tooth = e->e.channel == s_.decoder.crank_channel && (e->e.level != 0) == s_.wheel.rising_edge;
           break;
         }
         ingest =
@@ -252,7 +255,10 @@ void Runtime::angle_loop() {
       if (f->ingest_ns == 0 && !stop_sources_.load(std::memory_order_relaxed)) {
         const std::int64_t due = due_mono_ns(f->f.t_ns);
         if (due > mono_ns() || (wait_due != 0 && due > wait_due)) {
-          if (wait_due == 0 || due < wait_due) wait_due = due;
+          if (wait_due == 0 || due < wait_due) {
+            wait_due = due;
+            wait_tooth = false;
+          }
           break;
         }
       }
@@ -279,8 +285,12 @@ void Runtime::angle_loop() {
     stale_mask_.store(angle_->stale_mask(), std::memory_order_relaxed);
     synced_.store(angle_->decoder().state() == SyncState::kSynced, std::memory_order_relaxed);
     if (stop_pipelines_.load(std::memory_order_acquire) && !has_work()) break;
-    if (wait_due !=
-        0) {  // paced replay: the next item is due at wait_due; the timer is this thread's only wake-up
+    // Paced replay: the next item is due at wait_due and the timer is this thread's only wake-up. The publisher
+    // is told, so it can be awake when this edge's samples come (realtime.publisher_spin_us).
+    // Released after this pass's pushes: a publisher that sees the value change also sees their samples.
+    next_due_tooth_.store(wait_tooth, std::memory_order_relaxed);
+    next_due_mono_ns_.store(wait_due, std::memory_order_release);
+    if (wait_due != 0) {
       const std::int64_t until = std::min(wait_due, mono_ns() + 50'000'000);
       timespec ts{static_cast<time_t>(until / 1'000'000'000), static_cast<long>(until % 1'000'000'000)};
       clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
@@ -365,6 +375,7 @@ bool Runtime::drain_out() noexcept {
 }
 
 void Runtime::publisher_loop() {
+  prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);  // SCHED_OTHER timers have 50 us slack by default: wake on time
   lat_period_start_ns_ = mono_ns();
   auto has_work = [this] {
     return !out_angle_ring_.empty() || !out_time_ring_.empty() || !out_status_ring_.empty();
@@ -391,7 +402,29 @@ void Runtime::publisher_loop() {
       lat_period_start_ns_ = mono_ns();
     }
     if (stop_publisher_.load(std::memory_order_acquire) && !has_work()) break;
-    pub_wake_.wait_for(100'000'000, has_work);
+    const std::int64_t due = next_due_mono_ns_.load(std::memory_order_acquire);
+    const std::int64_t t_now = mono_ns();
+    // (a due time more than one poll in the past is stale: the angle thread is stalled or stopping)
+    if (opt_.publisher_spin_ns > 0 && due != 0 && due - t_now < 100'000'000 && t_now - due < opt_.publisher_spin_ns) {
+      // Pre-wake (paced replay): sleep until the edge the angle thread waits for is due (any sample wakes us
+      // earlier). If it is a tooth edge, poll for its samples until they come, the angle thread moves on to the
+      // next edge (nothing to publish) or publisher_spin_ns passes. The samples then find this thread awake: no
+      // futex wake-up between the angle thread and DDS.
+      if (due > t_now) pub_wake_.wait_for(due - t_now, has_work);
+      if (next_due_tooth_.load(std::memory_order_relaxed) && !has_work()) {
+        pub_polls_.fetch_add(1, std::memory_order_relaxed);
+        const std::int64_t until = std::max(mono_ns(), due) + opt_.publisher_spin_ns;
+        while (!has_work() && next_due_mono_ns_.load(std::memory_order_acquire) == due && mono_ns() < until)
+          cpu_relax();
+        if (!has_work() && next_due_mono_ns_.load(std::memory_order_acquire) == due)
+          pub_poll_misses_.fetch_add(1, std::memory_order_relaxed);  // the angle thread was later than the poll
+      } else if (!has_work() && due <= mono_ns() && next_due_mono_ns_.load(std::memory_order_acquire) == due) {
+        // A non-tooth edge is due: let the angle thread take it before we read the next due time.
+        pub_wake_.wait_for(20'000, has_work);
+      }
+    } else {
+      pub_wake_.wait_for(opt_.publisher_spin_ns > 0 ? 10'000'000 : 100'000'000, has_work);
+    }
   }
   drain_out();
 }

@@ -38,7 +38,10 @@ struct RuntimeOptions {
   ThreadRt angle{true, 80, {}, "torqued-angle"};
   ThreadRt time{true, 70, {}, "torqued-time"};
   ThreadRt source{true, 85, {}, "torqued-source"};
-  ThreadRt publisher{false, 0, {}, "torqued-pub"};
+  ThreadRt publisher{true, 60, {}, "torqued-pub"};
+  /// Paced replay: the publisher sleeps until the next edge's due time (which the angle thread announces) and then
+  /// polls its rings for up to this long, so the samples of that edge find it awake (0 = always futex wake-ups).
+  std::int64_t publisher_spin_ns = 0;
   std::size_t edge_ring = 1 << 16, can_ring = 1 << 12, tooth_ring = 1 << 13, out_ring = 1 << 13;
   /// Test hook: called on each real-time thread right after its set-up and right before it exits.
   std::function<void(const char* thread, bool exiting)> rt_thread_hook;
@@ -147,6 +150,9 @@ class Runtime {
   std::atomic<int> sources_running_{0};
   TunablesMailbox angle_tunables_, time_tunables_;
   std::atomic<std::int64_t> edge_timeout_ns_{0};
+  std::atomic<std::int64_t> next_due_mono_ns_{0};  ///< paced replay: due time of the edge the angle thread waits for
+  std::atomic<bool> next_due_tooth_{false};         ///< ... and whether it is a crank tooth edge
+  std::atomic<std::uint64_t> pub_polls_{0}, pub_poll_misses_{0};  ///< pre-wakes, and those that saw no sample
   std::atomic<bool> anchored_{false};
   std::atomic<std::int64_t> anchor_rec_ns_{0}, anchor_mono_ns_{0};
   std::atomic<std::uint32_t> flags_{0};
