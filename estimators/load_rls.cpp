@@ -271,7 +271,7 @@ void LoadRls::track(double obs, const Window& win) noexcept {
   blend_ = 0.0;
   if (std::fabs(e) > 3.0 * sd && d_n_ >= kStatsCycles * n) return;  // an outlier or a change: not a steady sample
   ++d_n_;
-  const double a = std::max(1.0 / d_n_, 0.02);
+  const double a = std::max(1.0 / d_n_, 0.05);
   d_var_ += a * (e * e - d_var_);
   zd_var_ += a * (zd * zd - zd_var_);
 }
