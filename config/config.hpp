@@ -100,6 +100,7 @@ struct EstimatorsConfig {
   EstimatorToggle<FrictionParams> friction;
   EstimatorToggle<CylinderParams> cylinder;
   EstimatorToggle<ToothLearnParams> tooth_learn;
+  double default_oil_temp_c = 90.0;  ///< friction law's oil temperature until OilTemp arrives on CAN (°C)
 };
 
 /// QoS of one DDS topic (defined in one place; the daemon maps it onto dds_qos_t).

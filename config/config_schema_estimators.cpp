@@ -120,6 +120,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_INT("energies.rls_window_shifts", energies.params.rls_window_shifts, closed(1, 64), "", "each RLS window also shifted 1..n-1 teeth earlier");
   TQ_NUM("energies.burn_centroid_atdc_deg", energies.params.burn_centroid_atdc_deg, closed(-90.0, 180.0), "deg", "heat release lumped here when the spark advance is unknown");
   TQ_NUM("energies.burn_delay_deg", energies.params.burn_delay_deg, closed(0.0, 180.0), "deg", "spark to equivalent burn centroid: centroid = delay - advance");
+  TQ_NUM("default_oil_temp_c", default_oil_temp_c, closed(-40.0, 200.0), "degC", "oil temperature the friction law assumes until OilTemp arrives on CAN");
   TQ_BOOL("friction.enabled", friction.enabled, "estimate friction torque (EN-24)");
   t.push_back(fixed_list<4>("estimators.friction.c", TQ_REF(Arr4, estimators.friction.params.c), closed(-1e6, 1e6), "",
                             "C1..C4 of (C1 + C2 n + C3 n^2) e^(C4 t_oil), n rpm, t_oil degC (EN-24)"));
