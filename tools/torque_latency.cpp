@@ -74,7 +74,7 @@ struct Stats {
 /// Takes CrankState/EngineTorque samples and time-stamps them on arrival (from a listener or a waitset).
 struct Receiver {
   dds_entity_t crank = 0, engine = 0;
-  Stats crank_us, engine_us, crank_in, crank_dds;
+  Stats crank_us, engine_us, crank_in, crank_dds, engine_in, engine_dds;
   std::array<torque_CrankState, 64> cb{};
   std::array<torque_EngineTorque, 64> eb{};
   std::array<void*, 64> cp{}, ep{};
@@ -85,6 +85,8 @@ struct Receiver {
     crank_in.us.reserve(1 << 20);
     crank_dds.us.reserve(1 << 20);
     engine_us.us.reserve(1 << 16);
+    engine_in.us.reserve(1 << 16);
+    engine_dds.us.reserve(1 << 16);
   }
   void take(dds_entity_t r, std::int64_t now) {
     if (r == crank) {
@@ -100,9 +102,15 @@ struct Receiver {
       }
     } else if (r == engine) {
       const int n = dds_take(engine, ep.data(), info.data(), 64, 64);
-      for (int i = 0; i < n; ++i)
-        if (info[static_cast<std::size_t>(i)].valid_data && eb[static_cast<std::size_t>(i)].ingest_t_ns > 0)
-          engine_us.add(static_cast<double>(now - eb[static_cast<std::size_t>(i)].ingest_t_ns) * 1e-3);
+      for (int i = 0; i < n; ++i) {
+        const auto& v = eb[static_cast<std::size_t>(i)];
+        if (!info[static_cast<std::size_t>(i)].valid_data || v.ingest_t_ns <= 0) continue;
+        engine_us.add(static_cast<double>(now - v.ingest_t_ns) * 1e-3);
+        if (v.publish_t_ns > 0) {
+          engine_in.add(static_cast<double>(v.publish_t_ns - v.ingest_t_ns) * 1e-3);
+          engine_dds.add(static_cast<double>(now - v.publish_t_ns) * 1e-3);
+        }
+      }
     }
   }
   void take_all() {
@@ -313,31 +321,30 @@ int main(int argc, char** argv) {
 
   std::printf("torque-latency: %.0f s paced replay at %.1fx%s\n", duration_s, speed,
               stress ? ", stress-ng --cpu 1" : "");
-  std::printf("%-34s %8s %8s %8s %8s %8s\n", "path", "n", "p50_us", "p99_us", "p99.9_us", "max_us");
-  std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "tooth edge -> CrankState (subscr.)",
-              crank_us.us.size(), crank_us.pct(50), crank_us.pct(99), crank_us.pct(99.9), crank_us.max());
-  std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "tooth edge -> EngineTorque (subscr.)",
-              engine_us.us.size(), engine_us.pct(50), engine_us.pct(99), engine_us.pct(99.9),
-              engine_us.max());
-  std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "  of which edge -> dds_write (daemon)",
-              rx.crank_in.us.size(), rx.crank_in.pct(50), rx.crank_in.pct(99), rx.crank_in.pct(99.9),
-              rx.crank_in.max());
-  std::printf("%-34s %8zu %8.1f %8.1f %8.1f %8.1f\n", "  of which dds_write -> received",
-              rx.crank_dds.us.size(), rx.crank_dds.pct(50), rx.crank_dds.pct(99), rx.crank_dds.pct(99.9),
-              rx.crank_dds.max());
+  std::printf("%-38s %8s %8s %8s %8s %8s\n", "path", "n", "p50_us", "p99_us", "p99.9_us", "max_us");
+  auto row = [](const char* name, const Stats& st) {
+    std::printf("%-38s %8zu %8.1f %8.1f %8.1f %8.1f\n", name, st.us.size(), st.pct(50), st.pct(99), st.pct(99.9),
+                st.max());
+  };
+  row("tooth edge -> CrankState (subscriber)", crank_us);
+  row("  edge -> dds_write (in the daemon)", rx.crank_in);
+  row("  dds_write -> received (DDS)", rx.crank_dds);
+  row("tooth edge -> EngineTorque (subscr.)", engine_us);
+  row("  edge -> dds_write (in the daemon)", rx.engine_in);
+  row("  dds_write -> received (DDS)", rx.engine_dds);
   std::printf("subscriber: %s, %s\n", use_waitset ? "waitset" : "listener (receive thread)",
               sub_prio > 0 ? "SCHED_FIFO requested" : "SCHED_OTHER");
   if (cyclic) {
     double p50 = 0, p99 = 0, p999 = 0, mx = 0;
     cyclictest_summary("/tmp/torque-latency-cyclictest.log", p50, p99, p999, mx);
-    std::printf("%-34s %8s %8.1f %8.1f %8.1f %8.1f\n", "cyclictest (same run)", "-", p50, p99, p999, mx);
+    std::printf("%-38s %8s %8.1f %8.1f %8.1f %8.1f\n", "cyclictest (same run)", "-", p50, p99, p999, mx);
   }
   if (ddsperf) {
     double p50 = 0, p99 = 0;
     std::size_t n = 0;
     ddsperf_summary(ddsperf_log.c_str(), p50, p99, n);
     if (n > 0)
-      std::printf("%-34s %8s %8.1f %8.1f %8s %8s\n", "ddsperf one-way (round trip / 2)", "-", p50 / 2,
+      std::printf("%-38s %8s %8.1f %8.1f %8s %8s\n", "ddsperf one-way (round trip / 2)", "-", p50 / 2,
                   p99 / 2, "-", "-");
     std::printf(
         "ddsperf ping %d Hz / pong (round trip p50 %.1f us, p99 %.1f us; median of %zu one-second reports): "
