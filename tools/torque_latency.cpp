@@ -351,6 +351,16 @@ int main(int argc, char** argv) {
         "%s\n",
         ddsperf_rate_hz, p50, p99, n, ddsperf_log.c_str());
   }
+  {  // the daemon's own counters (ring drops, time-thread overruns) from its final log line
+    FILE* f = std::fopen("/tmp/torque-latency-torqued.log", "r");
+    char line[1024];
+    std::string last;
+    while (f && std::fgets(line, sizeof line, f))
+      if (std::strstr(line, "stopped:")) last = line;
+    if (f) std::fclose(f);
+    std::printf("daemon: %s", last.empty() ? "no final counters (see /tmp/torque-latency-torqued.log)\n"
+                                           : last.substr(last.find("stopped:")).c_str());
+  }
   histogram(crank_us, "tooth edge -> CrankState");
   return crank_us.us.empty() ? 1 : 0;
 }
