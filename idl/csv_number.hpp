@@ -75,9 +75,14 @@ TORQUED_CSV_INLINE char* write_digits(char* p, std::uint64_t v, int n) noexcept 
       std::memcpy(p + 1, kDigitPairs + 2 * (r - hi * 100), 2);
       break;
     }
-    case 2: std::memcpy(p, kDigitPairs + 2 * r, 2); break;
-    case 1: *p = static_cast<char>('0' + r); break;
-    default: break;
+    case 2:
+      std::memcpy(p, kDigitPairs + 2 * r, 2);
+      break;
+    case 1:
+      *p = static_cast<char>('0' + r);
+      break;
+    default:
+      break;
   }
   return p + n;
 }
@@ -103,23 +108,26 @@ TORQUED_CSV_INLINE char* write_int(char* p, std::int64_t v) noexcept {
 /// Shortest round-trip form (std::to_chars), nan/inf/-inf. Needs 32 bytes of room.
 inline char* write_shortest(char* p, double v) noexcept {
   if (std::isnan(v)) return static_cast<char*>(std::memcpy(p, "nan", 3)) + 3;
-  if (std::isinf(v)) return v > 0 ? static_cast<char*>(std::memcpy(p, "inf", 3)) + 3
-                                   : static_cast<char*>(std::memcpy(p, "-inf", 4)) + 4;
+  if (std::isinf(v))
+    return v > 0 ? static_cast<char*>(std::memcpy(p, "inf", 3)) + 3
+                 : static_cast<char*>(std::memcpy(p, "-inf", 4)) + 4;
   return std::to_chars(p, p + 32, v).ptr;
 }
 
 /// Fixed point with D decimals (see the file comment for the fall-backs). Needs 40 bytes of room.
-template <int D> TORQUED_CSV_INLINE char* write_fixed(char* p, double v) noexcept {
+template <int D>
+TORQUED_CSV_INLINE char* write_fixed(char* p, double v) noexcept {
   static_assert(D >= 1 && D <= 10);
   constexpr double kScale = static_cast<double>(kPow10[D]);
-  constexpr double kMin = 1e4 / kScale;                  // >= 4 significant digits
-  constexpr double kMax = 9007199254740992.0 / kScale;   // 2^53
+  constexpr double kMin = 1e4 / kScale;                 // >= 4 significant digits
+  constexpr double kMax = 9007199254740992.0 / kScale;  // 2^53
   const double a = std::fabs(v);
   if (a == 0.0) {  // also -0.0
     *p = '0';
     return p + 1;
   }
-  if (!(a >= kMin && a < kMax)) [[unlikely]] return write_shortest(p, v);  // also NaN/Inf
+  if (!(a >= kMin && a < kMax)) [[unlikely]]
+    return write_shortest(p, v);                                // also NaN/Inf
   const auto n = static_cast<std::uint64_t>(a * kScale + 0.5);  // 10^4 <= n < 2^53 + 1
   *p = '-';
   p += v < 0;
@@ -145,9 +153,12 @@ constexpr int csv_decimals(std::string_view name) noexcept {
 /// Formats a double for column `name`'s resolution.
 TORQUED_CSV_INLINE char* write_column_double(char* p, double v, int decimals) noexcept {
   switch (decimals) {
-    case 3: return write_fixed<3>(p, v);
-    case 9: return write_fixed<9>(p, v);
-    default: return write_fixed<6>(p, v);
+    case 3:
+      return write_fixed<3>(p, v);
+    case 9:
+      return write_fixed<9>(p, v);
+    default:
+      return write_fixed<6>(p, v);
   }
 }
 

@@ -1,9 +1,10 @@
 // bench_fast_replay (helper "perf2"; not a ctest: timings are reported, not asserted): the whole as-fast-as-
-// possible replay (run_fast_replay, all estimators) of a torqued YAML config, with the CSV recorder (Arg 1) and
-// without (Arg 0). Reports CPU time per replay and x real time per CPU second (robust on a loaded VM where the
-// wall time of `torqued --replay fast` varies 3x), plus instructions are best taken with callgrind on torqued.
-//   torque-sim -s steady_3000_mid --duration 20 -o /tmp/s3000   (and a config pointing at it, see docs/daemon.md)
-//   TORQUED_BENCH_CONFIG=/tmp/s3000.yaml bench_fast_replay --benchmark_repetitions=5
+// possible replay (run_fast_replay, all estimators) of a torqued YAML config, with the CSV recorder (Arg 1)
+// and without (Arg 0). Reports CPU time per replay and x real time per CPU second (robust on a loaded VM
+// where the wall time of `torqued --replay fast` varies 3x), plus instructions are best taken with callgrind
+// on torqued.
+//   torque-sim -s steady_3000_mid --duration 20 -o /tmp/s3000   (and a config pointing at it, see
+//   docs/daemon.md) TORQUED_BENCH_CONFIG=/tmp/s3000.yaml bench_fast_replay --benchmark_repetitions=5
 #include <benchmark/benchmark.h>
 
 #include <cstdlib>
@@ -49,7 +50,8 @@ void BM_FastReplay(benchmark::State& st) {
     auto rec = record ? std::make_unique<dds::SampleRecorder>(dir) : nullptr;
     OutputFanout out(rec.get(), nullptr, s.dds.engine_id);
     st.ResumeTiming();
-    const ReplayResult r = run_fast_replay(s, edges.get(), can.get(), can_time_offset_ns(cfg), dbc ? &*dbc : nullptr, out);
+    const ReplayResult r =
+        run_fast_replay(s, edges.get(), can.get(), can_time_offset_ns(cfg), dbc ? &*dbc : nullptr, out);
     if (rec) rec->flush(false);  // the writes belong to the cost of recording (fsync does not)
     st.PauseTiming();
     recorded_s = static_cast<double>(r.last_t_ns - r.first_t_ns) * 1e-9;
@@ -58,8 +60,8 @@ void BM_FastReplay(benchmark::State& st) {
   }
   std::filesystem::remove_all(dir);
   // x real time = recorded seconds per CPU second of the replay (incl. the stages' start-up)
-  st.counters["x_real_time"] = benchmark::Counter(recorded_s * static_cast<double>(st.iterations()),
-                                                  benchmark::Counter::kIsRate);
+  st.counters["x_real_time"] =
+      benchmark::Counter(recorded_s * static_cast<double>(st.iterations()), benchmark::Counter::kIsRate);
   st.counters["recorded_s"] = recorded_s;
 }
 BENCHMARK(BM_FastReplay)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->MinTime(1.0);

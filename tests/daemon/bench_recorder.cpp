@@ -74,7 +74,8 @@ void BM_CsvRowCrankState(benchmark::State& st) {
 BENCHMARK(BM_CsvRowCrankState);
 
 /// One double: the fixed-point form of the recordings vs the shortest round-trip form it replaced.
-template <bool kFixed> void BM_Double(benchmark::State& st) {
+template <bool kFixed>
+void BM_Double(benchmark::State& st) {
   std::mt19937_64 rng(2);
   std::normal_distribution<double> d(60.0, 25.0);
   std::vector<double> v(4096);
@@ -96,8 +97,9 @@ BENCHMARK(BM_Double<false>)->Name("BM_DoubleShortestToChars");
 /// Arg 1: every row with a leading space (the general parser, as before the fast path).
 void BM_EdgeCsvParse(benchmark::State& st) {
   const bool general = st.range(0) != 0;
-  const std::string path = (std::filesystem::temp_directory_path() /
-                            ("bench_recorder_edges_" + std::to_string(general) + ".csv")).string();
+  const std::string path =
+      (std::filesystem::temp_directory_path() / ("bench_recorder_edges_" + std::to_string(general) + ".csv"))
+          .string();
   {
     std::FILE* f = std::fopen(path.c_str(), "w");
     std::fputs("Time [s],crank,cam\n", f);

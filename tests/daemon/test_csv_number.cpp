@@ -16,7 +16,8 @@
 namespace torqued::dds {
 namespace {
 
-template <int D> std::string fixed(double v) {
+template <int D>
+std::string fixed(double v) {
   char buf[64];
   return std::string(buf, csv::write_fixed<D>(buf, v));
 }
@@ -38,10 +39,10 @@ double parse(const std::string& s) {
 TEST(CsvNumber, IntegersMatchToString) {
   std::mt19937_64 rng(7);
   for (std::uint64_t v : std::initializer_list<std::uint64_t>{0, 1, 9, 10, 99, 100, 12345, 1000000000,
-                                                             std::numeric_limits<std::uint64_t>::max()})
+                                                              std::numeric_limits<std::uint64_t>::max()})
     EXPECT_EQ(uint_text(v), std::to_string(v));
-  for (std::int64_t v : std::initializer_list<std::int64_t>{0, -1, -10, std::numeric_limits<std::int64_t>::min(),
-                                                            std::numeric_limits<std::int64_t>::max()})
+  for (std::int64_t v : std::initializer_list<std::int64_t>{
+           0, -1, -10, std::numeric_limits<std::int64_t>::min(), std::numeric_limits<std::int64_t>::max()})
     EXPECT_EQ(int_text(v), std::to_string(v));
   for (int i = 0; i < 100000; ++i) {
     const std::uint64_t v = rng() >> (rng() % 64);
@@ -83,9 +84,12 @@ TEST(CsvNumber, RandomValuesParseBackWithinResolution) {
     const double a = std::fabs(v);
     constexpr double k53 = 9007199254740992.0;
     // within half a unit of the last decimal (+ the rounding of v * 10^D), or exact (shortest form)
-    ASSERT_LE(std::fabs(parse(s6) - v), a >= 1e-2 && a < k53 / 1e6 ? 0.5e-6 + a * 1e-15 : 0.0) << v << " " << s6;
-    ASSERT_LE(std::fabs(parse(s3) - v), a >= 10 && a < k53 / 1e3 ? 0.5e-3 + a * 1e-15 : 0.0) << v << " " << s3;
-    ASSERT_LE(std::fabs(parse(s9) - v), a >= 1e-5 && a < k53 / 1e9 ? 0.5e-9 + a * 1e-15 : 0.0) << v << " " << s9;
+    ASSERT_LE(std::fabs(parse(s6) - v), a >= 1e-2 && a < k53 / 1e6 ? 0.5e-6 + a * 1e-15 : 0.0)
+        << v << " " << s6;
+    ASSERT_LE(std::fabs(parse(s3) - v), a >= 10 && a < k53 / 1e3 ? 0.5e-3 + a * 1e-15 : 0.0)
+        << v << " " << s3;
+    ASSERT_LE(std::fabs(parse(s9) - v), a >= 1e-5 && a < k53 / 1e9 ? 0.5e-9 + a * 1e-15 : 0.0)
+        << v << " " << s9;
     ASSERT_EQ(s6, fixed<6>(v));  // deterministic
   }
 }
@@ -108,9 +112,10 @@ TEST(CsvNumber, ColumnResolutionFromUnit) {
   std::string row;
   append_csv_row(row, c);
   EXPECT_EQ(row, "123456789,1,42,0,0,0,-1,0,1,1.23456789,314.159265,-20670.286,5\n");
-  EXPECT_EQ(csv_header<torque_CrankState>(),
-            "t_ns,engine_id,seq,ingest_t_ns,publish_t_ns,validity,tooth,sync,phase_known,angle_rad,speed_rad_s,"
-            "accel_rad_s2,events\n");
+  EXPECT_EQ(
+      csv_header<torque_CrankState>(),
+      "t_ns,engine_id,seq,ingest_t_ns,publish_t_ns,validity,tooth,sync,phase_known,angle_rad,speed_rad_s,"
+      "accel_rad_s2,events\n");
 }
 
 }  // namespace
