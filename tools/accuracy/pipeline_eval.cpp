@@ -227,7 +227,6 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
     const int j0 = static_cast<int>(std::floor(a_start / kFourPi));
     const double w0 = ((j0 + 1) * kFourPi - a_start) / kFourPi;
     if (!truth.count(j0) || !truth.count(j0 + 1)) continue;
-    const sim::CycleTruth& c0 = *truth[j0];
     const sim::CycleTruth& c1 = *truth[j0 + 1];
     const auto blend = [&](double a, double b) { return w0 * a + (1.0 - w0) * b; };
     ++cycle_rows;
