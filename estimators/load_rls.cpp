@@ -205,7 +205,7 @@ void LoadRls::reset() noexcept {
 
 namespace {
 constexpr int kFastCycles = 4;        // tracker memory held at one cycle for this many cycles after a load change
-constexpr double kZConfirm = 3.0;     // |z − tracker| must exceed this many σ of its steady spread
+constexpr double kZConfirm = 2.5;     // |z − tracker| must exceed this many σ of its steady spread
 constexpr int kStatsCycles = 10;      // steady cycles of innovation statistics before changes are detected
 }  // namespace
 

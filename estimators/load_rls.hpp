@@ -31,7 +31,7 @@
 //     cycle mean z is formed once per firing from the per-firing means h_0 (newest) .. h_n with trapezoid weights
 //     (½h_0 + h_1 + … + h_{n−1} + ½h_n)/n, centred on the same 720° as the crank energy balance. A load change is
 //     detected by a two-sided CUSUM (Page 1954) of the per-firing innovations e = h − RLS in units of their
-//     steady 1σ (allowance 0.5σ, threshold rls_change_threshold), confirmed by |z − RLS| > 3σ of its own steady
+//     steady 1σ (allowance 0.5σ, threshold rls_change_threshold), confirmed by |z − RLS| > 2.5σ of its own steady
 //     spread (z − RLS is correlated from firing to firing, which alone would let the CUSUM fire on noise): a tracker copy of the RLS is re-seeded at z (its
 //     memory restarts, so it re-converges on the new load instead of averaging the old one) and z is reported for
 //     one cycle (tracked()); its memory is held at one cycle for 4 more cycles (the load keeps settling). The plain RLS (estimate()) is left alone for the friction learning at idle.
