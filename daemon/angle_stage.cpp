@@ -288,6 +288,12 @@ void AngleStage::publish_snapshot() noexcept {
                                                         std::memory_order_relaxed);
   }
   snap_friction_valid_.store(fric, std::memory_order_relaxed);
+  const bool idle = fric && pipeline_->friction().idle_speed_rpm() > 0.0;
+  if (idle) {
+    snap_idle_[0].store(pipeline_->friction().idle_correction_nm(), std::memory_order_relaxed);
+    snap_idle_[1].store(pipeline_->friction().idle_speed_rpm(), std::memory_order_relaxed);
+  }
+  snap_idle_valid_.store(idle, std::memory_order_relaxed);
   for (int i = 0; i < n; ++i)
     snap_teeth_[static_cast<std::size_t>(i)].store(corr_[static_cast<std::size_t>(i)],
                                                    std::memory_order_relaxed);
@@ -308,6 +314,9 @@ bool AngleStage::export_state(LearnedState& st) const {
             snap_friction_[static_cast<std::size_t>(i)].load(std::memory_order_relaxed);
       tmp.friction = c;
     }
+    if (snap_idle_valid_.load(std::memory_order_relaxed))
+      tmp.friction_idle = std::array<double, 2>{snap_idle_[0].load(std::memory_order_relaxed),
+                                                snap_idle_[1].load(std::memory_order_relaxed)};
     const int n = snap_n_teeth_.load(std::memory_order_relaxed);
     tmp.tooth_corrections_rad.resize(static_cast<std::size_t>(n));
     for (int i = 0; i < n; ++i)
@@ -324,8 +333,10 @@ bool AngleStage::export_state(LearnedState& st) const {
 
 void AngleStage::import_state(const LearnedState& st) {
   bool any = false;
-  if (st.friction && pipeline_ && pipeline_->friction().import_coefficients(*st.friction))
+  if (st.friction && pipeline_ && pipeline_->friction().import_coefficients(*st.friction)) {
     any = friction_imported_ = true;
+    if (st.friction_idle) (void)pipeline_->friction().import_idle_correction((*st.friction_idle)[0], (*st.friction_idle)[1]);
+  }
   const auto n = st.tooth_corrections_rad.size();
   if (n > 0 && n <= corr_.size()) {
     const std::span<const double> tab(st.tooth_corrections_rad.data(), n);

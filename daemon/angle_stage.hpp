@@ -88,6 +88,8 @@ class AngleStage {
   std::array<std::atomic<double>, kMaxTeeth> snap_teeth_{};
   std::atomic<int> snap_n_teeth_{0};
   std::atomic<bool> snap_friction_valid_{false};
+  std::array<std::atomic<double>, 2> snap_idle_{};  ///< friction idle correction (N m), idle speed (rpm)
+  std::atomic<bool> snap_idle_valid_{false};
 };
 
 }  // namespace torqued

@@ -27,6 +27,10 @@ bool save_state_atomic(const std::string& path, const LearnedState& s, std::stri
     }
     text += '\n';
   }
+  if (s.friction_idle) {
+    std::snprintf(buf, sizeof buf, "friction_idle %.17g %.17g\n", (*s.friction_idle)[0], (*s.friction_idle)[1]);
+    text += buf;
+  }
   if (!s.tooth_corrections_rad.empty()) {
     text += "tooth_corrections " + std::to_string(s.tooth_corrections_rad.size());
     for (double c : s.tooth_corrections_rad) {
@@ -106,6 +110,11 @@ std::optional<LearnedState> load_state(const std::string& path, std::string* err
       for (double& v : c)
         if (!(ls >> v) || !std::isfinite(v)) return fail("expected 4 finite friction coefficients");
       s.friction = c;
+    } else if (key == "friction_idle") {
+      std::array<double, 2> v{};
+      if (!(ls >> v[0] >> v[1]) || !std::isfinite(v[0]) || !std::isfinite(v[1]) || !(v[1] > 0.0))
+        return fail("expected an idle friction correction (N m) and a positive idle speed (rpm)");
+      s.friction_idle = v;
     } else if (key == "tooth_corrections") {
       std::size_t n = 0;
       if (!(ls >> n) || n > 720) return fail("expected a tooth count (<= 720)");

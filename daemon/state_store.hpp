@@ -5,6 +5,7 @@
 // Text format (versioned, exact round trip with %.17g):
 //   torqued-state 1
 //   friction <c1> <c2> <c3> <c4>
+//   friction_idle <correction N m> <idle speed rpm>     (optional: FrictionLearner's local idle correction)
 //   tooth_corrections <n> <rad_0> ... <rad_n-1>
 //   saved_at_t_ns <edge-clock time>
 // Not real-time: called by the supervisor thread.
@@ -18,6 +19,7 @@ namespace torqued {
 
 struct LearnedState {
   std::optional<std::array<double, 4>> friction;  ///< FrictionLearner coefficients [C1..C4]
+  std::optional<std::array<double, 2>> friction_idle;  ///< idle correction (N m) and its idle speed (rpm)
   std::vector<double> tooth_corrections_rad;        ///< ToothErrorLearner table (empty = none)
   std::int64_t saved_at_t_ns = 0;
 };

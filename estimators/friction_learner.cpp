@@ -30,6 +30,7 @@ void FrictionLearner::reset() noexcept {
   have_idle_ref_ = false;
   idle_corr_nm_ = 0.0;
   idle_rpm_ = 0.0;
+  idle_prior_n_ = 0;
   n_motoring_ = n_idle_ = n_rejected_ = 0;
 }
 
@@ -92,7 +93,7 @@ bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double f
   ++n_idle_;
   if (params_.learn_at_idle) {
     // Local correction: running mean of (observed − law) over the idle observations (gain 1/n, floor 0.1).
-    const double g = std::max(0.1, 1.0 / static_cast<double>(n_idle_));
+    const double g = std::max(0.1, 1.0 / static_cast<double>(n_idle_ + idle_prior_n_));
     idle_rpm_ = idle_rpm_ > 0.0 ? idle_rpm_ + g * (speed_rpm - idle_rpm_) : speed_rpm;
     idle_corr_nm_ += g * ((friction_nm - law_nm(speed_rpm, oil_temp_c)) - idle_corr_nm_);
   }
@@ -144,6 +145,14 @@ bool FrictionLearner::import_coefficients(const std::array<double, 4>& c) noexce
   base_ = c;
   reset();
   imported_ = true;
+  return true;
+}
+
+bool FrictionLearner::import_idle_correction(double correction_nm, double idle_rpm) noexcept {
+  if (!std::isfinite(correction_nm) || !std::isfinite(idle_rpm) || !(idle_rpm > 0.0)) return false;
+  idle_corr_nm_ = correction_nm;
+  idle_rpm_ = idle_rpm;
+  idle_prior_n_ = kIdlePriorObservations;
   return true;
 }
 

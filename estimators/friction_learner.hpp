@@ -50,6 +50,12 @@ class FrictionLearner {
   /// Load persisted coefficients (also becomes the reset point). Rejects non-finite values (returns false).
   bool import_coefficients(const std::array<double, 4>& c) noexcept;
 
+  /// Load a persisted idle correction (after import_coefficients, which clears it). It then counts as
+  /// `kIdlePriorObservations` observations, so new idle observations refine it instead of replacing it.
+  /// Rejects non-finite values or a non-positive speed (returns false).
+  bool import_idle_correction(double correction_nm, double idle_rpm) noexcept;
+  static constexpr int kIdlePriorObservations = 10;
+
   /// Local idle correction δ (N m) and the idle speed it was learned at (rpm); 0 / 0 before any idle observation.
   [[nodiscard]] double idle_correction_nm() const noexcept { return idle_corr_nm_; }
   [[nodiscard]] double idle_speed_rpm() const noexcept { return idle_rpm_; }
@@ -72,6 +78,7 @@ class FrictionLearner {
   double idle_ref_ln_ = 0.0;
   double idle_corr_nm_ = 0.0;      ///< local idle correction δ (N m)
   double idle_rpm_ = 0.0;          ///< speed of the idle observations (rpm), 0: none yet
+  std::uint64_t idle_prior_n_ = 0; ///< weight (observations) of an imported idle correction
   bool imported_ = false;
   std::uint64_t n_motoring_ = 0, n_idle_ = 0, n_rejected_ = 0;
 };

@@ -113,3 +113,26 @@ TEST(FrictionLearner, IdleCorrectionIsLocalAndLeavesTheMotoringRangeAlone) {
   // AND with learn_at_idle off the law stays extrapolated (1.5 N m off at idle)
   EXPECT_NEAR(no_corr.friction_nm(800.0, 90.0) - idle_true, -1.5, 0.1);
 }
+
+TEST(FrictionLearner, PersistedIdleCorrectionIsRestoredAndRefinedNotReplaced) {
+  // GIVEN a learner that learned an idle correction (+1.5 N m at 800 rpm) over 30 steady-idle cycles
+  FrictionParams p;
+  p.c = {0.0, 0.0, 0.0, -4.67e-3};
+  FrictionLearner fl(p);
+  for (double rpm = 3000.0; rpm > 1100.0; rpm -= 15.0) fl.observe_motoring(rpm, 90.0, true_friction(rpm, 90.0));
+  const double idle_true = true_friction(800.0, 90.0) + 1.5;
+  for (int k = 0; k < 30; ++k) fl.observe_idle(800.0, 90.0, idle_true);
+  // WHEN a restarted learner imports the coefficients and then the idle correction (the daemon's order)
+  FrictionLearner restarted(p);
+  ASSERT_TRUE(restarted.import_coefficients(fl.coefficients()));
+  EXPECT_FALSE(restarted.import_idle_correction(std::numeric_limits<double>::quiet_NaN(), 800.0));
+  EXPECT_FALSE(restarted.import_idle_correction(1.0, 0.0));
+  ASSERT_TRUE(restarted.import_idle_correction(fl.idle_correction_nm(), fl.idle_speed_rpm()));
+  // THEN idle friction is right from the start (no relearning), the motoring range is the imported law
+  EXPECT_NEAR(restarted.friction_nm(800.0, 90.0), fl.friction_nm(800.0, 90.0), 1e-9);
+  EXPECT_NEAR(restarted.friction_nm(2500.0, 90.0), fl.friction_nm(2500.0, 90.0), 1e-9);
+  // AND one outlying idle observation moves it by at most 1/(1 + 10) of the outlier, not all the way
+  const double before = restarted.idle_correction_nm();
+  ASSERT_TRUE(restarted.observe_idle(800.0, 90.0, idle_true + 5.5));
+  EXPECT_NEAR(restarted.idle_correction_nm() - before, 5.5 / (1.0 + FrictionLearner::kIdlePriorObservations), 0.05);
+}
