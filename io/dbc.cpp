@@ -24,7 +24,43 @@ std::size_t DbcSignal::bytes_needed() const noexcept {
   return static_cast<std::size_t>(std::max(b, static_cast<int>(start_bit)) / 8 + 1);
 }
 
+namespace {
+std::int64_t sign_extend(std::uint64_t v, int length, bool is_signed) noexcept {
+  if (is_signed && length < 64 && ((v >> (length - 1)) & 1u) != 0) v |= ~std::uint64_t{0} << length;
+  return static_cast<std::int64_t>(v);
+}
+}  // namespace
+
+// Word-at-a-time: gather the (at most 8) bytes the signal spans into one integer, shift and mask. Bytes past
+// `len` read as 0, as in the bitwise definition. Signals spanning 9 bytes (e.g. 64 bits not byte-aligned) take the
+// bitwise path.
 std::int64_t DbcSignal::raw(const std::uint8_t* data, std::size_t len) const noexcept {
+  const int n = static_cast<int>(length);
+  if (n <= 0 || n > 64) return raw_bitwise(data, len);
+  const int first = start_bit / 8, shift_in_byte = start_bit % 8;
+  std::uint64_t v = 0;
+  if (little_endian) {  // Intel: LSB at start_bit, bytes in increasing order
+    const int bytes = (shift_in_byte + n + 7) / 8;
+    if (bytes > 8) return raw_bitwise(data, len);
+    for (int b = bytes - 1; b >= 0; --b) {
+      const auto i = static_cast<std::size_t>(first + b);
+      v = (v << 8) | (i < len ? data[i] : 0u);
+    }
+    v >>= shift_in_byte;
+  } else {  // Motorola: MSB at start_bit (sawtooth numbering), bytes in increasing order from the MSB's byte
+    const int bytes = (7 - shift_in_byte + n + 7) / 8;
+    if (bytes > 8) return raw_bitwise(data, len);
+    for (int b = 0; b < bytes; ++b) {
+      const auto i = static_cast<std::size_t>(first + b);
+      v = (v << 8) | (i < len ? data[i] : 0u);
+    }
+    v >>= 8 * (bytes - 1) + shift_in_byte - n + 1;  // the MSB sits at bit 8·(bytes−1) + shift_in_byte
+  }
+  if (n < 64) v &= (std::uint64_t{1} << n) - 1u;
+  return sign_extend(v, n, is_signed);
+}
+
+std::int64_t DbcSignal::raw_bitwise(const std::uint8_t* data, std::size_t len) const noexcept {
   std::uint64_t v = 0;
   if (little_endian) {
     for (int k = length - 1; k >= 0; --k) {
@@ -42,8 +78,7 @@ std::int64_t DbcSignal::raw(const std::uint8_t* data, std::size_t len) const noe
       pos = (pos % 8 == 0) ? pos + 15 : pos - 1;
     }
   }
-  if (is_signed && length < 64 && ((v >> (length - 1)) & 1u) != 0) v |= ~std::uint64_t{0} << length;
-  return static_cast<std::int64_t>(v);
+  return sign_extend(v, length, is_signed);
 }
 
 const std::string* DbcSignal::value_name(std::int64_t raw_value) const noexcept {

@@ -38,6 +38,8 @@ struct DbcSignal {
   [[nodiscard]] std::size_t bytes_needed() const noexcept;
   /// Raw integer (sign-extended when is_signed). Precondition: len >= bytes_needed(). Real-time safe.
   [[nodiscard]] std::int64_t raw(const std::uint8_t* data, std::size_t len) const noexcept;
+  /// The same, bit by bit (the DBC definition, written out): reference for tests and the > 8-byte case.
+  [[nodiscard]] std::int64_t raw_bitwise(const std::uint8_t* data, std::size_t len) const noexcept;
   /// Physical value = raw × factor + offset. Real-time safe.
   [[nodiscard]] double decode(const std::uint8_t* data, std::size_t len) const noexcept {
     return static_cast<double>(raw(data, len)) * factor + offset;

@@ -211,6 +211,30 @@ TEST(Dbc, RawExtractionEdgeCases) {
   EXPECT_EQ(s.bytes_needed(), 2u);
 }
 
+TEST(Dbc, WordAtATimeExtractionEqualsTheBitwiseDefinition) {
+  // GIVEN every start bit of a 64-byte CAN FD payload, every length 1..64, both byte orders, signed and unsigned,
+  // random payloads and payloads cut short (bytes past len read as 0)
+  std::mt19937_64 rng(7);
+  std::uint8_t d[64];
+  int checked = 0;
+  for (int start = 0; start < 512; ++start)
+    for (int length = 1; length <= 64; ++length)
+      for (int order = 0; order < 2; ++order) {
+        DbcSignal s;
+        s.start_bit = static_cast<std::uint16_t>(start);
+        s.length = static_cast<std::uint16_t>(length);
+        s.little_endian = order == 0;
+        s.is_signed = ((start + length) & 1) != 0;
+        for (auto& b : d) b = static_cast<std::uint8_t>(rng());
+        const std::size_t len = (start % 5 == 0) ? static_cast<std::size_t>(rng() % 65) : 64u;
+        // THEN the fast path gives the bitwise definition's value
+        ASSERT_EQ(s.raw(d, len), s.raw_bitwise(d, len))
+            << "start " << start << " length " << length << (s.little_endian ? " Intel" : " Motorola") << " len " << len;
+        ++checked;
+      }
+  EXPECT_EQ(checked, 512 * 64 * 2);
+}
+
 TEST(Dbc, MutatedFilesNeverCrash) {
   // Random edits of the three style samples: the parser reports errors or warnings, never crashes or hangs.
   std::mt19937 rng(5);
