@@ -311,9 +311,10 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   const RuntimeCounters c = rt.counters();
   spdlog::info(
       "stopped: {} edges, {} teeth, {} cycles, drops edge/can/out {}/{}/{}, overruns {}, latency p50/p99/max "
-      "{:.1f}/{:.1f}/{:.1f} us",
+      "{:.1f}/{:.1f}/{:.1f} us, publisher pre-wakes {} (timed out {})",
       c.edges, c.teeth, c.cycles, c.ring_drops_edge, c.ring_drops_can, c.ring_drops_out, c.overruns,
-      c.latency_p50_ns * 1e-3, c.latency_p99_ns * 1e-3, c.latency_max_ns * 1e-3);
+      c.latency_p50_ns * 1e-3, c.latency_p99_ns * 1e-3, c.latency_max_ns * 1e-3, c.publisher_polls,
+      c.publisher_poll_misses);
   return exit_code;
 }
 

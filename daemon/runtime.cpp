@@ -469,6 +469,8 @@ RuntimeCounters Runtime::counters() const noexcept {
   c.latency_p50_ns = lat_p50_.load(std::memory_order_relaxed);
   c.latency_p99_ns = lat_p99_.load(std::memory_order_relaxed);
   c.latency_max_ns = lat_max_.load(std::memory_order_relaxed);
+  c.publisher_polls = pub_polls_.load(std::memory_order_relaxed);
+  c.publisher_poll_misses = pub_poll_misses_.load(std::memory_order_relaxed);
   c.flags = flags_.load(std::memory_order_relaxed);
   if (edge_timeout_.load(std::memory_order_relaxed)) c.flags |= torque_STATUS_EDGE_TIMEOUT;
   c.sensor_timeouts = static_cast<std::uint32_t>(stale_mask_.load(std::memory_order_relaxed));
