@@ -52,6 +52,7 @@ TEST(RuntimeAllocation, RealTimeThreadsDoNotAllocateOverAFullReplay) {
   RuntimeOptions o;
   o.speed = 5.0;
   o.lock_memory = false;
+  o.publisher_spin_ns = 150'000;  // the daemon's default: the publisher pre-wake path runs (and under TSan)
   std::mutex m;
   // thread -> (at start, at exit); entries exist before the threads start so the hook itself never allocates.
   std::map<std::string, std::pair<std::size_t, std::size_t>> counts{
@@ -78,6 +79,7 @@ TEST(RuntimeAllocation, RealTimeThreadsDoNotAllocateOverAFullReplay) {
   EXPECT_GT(c.cycles, 20u);
   EXPECT_GT(sink.n.load(), 100u);
   EXPECT_EQ(c.ring_drops_edge + c.ring_drops_out, 0u);
+  EXPECT_GT(c.publisher_polls, 100u) << "the publisher pre-wakes for the tooth edges of a paced replay";
   ASSERT_EQ(counts.size(), 3u) << "source, angle and time threads";
   for (const auto& [name, n] : calls) EXPECT_EQ(n, 2) << name << ": hook not called at start and exit";
   for (const auto& [name, ab] : counts)
