@@ -71,52 +71,46 @@ struct Stats {
   [[nodiscard]] double max() const { return us.empty() ? 0 : *std::max_element(us.begin(), us.end()); }
 };
 
-/// Takes CrankState/EngineTorque samples and time-stamps them on arrival (from a listener or a waitset).
-struct Receiver {
-  dds_entity_t crank = 0, engine = 0;
-  Stats crank_us, engine_us, crank_in, crank_dds, engine_in, engine_dds;
-  std::array<torque_CrankState, 64> cb{};
-  std::array<torque_EngineTorque, 64> eb{};
-  std::array<void*, 64> cp{}, ep{};
+/// One topic's samples, time-stamped on arrival: edge -> received, split at the daemon's publish stamp.
+template <class Sample>
+struct TopicLatency {
+  dds_entity_t reader = 0;
+  Stats total, in_daemon, dds;
+  std::array<Sample, 64> buf{};
+  std::array<void*, 64> ptr{};
   std::array<dds_sample_info_t, 64> info{};
-  Receiver() {
-    for (std::size_t i = 0; i < 64; ++i) cp[i] = &cb[i], ep[i] = &eb[i];
-    crank_us.us.reserve(1 << 20);
-    crank_in.us.reserve(1 << 20);
-    crank_dds.us.reserve(1 << 20);
-    engine_us.us.reserve(1 << 16);
-    engine_in.us.reserve(1 << 16);
-    engine_dds.us.reserve(1 << 16);
+  TopicLatency() {
+    for (std::size_t i = 0; i < buf.size(); ++i) ptr[i] = &buf[i];
+    for (Stats* st : {&total, &in_daemon, &dds}) st->us.reserve(1 << 18);
   }
-  void take(dds_entity_t r, std::int64_t now) {
-    if (r == crank) {
-      const int n = dds_take(crank, cp.data(), info.data(), 64, 64);
-      for (int i = 0; i < n; ++i) {
-        const auto& v = cb[static_cast<std::size_t>(i)];
-        if (!info[static_cast<std::size_t>(i)].valid_data || v.ingest_t_ns <= 0) continue;
-        crank_us.add(static_cast<double>(now - v.ingest_t_ns) * 1e-3);
-        if (v.publish_t_ns > 0) {
-          crank_in.add(static_cast<double>(v.publish_t_ns - v.ingest_t_ns) * 1e-3);
-          crank_dds.add(static_cast<double>(now - v.publish_t_ns) * 1e-3);
-        }
-      }
-    } else if (r == engine) {
-      const int n = dds_take(engine, ep.data(), info.data(), 64, 64);
-      for (int i = 0; i < n; ++i) {
-        const auto& v = eb[static_cast<std::size_t>(i)];
-        if (!info[static_cast<std::size_t>(i)].valid_data || v.ingest_t_ns <= 0) continue;
-        engine_us.add(static_cast<double>(now - v.ingest_t_ns) * 1e-3);
-        if (v.publish_t_ns > 0) {
-          engine_in.add(static_cast<double>(v.publish_t_ns - v.ingest_t_ns) * 1e-3);
-          engine_dds.add(static_cast<double>(now - v.publish_t_ns) * 1e-3);
-        }
+  void take(std::int64_t now) {
+    const int n = dds_take(reader, ptr.data(), info.data(), buf.size(), buf.size());
+    for (int i = 0; i < n; ++i) {
+      const Sample& v = buf[static_cast<std::size_t>(i)];
+      if (!info[static_cast<std::size_t>(i)].valid_data || v.ingest_t_ns <= 0) continue;
+      total.add(static_cast<double>(now - v.ingest_t_ns) * 1e-3);
+      if (v.publish_t_ns > 0) {
+        in_daemon.add(static_cast<double>(v.publish_t_ns - v.ingest_t_ns) * 1e-3);
+        dds.add(static_cast<double>(now - v.publish_t_ns) * 1e-3);
       }
     }
   }
+};
+
+/// Takes CrankState/EngineTorque samples and time-stamps them on arrival (from a listener or a waitset).
+struct Receiver {
+  TopicLatency<torque_CrankState> crank;
+  TopicLatency<torque_EngineTorque> engine;
+  void take(dds_entity_t r, std::int64_t now) {
+    if (r == crank.reader)
+      crank.take(now);
+    else if (r == engine.reader)
+      engine.take(now);
+  }
   void take_all() {
     const std::int64_t now = now_realtime();
-    take(crank, now);
-    take(engine, now);
+    crank.take(now);
+    engine.take(now);
   }
   static void on_data(dds_entity_t r, void* arg) { static_cast<Receiver*>(arg)->take(r, now_realtime()); }
 };
@@ -222,6 +216,11 @@ int main(int argc, char** argv) {
   app.add_flag("--ddsperf", ddsperf,
                "run Cyclone's ddsperf ping/pong alongside and print its one-way latency");
   app.add_option("--ddsperf-rate", ddsperf_rate_hz, "ddsperf ping rate (Hz), comparable to the sample rate");
+  app.add_flag("--waitset", use_waitset,
+               "take samples from a waitset in the main thread instead of a listener (one more wake-up)");
+  app.add_option("--subscriber-priority", sub_prio,
+                 "SCHED_FIFO priority of this subscriber process and its DDS threads (0: SCHED_OTHER)")
+      ->check(CLI::Range(0, 99));
   CLI11_PARSE(app, argc, argv);
 
   // The subscriber's own scheduling: Cyclone's receive threads inherit the policy of the thread that creates
@@ -262,13 +261,13 @@ int main(int argc, char** argv) {
     dds_delete_qos(q);
     return r;
   };
-  rx.crank = reader(dds::Topic::kCrankState);
-  rx.engine = reader(dds::Topic::kEngineTorque);
+  rx.crank.reader = reader(dds::Topic::kCrankState);
+  rx.engine.reader = reader(dds::Topic::kEngineTorque);
   if (lis) dds_delete_listener(lis);
   const dds_entity_t ws = dds_create_waitset(pp);
   if (use_waitset) {
-    dds_waitset_attach(ws, dds_create_readcondition(rx.crank, DDS_ANY_STATE), 1);
-    dds_waitset_attach(ws, dds_create_readcondition(rx.engine, DDS_ANY_STATE), 2);
+    dds_waitset_attach(ws, dds_create_readcondition(rx.crank.reader, DDS_ANY_STATE), 1);
+    dds_waitset_attach(ws, dds_create_readcondition(rx.engine.reader, DDS_ANY_STATE), 2);
   }
 
   std::vector<pid_t> helpers;
@@ -305,11 +304,11 @@ int main(int argc, char** argv) {
     }
   }
   if (!use_waitset) {  // stop the listener before reading its statistics
-    dds_set_listener(rx.crank, nullptr);
-    dds_set_listener(rx.engine, nullptr);
+    dds_set_listener(rx.crank.reader, nullptr);
+    dds_set_listener(rx.engine.reader, nullptr);
   }
-  const Stats& crank_us = rx.crank_us;
-  const Stats& engine_us = rx.engine_us;
+  const Stats& crank_us = rx.crank.total;
+  const Stats& engine_us = rx.engine.total;
   kill(daemon, SIGTERM);
   int st = 0;
   waitpid(daemon, &st, 0);
@@ -323,15 +322,15 @@ int main(int argc, char** argv) {
               stress ? ", stress-ng --cpu 1" : "");
   std::printf("%-38s %8s %8s %8s %8s %8s\n", "path", "n", "p50_us", "p99_us", "p99.9_us", "max_us");
   auto row = [](const char* name, const Stats& st) {
-    std::printf("%-38s %8zu %8.1f %8.1f %8.1f %8.1f\n", name, st.us.size(), st.pct(50), st.pct(99), st.pct(99.9),
-                st.max());
+    std::printf("%-38s %8zu %8.1f %8.1f %8.1f %8.1f\n", name, st.us.size(), st.pct(50), st.pct(99),
+                st.pct(99.9), st.max());
   };
   row("tooth edge -> CrankState (subscriber)", crank_us);
-  row("  edge -> dds_write (in the daemon)", rx.crank_in);
-  row("  dds_write -> received (DDS)", rx.crank_dds);
+  row("  edge -> dds_write (in the daemon)", rx.crank.in_daemon);
+  row("  dds_write -> received (DDS)", rx.crank.dds);
   row("tooth edge -> EngineTorque (subscr.)", engine_us);
-  row("  edge -> dds_write (in the daemon)", rx.engine_in);
-  row("  dds_write -> received (DDS)", rx.engine_dds);
+  row("  edge -> dds_write (in the daemon)", rx.engine.in_daemon);
+  row("  dds_write -> received (DDS)", rx.engine.dds);
   std::printf("subscriber: %s, %s\n", use_waitset ? "waitset" : "listener (receive thread)",
               sub_prio > 0 ? "SCHED_FIFO requested" : "SCHED_OTHER");
   if (cyclic) {
