@@ -4,7 +4,6 @@
 #include <deque>
 
 #include "replay_merger.hpp"
-#include "replay_pacer.hpp"
 
 namespace torqued {
 namespace {
@@ -83,25 +82,6 @@ TEST(ReplayMerger, OneSourceOnlyAndErrorReportedOnce) {
   for (auto s : st) (s == SourceStatus::kError ? errors : oks)++;
   EXPECT_EQ(errors, 1);
   EXPECT_EQ(oks, 4);
-}
-
-TEST(ReplayPacer, AsFastAsPossibleNeverWaits) {
-  ReplayPacer p(0.0);
-  EXPECT_FALSE(p.paced());
-  const auto t0 = ReplayPacer::monotonic_ns();
-  for (int i = 0; i < 1000; ++i) EXPECT_EQ(p.wait_until(std::int64_t{i} * 1'000'000'000), 0);
-  EXPECT_LT(ReplayPacer::monotonic_ns() - t0, 1'000'000'000);  // 1000 s of recording: certainly not waited
-}
-
-TEST(ReplayPacer, KeepsRecordingTimingScaled) {
-  // Speed 2: 40 ms of recording take ~20 ms. Only the lower bound is asserted (no timing upper bounds in tests).
-  ReplayPacer p(2.0);
-  const auto t0 = ReplayPacer::monotonic_ns();
-  p.wait_until(1'000'000'000);
-  p.wait_until(1'020'000'000);
-  p.wait_until(1'040'000'000);
-  EXPECT_GE(ReplayPacer::monotonic_ns() - t0, 20'000'000);
-  EXPECT_EQ(p.due_ns(1'040'000'000) - p.due_ns(1'000'000'000), 20'000'000);
 }
 
 }  // namespace
