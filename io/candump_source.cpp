@@ -133,13 +133,7 @@ SourceStatus CandumpSource::next(CanFrame& out) noexcept {
     ++stats_.records;
     return SourceStatus::kOk;
   }
-  stats_.bytes = reader_.bytes();
-  stats_.lines = reader_.line_number();
-  if (!reader_.error().empty()) {
-    error_ = path_ + ": read error: " + reader_.error();
-    return SourceStatus::kError;
-  }
-  return SourceStatus::kEnd;
+  return finish_lines(reader_, path_, stats_, error_);
 }
 
 }  // namespace torqued

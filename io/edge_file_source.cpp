@@ -207,17 +207,7 @@ SourceStatus EdgeCsvSource::next(EdgeEvent& out) noexcept {
       reader_.consume_line(len + 1);
     } else {
       std::string_view line;
-      if (!reader_.next(line)) {
-        stats_.bytes = reader_.bytes();
-        stats_.lines = reader_.line_number();
-        if (!reader_.error().empty()) {
-          error_ = path_ + ": read error: " + reader_.error();
-          return SourceStatus::kError;
-        }
-        return SourceStatus::kEnd;
-      }
-      stats_.bytes = reader_.bytes();
-      stats_.lines = reader_.line_number();
+      if (!reader_.next(line)) return finish_lines(reader_, path_, stats_, error_);
       const std::size_t n = parse_row_fast(line.data(), line.size(), t, crank, cam);
       if ((n == 0 || n != line.size()) && !parse_row(line, t, crank, cam)) continue;
     }
@@ -281,12 +271,7 @@ SourceStatus EdgeListSource::next(EdgeEvent& out) noexcept {
     ++stats_.records;
     return SourceStatus::kOk;
   }
-  stats_.bytes = reader_.bytes();
-  if (!reader_.error().empty()) {
-    error_ = path_ + ": read error: " + reader_.error();
-    return SourceStatus::kError;
-  }
-  return SourceStatus::kEnd;
+  return finish_lines(reader_, path_, stats_, error_);
 }
 
 }  // namespace torqued

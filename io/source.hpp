@@ -37,6 +37,19 @@ struct SourceStats {
   std::uint64_t reopens = 0;    ///< live backends: times the device was reopened after an error
 };
 
+/// End of a line-based file source: final byte and line counts; kError with `error` = "<path>: read error: ..."
+/// when the reader failed, else kEnd. `Reader`: LineReader (bytes(), line_number(), error()).
+template <class Reader>
+SourceStatus finish_lines(const Reader& r, const std::string& path, SourceStats& stats, std::string& error) {
+  stats.bytes = r.bytes();
+  stats.lines = r.line_number();
+  if (!r.error().empty()) {
+    error = path + ": read error: " + r.error();
+    return SourceStatus::kError;
+  }
+  return SourceStatus::kEnd;
+}
+
 /// Source of crank/cam edge events (edge capture file, bare edge list, GPIO, CAN encoder interface).
 class EdgeSource {
  public:
