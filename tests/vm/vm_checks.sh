@@ -22,10 +22,11 @@ dbc=""
 [ -f "$in/demo.dbc" ] && dbc="--dbc $in/demo.dbc"
 run_check frames "$build/tests/vm/vm_can_check" frames --log "$in/can.log" $dbc --iface vcan0
 run_check encoder "$build/tests/vm/vm_can_check" encoder --edges "$in/edges.csv" --log "$in/encoder.log" --tick-ns 1 --iface vcan0
-# candump captures what the project itself sends (torque-canreplay send, 4x speed).
+# candump captures what the project itself sends (torque-canreplay send, 2x speed). Under software emulation on a
+# busy host candump can fall behind: a 4 MiB socket buffer (-r) so it drops nothing, and a generous time-out.
 n=$(grep -c '^(' "$in/can.log")
-run_check send sh -c "timeout 60 candump -L -n $n vcan0 >/tmp/captured.log & cpid=\$!; sleep 0.5; \
-  $build/tools/torque-canreplay send --fd --speed 4 --iface vcan0 $in/can.log && wait \$cpid && \
+run_check send sh -c "timeout 120 candump -r 4194304 -L -n $n vcan0 >/tmp/captured.log & cpid=\$!; sleep 0.5; \
+  $build/tools/torque-canreplay send --fd --speed 2 --iface vcan0 $in/can.log && wait \$cpid && \
   $build/tests/vm/vm_can_check compare --a $in/can.log --b /tmp/captured.log"
 run_check downup "$build/tests/vm/vm_can_check" downup --iface vcan0
 echo "vm checks failed: $fails"
