@@ -18,7 +18,7 @@ struct ReplayResult {
   RuntimeCounters counters;
   std::uint64_t samples = 0;       ///< samples emitted
   std::int64_t first_t_ns = 0, last_t_ns = 0;
-  double wall_s = 0.0;             ///< wall time of the run (s)
+  double wall_s = 0.0;             ///< wall time of the loop (s), up to the sink flushed (recording written)
   std::string error;               ///< a source failed (the replay kept going with the other)
   [[nodiscard]] double speedup() const noexcept {
     return wall_s > 0.0 ? static_cast<double>(last_t_ns - first_t_ns) * 1e-9 / wall_s : 0.0;

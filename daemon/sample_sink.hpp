@@ -11,6 +11,8 @@ class SampleSink {
  public:
   virtual ~SampleSink() = default;
   virtual void emit(const dds::AnySample& s) noexcept = 0;
+  /// End of a run: buffered output goes to its files (not called on the real-time threads).
+  virtual void flush() noexcept {}
 };
 
 /// Tooth samples from the angle stage to the time stage (mean speed for the time-domain estimators).

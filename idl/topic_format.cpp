@@ -48,75 +48,75 @@ struct HeaderVisitor {
   }
 };
 
-/// CSV row writer: formats into a fixed stack buffer and appends to the string once per row (the per-field
-/// std::string appends were a third of the fast-replay recorder's cost). Numbers: csv_number.hpp (integers in
-/// decimal, doubles in fixed point at the column's resolution; the shortest round-trip std::to_chars form was
-/// the recorder's main cost).
-struct RowWriter {
-  explicit RowWriter(std::string& o) : out(o) {}  // buf deliberately left uninitialised
-  std::string& out;
-  char buf[1024];
-  char* p = buf;
-  static constexpr std::size_t kRoom = 64;  // >= longest number (shortest double: 24 chars) + separator
-  void spill() {
-    out.append(buf, p);
-    p = buf;
+/// CSV numbers (csv_number.hpp): integers in decimal, doubles in fixed point at the column's resolution (the
+/// shortest round-trip std::to_chars form was the recorder's main cost).
+template <class V> [[gnu::always_inline]] inline char* csv_value(char* p, V v, int decimals) noexcept {
+  if constexpr (std::is_same_v<V, bool>) {
+    *p = v ? '1' : '0';
+    return p + 1;
+  } else if constexpr (std::is_floating_point_v<V>) {
+    return csv::write_column_double(p, static_cast<double>(v), decimals);
+  } else if constexpr (std::is_signed_v<V>) {
+    return csv::write_int(p, static_cast<std::int64_t>(v));
+  } else {
+    return csv::write_uint(p, static_cast<std::uint64_t>(v));
   }
-  template <class V> [[gnu::always_inline]] void number(V v, int decimals = 6) {
-    if (static_cast<std::size_t>(buf + sizeof buf - p) < kRoom) spill();
-    if constexpr (std::is_same_v<V, bool>) {
-      *p++ = v ? '1' : '0';
-    } else if constexpr (std::is_floating_point_v<V>) {
-      p = csv::write_column_double(p, static_cast<double>(v), decimals);
-    } else if constexpr (std::is_signed_v<V>) {
-      p = csv::write_int(p, static_cast<std::int64_t>(v));
-    } else {
-      p = csv::write_uint(p, static_cast<std::uint64_t>(v));
-    }
-  }
-};
+}
 
-/// Per topic, computed once from the field names: the decimals of each double column and the index of
-/// source_t_ns (written first as t_ns). Name look-ups per row were not folded by the compiler.
+/// Per topic, computed at compile time from the field names: the decimals of each double column, the index
+/// of source_t_ns (written first as t_ns) and the number of columns. Name look-ups per row were not folded by
+/// the compiler; a function-local static plan cost a guard check per row.
 struct RowPlan {
   std::array<std::int8_t, 64> decimals{};
   int skip = -1;
+  int columns = 1;  // t_ns
 };
 struct PlanVisitor {
   RowPlan& plan;
   std::size_t i = 0;
-  template <class V> void operator()(std::string_view name, const V&) {
+  template <class V> constexpr void operator()(std::string_view name, const V&) {
     if (name == "source_t_ns") plan.skip = static_cast<int>(i);
+    else ++plan.columns;
     plan.decimals.at(i++) = static_cast<std::int8_t>(csv::csv_decimals(name));
   }
-  template <class V> void operator()(std::string_view name, const V*, int) {
+  template <class V> constexpr void operator()(std::string_view name, const V*, int n) {
+    plan.columns += n;
     plan.decimals.at(i++) = static_cast<std::int8_t>(csv::csv_decimals(name));
   }
 };
-template <class T> RowPlan make_row_plan() {
+template <class T> constexpr RowPlan make_row_plan() {
   RowPlan plan;
   visit_fields(T{}, PlanVisitor{plan});
   return plan;
 }
+template <class T> inline constexpr RowPlan kRowPlan = make_row_plan<T>();
+/// Room per column: ',' + the longest number (write_fixed: 40 bytes of room, shortest double: 24 chars).
+constexpr std::size_t kColumnRoom = 48;
+template <class T> inline constexpr std::size_t kRowMaxChars = static_cast<std::size_t>(kRowPlan<T>.columns) * kColumnRoom + 1;
 
-struct RowVisitor {
-  RowWriter& w;
-  const RowPlan& plan;
+/// CSV row writer: straight into the caller's buffer (room checked once per row by the caller), the write
+/// position in a register (the former stack buffer + std::string append per row, with the position in
+/// memory, reloaded after every char store, was half of the row cost).
+template <class T> struct RowVisitor {
+  char* p;
   int i = 0;
   template <class V> [[gnu::always_inline]] void operator()(std::string_view, const V& v) {
     const int k = i++;
     if constexpr (std::is_same_v<V, std::int64_t>) {
-      if (k == plan.skip) return;
+      if (k == kRowPlan<T>.skip) return;
     }
-    *w.p++ = ',';
-    w.number(v, plan.decimals[static_cast<std::size_t>(k)]);
+    char* q = p;
+    *q++ = ',';
+    p = csv_value(q, v, kRowPlan<T>.decimals[static_cast<std::size_t>(k)]);
   }
   template <class V> [[gnu::always_inline]] void operator()(std::string_view, const V* a, int n) {
-    const int d = plan.decimals[static_cast<std::size_t>(i++)];
+    const int d = kRowPlan<T>.decimals[static_cast<std::size_t>(i++)];
+    char* q = p;
     for (int j = 0; j < n; ++j) {
-      *w.p++ = ',';
-      w.number(a[j], d);
+      *q++ = ',';
+      q = csv_value(q, a[j], d);
     }
+    p = q;
   }
 };
 
@@ -165,13 +165,18 @@ template <class T> std::string csv_header() {
   return out;
 }
 
+template <class T> std::size_t csv_row_max_chars() noexcept { return kRowMaxChars<T>; }
+
+template <class T> [[gnu::flatten]] char* write_csv_row(char* p, const T& s) noexcept {
+  RowVisitor<T> v{csv_value(p, s.source_t_ns, 0)};
+  visit_fields(s, v);
+  *v.p = '\n';
+  return v.p + 1;
+}
+
 template <class T> void append_csv_row(std::string& out, const T& s) {
-  static const RowPlan plan = make_row_plan<T>();
-  RowWriter w(out);
-  w.number(s.source_t_ns);
-  visit_fields(s, RowVisitor{w, plan});
-  *w.p++ = '\n';
-  w.spill();
+  char buf[kRowMaxChars<T>];
+  out.append(buf, write_csv_row(buf, s));
 }
 
 template <class T> void append_json(std::string& out, const T& s) {
@@ -231,6 +236,8 @@ template <> void append_table_row(std::string& out, const torque_DaemonStatus& s
 #define TORQUED_INSTANTIATE(T)                                  \
   template std::string csv_header<T>();                         \
   template void append_csv_row<T>(std::string&, const T&);      \
+  template std::size_t csv_row_max_chars<T>() noexcept;         \
+  template char* write_csv_row<T>(char*, const T&) noexcept;    \
   template void append_json<T>(std::string&, const T&);
 TORQUED_INSTANTIATE(torque_EngineTorque)
 TORQUED_INSTANTIATE(torque_EstimatorTorque)

@@ -12,8 +12,9 @@
 
 namespace torqued::dds {
 
-/// Calls f(name, value) for each field in declaration order (arrays: f(name, array, count)).
-template <class F> void visit_fields(const torque_EngineTorque& s, F&& f) {
+/// Calls f(name, value) for each field in declaration order (arrays: f(name, array, count)). constexpr: the CSV
+/// row plan (decimals per column) is computed at compile time.
+template <class F> constexpr void visit_fields(const torque_EngineTorque& s, F&& f) {
   f("engine_id", s.engine_id); f("seq", s.seq); f("source_t_ns", s.source_t_ns); f("ingest_t_ns", s.ingest_t_ns);
   f("publish_t_ns", s.publish_t_ns); f("validity", s.validity); f("kind", s.kind); f("cylinder", s.cylinder);
   f("cycle", s.cycle); f("window_start_t_ns", s.window_start_t_ns); f("speed_rad_s", s.speed_rad_s);
@@ -21,24 +22,24 @@ template <class F> void visit_fields(const torque_EngineTorque& s, F&& f) {
   f("friction_nm", s.friction_nm); f("load_nm", s.load_nm); f("fused_nm", s.fused_nm); f("quality", s.quality);
   f("fused_source", s.fused_source); f("input_age_ns", s.input_age_ns);
 }
-template <class F> void visit_fields(const torque_EstimatorTorque& s, F&& f) {
+template <class F> constexpr void visit_fields(const torque_EstimatorTorque& s, F&& f) {
   f("engine_id", s.engine_id); f("method", s.method); f("seq", s.seq); f("source_t_ns", s.source_t_ns);
   f("ingest_t_ns", s.ingest_t_ns); f("publish_t_ns", s.publish_t_ns); f("validity", s.validity);
   f("value_nm", s.value_nm); f("uncertainty", s.uncertainty); f("health", s.health);
 }
-template <class F> void visit_fields(const torque_CylinderTorque& s, F&& f) {
+template <class F> constexpr void visit_fields(const torque_CylinderTorque& s, F&& f) {
   f("engine_id", s.engine_id); f("seq", s.seq); f("source_t_ns", s.source_t_ns); f("ingest_t_ns", s.ingest_t_ns);
   f("publish_t_ns", s.publish_t_ns); f("validity", s.validity); f("cycle", s.cycle); f("cylinders", s.cylinders);
   f("indicated_nm", s.indicated_nm, 8); f("imbalance_pct", s.imbalance_pct, 8); f("misfire_mask", s.misfire_mask);
   f("health", s.health);
 }
-template <class F> void visit_fields(const torque_CrankState& s, F&& f) {
+template <class F> constexpr void visit_fields(const torque_CrankState& s, F&& f) {
   f("engine_id", s.engine_id); f("seq", s.seq); f("source_t_ns", s.source_t_ns); f("ingest_t_ns", s.ingest_t_ns);
   f("publish_t_ns", s.publish_t_ns); f("validity", s.validity); f("tooth", s.tooth); f("sync", s.sync);
   f("phase_known", s.phase_known); f("angle_rad", s.angle_rad); f("speed_rad_s", s.speed_rad_s);
   f("accel_rad_s2", s.accel_rad_s2); f("events", s.events);
 }
-template <class F> void visit_fields(const torque_DaemonStatus& s, F&& f) {
+template <class F> constexpr void visit_fields(const torque_DaemonStatus& s, F&& f) {
   f("engine_id", s.engine_id); f("seq", s.seq); f("source_t_ns", s.source_t_ns); f("ingest_t_ns", s.ingest_t_ns);
   f("publish_t_ns", s.publish_t_ns); f("validity", s.validity); f("health", s.health); f("flags", s.flags);
   f("uptime_ns", s.uptime_ns); f("edges", s.edges); f("teeth", s.teeth); f("can_frames", s.can_frames);
@@ -52,6 +53,11 @@ template <class F> void visit_fields(const torque_DaemonStatus& s, F&& f) {
 template <class T> std::string csv_header();
 /// Appends one CSV row (with '\n'); t_ns = source_t_ns first.
 template <class T> void append_csv_row(std::string& out, const T& s);
+/// Upper bound of the length of one CSV row of T (with '\n'): the room write_csv_row needs.
+template <class T> std::size_t csv_row_max_chars() noexcept;
+/// Writes one CSV row (with '\n') at p, which has room for csv_row_max_chars<T>() chars; returns the end.
+/// Same bytes as append_csv_row (the recorder's path: no std::string in between).
+template <class T> char* write_csv_row(char* p, const T& s) noexcept;
 /// Appends one JSON object line (with '\n') {"topic":"EngineTorque","engine_id":1,...}.
 template <class T> void append_json(std::string& out, const T& s);
 /// Appends a compact human-readable line (with '\n') for the terminal table of torque-echo.

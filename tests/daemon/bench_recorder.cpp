@@ -50,6 +50,22 @@ void BM_CsvRowEstimatorTorque(benchmark::State& st) {
 }
 BENCHMARK(BM_CsvRowEstimatorTorque);
 
+/// The recorder's path: write_csv_row straight into a buffer (no std::string).
+void BM_CsvRowEstimatorTorqueRaw(benchmark::State& st) {
+  const auto rows = estimator_rows();
+  std::vector<char> buf(1 << 20);
+  char* p = buf.data();
+  char* const end = buf.data() + (1 << 19);
+  std::size_t i = 0;
+  for (auto _ : st) {
+    p = dds::write_csv_row(p, rows[i++ & 4095]);
+    if (p > end) p = buf.data();
+  }
+  benchmark::DoNotOptimize(p);
+  st.SetItemsProcessed(st.iterations());
+}
+BENCHMARK(BM_CsvRowEstimatorTorqueRaw);
+
 void BM_CsvRowCrankState(benchmark::State& st) {
   torque_CrankState c{};
   c.engine_id = 1;
