@@ -19,6 +19,7 @@
 #include "fast_replay.hpp"
 #include "logging.hpp"
 #include "output_fanout.hpp"
+#include "rt_setup.hpp"
 #include "runtime.hpp"
 #include "sample_recorder.hpp"
 #include "stage_settings.hpp"
@@ -168,7 +169,11 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   }
   std::unique_ptr<DdsPublisher> publisher;
   if (!opt.no_dds) {
-    publisher = std::make_unique<DdsPublisher>(s.dds, /*stamp_times=*/!fast);
+    {
+      // Cyclone's threads inherit the publisher thread's scheduling (see ScopedThreadRt); refused: as before.
+      const ScopedThreadRt as_publisher(fast ? ThreadRt{} : thread_rt(cfg.realtime.publisher, ""));
+      publisher = std::make_unique<DdsPublisher>(s.dds, /*stamp_times=*/!fast);
+    }
     if (!publisher->ok()) {
       spdlog::critical("dds: {}", publisher->error());
       return 1;

@@ -41,7 +41,8 @@ RtOutcome apply_to_current_thread(const ThreadRt& rt) noexcept {
     CPU_ZERO(&set);
     for (int c : rt.cpus)
       if (c >= 0 && c < CPU_SETSIZE) CPU_SET(c, &set);
-    if (const int err = pthread_setaffinity_np(pthread_self(), sizeof set, &set)) fail(o, "pthread_setaffinity_np", err);
+    if (const int err = pthread_setaffinity_np(pthread_self(), sizeof set, &set))
+      fail(o, "pthread_setaffinity_np", err);
   }
   sched_param sp{};
   sp.sched_priority = rt.fifo ? rt.priority : 0;
@@ -49,6 +50,28 @@ RtOutcome apply_to_current_thread(const ThreadRt& rt) noexcept {
     fail(o, rt.fifo ? "pthread_setschedparam(SCHED_FIFO)" : "pthread_setschedparam(SCHED_OTHER)", err);
   prefault_stack();
   return o;
+}
+
+ScopedThreadRt::ScopedThreadRt(const ThreadRt& rt) noexcept {
+  static_assert(sizeof(cpu_set_t) <= sizeof affinity_);
+  sched_param sp{};
+  have_policy_ = pthread_getschedparam(pthread_self(), &policy_, &sp) == 0;
+  priority_ = sp.sched_priority;
+  auto* set = reinterpret_cast<cpu_set_t*>(affinity_);
+  have_affinity_ = pthread_getaffinity_np(pthread_self(), sizeof(cpu_set_t), set) == 0;
+  ThreadRt unnamed = rt;
+  unnamed.name = "";
+  if (!rt.cpus.empty() || rt.fifo) outcome_ = apply_to_current_thread(unnamed);
+}
+
+ScopedThreadRt::~ScopedThreadRt() {
+  if (have_affinity_)
+    pthread_setaffinity_np(pthread_self(), sizeof(cpu_set_t), reinterpret_cast<cpu_set_t*>(affinity_));
+  if (have_policy_) {
+    sched_param sp{};
+    sp.sched_priority = priority_;
+    pthread_setschedparam(pthread_self(), policy_, &sp);
+  }
 }
 
 }  // namespace torqued

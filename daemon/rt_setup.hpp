@@ -10,22 +10,44 @@
 namespace torqued {
 
 struct ThreadRt {
-  bool fifo = false;       ///< SCHED_FIFO (true) or SCHED_OTHER
-  int priority = 0;        ///< 1..99 for SCHED_FIFO
-  std::vector<int> cpus;   ///< affinity (empty = any)
-  const char* name = "";   ///< thread name (pthread_setname_np, max 15 chars)
+  bool fifo = false;      ///< SCHED_FIFO (true) or SCHED_OTHER
+  int priority = 0;       ///< 1..99 for SCHED_FIFO
+  std::vector<int> cpus;  ///< affinity (empty = any)
+  const char* name = "";  ///< thread name (pthread_setname_np, max 15 chars)
 };
 
 struct RtOutcome {
-  bool ok = true;               ///< everything requested was applied
-  bool not_permitted = false;   ///< at least one step failed with EPERM/EACCES
-  std::string message;          ///< what failed and why (errno text)
+  bool ok = true;              ///< everything requested was applied
+  bool not_permitted = false;  ///< at least one step failed with EPERM/EACCES
+  std::string message;         ///< what failed and why (errno text)
 };
 
 /// mlockall(MCL_CURRENT | MCL_FUTURE).
 RtOutcome lock_memory() noexcept;
 /// Applies affinity, policy/priority and the name to the CALLING thread, then prefaults its stack.
 RtOutcome apply_to_current_thread(const ThreadRt& rt) noexcept;
+/// Gives the calling thread `rt`'s policy, priority and affinity (not its name) until destroyed, then
+/// restores what it had. Threads created meanwhile inherit them: used around dds_create_participant so
+/// Cyclone's own threads (receive, timed events, gc) run with the publisher's scheduling. Otherwise a
+/// SCHED_OTHER Cyclone thread holding a writer lock can be preempted by ordinary load for a whole CFS slice
+/// while the real-time publisher waits on that lock (a priority inversion of several milliseconds).
+class ScopedThreadRt {
+ public:
+  explicit ScopedThreadRt(const ThreadRt& rt) noexcept;
+  ~ScopedThreadRt();
+  ScopedThreadRt(const ScopedThreadRt&) = delete;
+  ScopedThreadRt& operator=(const ScopedThreadRt&) = delete;
+  [[nodiscard]] const RtOutcome& outcome() const noexcept { return outcome_; }
+
+ private:
+  int policy_ = 0;
+  int priority_ = 0;
+  bool have_policy_ = false;
+  bool have_affinity_ = false;
+  alignas(8) unsigned char affinity_[128] = {};  // cpu_set_t (kept opaque here)
+  RtOutcome outcome_;
+};
+
 /// Touches `bytes` of the calling thread's stack so later use does not page-fault.
 void prefault_stack(std::size_t bytes = 256 * 1024) noexcept;
 

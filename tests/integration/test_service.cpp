@@ -4,15 +4,19 @@
 //   - SIGTERM drains and exits 0 within a bounded time with complete CSV files;
 //   - SIGHUP reloads the safe parts of the configuration;
 //   - learned state survives kill -9 (atomic writes) and is loaded at the next start;
-//   - fast replay through the real binary is byte-identical across runs (determinism).
+//   - fast replay through the real binary is byte-identical across runs (determinism);
+//   - Cyclone DDS's own threads in the daemon run with the publisher thread's real-time scheduling.
 #include <gtest/gtest.h>
+#include <sched.h>
 #include <sys/socket.h>
 #include <sys/un.h>
 
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <thread>
+#include <tuple>
 
 #include "process.hpp"
 #include "state_store.hpp"
@@ -255,6 +259,61 @@ TEST_F(Service, FastReplayOfDemoIsByteIdentical) {
     ++files;
   }
   EXPECT_EQ(files, 6);
+}
+
+/// Scheduling policy and priority of every thread of `pid`, by thread name.
+std::vector<std::tuple<std::string, int, int>> thread_scheduling(pid_t pid) {
+  std::vector<std::tuple<std::string, int, int>> out;
+  for (const auto& t : fs::directory_iterator("/proc/" + std::to_string(pid) + "/task")) {
+    const auto tid = static_cast<pid_t>(std::stol(t.path().filename().string()));
+    std::string name = test::slurp((t.path() / "comm").string());
+    while (!name.empty() && name.back() == '\n') name.pop_back();
+    sched_param sp{};
+    const int policy = ::sched_getscheduler(tid);
+    ::sched_getparam(tid, &sp);
+    out.emplace_back(name, policy, sp.sched_priority);
+  }
+  return out;
+}
+
+// A SCHED_OTHER Cyclone thread (timed events, receive, gc) that holds a writer lock can be preempted by
+// ordinary load for a whole CFS slice while the SCHED_FIFO publisher waits on that lock. The daemon creates
+// its participant with the publisher's scheduling so Cyclone's threads inherit it.
+TEST_F(Service, CycloneThreadsInheritThePublisherScheduling) {
+  {  // needs permission for SCHED_FIFO (root or CAP_SYS_NICE): checked on a throw-away thread of our own
+    bool permitted = false;
+    std::thread([&] {
+      sched_param sp{};
+      sp.sched_priority = 1;
+      permitted = ::pthread_setschedparam(::pthread_self(), SCHED_FIFO, &sp) == 0;
+    }).join();
+    if (!permitted) GTEST_SKIP() << "SCHED_FIFO not permitted here";
+  }
+  const std::string cfg = test::write_demo_config(
+      dir_.string(), "realtime:", "realtime:\n  publisher: {policy: fifo, priority: 42}");
+  test::Process d(
+      {TORQUED_EXE, "--config", cfg, "--state-dir", (dir_ / "state").string()},
+      {std::string("CYCLONEDDS_URI=file://") + TORQUED_SOURCE_DIR + "/config/cyclonedds-loopback.xml"},
+      (dir_ / "daemon.log").string());
+  ASSERT_TRUE(test::eventually(15, [&] { return log().find("running") != std::string::npos; })) << log();
+  std::map<std::string, std::pair<int, int>> by_name;
+  for (const auto& [name, policy, prio] : thread_scheduling(d.pid())) by_name[name] = {policy, prio};
+  d.signal(SIGTERM);
+  EXPECT_TRUE(d.wait(5));
+  std::string all;
+  for (const auto& [name, pp] : by_name)
+    all += name + ":" + std::to_string(pp.first) + "/" + std::to_string(pp.second) + " ";
+  ASSERT_TRUE(by_name.count("torqued-pub")) << all;
+  EXPECT_EQ(by_name["torqued-pub"], std::make_pair(SCHED_FIFO, 42)) << all;
+  int cyclone = 0;
+  for (const char* n : {"tev", "gc", "recv", "recvUC", "dq.builtins"}) {
+    if (!by_name.count(n)) continue;
+    ++cyclone;
+    EXPECT_EQ(by_name[n], std::make_pair(SCHED_FIFO, 42)) << n << " in " << all;
+  }
+  EXPECT_GE(cyclone, 3) << "Cyclone's threads not found by name: " << all;
+  // The main (supervisor) thread went back to what it had.
+  EXPECT_EQ(by_name["torqued"].first, SCHED_OTHER) << all;
 }
 
 }  // namespace
