@@ -38,9 +38,13 @@ std::int64_t now_realtime() {
 pid_t spawn(const std::vector<std::string>& argv, const char* log) {
   const pid_t p = fork();
   if (p == 0) {
-    sched_param
-        sp{};  // children (daemon, stress-ng, ...) pick their own scheduling, not this subscriber's FIFO
+    // Children (daemon, stress-ng, ...) pick their own scheduling and CPUs, not this subscriber's.
+    sched_param sp{};
     sched_setscheduler(0, SCHED_OTHER, &sp);
+    cpu_set_t all;
+    CPU_ZERO(&all);
+    for (int c = 0; c < CPU_SETSIZE; ++c) CPU_SET(c, &all);
+    sched_setaffinity(0, sizeof all, &all);
     if (log) {
       FILE* f = std::fopen(log, "w");
       if (f) {
@@ -203,7 +207,7 @@ int main(int argc, char** argv) {
   std::string torqued = "torqued", config, ddsperf_log = "/tmp/torque-latency-ddsperf.log";
   double duration_s = 15, speed = 1.0;
   bool stress = false, cyclic = false, ddsperf = false, use_waitset = false;
-  int sub_prio = 70, ddsperf_rate_hz = 500;
+  int sub_prio = 70, ddsperf_rate_hz = 500, sub_cpu = -1, stress_cpu = -1;
   CLI::App app{
       "torque-latency: tooth edge -> subscriber latency of torqued in paced replay (p50/p99/p99.9/max + "
       "histogram), optionally with stress-ng --cpu 1, cyclictest and ddsperf alongside"};
@@ -221,7 +225,21 @@ int main(int argc, char** argv) {
   app.add_option("--subscriber-priority", sub_prio,
                  "SCHED_FIFO priority of this subscriber process and its DDS threads (0: SCHED_OTHER)")
       ->check(CLI::Range(0, 99));
+  app.add_option(
+      "--subscriber-cpu", sub_cpu,
+      "pin this subscriber (all its DDS threads) to this CPU; cyclictest and ddsperf (ping and pong) "
+      "then run on it too, so their floors are the same CPU's (-1: not pinned)");
+  app.add_option("--stress-cpu", stress_cpu, "pin stress-ng to this CPU (-1: not pinned)");
   CLI11_PARSE(app, argc, argv);
+
+  if (sub_cpu >= 0) {
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(sub_cpu, &set);
+    if (sched_setaffinity(0, sizeof set, &set) != 0)
+      std::fprintf(stderr, "torque-latency: CPU %d refused (%s): subscriber not pinned\n", sub_cpu,
+                   std::strerror(errno));
+  }
 
   // The subscriber's own scheduling: Cyclone's receive threads inherit the policy of the thread that creates
   // the participant, so a SCHED_FIFO main thread makes the whole receive path real-time (as a real
@@ -272,23 +290,30 @@ int main(int argc, char** argv) {
 
   std::vector<pid_t> helpers;
   const std::string dur = std::to_string(static_cast<int>(duration_s + 3));
-  if (stress)
-    helpers.push_back(spawn({"stress-ng", "--cpu", "1", "--timeout", dur + "s", "--quiet"}, "/dev/null"));
-  if (cyclic)
-    helpers.push_back(spawn({"cyclictest", "-m", "-q", "-p", "80", "-i", "1000", "-h", "2000", "-D", dur},
-                            "/tmp/torque-latency-cyclictest.log"));
+  if (stress) {
+    std::vector<std::string> a{"stress-ng", "--cpu", "1", "--timeout", dur + "s", "--quiet"};
+    if (stress_cpu >= 0) a.insert(a.end(), {"--taskset", std::to_string(stress_cpu)});
+    helpers.push_back(spawn(a, "/dev/null"));
+  }
+  if (cyclic) {
+    std::vector<std::string> a{"cyclictest", "-m", "-q", "-p", "80", "-i", "1000", "-h", "2000", "-D", dur};
+    if (sub_cpu >= 0) a.insert(a.end(), {"-a", std::to_string(sub_cpu)});
+    helpers.push_back(spawn(a, "/tmp/torque-latency-cyclictest.log"));
+  }
   if (ddsperf) {
     // Same scheduling as our subscriber, and pinged at a rate like the tooth rate (a CPU woken from idle for
     // each sample is much slower than back-to-back ping-pong, so the unpaced figure is not a fair floor).
     const std::string prio = std::to_string(sub_prio > 0 ? sub_prio : 1);
     const std::string rate = std::to_string(ddsperf_rate_hz) + "Hz";
-    if (sub_prio > 0) {
-      helpers.push_back(spawn({"chrt", "-f", prio, "ddsperf", "-D", dur, "pong"}, "/dev/null"));
-      helpers.push_back(spawn({"chrt", "-f", prio, "ddsperf", "-D", dur, "ping", rate}, ddsperf_log.c_str()));
-    } else {
-      helpers.push_back(spawn({"ddsperf", "-D", dur, "pong"}, "/dev/null"));
-      helpers.push_back(spawn({"ddsperf", "-D", dur, "ping", rate}, ddsperf_log.c_str()));
-    }
+    std::vector<std::string> pre;
+    if (sub_cpu >= 0) pre.insert(pre.end(), {"taskset", "-c", std::to_string(sub_cpu)});
+    if (sub_prio > 0) pre.insert(pre.end(), {"chrt", "-f", prio});
+    auto with_pre = [&pre](std::vector<std::string> a) {
+      a.insert(a.begin(), pre.begin(), pre.end());
+      return a;
+    };
+    helpers.push_back(spawn(with_pre({"ddsperf", "-D", dur, "pong"}), "/dev/null"));
+    helpers.push_back(spawn(with_pre({"ddsperf", "-D", dur, "ping", rate}), ddsperf_log.c_str()));
   }
   const pid_t daemon = spawn({torqued, "--config", config, "--speed", std::to_string(speed),
                               "--wait-subscribers", "1", "--state-dir", "/tmp/torque-latency-state"},
