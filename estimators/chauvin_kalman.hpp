@@ -85,6 +85,7 @@ class ChauvinKalman {
 
   Vec x_ = Vec::Zero();
   Mat p_ = Mat::Zero();
+  bool p_finite_ = true;                  ///< p_.allFinite() as of its last change (APS: P changes only at a restart)
   Vec last_gain_ = Vec::Zero();
   TorqueEstimate est_;
   int est_tooth_ = 0;

@@ -167,16 +167,26 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
   if (ref_speed_ > 0.0 && mean_speed_ > ref_speed_) scale = (ref_speed_ / mean_speed_) * (ref_speed_ / mean_speed_);
   const double d = table_.step_rad[static_cast<std::size_t>(k)] * scale;
   const double err = phi_ - phi_meas;  // (CF-8): L_n (ŷ_n − y_n) = Δα [L_ke, l_j f_j]ᵀ (φ̂ − ½ J y)
-  const double t_model = net_torque_at(k);
-  phi_ += table_.step_rad[static_cast<std::size_t>(k)] * (t_model - params_.l_ke * err);
-  const double* f = &basis_[static_cast<std::size_t>(k * nc_)];
-  for (int j = 0; j < nc_; ++j) c_[static_cast<std::size_t>(j)] -= d * l_[static_cast<std::size_t>(j)] * f[j] * err;
-  ++stats_.updates;
-  ++teeth_seen_;
   // Torque at e_k reaches the energy error only at later teeth: evaluating the waveform `lag` teeth back with the
   // newest coefficients is a fixed-lag smoother (beyond the paper).
   const int k_out = (k - lag_ + kk) % kk;
-  const double t_net = net_torque_at(k_out);
+  // One pass over the coefficients: the model torque at e_k with the coefficients before this tooth, their
+  // update (CF-8), and the output torque at e_{k_out} with the updated ones. Same operations in the same order
+  // as net_torque_at(k), the update loop, net_torque_at(k_out) one after the other (identical bits), but the
+  // two sums are independent chains of additions that now overlap (per tooth, the sums' latency dominated).
+  const double* f = &basis_[static_cast<std::size_t>(k * nc_)];
+  const double* fo = &basis_[static_cast<std::size_t>(k_out * nc_)];
+  double t_model = 0.0, t_net = 0.0;
+  for (int j = 0; j < nc_; ++j) {
+    const auto i = static_cast<std::size_t>(j);
+    t_model += c_[i] * f[j];
+    const double c = c_[i] - d * l_[i] * f[j] * err;
+    c_[i] = c;
+    t_net += c * fo[j];
+  }
+  phi_ += table_.step_rad[static_cast<std::size_t>(k)] * (t_model - params_.l_ke * err);
+  ++stats_.updates;
+  ++teeth_seen_;
   for (int i = kMaxLag; i > 0; --i) edge_t_ns_[static_cast<std::size_t>(i)] = edge_t_ns_[static_cast<std::size_t>(i - 1)];
   edge_t_ns_[0] = s.t_ns;
   if (!std::isfinite(phi_) || !std::isfinite(t_net)) {

@@ -87,50 +87,16 @@ TORQUED_CSV_INLINE char* write_digits(char* p, std::uint64_t v, int n) noexcept 
   return p + n;
 }
 
-inline constexpr std::uint64_t kAsciiZeros = 0x3030303030303030ull;
-
-/// SWAR: the 8 decimal digits of v < 10^8 (zero-padded on the left) as the 8 bytes of the result, byte 0 (the
-/// lowest address when stored little-endian) the most significant digit; bytes are digit values 0..9 (OR with
-/// kAsciiZeros to print). No branch and no digit loop: 4 digits per 32-bit lane (v / 10^4), 2 per 16-bit lane
-/// (y / 100 = y * 10486 >> 20 for y < 10^4), 1 per byte (z / 10 = z * 103 >> 10 for z < 100); a lane's product
-/// never reaches the next lane. The byte string stays in a register (no store-forwarding stall when the
-/// trailing zeros are found) and is stored with one 8-byte write.
-TORQUED_CSV_INLINE std::uint64_t swar_digits8(std::uint32_t v) noexcept {
-  const std::uint64_t hi = v / 10000u;
-  std::uint64_t x = hi | ((v - hi * 10000u) << 32);
-  const std::uint64_t h2 = ((x * 10486u) >> 20) & 0x0000007F0000007Full;
-  x = h2 | ((x - h2 * 100u) << 16);
-  const std::uint64_t h1 = ((x * 103u) >> 10) & 0x000F000F000F000Full;
-  return h1 | ((x - h1 * 10u) << 8);
-}
-
-/// v < 10^8 without leading zeros ("0" for 0): one 8-byte store (needs 8 bytes of room), returns the end.
-TORQUED_CSV_INLINE char* write_uint8(char* p, std::uint32_t v) noexcept {
-  const std::uint64_t d = swar_digits8(v);
-  const int lead = __builtin_ctzll(d | (1ull << 56)) >> 3;  // leading zero digits (7 for v = 0: "0")
-  const std::uint64_t text = (d | kAsciiZeros) >> (8 * lead);
-  std::memcpy(p, &text, 8);
-  return p + 8 - lead;
-}
-
-/// Unsigned decimal; returns the end. Needs 24 bytes of room (writes whole 8-byte groups).
+/// Unsigned decimal; returns the end. Needs 20 bytes of room.
 TORQUED_CSV_INLINE char* write_uint(char* p, std::uint64_t v) noexcept {
-  if (v < 10) {  // flags, ids, counters that stay small: one predictable branch per column
+  if (v < 10) {
     *p = static_cast<char>('0' + v);
     return p + 1;
-  }
-  if (v < kPow10[8]) return write_uint8(p, static_cast<std::uint32_t>(v));
-  if (v < kPow10[16]) {  // e.g. nanosecond times: up to 8 digits, then exactly 8
-    const std::uint64_t hi = v / kPow10[8];
-    p = write_uint8(p, static_cast<std::uint32_t>(hi));
-    const std::uint64_t text = swar_digits8(static_cast<std::uint32_t>(v - hi * kPow10[8])) | kAsciiZeros;
-    std::memcpy(p, &text, 8);
-    return p + 8;
   }
   return write_digits(p, v, digit_count(v));
 }
 
-/// Signed decimal; returns the end. Needs 25 bytes of room.
+/// Signed decimal; returns the end. Needs 21 bytes of room.
 TORQUED_CSV_INLINE char* write_int(char* p, std::int64_t v) noexcept {
   if (v < 0) {
     *p++ = '-';
@@ -151,42 +117,29 @@ inline char* write_shortest(char* p, double v) noexcept {
 /// Fixed point with D decimals (see the file comment for the fall-backs). Needs 40 bytes of room.
 template <int D>
 TORQUED_CSV_INLINE char* write_fixed(char* p, double v) noexcept {
-  static_assert(D >= 1 && D <= 9);
+  static_assert(D >= 1 && D <= 10);
   constexpr double kScale = static_cast<double>(kPow10[D]);
   constexpr double kMin = 1e4 / kScale;                 // >= 4 significant digits
   constexpr double kMax = 9007199254740992.0 / kScale;  // 2^53
   const double a = std::fabs(v);
-  // One well-predicted branch: 0 (also -0.0: no sign, as v < 0 is false) takes the main path ("0" with
-  // nothing after the '.'); the columns mix zeros and values, a separate zero branch mispredicted.
-  if (!(((a >= kMin) & (a < kMax)) | (a == 0.0))) [[unlikely]]
+  if (a == 0.0) {  // also -0.0
+    *p = '0';
+    return p + 1;
+  }
+  if (!(a >= kMin && a < kMax)) [[unlikely]]
     return write_shortest(p, v);                                // also NaN/Inf
-  const auto n = static_cast<std::uint64_t>(a * kScale + 0.5);  // 0 or 10^4 <= n < 2^53 + 1
+  const auto n = static_cast<std::uint64_t>(a * kScale + 0.5);  // 10^4 <= n < 2^53 + 1
   *p = '-';
   p += v < 0;
   // Whole part (at least "0"), '.', exactly D fraction digits, then trailing zeros dropped. Written in place
   // (a digit buffer copied with wide loads stalled on store forwarding).
   const std::uint64_t whole = n / kPow10[D];
-  p = whole < kPow10[8] ? write_uint8(p, static_cast<std::uint32_t>(whole)) : write_uint(p, whole);
+  p = write_uint(p, whole);
   *p = '.';
-  const auto frac = static_cast<std::uint32_t>(n - whole * kPow10[D]);
-  // The D fraction digits left-aligned in 8 (or 1 + 8) bytes; the trailing zeros are dropped by counting the
-  // zero bytes above the highest non-zero one (no loop, no reload of the written text), and the '.' too if
-  // nothing is left.
-  int keep;
-  if constexpr (D <= 8) {
-    const std::uint64_t d = swar_digits8(frac * static_cast<std::uint32_t>(kPow10[8 - D]));
-    const std::uint64_t text = d | kAsciiZeros;
-    std::memcpy(p + 1, &text, 8);
-    keep = d != 0 ? (71 - __builtin_clzll(d)) >> 3 : 0;
-  } else {
-    const std::uint32_t first = frac / static_cast<std::uint32_t>(kPow10[8]);
-    const std::uint64_t d = swar_digits8(frac - first * static_cast<std::uint32_t>(kPow10[8]));
-    p[1] = static_cast<char>('0' + first);
-    const std::uint64_t text = d | kAsciiZeros;
-    std::memcpy(p + 2, &text, 8);
-    keep = d != 0 ? 1 + ((71 - __builtin_clzll(d)) >> 3) : (first != 0 ? 1 : 0);
-  }
-  return keep != 0 ? p + 1 + keep : p;
+  write_digits(p + 1, n - whole * kPow10[D], D);
+  char* e = p + 1 + D;
+  while (e[-1] == '0') --e;  // drop trailing zeros, and the '.' if nothing is left
+  return e[-1] == '.' ? e - 1 : e;
 }
 
 /// Decimals of a CSV column of doubles, from its unit suffix: angles in rad 9 (1 nrad), angular

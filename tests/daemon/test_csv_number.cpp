@@ -5,7 +5,6 @@
 #include <charconv>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
 #include <initializer_list>
 #include <limits>
 #include <random>
@@ -117,85 +116,6 @@ TEST(CsvNumber, ColumnResolutionFromUnit) {
       csv_header<torque_CrankState>(),
       "t_ns,engine_id,seq,ingest_t_ns,publish_t_ns,validity,tooth,sync,phase_known,angle_rad,speed_rad_s,"
       "accel_rad_s2,events\n");
-}
-
-// ---- The digit-loop forms the SWAR writers replaced (perf3), kept as the reference: same bytes. ----
-char* ref_write_uint(char* p, std::uint64_t v) {
-  if (v < 10) {
-    *p = static_cast<char>('0' + v);
-    return p + 1;
-  }
-  const int n = csv::digit_count(v);
-  return csv::write_digits(p, v, n);
-}
-template <int D>
-std::string ref_fixed(double v) {
-  char buf[64];
-  char* p = buf;
-  constexpr double kScale = static_cast<double>(csv::kPow10[D]);
-  const double a = std::fabs(v);
-  if (a == 0.0) return "0";
-  if (!(a >= 1e4 / kScale && a < 9007199254740992.0 / kScale))
-    return std::string(buf, csv::write_shortest(buf, v));
-  const auto n = static_cast<std::uint64_t>(a * kScale + 0.5);
-  *p = '-';
-  p += v < 0;
-  const std::uint64_t whole = n / csv::kPow10[D];
-  p = ref_write_uint(p, whole);
-  *p = '.';
-  csv::write_digits(p + 1, n - whole * csv::kPow10[D], D);
-  char* e = p + 1 + D;
-  while (e[-1] == '0') --e;
-  if (e[-1] == '.') --e;
-  return std::string(buf, e);
-}
-
-TEST(CsvNumber, SwarDigitsEveryValueBelow1e6AndSampled) {
-  // swar_digits8 against the digit loop: every v < 10^6 (all 2- and 4-digit lane values), then samples of
-  // 10^8 spread over every leading digit.
-  auto check = [](std::uint32_t v) {
-    char a[8], b[8];
-    const std::uint64_t t = csv::swar_digits8(v) | csv::kAsciiZeros;
-    std::memcpy(a, &t, 8);
-    csv::write_digits(b, v, 8);
-    return std::memcmp(a, b, 8) == 0;
-  };
-  for (std::uint32_t v = 0; v < 1000000; ++v) ASSERT_TRUE(check(v)) << v;
-  std::mt19937 rng(3);
-  for (int i = 0; i < 2000000; ++i) {
-    const std::uint32_t v = rng() % 100000000u;
-    ASSERT_TRUE(check(v)) << v;
-  }
-  for (std::uint32_t v = 99990000; v < 100000000; ++v) ASSERT_TRUE(check(v)) << v;
-}
-
-TEST(CsvNumber, SwarWritersSameBytesAsDigitLoop) {
-  std::mt19937_64 rng(13);
-  char buf[64];
-  auto uint_ok = [&](std::uint64_t v) {
-    char r[64];
-    return std::string(buf, csv::write_uint(buf, v)) == std::string(r, ref_write_uint(r, v));
-  };
-  for (const std::uint64_t p : csv::kPow10)
-    for (const std::uint64_t v : {p - 1, p, p + 1}) ASSERT_TRUE(uint_ok(v)) << v;
-  ASSERT_TRUE(uint_ok(~0ull));
-  for (int i = 0; i < 300000; ++i) {
-    const std::uint64_t v = rng() >> (rng() % 64);
-    ASSERT_TRUE(uint_ok(v)) << v;
-  }
-  // Doubles: random magnitudes and signs, values on the rounding and trimming boundaries (k / 10^j).
-  std::uniform_real_distribution<double> mant(-1.0, 1.0);
-  for (int i = 0; i < 300000; ++i) {
-    const double v = mant(rng) * std::pow(10.0, static_cast<int>(rng() % 30) - 12);
-    ASSERT_EQ(fixed<3>(v), ref_fixed<3>(v)) << v;
-    ASSERT_EQ(fixed<6>(v), ref_fixed<6>(v)) << v;
-    ASSERT_EQ(fixed<9>(v), ref_fixed<9>(v)) << v;
-    const double q = static_cast<double>(static_cast<std::int64_t>(rng() % 2000001) - 1000000) /
-                     std::pow(10.0, static_cast<int>(rng() % 10));
-    ASSERT_EQ(fixed<3>(q), ref_fixed<3>(q)) << q;
-    ASSERT_EQ(fixed<6>(q), ref_fixed<6>(q)) << q;
-    ASSERT_EQ(fixed<9>(q), ref_fixed<9>(q)) << q;
-  }
 }
 
 }  // namespace
