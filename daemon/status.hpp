@@ -11,7 +11,7 @@ struct RuntimeCounters {
   std::uint64_t edges = 0, teeth = 0, can_frames = 0, cycles = 0, sync_losses = 0;
   std::uint64_t ring_drops_edge = 0, ring_drops_can = 0, ring_drops_out = 0, source_drops = 0, overruns = 0;
   std::int64_t latency_p50_ns = 0, latency_p99_ns = 0, latency_max_ns = 0;
-  /// Publisher pre-wakes (paced replay) and those whose poll ended without a sample (log only, not in DDS).
+  /// Publisher pre-wakes (paced replay) and those whose poll ended without a sample.
   std::uint64_t publisher_polls = 0, publisher_poll_misses = 0;
   std::uint32_t flags = 0;            ///< torque_STATUS_*
   std::uint32_t sensor_timeouts = 0;  ///< bit per EngineSignals quantity
@@ -41,6 +41,8 @@ inline dds::AnySample make_status(const RuntimeCounters& c, std::uint64_t seq, s
   s.latency_p99_ns = c.latency_p99_ns;
   s.latency_max_ns = c.latency_max_ns;
   s.sensor_timeouts = c.sensor_timeouts;
+  s.publisher_polls = c.publisher_polls;
+  s.publisher_poll_misses = c.publisher_poll_misses;
   s.flags = c.flags;
   if (!c.synced) s.flags |= torque_STATUS_NO_SYNC;
   if (c.sensor_timeouts) s.flags |= torque_STATUS_CAN_TIMEOUT;

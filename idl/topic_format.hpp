@@ -47,6 +47,7 @@ template <class F> constexpr void visit_fields(const torque_DaemonStatus& s, F&&
   f("ring_drops_can", s.ring_drops_can); f("ring_drops_out", s.ring_drops_out); f("source_drops", s.source_drops);
   f("overruns", s.overruns); f("latency_p50_ns", s.latency_p50_ns); f("latency_p99_ns", s.latency_p99_ns);
   f("latency_max_ns", s.latency_max_ns); f("sensor_timeouts", s.sensor_timeouts);
+  f("publisher_polls", s.publisher_polls); f("publisher_poll_misses", s.publisher_poll_misses);
 }
 
 /// CSV header line (with '\n') of a topic: "t_ns,engine_id,seq,...".

@@ -160,6 +160,22 @@ TEST_F(EndToEnd, ReplayThroughDdsToSubscriberMatchesTruth) {
     EXPECT_GE(corr, 0.5) << "method " << method;
     EXPECT_LE(rms, 0.25 * p2p) << "method " << method;
   }
+
+  // DaemonStatus (recorded by the daemon, 1 Hz): nothing dropped, and the publisher's pre-wake (paced replay,
+  // realtime.publisher_spin_us) ran for the tooth edges and is reported with its misses.
+  const Csv st = read_csv(daemon_dir + "/daemon_status.csv");
+  ASSERT_GT(st.rows.size(), 3u);
+  const auto& last = st.rows.back();
+  auto field = [&](const char* name) {
+    const int c = st.col(name);
+    EXPECT_GE(c, 0) << name;
+    return c < 0 ? -1.0 : std::stod(last[static_cast<std::size_t>(c)]);
+  };
+  EXPECT_EQ(field("ring_drops_edge") + field("ring_drops_can") + field("ring_drops_out"), 0.0);
+  const double teeth = field("teeth"), polls = field("publisher_polls"), misses = field("publisher_poll_misses");
+  EXPECT_GT(polls, 0.5 * teeth) << "pre-wake polls for most tooth edges";
+  EXPECT_LE(polls, teeth);
+  EXPECT_LE(misses, polls);
 }
 
 }  // namespace
