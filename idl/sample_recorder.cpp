@@ -42,12 +42,18 @@ SampleRecorder::~SampleRecorder() {
 }
 
 SampleRecorder::File* SampleRecorder::file_for(const AnySample& s) {
-  if (!ok()) return nullptr;
+  if (!ok()) [[unlikely]]
+    return nullptr;
   if (s.topic == Topic::kDaemonStatus && !record_status_) return nullptr;
   const int i = file_index(s);
   File& f = files_[static_cast<std::size_t>(i)];
   if (f.fd >= 0) [[likely]]
     return &f;
+  return open_file(s, i);
+}
+
+SampleRecorder::File* SampleRecorder::open_file(const AnySample& s, int i) {
+  File& f = files_[static_cast<std::size_t>(i)];
   const std::string path = dir_ + "/" + kFileNames[static_cast<std::size_t>(i)];
   const std::string header = s.visit([](const auto& v) { return csv_header<std::decay_t<decltype(v)>>(); });
   const std::size_t row_max = s.visit([](const auto& v) { return csv_row_max_chars<std::decay_t<decltype(v)>>(); });

@@ -46,6 +46,7 @@ class SampleRecorder {
   };
   /// The file of sample s, opened (with its header) on first use; nullptr if not recorded or on error.
   File* file_for(const AnySample& s);
+  File* open_file(const AnySample& s, int i);  ///< first sample of file i: open it, header into its buffer
   void write_out(int i);
   std::string dir_;
   bool record_status_;
