@@ -114,7 +114,7 @@ void CycleEnergy::flush_pending(double load_nm, bool load_valid) noexcept {
   while (pend_count_ > 0) {
     const PendingTooth& p = pending_[pend_head_];
     add_load(p.segment, p.width_rad, load_nm, load_valid);
-    pend_head_ = (pend_head_ + 1) % pending_.size();
+    pend_head_ = ring_next(pend_head_);
     --pend_count_;
   }
 }
@@ -190,17 +190,19 @@ bool CycleEnergy::update(const ToothSample& s, double load_nm, bool load_valid) 
     while (pend_count_ > 0 && pending_[pend_head_].t_ns + latency_ns_ <= s.t_ns) {
       const PendingTooth& p = pending_[pend_head_];
       add_load(p.segment, p.width_rad, load_nm, load_valid);
-      pend_head_ = (pend_head_ + 1) % pending_.size();
+      pend_head_ = ring_next(pend_head_);
       --pend_count_;
     }
     if (pend_count_ == pending_.size()) {  // τ longer than the line holds: extrapolate the oldest (counted)
       const PendingTooth& p = pending_[pend_head_];
       add_load(p.segment, p.width_rad, load_nm, load_valid);
-      pend_head_ = (pend_head_ + 1) % pending_.size();
+      pend_head_ = ring_next(pend_head_);
       --pend_count_;
       ++overflows_;
     }
-    pending_[(pend_head_ + pend_count_) % pending_.size()] = PendingTooth{s.t_ns, sg, width_[i]};
+    std::size_t tail = pend_head_ + pend_count_;  // < 2 size: one compare instead of a 64-bit division
+    if (tail >= pending_.size()) tail -= pending_.size();
+    pending_[tail] = PendingTooth{s.t_ns, sg, width_[i]};
     ++pend_count_;
   }
 

@@ -102,6 +102,8 @@ class CycleEnergy {
   std::int64_t latency_ns_ = 0;
   std::vector<PendingTooth> pending_;  ///< ring buffer, sized at construction
   std::size_t pend_head_ = 0, pend_count_ = 0;
+  /// i + 1 modulo the ring size, for i < size (a `%` by the run-time size was a 64-bit division per tooth).
+  [[nodiscard]] std::size_t ring_next(std::size_t i) const noexcept { return i + 1 == pending_.size() ? 0 : i + 1; }
   std::uint64_t overflows_ = 0;
 
   // Running state.
