@@ -91,7 +91,10 @@ bool Runtime::start() {
         error_ = o.message + " (realtime.require_rt is set)";
         return false;
       }
-      warnings_.push_back(o.message + ": running without locked memory");
+      warnings_.push_back(
+          o.message +
+          ": running without locked memory (needs CAP_IPC_LOCK or LimitMEMLOCK=infinity, as in "
+          "systemd/torqued.service)");
     }
   }
   // Probe SCHED_FIFO once from this thread so a refusal is reported before the threads run.
@@ -103,7 +106,10 @@ bool Runtime::start() {
       if (!o.ok) {
         flags_.fetch_or(torque_STATUS_RT_NOT_PERMITTED, std::memory_order_relaxed);
         if (!opt_.require_rt)
-          warnings_.push_back(o.message + ": running the pipelines with SCHED_OTHER");
+          warnings_.push_back(
+              o.message +
+              ": running the pipelines with SCHED_OTHER (needs CAP_SYS_NICE or LimitRTPRIO, as "
+              "in systemd/torqued.service)");
         else
           error_ = o.message + " (realtime.require_rt is set)";
       }
@@ -285,8 +291,8 @@ void Runtime::angle_loop() {
     stale_mask_.store(angle_->stale_mask(), std::memory_order_relaxed);
     synced_.store(angle_->decoder().state() == SyncState::kSynced, std::memory_order_relaxed);
     if (stop_pipelines_.load(std::memory_order_acquire) && !has_work()) break;
-    // Paced replay: the next item is due at wait_due and the timer is this thread's only wake-up. The publisher
-    // is told, so it can be awake when this edge's samples come (realtime.publisher_spin_us).
+    // Paced replay: the next item is due at wait_due and the timer is this thread's only wake-up. The
+    // publisher is told, so it can be awake when this edge's samples come (realtime.publisher_spin_us).
     // Released after this pass's pushes: a publisher that sees the value change also sees their samples.
     next_due_tooth_.store(wait_tooth, std::memory_order_relaxed);
     next_due_mono_ns_.store(wait_due, std::memory_order_release);
@@ -375,7 +381,8 @@ bool Runtime::drain_out() noexcept {
 }
 
 void Runtime::publisher_loop() {
-  prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);  // SCHED_OTHER timers have 50 us slack by default: wake on time
+  prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL,
+        0UL);  // SCHED_OTHER timers have 50 us slack by default: wake on time
   lat_period_start_ns_ = mono_ns();
   auto has_work = [this] {
     return !out_angle_ring_.empty() || !out_time_ring_.empty() || !out_status_ring_.empty();
@@ -405,11 +412,12 @@ void Runtime::publisher_loop() {
     const std::int64_t due = next_due_mono_ns_.load(std::memory_order_acquire);
     const std::int64_t t_now = mono_ns();
     // (a due time more than one poll in the past is stale: the angle thread is stalled or stopping)
-    if (opt_.publisher_spin_ns > 0 && due != 0 && due - t_now < 100'000'000 && t_now - due < opt_.publisher_spin_ns) {
+    if (opt_.publisher_spin_ns > 0 && due != 0 && due - t_now < 100'000'000 &&
+        t_now - due < opt_.publisher_spin_ns) {
       // Pre-wake (paced replay): sleep until the edge the angle thread waits for is due (any sample wakes us
-      // earlier). If it is a tooth edge, poll for its samples until they come, the angle thread moves on to the
-      // next edge (nothing to publish) or publisher_spin_ns passes. The samples then find this thread awake: no
-      // futex wake-up between the angle thread and DDS.
+      // earlier). If it is a tooth edge, poll for its samples until they come, the angle thread moves on to
+      // the next edge (nothing to publish) or publisher_spin_ns passes. The samples then find this thread
+      // awake: no futex wake-up between the angle thread and DDS.
       if (due > t_now) pub_wake_.wait_for(due - t_now, has_work);
       if (next_due_tooth_.load(std::memory_order_relaxed) && !has_work()) {
         pub_polls_.fetch_add(1, std::memory_order_relaxed);
@@ -417,8 +425,10 @@ void Runtime::publisher_loop() {
         while (!has_work() && next_due_mono_ns_.load(std::memory_order_acquire) == due && mono_ns() < until)
           cpu_relax();
         if (!has_work() && next_due_mono_ns_.load(std::memory_order_acquire) == due)
-          pub_poll_misses_.fetch_add(1, std::memory_order_relaxed);  // the angle thread was later than the poll
-      } else if (!has_work() && due <= mono_ns() && next_due_mono_ns_.load(std::memory_order_acquire) == due) {
+          pub_poll_misses_.fetch_add(1,
+                                     std::memory_order_relaxed);  // the angle thread was later than the poll
+      } else if (!has_work() && due <= mono_ns() &&
+                 next_due_mono_ns_.load(std::memory_order_acquire) == due) {
         // A non-tooth edge is due: let the angle thread take it before we read the next due time.
         pub_wake_.wait_for(20'000, has_work);
       }

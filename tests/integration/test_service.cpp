@@ -5,7 +5,9 @@
 //   - SIGHUP reloads the safe parts of the configuration;
 //   - learned state survives kill -9 (atomic writes) and is loaded at the next start;
 //   - fast replay through the real binary is byte-identical across runs (determinism);
-//   - Cyclone DDS's own threads in the daemon run with the publisher thread's real-time scheduling.
+//   - Cyclone DDS's own threads in the daemon run with the publisher thread's real-time scheduling;
+//   - without the right to SCHED_FIFO and mlockall it runs anyway, says so and flags it in DaemonStatus,
+//     unless realtime.require_rt is set.
 #include <gtest/gtest.h>
 #include <sched.h>
 #include <sys/socket.h>
@@ -15,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <sstream>
 #include <thread>
 #include <tuple>
 
@@ -259,6 +262,96 @@ TEST_F(Service, FastReplayOfDemoIsByteIdentical) {
     ++files;
   }
   EXPECT_EQ(files, 6);
+}
+
+/// Runs `argv` without real-time rights: RLIMIT_RTPRIO and RLIMIT_MEMLOCK 0 and, when we are root, as user
+/// nobody without capabilities (root's CAP_SYS_NICE/CAP_IPC_LOCK would ignore the limits).
+std::vector<std::string> unprivileged(std::vector<std::string> argv) {
+  std::vector<std::string> a{"/usr/bin/prlimit", "--rtprio=0:0", "--memlock=0:0"};
+  if (::geteuid() == 0)
+    a.insert(a.end(), {"/usr/bin/setpriv", "--reuid=65534", "--regid=65534", "--clear-groups",
+                       "--inh-caps=-all", "--bounding-set=-all"});
+  a.insert(a.end(), argv.begin(), argv.end());
+  return a;
+}
+
+/// The demo configuration with its inputs copied into `dir` (readable by user nobody wherever the source tree
+/// is), its `realtime:` lock_memory/require_rt lines replaced by `rt_keys`.
+std::string portable_demo_config(const fs::path& dir, const std::string& rt_keys) {
+  for (const char* f : {"data/demo/edges.csv", "data/demo/can.log", "config/demo.dbc"})
+    fs::copy_file(fs::path(TORQUED_SOURCE_DIR) / f, dir / fs::path(f).filename(),
+                  fs::copy_options::overwrite_existing);
+  std::string y = test::slurp(std::string(TORQUED_SOURCE_DIR) + "/config/demo.yaml");
+  auto replace = [&y](const std::string& from, const std::string& to) {
+    const auto p = y.find(from);
+    if (p != std::string::npos) y.replace(p, from.size(), to);
+    return p != std::string::npos;
+  };
+  EXPECT_TRUE(replace("../data/demo/edges.csv", (dir / "edges.csv").string()));
+  EXPECT_TRUE(replace("../data/demo/can.log", (dir / "can.log").string()));
+  EXPECT_TRUE(replace("dbc: demo.dbc", "dbc: " + (dir / "demo.dbc").string()));
+  EXPECT_TRUE(replace("  lock_memory: true\n  require_rt: false", rt_keys));
+  const std::string path = (dir / "torqued.yaml").string();
+  std::ofstream(path) << y;
+  return path;
+}
+
+TEST_F(Service, RunsWithoutRealtimeRightsAndFlagsIt) {
+  if (!fs::exists("/usr/bin/prlimit") || (::geteuid() == 0 && !fs::exists("/usr/bin/setpriv")))
+    GTEST_SKIP() << "needs prlimit (and setpriv as root)";
+  fs::permissions(dir_, fs::perms::all);  // user nobody writes its log, state and recording here
+  const std::string cfg = portable_demo_config(dir_, "  require_rt: false\n  lock_memory: true");
+  const std::string rec = (dir_ / "rec").string();
+  test::Process d(unprivileged({TORQUED_EXE, "--config", cfg, "--no-dds", "--state-dir",
+                                (dir_ / "state").string(), "--record", rec}),
+                  {}, (dir_ / "daemon.log").string());
+  ASSERT_TRUE(test::eventually(15, [&] { return log().find("running") != std::string::npos; })) << log();
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));  // two DaemonStatus periods
+  d.signal(SIGTERM);
+  ASSERT_TRUE(d.wait(5)) << log();
+  EXPECT_EQ(d.exit_code(), 0) << log();
+  // A clear warning naming what was refused and what it does instead.
+  EXPECT_NE(log().find("pthread_setschedparam(SCHED_FIFO): Operation not permitted"), std::string::npos)
+      << log();
+  EXPECT_NE(log().find("running the pipelines with SCHED_OTHER"), std::string::npos) << log();
+  EXPECT_NE(log().find("mlockall"), std::string::npos) << log();
+  // DaemonStatus: RT_NOT_PERMITTED (1) and MLOCK_FAILED (2) set, health DEGRADED (1), and the estimates still
+  // come.
+  const std::string st = test::slurp(rec + "/daemon_status.csv");
+  std::istringstream in(st);
+  std::string header, row, last;
+  std::getline(in, header);
+  while (std::getline(in, row)) last = row;
+  ASSERT_FALSE(last.empty()) << st;
+  std::vector<std::string> names, vals;
+  for (std::stringstream hs(header); std::getline(hs, row, ',');) names.push_back(row);
+  for (std::stringstream ls(last); std::getline(ls, row, ',');) vals.push_back(row);
+  auto col = [&](const std::string& n) {
+    for (std::size_t i = 0; i < names.size() && i < vals.size(); ++i)
+      if (names[i] == n) return std::stoll(vals[i]);
+    ADD_FAILURE() << n << " not in " << header;
+    return -1LL;
+  };
+  EXPECT_EQ(col("flags") & 3, 3) << last;
+  EXPECT_EQ(col("health"), 1) << last;
+  EXPECT_GT(col("cycles"), 10) << last;
+  EXPECT_GT(test::slurp(rec + "/engine_cycle.csv").size(), 1000u);
+}
+
+TEST_F(Service, RefusesToStartWithoutRealtimeRightsWhenRequired) {
+  if (!fs::exists("/usr/bin/prlimit") || (::geteuid() == 0 && !fs::exists("/usr/bin/setpriv")))
+    GTEST_SKIP() << "needs prlimit (and setpriv as root)";
+  fs::permissions(dir_, fs::perms::all);
+  const std::string cfg = portable_demo_config(dir_, "  require_rt: true\n  lock_memory: false");
+  test::Process d(
+      unprivileged({TORQUED_EXE, "--config", cfg, "--no-dds", "--state-dir", (dir_ / "state").string()}), {},
+      (dir_ / "daemon.log").string());
+  ASSERT_TRUE(d.wait(15)) << log();
+  EXPECT_NE(d.exit_code(), 0) << log();
+  EXPECT_NE(log().find("SCHED_FIFO): Operation not permitted (realtime.require_rt is set)"),
+            std::string::npos)
+      << log();
+  EXPECT_EQ(log().find("running"), std::string::npos) << log();
 }
 
 /// Scheduling policy and priority of every thread of `pid`, by thread name.
