@@ -113,14 +113,14 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   if (cfg_.run_kalman) {
     kalman_.set_extended_load(load_star_nm_);
     kalman_.update(s);
-    tooth_.kalman_ind = kalman_.estimate();
+    copy_estimate(tooth_.kalman_ind, kalman_.estimate());
   } else {
     tooth_.kalman_ind.health = Health::kDisabled;
   }
   if (fourier_ok_) {
     fourier_.set_extended_load(load_star_nm_);
     fourier_.update(s);
-    tooth_.fourier_ind = fourier_.estimate();
+    copy_estimate(tooth_.fourier_ind, fourier_.estimate());
   } else {
     tooth_.fourier_ind.health = Health::kDisabled;
   }

@@ -53,7 +53,7 @@ class ChauvinKalman {
   bool update(const ToothSample& s) noexcept;
 
   /// Indicated torque T̂_ind at the edge `estimate_tooth()` (t_ns of that edge), 1σ from P.
-  [[nodiscard]] TorqueEstimate estimate() const noexcept { return est_; }
+  [[nodiscard]] const TorqueEstimate& estimate() const noexcept { return est_; }
   [[nodiscard]] int estimate_tooth() const noexcept { return est_tooth_; }
   [[nodiscard]] double net_torque_nm() const noexcept { return est_.torque_nm - load_star_nm_; }
   [[nodiscard]] const Vec& state() const noexcept { return x_; }

@@ -57,7 +57,7 @@ class FourierObserver {
   bool update(const ToothSample& s) noexcept;
 
   /// T̂_ind at edge k − output_lag (t_ns of that edge): m(e)·ĉ + T*_load (uncertainty not modelled: 0).
-  [[nodiscard]] TorqueEstimate estimate() const noexcept { return est_; }
+  [[nodiscard]] const TorqueEstimate& estimate() const noexcept { return est_; }
   [[nodiscard]] int estimate_tooth() const noexcept { return est_tooth_; }
   /// T̂_mass (= net torque) at any tooth k from the current coefficients (reconstructs the whole cycle).
   [[nodiscard]] double net_torque_at(int k) const noexcept;
