@@ -265,8 +265,12 @@ TEST_F(Service, FastReplayOfDemoIsByteIdentical) {
 }
 
 /// Runs `argv` without real-time rights: RLIMIT_RTPRIO and RLIMIT_MEMLOCK 0 and, when we are root, as user
-/// nobody without capabilities (root's CAP_SYS_NICE/CAP_IPC_LOCK would ignore the limits).
-std::vector<std::string> unprivileged(std::vector<std::string> argv) {
+/// nobody without capabilities (root's CAP_SYS_NICE/CAP_IPC_LOCK would ignore the limits). argv[0] is copied
+/// into `dir` first: user nobody may not be able to reach the build tree.
+std::vector<std::string> unprivileged(std::vector<std::string> argv, const fs::path& dir) {
+  const fs::path exe = dir / fs::path(argv[0]).filename();
+  fs::copy_file(argv[0], exe, fs::copy_options::overwrite_existing);
+  argv[0] = exe.string();
   std::vector<std::string> a{"/usr/bin/prlimit", "--rtprio=0:0", "--memlock=0:0"};
   if (::geteuid() == 0)
     a.insert(a.end(), {"/usr/bin/setpriv", "--reuid=65534", "--regid=65534", "--clear-groups",
@@ -303,7 +307,8 @@ TEST_F(Service, RunsWithoutRealtimeRightsAndFlagsIt) {
   const std::string cfg = portable_demo_config(dir_, "  require_rt: false\n  lock_memory: true");
   const std::string rec = (dir_ / "rec").string();
   test::Process d(unprivileged({TORQUED_EXE, "--config", cfg, "--no-dds", "--state-dir",
-                                (dir_ / "state").string(), "--record", rec}),
+                                (dir_ / "state").string(), "--record", rec},
+                               dir_),
                   {}, (dir_ / "daemon.log").string());
   ASSERT_TRUE(test::eventually(15, [&] { return log().find("running") != std::string::npos; })) << log();
   std::this_thread::sleep_for(std::chrono::milliseconds(2500));  // two DaemonStatus periods
@@ -344,8 +349,9 @@ TEST_F(Service, RefusesToStartWithoutRealtimeRightsWhenRequired) {
   fs::permissions(dir_, fs::perms::all);
   const std::string cfg = portable_demo_config(dir_, "  require_rt: true\n  lock_memory: false");
   test::Process d(
-      unprivileged({TORQUED_EXE, "--config", cfg, "--no-dds", "--state-dir", (dir_ / "state").string()}), {},
-      (dir_ / "daemon.log").string());
+      unprivileged({TORQUED_EXE, "--config", cfg, "--no-dds", "--state-dir", (dir_ / "state").string()},
+                   dir_),
+      {}, (dir_ / "daemon.log").string());
   ASSERT_TRUE(d.wait(15)) << log();
   EXPECT_NE(d.exit_code(), 0) << log();
   EXPECT_NE(log().find("SCHED_FIFO): Operation not permitted (realtime.require_rt is set)"),
