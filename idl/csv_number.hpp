@@ -136,10 +136,17 @@ TORQUED_CSV_INLINE char* write_fixed(char* p, double v) noexcept {
   const std::uint64_t whole = n / kPow10[D];
   p = write_uint(p, whole);
   *p = '.';
-  write_digits(p + 1, n - whole * kPow10[D], D);
+  std::uint64_t frac = n - whole * kPow10[D];
+  write_digits(p + 1, frac, D);
+  // Drop trailing zeros, and the '.' if nothing is left: counted on the integer (reading the last digits back
+  // right after their 2-byte stores stalled on store forwarding: an eighth of the row's time).
+  if (frac == 0) return p;
   char* e = p + 1 + D;
-  while (e[-1] == '0') --e;  // drop trailing zeros, and the '.' if nothing is left
-  return e[-1] == '.' ? e - 1 : e;
+  while (frac % 10 == 0) {
+    frac /= 10;
+    --e;
+  }
+  return e;
 }
 
 /// Decimals of a CSV column of doubles, from its unit suffix: angles in rad 9 (1 nrad), angular

@@ -118,5 +118,42 @@ TEST(CsvNumber, ColumnResolutionFromUnit) {
       "accel_rad_s2,events\n");
 }
 
+/// The trailing-zero trim as it was (reading the written digits back), the reference of the integer form.
+template <int D>
+std::string ref_fixed(double v) {
+  char buf[64];
+  const double a = std::fabs(v);
+  constexpr double kScale = static_cast<double>(csv::kPow10[D]);
+  if (a == 0.0 || !(a >= 1e4 / kScale && a < 9007199254740992.0 / kScale)) return fixed<D>(v);
+  const auto n = static_cast<std::uint64_t>(a * kScale + 0.5);
+  char* p = buf;
+  *p = '-';
+  p += v < 0;
+  const std::uint64_t whole = n / csv::kPow10[D];
+  p = csv::write_uint(p, whole);
+  *p = '.';
+  csv::write_digits(p + 1, n - whole * csv::kPow10[D], D);
+  char* e = p + 1 + D;
+  while (e[-1] == '0') --e;
+  if (e[-1] == '.') --e;
+  return std::string(buf, e);
+}
+
+TEST(CsvNumber, TrailingZerosTrimmedLikeTheCharacterScan) {
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> mant(-1.0, 1.0);
+  for (int i = 0; i < 300000; ++i) {
+    const double v = mant(rng) * std::pow(10.0, static_cast<int>(rng() % 24) - 8);
+    // and values with few significant decimals (k / 10^j): many trailing zeros, whole numbers
+    const double q = static_cast<double>(static_cast<std::int64_t>(rng() % 2000001) - 1000000) /
+                     std::pow(10.0, static_cast<int>(rng() % 10));
+    for (const double x : {v, q}) {
+      ASSERT_EQ(fixed<3>(x), ref_fixed<3>(x)) << x;
+      ASSERT_EQ(fixed<6>(x), ref_fixed<6>(x)) << x;
+      ASSERT_EQ(fixed<9>(x), ref_fixed<9>(x)) << x;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace torqued::dds
