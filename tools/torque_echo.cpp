@@ -3,20 +3,23 @@
 //   torque-echo --topic engine --record out/            live table of per-cycle/segment torque + CSV
 //   torque-echo --topic all --format json --count 100   first 100 samples of every topic as JSON lines
 //   torque-echo --until-done                            exit when the daemon reports the end of a replay
+// It reports on stderr when a topic's writer (the daemon) appears, loses its liveliness (the daemon died or
+// hangs: no sign of it within the topic's lease) and when a topic misses its deadline (no sample within the
+// topic's deadline period); --exit-on-lost exits with status 3 when the daemon's liveliness is lost.
 // Network hygiene: run with CYCLONEDDS_URI pointing at a loopback-only configuration (config/).
 #include <signal.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <array>
-#include <cstring>
-#include <stdexcept>
-#include <type_traits>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "dds/dds.h"
@@ -41,11 +44,13 @@ struct Options {
   double duration_s = 0.0;
   std::uint64_t count = 0;
   bool until_done = false;
+  bool exit_on_lost = false;
   double idle_exit_s = 0.0;
   bool quiet = false;
 };
 
-template <class T> struct Reader {
+template <class T>
+struct Reader {
   dds_entity_t reader = 0;
   static constexpr int kBatch = 64;
   std::array<T, kBatch> buf{};
@@ -63,7 +68,8 @@ class Echo {
       if (!recorder_->ok()) throw std::runtime_error(recorder_->error());
     }
     participant_ = dds_create_participant(o.domain, nullptr, nullptr);
-    if (participant_ < 0) throw std::runtime_error(std::string("dds_create_participant: ") + dds_strretcode(participant_));
+    if (participant_ < 0)
+      throw std::runtime_error(std::string("dds_create_participant: ") + dds_strretcode(participant_));
     waitset_ = dds_create_waitset(participant_);
     for (const auto& t : o.topics) {
       const bool all = t == "all";
@@ -95,37 +101,83 @@ class Echo {
       take(cylinder_, dds::Topic::kCylinderTorque);
       take(crank_, dds::Topic::kCrankState);
       take(status_, dds::Topic::kDaemonStatus);
+      check_health(engine_, dds::Topic::kEngineTorque);
+      check_health(estimator_, dds::Topic::kEstimatorTorque);
+      check_health(cylinder_, dds::Topic::kCylinderTorque);
+      check_health(crank_, dds::Topic::kCrankState);
+      check_health(status_, dds::Topic::kDaemonStatus);
       std::fflush(stdout);
+      if (o_.exit_on_lost && lost_) {
+        std::fprintf(stderr, "torque-echo: the daemon's liveliness is lost: exiting (--exit-on-lost)\n");
+        return 3;
+      }
       const auto now = std::chrono::steady_clock::now();
       if (received_ != before) last_data = now;
       if (o_.count && received_ >= o_.count) break;
       if (done_) break;
       if (o_.duration_s > 0 && std::chrono::duration<double>(now - t0).count() >= o_.duration_s) break;
-      if (o_.idle_exit_s > 0 && received_ > 0 && std::chrono::duration<double>(now - last_data).count() >= o_.idle_exit_s)
+      if (o_.idle_exit_s > 0 && received_ > 0 &&
+          std::chrono::duration<double>(now - last_data).count() >= o_.idle_exit_s)
         break;
     }
     if (!o_.quiet)
-      std::fprintf(stderr, "torque-echo: %llu samples received%s\n", static_cast<unsigned long long>(received_),
+      std::fprintf(stderr, "torque-echo: %llu samples received%s\n",
+                   static_cast<unsigned long long>(received_),
                    done_ ? " (daemon reported end of replay)" : "");
     return 0;
   }
 
  private:
-  template <class T> void make(Reader<T>& r, dds::Topic t) {
+  template <class T>
+  void make(Reader<T>& r, dds::Topic t) {
     if (r.reader != 0) return;
     const dds_entity_t topic = dds::create_topic(participant_, settings_, t);
-    if (topic < 0) throw std::runtime_error("dds_create_topic " + settings_.topic_name(t) + ": " + dds_strretcode(topic));
+    if (topic < 0)
+      throw std::runtime_error("dds_create_topic " + settings_.topic_name(t) + ": " + dds_strretcode(topic));
     dds_qos_t* qos = dds::make_qos(settings_.qos[static_cast<std::size_t>(t)]);
     dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 1024);  // a subscriber keeps more than the writer's depth
     r.reader = dds_create_reader(participant_, topic, qos, nullptr);
     dds_delete_qos(qos);
-    if (r.reader < 0) throw std::runtime_error("dds_create_reader " + settings_.topic_name(t) + ": " + dds_strretcode(r.reader));
-    for (int i = 0; i < Reader<T>::kBatch; ++i) r.ptrs[static_cast<std::size_t>(i)] = &r.buf[static_cast<std::size_t>(i)];
+    if (r.reader < 0)
+      throw std::runtime_error("dds_create_reader " + settings_.topic_name(t) + ": " +
+                               dds_strretcode(r.reader));
+    for (int i = 0; i < Reader<T>::kBatch; ++i)
+      r.ptrs[static_cast<std::size_t>(i)] = &r.buf[static_cast<std::size_t>(i)];
     const dds_entity_t rc = dds_create_readcondition(r.reader, DDS_ANY_STATE);
     dds_waitset_attach(waitset_, rc, r.reader);
+    // The reader itself as a status condition: writer liveliness changes and missed deadlines wake us too.
+    dds_set_status_mask(r.reader, DDS_LIVELINESS_CHANGED_STATUS | DDS_REQUESTED_DEADLINE_MISSED_STATUS);
+    dds_waitset_attach(waitset_, r.reader, r.reader);
   }
 
-  template <class T> void take(Reader<T>& r, dds::Topic t) {
+  /// Writer liveliness and deadline of one topic, reported on stderr (reading the statuses resets them).
+  template <class T>
+  void check_health(const Reader<T>& r, dds::Topic t) {
+    if (r.reader == 0) return;
+    const std::string name = settings_.topic_name(t);
+    const dds::TopicQos& q = settings_.qos[static_cast<std::size_t>(t)];
+    dds_liveliness_changed_status_t lc{};
+    if (dds_get_liveliness_changed_status(r.reader, &lc) == DDS_RETCODE_OK) {
+      if (lc.alive_count_change > 0)
+        std::fprintf(stderr, "torque-echo: %s: writer alive (%u alive)\n", name.c_str(), lc.alive_count);
+      if (lc.not_alive_count_change > 0 || lc.alive_count_change < 0) {
+        std::fprintf(
+            stderr,
+            "torque-echo: %s: writer lost liveliness: no sign of the daemon within its %lld ms lease "
+            "(died, hung or unreachable; %u alive)\n",
+            name.c_str(), static_cast<long long>(q.lease_ms), lc.alive_count);
+        if (lc.alive_count == 0) lost_ = true;
+      }
+    }
+    dds_requested_deadline_missed_status_t dm{};
+    if (dds_get_requested_deadline_missed_status(r.reader, &dm) == DDS_RETCODE_OK &&
+        dm.total_count_change > 0)
+      std::fprintf(stderr, "torque-echo: %s: deadline missed: no sample within %lld ms (%u times in total)\n",
+                   name.c_str(), static_cast<long long>(q.deadline_ms), dm.total_count);
+  }
+
+  template <class T>
+  void take(Reader<T>& r, dds::Topic t) {
     if (r.reader == 0) return;
     for (;;) {
       const int n = dds_take(r.reader, r.ptrs.data(), r.info.data(), Reader<T>::kBatch, Reader<T>::kBatch);
@@ -173,6 +225,7 @@ class Echo {
   std::array<bool, dds::kTopicCount> header_done_{};
   bool print_status_ = true;
   bool done_ = false;
+  bool lost_ = false;
   std::uint64_t received_ = 0;
   std::string line_;
 };
@@ -181,8 +234,9 @@ class Echo {
 
 int main(int argc, char** argv) {
   Options o;
-  CLI::App app{"torque-echo: subscribe to torqued's DDS topics, print them (table or JSON lines) and/or record CSV "
-               "for torque-eval. Set CYCLONEDDS_URI to a loopback-only configuration for local use."};
+  CLI::App app{
+      "torque-echo: subscribe to torqued's DDS topics, print them (table or JSON lines) and/or record CSV "
+      "for torque-eval. Set CYCLONEDDS_URI to a loopback-only configuration for local use."};
   app.add_option("--topic,-t", o.topics, "engine|estimator|cylinder|crank|status|all (repeatable)")
       ->check(CLI::IsMember({"engine", "estimator", "cylinder", "crank", "status", "all"}));
   app.add_option("--format,-f", o.format, "table|json|none")->check(CLI::IsMember({"table", "json", "none"}));
@@ -193,11 +247,14 @@ int main(int argc, char** argv) {
   app.add_option("--duration", o.duration_s, "exit after this many seconds (0 = run until signalled)");
   app.add_option("--count", o.count, "exit after this many samples");
   app.add_flag("--until-done", o.until_done, "exit when the daemon's status reports the end of its replay");
-  app.add_option("--idle-exit", o.idle_exit_s, "exit when no sample arrived for this many seconds (after the first)");
+  app.add_flag("--exit-on-lost", o.exit_on_lost,
+               "exit with status 3 when the daemon's writers lose their liveliness (it died or hangs)");
+  app.add_option("--idle-exit", o.idle_exit_s,
+                 "exit when no sample arrived for this many seconds (after the first)");
   app.add_flag("--quiet,-q", o.quiet, "no summary line on stderr");
   CLI11_PARSE(app, argc, argv);
 
-  struct sigaction sa{};
+  struct sigaction sa {};
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
