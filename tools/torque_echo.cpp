@@ -5,7 +5,7 @@
 //   torque-echo --until-done                            exit when the daemon reports the end of a replay
 // It reports on stderr when a topic's writer (the daemon) appears, loses its liveliness (the daemon died or
 // hangs: no sign of it within the topic's lease) and when a topic misses its deadline (no sample within the
-// topic's deadline period); --exit-on-lost exits with status 3 when the daemon's liveliness is lost.
+// topic's deadline period); --exit-on-lost exits with status 3 when the daemon's writers are gone.
 // Network hygiene: run with CYCLONEDDS_URI pointing at a loopback-only configuration (config/).
 #include <signal.h>
 #include <unistd.h>
@@ -108,7 +108,7 @@ class Echo {
       check_health(status_, dds::Topic::kDaemonStatus);
       std::fflush(stdout);
       if (o_.exit_on_lost && lost_) {
-        std::fprintf(stderr, "torque-echo: the daemon's liveliness is lost: exiting (--exit-on-lost)\n");
+        std::fprintf(stderr, "torque-echo: the daemon's writers are gone: exiting (--exit-on-lost)\n");
         return 3;
       }
       const auto now = std::chrono::steady_clock::now();
@@ -160,14 +160,17 @@ class Echo {
     if (dds_get_liveliness_changed_status(r.reader, &lc) == DDS_RETCODE_OK) {
       if (lc.alive_count_change > 0)
         std::fprintf(stderr, "torque-echo: %s: writer alive (%u alive)\n", name.c_str(), lc.alive_count);
-      if (lc.not_alive_count_change > 0 || lc.alive_count_change < 0) {
+      if (lc.not_alive_count_change > 0) {  // lease expired: the writer still exists but shows no life
         std::fprintf(
             stderr,
             "torque-echo: %s: writer lost liveliness: no sign of the daemon within its %lld ms lease "
             "(died, hung or unreachable; %u alive)\n",
             name.c_str(), static_cast<long long>(q.lease_ms), lc.alive_count);
-        if (lc.alive_count == 0) lost_ = true;
+      } else if (lc.alive_count_change < 0) {  // the writer was deleted: the daemon stopped cleanly
+        std::fprintf(stderr, "torque-echo: %s: writer left (daemon stopped; %u alive)\n", name.c_str(),
+                     lc.alive_count);
       }
+      if ((lc.not_alive_count_change > 0 || lc.alive_count_change < 0) && lc.alive_count == 0) lost_ = true;
     }
     dds_requested_deadline_missed_status_t dm{};
     if (dds_get_requested_deadline_missed_status(r.reader, &dm) == DDS_RETCODE_OK &&
@@ -248,7 +251,8 @@ int main(int argc, char** argv) {
   app.add_option("--count", o.count, "exit after this many samples");
   app.add_flag("--until-done", o.until_done, "exit when the daemon's status reports the end of its replay");
   app.add_flag("--exit-on-lost", o.exit_on_lost,
-               "exit with status 3 when the daemon's writers lose their liveliness (it died or hangs)");
+               "exit with status 3 when the daemon's writers are gone (lost liveliness: it died or hangs; or "
+               "it stopped)");
   app.add_option("--idle-exit", o.idle_exit_s,
                  "exit when no sample arrived for this many seconds (after the first)");
   app.add_flag("--quiet,-q", o.quiet, "no summary line on stderr");
