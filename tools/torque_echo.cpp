@@ -160,17 +160,15 @@ class Echo {
     if (dds_get_liveliness_changed_status(r.reader, &lc) == DDS_RETCODE_OK) {
       if (lc.alive_count_change > 0)
         std::fprintf(stderr, "torque-echo: %s: writer alive (%u alive)\n", name.c_str(), lc.alive_count);
-      if (lc.not_alive_count_change > 0) {  // lease expired: the writer still exists but shows no life
-        std::fprintf(
-            stderr,
-            "torque-echo: %s: writer lost liveliness: no sign of the daemon within its %lld ms lease "
-            "(died, hung or unreachable; %u alive)\n",
-            name.c_str(), static_cast<long long>(q.lease_ms), lc.alive_count);
-      } else if (lc.alive_count_change < 0) {  // the writer was deleted: the daemon stopped cleanly
-        std::fprintf(stderr, "torque-echo: %s: writer left (daemon stopped; %u alive)\n", name.c_str(),
-                     lc.alive_count);
+      // A writer that stops being alive: its lease expired (the daemon died, hangs or is unreachable) or it
+      // was deleted (the daemon stopped; Cyclone reports that as not-alive too, so the two are one message).
+      if (lc.not_alive_count_change > 0 || lc.alive_count_change < 0) {
+        std::fprintf(stderr,
+                     "torque-echo: %s: writer lost liveliness: the daemon stopped, or showed no sign of life "
+                     "within its %lld ms lease (died, hung or unreachable); %u alive\n",
+                     name.c_str(), static_cast<long long>(q.lease_ms), lc.alive_count);
+        if (lc.alive_count == 0) lost_ = true;
       }
-      if ((lc.not_alive_count_change > 0 || lc.alive_count_change < 0) && lc.alive_count == 0) lost_ = true;
     }
     dds_requested_deadline_missed_status_t dm{};
     if (dds_get_requested_deadline_missed_status(r.reader, &dm) == DDS_RETCODE_OK &&
