@@ -4,7 +4,7 @@
 // loads the other core (stress-ng --cpu 1) and runs cyclictest and ddsperf alongside, printing their figures
 // side by side with ours.
 //   CYCLONEDDS_URI=file://$PWD/config/cyclonedds-loopback.xml torque-latency --torqued build/daemon/torqued
-//   --config config/demo.yaml --duration 15 --stress --cyclictest
+//   --config config/demo.yaml --duration 15 --stress --cyclictest [--plot latency.png]
 #include <sched.h>
 #include <signal.h>
 #include <sys/mman.h>
@@ -21,6 +21,10 @@
 #include <string>
 #include <thread>
 #include <vector>
+
+#ifndef TORQUED_LATENCY_PLOT_SCRIPT
+#define TORQUED_LATENCY_PLOT_SCRIPT "tools/scripts/plot_latency.py"
+#endif
 
 #include "dds/dds.h"
 #include "qos.hpp"
@@ -145,6 +149,39 @@ void histogram(const Stats& s, const char* title) {
 }
 
 /// cyclictest -q -h N prints "# Min Latencies", "# Avg", "# Max" and a histogram; we read the histogram.
+/// cyclictest -q -h N's histogram lines "<us> <count>" (1 us bins).
+std::vector<std::pair<int, long>> cyclictest_hist(const char* log) {
+  std::vector<std::pair<int, long>> hist;
+  FILE* f = std::fopen(log, "r");
+  if (!f) return hist;
+  char line[512];
+  while (std::fgets(line, sizeof line, f)) {
+    int us = 0;
+    long c = 0;
+    if (line[0] != '#' && std::sscanf(line, "%d %ld", &us, &c) == 2 && c > 0) hist.emplace_back(us, c);
+  }
+  std::fclose(f);
+  return hist;
+}
+
+std::string shell_quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+/// The plot's input (series,us,count): every received sample, and cyclictest's histogram.
+bool write_plot_data(const std::string& path, const std::vector<std::pair<const char*, const Stats*>>& series,
+                     const std::vector<std::pair<int, long>>& cyclic) {
+  FILE* f = std::fopen(path.c_str(), "w");
+  if (!f) return false;
+  std::fprintf(f, "series,us,count\n");
+  for (const auto& [name, st] : series)
+    for (double v : st->us) std::fprintf(f, "%s,%.1f,1\n", name, v);
+  for (const auto& [us, c] : cyclic) std::fprintf(f, "cyclictest,%d,%ld\n", us, c);
+  return std::fclose(f) == 0;
+}
+
 /// late_1ms: wake-ups 1 ms or more late (histogram bins >= 1000 us plus its overflows), to compare with the
 /// daemon's time-thread overruns (a 1 kHz tick missed).
 void cyclictest_summary(const char* log, double& p50, double& p99, double& p999, double& max,
@@ -212,6 +249,7 @@ void ddsperf_summary(const char* log, double& p50, double& p99, std::size_t& n) 
 
 int main(int argc, char** argv) {
   std::string torqued = "torqued", config, ddsperf_log = "/tmp/torque-latency-ddsperf.log";
+  std::string plot, plot_script = TORQUED_LATENCY_PLOT_SCRIPT, title;
   double duration_s = 15, speed = 1.0;
   bool stress = false, cyclic = false, ddsperf = false, use_waitset = false;
   int sub_prio = 70, ddsperf_rate_hz = 500, sub_cpu = -1, stress_cpu = -1, cyclic_interval_us = 1000;
@@ -243,6 +281,13 @@ int main(int argc, char** argv) {
          "(e.g. 3333 at 3000 rpm with crank_state_decimation 10) both p99.9 see stalls equally often")
       ->check(CLI::Range(50, 1000000));
   app.add_option("--stress-cpu", stress_cpu, "pin stress-ng to this CPU (-1: not pinned)");
+  app.add_option(
+      "--plot", plot,
+      "write a PNG: the latency distributions (tail on a log scale, p50 region as a histogram) next "
+      "to cyclictest's, with the targets");
+  app.add_option("--plot-script", plot_script, "plot script (run with /usr/bin/python3)")
+      ->capture_default_str();
+  app.add_option("--title", title, "plot title");
   CLI11_PARSE(app, argc, argv);
 
   if (sub_cpu >= 0) {
@@ -407,5 +452,32 @@ int main(int argc, char** argv) {
                                            : last.substr(last.find("stopped:")).c_str());
   }
   histogram(crank_us, "tooth edge -> CrankState");
+  if (!plot.empty()) {
+    const std::string csv = plot + ".data.csv";
+    const auto cyc =
+        cyclic ? cyclictest_hist("/tmp/torque-latency-cyclictest.log") : std::vector<std::pair<int, long>>{};
+    if (!write_plot_data(csv,
+                         {{"crank_total", &crank_us},
+                          {"crank_daemon", &rx.crank.in_daemon},
+                          {"crank_dds", &rx.crank.dds},
+                          {"engine_total", &engine_us}},
+                         cyc)) {
+      std::fprintf(stderr, "torque-latency: cannot write %s: %s\n", csv.c_str(), std::strerror(errno));
+      return 1;
+    }
+    char dflt[160];
+    std::snprintf(dflt, sizeof dflt, "torqued: tooth edge -> subscriber, %.0f s paced replay at %.1fx%s",
+                  duration_s, speed, stress ? ", stress-ng --cpu 1" : "");
+    // Debian's python3-matplotlib lives with /usr/bin/python3 (the PATH python may be another one).
+    const std::string cmd = "/usr/bin/python3 " + shell_quote(plot_script) + " --data " + shell_quote(csv) +
+                            " --out " + shell_quote(plot) + " --title " +
+                            shell_quote(title.empty() ? std::string(dflt) : title);
+    if (std::system(cmd.c_str()) != 0) {
+      std::fprintf(stderr, "torque-latency: plot failed (%s); data kept in %s\n", cmd.c_str(), csv.c_str());
+      return 1;
+    }
+    std::remove(csv.c_str());
+    std::printf("plot: %s\n", plot.c_str());
+  }
   return crank_us.us.empty() ? 1 : 0;
 }
