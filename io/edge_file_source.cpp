@@ -229,14 +229,25 @@ SourceStatus EdgeCsvSource::next(EdgeEvent& out) noexcept {
       level_[1] = static_cast<std::uint8_t>(cam < 0 ? 0 : cam);
       continue;
     }
-    if (crank != level_[0]) {
-      level_[0] = static_cast<std::uint8_t>(crank);
-      pending_[static_cast<std::size_t>(pending_n_++)] = EdgeEvent{t, opt_.crank_channel, level_[0]};
+    // A row is normally one edge: it goes straight to `out` (through pending_, the event was stored and read
+    // back at once); the second edge of a row with both channels changing waits in pending_.
+    const bool crank_edge = crank != level_[0];
+    const bool cam_edge = cam >= 0 && cam != level_[1];
+    if (crank_edge) level_[0] = static_cast<std::uint8_t>(crank);
+    if (cam_edge) level_[1] = static_cast<std::uint8_t>(cam);
+    if (crank_edge) {
+      out = EdgeEvent{t, opt_.crank_channel, level_[0]};
+      if (cam_edge) {
+        pending_[0] = EdgeEvent{t, opt_.cam_channel, level_[1]};
+        pending_n_ = 1;
+      }
+    } else if (cam_edge) {
+      out = EdgeEvent{t, opt_.cam_channel, level_[1]};
+    } else {
+      continue;  // no level changed
     }
-    if (cam >= 0 && cam != level_[1]) {
-      level_[1] = static_cast<std::uint8_t>(cam);
-      pending_[static_cast<std::size_t>(pending_n_++)] = EdgeEvent{t, opt_.cam_channel, level_[1]};
-    }
+    ++stats_.records;
+    return SourceStatus::kOk;
   }
 }
 

@@ -6,6 +6,8 @@
 #include <cstring>
 #include <random>
 #include <string>
+#include <tuple>
+#include <vector>
 
 #include "alloc_counter.hpp"
 #include "candump_source.hpp"
@@ -225,6 +227,20 @@ TEST(EdgeCsv, FastPathExactNanosecondsAndHeaderUnits) {
   EdgeCsvSource s2(g.path());
   ASSERT_EQ(s2.next(e), SourceStatus::kOk);
   EXPECT_EQ(e.t_ns, 9'123'456'789);
+}
+
+TEST(EdgeCsv, OneEventPerChangedChannelInRowOrder) {
+  // initial levels, cam only, no change (a glitch export), both (crank first), crank only, end
+  TempFile f("Time [s],crank,cam\n0.000000000,0,0\n0.000000010,0,1\n0.000000020,0,1\n"
+             "0.000000030,1,0\n0.000000040,0,0\n");
+  EdgeCsvSource src(f.path());
+  ASSERT_TRUE(src.ok());
+  std::vector<std::tuple<std::int64_t, int, int>> got;
+  EdgeEvent e;
+  while (src.next(e) == SourceStatus::kOk) got.emplace_back(e.t_ns, e.channel, e.level);
+  const std::vector<std::tuple<std::int64_t, int, int>> want{{10, 1, 1}, {30, 0, 1}, {30, 1, 0}, {40, 0, 0}};
+  EXPECT_EQ(got, want);
+  EXPECT_EQ(src.stats().records, 4u);
 }
 
 TEST(EdgeList, OneTimePerLineWithHeaderAndComments) {
