@@ -59,19 +59,26 @@ std::size_t EdgeCsvSource::parse_row_fast(const char* p, std::size_t avail, std:
   std::uint64_t frac8 = 0;
   if (!eight_digits(p + 1, frac8) || static_cast<unsigned>(p[9] - '0') >= 10u) return 0;
   const char* c = p + 10;  // ",x,y..."
-  int lv[2] = {-1, -1};
-  for (int col = 1; col < columns_; ++col, c += 2) {
-    if (c[0] != ',') return 0;
-    const unsigned d = static_cast<unsigned>(c[1] - '0');
-    if (col == crank_col_ || col == cam_col_) {
-      if (d > 1u) return 0;
-      lv[col == crank_col_ ? 0 : 1] = static_cast<int>(d);
-    } else if (d >= 10u) {
-      return 0;
+  if (columns_ == 3 && crank_col_ == 1 && cam_col_ == 2) {  // the usual export: ",crank,cam", no loop
+    const unsigned dc = static_cast<unsigned>(c[1] - '0'), dm = static_cast<unsigned>(c[3] - '0');
+    if (c[0] != ',' || c[2] != ',' || (dc | dm) > 1u) return 0;
+    crank = static_cast<int>(dc);
+    cam = static_cast<int>(dm);
+  } else {
+    int lv[2] = {-1, -1};
+    for (int col = 1; col < columns_; ++col, c += 2) {
+      if (c[0] != ',') return 0;
+      const unsigned d = static_cast<unsigned>(c[1] - '0');
+      if (col == crank_col_ || col == cam_col_) {
+        if (d > 1u) return 0;
+        lv[col == crank_col_ ? 0 : 1] = static_cast<int>(d);
+      } else if (d >= 10u) {
+        return 0;
+      }
     }
+    crank = lv[0];
+    cam = lv[1];
   }
-  crank = lv[0];
-  cam = lv[1];
   t = whole * 1'000'000'000 + static_cast<std::int64_t>(frac8 * 10 + static_cast<unsigned>(p[9] - '0'));
   return static_cast<std::size_t>(len);
 }
