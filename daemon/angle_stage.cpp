@@ -113,10 +113,9 @@ void AngleStage::on_tooth(const ToothEvent& te, std::int64_t ingest_ns) noexcept
   ts.synced = synced && prev_tooth_t_ns_ >= 0;
 
   // EngineSignals at this tooth; remember which bound quantities are stale (published in status).
-  EngineSignals sig{};
+  const EngineSignals sig = store_ ? store_->signals_at(te.t_ns) : EngineSignals{};
   std::uint32_t stale = 0;
   if (store_) {
-    sig = store_->signals_at(te.t_ns);
     for (int i = 0; i < kSignalCount; ++i) {
       const auto q = static_cast<Quantity>(i);
       if (store_->bound(q) && !store_->valid_at(q, te.t_ns)) stale |= 1u << i;
