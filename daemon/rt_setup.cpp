@@ -53,20 +53,17 @@ RtOutcome apply_to_current_thread(const ThreadRt& rt) noexcept {
 }
 
 ScopedThreadRt::ScopedThreadRt(const ThreadRt& rt) noexcept {
-  static_assert(sizeof(cpu_set_t) <= sizeof affinity_);
   sched_param sp{};
   have_policy_ = pthread_getschedparam(pthread_self(), &policy_, &sp) == 0;
   priority_ = sp.sched_priority;
-  auto* set = reinterpret_cast<cpu_set_t*>(affinity_);
-  have_affinity_ = pthread_getaffinity_np(pthread_self(), sizeof(cpu_set_t), set) == 0;
+  have_affinity_ = pthread_getaffinity_np(pthread_self(), sizeof affinity_, &affinity_) == 0;
   ThreadRt unnamed = rt;
   unnamed.name = "";
   if (!rt.cpus.empty() || rt.fifo) outcome_ = apply_to_current_thread(unnamed);
 }
 
 ScopedThreadRt::~ScopedThreadRt() {
-  if (have_affinity_)
-    pthread_setaffinity_np(pthread_self(), sizeof(cpu_set_t), reinterpret_cast<cpu_set_t*>(affinity_));
+  if (have_affinity_) pthread_setaffinity_np(pthread_self(), sizeof affinity_, &affinity_);
   if (have_policy_) {
     sched_param sp{};
     sp.sched_priority = priority_;

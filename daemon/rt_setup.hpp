@@ -3,6 +3,8 @@
 // (mlockall), then per thread: CPU affinity, scheduling policy/priority, prefault the stack. Each failure is
 // reported with errno; "not permitted" (EPERM) is separated so the daemon can start anyway with a warning
 // and a status flag unless the config requires real-time.
+#include <sched.h>
+
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -44,7 +46,7 @@ class ScopedThreadRt {
   int priority_ = 0;
   bool have_policy_ = false;
   bool have_affinity_ = false;
-  alignas(8) unsigned char affinity_[128] = {};  // cpu_set_t (kept opaque here)
+  cpu_set_t affinity_{};
   RtOutcome outcome_;
 };
 
