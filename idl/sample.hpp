@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <type_traits>
+#include <utility>
 
 #include "topics.hpp"
 
@@ -31,35 +32,29 @@ struct AnySample {
   /// The header fields every topic shares, by reference (no allocation; real-time safe).
   template <class F>
   decltype(auto) visit(F&& f) {
-    switch (topic) {
-      case Topic::kEngineTorque:
-        return f(u.engine);
-      case Topic::kEstimatorTorque:
-        return f(u.estimator);
-      case Topic::kCylinderTorque:
-        return f(u.cylinder);
-      case Topic::kCrankState:
-        return f(u.crank);
-      case Topic::kDaemonStatus:
-        break;
-    }
-    return f(u.status);
+    return visit_impl(*this, std::forward<F>(f));
   }
   template <class F>
   decltype(auto) visit(F&& f) const {
-    switch (topic) {
+    return visit_impl(*this, std::forward<F>(f));
+  }
+
+ private:
+  template <class Self, class F>
+  static decltype(auto) visit_impl(Self& self, F&& f) {
+    switch (self.topic) {
       case Topic::kEngineTorque:
-        return f(u.engine);
+        return f(self.u.engine);
       case Topic::kEstimatorTorque:
-        return f(u.estimator);
+        return f(self.u.estimator);
       case Topic::kCylinderTorque:
-        return f(u.cylinder);
+        return f(self.u.cylinder);
       case Topic::kCrankState:
-        return f(u.crank);
+        return f(self.u.crank);
       case Topic::kDaemonStatus:
         break;
     }
-    return f(u.status);
+    return f(self.u.status);
   }
 };
 static_assert(std::is_trivially_copyable_v<AnySample>);
