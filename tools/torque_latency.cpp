@@ -149,19 +149,31 @@ void histogram(const Stats& s, const char* title) {
 }
 
 /// cyclictest -q -h N prints "# Min Latencies", "# Avg", "# Max" and a histogram; we read the histogram.
-/// cyclictest -q -h N's histogram lines "<us> <count>" (1 us bins).
-std::vector<std::pair<int, long>> cyclictest_hist(const char* log) {
+/// What cyclictest -q -h N writes: its histogram lines "<us> <count>" (1 us bins, empty bins left out), its
+/// max and the number of samples beyond the histogram.
+struct CyclictestLog {
   std::vector<std::pair<int, long>> hist;
+  double max_us = 0;
+  long overflows = 0;
+};
+
+CyclictestLog read_cyclictest(const char* log) {
+  CyclictestLog r;
   FILE* f = std::fopen(log, "r");
-  if (!f) return hist;
+  if (!f) return r;
   char line[512];
   while (std::fgets(line, sizeof line, f)) {
+    if (line[0] == '#') {
+      if (std::strncmp(line, "# Max Latencies:", 16) == 0) r.max_us = std::atof(line + 16);
+      if (std::strncmp(line, "# Histogram Overflows:", 22) == 0) r.overflows += std::atol(line + 22);
+      continue;
+    }
     int us = 0;
     long c = 0;
-    if (line[0] != '#' && std::sscanf(line, "%d %ld", &us, &c) == 2 && c > 0) hist.emplace_back(us, c);
+    if (std::sscanf(line, "%d %ld", &us, &c) == 2 && c > 0) r.hist.emplace_back(us, c);
   }
   std::fclose(f);
-  return hist;
+  return r;
 }
 
 std::string shell_quote(const std::string& s) {
@@ -184,31 +196,18 @@ bool write_plot_data(const std::string& path, const std::vector<std::pair<const 
 
 /// late_1ms: wake-ups 1 ms or more late (histogram bins >= 1000 us plus its overflows), to compare with the
 /// daemon's time-thread overruns (a 1 kHz tick missed).
-void cyclictest_summary(const char* log, double& p50, double& p99, double& p999, double& max,
+void cyclictest_summary(const CyclictestLog& log, double& p50, double& p99, double& p999, double& max,
                         long& late_1ms) {
-  FILE* f = std::fopen(log, "r");
-  if (!f) return;
-  char line[512];
-  std::vector<std::pair<int, long>> hist;
-  while (std::fgets(line, sizeof line, f)) {
-    if (line[0] == '#') {
-      if (std::strncmp(line, "# Max Latencies:", 16) == 0) max = std::atof(line + 16);
-      if (std::strncmp(line, "# Histogram Overflows:", 22) == 0) late_1ms += std::atol(line + 22);
-      continue;
-    }
-    int us = 0;
-    long c = 0;
-    if (std::sscanf(line, "%d %ld", &us, &c) == 2) hist.emplace_back(us, c);
-  }
-  std::fclose(f);
+  max = log.max_us;
+  late_1ms += log.overflows;
   long total = 0;
-  for (auto& h : hist) {
+  for (const auto& h : log.hist) {
     total += h.second;
     if (h.first >= 1000) late_1ms += h.second;
   }
   long acc = 0;
   p50 = p99 = p999 = -1;
-  for (auto& [us, c] : hist) {
+  for (const auto& [us, c] : log.hist) {
     acc += c;
     if (p50 < 0 && acc >= total / 2) p50 = us;
     if (p99 < 0 && acc >= total - total / 100) p99 = us;
@@ -421,7 +420,7 @@ int main(int argc, char** argv) {
   if (cyclic) {
     double p50 = 0, p99 = 0, p999 = 0, mx = 0;
     long late_1ms = 0;
-    cyclictest_summary("/tmp/torque-latency-cyclictest.log", p50, p99, p999, mx, late_1ms);
+    cyclictest_summary(read_cyclictest("/tmp/torque-latency-cyclictest.log"), p50, p99, p999, mx, late_1ms);
     const std::string name = "cyclictest -i " + std::to_string(cyclic_interval_us) + " (same run)";
     std::printf("%-38s %8s %8.1f %8.1f %8.1f %8.1f\n", name.c_str(), "-", p50, p99, p999, mx);
     std::printf(
@@ -454,8 +453,8 @@ int main(int argc, char** argv) {
   histogram(crank_us, "tooth edge -> CrankState");
   if (!plot.empty()) {
     const std::string csv = plot + ".data.csv";
-    const auto cyc =
-        cyclic ? cyclictest_hist("/tmp/torque-latency-cyclictest.log") : std::vector<std::pair<int, long>>{};
+    const auto cyc = cyclic ? read_cyclictest("/tmp/torque-latency-cyclictest.log").hist
+                            : std::vector<std::pair<int, long>>{};
     if (!write_plot_data(csv,
                          {{"crank_total", &crank_us},
                           {"crank_daemon", &rx.crank.in_daemon},
