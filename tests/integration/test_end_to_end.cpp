@@ -192,17 +192,9 @@ TEST_F(EndToEnd, ReplayThroughDdsToSubscriberMatchesTruth) {
 // kill -9 of the daemon: torque-echo reports the writers' lost liveliness within their 1 s lease
 // (dds.qos.*.lease_ms) and, with --exit-on-lost, exits with status 3. On domain 8 (the other tests use 0).
 TEST_F(EndToEnd, SubscriberNoticesAKilledDaemon) {
-  std::string y = test::slurp(std::string(TORQUED_SOURCE_DIR) + "/config/demo.yaml");
-  auto replace = [&y](const std::string& from, const std::string& to) {
-    for (std::size_t p = 0; (p = y.find(from, p)) != std::string::npos; p += to.size())
-      y.replace(p, from.size(), to);
-  };
-  ASSERT_NE(y.find("domain_id: 0"), std::string::npos);
-  replace("domain_id: 0", "domain_id: 8");
-  replace("../data/demo/", std::string(TORQUED_SOURCE_DIR) + "/data/demo/");
-  replace("dbc: demo.dbc", std::string("dbc: ") + TORQUED_SOURCE_DIR + "/config/demo.dbc");
-  const std::string cfg = (dir_ / "torqued.yaml").string(), echo_log = (dir_ / "echo.log").string();
-  std::ofstream(cfg) << y;
+  const std::string cfg = test::write_demo_config(dir_.string(), "domain_id: 0", "domain_id: 8");
+  ASSERT_NE(test::slurp(cfg).find("domain_id: 8"), std::string::npos);
+  const std::string echo_log = (dir_ / "echo.log").string();
   test::Process echo({TORQUE_ECHO_EXE, "--domain", "8", "--topic", "status", "--topic", "engine", "--format",
                       "none", "--exit-on-lost", "--duration", "30"},
                      {}, echo_log);
