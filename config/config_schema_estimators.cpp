@@ -142,6 +142,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("fusion.max_can_age_s", fusion.max_can_age_s, open_closed(0.0, 60.0), "s", "CAN inputs older than this count as lost");
   TQ_BOOL("fusion.blend", fusion.blend, "blend agreeing valid sources by inverse variance (false: pick the best)");
   TQ_NUM("fusion.gate_sigma", fusion.gate_sigma, open_closed(0.0, 1e3), "", "a source farther than gate_sigma x sigma(difference) from the best is not blended");
+  TQ_BOOL("fusion.time_estimate", fusion.time_estimate, "use the time chain's UIO brake estimate (Na et al.) as the fusion's lowest-priority source");
   TQ_BOOL("tooth_learn.enabled", tooth_learn.enabled, "apply the per-tooth angle correction table");
   TQ_BOOL("tooth_learn.learn", tooth_learn.params.learn, "learn per-tooth corrections while running");
   TQ_INT("tooth_learn.min_cycles", tooth_learn.params.min_cycles, closed(1, 100000), "cycles", "cycles averaged before the table is used");

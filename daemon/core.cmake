@@ -1,9 +1,11 @@
 # torqued_daemon_core: stages, fast replay, runtime threads, DDS publisher, systemd glue (owned by "daemon").
 # Included from daemon/CMakeLists.txt; torqued_daemon (logging, config glue) and the torqued executable link it.
 add_library(torqued_daemon_core STATIC
+  ${CMAKE_CURRENT_LIST_DIR}/angle_chain.cpp
   ${CMAKE_CURRENT_LIST_DIR}/angle_stage.cpp
   ${CMAKE_CURRENT_LIST_DIR}/time_stage.cpp
   ${CMAKE_CURRENT_LIST_DIR}/fast_replay.cpp
+  ${CMAKE_CURRENT_LIST_DIR}/replay_inputs.cpp
   ${CMAKE_CURRENT_LIST_DIR}/dds_publisher.cpp
   ${CMAKE_CURRENT_LIST_DIR}/rt_setup.cpp
   ${CMAKE_CURRENT_LIST_DIR}/runtime.cpp

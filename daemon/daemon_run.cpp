@@ -17,6 +17,7 @@
 #include "config_loader.hpp"
 #include "dds_publisher.hpp"
 #include "fast_replay.hpp"
+#include "replay_inputs.hpp"
 #include "logging.hpp"
 #include "output_fanout.hpp"
 #include "rt_setup.hpp"
@@ -34,6 +35,19 @@ void on_fast_signal(int) { g_fast_stop = true; }
 std::string state_path(const Config& cfg, const RunOptions& opt) {
   const std::string dir = opt.state_dir ? *opt.state_dir : cfg.output.state_dir;
   return dir.empty() ? std::string() : dir + "/learned_state.txt";
+}
+
+/// The learned state of the previous run (empty when none, unreadable, or --fresh-state).
+LearnedState load_learned(const std::string& spath, const RunOptions& opt) {
+  if (spath.empty()) return {};
+  if (opt.fresh_state) {
+    spdlog::info("learned state not loaded (--fresh-state): learning from the prior; saved to {}", spath);
+    return {};
+  }
+  std::string serr;
+  if (auto st = load_state(spath, &serr)) return *st;
+  spdlog::info("no learned state loaded: {}", serr);
+  return {};
 }
 
 ThreadRt thread_rt(const ThreadConfig& t, const char* name) {
@@ -115,15 +129,25 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
   sigaction(SIGTERM, &sa, nullptr);
   sigaction(SIGINT, &sa, nullptr);
   sd_notify(0, "READY=1\nSTATUS=fast replay running");
-  const ReplayResult r = run_fast_replay(s, edges, can, can_time_offset_ns(cfg), dbc, out, &g_fast_stop);
+  // Learned state as in the service: loaded at start, saved at the end (--state-dir / output.state_dir).
+  const std::string spath = state_path(cfg, opt);
+  LearnedState st = load_learned(spath, opt);
+  const ReplayResult r =
+      run_fast_replay(s, edges, can, can_time_offset_ns(cfg), dbc, out, &g_fast_stop, spath.empty() ? nullptr : &st);
   if (!r.error.empty()) spdlog::error("replay: {}", r.error);
+  if (!spath.empty()) {
+    spdlog::info("learned state applied at start: {}", r.imported.empty() ? "nothing" : r.imported);
+    std::string serr;
+    st.saved_at_t_ns = r.last_t_ns;
+    if (r.learned && !save_state_atomic(spath, st, &serr)) spdlog::warn("learned state: {}", serr);
+    if (r.learned && serr.empty()) spdlog::info("learned state saved to {}", spath);
+  }
   const double rec_s = static_cast<double>(r.last_t_ns - r.first_t_ns) * 1e-9;
   spdlog::info(
       "fast replay: {:.3f} s of recording in {:.3f} s ({:.0f}x real time), {} edges, {} teeth, {} cycles, "
       "{} CAN frames, {} samples, {} sync losses, {} source drops",
       rec_s, r.wall_s, r.speedup(), r.counters.edges, r.counters.teeth, r.counters.cycles,
       r.counters.can_frames, r.samples, r.counters.sync_losses, r.counters.source_drops);
-  (void)opt;
   return r.error.empty() ? 0 : 1;
 }
 
@@ -134,27 +158,15 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   if (opt.record_dir) cfg.output.record_dir = *opt.record_dir;
   const bool fast = opt.mode ? *opt.mode == "fast" : cfg.replay.mode == ReplayMode::kFast;
   const bool file_inputs = cfg.inputs.edges.backend == EdgeBackend::kFile;
-  StageSettings s = stage_settings_from(cfg);
-  s.decoder = decoder_params(cfg);
-
-  std::string err;
-  std::unique_ptr<EdgeSource> edges = make_edge_source(cfg, &err);
-  if (!edges) {
-    spdlog::critical("inputs.edges: {}", err);
+  RunInputs in = open_inputs(cfg);
+  if (!in.ok()) {
+    spdlog::critical("{}", in.error);
     return 1;
   }
-  err.clear();
-  std::unique_ptr<CanSource> can = make_can_source(cfg, &err);
-  if (!can && !err.empty()) {
-    spdlog::critical("inputs.can: {}", err);
-    return 1;
-  }
-  err.clear();
-  std::optional<DbcDatabase> dbc = load_dbc(cfg, &err);
-  if (!dbc && !err.empty()) {
-    spdlog::critical("can.dbc: {}", err);
-    return 1;
-  }
+  StageSettings& s = in.settings;
+  std::unique_ptr<EdgeSource>& edges = in.edges;
+  std::unique_ptr<CanSource>& can = in.can;
+  std::optional<DbcDatabase>& dbc = in.dbc;
   spdlog::info("edges: {}", edges->describe());
   if (can) spdlog::info("can: {}", can->describe());
 
@@ -219,14 +231,8 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   // Learned state from the previous run.
   const std::string spath = state_path(cfg, opt);
   if (!spath.empty()) {
-    std::string serr;
-    if (auto st = load_state(spath, &serr)) {
-      rt.angle_stage().import_state(*st);
-      spdlog::info("learned state loaded from {} ({} tooth corrections{})", spath,
-                   st->tooth_corrections_rad.size(), st->friction ? ", friction" : "");
-    } else {
-      spdlog::info("no learned state loaded: {}", serr);
-    }
+    const std::string what = rt.angle_stage().import_state(load_learned(spath, opt));
+    if (!what.empty()) spdlog::info("learned state loaded from {}: {}", spath, what);
   }
 
   if (!rt.start()) {

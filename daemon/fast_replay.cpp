@@ -37,14 +37,16 @@ class TimeFeed final : public ToothSink {
 }  // namespace
 
 ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSource* can, std::int64_t can_offset_ns,
-                             const DbcDatabase* dbc, SampleSink& out, const volatile bool* stop) {
+                             const DbcDatabase* dbc, SampleSink& out, const volatile bool* stop,
+                             LearnedState* state, AngleChainSink* tap) {
   ReplayResult r;
   CountingSink sink(out);
   TimeStage time(s, dbc, sink);
   TimeFeed feed(time);
-  AngleStage angle(s, dbc, sink, &feed);
+  AngleStage angle(s, dbc, sink, &feed, tap);
   if (!angle.ok()) { r.error = angle.error(); return r; }
   if (!time.ok()) { r.error = time.error(); return r; }
+  if (state) r.imported = angle.import_state(*state);
 
   ReplayMerger merger(edges, can, can_offset_ns);
   const auto t0 = std::chrono::steady_clock::now();
@@ -54,16 +56,16 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
   ReplayMerger::Item item;
   auto counters = [&] {
     RuntimeCounters c;
-    const auto& ds = angle.decoder().stats();
+    const auto& ds = angle.chain().decoder().stats();
     c.edges = ds.edges;
     c.teeth = ds.teeth;
     c.sync_losses = ds.sync_losses;
-    c.cycles = angle.cycles();
+    c.cycles = angle.chain().cycles();
     c.can_frames = merger.frames_out();
     c.source_drops = (edges ? edges->stats().bad_lines + edges->stats().dropped : 0) +
                      (can ? can->stats().bad_lines + can->stats().dropped : 0);
-    c.sensor_timeouts = angle.stale_mask();
-    c.synced = angle.decoder().state() == SyncState::kSynced;
+    c.sensor_timeouts = angle.chain().status().stale_mask;
+    c.synced = angle.chain().decoder().state() == SyncState::kSynced;
     return c;
   };
   for (;;) {
@@ -86,6 +88,7 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
     // Time-triggered steps that are due before this record (the 1 kHz timer of the paced mode).
     while (next_tick <= t) {
       time.step(next_tick, 0);
+      angle.chain().set_time_estimate(time.pipeline().output().uio, /*uses_can=*/true);  // time → fusion
       next_tick += time.step_ns();
     }
     if (item.kind == ReplayMerger::Kind::kEdge) {
@@ -105,6 +108,7 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
   c.flags |= torque_STATUS_REPLAY_DONE;
   sink.emit(make_status(c, ++status_seq, r.last_t_ns, r.last_t_ns - r.first_t_ns));
   r.counters = c;
+  if (state) r.learned = angle.chain().learned_state(*state);
   r.samples = sink.n_;
   sink.flush();  // the recording's last buffers are written inside the timed loop
   r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -6,10 +6,12 @@
 #include <cstdint>
 #include <string>
 
+#include "angle_chain.hpp"
 #include "dbc.hpp"
 #include "sample_sink.hpp"
 #include "source.hpp"
 #include "stage_settings.hpp"
+#include "state_store.hpp"
 #include "status.hpp"
 
 namespace torqued {
@@ -20,6 +22,8 @@ struct ReplayResult {
   std::int64_t first_t_ns = 0, last_t_ns = 0;
   double wall_s = 0.0;             ///< wall time of the loop (s), up to the sink flushed (recording written)
   std::string error;               ///< a source failed (the replay kept going with the other)
+  std::string imported;            ///< what of the initial learned state was applied ("" = nothing)
+  bool learned = false;            ///< `state` holds what the chain learned (or was given) by the end
   [[nodiscard]] double speedup() const noexcept {
     return wall_s > 0.0 ? static_cast<double>(last_t_ns - first_t_ns) * 1e-9 / wall_s : 0.0;
   }
@@ -27,7 +31,11 @@ struct ReplayResult {
 
 /// Runs the replay to the end of both sources. `out` receives every sample (in emission order).
 /// stop (optional): checked every 4096 records; set it from a signal handler to end early.
+/// state (optional): in: learned state imported before the first edge (as the service does at start); out: the
+/// state at the end (ReplayResult::learned says whether there is one), for the caller to save.
+/// tap (optional): receives the angle chain's records too (torque-accuracy reads the full CycleOutput there).
 ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSource* can, std::int64_t can_offset_ns,
-                             const DbcDatabase* dbc, SampleSink& out, const volatile bool* stop = nullptr);
+                             const DbcDatabase* dbc, SampleSink& out, const volatile bool* stop = nullptr,
+                             LearnedState* state = nullptr, AngleChainSink* tap = nullptr);
 
 }  // namespace torqued

@@ -57,7 +57,11 @@ int main(int argc, char** argv) {
   auto* mode_opt = app.add_option("--replay", mode, "override replay.mode: fast | paced")->check(CLI::IsMember({"fast", "paced"}));
   auto* speed_opt = app.add_option("--speed", speed, "override replay.speed (paced replay speed factor)")->check(CLI::PositiveNumber);
   auto* record_opt = app.add_option("--record", record_dir, "override output.record_dir (CSV recording)");
-  auto* state_opt = app.add_option("--state-dir", state_dir, "override output.state_dir (learned state)");
+  auto* state_opt = app.add_option("--state-dir", state_dir,
+                                   "override output.state_dir: learned state loaded at start and saved while running "
+                                   "and at exit (also in fast replay)");
+  app.add_flag("--fresh-state", run.fresh_state,
+               "do not load the learned state: learn from the prior (the state is still saved)");
   app.add_flag("--no-dds", run.no_dds, "do not publish on DDS (record only)");
   app.add_flag("--exit-when-done", run.exit_when_done, "paced replay: exit once the recording is consumed");
   app.add_option("--wait-subscribers", run.wait_subscribers, "wait (up to 10 s) for this many EngineTorque readers");

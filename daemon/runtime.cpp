@@ -54,7 +54,7 @@ Runtime::Runtime(const StageSettings& s, const RuntimeOptions& opt, EdgeSource* 
       out_angle_ring_(opt.out_ring),
       out_time_ring_(opt.out_ring),
       out_status_ring_(64),
-      lat_hist_(new std::uint32_t[kLatBuckets + 1]()) {
+      clock_(opt.speed, !opt.replay) {
   edge_timeout_ns_.store(s_.edge_timeout_ns, std::memory_order_relaxed);
   angle_sink_ = std::make_unique<RingSink>(out_angle_ring_, pub_wake_);
   time_sink_ = std::make_unique<RingSink>(out_time_ring_, pub_wake_);
@@ -145,22 +145,14 @@ bool Runtime::start() {
 // this thread.
 void Runtime::replay_source_loop() {
   ReplayMerger merger(edges_, can_, can_offset_ns_);
-  const double speed = opt_.speed > 0 ? opt_.speed : 1.0;
   ReplayMerger::Item item;
   while (!stop_sources_.load(std::memory_order_relaxed)) {
     const SourceStatus st = merger.next(item);
     if (st == SourceStatus::kEnd) break;
     if (st != SourceStatus::kOk) continue;
     const std::int64_t t = item.t_ns();
-    if (!anchored_.load(std::memory_order_relaxed)) {
-      anchor_rec_ns_.store(t, std::memory_order_relaxed);
-      anchor_mono_ns_.store(mono_ns() + kReplayStartNs, std::memory_order_relaxed);
-      anchored_.store(true, std::memory_order_release);
-    }
-    const std::int64_t due =
-        anchor_mono_ns_.load(std::memory_order_relaxed) +
-        static_cast<std::int64_t>(static_cast<double>(t - anchor_rec_ns_.load(std::memory_order_relaxed)) /
-                                  speed);
+    clock_.anchor(t, mono_ns() + kReplayStartNs);
+    const std::int64_t due = clock_.due_mono_ns(t);
     if (due - mono_ns() > kReadAheadNs) {
       // Far enough ahead: hand what we have to the angle thread, sleep until this item is half a window away.
       angle_wake_.notify();
@@ -192,11 +184,7 @@ void Runtime::live_edge_loop() {
     const SourceStatus st = edges_->next(e);
     if (st == SourceStatus::kEnd || st == SourceStatus::kError) break;
     if (st != SourceStatus::kOk) continue;
-    if (!anchored_.load(std::memory_order_relaxed)) {
-      anchor_rec_ns_.store(e.t_ns, std::memory_order_relaxed);
-      anchor_mono_ns_.store(mono_ns(), std::memory_order_relaxed);
-      anchored_.store(true, std::memory_order_release);
-    }
+    clock_.anchor(e.t_ns, mono_ns());
     (void)edge_ring_.try_push(EdgeIn{e, realtime_ns()});
     angle_wake_.notify();
   }
@@ -230,6 +218,8 @@ void Runtime::angle_loop() {
       edge_timeout_ns_.store(angle_tunables_.value.edge_timeout_ns, std::memory_order_relaxed);
       angle_tunables_.full.store(0, std::memory_order_release);
     }
+    TorqueEstimate te{};
+    if (time_estimate_.load_new(te)) angle_->chain().set_time_estimate(te, /*uses_can=*/true);  // time → fusion
     // Edges in order; CAN frames up to each edge's time first, so the stage sees the replay's order.
     // Read-ahead replay items (ingest_ns == 0) are processed at their due time: sleep until then (bounded, so
     // stop requests and heartbeats are still seen); once the sources stop, drain without waiting.
@@ -238,7 +228,7 @@ void Runtime::angle_loop() {
     while (const EdgeIn* e = edge_ring_.front()) {
       std::int64_t ingest = e->ingest_ns;
       if (ingest == 0) {
-        const std::int64_t due = due_mono_ns(e->e.t_ns);
+        const std::int64_t due = clock_.due_mono_ns(e->e.t_ns);
         const std::int64_t early = due - mono_ns();
         if (early > 0 && !stop_sources_.load(std::memory_order_relaxed)) {
           wait_due = due;
@@ -259,7 +249,7 @@ void Runtime::angle_loop() {
     }
     while (const FrameIn* f = can_angle_ring_.front()) {  // frames with no later edge yet: at their due time
       if (f->ingest_ns == 0 && !stop_sources_.load(std::memory_order_relaxed)) {
-        const std::int64_t due = due_mono_ns(f->f.t_ns);
+        const std::int64_t due = clock_.due_mono_ns(f->f.t_ns);
         if (due > mono_ns() || (wait_due != 0 && due > wait_due)) {
           if (wait_due == 0 || due < wait_due) {
             wait_due = due;
@@ -272,24 +262,21 @@ void Runtime::angle_loop() {
       can_angle_ring_.pop_front();
     }
     // No edge for a while: let the decoder time out (stalled) on the edge clock, flag the edge time-out.
-    if (anchored_.load(std::memory_order_acquire)) {
-      const double speed = opt_.replay && opt_.speed > 0 ? opt_.speed : 1.0;
-      const std::int64_t now_edge =
-          anchor_rec_ns_.load(std::memory_order_relaxed) +
-          static_cast<std::int64_t>(
-              static_cast<double>(mono_ns() - anchor_mono_ns_.load(std::memory_order_relaxed)) * speed);
+    if (clock_.anchored()) {
+      const std::int64_t now_edge = clock_.rec_at(mono_ns());
       const bool timed_out = now_edge - last_t_ns_.load(std::memory_order_relaxed) >
                              edge_timeout_ns_.load(std::memory_order_relaxed);
       if (timed_out) angle_->poll(now_edge);
       edge_timeout_.store(timed_out, std::memory_order_relaxed);
     }
-    const auto& ds = angle_->decoder().stats();
+    const AngleChain& chain = angle_->chain();
+    const auto& ds = chain.decoder().stats();
     n_edges_.store(ds.edges, std::memory_order_relaxed);
     teeth_.store(ds.teeth, std::memory_order_relaxed);
     sync_losses_.store(ds.sync_losses, std::memory_order_relaxed);
-    cycles_.store(angle_->cycles(), std::memory_order_relaxed);
-    stale_mask_.store(angle_->stale_mask(), std::memory_order_relaxed);
-    synced_.store(angle_->decoder().state() == SyncState::kSynced, std::memory_order_relaxed);
+    cycles_.store(chain.cycles(), std::memory_order_relaxed);
+    stale_mask_.store(chain.status().stale_mask, std::memory_order_relaxed);
+    synced_.store(chain.decoder().state() == SyncState::kSynced, std::memory_order_relaxed);
     if (stop_pipelines_.load(std::memory_order_acquire) && !has_work()) break;
     // Paced replay: the next item is due at wait_due and the timer is this thread's only wake-up. The
     // publisher is told, so it can be awake when this edge's samples come (realtime.publisher_spin_us).
@@ -304,13 +291,6 @@ void Runtime::angle_loop() {
       angle_wake_.wait_for(50'000'000, has_work);
     }
   }
-}
-
-std::int64_t Runtime::due_mono_ns(std::int64_t t_ns) const noexcept {
-  const double speed = opt_.speed > 0 ? opt_.speed : 1.0;
-  return anchor_mono_ns_.load(std::memory_order_relaxed) +
-         static_cast<std::int64_t>(
-             static_cast<double>(t_ns - anchor_rec_ns_.load(std::memory_order_relaxed)) / speed);
 }
 
 void Runtime::time_loop() {
@@ -334,16 +314,11 @@ void Runtime::time_loop() {
     }
     if (expirations > 1) overruns_.fetch_add(expirations - 1, std::memory_order_relaxed);
     while (tooth_ring_.try_pop(ts)) time_->on_tooth(ts);
-    if (!anchored_.load(std::memory_order_acquire)) {
+    if (!clock_.anchored()) {
       while (can_time_ring_.try_pop(fi)) time_->on_frame(fi.f);
       continue;
     }
-    // Edge-clock time of this tick, from the source anchor (recording time ↔ monotonic time).
-    const double speed = opt_.replay && opt_.speed > 0 ? opt_.speed : 1.0;
-    const std::int64_t t_edge =
-        anchor_rec_ns_.load(std::memory_order_relaxed) +
-        static_cast<std::int64_t>(
-            static_cast<double>(mono_ns() - anchor_mono_ns_.load(std::memory_order_relaxed)) * speed);
+    const std::int64_t t_edge = clock_.rec_at(mono_ns());  // edge-clock time of this tick
     // Paced replay reads ahead: frames later than this tick wait for their time (live frames are never
     // early).
     while (const FrameIn* f = can_time_ring_.front()) {
@@ -352,18 +327,21 @@ void Runtime::time_loop() {
       can_time_ring_.pop_front();
     }
     time_->step(t_edge, realtime_ns());
+    time_estimate_.store(time_->pipeline().output().uio);  // → angle thread: fusion's external source
   }
   close(fd);
 }
 
 // ---- publisher ------------------------------------------------------------------------------------------
 
-void Runtime::note_latency(std::int64_t lat_ns) noexcept {
-  const std::int64_t us = lat_ns / 1000;
-  const int b = us < 0 ? 0 : (us >= kLatBuckets ? kLatBuckets : static_cast<int>(us));
-  ++lat_hist_[static_cast<std::size_t>(b)];
-  ++lat_n_;
-  if (lat_ns > lat_max_period_) lat_max_period_ = lat_ns;
+// Latency percentiles over the status period (the supervisor publishes them in DaemonStatus).
+void Runtime::take_latency_period() noexcept {
+  if (mono_ns() - lat_period_start_ns_ < s_.status_period_ns || latency_.period_count() == 0) return;
+  const LatencyFigures f = latency_.take_period();
+  lat_p50_.store(f.p50_ns, std::memory_order_relaxed);
+  lat_p99_.store(f.p99_ns, std::memory_order_relaxed);
+  lat_max_.store(f.max_ns, std::memory_order_relaxed);
+  lat_period_start_ns_ = mono_ns();
 }
 
 bool Runtime::drain_out() noexcept {
@@ -374,7 +352,7 @@ bool Runtime::drain_out() noexcept {
       any = true;
       final_out_.emit(s);
       const std::int64_t ingest = s.visit([](const auto& v) { return v.ingest_t_ns; });
-      if (ingest > 0 && s.topic != dds::Topic::kDaemonStatus) note_latency(realtime_ns() - ingest);
+      if (ingest > 0 && s.topic != dds::Topic::kDaemonStatus) latency_.note(realtime_ns() - ingest);
     }
   }
   return any;
@@ -390,24 +368,7 @@ void Runtime::publisher_loop() {
   for (;;) {
     hb_pub_.fetch_add(1, std::memory_order_relaxed);
     drain_out();
-    // Latency percentiles over the status period (the supervisor publishes them in DaemonStatus).
-    if (mono_ns() - lat_period_start_ns_ >= s_.status_period_ns && lat_n_ > 0) {
-      const std::uint64_t k50 = (lat_n_ + 1) / 2, k99 = lat_n_ - lat_n_ / 100;
-      std::uint64_t acc = 0;
-      std::int64_t p50 = -1, p99 = -1;
-      for (int b = 0; b <= kLatBuckets; ++b) {
-        acc += lat_hist_[static_cast<std::size_t>(b)];
-        if (p50 < 0 && acc >= k50) p50 = b * 1000LL;
-        if (p99 < 0 && acc >= k99) p99 = b * 1000LL;
-        lat_hist_[static_cast<std::size_t>(b)] = 0;
-      }
-      lat_p50_.store(p50, std::memory_order_relaxed);
-      lat_p99_.store(p99, std::memory_order_relaxed);
-      lat_max_.store(lat_max_period_, std::memory_order_relaxed);
-      lat_n_ = 0;
-      lat_max_period_ = 0;
-      lat_period_start_ns_ = mono_ns();
-    }
+    take_latency_period();
     if (stop_publisher_.load(std::memory_order_acquire) && !has_work()) break;
     const std::int64_t due = next_due_mono_ns_.load(std::memory_order_acquire);
     const std::int64_t t_now = mono_ns();

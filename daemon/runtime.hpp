@@ -17,6 +17,10 @@
 #include <vector>
 
 #include "dbc.hpp"
+#include "estimate.hpp"
+#include "latency_histogram.hpp"
+#include "latest_value.hpp"
+#include "replay_clock.hpp"
 #include "rt_setup.hpp"
 #include "sample_sink.hpp"
 #include "source.hpp"
@@ -114,8 +118,6 @@ class Runtime {
     std::atomic<int> full{0};
   };
   void angle_loop();
-  /// Paced replay: CLOCK_MONOTONIC time (ns) at which recording time t_ns is due (after the anchor is set).
-  [[nodiscard]] std::int64_t due_mono_ns(std::int64_t t_ns) const noexcept;
   static constexpr std::int64_t kReadAheadNs =
       20'000'000;  ///< paced replay: source reads this far ahead (wall)
   static constexpr std::int64_t kReplayStartNs =
@@ -123,7 +125,7 @@ class Runtime {
   void time_loop();
   void publisher_loop();
   bool drain_out() noexcept;
-  void note_latency(std::int64_t lat_ns) noexcept;
+  void take_latency_period() noexcept;
   void start_thread(std::thread& t, const ThreadRt& rt, void (Runtime::*fn)(), bool realtime);
 
   StageSettings s_;
@@ -153,8 +155,8 @@ class Runtime {
   std::atomic<std::int64_t> next_due_mono_ns_{0};  ///< paced replay: due time of the edge the angle thread waits for
   std::atomic<bool> next_due_tooth_{false};         ///< ... and whether it is a crank tooth edge
   std::atomic<std::uint64_t> pub_polls_{0}, pub_poll_misses_{0};  ///< pre-wakes, and those that saw no sample
-  std::atomic<bool> anchored_{false};
-  std::atomic<std::int64_t> anchor_rec_ns_{0}, anchor_mono_ns_{0};
+  ReplayClock clock_;                    ///< recording time ↔ monotonic time (replay and live edge clock)
+  LatestValue<TorqueEstimate> time_estimate_;  ///< time thread → angle thread: UIO brake estimate (fusion)
   std::atomic<std::uint32_t> flags_{0};
 
   // Counters published by the threads (relaxed atomics; read by the supervisor).
@@ -164,11 +166,7 @@ class Runtime {
   std::atomic<bool> synced_{false}, edge_timeout_{false};
   std::atomic<std::int64_t> last_t_ns_{0};
   std::atomic<std::int64_t> lat_p50_{0}, lat_p99_{0}, lat_max_{0};
-  // Publisher-thread latency histogram: 1 µs buckets up to 10 ms (fixed size, no allocation).
-  static constexpr int kLatBuckets = 10000;
-  std::unique_ptr<std::uint32_t[]> lat_hist_;
-  std::uint64_t lat_n_ = 0;
-  std::int64_t lat_max_period_ = 0;
+  LatencyHistogram latency_;  ///< publisher thread only
   std::int64_t lat_period_start_ns_ = 0;
 };
 

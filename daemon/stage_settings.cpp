@@ -88,4 +88,15 @@ void apply_tunables(StageSettings& s, const RuntimeTunables& t) noexcept {
     s.signals[i].timeout_ns = t.signal_timeout_ns[i];
 }
 
+std::string bind_signals(SignalStore& store, const std::array<SignalSpec, kSignalCount>& signals) {
+  for (int i = 0; i < kSignalCount; ++i) {
+    const SignalSpec& spec = signals[static_cast<std::size_t>(i)];
+    if (spec.message.empty()) continue;
+    std::string err;
+    if (!store.bind(static_cast<Quantity>(i), spec.message, spec.signal, spec.timeout_ns, &err))
+      return std::string("signal '") + quantity_name(static_cast<Quantity>(i)) + "': " + err;
+  }
+  return {};
+}
+
 }  // namespace torqued

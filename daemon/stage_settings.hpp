@@ -11,6 +11,7 @@
 #include "engine_geometry.hpp"
 #include "params.hpp"
 #include "qos.hpp"
+#include "signal_store.hpp"
 
 namespace torqued {
 
@@ -64,6 +65,10 @@ struct RuntimeTunables {
 RuntimeTunables tunables_of(const StageSettings& s) noexcept;
 /// Copies the tunables into `s` (no allocation).
 void apply_tunables(StageSettings& s, const RuntimeTunables& t) noexcept;
+
+/// Binds every mapped EngineSignals quantity of `signals` in `store` (one binding rule for every stage);
+/// returns "" or "signal '<quantity>': <why>".
+std::string bind_signals(SignalStore& store, const std::array<SignalSpec, kSignalCount>& signals);
 
 /// Maps the validated Config onto StageSettings.
 StageSettings stage_settings_from(const Config& cfg);

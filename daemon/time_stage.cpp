@@ -1,6 +1,6 @@
 #include "time_stage.hpp"
 
-#include <cmath>
+#include "validity.hpp"
 
 namespace torqued {
 
@@ -12,13 +12,7 @@ TimeStage::TimeStage(const StageSettings& s, const DbcDatabase* dbc, SampleSink&
   if (step_ns_ <= 0) error_ = "time pipeline step must be > 0";
   if (dbc) {
     store_ = std::make_unique<SignalStore>(*dbc);
-    for (int i = 0; i < kSignalCount; ++i) {
-      const SignalSpec& spec = s_.signals[static_cast<std::size_t>(i)];
-      if (spec.message.empty()) continue;
-      std::string err;
-      if (!store_->bind(static_cast<Quantity>(i), spec.message, spec.signal, spec.timeout_ns, &err))
-        error_ = std::string("signal '") + quantity_name(static_cast<Quantity>(i)) + "': " + err;
-    }
+    if (error_.empty()) error_ = bind_signals(*store_, s_.signals);
   }
 }
 
@@ -43,14 +37,7 @@ void TimeStage::emit(std::uint8_t method, const TorqueEstimate& e, std::int64_t 
   m.value_nm = e.torque_nm;
   m.uncertainty = e.uncertainty;
   m.health = static_cast<std::uint8_t>(e.health);
-  if (e.health == Health::kNotConverged || e.health == Health::kNotExcited)
-    m.validity |= torque_VALIDITY_NOT_CONVERGED;
-  if (e.health == Health::kStaleInput) m.validity |= torque_VALIDITY_STALE_CAN;
-  if (e.health == Health::kInvalidInput || e.health == Health::kNumerical)
-    m.validity |= torque_VALIDITY_ESTIMATOR_FAULT;
-  if (e.health == Health::kNoSync) m.validity |= torque_VALIDITY_NO_SYNC;
-  // NaN never leaves silently: a non-finite value is always flagged.
-  if (!std::isfinite(m.value_nm)) m.validity |= torque_VALIDITY_ESTIMATOR_FAULT;
+  m.validity = validity_of(e);
   out_.emit(a);
 }
 

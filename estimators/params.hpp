@@ -133,6 +133,7 @@ struct FusionParams {
   double max_can_age_s = 0.1;       ///< CAN inputs older than this count as lost (s)
   bool blend = false;               ///< blend agreeing valid sources by inverse variance (false: pick the best)
   double gate_sigma = 3.0;          ///< a source farther than gate_sigma·σ(difference) from the best is not blended (-)
+  bool time_estimate = false;       ///< the time chain's UIO brake estimate is the fusion's external source
 };
 struct ToothLearnParams {
   bool learn = true;                ///< learn per-tooth angle corrections

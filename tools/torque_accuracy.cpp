@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "pipeline_eval.hpp"
+#include "recording_eval.hpp"
 
 using torqued::eval::ErrorStats;
 
@@ -38,7 +39,21 @@ int main(int argc, char** argv) {
   app.add_option("--skip", skip, "cycles skipped at the start of each scenario (convergence)");
   app.add_option("--can-lost-after", can_lost, "drop all CAN signals from this time on (s): crank-only fallback");
   app.add_option("--csv", csv_dir, "write per-cycle comparison CSVs into this directory");
+  torqued::eval::RecordingOptions rec;
+  app.add_option("--recording", rec.config_path,
+                 "instead of the scenarios: replay the recording a torqued config names through the daemon's own "
+                 "angle chain; writes its topics (as torqued --replay fast --record) and chain_cycle.csv to --out")
+      ->check(CLI::ExistingFile);
+  app.add_option("--out", rec.out_dir, "--recording: output directory")->default_str("accuracy-out");
+  app.add_option("--truth", rec.truth_cycle, "--recording: truth_cycle.csv to evaluate against")
+      ->check(CLI::ExistingFile);
+  app.add_option("--state-dir", rec.state_dir, "--recording: learned state loaded at start and saved at the end");
+  app.add_option("--skip-s", rec.skip_s, "--recording: seconds after the first edge left out of the evaluation");
   CLI11_PARSE(app, argc, argv);
+  if (!rec.config_path.empty()) {
+    if (rec.out_dir.empty()) rec.out_dir = "accuracy-out";
+    return torqued::eval::run_recording(rec);
+  }
   if (names.empty()) names = torqued::sim::scenario_names();
 
   torqued::eval::EvalOptions opt;

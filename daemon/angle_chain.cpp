@@ -1,0 +1,202 @@
+#include "angle_chain.hpp"
+
+#include <algorithm>
+#include <numbers>
+
+namespace torqued {
+
+AngleChain::AngleChain(const StageSettings& s, const DbcDatabase* dbc, AngleChainSink& out, ToothSink* time)
+    : s_(s), out_(out), time_(time), decoder_(s.wheel, s.decoder) {
+  if (!decoder_.valid()) {
+    error_ = "crank decoder: " + decoder_.error();
+    return;
+  }
+  if (dbc) {
+    store_ = std::make_unique<SignalStore>(*dbc);
+    error_ = bind_signals(*store_, s_.signals);
+    if (!error_.empty()) return;
+  }
+  if (s_.angle_enabled) {
+    AnglePipelineConfig ac = s_.angle;
+    ac.engine = s_.engine;
+    ac.wheel = s_.wheel;
+    pipeline_ = std::make_unique<AnglePipeline>(ac);
+  }
+  if (s_.tooth_learn_enabled)
+    learner_ = std::make_unique<ToothErrorLearner>(s_.engine, s_.wheel, s_.tooth_learn);
+}
+
+AngleChain::~AngleChain() = default;
+
+ChainStatus AngleChain::status() const noexcept {
+  return {decoder_.state() == SyncState::kSynced && decoder_.phase_known(), stale_mask_};
+}
+
+void AngleChain::on_edge(const EdgeEvent& e) noexcept {
+  last_t_ns_ = e.t_ns;
+  ToothEvent te{};
+  if (decoder_.on_edge(e, te)) on_tooth(te);
+}
+
+void AngleChain::on_frame(const CanFrame& f) noexcept {
+  if (store_) (void)store_->on_frame(f);
+}
+
+void AngleChain::poll(std::int64_t now_ns) noexcept {
+  if (decoder_.poll(now_ns)) {
+    prev_tooth_t_ns_ = -1;
+    prev_tooth_ = -1;
+  }
+}
+
+void AngleChain::set_time_estimate(const TorqueEstimate& e, bool uses_can) noexcept {
+  if (!pipeline_ || !s_.angle.fusion.time_estimate) return;
+  FusionSource src;
+  src.brake_nm = e.torque_nm;
+  src.sd_nm = e.uncertainty > 0.0 ? e.uncertainty : 1.0;
+  src.health = e.health;
+  src.uses_can = uses_can;
+  src.newest_input_ns = e.t_ns;
+  pipeline_->set_external(src);
+}
+
+void AngleChain::set_signal_timeouts(const std::array<std::int64_t, kSignalCount>& timeout_ns) noexcept {
+  if (!store_) return;
+  for (std::size_t i = 0; i < timeout_ns.size(); ++i)
+    store_->set_timeout(static_cast<Quantity>(i), timeout_ns[i]);
+}
+
+void AngleChain::on_tooth(const ToothEvent& te) noexcept {
+  const bool synced = te.sync == SyncState::kSynced && te.phase_known;
+  ChainTooth ct;
+  ct.event = te;
+  ToothSample& ts = ct.sample;
+  ts.t_ns = te.t_ns;
+  ts.tooth = te.tooth;
+  ts.angle_rad = te.angle_rad;
+  ts.width_rad = te.width_rad;
+  ts.dt_s = prev_tooth_t_ns_ >= 0 ? static_cast<double>(te.t_ns - prev_tooth_t_ns_) * 1e-9 : 0.0;
+  ts.synced = synced && prev_tooth_t_ns_ >= 0;
+
+  // EngineSignals at this tooth; remember which bound quantities are stale.
+  const EngineSignals sig = store_ ? store_->signals_at(te.t_ns) : EngineSignals{};
+  std::uint32_t stale = 0;
+  if (store_) {
+    for (int i = 0; i < kSignalCount; ++i) {
+      const auto q = static_cast<Quantity>(i);
+      if (store_->bound(q) && !store_->valid_at(q, te.t_ns)) stale |= 1u << i;
+    }
+  }
+  stale_mask_ = stale;
+
+  if (time_) time_->tooth(ts);  // time chain hand-off: mean speed
+  if (learner_) {
+    learner_->set_fuel_cutoff(sig.fuel_cutoff_valid && sig.fuel_cutoff);  // feedback (2)
+    learner_->update(ts);
+  }
+  const std::uint8_t ready = pipeline_ ? pipeline_->on_tooth(ts, sig) : 0;
+  const bool est_valid = pipeline_ && pipeline_->tooth_output().valid;
+  if (est_valid) {
+    ct.accel_rad_s2 = pipeline_->tooth_output().accel_rad_s2;
+    ct.estimates = &pipeline_->tooth_output();
+  } else if (ts.dt_s > 0.0) {
+    ct.accel_rad_s2 = (te.speed_rad_s - prev_speed_rad_s_) / ts.dt_s;
+  }
+  ct.status = status();
+  out_.on_tooth(ct);
+
+  if (ready & AnglePipeline::kSegmentReady) emit_segment(te);
+  if (synced && prev_tooth_ >= 0 && te.tooth < prev_tooth_) on_cycle_end();  // tooth index wrapped
+  prev_tooth_ = synced ? te.tooth : -1;
+  prev_tooth_t_ns_ = te.t_ns;
+  prev_speed_rad_s_ = te.speed_rad_s;
+}
+
+void AngleChain::emit_segment(const ToothEvent& te) noexcept {
+  const CycleOutput& o = pipeline_->cycle_output();
+  const int n = s_.engine.cylinders;
+  const int pos = ((o.boundary - 1) % n + n) % n;  // firing position whose segment just ended
+  const std::int64_t window_ns =
+      o.speed_mean_rad_s > 0.0 ? static_cast<std::int64_t>(4.0 * std::numbers::pi / o.speed_mean_rad_s * 1e9)
+                               : 0;
+  ChainSegment cs;
+  cs.source_t_ns = te.source_t_ns;
+  cs.window_start_t_ns = te.source_t_ns - window_ns;
+  cs.cylinder = s_.engine.firing_order[static_cast<std::size_t>(pos)];
+  cs.cycle = cycles_;
+  cs.out = &o;
+  cs.status = status();
+  out_.on_segment(cs);
+}
+
+// Feedback (1): the learned tooth table goes to the decoder at each cycle boundary.
+void AngleChain::on_cycle_end() noexcept {
+  ++cycles_;
+  if (learner_ && learner_->ready()) {
+    const int n = learner_->teeth();
+    learner_->edge_corrections(std::span<double>(corr_.data(), static_cast<std::size_t>(n)));
+    const bool applied =
+        decoder_.set_tooth_corrections(std::span<const double>(corr_.data(), static_cast<std::size_t>(n)));
+    corr_n_ = applied ? n : 0;
+  }
+  state_changed_ = true;
+}
+
+bool AngleChain::friction_learned() const noexcept {
+  if (!pipeline_ || pipeline_->friction().health() != Health::kValid) return false;
+  const FrictionLearner& f = pipeline_->friction();
+  return friction_imported_ || f.motoring_observations() + f.idle_observations() > 0;
+}
+
+bool AngleChain::snapshot(LearnedSnapshot& snap) const noexcept {
+  snap = LearnedSnapshot{};
+  snap.friction_valid = friction_learned();
+  if (snap.friction_valid) {
+    snap.friction = pipeline_->friction().coefficients();
+    if (pipeline_->friction().idle_speed_rpm() > 0.0) {
+      snap.idle_valid = true;
+      snap.idle = {pipeline_->friction().idle_correction_nm(), pipeline_->friction().idle_speed_rpm()};
+    }
+  }
+  snap.n_teeth = corr_n_;
+  std::copy_n(corr_.begin(), corr_n_, snap.teeth.begin());
+  return snap.friction_valid || snap.n_teeth > 0;
+}
+
+bool AngleChain::learned_state(LearnedState& st) const {
+  LearnedSnapshot snap;
+  if (!snapshot(snap)) return false;
+  st = LearnedState{};
+  if (snap.friction_valid) st.friction = snap.friction;
+  if (snap.idle_valid) st.friction_idle = snap.idle;
+  st.tooth_corrections_rad.assign(snap.teeth.begin(), snap.teeth.begin() + snap.n_teeth);
+  return true;
+}
+
+std::string AngleChain::import_state(const LearnedState& st) {
+  std::string what;
+  if (st.friction && pipeline_ && pipeline_->friction().import_coefficients(*st.friction)) {
+    friction_imported_ = true;
+    what = "friction law";
+    if (st.friction_idle &&
+        pipeline_->friction().import_idle_correction((*st.friction_idle)[0], (*st.friction_idle)[1]))
+      what += " with idle correction";
+  }
+  const auto n = st.tooth_corrections_rad.size();
+  if (n > 0 && n <= corr_.size()) {
+    const std::span<const double> tab(st.tooth_corrections_rad.data(), n);
+    if (learner_) (void)learner_->import_table(tab, s_.tooth_learn.min_cycles);
+    if (decoder_.set_tooth_corrections(tab)) {
+      std::copy(st.tooth_corrections_rad.begin(), st.tooth_corrections_rad.end(), corr_.begin());
+      corr_n_ = static_cast<int>(n);
+      what += (what.empty() ? "" : ", ") + std::to_string(n) + " tooth corrections";
+    } else {
+      what += std::string(what.empty() ? "" : ", ") + "tooth corrections REJECTED (" + std::to_string(n) +
+              " values for a wheel of " + std::to_string(s_.wheel.teeth()) + " teeth)";
+    }
+  }
+  state_changed_ = !what.empty();
+  return what;
+}
+
+}  // namespace torqued
