@@ -220,77 +220,83 @@ void Runtime::angle_loop() {
     }
     TorqueEstimate te{};
     if (time_estimate_.load_new(te)) angle_->chain().set_time_estimate(te, /*uses_can=*/true);  // time → fusion
-    // Edges in order; CAN frames up to each edge's time first, so the stage sees the replay's order.
-    // Read-ahead replay items (ingest_ns == 0) are processed at their due time: sleep until then (bounded, so
-    // stop requests and heartbeats are still seen); once the sources stop, drain without waiting.
-    std::int64_t wait_due = 0;
-    bool wait_tooth = false;  // the item waited for is a crank tooth edge (it may produce samples)
-    while (const EdgeIn* e = edge_ring_.front()) {
-      std::int64_t ingest = e->ingest_ns;
-      if (ingest == 0) {
-        const std::int64_t due = clock_.due_mono_ns(e->e.t_ns);
-        const std::int64_t early = due - mono_ns();
-        if (early > 0 && !stop_sources_.load(std::memory_order_relaxed)) {
-          wait_due = due;
-          wait_tooth = e->e.channel == s_.decoder.crank_channel && (e->e.level != 0) == s_.wheel.rising_edge;
-          break;
-        }
-        ingest =
-            realtime_ns() + (due - mono_ns());  // the edge "happens" at its due time (includes our wake-up)
-      }
-      while (const FrameIn* f = can_angle_ring_.front()) {
-        if (f->f.t_ns > e->e.t_ns) break;
-        angle_->on_frame(f->f);
-        can_angle_ring_.pop_front();
-      }
-      angle_->on_edge(e->e, ingest);
-      last_t_ns_.store(e->e.t_ns, std::memory_order_relaxed);
-      edge_ring_.pop_front();
-    }
-    while (const FrameIn* f = can_angle_ring_.front()) {  // frames with no later edge yet: at their due time
-      if (f->ingest_ns == 0 && !stop_sources_.load(std::memory_order_relaxed)) {
-        const std::int64_t due = clock_.due_mono_ns(f->f.t_ns);
-        if (due > mono_ns() || (wait_due != 0 && due > wait_due)) {
-          if (wait_due == 0 || due < wait_due) {
-            wait_due = due;
-            wait_tooth = false;
-          }
-          break;
-        }
-      }
-      angle_->on_frame(f->f);
-      can_angle_ring_.pop_front();
-    }
-    // No edge for a while: let the decoder time out (stalled) on the edge clock, flag the edge time-out.
-    if (clock_.anchored()) {
-      const std::int64_t now_edge = clock_.rec_at(mono_ns());
-      const bool timed_out = now_edge - last_t_ns_.load(std::memory_order_relaxed) >
-                             edge_timeout_ns_.load(std::memory_order_relaxed);
-      if (timed_out) angle_->poll(now_edge);
-      edge_timeout_.store(timed_out, std::memory_order_relaxed);
-    }
-    const AngleChain& chain = angle_->chain();
-    const auto& ds = chain.decoder().stats();
-    n_edges_.store(ds.edges, std::memory_order_relaxed);
-    teeth_.store(ds.teeth, std::memory_order_relaxed);
-    sync_losses_.store(ds.sync_losses, std::memory_order_relaxed);
-    cycles_.store(chain.cycles(), std::memory_order_relaxed);
-    stale_mask_.store(chain.status().stale_mask, std::memory_order_relaxed);
-    synced_.store(chain.decoder().state() == SyncState::kSynced, std::memory_order_relaxed);
+    const DueItem next = angle_process_due();
+    angle_check_edge_timeout();
+    angle_publish_counters();
     if (stop_pipelines_.load(std::memory_order_acquire) && !has_work()) break;
-    // Paced replay: the next item is due at wait_due and the timer is this thread's only wake-up. The
+    // Paced replay: the next item is due at next.due and the timer is this thread's only wake-up. The
     // publisher is told, so it can be awake when this edge's samples come (realtime.publisher_spin_us).
     // Released after this pass's pushes: a publisher that sees the value change also sees their samples.
-    next_due_tooth_.store(wait_tooth, std::memory_order_relaxed);
-    next_due_mono_ns_.store(wait_due, std::memory_order_release);
-    if (wait_due != 0) {
-      const std::int64_t until = std::min(wait_due, mono_ns() + 50'000'000);
+    next_due_tooth_.store(next.tooth, std::memory_order_relaxed);
+    next_due_mono_ns_.store(next.due, std::memory_order_release);
+    if (next.due != 0) {
+      const std::int64_t until = std::min(next.due, mono_ns() + 50'000'000);
       timespec ts{static_cast<time_t>(until / 1'000'000'000), static_cast<long>(until % 1'000'000'000)};
       clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
     } else {
       angle_wake_.wait_for(50'000'000, has_work);
     }
   }
+}
+
+// Edges in order; CAN frames up to each edge's time first, so the stage sees the replay's order. Read-ahead
+// replay items (ingest_ns == 0) are processed at their due time: returns the first item not yet due (0: none),
+// and whether it is a crank tooth edge (it may produce samples). Once the sources stop, drains without waiting.
+Runtime::DueItem Runtime::angle_process_due() noexcept {
+  DueItem next;
+  while (const EdgeIn* e = edge_ring_.front()) {
+    std::int64_t ingest = e->ingest_ns;
+    if (ingest == 0) {
+      const std::int64_t due = clock_.due_mono_ns(e->e.t_ns);
+      if (due - mono_ns() > 0 && !stop_sources_.load(std::memory_order_relaxed)) {
+        next.due = due;
+        next.tooth = e->e.channel == s_.decoder.crank_channel && (e->e.level != 0) == s_.wheel.rising_edge;
+        break;
+      }
+      ingest = realtime_ns() + (due - mono_ns());  // the edge "happens" at its due time (includes our wake-up)
+    }
+    while (const FrameIn* f = can_angle_ring_.front()) {
+      if (f->f.t_ns > e->e.t_ns) break;
+      angle_->on_frame(f->f);
+      can_angle_ring_.pop_front();
+    }
+    angle_->on_edge(e->e, ingest);
+    last_t_ns_.store(e->e.t_ns, std::memory_order_relaxed);
+    edge_ring_.pop_front();
+  }
+  while (const FrameIn* f = can_angle_ring_.front()) {  // frames with no later edge yet: at their due time
+    if (f->ingest_ns == 0 && !stop_sources_.load(std::memory_order_relaxed)) {
+      const std::int64_t due = clock_.due_mono_ns(f->f.t_ns);
+      if (due > mono_ns() || (next.due != 0 && due > next.due)) {
+        if (next.due == 0 || due < next.due) next = DueItem{due, false};
+        break;
+      }
+    }
+    angle_->on_frame(f->f);
+    can_angle_ring_.pop_front();
+  }
+  return next;
+}
+
+// No edge for a while: let the decoder time out (stalled) on the edge clock, flag the edge time-out.
+void Runtime::angle_check_edge_timeout() noexcept {
+  if (!clock_.anchored()) return;
+  const std::int64_t now_edge = clock_.rec_at(mono_ns());
+  const bool timed_out =
+      now_edge - last_t_ns_.load(std::memory_order_relaxed) > edge_timeout_ns_.load(std::memory_order_relaxed);
+  if (timed_out) angle_->poll(now_edge);
+  edge_timeout_.store(timed_out, std::memory_order_relaxed);
+}
+
+void Runtime::angle_publish_counters() noexcept {
+  const AngleChain& chain = angle_->chain();
+  const auto& ds = chain.decoder().stats();
+  n_edges_.store(ds.edges, std::memory_order_relaxed);
+  teeth_.store(ds.teeth, std::memory_order_relaxed);
+  sync_losses_.store(ds.sync_losses, std::memory_order_relaxed);
+  cycles_.store(chain.cycles(), std::memory_order_relaxed);
+  stale_mask_.store(chain.status().stale_mask, std::memory_order_relaxed);
+  synced_.store(chain.decoder().state() == SyncState::kSynced, std::memory_order_relaxed);
 }
 
 void Runtime::time_loop() {

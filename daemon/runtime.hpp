@@ -118,6 +118,13 @@ class Runtime {
     std::atomic<int> full{0};
   };
   void angle_loop();
+  struct DueItem {
+    std::int64_t due = 0;  ///< CLOCK_MONOTONIC due time of the first item not processed yet (0: none)
+    bool tooth = false;    ///< it is a crank tooth edge
+  };
+  DueItem angle_process_due() noexcept;
+  void angle_check_edge_timeout() noexcept;
+  void angle_publish_counters() noexcept;
   static constexpr std::int64_t kReadAheadNs =
       20'000'000;  ///< paced replay: source reads this far ahead (wall)
   static constexpr std::int64_t kReplayStartNs =
