@@ -1,0 +1,86 @@
+// tests/daemon/test_time_stage.cpp: the time chain's DDS mapping (daemon/time_stage.cpp) and the one validity
+// mapping shared with the angle stage (daemon/validity.hpp): decimation, method ids, every Health flagged the
+// same way, a non-finite value never valid, and a bad step rejected.
+#include "time_stage.hpp"
+
+#include <gtest/gtest.h>
+
+#include <limits>
+#include <numbers>
+#include <vector>
+
+#include "validity.hpp"
+
+namespace torqued {
+namespace {
+
+struct Capture final : SampleSink {
+  std::vector<dds::AnySample> v;
+  void emit(const dds::AnySample& s) noexcept override { v.push_back(s); }
+};
+
+TEST(Validity, EveryHealthHasOneMeaning) {
+  EXPECT_EQ(validity_of(Health::kValid), 0u);
+  EXPECT_EQ(validity_of(Health::kNotConverged), static_cast<std::uint32_t>(torque_VALIDITY_NOT_CONVERGED));
+  EXPECT_EQ(validity_of(Health::kNotExcited), static_cast<std::uint32_t>(torque_VALIDITY_NOT_CONVERGED));
+  EXPECT_EQ(validity_of(Health::kStaleInput), static_cast<std::uint32_t>(torque_VALIDITY_STALE_CAN));
+  EXPECT_EQ(validity_of(Health::kNoSync), static_cast<std::uint32_t>(torque_VALIDITY_NO_SYNC));
+  for (Health h : {Health::kInvalidInput, Health::kNumerical, Health::kDisabled})
+    EXPECT_EQ(validity_of(h), static_cast<std::uint32_t>(torque_VALIDITY_ESTIMATOR_FAULT)) << to_string(h);
+  // NaN never leaves as valid, whatever the health says.
+  EXPECT_NE(validity_of(Health::kValid, std::numeric_limits<double>::quiet_NaN()) & torque_VALIDITY_ESTIMATOR_FAULT,
+            0u);
+  EXPECT_EQ(validity_of(TorqueEstimate{0, 12.0, 1.0, Health::kValid}), 0u);
+}
+
+TEST(TimeStage, EmitsEveryNthStepWithTheSharedValidity) {
+  // GIVEN 1 kHz steps, decimation 10, teeth of a steady 3000 rpm wheel and no CAN WHEN 1000 steps run THEN
+  // 100 rounds of the four Na et al. methods are emitted, stamped with their step time, each flagged by the
+  // shared mapping of its health (no CAN: the load input is missing, so none is valid).
+  StageSettings s;
+  s.time_decimation = 10;
+  Capture out;
+  TimeStage t(s, nullptr, out);
+  ASSERT_TRUE(t.ok()) << t.error();
+  EXPECT_EQ(t.step_ns(), 1'000'000);
+  const double w = 3000.0 * std::numbers::pi / 30.0;
+  std::int64_t tooth_t = 0;
+  for (int k = 1; k <= 1000; ++k) {
+    const std::int64_t now = k * 1'000'000LL;
+    while (tooth_t < now) {
+      ToothSample ts;
+      ts.width_rad = 6.0 * std::numbers::pi / 180.0;
+      ts.dt_s = ts.width_rad / w;
+      tooth_t += static_cast<std::int64_t>(ts.dt_s * 1e9);
+      ts.t_ns = tooth_t;
+      ts.synced = true;
+      t.on_tooth(ts);
+    }
+    t.step(now, 0);
+  }
+  EXPECT_EQ(t.steps(), 1000u);
+  ASSERT_EQ(out.v.size() % 100, 0u);
+  EXPECT_GE(out.v.size(), 100u);
+  EXPECT_LE(out.v.size(), 400u);
+  for (const auto& a : out.v) {
+    ASSERT_EQ(a.topic, dds::Topic::kEstimatorTorque);
+    const auto& m = a.u.estimator;
+    EXPECT_EQ(m.source_t_ns % 10'000'000, 0) << "decimated to every 10th step";
+    EXPECT_TRUE(m.method == torque_METHOD_UIO || m.method == torque_METHOD_SLIDING_MODE ||
+                m.method == torque_METHOD_DIRTY_DIFF || m.method == torque_METHOD_ADAPTIVE);
+    EXPECT_EQ(m.validity, validity_of(static_cast<Health>(m.health), m.value_nm));
+    EXPECT_NE(m.validity, 0u) << "no load torque on CAN: nothing may be published as valid";
+  }
+}
+
+TEST(TimeStage, NonPositiveStepIsRejected) {
+  StageSettings s;
+  s.time_pipeline.step_s = 0.0;
+  Capture out;
+  const TimeStage t(s, nullptr, out);
+  EXPECT_FALSE(t.ok());
+  EXPECT_NE(t.error().find("step"), std::string::npos) << t.error();
+}
+
+}  // namespace
+}  // namespace torqued
