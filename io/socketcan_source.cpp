@@ -196,23 +196,119 @@ bool SocketCanSource::wait_stop(int timeout_ms) noexcept {
   return stop_.load(std::memory_order_relaxed);
 }
 
+// Interface missing or socket failed: retry by name every reopen_interval_ms. kOk when the socket is open.
+SourceStatus SocketCanSource::ensure_open() noexcept {
+  if (fd_ >= 0) return SourceStatus::kOk;
+  const std::int64_t now = now_ns(CLOCK_MONOTONIC);
+  if (now < next_open_ns_) {
+    const std::int64_t wait_ms = (next_open_ns_ - now) / 1'000'000 + 1;
+    return wait_stop(static_cast<int>(wait_ms < cfg_.poll_timeout_ms ? wait_ms : cfg_.poll_timeout_ms))
+               ? SourceStatus::kEnd
+               : SourceStatus::kWouldBlock;
+  }
+  if (open_socket()) return SourceStatus::kOk;
+  next_open_ns_ = now + std::int64_t{cfg_.reopen_interval_ms} * 1'000'000;
+  return SourceStatus::kWouldBlock;
+}
+
+// Nothing to read: wait for a frame or a stop request (kOk: read again). While the link is down, the interface
+// flags are checked at the reopen rate; frames arriving also prove it is up.
+SourceStatus SocketCanSource::wait_readable() noexcept {
+  int timeout = cfg_.poll_timeout_ms;
+  if (link_.load(std::memory_order_relaxed) == CanLinkState::kDown) {
+    ifreq ifr{};
+    std::memcpy(ifr.ifr_name, cfg_.interface.c_str(), cfg_.interface.size() + 1);
+    if (::ioctl(fd_, SIOCGIFFLAGS, &ifr) == 0 && (ifr.ifr_flags & IFF_UP) != 0) {
+      set_link(CanLinkState::kUp);
+    } else if (cfg_.reopen_interval_ms < timeout) {
+      timeout = cfg_.reopen_interval_ms;
+    }
+  }
+  pollfd p[2] = {{fd_, POLLIN, 0}, {stop_fd_, POLLIN, 0}};
+  const int r = ::poll(p, 2, timeout);
+  if (r < 0 && errno != EINTR) {
+    ++can_stats_.read_errors;
+    set_error("poll", errno);
+    return SourceStatus::kWouldBlock;
+  }
+  if ((r > 0 && (p[1].revents & POLLIN)) || stop_.load(std::memory_order_relaxed)) return SourceStatus::kEnd;
+  return r <= 0 ? SourceStatus::kWouldBlock : SourceStatus::kOk;
+}
+
+// A failed recvmsg (not EAGAIN/EINTR): counted, and a lost link handled (down: keep the socket; gone: reopen).
+void SocketCanSource::on_read_error(int err) noexcept {
+  if (!is_link_error(err)) {
+    ++can_stats_.read_errors;
+    set_error("recvmsg", err);
+    return;
+  }
+  ++can_stats_.link_losses;
+  set_error("recvmsg", err);
+  if (err == ENETDOWN) {
+    set_link(CanLinkState::kDown);  // binding survives a down/up: keep the socket
+  } else {                          // interface unregistered: reopen by name later
+    close_socket();
+    set_link(CanLinkState::kMissing);
+    next_open_ns_ = now_ns(CLOCK_MONOTONIC) + std::int64_t{cfg_.reopen_interval_ms} * 1'000'000;
+  }
+}
+
+// Control data: kernel receive time (-1 when absent) and the socket's cumulative overflow counter.
+std::int64_t SocketCanSource::read_control(msghdr& msg) noexcept {
+  std::int64_t t_ns = -1;
+  for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
+    if (c->cmsg_level != SOL_SOCKET) continue;
+    if (c->cmsg_type == SCM_TIMESTAMPNS && c->cmsg_len >= CMSG_LEN(sizeof(timespec))) {
+      timespec ts;
+      std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+      t_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+    } else if (c->cmsg_type == SO_RXQ_OVFL && c->cmsg_len >= CMSG_LEN(sizeof(std::uint32_t))) {
+      std::uint32_t drops;
+      std::memcpy(&drops, CMSG_DATA(c), sizeof drops);
+      if (drops != can_stats_.kernel_drops) {
+        stats_.dropped += static_cast<std::uint32_t>(drops - can_stats_.kernel_drops);
+        can_stats_.kernel_drops = drops;
+      }
+    }
+  }
+  return t_ns;
+}
+
+// A received frame into `out`; false (counted) for truncated, error and remote frames.
+bool SocketCanSource::accept_frame(const canfd_frame& frame, ssize_t n, std::int64_t t_ns, CanFrame& out) noexcept {
+  const bool is_fd = n == static_cast<ssize_t>(CANFD_MTU);
+  if (!is_fd && n != static_cast<ssize_t>(CAN_MTU)) {
+    ++can_stats_.truncated;
+    return false;
+  }
+  if (frame.can_id & CAN_ERR_FLAG) {
+    ++can_stats_.error_frames;
+    return false;
+  }
+  if (frame.can_id & CAN_RTR_FLAG) {
+    ++can_stats_.remote_frames;
+    return false;
+  }
+  if (t_ns < 0) {
+    ++can_stats_.no_timestamp;
+    t_ns = now_ns(CLOCK_REALTIME);
+  }
+  out.t_ns = t_ns + cfg_.time_offset_ns;
+  out.extended = (frame.can_id & CAN_EFF_FLAG) != 0;
+  out.id = frame.can_id & (out.extended ? CAN_EFF_MASK : CAN_SFF_MASK);
+  out.fd = is_fd;
+  const std::uint8_t max_len = is_fd ? CANFD_MAX_DLEN : CAN_MAX_DLEN;
+  out.len = frame.len > max_len ? max_len : frame.len;
+  out.bus = cfg_.bus;
+  std::memcpy(out.data.data(), frame.data, out.len);
+  if (out.len < out.data.size()) std::memset(out.data.data() + out.len, 0, out.data.size() - out.len);
+  return true;
+}
+
 SourceStatus SocketCanSource::next(CanFrame& out) noexcept {
   if (!config_error_.empty()) return SourceStatus::kError;
   if (stop_.load(std::memory_order_relaxed)) return SourceStatus::kEnd;
-
-  if (fd_ < 0) {  // interface missing or socket failed: retry by name every reopen_interval_ms
-    const std::int64_t now = now_ns(CLOCK_MONOTONIC);
-    if (now < next_open_ns_) {
-      const std::int64_t wait_ms = (next_open_ns_ - now) / 1'000'000 + 1;
-      return wait_stop(static_cast<int>(wait_ms < cfg_.poll_timeout_ms ? wait_ms : cfg_.poll_timeout_ms))
-                 ? SourceStatus::kEnd
-                 : SourceStatus::kWouldBlock;
-    }
-    if (!open_socket()) {
-      next_open_ns_ = now + std::int64_t{cfg_.reopen_interval_ms} * 1'000'000;
-      return SourceStatus::kWouldBlock;
-    }
-  }
+  if (const SourceStatus st = ensure_open(); st != SourceStatus::kOk) return st;
 
   canfd_frame frame{};
   iovec iov{&frame, sizeof frame};
@@ -220,7 +316,6 @@ SourceStatus SocketCanSource::next(CanFrame& out) noexcept {
   msghdr msg{};
   msg.msg_iov = &iov;
   msg.msg_iovlen = 1;
-
   for (int attempt = 0;; ++attempt) {
     msg.msg_control = control;
     msg.msg_controllen = sizeof control;
@@ -228,92 +323,17 @@ SourceStatus SocketCanSource::next(CanFrame& out) noexcept {
     if (n < 0) {
       const int err = errno;
       if (err == EINTR) continue;
-      if (err == EAGAIN || err == EWOULDBLOCK) {
-        if (attempt > 0) return SourceStatus::kWouldBlock;  // woke up but nothing to read (error consumed, ...)
-        int timeout = cfg_.poll_timeout_ms;
-        if (link_.load(std::memory_order_relaxed) == CanLinkState::kDown) {
-          // Check the interface flags at the reopen rate while down; frames arriving also prove it is up.
-          ifreq ifr{};
-          std::memcpy(ifr.ifr_name, cfg_.interface.c_str(), cfg_.interface.size() + 1);
-          if (::ioctl(fd_, SIOCGIFFLAGS, &ifr) == 0 && (ifr.ifr_flags & IFF_UP) != 0) {
-            set_link(CanLinkState::kUp);
-          } else if (cfg_.reopen_interval_ms < timeout) {
-            timeout = cfg_.reopen_interval_ms;
-          }
-        }
-        pollfd p[2] = {{fd_, POLLIN, 0}, {stop_fd_, POLLIN, 0}};
-        const int r = ::poll(p, 2, timeout);
-        if (r < 0 && errno != EINTR) {
-          ++can_stats_.read_errors;
-          set_error("poll", errno);
-          return SourceStatus::kWouldBlock;
-        }
-        if ((r > 0 && (p[1].revents & POLLIN)) || stop_.load(std::memory_order_relaxed)) return SourceStatus::kEnd;
-        if (r <= 0) return SourceStatus::kWouldBlock;
-        continue;
-      }
-      if (is_link_error(err)) {
-        ++can_stats_.link_losses;
-        set_error("recvmsg", err);
-        if (err == ENETDOWN) {
-          set_link(CanLinkState::kDown);  // binding survives a down/up: keep the socket
-        } else {                          // interface unregistered: reopen by name later
-          close_socket();
-          set_link(CanLinkState::kMissing);
-          next_open_ns_ = now_ns(CLOCK_MONOTONIC) + std::int64_t{cfg_.reopen_interval_ms} * 1'000'000;
-        }
+      if (err != EAGAIN && err != EWOULDBLOCK) {
+        on_read_error(err);
         return SourceStatus::kWouldBlock;
       }
-      ++can_stats_.read_errors;
-      set_error("recvmsg", err);
-      return SourceStatus::kWouldBlock;
+      if (attempt > 0) return SourceStatus::kWouldBlock;  // woke up but nothing to read (error consumed, ...)
+      if (const SourceStatus st = wait_readable(); st != SourceStatus::kOk) return st;
+      continue;
     }
-
-    // Control data: kernel receive time and the socket's cumulative overflow counter.
-    std::int64_t t_ns = -1;
-    for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
-      if (c->cmsg_level != SOL_SOCKET) continue;
-      if (c->cmsg_type == SCM_TIMESTAMPNS && c->cmsg_len >= CMSG_LEN(sizeof(timespec))) {
-        timespec ts;
-        std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
-        t_ns = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-      } else if (c->cmsg_type == SO_RXQ_OVFL && c->cmsg_len >= CMSG_LEN(sizeof(std::uint32_t))) {
-        std::uint32_t drops;
-        std::memcpy(&drops, CMSG_DATA(c), sizeof drops);
-        if (drops != can_stats_.kernel_drops) {
-          stats_.dropped += static_cast<std::uint32_t>(drops - can_stats_.kernel_drops);
-          can_stats_.kernel_drops = drops;
-        }
-      }
-    }
+    const std::int64_t t_ns = read_control(msg);
     if (link_.load(std::memory_order_relaxed) != CanLinkState::kUp) set_link(CanLinkState::kUp);
-
-    const bool is_fd = n == static_cast<ssize_t>(CANFD_MTU);
-    if (!is_fd && n != static_cast<ssize_t>(CAN_MTU)) {
-      ++can_stats_.truncated;
-      continue;
-    }
-    if (frame.can_id & CAN_ERR_FLAG) {
-      ++can_stats_.error_frames;
-      continue;
-    }
-    if (frame.can_id & CAN_RTR_FLAG) {
-      ++can_stats_.remote_frames;
-      continue;
-    }
-    if (t_ns < 0) {
-      ++can_stats_.no_timestamp;
-      t_ns = now_ns(CLOCK_REALTIME);
-    }
-    out.t_ns = t_ns + cfg_.time_offset_ns;
-    out.extended = (frame.can_id & CAN_EFF_FLAG) != 0;
-    out.id = frame.can_id & (out.extended ? CAN_EFF_MASK : CAN_SFF_MASK);
-    out.fd = is_fd;
-    const std::uint8_t max_len = is_fd ? CANFD_MAX_DLEN : CAN_MAX_DLEN;
-    out.len = frame.len > max_len ? max_len : frame.len;
-    out.bus = cfg_.bus;
-    std::memcpy(out.data.data(), frame.data, out.len);
-    if (out.len < out.data.size()) std::memset(out.data.data() + out.len, 0, out.data.size() - out.len);
+    if (!accept_frame(frame, n, t_ns, out)) continue;
     ++stats_.records;
     return SourceStatus::kOk;
   }

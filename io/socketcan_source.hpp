@@ -17,6 +17,10 @@
 #include <string>
 #include <vector>
 
+#include <linux/can.h>
+#include <sys/socket.h>
+#include <sys/types.h>
+
 #include "source.hpp"
 
 namespace torqued {
@@ -92,6 +96,11 @@ class SocketCanSource final : public CanSource {
   void set_link(CanLinkState s) noexcept;
   void set_error(const char* what, int err) noexcept;
   bool wait_stop(int timeout_ms) noexcept;  ///< sleeps on the stop eventfd; true when stop was requested
+  SourceStatus ensure_open() noexcept;
+  SourceStatus wait_readable() noexcept;
+  void on_read_error(int err) noexcept;
+  std::int64_t read_control(msghdr& msg) noexcept;
+  bool accept_frame(const canfd_frame& frame, ssize_t n, std::int64_t t_ns, CanFrame& out) noexcept;
 
   SocketCanConfig cfg_;
   std::string config_error_;
