@@ -216,17 +216,20 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
     return 1;
   }
 
-  // Learned state from the previous run.
+  // Learned state from the previous run: checked (identity, checksum, bounds); rejected files are set aside.
   const std::string spath = state_path(cfg, opt);
+  std::unique_ptr<StateSaver> saver;
   if (!spath.empty()) {
-    std::string serr;
-    if (auto st = load_state(spath, &serr)) {
-      rt.angle_stage().import_state(*st);
+    const StateContext sctx = state_context_from(cfg);
+    const RestoreResult rs = restore_learned_state(spath, sctx);
+    for (const auto& w : rs.warnings) spdlog::warn("{}", w);
+    for (const auto& i : rs.infos) spdlog::info("{}", i);
+    if (rs.state) {
+      rt.angle_stage().import_state(*rs.state);
       spdlog::info("learned state loaded from {} ({} tooth corrections{})", spath,
-                   st->tooth_corrections_rad.size(), st->friction ? ", friction" : "");
-    } else {
-      spdlog::info("no learned state loaded: {}", serr);
+                   rs.state->tooth_corrections_rad.size(), rs.state->friction ? ", friction" : "");
     }
+    if (rs.may_save) saver = std::make_unique<StateSaver>(spath, sctx);
   }
 
   if (!rt.start()) {
@@ -251,13 +254,13 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   std::uint64_t status_seq = 0;
   bool done_reported = false;
   int exit_code = 0;
-  auto save = [&] {
-    if (spath.empty()) return;
+  auto save = [&] {  // queued: the saver's thread writes (a slow disk never holds up this loop)
+    if (!saver) return;
+    for (const auto& e : saver->take_errors()) spdlog::warn("learned state not saved: {}", e);
     LearnedState st;
     if (!rt.angle_stage().export_state(st)) return;  // nothing learned yet
     st.saved_at_t_ns = rt.last_source_t_ns();
-    std::string serr;
-    if (!save_state_atomic(spath, st, &serr)) spdlog::warn("learned state: {}", serr);
+    saver->submit(std::move(st));
   };
 
   for (;;) {
@@ -312,6 +315,9 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
     exit_code = 1;
   }
   save();
+  if (saver && !saver->finish(opt.drain_timeout_s)) spdlog::warn("learned state: the last save did not finish");
+  if (saver)
+    for (const auto& e : saver->take_errors()) spdlog::warn("learned state not saved: {}", e);
   if (recorder) recorder->flush(true);
   const RuntimeCounters c = rt.counters();
   spdlog::info(
