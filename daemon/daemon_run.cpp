@@ -5,6 +5,7 @@
 #include <systemd/sd-daemon.h>
 #include <time.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cinttypes>
 #include <memory>
@@ -108,6 +109,13 @@ void notify_status(const RuntimeCounters& c, double uptime_s) {
       c.ring_drops_edge + c.ring_drops_can + c.ring_drops_out, c.overruns);
 }
 
+/// Logs a failed recording (once per call site) and returns whether it failed.
+bool recording_failed(const dds::SampleRecorder* rec) {
+  if (!rec || !rec->write_failed()) return false;
+  spdlog::error("recording: {}; {} rows not recorded", rec->error(), rec->rows_dropped());
+  return true;
+}
+
 int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, EdgeSource* edges,
              CanSource* can, const DbcDatabase* dbc, SampleSink& out) {
   struct sigaction sa {};
@@ -187,7 +195,7 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   if (fast) {
     const int rc = run_fast(s, cfg, opt, edges.get(), can.get(), dbc ? &*dbc : nullptr, fanout);
     if (recorder) recorder->flush(true);
-    return rc;
+    return recording_failed(recorder.get()) ? std::max(rc, 3) : rc;
   }
 
   // ---- paced replay / live ----
@@ -253,6 +261,7 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   Heartbeats last_hb = rt.heartbeats();
   std::uint64_t status_seq = 0;
   bool done_reported = false;
+  bool record_error_reported = false;
   int exit_code = 0;
   auto save = [&] {  // queued: the saver's thread writes (a slow disk never holds up this loop)
     if (!saver) return;
@@ -302,6 +311,10 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
       }
       next_ping = now + ping_period;
     }
+    if (recorder && !record_error_reported && recorder->write_failed()) {  // at once; estimation goes on
+      spdlog::error("recording: {}; estimation and DDS publishing continue", recorder->error());
+      record_error_reported = true;
+    }
     if (save_period > 0 && now >= next_save) {
       save();
       next_save = now + save_period;
@@ -319,6 +332,7 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   if (saver)
     for (const auto& e : saver->take_errors()) spdlog::warn("learned state not saved: {}", e);
   if (recorder) recorder->flush(true);
+  if (recording_failed(recorder.get())) exit_code = 3;
   const RuntimeCounters c = rt.counters();
   spdlog::info(
       "stopped: {} edges, {} teeth, {} cycles, drops edge/can/out {}/{}/{}, overruns {}, latency p50/p99/max "
