@@ -328,7 +328,8 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
     exit_code = 1;
   }
   save();
-  if (saver && !saver->finish(opt.drain_timeout_s)) spdlog::warn("learned state: the last save did not finish");
+  if (saver && !saver->finish(opt.drain_timeout_s))
+    spdlog::warn("learned state: the last save did not finish");
   if (saver)
     for (const auto& e : saver->take_errors()) spdlog::warn("learned state not saved: {}", e);
   if (recorder) recorder->flush(true);
