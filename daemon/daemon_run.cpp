@@ -158,7 +158,13 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
     return 1;
   }
   err.clear();
-  std::optional<DbcDatabase> dbc = load_dbc(cfg, &err);
+  std::vector<std::string> dbc_warnings;
+  std::optional<DbcDatabase> dbc = load_dbc(cfg, &err, &dbc_warnings);
+  constexpr std::size_t kMaxDbcWarnings = 20;  // then counted
+  for (std::size_t i = 0; i < dbc_warnings.size() && i < kMaxDbcWarnings; ++i)
+    spdlog::warn("{}", dbc_warnings[i]);
+  if (dbc_warnings.size() > kMaxDbcWarnings)
+    spdlog::warn("can.dbc: {} more warnings not shown", dbc_warnings.size() - kMaxDbcWarnings);
   if (!dbc && !err.empty()) {
     spdlog::critical("can.dbc: {}", err);
     return 1;
