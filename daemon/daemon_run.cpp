@@ -5,6 +5,7 @@
 #include <systemd/sd-daemon.h>
 #include <time.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cinttypes>
 #include <memory>
@@ -37,17 +38,17 @@ std::string state_path(const Config& cfg, const RunOptions& opt) {
   return dir.empty() ? std::string() : dir + "/learned_state.txt";
 }
 
-/// The learned state of the previous run (empty when none, unreadable, or --fresh-state).
-LearnedState load_learned(const std::string& spath, const RunOptions& opt) {
-  if (spath.empty()) return {};
-  if (opt.fresh_state) {
-    spdlog::info("learned state not loaded (--fresh-state): learning from the prior; saved to {}", spath);
-    return {};
-  }
-  std::string serr;
-  if (auto st = load_state(spath, &serr)) return *st;
-  spdlog::info("no learned state loaded: {}", serr);
-  return {};
+/// The checked learned state of the previous run, as every mode loads it: identity, checksum and physical
+/// bounds checked, rejected files set aside (state_store.hpp); nothing with --fresh-state. Logs what happened.
+RestoreResult restore_for_run(const std::string& spath, const StateContext& ctx, const RunOptions& opt) {
+  RestoreResult rs;
+  if (opt.fresh_state)
+    rs.infos.push_back("learned state not loaded (--fresh-state): learning from the prior; saved to " + spath);
+  else
+    rs = restore_learned_state(spath, ctx);
+  for (const auto& w : rs.warnings) spdlog::warn("{}", w);
+  for (const auto& i : rs.infos) spdlog::info("{}", i);
+  return rs;
 }
 
 ThreadRt thread_rt(const ThreadConfig& t, const char* name) {
@@ -122,6 +123,13 @@ void notify_status(const RuntimeCounters& c, double uptime_s) {
       c.ring_drops_edge + c.ring_drops_can + c.ring_drops_out, c.overruns);
 }
 
+/// Logs a failed recording (once per call site) and returns whether it failed.
+bool recording_failed(const dds::SampleRecorder* rec) {
+  if (!rec || !rec->write_failed()) return false;
+  spdlog::error("recording: {}; {} rows not recorded", rec->error(), rec->rows_dropped());
+  return true;
+}
+
 int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, EdgeSource* edges,
              CanSource* can, const DbcDatabase* dbc, SampleSink& out) {
   struct sigaction sa {};
@@ -131,7 +139,10 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
   sd_notify(0, "READY=1\nSTATUS=fast replay running");
   // Learned state as in the service: loaded at start, saved at the end (--state-dir / output.state_dir).
   const std::string spath = state_path(cfg, opt);
-  LearnedState st = load_learned(spath, opt);
+  const StateContext sctx = state_context_from(cfg);
+  RestoreResult rs;
+  if (!spath.empty()) rs = restore_for_run(spath, sctx, opt);
+  LearnedState st = rs.state ? *rs.state : LearnedState{};
   const ReplayResult r =
       run_fast_replay(s, edges, can, can_time_offset_ns(cfg), dbc, out, &g_fast_stop, spath.empty() ? nullptr : &st);
   if (!r.error.empty()) spdlog::error("replay: {}", r.error);
@@ -139,8 +150,12 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
     spdlog::info("learned state applied at start: {}", r.imported.empty() ? "nothing" : r.imported);
     std::string serr;
     st.saved_at_t_ns = r.last_t_ns;
-    if (r.learned && !save_state_atomic(spath, st, &serr)) spdlog::warn("learned state: {}", serr);
-    if (r.learned && serr.empty()) spdlog::info("learned state saved to {}", spath);
+    if (r.learned && rs.may_save) {
+      if (check_state(st, sctx, spath, &serr) && save_state_atomic(spath, st, sctx.identity, &serr))
+        spdlog::info("learned state saved to {}", spath);
+      else
+        spdlog::warn("learned state not saved: {}", serr);
+    }
   }
   const double rec_s = static_cast<double>(r.last_t_ns - r.first_t_ns) * 1e-9;
   spdlog::info(
@@ -159,6 +174,11 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   const bool fast = opt.mode ? *opt.mode == "fast" : cfg.replay.mode == ReplayMode::kFast;
   const bool file_inputs = cfg.inputs.edges.backend == EdgeBackend::kFile;
   RunInputs in = open_inputs(cfg);
+  constexpr std::size_t kMaxDbcWarnings = 20;  // then counted
+  for (std::size_t i = 0; i < in.dbc_warnings.size() && i < kMaxDbcWarnings; ++i)
+    spdlog::warn("{}", in.dbc_warnings[i]);
+  if (in.dbc_warnings.size() > kMaxDbcWarnings)
+    spdlog::warn("can.dbc: {} more warnings not shown", in.dbc_warnings.size() - kMaxDbcWarnings);
   if (!in.ok()) {
     spdlog::critical("{}", in.error);
     return 1;
@@ -199,7 +219,7 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   if (fast) {
     const int rc = run_fast(s, cfg, opt, edges.get(), can.get(), dbc ? &*dbc : nullptr, fanout);
     if (recorder) recorder->flush(true);
-    return rc;
+    return recording_failed(recorder.get()) ? std::max(rc, 3) : rc;
   }
 
   // ---- paced replay / live ----
@@ -228,11 +248,17 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
     return 1;
   }
 
-  // Learned state from the previous run.
+  // Learned state from the previous run: checked (identity, checksum, bounds); rejected files are set aside.
   const std::string spath = state_path(cfg, opt);
+  std::unique_ptr<StateSaver> saver;
   if (!spath.empty()) {
-    const std::string what = rt.angle_stage().import_state(load_learned(spath, opt));
-    if (!what.empty()) spdlog::info("learned state loaded from {}: {}", spath, what);
+    const StateContext sctx = state_context_from(cfg);
+    const RestoreResult rs = restore_for_run(spath, sctx, opt);
+    if (rs.state) {
+      const std::string what = rt.angle_stage().import_state(*rs.state);
+      if (!what.empty()) spdlog::info("learned state loaded from {}: {}", spath, what);
+    }
+    if (rs.may_save) saver = std::make_unique<StateSaver>(spath, sctx);
   }
 
   if (!rt.start()) {
@@ -256,14 +282,15 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   Heartbeats last_hb = rt.heartbeats();
   std::uint64_t status_seq = 0;
   bool done_reported = false;
+  bool record_error_reported = false;
   int exit_code = 0;
-  auto save = [&] {
-    if (spath.empty()) return;
+  auto save = [&] {  // queued: the saver's thread writes (a slow disk never holds up this loop)
+    if (!saver) return;
+    for (const auto& e : saver->take_errors()) spdlog::warn("learned state not saved: {}", e);
     LearnedState st;
     if (!rt.angle_stage().export_state(st)) return;  // nothing learned yet
     st.saved_at_t_ns = rt.last_source_t_ns();
-    std::string serr;
-    if (!save_state_atomic(spath, st, &serr)) spdlog::warn("learned state: {}", serr);
+    saver->submit(std::move(st));
   };
 
   for (;;) {
@@ -305,6 +332,10 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
       }
       next_ping = now + ping_period;
     }
+    if (recorder && !record_error_reported && recorder->write_failed()) {  // at once; estimation goes on
+      spdlog::error("recording: {}; estimation and DDS publishing continue", recorder->error());
+      record_error_reported = true;
+    }
     if (save_period > 0 && now >= next_save) {
       save();
       next_save = now + save_period;
@@ -318,7 +349,12 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
     exit_code = 1;
   }
   save();
+  if (saver && !saver->finish(opt.drain_timeout_s))
+    spdlog::warn("learned state: the last save did not finish");
+  if (saver)
+    for (const auto& e : saver->take_errors()) spdlog::warn("learned state not saved: {}", e);
   if (recorder) recorder->flush(true);
+  if (recording_failed(recorder.get())) exit_code = 3;
   const RuntimeCounters c = rt.counters();
   spdlog::info(
       "stopped: {} edges, {} teeth, {} cycles, drops edge/can/out {}/{}/{}, overruns {}, latency p50/p99/max "

@@ -23,7 +23,7 @@ RunInputs open_inputs(const Config& cfg) {
     return in;
   }
   err.clear();
-  in.dbc = load_dbc(cfg, &err);
+  in.dbc = load_dbc(cfg, &err, &in.dbc_warnings);
   if (!in.dbc && !err.empty()) in.error = "can.dbc: " + err;
   return in;
 }

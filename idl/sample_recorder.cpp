@@ -1,8 +1,10 @@
 #include "sample_recorder.hpp"
 
 #include <fcntl.h>
+#include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -19,17 +21,28 @@ constexpr std::size_t kBufBytes = kFlushBytes + kRowRoom;
 
 int file_index(const AnySample& s) {
   switch (s.topic) {
-    case Topic::kEngineTorque: return s.u.engine.kind == torque_KIND_CYCLE ? 0 : 1;
-    case Topic::kEstimatorTorque: return 2;
-    case Topic::kCylinderTorque: return 3;
-    case Topic::kCrankState: return 4;
-    case Topic::kDaemonStatus: return 5;
+    case Topic::kEngineTorque:
+      return s.u.engine.kind == torque_KIND_CYCLE ? 0 : 1;
+    case Topic::kEstimatorTorque:
+      return 2;
+    case Topic::kCylinderTorque:
+      return 3;
+    case Topic::kCrankState:
+      return 4;
+    case Topic::kDaemonStatus:
+      return 5;
   }
   return 5;
 }
+std::int64_t coarse_now_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC_COARSE, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
 }  // namespace
 
-SampleRecorder::SampleRecorder(std::string dir, bool record_status) : dir_(std::move(dir)), record_status_(record_status) {
+SampleRecorder::SampleRecorder(std::string dir, bool record_status)
+    : dir_(std::move(dir)), record_status_(record_status) {
   std::error_code ec;
   std::filesystem::create_directories(dir_, ec);
   if (ec) error_ = "cannot create record directory '" + dir_ + "': " + ec.message();
@@ -42,8 +55,10 @@ SampleRecorder::~SampleRecorder() {
 }
 
 SampleRecorder::File* SampleRecorder::file_for(const AnySample& s) {
-  if (!ok()) [[unlikely]]
+  if (!ok()) [[unlikely]] {
+    if (write_failed_.load(std::memory_order_relaxed)) dropped_.fetch_add(1, std::memory_order_relaxed);
     return nullptr;
+  }
   if (s.topic == Topic::kDaemonStatus && !record_status_) return nullptr;
   const int i = file_index(s);
   File& f = files_[static_cast<std::size_t>(i)];
@@ -56,7 +71,8 @@ SampleRecorder::File* SampleRecorder::open_file(const AnySample& s, int i) {
   File& f = files_[static_cast<std::size_t>(i)];
   const std::string path = dir_ + "/" + kFileNames[static_cast<std::size_t>(i)];
   const std::string header = s.visit([](const auto& v) { return csv_header<std::decay_t<decltype(v)>>(); });
-  const std::size_t row_max = s.visit([](const auto& v) { return csv_row_max_chars<std::decay_t<decltype(v)>>(); });
+  const std::size_t row_max =
+      s.visit([](const auto& v) { return csv_row_max_chars<std::decay_t<decltype(v)>>(); });
   if (header.size() > kRowRoom || row_max > kRowRoom) {  // a topic grew: raise kRowRoom
     error_ = "CSV row of " + path + " longer than the recorder's row room";
     return nullptr;
@@ -76,9 +92,9 @@ void SampleRecorder::record(const AnySample& s) {
   File* f = file_for(s);
   if (!f) return;
   char* const p = f->buf.get() + f->used;
-  f->used = static_cast<std::size_t>(s.visit([p](const auto& v) { return write_csv_row(p, v); }) - f->buf.get());
-  ++rows_;
-  if (f->used >= kFlushBytes) write_out(static_cast<int>(f - files_.data()));
+  f->used =
+      static_cast<std::size_t>(s.visit([p](const auto& v) { return write_csv_row(p, v); }) - f->buf.get());
+  after_row(f, s.topic == Topic::kDaemonStatus);
 }
 
 void SampleRecorder::record(const AnySample& s, std::uint16_t engine_id) {
@@ -86,39 +102,80 @@ void SampleRecorder::record(const AnySample& s, std::uint16_t engine_id) {
   if (!f) return;
   char* const p = f->buf.get() + f->used;
   f->used = static_cast<std::size_t>(s.visit([p, engine_id](const auto& v) {
-                                       auto c = v;  // one topic struct, not the whole AnySample
-                                       c.engine_id = engine_id;
-                                       return write_csv_row(p, c);
-                                     }) -
-                                     f->buf.get());
+    auto c = v;  // one topic struct, not the whole AnySample
+    c.engine_id = engine_id;
+    return write_csv_row(p, c);
+  }) - f->buf.get());
+  after_row(f, s.topic == Topic::kDaemonStatus);
+}
+
+void SampleRecorder::after_row(File* f, bool status) {
   ++rows_;
   if (f->used >= kFlushBytes) write_out(static_cast<int>(f - files_.data()));
+  // Timed flush: at each DaemonStatus row (once per status period) and every kFlushPeriodNs while rows flow.
+  if (status || rows_ % kClockCheckRows == 0) {
+    const std::int64_t now = coarse_now_ns();
+    if (status || now - last_flush_ns_ >= kFlushPeriodNs) {
+      last_flush_ns_ = now;
+      flush(false);
+    }
+  }
 }
 
 void SampleRecorder::write_out(int i) {
   File& f = files_[static_cast<std::size_t>(i)];
   if (f.fd < 0 || f.used == 0) return;
+  if (write_failed_.load(std::memory_order_relaxed)) {  // recording stopped at the first error
+    drop_rows(f, f.buf.get());
+    f.used = 0;
+    return;
+  }
   const char* p = f.buf.get();
   std::size_t left = f.used;
   while (left > 0) {
     const ssize_t n = ::write(f.fd, p, left);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
-      if (error_.empty())
-        error_ = std::string("write error in ") + kFileNames[static_cast<std::size_t>(i)] + ": " +
-                 (n < 0 ? std::strerror(errno) : "no progress");
-      break;
+      const int err = n < 0 ? errno : ENOSPC;
+      // Cut the file back to its last complete row (the buffer holds complete rows; a write may stop inside
+      // one), count the rows lost with the buffer, stop recording.
+      const char* b = f.buf.get();
+      const auto* nl = static_cast<const char*>(memrchr(b, '\n', static_cast<std::size_t>(p - b)));
+      const std::uint64_t keep = f.written + (nl ? static_cast<std::uint64_t>(nl - b + 1) : 0);
+      if (::ftruncate(f.fd, static_cast<off_t>(keep)) == 0) ::lseek(f.fd, static_cast<off_t>(keep), SEEK_SET);
+      if (nl) f.written = keep;  // the header (if it was in this buffer) is on disk
+      drop_rows(f, nl ? nl + 1 : b);
+      fail(i, "write", err);
+      f.used = 0;
+      return;
     }
     p += n;
     left -= static_cast<std::size_t>(n);
   }
+  f.written += f.used;
   f.used = 0;
+}
+
+void SampleRecorder::drop_rows(const File& f, const char* from) {
+  const char* end = f.buf.get() + f.used;
+  std::uint64_t n = static_cast<std::uint64_t>(std::count(from, end, '\n'));
+  if (f.written == 0 && from == f.buf.get() && n > 0) --n;  // the header line, not a row
+  dropped_.fetch_add(n, std::memory_order_relaxed);
+}
+
+void SampleRecorder::fail(int i, const char* what, int err) {
+  if (error_.empty())
+    error_ = std::string(what) + " error in " + dir_ + "/" + kFileNames[static_cast<std::size_t>(i)] + ": " +
+             std::strerror(err) + " (recording stopped; rows from here on are not recorded)";
+  write_failed_.store(true, std::memory_order_release);
 }
 
 void SampleRecorder::flush(bool sync) {
   for (int i = 0; i < kFiles; ++i) {
     write_out(i);
-    if (sync && files_[static_cast<std::size_t>(i)].fd >= 0) ::fsync(files_[static_cast<std::size_t>(i)].fd);
+    const int fd = files_[static_cast<std::size_t>(i)].fd;
+    if (sync && fd >= 0 && !write_failed_.load(std::memory_order_relaxed) && ::fsync(fd) != 0)
+      fail(i, "fsync", errno);
   }
 }
 

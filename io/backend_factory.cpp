@@ -156,9 +156,10 @@ std::unique_ptr<CanSource> make_can_source(const Config& config, std::string* er
   return src;
 }
 
-std::optional<DbcDatabase> load_dbc(const Config& config, std::string* error) {
+std::optional<DbcDatabase> load_dbc(const Config& config, std::string* error, std::vector<std::string>* warnings) {
   if (config.can.dbc.empty()) return std::nullopt;
   DbcParseResult r = DbcDatabase::parse_file(config.can.dbc);
+  if (warnings) *warnings = std::move(r.warnings);
   if (!r.errors.empty()) {
     std::string all;
     for (const auto& e : r.errors) all += (all.empty() ? "" : "\n") + e;

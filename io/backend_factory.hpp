@@ -9,6 +9,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "can_encoder.hpp"
 #include "config.hpp"
@@ -43,7 +44,10 @@ inline constexpr std::uint8_t kCamChannel = 1;
 [[nodiscard]] CanEncoderConfig can_encoder_config(const Config& config) noexcept;
 
 /// Parse config.can.dbc (nullopt + error when it fails; nullopt and empty error when no DBC is configured).
-[[nodiscard]] std::optional<DbcDatabase> load_dbc(const Config& config, std::string* error);
+/// The parser's warnings ("file:line: ...", e.g. a signal that does not fit its message and is dropped) go to
+/// `warnings` when given.
+[[nodiscard]] std::optional<DbcDatabase> load_dbc(const Config& config, std::string* error,
+                                                  std::vector<std::string>* warnings = nullptr);
 
 /// Bind every mapped quantity of config.can.signals in `store`; false with all problems in `error`.
 bool bind_signals(const Config& config, SignalStore& store, std::string* error);

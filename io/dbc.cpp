@@ -531,6 +531,10 @@ class DbcParser {
       double d = 0;
       if (!to_int64(v.text, x)) {
         if (!to_double(v.text, d)) return error(line, "VAL_: bad value '" + std::string(v.text) + "'");
+        // Raw values are integers of at most 64 bits: anything outside [-2^63, 2^63) cannot be a raw value
+        // (and casting it to int64 is undefined behaviour).
+        if (!(d >= -9223372036854775808.0 && d < 9223372036854775808.0))
+          return error(line, "VAL_: value " + std::string(v.text) + " is outside the 64-bit raw range");
         x = static_cast<std::int64_t>(d);
       }
       if (text.kind != Tok::kString) return error(line, "VAL_: expected \"<text>\" after value " + std::string(v.text));

@@ -1,10 +1,11 @@
 #include "line_reader.hpp"
 
-#include <cerrno>
-#include <cstring>
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 
 namespace torqued {
 
@@ -28,7 +29,7 @@ bool LineReader::open(const std::string& path, std::size_t buffer_bytes) {
   cap_ = buffer_bytes < 4096 ? 4096 : buffer_bytes;
   buf_ = std::make_unique<char[]>(cap_);
   begin_ = end_ = 0;
-  eof_ = truncated_ = false;
+  eof_ = truncated_ = skip_rest_ = false;
   line_no_ = bytes_ = 0;
   error_.clear();
   return true;
@@ -59,8 +60,27 @@ bool LineReader::refill() noexcept {
   }
 }
 
+bool LineReader::skip_rest_of_line() noexcept {
+  for (;;) {
+    if (const void* nl = begin_ < end_ ? std::memchr(buf_.get() + begin_, '\n', end_ - begin_) : nullptr) {
+      const std::size_t pos = static_cast<std::size_t>(static_cast<const char*>(nl) - buf_.get());
+      bytes_ += pos + 1 - begin_;
+      begin_ = pos + 1;
+      skip_rest_ = false;
+      return true;
+    }
+    bytes_ += end_ - begin_;
+    begin_ = end_ = 0;
+    if (!refill()) {  // end of file (or error) inside the over-long line
+      skip_rest_ = false;
+      return false;
+    }
+  }
+}
+
 bool LineReader::next(std::string_view& line) noexcept {
   truncated_ = false;
+  if (skip_rest_ && !skip_rest_of_line()) return false;
   std::size_t scan = begin_;
   for (;;) {
     const void* nl = scan < end_ ? std::memchr(buf_.get() + scan, '\n', end_ - scan) : nullptr;
@@ -84,15 +104,9 @@ bool LineReader::next(std::string_view& line) noexcept {
         line = std::string_view(buf_.get() + begin_, len);
         begin_ = end_;
         ++line_no_;
-        if (truncated_) {  // skip the rest of the over-long line
-          eof_ = false;
-          char c = 0;
-          while (::read(fd_, &c, 1) == 1) {
-            ++bytes_;
-            if (c == '\n') break;
-          }
-          begin_ = end_ = 0;
-        }
+        // An over-long line: its rest is skipped in whole-buffer reads at the next call (`line` still points
+        // into the buffer now).
+        if (truncated_) skip_rest_ = true;
         return true;
       }
       return false;

@@ -26,6 +26,7 @@ class LineReader {
 
   /// Fast-path parsers: the bytes read but not yet consumed, without reading more (may end mid-line).
   [[nodiscard]] std::string_view buffered() const noexcept {
+    if (skip_rest_) return {};  // the rest of an over-long line: next() skips it
     return std::string_view(buf_.get() + begin_, end_ - begin_);
   }
   /// Consumes the first `n` bytes of buffered() as one complete line (the caller checked its '\n' is
@@ -36,19 +37,22 @@ class LineReader {
     ++line_no_;
     truncated_ = false;
   }
-  [[nodiscard]] std::uint64_t line_number() const noexcept { return line_no_; }  ///< 1-based, of the last line
-  [[nodiscard]] std::uint64_t bytes() const noexcept { return bytes_; }          ///< bytes consumed so far
-  [[nodiscard]] bool truncated() const noexcept { return truncated_; }            ///< last line was cut
+  [[nodiscard]] std::uint64_t line_number() const noexcept {
+    return line_no_;
+  }                                                                      ///< 1-based, of the last line
+  [[nodiscard]] std::uint64_t bytes() const noexcept { return bytes_; }  ///< bytes consumed so far
+  [[nodiscard]] bool truncated() const noexcept { return truncated_; }   ///< last line was cut
   [[nodiscard]] const std::string& error() const noexcept { return error_; }
-  [[nodiscard]] std::int64_t file_size() const noexcept { return size_; }         ///< -1 if unknown (pipe)
+  [[nodiscard]] std::int64_t file_size() const noexcept { return size_; }  ///< -1 if unknown (pipe)
 
  private:
   bool refill() noexcept;
+  bool skip_rest_of_line() noexcept;  ///< after a truncated line: up to and including its '\n'
 
   int fd_ = -1;
   std::unique_ptr<char[]> buf_;
   std::size_t cap_ = 0, begin_ = 0, end_ = 0;
-  bool eof_ = false, truncated_ = false;
+  bool eof_ = false, truncated_ = false, skip_rest_ = false;
   std::uint64_t line_no_ = 0, bytes_ = 0;
   std::int64_t size_ = -1;
   std::string error_;

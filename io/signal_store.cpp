@@ -3,13 +3,15 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 namespace torqued {
 namespace {
 
-constexpr const char* kNames[kQuantityCount] = {"map",      "maf",       "intake_temp", "oil_temp",    "throttle",
-                                                "lambda",   "spark_advance", "fuel_mass", "fuel_cutoff", "load_torque"};
+constexpr const char* kNames[kQuantityCount] = {"map",         "maf",        "intake_temp",   "oil_temp",
+                                                "throttle",    "lambda",     "spark_advance", "fuel_mass",
+                                                "fuel_cutoff", "load_torque"};
 
 std::string norm_unit(std::string_view u) {
   std::string s;
@@ -34,15 +36,18 @@ struct Conv {
 
 /// Physical (DBC unit) -> the SI unit of each quantity in EngineSignals.
 bool conversion(Quantity q, const std::string& u, double& scale, double& shift) {
-  static const Conv kPressure[] = {{"kpa", 1e3, 0}, {"pa", 1, 0}, {"hpa", 100, 0}, {"mbar", 100, 0},
-                                   {"bar", 1e5, 0}, {"psi", 6894.757293168, 0}};
-  static const Conv kMassFlow[] = {{"g/s", 1e-3, 0}, {"kg/s", 1, 0}, {"kg/h", 1.0 / 3600.0, 0}, {"g/min", 1e-3 / 60, 0}};
+  static const Conv kPressure[] = {{"kpa", 1e3, 0},  {"pa", 1, 0},    {"hpa", 100, 0},
+                                   {"mbar", 100, 0}, {"bar", 1e5, 0}, {"psi", 6894.757293168, 0}};
+  static const Conv kMassFlow[] = {
+      {"g/s", 1e-3, 0}, {"kg/s", 1, 0}, {"kg/h", 1.0 / 3600.0, 0}, {"g/min", 1e-3 / 60, 0}};
   static const Conv kTempK[] = {{"degc", 1, 273.15}, {"c", 1, 273.15}, {"degreesc", 1, 273.15}, {"k", 1, 0}};
   static const Conv kTempC[] = {{"degc", 1, 0}, {"c", 1, 0}, {"degreesc", 1, 0}, {"k", 1, -273.15}};
   static const Conv kPercent[] = {{"%", 1, 0}, {"", 1, 0}, {"pct", 1, 0}};
   static const Conv kRatio[] = {{"", 1, 0}, {"-", 1, 0}, {"lambda", 1, 0}, {"1", 1, 0}};
-  static const Conv kAngle[] = {{"deg", 1, 0}, {"degca", 1, 0}, {"degbtdc", 1, 0}, {"degcrk", 1, 0}, {"", 1, 0}};
-  static const Conv kMass[] = {{"mg", 1e-6, 0}, {"g", 1e-3, 0}, {"kg", 1, 0}, {"ug", 1e-9, 0}, {"\xc2\xb5g", 1e-9, 0}};
+  static const Conv kAngle[] = {
+      {"deg", 1, 0}, {"degca", 1, 0}, {"degbtdc", 1, 0}, {"degcrk", 1, 0}, {"", 1, 0}};
+  static const Conv kMass[] = {
+      {"mg", 1e-6, 0}, {"g", 1e-3, 0}, {"kg", 1, 0}, {"ug", 1e-9, 0}, {"\xc2\xb5g", 1e-9, 0}};
   static const Conv kFlag[] = {{"", 1, 0}, {"-", 1, 0}, {"bool", 1, 0}, {"1", 1, 0}};
   static const Conv kTorque[] = {{"nm", 1, 0}, {"knm", 1e3, 0}};
   auto find = [&](const auto& table) {
@@ -56,17 +61,28 @@ bool conversion(Quantity q, const std::string& u, double& scale, double& shift) 
     return false;
   };
   switch (q) {
-    case Quantity::kMap: return find(kPressure);
-    case Quantity::kMaf: return find(kMassFlow);
-    case Quantity::kIntakeTemp: return find(kTempK);
-    case Quantity::kOilTemp: return find(kTempC);
-    case Quantity::kThrottle: return find(kPercent);
-    case Quantity::kLambda: return find(kRatio);
-    case Quantity::kSparkAdvance: return find(kAngle);
-    case Quantity::kFuelMass: return find(kMass);
-    case Quantity::kFuelCutoff: return find(kFlag);
-    case Quantity::kLoadTorque: return find(kTorque);
-    case Quantity::kCount: break;
+    case Quantity::kMap:
+      return find(kPressure);
+    case Quantity::kMaf:
+      return find(kMassFlow);
+    case Quantity::kIntakeTemp:
+      return find(kTempK);
+    case Quantity::kOilTemp:
+      return find(kTempC);
+    case Quantity::kThrottle:
+      return find(kPercent);
+    case Quantity::kLambda:
+      return find(kRatio);
+    case Quantity::kSparkAdvance:
+      return find(kAngle);
+    case Quantity::kFuelMass:
+      return find(kMass);
+    case Quantity::kFuelCutoff:
+      return find(kFlag);
+    case Quantity::kLoadTorque:
+      return find(kTorque);
+    case Quantity::kCount:
+      break;
   }
   return false;
 }
@@ -98,7 +114,9 @@ bool SignalStore::bind(Quantity q, std::string_view message, std::string_view si
   };
   if (q == Quantity::kCount) return fail("unknown quantity");
   const DbcMessage* m = db_->find(message);
-  if (m == nullptr) return fail(std::string("can.signals.") + quantity_name(q) + ": no message '" + std::string(message) + "' in the DBC");
+  if (m == nullptr)
+    return fail(std::string("can.signals.") + quantity_name(q) + ": no message '" + std::string(message) +
+                "' in the DBC");
   const DbcSignal* s = m->find(signal);
   if (s == nullptr) {
     std::string names;
@@ -109,8 +127,8 @@ bool SignalStore::bind(Quantity q, std::string_view message, std::string_view si
   if (timeout_ns <= 0) return fail(std::string("can.signals.") + quantity_name(q) + ": time-out must be > 0");
   Binding b;
   if (!conversion(q, norm_unit(s->unit), b.scale, b.shift)) {
-    return fail(std::string("can.signals.") + quantity_name(q) + ": unit '" + s->unit + "' of " + m->name + "." + s->name +
-                " cannot be converted to the quantity's unit");
+    return fail(std::string("can.signals.") + quantity_name(q) + ": unit '" + s->unit + "' of " + m->name +
+                "." + s->name + " cannot be converted to the quantity's unit");
   }
   b.msg = m;
   b.sig = s;
@@ -130,13 +148,19 @@ bool SignalStore::on_frame(const CanFrame& frame) noexcept {
     used = true;
     if (frame.len < b.sig->bytes_needed()) {  // wrong DLC: the signal is not (fully) in this frame
       bad = true;
+      ShortFrames& sf = short_[i];
+      if (sf.count++ == 0) {
+        sf.first_t_ns = frame.t_ns;
+        sf.first_len = frame.len;
+      }
       continue;
     }
     if (!b.msg->signal_present(*b.sig, frame.data.data(), frame.len)) continue;
     const double phys = b.sig->decode(frame.data.data(), frame.len);
     SignalValue& v = values_[i];
     const double eps = 1e-9 * (std::abs(b.sig->max) + std::abs(b.sig->min)) + 1e-12;
-    if (!std::isfinite(phys) || (b.sig->has_range() && (phys < b.sig->min - eps || phys > b.sig->max + eps))) {
+    if (!std::isfinite(phys) ||
+        (b.sig->has_range() && (phys < b.sig->min - eps || phys > b.sig->max + eps))) {
       ++v.rejected;
       ++stats_.rejected_values;
       continue;
@@ -151,6 +175,25 @@ bool SignalStore::on_frame(const CanFrame& frame) noexcept {
   if (bad) ++stats_.bad_frames;
   if (any) cache_ok_ = false;
   return any;
+}
+
+std::vector<std::string> SignalStore::describe_bad_frames() const {
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < bindings_.size(); ++i) {
+    const ShortFrames& sf = short_[i];
+    const Binding& b = bindings_[i];
+    if (sf.count == 0 || b.sig == nullptr) continue;
+    char buf[320];
+    std::snprintf(
+        buf, sizeof buf,
+        "CAN frame 0x%X (%s) at t=%.6f s: %u data bytes, %s.%s needs %u (DBC DLC %u); %llu such frame%s",
+        static_cast<unsigned>(b.msg->id), b.msg->name.c_str(), static_cast<double>(sf.first_t_ns) * 1e-9,
+        static_cast<unsigned>(sf.first_len), b.msg->name.c_str(), b.sig->name.c_str(),
+        static_cast<unsigned>(b.sig->bytes_needed()), static_cast<unsigned>(b.msg->dlc),
+        static_cast<unsigned long long>(sf.count), sf.count == 1 ? "" : "s");
+    out.emplace_back(buf);
+  }
+  return out;
 }
 
 double SignalStore::age_s(Quantity q, std::int64_t now_ns) const noexcept {

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "dbc.hpp"
 #include "records.hpp"
@@ -81,7 +82,8 @@ class SignalStore {
     return bindings_[static_cast<std::size_t>(q)].sig != nullptr;
   }
   /// Valid at `now_ns`: bound, seen, and now_ns - t_ns <= time-out (a value from the future also counts).
-  [[nodiscard]] bool valid_at(Quantity q, std::int64_t now_ns) const noexcept {  // inline: per tooth x quantity
+  [[nodiscard]] bool valid_at(Quantity q,
+                              std::int64_t now_ns) const noexcept {  // inline: per tooth x quantity
     const auto i = static_cast<std::size_t>(q);
     if (i >= bindings_.size() || bindings_[i].sig == nullptr || !values_[i].seen) return false;
     return now_ns - values_[i].t_ns <= bindings_[i].timeout_ns;
@@ -90,10 +92,14 @@ class SignalStore {
   [[nodiscard]] double age_s(Quantity q, std::int64_t now_ns) const noexcept;
   /// Snapshot for the estimators at `now_ns` (validity = valid_at). Real-time safe. Cached: the same snapshot
   /// is returned while no value was accepted, no time-out changed and now_ns stays in [the time it was built,
-  /// the first time-out of a valid quantity) (per tooth and time step, frames are 10x rarer). Like on_frame(),
-  /// not for concurrent use from several threads (each stage owns its store).
+  /// the first time-out of a valid quantity) (per tooth and time step, frames are 10x rarer). Like
+  /// on_frame(), not for concurrent use from several threads (each stage owns its store).
   [[nodiscard]] EngineSignals signals_at(std::int64_t now_ns) const noexcept;
   [[nodiscard]] const SignalStoreStats& stats() const noexcept { return stats_; }
+  /// One line per bound signal that met frames too short for it, naming the first such frame:
+  /// "CAN frame 0x100 (ENGINE_1) at t=12.345678 s: 4 data bytes, ENGINE_1.MAP needs 6 (DBC DLC 8); 17 such
+  /// frames". Empty when none. Not real-time (allocates); call from the store's thread or after it stopped.
+  [[nodiscard]] std::vector<std::string> describe_bad_frames() const;
 
  private:
   struct Binding {
@@ -103,9 +109,15 @@ class SignalStore {
     double shift = 0.0;
     std::int64_t timeout_ns = 0;
   };
+  struct ShortFrames {  ///< frames of a bound message too short for its signal (per quantity)
+    std::uint64_t count = 0;
+    std::int64_t first_t_ns = 0;
+    std::uint8_t first_len = 0;
+  };
   const DbcDatabase* db_;
   std::array<Binding, kQuantityCount> bindings_{};
   std::array<SignalValue, kQuantityCount> values_{};
+  std::array<ShortFrames, kQuantityCount> short_{};
   SignalStoreStats stats_;
   mutable EngineSignals cache_{};  ///< signals_at() result valid for now in [cache_from_ns_, cache_until_ns_)
   mutable std::int64_t cache_from_ns_ = 0, cache_until_ns_ = 0;

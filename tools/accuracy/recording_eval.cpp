@@ -101,10 +101,12 @@ int run_recording(const RecordingOptions& opt) {
   OutputFanout out(&recorder, nullptr, in.settings.dds.engine_id);
   CycleTap tap(f);
   const std::string spath = opt.state_dir.empty() ? "" : opt.state_dir + "/learned_state.txt";
+  const StateContext sctx = state_context_from(*lr.config);
   LearnedState st;
-  if (!spath.empty()) {
-    std::string serr;
-    if (auto loaded = load_state(spath, &serr)) st = *loaded;
+  if (!spath.empty()) {  // checked as the daemon checks it (identity, checksum, bounds)
+    RestoreResult rs = restore_learned_state(spath, sctx);
+    for (const auto& w : rs.warnings) std::cerr << "warning: " << w << "\n";
+    if (rs.state) st = *rs.state;
   }
   const ReplayResult r = run_fast_replay(in.settings, in.edges.get(), in.can.get(), in.can_offset_ns, in.dbc_ptr(),
                                          out, nullptr, spath.empty() ? nullptr : &st, &tap);
@@ -118,7 +120,8 @@ int run_recording(const RecordingOptions& opt) {
   if (!spath.empty() && r.learned) {
     std::string serr;
     std::filesystem::create_directories(opt.state_dir, ec);
-    if (!save_state_atomic(spath, st, &serr)) std::cerr << "warning: learned state: " << serr << "\n";
+    if (!check_state(st, sctx, spath, &serr) || !save_state_atomic(spath, st, sctx.identity, &serr))
+      std::cerr << "warning: learned state not saved: " << serr << "\n";
   }
   if (opt.truth_cycle.empty()) return r.error.empty() ? 0 : 1;
   return evaluate_run(opt, r.first_t_ns);
