@@ -163,6 +163,7 @@ void CrankDecoder::reset() noexcept {
   u1_ = u2_ = 0.0;
   since_gap_ = -1;
   hist_len_ = 0;
+  normal_run_ = 0;
   lost_this_rev_ = 0;
   pending_flags_ = 0;
   has_pending_ = have_inactive_ = false;
@@ -309,6 +310,8 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
       } else {
         ++stats_.gaps;
         ref_prev_ns_ = 0;  // the trend does not carry across a gap
+        const int run_before_gap = normal_run_;
+        normal_run_ = 0;
         if (since_gap_ >= 0) {
           if (hist_len_ == kMaxGaps) {
             std::copy(hist_.begin() + 1, hist_.end(), hist_.begin());
@@ -319,11 +322,18 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
         since_gap_ = 0;
         // Plausibility: the recent gap-to-gap tooth counts must match exactly one position of the wheel,
         // and this gap's size must fit that gap's nominal ratio.
-        if (hist_len_ >= history_needed_) {
+        // A single-gap wheel is identified by its gap alone: sync at the first one (issue 13); multi-gap
+        // wheels need the tooth counts between their last gaps. Without a previous gap the teeth counted
+        // before this one must fit (half a revolution at least, no more than a revolution), else noise would
+        // sync on any long period.
+        const bool single_ok =
+            num_gaps_ == 1 && hist_len_ == 0 && run_before_gap >= teeth_ / 2 && run_before_gap < teeth_;
+        const int need = single_ok ? 0 : history_needed_;
+        if (hist_len_ >= need) {
           int match = -1, matches = 0;
           for (int j = 0; j < num_gaps_; ++j) {
             bool ok = true;
-            for (int k = 0; k < history_needed_ && ok; ++k) {
+            for (int k = 0; k < need && ok; ++k) {
               ok = hist_[static_cast<std::size_t>(hist_len_ - 1 - k)] ==
                    gap_count_[static_cast<std::size_t>((j - k + 2 * num_gaps_) % num_gaps_)];
             }
@@ -360,6 +370,7 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
       ref_period_ns_ = period;
     }
   }
+  normal_run_ = normal ? normal_run_ + 1 : 0;
   if (normal && since_gap_ >= 0) {
     ++since_gap_;
     int max_count = 0;
