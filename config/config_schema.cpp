@@ -98,7 +98,15 @@ void add_wheel(std::vector<SchemaEntry>& t) {
   dn("gap_ratio_max", &DecoderParams::gap_ratio_max, positive(100.0), "and up to this x nominal gap ratio");
   dn("sync_ratio_min", &DecoderParams::sync_ratio_min, positive(1.0), "synced: period/expected accepted down to this");
   dn("sync_ratio_max", &DecoderParams::sync_ratio_max, {1.0, 10.0, false, false}, "synced: period/expected accepted up to this");
-  dn("runt_fraction", &DecoderParams::runt_fraction, {0.0, 1.0, false, true}, "edge earlier than this x expected period is noise");
+  dn("runt_fraction", &DecoderParams::runt_fraction, {0.0, 1.0, false, true}, "synced: edge earlier than this x expected one-pitch period is noise");
+  dn("syncing_runt_fraction", &DecoderParams::syncing_runt_fraction, {0.0, 1.0, false, true}, "syncing: edge earlier than this x predicted period is noise");
+  {
+    SchemaEntry mp = entry(d + "min_pulse_us", ValueKind::kDouble, "us", "debounce: a crank pulse narrower than this is a glitch, both edges dropped (0 = off; on: a tooth is reported at the opposite edge)");
+    apply(mp, closed(0.0, 1000.0));
+    mp.set = [](Config& c, const ConfigValue& v) { c.wheel.decoder.min_pulse_us = v.d; };
+    mp.get = [](const Config& c) { ConfigValue v; v.d = c.wheel.decoder.min_pulse_us; return v; };
+    t.push_back(std::move(mp));
+  }
   dn("lost_tooth_min_ratio", &DecoderParams::lost_tooth_min_ratio, {1.0, 10.0, false, false}, "lost-tooth hypothesis only above this period ratio");
   dn("max_trend", &DecoderParams::max_trend, {1.0, 10.0, false, false}, "period trend clamped to [1/x, x] when predicting the next period (cranking ripple)");
   dn("lost_tooth_min_rpm", &DecoderParams::lost_tooth_min_rpm, closed(0.0, 20000.0), "below this speed (rpm) a long period is a slowdown, never a lost tooth");

@@ -20,30 +20,43 @@ bool in_window_deg(double pos_deg, double start_deg, double end_deg) noexcept {
 
 const char* to_string(SyncLossReason r) noexcept {
   switch (r) {
-    case SyncLossReason::kNone: return "none";
-    case SyncLossReason::kUnexpectedGap: return "unexpected_gap";
-    case SyncLossReason::kGapMissing: return "gap_missing";
-    case SyncLossReason::kTooManyLostTeeth: return "too_many_lost_teeth";
-    case SyncLossReason::kPeriodTooShort: return "period_too_short";
-    case SyncLossReason::kStall: return "stall";
-    case SyncLossReason::kCamPhase: return "cam_phase";
+    case SyncLossReason::kNone:
+      return "none";
+    case SyncLossReason::kUnexpectedGap:
+      return "unexpected_gap";
+    case SyncLossReason::kGapMissing:
+      return "gap_missing";
+    case SyncLossReason::kTooManyLostTeeth:
+      return "too_many_lost_teeth";
+    case SyncLossReason::kPeriodTooShort:
+      return "period_too_short";
+    case SyncLossReason::kStall:
+      return "stall";
+    case SyncLossReason::kCamPhase:
+      return "cam_phase";
   }
   return "unknown";
 }
 
 const char* to_string(SyncState s) noexcept {
   switch (s) {
-    case SyncState::kNoSignal: return "no_signal";
-    case SyncState::kSyncing: return "syncing";
-    case SyncState::kSynced: return "synced";
-    case SyncState::kLostSync: return "lost_sync";
-    case SyncState::kStalled: return "stalled";
+    case SyncState::kNoSignal:
+      return "no_signal";
+    case SyncState::kSyncing:
+      return "syncing";
+    case SyncState::kSynced:
+      return "synced";
+    case SyncState::kLostSync:
+      return "lost_sync";
+    case SyncState::kStalled:
+      return "stalled";
   }
   return "unknown";
 }
 
 CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& params)
     : wheel_(wheel), params_(params) {
+  min_pulse_ns_ = static_cast<std::int64_t>(std::llround(params.min_pulse_us * 1e3));
   const int t = wheel.teeth();
   if (t < 2 || t > kMaxTeeth) {
     error_ = "wheel: tooth count " + std::to_string(t) + " outside 2.." + std::to_string(kMaxTeeth);
@@ -53,9 +66,10 @@ CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& para
   if (wheel.tooth_count > 0) {
     for (int i = 0; i < t; ++i) {
       const double a = wheel.tooth_angles_deg[static_cast<std::size_t>(i)];
-      if (!(a >= 0.0 && a < 360.0) || (i > 0 && !(a > wheel.tooth_angles_deg[static_cast<std::size_t>(i - 1)]))) {
-        error_ = "wheel: tooth_angles_deg must be strictly increasing in [0, 360); entry " + std::to_string(i) +
-                 " is " + std::to_string(a);
+      if (!(a >= 0.0 && a < 360.0) ||
+          (i > 0 && !(a > wheel.tooth_angles_deg[static_cast<std::size_t>(i - 1)]))) {
+        error_ = "wheel: tooth_angles_deg must be strictly increasing in [0, 360); entry " +
+                 std::to_string(i) + " is " + std::to_string(a);
         return;
       }
       angle_[static_cast<std::size_t>(i)] = a * kDegToRad;
@@ -69,7 +83,8 @@ CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& para
   }
   pitch_rad_ = kTwoPi;
   for (int i = 0; i < t; ++i) {
-    const double prev = i == 0 ? angle_[static_cast<std::size_t>(t - 1)] - kTwoPi : angle_[static_cast<std::size_t>(i - 1)];
+    const double prev =
+        i == 0 ? angle_[static_cast<std::size_t>(t - 1)] - kTwoPi : angle_[static_cast<std::size_t>(i - 1)];
     width_[static_cast<std::size_t>(i)] = angle_[static_cast<std::size_t>(i)] - prev;
     pitch_rad_ = std::min(pitch_rad_, width_[static_cast<std::size_t>(i)]);
   }
@@ -95,8 +110,8 @@ CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& para
     const int d = (gap_tooth_[static_cast<std::size_t>(j)] - prev + t) % t;
     gap_count_[static_cast<std::size_t>(j)] = d == 0 ? t : d;
   }
-  // Gap candidate threshold: gap_ratio_min x the smallest gap, but never below the geometric midpoint between a
-  // tooth (1) and that gap (on 36-1 a cranking period may grow 30 % from one tooth to the next).
+  // Gap candidate threshold: gap_ratio_min x the smallest gap, but never below the geometric midpoint between
+  // a tooth (1) and that gap (on 36-1 a cranking period may grow 30 % from one tooth to the next).
   gap_threshold_ = std::max(params.gap_ratio_min * min_gap_ratio_, std::sqrt(min_gap_ratio_));
   if (gap_threshold_ <= 1.05) {
     error_ = "decoder: the gap threshold must exceed 1.05 to tell a gap from a tooth";
@@ -148,15 +163,19 @@ void CrankDecoder::reset() noexcept {
   u1_ = u2_ = 0.0;
   since_gap_ = -1;
   hist_len_ = 0;
+  normal_run_ = 0;
   lost_this_rev_ = 0;
   pending_flags_ = 0;
+  has_pending_ = have_inactive_ = false;
 }
 
 bool CrankDecoder::on_edge(const EdgeEvent& edge, ToothEvent& out) noexcept {
   ++stats_.edges;
   if (teeth_ == 0) return false;
   if (edge.channel == params_.crank_channel) {
-    if ((edge.level != 0) != wheel_.rising_edge) return false;
+    const bool active = (edge.level != 0) == wheel_.rising_edge;
+    if (min_pulse_ns_ > 0) return debounce(edge.t_ns, active, out);
+    if (!active) return false;
     ++stats_.crank_edges;
     return on_crank(edge.t_ns, out);
   }
@@ -165,6 +184,37 @@ bool CrankDecoder::on_edge(const EdgeEvent& edge, ToothEvent& out) noexcept {
     if (params_.use_cam) on_cam(edge.t_ns);
   }
   return false;
+}
+
+// Debounce: a tooth edge is held until the opposite crank edge shows the pulse was at least min_pulse wide;
+// a narrower pulse (a glitch) is dropped whole, so neither of its edges shifts a tooth time.
+bool CrankDecoder::debounce(std::int64_t t_ns, bool active, ToothEvent& out) noexcept {
+  if (active) {
+    if (have_inactive_ && t_ns - last_inactive_t_ns_ < min_pulse_ns_) {  // end of a narrow gap-glitch
+      ++stats_.debounced_edges;
+      pending_flags_ |= kToothNoiseRejected;
+      return false;
+    }
+    bool emitted = false;
+    if (has_pending_) {  // two tooth edges in a row (opposite edge missing): the older one stands
+      ++stats_.crank_edges;
+      emitted = on_crank(pending_t_ns_, out);
+    }
+    has_pending_ = true;
+    pending_t_ns_ = t_ns;
+    return emitted;
+  }
+  have_inactive_ = true;
+  last_inactive_t_ns_ = t_ns;
+  if (!has_pending_) return false;
+  has_pending_ = false;
+  if (t_ns - pending_t_ns_ < min_pulse_ns_) {
+    ++stats_.debounced_edges;
+    pending_flags_ |= kToothNoiseRejected;
+    return false;
+  }
+  ++stats_.crank_edges;
+  return on_crank(pending_t_ns_, out);
 }
 
 bool CrankDecoder::poll(std::int64_t now_ns) noexcept {
@@ -234,7 +284,8 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
   } else {
     // Predicted normal period: the last one times the trend of the last two (clamped).
     double pred = static_cast<double>(ref_period_ns_);
-    if (ref_prev_ns_ > 0) pred *= clamp_trend(static_cast<double>(ref_period_ns_) / static_cast<double>(ref_prev_ns_));
+    if (ref_prev_ns_ > 0)
+      pred *= clamp_trend(static_cast<double>(ref_period_ns_) / static_cast<double>(ref_prev_ns_));
     const double r = static_cast<double>(period) / pred;
     const bool provisional = ref_provisional_;
     ref_provisional_ = false;
@@ -245,7 +296,7 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
       ref_period_ns_ = period;
       since_gap_ = 0;
       normal = true;
-    } else if (r < params_.runt_fraction) {
+    } else if (r < params_.syncing_runt_fraction) {
       ++stats_.noise_edges;
       pending_flags_ |= kToothNoiseRejected;
       return false;
@@ -259,6 +310,8 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
       } else {
         ++stats_.gaps;
         ref_prev_ns_ = 0;  // the trend does not carry across a gap
+        const int run_before_gap = normal_run_;
+        normal_run_ = 0;
         if (since_gap_ >= 0) {
           if (hist_len_ == kMaxGaps) {
             std::copy(hist_.begin() + 1, hist_.end(), hist_.begin());
@@ -269,15 +322,23 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
         since_gap_ = 0;
         // Plausibility: the recent gap-to-gap tooth counts must match exactly one position of the wheel,
         // and this gap's size must fit that gap's nominal ratio.
-        if (hist_len_ >= history_needed_) {
+        // A single-gap wheel is identified by its gap alone: sync at the first one (issue 13); multi-gap
+        // wheels need the tooth counts between their last gaps. Without a previous gap the teeth counted
+        // before this one must fit (half a revolution at least, no more than a revolution), else noise would
+        // sync on any long period.
+        const bool single_ok =
+            num_gaps_ == 1 && hist_len_ == 0 && run_before_gap >= teeth_ / 2 && run_before_gap < teeth_;
+        const int need = single_ok ? 0 : history_needed_;
+        if (hist_len_ >= need) {
           int match = -1, matches = 0;
           for (int j = 0; j < num_gaps_; ++j) {
             bool ok = true;
-            for (int k = 0; k < history_needed_ && ok; ++k) {
+            for (int k = 0; k < need && ok; ++k) {
               ok = hist_[static_cast<std::size_t>(hist_len_ - 1 - k)] ==
                    gap_count_[static_cast<std::size_t>((j - k + 2 * num_gaps_) % num_gaps_)];
             }
-            const double nominal = width_[static_cast<std::size_t>(gap_tooth_[static_cast<std::size_t>(j)])] / pitch_rad_;
+            const double nominal =
+                width_[static_cast<std::size_t>(gap_tooth_[static_cast<std::size_t>(j)])] / pitch_rad_;
             ok = ok && r >= params_.gap_ratio_min * nominal && r <= params_.gap_ratio_max * nominal;
             if (ok) {
               match = j;
@@ -289,7 +350,8 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
             ++stats_.syncs;
             lost_this_rev_ = 0;
             tooth_ = gap_tooth_[static_cast<std::size_t>(match)];
-            if (tooth_ == 0) rev_ ^= 1;  // keep rev_ meaning "revolution of tooth_"; phase from the cam anyway
+            if (tooth_ == 0)
+              rev_ ^= 1;  // keep rev_ meaning "revolution of tooth_"; phase from the cam anyway
             period_ns_ = period;
             const double w = width_[static_cast<std::size_t>(tooth_)];
             last_width_rad_ = w;
@@ -308,10 +370,12 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
       ref_period_ns_ = period;
     }
   }
+  normal_run_ = normal ? normal_run_ + 1 : 0;
   if (normal && since_gap_ >= 0) {
     ++since_gap_;
     int max_count = 0;
-    for (int j = 0; j < num_gaps_; ++j) max_count = std::max(max_count, gap_count_[static_cast<std::size_t>(j)]);
+    for (int j = 0; j < num_gaps_; ++j)
+      max_count = std::max(max_count, gap_count_[static_cast<std::size_t>(j)]);
     if (since_gap_ > max_count + 1) {  // no gap where one had to be: the last candidate was not a gap
       since_gap_ = -1;
       hist_len_ = 0;
@@ -334,24 +398,32 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
 bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEvent& out) noexcept {
   int i = next_tooth(tooth_);
   double w = width_[static_cast<std::size_t>(i)];
-  // Expected period from the last one, scaled by the true widths (constant speed over one tooth).
+  // Expected period from the last one, scaled by the true widths (constant speed over one tooth), with and
+  // without the speed trend of the last two: on real signals the tooth-to-tooth jitter (±20 % on cranking
+  // captures) makes the trend alone swing the prediction, so a period fitting either prediction is a tooth.
   const double trend = u2_ > 0.0 ? clamp_trend(u1_ / u2_) : 1.0;
-  const double expected = u1_ * w * trend;
-  const double q = static_cast<double>(period) / expected;
-  if (q < params_.runt_fraction) {
+  const double q_flat = static_cast<double>(period) / (u1_ * w);
+  const double q_trend = q_flat / trend;
+  // Noise: earlier than runt_fraction of a one-pitch period (also at a gap: a tooth where the gap should be
+  // is a missing gap, not noise).
+  if (static_cast<double>(period) < params_.runt_fraction * u1_ * pitch_rad_ * std::min(trend, 1.0)) {
     ++stats_.noise_edges;
     pending_flags_ |= kToothNoiseRejected;
     return false;
   }
+  auto in_window = [&](double q) { return q >= params_.sync_ratio_min && q <= params_.sync_ratio_max; };
+  const bool normal = in_window(q_flat) || in_window(q_trend);
+  const double q = std::max(q_flat, q_trend) > params_.sync_ratio_max ? std::min(q_flat, q_trend) : q_trend;
   int advance = 1;
   const bool gap_tooth = w > 1.5 * pitch_rad_;
   const int i2 = next_tooth(i);
   const double q_lost = (w + width_[static_cast<std::size_t>(i2)]) / w;  // q if tooth i was not seen
   // At low speed (cranking, stopping) a period can double from one tooth to the next: then a long period is a
-  // slowdown and must not be explained by a lost tooth (that would shift every index after it).
+  // slowdown and must not be explained by a lost tooth (that would shift every index after it). A period
+  // inside the normal window is never a lost tooth.
   const double speed_rpm = last_width_rad_ / (static_cast<double>(period_ns_) * 1e-9) * (60.0 / kTwoPi);
-  const bool lost_possible = speed_rpm >= params_.lost_tooth_min_rpm && q_lost >= params_.lost_tooth_min_ratio &&
-                             q > std::sqrt(q_lost) &&
+  const bool lost_possible = !normal && speed_rpm >= params_.lost_tooth_min_rpm &&
+                             q_lost >= params_.lost_tooth_min_ratio && q > std::sqrt(q_lost) &&
                              q >= q_lost * params_.sync_ratio_min && q <= q_lost * params_.sync_ratio_max;
   if (lost_possible) {
     ++lost_this_rev_;
@@ -364,16 +436,17 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
       w += width_[static_cast<std::size_t>(i2)];
       i = i2;
     }
-  } else if (q < params_.sync_ratio_min) {
+  } else if (!normal && q < params_.sync_ratio_min) {
     lose_sync(gap_tooth ? SyncLossReason::kGapMissing : SyncLossReason::kPeriodTooShort, t_ns);
-  } else if (q > params_.sync_ratio_max) {
+  } else if (!normal) {
     lose_sync(SyncLossReason::kUnexpectedGap, t_ns);
   }
   if (state_ != SyncState::kSynced) {
-    // Report the failing edge; the decoder restarts syncing from here (this period becomes the reference).
-    ref_period_ns_ = period;
+    // Report the failing edge; the decoder restarts syncing from here. The failing period (a glitch, a gap
+    // where none was expected) is no reference: the next period starts a new one (issue 13).
+    ref_period_ns_ = 0;
     ref_prev_ns_ = 0;
-    ref_provisional_ = true;
+    ref_provisional_ = false;
     u1_ = u2_ = 0.0;
     period_ns_ = period;
     last_t_ns_ = t_ns;
@@ -407,7 +480,8 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   const int idx = rev_ * teeth_ + i;
   const int prev = (idx - advance + 2 * teeth_) % (2 * teeth_);
   ++stats_.synced_teeth;
-  emit(t_ns, idx, w + corr_[static_cast<std::size_t>(idx)] - corr_[static_cast<std::size_t>(prev)], period, out);
+  emit(t_ns, idx, w + corr_[static_cast<std::size_t>(idx)] - corr_[static_cast<std::size_t>(prev)], period,
+       out);
   return true;
 }
 
@@ -447,7 +521,8 @@ void CrankDecoder::on_cam(std::int64_t t_ns) noexcept {
   const double dt = static_cast<double>(t_ns - last_t_ns_);
   const double advance = std::min(dt * (last_width_rad_ / static_cast<double>(period_ns_)), w_next);
   const double a_deg = (angle_[static_cast<std::size_t>(tooth_)] + advance) / kDegToRad;
-  const bool in_this = in_window_deg(a_deg + 360.0 * rev_, params_.cam_window_start_deg, params_.cam_window_end_deg);
+  const bool in_this =
+      in_window_deg(a_deg + 360.0 * rev_, params_.cam_window_start_deg, params_.cam_window_end_deg);
   const bool in_other =
       in_window_deg(a_deg + 360.0 * (rev_ ^ 1), params_.cam_window_start_deg, params_.cam_window_end_deg);
   if (in_this && (!in_other || phase_known_)) {

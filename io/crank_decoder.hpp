@@ -3,18 +3,19 @@
 // Real-time safe: on_edge()/poll() never allocate, lock, block or throw; every noise edge, lost tooth, sync
 // loss and stall is counted in DecoderStats. One instance per engine, driven by one thread.
 //
-// Wheel model: T real teeth at angles a[0..T-1] in [0, 2π) (tooth 0 = first tooth after the (first) gap), from
-// an N-M WheelGeometry or an explicit tooth-angle list. w[i] = a[i] - a[i-1] (mod 2π) is the true angular width
-// of the period ending at tooth i; teeth whose w[i] exceeds 1.5 pitch close a gap.
-// Sync: a period P is a gap candidate when P / P_pred >= max(gap_ratio_min × g, √g), g = smallest gap ratio, P_pred the last
-// normal period extrapolated by the period trend of the last two normal periods (cranking accelerates and
-// decelerates by tens of percent per tooth; two gaps separated by one tooth, as on 36-2-2-2, are both seen). The count of teeth between
-// consecutive gap candidates must match the wheel's pattern (plausibility) — which also identifies which gap
-// it was on multi-gap wheels. Once synced each period is checked against the expected one
-// E = w[i]·(P_prev / w[i-1])·trend; q = P / E: q < runt_fraction → noise edge rejected; q near 1 → tooth; q near
-// (w[i]+w[i+1])/w[i] → one lost tooth, interpolated; anything else → lost sync with a reason.
-// 720° phase: a cam edge whose estimated crank angle falls into [cam_window_start_deg, cam_window_end_deg)
-// (angles in 0..720 from tooth 0 of the cycle's first revolution) fixes which revolution we are in.
+// Wheel model: T real teeth at angles a[0..T-1] in [0, 2π) (tooth 0 = first tooth after the (first) gap),
+// from an N-M WheelGeometry or an explicit tooth-angle list. w[i] = a[i] - a[i-1] (mod 2π) is the true
+// angular width of the period ending at tooth i; teeth whose w[i] exceeds 1.5 pitch close a gap. Sync: a
+// period P is a gap candidate when P / P_pred >= max(gap_ratio_min × g, √g), g = smallest gap ratio, P_pred
+// the last normal period extrapolated by the period trend of the last two normal periods (cranking
+// accelerates and decelerates by tens of percent per tooth; two gaps separated by one tooth, as on 36-2-2-2,
+// are both seen). The count of teeth between consecutive gap candidates must match the wheel's pattern
+// (plausibility) — which also identifies which gap it was on multi-gap wheels. Once synced each period is
+// checked against the expected one E = w[i]·(P_prev / w[i-1])·trend; q = P / E: q < runt_fraction → noise
+// edge rejected; q near 1 → tooth; q near (w[i]+w[i+1])/w[i] → one lost tooth, interpolated; anything else →
+// lost sync with a reason. 720° phase: a cam edge whose estimated crank angle falls into
+// [cam_window_start_deg, cam_window_end_deg) (angles in 0..720 from tooth 0 of the cycle's first revolution)
+// fixes which revolution we are in.
 #include <array>
 #include <cstdint>
 #include <span>
@@ -27,49 +28,61 @@ namespace torqued {
 
 /// Decoder tuning; defaults work for the simulator and common Hall sensors. Validated by config/.
 struct DecoderParams {
-  double gap_ratio_min = 0.6;   /// gap candidate if P/P_pred >= gap_ratio_min × nominal gap ratio (cranking/first-combustion squeeze)
-  double gap_ratio_max = 2.0;   ///< and <= gap_ratio_max × nominal gap ratio (-), else "too slow" (stall-like)
+  double gap_ratio_min = 0.6;  /// gap candidate if P/P_pred >= gap_ratio_min × nominal gap ratio
+                               /// (cranking/first-combustion squeeze)
+  double gap_ratio_max = 2.0;  ///< and <= gap_ratio_max × nominal gap ratio (-), else "too slow" (stall-like)
   double sync_ratio_min = 0.6;  ///< synced: q = P/E accepted down to this (-)
-  double sync_ratio_max = 1.6;  ///< synced: q accepted up to this (-), beyond: lost-tooth hypothesis or sync loss
-  double runt_fraction = 0.3;   ///< an edge earlier than runt_fraction × expected period is noise (-)
+  double sync_ratio_max =
+      1.6;  ///< synced: q accepted up to this (-), beyond: lost-tooth hypothesis or sync loss
+  double runt_fraction =
+      0.5;  ///< synced: an edge earlier than runt_fraction × the expected one-pitch period is noise (-)
+  double syncing_runt_fraction =
+      0.3;  ///< syncing: earlier than this × the predicted period is noise (-; the
+            ///< prediction is rougher before sync, cranking ripple can shorten a period 3x)
+  /// Debounce: a tooth edge followed by the opposite crank edge within this time is a glitch pulse, not a
+  /// tooth (µs; 0 = off). When on, each tooth is reported at its own time once the opposite edge confirms it.
+  double min_pulse_us = 0.0;
   double lost_tooth_min_ratio = 1.5;  ///< lost-tooth hypothesis only where it makes q at least this large (-)
   int max_lost_teeth_per_rev = 2;     ///< more lost teeth than this in one revolution -> lost sync
-  double max_trend = 1.5;             ///< period trend (ratio of the last two normalised periods) clamped to [1/x, x] (-)
-  double lost_tooth_min_rpm = 400.0;  ///< below this speed a long period is a slowdown, never a lost tooth (rpm)
+  double max_trend =
+      1.5;  ///< period trend (ratio of the last two normalised periods) clamped to [1/x, x] (-)
+  double lost_tooth_min_rpm =
+      400.0;  ///< below this speed a long period is a slowdown, never a lost tooth (rpm)
   std::int64_t stall_timeout_ns = 500'000'000;  ///< no crank edge for this long -> stalled (ns)
-  bool use_cam = true;                 ///< use the cam channel for the 720° phase
-  bool cam_rising = true;              ///< which cam edge marks the phase
-  double cam_window_start_deg = 0.0;   ///< cam edge must fall in [start, end) crank degrees of the 720° cycle
+  bool use_cam = true;                          ///< use the cam channel for the 720° phase
+  bool cam_rising = true;                       ///< which cam edge marks the phase
+  double cam_window_start_deg = 0.0;  ///< cam edge must fall in [start, end) crank degrees of the 720° cycle
   double cam_window_end_deg = 360.0;
-  std::uint8_t crank_channel = 0;      ///< EdgeEvent::channel of the crank signal
-  std::uint8_t cam_channel = 1;        ///< EdgeEvent::channel of the cam signal
+  std::uint8_t crank_channel = 0;  ///< EdgeEvent::channel of the crank signal
+  std::uint8_t cam_channel = 1;    ///< EdgeEvent::channel of the cam signal
 };
 
 /// Why sync was lost (DecoderStats::last_loss_reason).
 enum class SyncLossReason : std::uint8_t {
   kNone = 0,
-  kUnexpectedGap,      ///< a long period where a tooth was expected, not explainable by a lost tooth
-  kGapMissing,         ///< expected gap came as a normal period (extra tooth / noise)
-  kTooManyLostTeeth,   ///< more than max_lost_teeth_per_rev in one revolution
-  kPeriodTooShort,     ///< a period between runt threshold and sync_ratio_min
-  kStall,              ///< no edge within stall_timeout_ns
-  kCamPhase,           ///< cam edge outside its window while synced (phase re-established)
+  kUnexpectedGap,     ///< a long period where a tooth was expected, not explainable by a lost tooth
+  kGapMissing,        ///< expected gap came as a normal period (extra tooth / noise)
+  kTooManyLostTeeth,  ///< more than max_lost_teeth_per_rev in one revolution
+  kPeriodTooShort,    ///< a period between runt threshold and sync_ratio_min
+  kStall,             ///< no edge within stall_timeout_ns
+  kCamPhase,          ///< cam edge outside its window while synced (phase re-established)
 };
 [[nodiscard]] const char* to_string(SyncLossReason r) noexcept;
 [[nodiscard]] const char* to_string(SyncState s) noexcept;
 
 struct DecoderStats {
-  std::uint64_t edges = 0;          ///< all edges seen
-  std::uint64_t crank_edges = 0;    ///< crank edges of the selected polarity
-  std::uint64_t teeth = 0;          ///< ToothEvents produced
-  std::uint64_t synced_teeth = 0;   ///< ... of which while synced
-  std::uint64_t cam_edges = 0;      ///< cam edges of the selected polarity
-  std::uint64_t noise_edges = 0;    ///< runt edges rejected
-  std::uint64_t lost_teeth = 0;     ///< teeth interpolated
-  std::uint64_t gaps = 0;           ///< gaps seen (syncing and synced)
-  std::uint64_t syncs = 0;          ///< times sync was (re)acquired
-  std::uint64_t sync_losses = 0;    ///< times sync was lost (stalls excluded)
-  std::uint64_t stalls = 0;         ///< stall time-outs
+  std::uint64_t edges = 0;             ///< all edges seen
+  std::uint64_t crank_edges = 0;       ///< crank edges of the selected polarity
+  std::uint64_t teeth = 0;             ///< ToothEvents produced
+  std::uint64_t synced_teeth = 0;      ///< ... of which while synced
+  std::uint64_t cam_edges = 0;         ///< cam edges of the selected polarity
+  std::uint64_t noise_edges = 0;       ///< runt edges rejected (earlier than runt_fraction of a pitch)
+  std::uint64_t debounced_edges = 0;   ///< tooth edges rejected as glitch pulses (shorter than min_pulse_us)
+  std::uint64_t lost_teeth = 0;        ///< teeth interpolated
+  std::uint64_t gaps = 0;              ///< gaps seen (syncing and synced)
+  std::uint64_t syncs = 0;             ///< times sync was (re)acquired
+  std::uint64_t sync_losses = 0;       ///< times sync was lost (stalls excluded)
+  std::uint64_t stalls = 0;            ///< stall time-outs
   std::uint64_t cam_phase_errors = 0;  ///< cam edges outside the window
   SyncLossReason last_loss_reason = SyncLossReason::kNone;
   std::int64_t last_loss_t_ns = 0;
@@ -104,8 +117,8 @@ class CrankDecoder {
   [[nodiscard]] double nominal_angle_rad(int i) const noexcept { return angle_[static_cast<std::size_t>(i)]; }
 
   /// Per-tooth angle corrections (rad, true edge angle − nominal), either one per tooth of a revolution
-  /// (size T) or one per tooth of the 720° cycle (size 2T). Returns false (table unchanged) on a wrong size or
-  /// a non-finite value. Not real-time: call between edges from the same thread (no allocation though).
+  /// (size T) or one per tooth of the 720° cycle (size 2T). Returns false (table unchanged) on a wrong size
+  /// or a non-finite value. Not real-time: call between edges from the same thread (no allocation though).
   bool set_tooth_corrections(std::span<const double> rad) noexcept;
   void clear_tooth_corrections() noexcept;
 
@@ -114,6 +127,7 @@ class CrankDecoder {
 
  private:
   bool on_crank(std::int64_t t_ns, ToothEvent& out) noexcept;
+  bool debounce(std::int64_t t_ns, bool active, ToothEvent& out) noexcept;
   void on_cam(std::int64_t t_ns) noexcept;
   bool syncing_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
   bool synced_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
@@ -121,7 +135,8 @@ class CrankDecoder {
   void emit(std::int64_t t_ns, int tooth, double width_rad, std::int64_t period_ns, ToothEvent& out) noexcept;
   [[nodiscard]] int next_tooth(int i) const noexcept { return i + 1 == teeth_ ? 0 : i + 1; }
   [[nodiscard]] double clamp_trend(double x) const noexcept {
-    return x > params_.max_trend ? params_.max_trend : (x * params_.max_trend < 1.0 ? 1.0 / params_.max_trend : x);
+    return x > params_.max_trend ? params_.max_trend
+                                 : (x * params_.max_trend < 1.0 ? 1.0 / params_.max_trend : x);
   }
 
   // Wheel tables (built once).
@@ -129,33 +144,39 @@ class CrankDecoder {
   DecoderParams params_;
   std::string error_;
   int teeth_ = 0;
-  double pitch_rad_ = 0.0;                          ///< smallest tooth spacing (rad)
-  std::array<double, kMaxTeeth> angle_{};           ///< nominal tooth angle within a revolution (rad)
-  std::array<double, kMaxTeeth> width_{};           ///< nominal width of the period ending at tooth i (rad)
-  std::array<double, 2 * kMaxTeeth> corr_{};        ///< angle correction per tooth of 720° (rad)
+  double pitch_rad_ = 0.0;                    ///< smallest tooth spacing (rad)
+  std::array<double, kMaxTeeth> angle_{};     ///< nominal tooth angle within a revolution (rad)
+  std::array<double, kMaxTeeth> width_{};     ///< nominal width of the period ending at tooth i (rad)
+  std::array<double, 2 * kMaxTeeth> corr_{};  ///< angle correction per tooth of 720° (rad)
   int num_gaps_ = 0;
-  std::array<int, kMaxGaps> gap_tooth_{};           ///< tooth index closing gap j
-  std::array<int, kMaxGaps> gap_count_{};           ///< teeth from the previous gap's tooth to this one
-  double min_gap_ratio_ = 0.0;                      ///< smallest gap width / pitch
-  double gap_threshold_ = 0.0;                      ///< syncing: P/P_pred at or above this is a gap candidate
-  int history_needed_ = 1;                          ///< gap counts needed to identify the position
+  std::array<int, kMaxGaps> gap_tooth_{};  ///< tooth index closing gap j
+  std::array<int, kMaxGaps> gap_count_{};  ///< teeth from the previous gap's tooth to this one
+  double min_gap_ratio_ = 0.0;             ///< smallest gap width / pitch
+  double gap_threshold_ = 0.0;             ///< syncing: P/P_pred at or above this is a gap candidate
+  int history_needed_ = 1;                 ///< gap counts needed to identify the position
 
   // Run state.
   SyncState state_ = SyncState::kNoSignal;
   bool phase_known_ = false;
-  int rev_ = 0;                   ///< 0 or 1: which revolution of the 720° cycle
-  int tooth_ = 0;                 ///< index (within revolution) of the last accepted tooth, when synced
-  std::int64_t last_t_ns_ = 0;    ///< time of the last accepted crank edge
-  std::int64_t period_ns_ = 0;    ///< last accepted period
-  double last_width_rad_ = 0.0;   ///< nominal width of the last accepted period (synced)
-  std::int64_t ref_period_ns_ = 0;///< syncing: last period classified normal
-  bool ref_provisional_ = false;  ///< syncing: ref is the first period after a (re)start (may be a gap)
-  std::int64_t ref_prev_ns_ = 0;  ///< syncing: normal period before ref (0: not consecutive)
-  double u1_ = 0.0, u2_ = 0.0;    ///< synced: last two periods per radian of true width (ns/rad); 0 = unknown
+  int rev_ = 0;                     ///< 0 or 1: which revolution of the 720° cycle
+  int tooth_ = 0;                   ///< index (within revolution) of the last accepted tooth, when synced
+  std::int64_t last_t_ns_ = 0;      ///< time of the last accepted crank edge
+  std::int64_t period_ns_ = 0;      ///< last accepted period
+  double last_width_rad_ = 0.0;     ///< nominal width of the last accepted period (synced)
+  std::int64_t ref_period_ns_ = 0;  ///< syncing: last period classified normal
+  bool ref_provisional_ = false;    ///< syncing: ref is the first period after a (re)start (may be a gap)
+  std::int64_t ref_prev_ns_ = 0;    ///< syncing: normal period before ref (0: not consecutive)
+  double u1_ = 0.0, u2_ = 0.0;  ///< synced: last two periods per radian of true width (ns/rad); 0 = unknown
   bool have_edge_ = false;
-  int since_gap_ = -1;            ///< syncing: teeth since the last gap candidate (-1: no gap seen yet)
+  bool has_pending_ = false;  ///< debounce: a tooth edge waiting for the opposite edge
+  std::int64_t pending_t_ns_ = 0;
+  bool have_inactive_ = false;  ///< debounce: an opposite (non-tooth) crank edge was seen
+  std::int64_t last_inactive_t_ns_ = 0;
+  std::int64_t min_pulse_ns_ = 0;
+  int since_gap_ = -1;                ///< syncing: teeth since the last gap candidate (-1: no gap seen yet)
   std::array<int, kMaxGaps> hist_{};  ///< syncing: teeth counts between recent gap candidates (newest last)
   int hist_len_ = 0;
+  int normal_run_ = 0;  ///< syncing: consecutive normal periods
   int lost_this_rev_ = 0;
   std::uint32_t pending_flags_ = 0;
   DecoderStats stats_;

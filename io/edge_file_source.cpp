@@ -12,7 +12,8 @@ constexpr std::size_t kMaxMessages = 20;
 bool iequals(std::string_view a, std::string_view b) noexcept {
   if (a.size() != b.size()) return false;
   for (std::size_t i = 0; i < a.size(); ++i) {
-    if (std::tolower(static_cast<unsigned char>(a[i])) != std::tolower(static_cast<unsigned char>(b[i]))) return false;
+    if (std::tolower(static_cast<unsigned char>(a[i])) != std::tolower(static_cast<unsigned char>(b[i])))
+      return false;
   }
   return true;
 }
@@ -33,9 +34,85 @@ inline bool eight_digits(const char* p, std::uint64_t& out) noexcept {
   v -= 0x3030303030303030ull;
   v = (v * 10) + (v >> 8);  // pairs
   v = (((v & 0x000000FF000000FFull) * (100 + (1000000ull << 32))) +
-       (((v >> 16) & 0x000000FF000000FFull) * (1 + (10000ull << 32)))) >> 32;
+       (((v >> 16) & 0x000000FF000000FFull) * (1 + (10000ull << 32)))) >>
+      32;
   out = v;
   return true;
+}
+
+/// Decimal seconds with an optional exponent ("0.00383033", "8e-05", "1.5E+2", "-2.5e-3") -> integer ns,
+/// rounded half away from zero. Up to 18 significant digits are kept exactly. False (p unspecified) on
+/// anything else or on an out-of-range value.
+bool seconds_exp_to_ns(const char*& p, const char* end, std::int64_t& ns) noexcept {
+  bool neg = false;
+  if (p < end && (*p == '-' || *p == '+')) neg = *p++ == '-';
+  std::uint64_t m = 0;
+  int sig = 0, dec_exp = 0, digits = 0;
+  bool frac = false;
+  for (; p < end; ++p) {
+    if (*p == '.' && !frac) {
+      frac = true;
+      continue;
+    }
+    const unsigned d = static_cast<unsigned>(*p - '0');
+    if (d >= 10u) break;
+    ++digits;
+    if (sig < 18) {
+      if (m != 0 || d != 0) ++sig;
+      m = m * 10 + d;
+      if (frac) --dec_exp;
+    } else if (!frac) {
+      ++dec_exp;  // digits beyond 18 significant ones in the integer part only scale
+    }
+  }
+  if (digits == 0) return false;
+  if (p < end && (*p == 'e' || *p == 'E')) {
+    ++p;
+    bool eneg = false;
+    if (p < end && (*p == '-' || *p == '+')) eneg = *p++ == '-';
+    int e = 0, edigits = 0;
+    while (p < end && static_cast<unsigned>(*p - '0') < 10u) {
+      if (e < 1000) e = e * 10 + (*p - '0');
+      ++p;
+      ++edigits;
+    }
+    if (edigits == 0) return false;
+    dec_exp += eneg ? -e : e;
+  }
+  int scale = dec_exp + 9;  // value in ns = m x 10^scale
+  if (m == 0) scale = 0;
+  for (; scale > 0; --scale) {
+    if (m > static_cast<std::uint64_t>(INT64_MAX) / 10) return false;
+    m *= 10;
+  }
+  if (scale < -19) m = 0;
+  for (; scale < 0; ++scale) m = scale == -1 ? (m + 5) / 10 : m / 10;
+  if (m > static_cast<std::uint64_t>(INT64_MAX)) return false;
+  ns = neg ? -static_cast<std::int64_t>(m) : static_cast<std::int64_t>(m);
+  return true;
+}
+
+/// A column given by number ("1", "2", ...): its index, else -1.
+int column_number(std::string_view s) noexcept {
+  const auto t = parse::trim(s);
+  if (t.empty() || t.size() > 3) return -1;
+  int v = 0;
+  for (const char c : t) {
+    if (c < '0' || c > '9') return -1;
+    v = v * 10 + (c - '0');
+  }
+  return v >= 1 ? v : -1;
+}
+
+/// A data row rather than a header: its first field is a number.
+bool looks_like_data(std::string_view line) noexcept {
+  const char* p = line.data();
+  const char* end = p + line.size();
+  parse::skip_ws(p, end);
+  std::int64_t t = 0;
+  if (!seconds_exp_to_ns(p, end, t)) return false;
+  parse::skip_ws(p, end);
+  return p == end || *p == ',';
 }
 
 }  // namespace
@@ -51,14 +128,17 @@ std::size_t EdgeCsvSource::parse_row_fast(const char* p, std::size_t avail, std:
   const char* const begin = p;
   const char* const end = p + avail;
   std::int64_t whole = 0;
-  while (p < end && static_cast<unsigned>(*p - '0') < 10u) whole = whole * 10 + (*p++ - '0');
+  // At most 10 digits are accumulated (a 10th makes the row fall back below): no signed overflow, whatever
+  // the length of the digit run (tests/io: EdgeCsv.LongIntegerPartIsNotUndefinedBehaviour).
+  while (p < end && p - begin < 10 && static_cast<unsigned>(*p - '0') < 10u)
+    whole = whole * 10 + (*p++ - '0');
   const auto int_digits = p - begin;
   // integer part 1..9 digits (no overflow), '.', 9 digits, then 2 characters per further column
   const std::ptrdiff_t len = int_digits + 10 + 2 * static_cast<std::ptrdiff_t>(columns_ - 1);
   if (int_digits < 1 || int_digits > 9 || end - begin < len || *p != '.') return 0;
   std::uint64_t frac8 = 0;
   if (!eight_digits(p + 1, frac8) || static_cast<unsigned>(p[9] - '0') >= 10u) return 0;
-  const char* c = p + 10;  // ",x,y..."
+  const char* c = p + 10;                                   // ",x,y..."
   if (columns_ == 3 && crank_col_ == 1 && cam_col_ == 2) {  // the usual export: ",crank,cam", no loop
     const unsigned dc = static_cast<unsigned>(c[1] - '0'), dm = static_cast<unsigned>(c[3] - '0');
     if (c[0] != ',' || c[2] != ',' || (dc | dm) > 1u) return 0;
@@ -95,7 +175,7 @@ void note(std::vector<std::string>& messages, std::string& error, const std::str
 
 EdgeCsvSource::EdgeCsvSource(std::string path, EdgeCsvOptions options)
     : path_(std::move(path)), opt_(std::move(options)) {
-  messages_.reserve(kMaxMessages);
+  messages_.reserve(kMaxMessages + 2);
   if (!reader_.open(path_)) {
     error_ = reader_.error();
     return;
@@ -104,10 +184,16 @@ EdgeCsvSource::EdgeCsvSource(std::string path, EdgeCsvOptions options)
   while (reader_.next(line) && is_comment_or_blank(line)) {
   }
   if (reader_.line_number() == 0 || is_comment_or_blank(line)) {
-    error_ = path_ + ": empty file, expected a header row 'Time [s]," + opt_.crank_column + ",...'";
+    error_ = path_ + ": empty file, expected a header row 'Time [s]," + opt_.crank_column +
+             ",...' or data rows '<time s>,<level 0|1>,...'";
     return;
   }
-  // Header: first column is time (unit in brackets optional), then channel names.
+  ok_ = resolve_columns(line);
+}
+
+/// Header row (names) or, in a headerless file, the first data row (column count; kept to be read first).
+bool EdgeCsvSource::resolve_columns(std::string_view line) {
+  has_header_ = !looks_like_data(line);
   int col = 0;
   std::size_t start = 0;
   std::string names;
@@ -115,11 +201,14 @@ EdgeCsvSource::EdgeCsvSource(std::string path, EdgeCsvOptions options)
     std::size_t comma = line.find(',', start);
     if (comma == std::string_view::npos) comma = line.size();
     const auto name = parse::trim(line.substr(start, comma - start));
-    if (col == 0) {
-      if (name.find("[ms]") != std::string_view::npos) time_scale_div_ = 1000;
-      else if (name.find("[us]") != std::string_view::npos || name.find("[µs]") != std::string_view::npos) time_scale_div_ = 1'000'000;
-      else if (name.find("[ns]") != std::string_view::npos) time_scale_div_ = 1'000'000'000;
-    } else {
+    if (col == 0 && has_header_) {
+      if (name.find("[ms]") != std::string_view::npos)
+        time_scale_div_ = 1000;
+      else if (name.find("[us]") != std::string_view::npos || name.find("[µs]") != std::string_view::npos)
+        time_scale_div_ = 1'000'000;
+      else if (name.find("[ns]") != std::string_view::npos)
+        time_scale_div_ = 1'000'000'000;
+    } else if (col > 0 && has_header_) {
       if (iequals(name, opt_.crank_column)) crank_col_ = col;
       if (!opt_.cam_column.empty() && iequals(name, opt_.cam_column)) cam_col_ = col;
       names += (names.empty() ? "" : ", ") + std::string(name);
@@ -128,21 +217,58 @@ EdgeCsvSource::EdgeCsvSource(std::string path, EdgeCsvOptions options)
     start = comma + 1;
   }
   columns_ = col;
-  if (crank_col_ < 0) {
-    error_ = path_ + ":" + std::to_string(reader_.line_number()) + ": no crank column named '" + opt_.crank_column +
-             "' in the header (found: " + names + ")";
-    return;
+  // Columns given by number (also with a header); without a header the default names mean columns 1 and 2.
+  if (crank_col_ < 0) crank_col_ = column_number(opt_.crank_column);
+  if (cam_col_ < 0 && !opt_.cam_column.empty()) cam_col_ = column_number(opt_.cam_column);
+  if (!has_header_) {
+    if (crank_col_ < 0 && opt_.crank_column == "crank") crank_col_ = 1;
+    if (cam_col_ < 0 && opt_.cam_column == "cam") cam_col_ = columns_ > 2 ? 2 : -2;  // -2: no cam column
+    names = std::to_string(columns_ - 1) + " level columns, no header";
   }
-  if (!opt_.cam_column.empty() && cam_col_ < 0) {
-    error_ = path_ + ":" + std::to_string(reader_.line_number()) + ": no cam column named '" + opt_.cam_column +
-             "' in the header (found: " + names + "); set the cam channel name to empty if there is none";
-    return;
+  const std::string where = path_ + ":" + std::to_string(reader_.line_number()) + ": ";
+  if (crank_col_ < 0 || crank_col_ >= columns_) {
+    error_ = where + "no crank column named '" + opt_.crank_column + "' (found: " + names +
+             "); give its header name or its number (1 = first column after the time)";
+    return false;
   }
-  ok_ = true;
+  if (cam_col_ == -2)
+    cam_col_ = -1;
+  else if (!opt_.cam_column.empty() && (cam_col_ < 0 || cam_col_ >= columns_)) {
+    error_ = where + "no cam column named '" + opt_.cam_column + "' (found: " + names +
+             "); give its name or number, or set the cam channel name to empty if there is none";
+    return false;
+  }
+  if (!has_header_) {
+    first_row_text_.assign(line);
+    first_row_pending_ = true;
+  }
+  return true;
+}
+
+/// End of file: the read error if any; else, once, a count of the bad lines beyond the reported ones and a
+/// warning when the file held no data row at all.
+SourceStatus EdgeCsvSource::finish() noexcept {
+  const SourceStatus st = finish_lines(reader_, path_, stats_, error_);
+  if (finished_ || st != SourceStatus::kEnd) return st;
+  finished_ = true;
+  try {
+    if (stats_.bad_lines > kMaxMessages) {
+      messages_.push_back(path_ + ": " + std::to_string(stats_.bad_lines - kMaxMessages) +
+                          " more bad lines not listed (" + std::to_string(stats_.bad_lines) + " in all)");
+    }
+    if (data_rows_ == 0) {
+      messages_.push_back(path_ + ":" + std::to_string(reader_.line_number()) + ": warning: no data rows" +
+                          (has_header_ ? " after the header" : "") +
+                          " (expected '<time s>,<level 0|1>,...')");
+    }
+  } catch (...) {  // out of memory while formatting: the counts are in stats()
+  }
+  return st;
 }
 
 std::string EdgeCsvSource::describe() const {
-  return "edge-csv " + path_ + " (crank=" + opt_.crank_column + ", cam=" + (opt_.cam_column.empty() ? "-" : opt_.cam_column) + ")";
+  return "edge-csv " + path_ + " (crank=" + opt_.crank_column +
+         ", cam=" + (opt_.cam_column.empty() ? "-" : opt_.cam_column) + ")";
 }
 
 void EdgeCsvSource::bad_line(const char* what) noexcept {
@@ -160,8 +286,8 @@ bool EdgeCsvSource::parse_row(std::string_view line, std::int64_t& t, int& crank
   const char* p = line.data();
   const char* end = p + line.size();
   parse::skip_ws(p, end);
-  if (!parse::seconds_to_ns(p, end, t)) {
-    bad_line("expected a time in seconds in the first column");
+  if (!seconds_exp_to_ns(p, end, t)) {
+    bad_line("expected a time in seconds in the first column (e.g. 0.0125 or 1.25e-2)");
     return false;
   }
   // Levels: only the configured columns are looked at.
@@ -190,7 +316,8 @@ bool EdgeCsvSource::parse_row(std::string_view line, std::int64_t& t, int& crank
     ++col;
   }
   if (bad || crank < 0 || (cam_col_ >= 0 && cam < 0)) {
-    bad_line("expected '<time>,<level 0|1>,...' with the header's columns");
+    bad_line(has_header_ ? "expected '<time>,<level 0|1>,...' with the header's columns"
+                         : "expected '<time>,<level 0|1>,...' with as many columns as the first row");
     return false;
   }
   return true;
@@ -209,12 +336,15 @@ SourceStatus EdgeCsvSource::next(EdgeEvent& out) noexcept {
     int crank = -1, cam = -1;
     // Fast path straight from the reader's buffer (no line search); anything else through next(line).
     const std::string_view buf = reader_.buffered();
-    const std::size_t len = parse_row_fast(buf.data(), buf.size(), t, crank, cam);
-    if (len != 0 && len < buf.size() && buf[len] == '\n') {
+    const std::size_t len = first_row_pending_ ? 0 : parse_row_fast(buf.data(), buf.size(), t, crank, cam);
+    if (first_row_pending_) [[unlikely]] {  // headerless file: the row read while opening comes first
+      first_row_pending_ = false;
+      if (!parse_row(first_row_text_, t, crank, cam)) continue;
+    } else if (len != 0 && len < buf.size() && buf[len] == '\n') {
       reader_.consume_line(len + 1);
     } else {
       std::string_view line;
-      if (!reader_.next(line)) return finish_lines(reader_, path_, stats_, error_);
+      if (!reader_.next(line)) return finish();
       const std::size_t n = parse_row_fast(line.data(), line.size(), t, crank, cam);
       if ((n == 0 || n != line.size()) && !parse_row(line, t, crank, cam)) continue;
     }
@@ -230,11 +360,15 @@ SourceStatus EdgeCsvSource::next(EdgeEvent& out) noexcept {
       continue;
     }
     last_t_ns_ = t;
-    if (initial_) {  // first row: levels at capture start, not edges
+    ++data_rows_;
+    if (initial_) {
       initial_ = false;
-      level_[0] = static_cast<std::uint8_t>(crank);
-      level_[1] = static_cast<std::uint8_t>(cam < 0 ? 0 : cam);
-      continue;
+      if (opt_.first_row == EdgeCsvFirstRow::kInitialLevels) {  // levels at capture start, not edges
+        level_[0] = static_cast<std::uint8_t>(crank);
+        level_[1] = static_cast<std::uint8_t>(cam < 0 ? 0 : cam);
+        continue;
+      }
+      level_ = {0, 0};  // kEdgesFromLow: compared with all-low below
     }
     // A row is normally one edge: it goes straight to `out` (through pending_, the event was stored and read
     // back at once); the second edge of a row with both channels changing waits in pending_.
@@ -258,7 +392,8 @@ SourceStatus EdgeCsvSource::next(EdgeEvent& out) noexcept {
   }
 }
 
-EdgeListSource::EdgeListSource(std::string path, EdgeListOptions options) : path_(std::move(path)), opt_(options) {
+EdgeListSource::EdgeListSource(std::string path, EdgeListOptions options)
+    : path_(std::move(path)), opt_(options) {
   messages_.reserve(kMaxMessages);
   ok_ = reader_.open(path_);
   if (!ok_) error_ = reader_.error();

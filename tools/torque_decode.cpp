@@ -77,7 +77,7 @@ int main(int argc, char** argv) {
   app.add_option("--format", o.format, "edge file format: csv | list")->check(CLI::IsMember({"csv", "list"}));
   app.add_option("--can", o.can, "candump -l log");
   app.add_option("--dbc", o.dbc, "DBC file to decode the CAN frames");
-  app.add_option("--wheel", o.wheel, "crank wheel: N-M (60-2, 36-1, ...), 36-2-1, 36-2-2-2");
+  app.add_option("--wheel", o.wheel, "crank wheel: " + known_wheel_names());
   app.add_flag("--falling", o.falling, "teeth are marked by falling crank edges");
   app.add_option("--crank", o.crank, "crank column name in the edge CSV");
   app.add_option("--cam", o.cam, "cam column name in the edge CSV (\"\" = none)");

@@ -10,6 +10,7 @@
 
 #include "alloc_counter.hpp"
 #include "crank_decoder.hpp"
+#include "wheel_names.hpp"
 #include "synthetic_wheel.hpp"
 
 namespace torqued {
@@ -83,7 +84,8 @@ TEST(CrankDecoder, OtherWheelsByConfigurationOnly) {
       {test::wheel_nm(36, 2), "36-2"},
       {test::wheel_nm(24, 1), "24-1"},
       {test::wheel_nm(12, 1), "12-1"},
-      {test::wheel_runs(36, {17, 2, 16, 1}), "36-2-1"},
+      {test::wheel_runs(36, {17, 1, 16, 2}), "36-2-1"},
+      {test::wheel_runs(24, {11, 1, 10, 2}), "arctic-cat"},
       {test::wheel_runs(36, {13, 2, 16, 2, 1, 2}), "36-2-2-2 (H4)"},
   };
   for (const auto& c : cases) {
@@ -339,7 +341,7 @@ TEST(CrankDecoder, StoppingEngineIsNeverMisIndexed) {
     // period was taken for a lost tooth
     EXPECT_EQ(d.mismatches, 0) << w.positions;
     EXPECT_EQ(d.stats.lost_teeth, 0u) << w.positions;
-    EXPECT_GT(d.checked, w.teeth()) << w.positions;
+    EXPECT_GT(d.checked, w.teeth()) << w.positions << " syncs " << d.stats.syncs << " losses " << d.stats.sync_losses << " noise " << d.stats.noise_edges << " " << to_string(d.stats.last_loss_reason);
   }
 }
 
@@ -382,6 +384,48 @@ TEST(CrankDecoder, FirstCombustionSqueezesTheGapWithoutLosingSync) {
   EXPECT_EQ(dec.stats().syncs, 1u);
   EXPECT_EQ(wrong, 0);
   EXPECT_GT(checked, 12 * 58);
+}
+
+}  // namespace
+}  // namespace torqued
+
+namespace torqued {
+namespace {
+
+// Issue 13: "36-2-1" was the mirror image of the Mitsubishi 4B11 wheel. In rotation order it is 17 teeth, one
+// missing, 16 teeth, two missing: after tooth 0 (first tooth after the two-tooth gap) come 16 one-pitch periods,
+// then a two-pitch period (the single gap), 15 more, then the three-pitch gap closing the revolution.
+TEST(WheelNames, Mitsubishi36m2m1IsInRotationOrder) {
+  WheelGeometry w;
+  std::string err;
+  ASSERT_TRUE(wheel_from_name("36-2-1", w, &err)) << err;
+  ASSERT_EQ(w.teeth(), 33);
+  EXPECT_DOUBLE_EQ(w.tooth_angles_deg[16], 160.0);  // 17th tooth
+  EXPECT_DOUBLE_EQ(w.tooth_angles_deg[17], 180.0);  // after one missing position
+  EXPECT_DOUBLE_EQ(w.tooth_angles_deg[32], 330.0);  // last; then 2 missing (340, 350), tooth 0 at 360
+}
+
+TEST(WheelNames, CatalogueEntriesAreValidAndUnknownNamesListThem) {
+  for (const NamedWheel& n : wheel_catalogue()) {
+    WheelGeometry w;
+    std::string err;
+    ASSERT_TRUE(wheel_from_name(n.name, w, &err)) << n.name << ": " << err;
+    const CrankDecoder dec(w, DecoderParams{});
+    if (std::string(n.name) == "36-2-2") {  // symmetric: refused with a reason, never a silent non-sync
+      EXPECT_FALSE(dec.valid());
+      EXPECT_NE(dec.error().find("symmetric"), std::string::npos) << dec.error();
+    } else {
+      EXPECT_TRUE(dec.valid()) << n.name << ": " << dec.error();
+    }
+  }
+  WheelGeometry w;
+  std::string err;
+  EXPECT_FALSE(wheel_from_name("36-3-1", w, &err));
+  EXPECT_NE(err.find("known wheels: N-M"), std::string::npos) << err;
+  EXPECT_NE(err.find("36-2-2-2"), std::string::npos) << err;
+  EXPECT_NE(err.find("arctic-cat"), std::string::npos) << err;
+  ASSERT_TRUE(wheel_from_name("60-2", w, &err));
+  EXPECT_EQ(w.teeth(), 58);
 }
 
 }  // namespace

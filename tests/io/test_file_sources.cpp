@@ -33,7 +33,7 @@ TEST(FastParse, SecondsToNanosecondsIsExact) {
   EXPECT_EQ(ns("12.5"), 12'500'000'000);
   EXPECT_EQ(ns("-0.25"), -250'000'000);
   EXPECT_EQ(ns("3"), 3'000'000'000);
-  EXPECT_EQ(ns("0.0000000015"), 2);  // rounded on the 10th digit
+  EXPECT_EQ(ns("0.0000000015"), 2);    // rounded on the 10th digit
   const char* huge = "17000000000.5";  // would overflow int64 ns
   const char* q = huge;
   std::int64_t h = 0;
@@ -70,12 +70,13 @@ TEST(LineReader, LinesAcrossBufferBoundariesAndCrLf) {
 }
 
 TEST(EdgeCsv, InitialLevelsThenOneEdgePerChange) {
-  TempFile f("Time [s],crank,cam\n"
-             "0.000000000,0,1\n"
-             "0.000100000,1,1\n"
-             "0.000200000,0,0\n"    // both change: two edges, crank first
-             "0.000300000,1,0\n"
-             "0.000300500,1,1\n");
+  TempFile f(
+      "Time [s],crank,cam\n"
+      "0.000000000,0,1\n"
+      "0.000100000,1,1\n"
+      "0.000200000,0,0\n"  // both change: two edges, crank first
+      "0.000300000,1,0\n"
+      "0.000300500,1,1\n");
   EdgeCsvSource src(f.path());
   ASSERT_TRUE(src.ok()) << src.last_error();
   std::vector<EdgeEvent> ev;
@@ -96,10 +97,11 @@ TEST(EdgeCsv, InitialLevelsThenOneEdgePerChange) {
 }
 
 TEST(EdgeCsv, SaleaeStyleConfiguredNamesAndExtraColumns) {
-  TempFile f("Time [s], Channel 0, Channel 1, Channel 2\r\n"
-             "0.0, 1, 0, 0\r\n"
-             "0.5, 0, 0, 1\r\n"
-             "1.0, 0, 1, 1\r\n");
+  TempFile f(
+      "Time [s], Channel 0, Channel 1, Channel 2\r\n"
+      "0.0, 1, 0, 0\r\n"
+      "0.5, 0, 0, 1\r\n"
+      "1.0, 0, 1, 1\r\n");
   EdgeCsvOptions o;
   o.crank_column = "channel 1";  // case-insensitive
   o.cam_column = "";
@@ -116,7 +118,8 @@ TEST(EdgeCsv, MissingColumnNamesTheHeader) {
   TempFile f("Time [s],A,B\n0,0,0\n");
   EdgeCsvSource src(f.path());
   EXPECT_FALSE(src.ok());
-  EXPECT_NE(src.last_error().find(":1: no crank column named 'crank'"), std::string::npos) << src.last_error();
+  EXPECT_NE(src.last_error().find(":1: no crank column named 'crank'"), std::string::npos)
+      << src.last_error();
   EXPECT_NE(src.last_error().find("found: A, B"), std::string::npos);
   EdgeEvent e;
   EXPECT_EQ(src.next(e), SourceStatus::kError);
@@ -133,7 +136,8 @@ TEST(EdgeCsv, BadLinesAreReportedSkippedAndCounted) {
   EXPECT_EQ(ev[1].t_ns, 4'000'000);
   EXPECT_EQ(src.stats().bad_lines, 4u);
   ASSERT_EQ(src.bad_line_messages().size(), 4u);
-  EXPECT_NE(src.bad_line_messages()[0].find(":4: expected a time"), std::string::npos) << src.bad_line_messages()[0];
+  EXPECT_NE(src.bad_line_messages()[0].find(":4: expected a time"), std::string::npos)
+      << src.bad_line_messages()[0];
   EXPECT_NE(src.bad_line_messages()[1].find(":5: expected '<time>,<level 0|1>"), std::string::npos);
   EXPECT_NE(src.bad_line_messages()[3].find(":7: time goes backwards"), std::string::npos);
 }
@@ -153,7 +157,9 @@ TEST(EdgeCsv, TimeUnitFromHeader) {
 // rows with a leading space (always the general path) give the same events, bad-line count and messages.
 TEST(EdgeCsv, FastPathAgreesWithGeneralParser) {
   std::mt19937 rng(20261121);
-  const std::string alphabet = "0123456789.,- x+e";
+  // No e/E: since exponent notation is read (issue 13), "1.5e7" is a valid time far ahead that would make
+  // every later row "time goes backwards"; exponents are covered by EdgeCsv.ExponentNotationIsReadExactly.
+  const std::string alphabet = "0123456789.,- x+";
   std::string fast = "Time [s],crank,cam\n", general = fast;
   std::int64_t t = 0;
   int crank = 0, cam = 0;
@@ -170,15 +176,32 @@ TEST(EdgeCsv, FastPathAgreesWithGeneralParser) {
     const std::size_t dot = line.find('.') + 1;
     auto pos = [&](std::size_t extra) { return dot + rng() % (line.size() - dot + extra); };
     switch (rng() % 16) {
-      case 0: line[pos(0)] = alphabet[rng() % alphabet.size()]; break;
-      case 1: line.erase(pos(0), 1); break;
-      case 2: line.insert(pos(1), 1, alphabet[rng() % alphabet.size()]); break;
-      case 3: line += ",1"; break;                                   // extra column
-      case 4: line.insert(line.find(','), "0"); break;               // 10 decimals (rounded)
-      case 5: line.erase(line.find(',') - 1, 1); break;              // 8 decimals
-      case 6: line = "0000000000" + line; break;                     // 10+ integer digits
-      case 7: line = (rng() % 2 ? "+" : "-") + line; break;          // signs
-      default: break;
+      case 0:
+        line[pos(0)] = alphabet[rng() % alphabet.size()];
+        break;
+      case 1:
+        line.erase(pos(0), 1);
+        break;
+      case 2:
+        line.insert(pos(1), 1, alphabet[rng() % alphabet.size()]);
+        break;
+      case 3:
+        line += ",1";
+        break;  // extra column
+      case 4:
+        line.insert(line.find(','), "0");
+        break;  // 10 decimals (rounded)
+      case 5:
+        line.erase(line.find(',') - 1, 1);
+        break;  // 8 decimals
+      case 6:
+        line = "0000000000" + line;
+        break;  // 10+ integer digits
+      case 7:
+        line = (rng() % 2 ? "+" : "-") + line;
+        break;  // signs
+      default:
+        break;
     }
     fast += line + "\n";
     general += " " + line + "\n";
@@ -231,8 +254,9 @@ TEST(EdgeCsv, FastPathExactNanosecondsAndHeaderUnits) {
 
 TEST(EdgeCsv, OneEventPerChangedChannelInRowOrder) {
   // initial levels, cam only, no change (a glitch export), both (crank first), crank only, end
-  TempFile f("Time [s],crank,cam\n0.000000000,0,0\n0.000000010,0,1\n0.000000020,0,1\n"
-             "0.000000030,1,0\n0.000000040,0,0\n");
+  TempFile f(
+      "Time [s],crank,cam\n0.000000000,0,0\n0.000000010,0,1\n0.000000020,0,1\n"
+      "0.000000030,1,0\n0.000000040,0,0\n");
   EdgeCsvSource src(f.path());
   ASSERT_TRUE(src.ok());
   std::vector<std::tuple<std::int64_t, int, int>> got;
@@ -241,6 +265,129 @@ TEST(EdgeCsv, OneEventPerChangedChannelInRowOrder) {
   const std::vector<std::tuple<std::int64_t, int, int>> want{{10, 1, 1}, {30, 0, 1}, {30, 1, 0}, {40, 0, 0}};
   EXPECT_EQ(got, want);
   EXPECT_EQ(src.stats().records, 4u);
+}
+
+namespace {
+std::vector<EdgeEvent> read_all(EdgeCsvSource& src) {
+  std::vector<EdgeEvent> ev;
+  EdgeEvent e;
+  while (src.next(e) == SourceStatus::kOk) ev.push_back(e);
+  return ev;
+}
+}  // namespace
+
+// Issue 13: exports such as rusEFI's noisy-trigger logs print times like "8e-05"; the reader called that a
+// bad time. Exponent notation is now read exactly (to the ns, rounded half up).
+TEST(EdgeCsv, ExponentNotationIsReadExactly) {
+  TempFile f("Time [s],crank\n0,0\n8e-05,1\n1.5E-3,0\n0.00383033,1\n2.5e+0,0\n1.0000000005e1,1\n");
+  EdgeCsvOptions o;
+  o.cam_column = "";
+  EdgeCsvSource src(f.path(), o);
+  ASSERT_TRUE(src.ok()) << src.last_error();
+  const auto ev = read_all(src);
+  ASSERT_EQ(ev.size(), 5u) << (src.bad_line_messages().empty() ? "" : src.bad_line_messages()[0]);
+  EXPECT_EQ(ev[0].t_ns, 80'000);
+  EXPECT_EQ(ev[1].t_ns, 1'500'000);
+  EXPECT_EQ(ev[2].t_ns, 3'830'330);
+  EXPECT_EQ(ev[3].t_ns, 2'500'000'000);
+  EXPECT_EQ(ev[4].t_ns, 10'000'000'005);
+  EXPECT_EQ(src.stats().bad_lines, 0u);
+}
+
+// Issue 13: a file without a header (first line is data) was refused. Columns are then numbered (crank = 1,
+// cam = 2 if present) and the first row is data, not lost.
+TEST(EdgeCsv, HeaderlessFileUsesColumnNumbers) {
+  TempFile f("0,0\n8e-05,1\n0.00383033,0\n");
+  EdgeCsvSource src(f.path());  // default names "crank"/"cam": column 1, no cam (only one level column)
+  ASSERT_TRUE(src.ok()) << src.last_error();
+  EXPECT_FALSE(src.has_header());
+  const auto ev = read_all(src);
+  ASSERT_EQ(ev.size(), 2u);
+  EXPECT_EQ(ev[0].t_ns, 80'000);
+  EXPECT_EQ(ev[0].level, 1);
+  EXPECT_EQ(ev[1].level, 0);
+
+  TempFile g("0.5,1,0,1\n0.6,1,1,0\n0.7,0,1,0\n");
+  EdgeCsvOptions o;
+  o.crank_column = "3";  // by number
+  o.cam_column = "1";
+  EdgeCsvSource src2(g.path(), o);
+  ASSERT_TRUE(src2.ok()) << src2.last_error();
+  const auto ev2 = read_all(src2);
+  ASSERT_EQ(ev2.size(), 2u);  // 0.6: crank (col 3) 1->0; 0.7: cam (col 1) 1->0
+  EXPECT_EQ(ev2[0].channel, o.crank_channel);
+  EXPECT_EQ(ev2[0].level, 0);
+  EXPECT_EQ(ev2[1].channel, o.cam_channel);
+  EXPECT_EQ(ev2[1].t_ns, 700'000'000);
+
+  EdgeCsvOptions bad;
+  bad.crank_column = "7";
+  EdgeCsvSource src3(g.path(), bad);
+  EXPECT_FALSE(src3.ok());
+  EXPECT_NE(src3.last_error().find(":1: no crank column named '7'"), std::string::npos) << src3.last_error();
+}
+
+// The first row's meaning is an option: initial levels (no edge, default) or edges from all-low (rusEFI).
+TEST(EdgeCsv, FirstRowSemanticsAreSelectable) {
+  TempFile f("Time [s],crank,cam\n0.1,1,0\n0.2,0,1\n");
+  EdgeCsvSource a(f.path());
+  ASSERT_EQ(read_all(a).size(), 2u);  // 0.2: crank falls, cam rises
+  EdgeCsvOptions o;
+  o.first_row = EdgeCsvFirstRow::kEdgesFromLow;
+  EdgeCsvSource b(f.path(), o);
+  const auto ev = read_all(b);
+  ASSERT_EQ(ev.size(), 3u);
+  EXPECT_EQ(ev[0].t_ns, 100'000'000);
+  EXPECT_EQ(ev[0].level, 1);
+}
+
+// Every rejected line is named once with file:line and what was expected; beyond the first 20 they are
+// counted, and the count is reported once at the end.
+TEST(EdgeCsv, BadLinesBeyondTheLimitAreCountedOnce) {
+  std::string s = "Time [s],crank\n0,0\n";
+  for (int i = 0; i < 30; ++i) s += "x,1\n";
+  s += "1,1\n";
+  TempFile f(s);
+  EdgeCsvOptions o;
+  o.cam_column = "";
+  EdgeCsvSource src(f.path(), o);
+  EXPECT_EQ(read_all(src).size(), 1u);
+  EdgeEvent e;
+  EXPECT_EQ(src.next(e), SourceStatus::kEnd);  // a second end adds nothing
+  EXPECT_EQ(src.stats().bad_lines, 30u);
+  ASSERT_EQ(src.bad_line_messages().size(), 21u);
+  EXPECT_NE(src.bad_line_messages()[0].find(":3: expected a time in seconds"), std::string::npos);
+  EXPECT_NE(src.bad_line_messages()[20].find("10 more bad lines not listed (30 in all)"), std::string::npos)
+      << src.bad_line_messages()[20];
+}
+
+TEST(EdgeCsv, HeaderOnlyFileIsWarnedAbout) {
+  TempFile f("Time [s],crank,cam\n");
+  EdgeCsvSource src(f.path());
+  ASSERT_TRUE(src.ok()) << src.last_error();
+  EXPECT_TRUE(read_all(src).empty());
+  ASSERT_EQ(src.bad_line_messages().size(), 1u);
+  EXPECT_NE(src.bad_line_messages()[0].find(":1: warning: no data rows after the header"), std::string::npos)
+      << src.bad_line_messages()[0];
+  TempFile empty("");
+  EdgeCsvSource src2(empty.path());
+  EXPECT_FALSE(src2.ok());
+  EXPECT_NE(src2.last_error().find("empty file"), std::string::npos);
+}
+
+// Issue 16: the fast path accumulated every leading digit into an int64 before checking the count: a long
+// digit run was signed overflow (UB; caught by -fsanitize=undefined). Such a row is now left to the general
+// parser, which reports it as out of range, and the next row still reads.
+TEST(EdgeCsv, LongIntegerPartIsNotUndefinedBehaviour) {
+  TempFile f("Time [s],crank,cam\n0.000000000,0,0\n99999999999999999999999.000000000,1,0\n1.000000000,1,0\n");
+  EdgeCsvSource src(f.path());
+  ASSERT_TRUE(src.ok());
+  const auto ev = read_all(src);
+  ASSERT_EQ(ev.size(), 1u);
+  EXPECT_EQ(ev[0].t_ns, 1'000'000'000);
+  EXPECT_EQ(src.stats().bad_lines, 1u);
+  ASSERT_FALSE(src.bad_line_messages().empty());
+  EXPECT_NE(src.bad_line_messages()[0].find(":3: expected a time"), std::string::npos);
 }
 
 TEST(EdgeList, OneTimePerLineWithHeaderAndComments) {
@@ -256,16 +403,17 @@ TEST(EdgeList, OneTimePerLineWithHeaderAndComments) {
 }
 
 TEST(Candump, ClassicExtendedFdRemoteAndBadLines) {
-  TempFile f("(1700000000.000100) can0 100#0011223344556677\n"
-             "(1700000000.000200) can0 18FF0000#DEAD\n"
-             "(1700000000.000300) vcan1 123##1000102030405060708090A0B\n"
-             "(1700000000.000400) can0 7FF#R\n"
-             "(1700000000.000500) can0 100#001\n"
-             "garbage line\n"
-             "(1700000000.000600) can0 800#00\n"
-             "(1700000000.000700) can0 101#\n"
-             "(1700000000.000800) can0 102#0102030405060708090A\n"
-             "(1700000000.000900) can0 103#01 T\n");
+  TempFile f(
+      "(1700000000.000100) can0 100#0011223344556677\n"
+      "(1700000000.000200) can0 18FF0000#DEAD\n"
+      "(1700000000.000300) vcan1 123##1000102030405060708090A0B\n"
+      "(1700000000.000400) can0 7FF#R\n"
+      "(1700000000.000500) can0 100#001\n"
+      "garbage line\n"
+      "(1700000000.000600) can0 800#00\n"
+      "(1700000000.000700) can0 101#\n"
+      "(1700000000.000800) can0 102#0102030405060708090A\n"
+      "(1700000000.000900) can0 103#01 T\n");
   CandumpOptions o;
   o.time_offset_ns = -1'700'000'000'000'000'000;
   CandumpSource src(f.path(), o);
@@ -292,10 +440,12 @@ TEST(Candump, ClassicExtendedFdRemoteAndBadLines) {
   EXPECT_EQ(src.rtr_frames(), 1u);
   EXPECT_EQ(src.stats().bad_lines, 4u);
   ASSERT_EQ(src.bad_line_messages().size(), 4u);
-  EXPECT_NE(src.bad_line_messages()[0].find(":5: odd number of hex digits"), std::string::npos) << src.bad_line_messages()[0];
+  EXPECT_NE(src.bad_line_messages()[0].find(":5: odd number of hex digits"), std::string::npos)
+      << src.bad_line_messages()[0];
   EXPECT_NE(src.bad_line_messages()[1].find(":6: expected '(<seconds>)"), std::string::npos);
   EXPECT_NE(src.bad_line_messages()[2].find(":7: standard id above 0x7FF"), std::string::npos);
-  EXPECT_NE(src.bad_line_messages()[3].find(":9: classic CAN payload longer than 8 bytes"), std::string::npos);
+  EXPECT_NE(src.bad_line_messages()[3].find(":9: classic CAN payload longer than 8 bytes"),
+            std::string::npos);
 }
 
 TEST(Candump, NextDoesNotAllocate) {
@@ -324,9 +474,15 @@ TEST(Candump, RandomGarbageNeverCrashesAndIsCounted) {
     for (int k = 0; k < edits; ++k) {
       const std::size_t pos = rng() % l.size();
       switch (rng() % 3) {
-        case 0: l[pos] = static_cast<char>(1 + rng() % 255); break;
-        case 1: l.erase(pos, 1 + rng() % 5); break;
-        default: l.insert(pos, 1, "#()R 0F"[rng() % 7]); break;
+        case 0:
+          l[pos] = static_cast<char>(1 + rng() % 255);
+          break;
+        case 1:
+          l.erase(pos, 1 + rng() % 5);
+          break;
+        default:
+          l.insert(pos, 1, "#()R 0F"[rng() % 7]);
+          break;
       }
       if (l.empty()) l = "x";
     }

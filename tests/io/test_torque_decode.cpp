@@ -88,7 +88,7 @@ TEST(TorqueDecode, UsageErrors) {
   EXPECT_NE(run("").status, 0);
   const ToolRun bad_wheel = run("--edges /dev/null --wheel 60");
   EXPECT_NE(bad_wheel.status, 0);
-  EXPECT_NE(bad_wheel.out.find("expected N-M"), std::string::npos) << bad_wheel.out;
+  EXPECT_NE(bad_wheel.out.find("unknown; known wheels: N-M"), std::string::npos) << bad_wheel.out;
   const ToolRun missing = run("--edges /nonexistent.csv");
   EXPECT_NE(missing.status, 0);
   EXPECT_NE(missing.out.find("/nonexistent.csv"), std::string::npos) << missing.out;
