@@ -20,12 +20,24 @@ TorqueEstimate make(std::int64_t t, double v, double sd, Health h) noexcept {
 Health worst(Health a, Health b) noexcept { return static_cast<std::uint8_t>(a) > static_cast<std::uint8_t>(b) ? a : b; }
 }  // namespace
 
+namespace {
+/// The configuration with the friction prior resolved (generic correlation from the displacement unless told).
+AnglePipelineConfig resolve_prior(AnglePipelineConfig c) noexcept {
+  if (c.friction.prior_from_geometry) {
+    const double r = c.engine.crank_radius_m();
+    const double vd = std::numbers::pi * 0.25 * c.engine.bore_m * c.engine.bore_m * 2.0 * r * c.engine.cylinders;
+    c.friction.c = generic_friction_prior(vd, c.friction.sign);
+  }
+  return c;
+}
+}  // namespace
+
 AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
-    : cfg_(config),
+    : cfg_(resolve_prior(config)),
       energy_(config.engine, config.wheel, config.energies),
       wide_(energy_, config.energies.cycle_ke_window_deg, 0.5 * config.energies.energy_window_deg),
       rls_(config.engine, config.wheel, config.energies),
-      friction_(config.friction),
+      friction_(cfg_.friction),
       eso_(config.engine, config.energies),
       cyl_(config.engine, config.cylinder),
       fusion_(config.fusion),

@@ -107,8 +107,15 @@ struct EnergiesParams {
                                         ///< period); the energy balance takes each tooth's load this much later (s)
 };
 struct FrictionParams {
-  /// T_fric = (C1 + C2 n + C3 n²) e^{C4 t_oil}, n in rpm, t_oil in °C (EN-24); paper values as defaults.
+  /// T_fric = (C1 + C2 n + C3 n²) e^{C4 t_oil}, n in rpm, t_oil in °C (EN-24). Used as the starting point only
+  /// when prior_from_geometry is false (the paper's engine's values are kept as the example).
   std::array<double, 4> c{-23.86, 2.45e-3, -5.20e-6, -4.67e-3};
+  /// Start from the generic Barnes-Moss FMEP correlation scaled by the displacement (friction_learner.hpp), not
+  /// from `c`: nothing of one particular engine is assumed until friction is learned.
+  bool prior_from_geometry = true;
+  double idle_outlier_frac = 0.35;      ///< idle observations farther than this fraction from the current friction
+                                        ///< at idle are rejected (counted) once the idle level is established (-)
+  double idle_max_correction_frac = 0.5;///< |idle correction| ≤ this fraction of the law at idle (-)
   bool learn = true;                    ///< self-learn at idle and in fuel cut-off (EN-34)
   double sign = -1.0;                   ///< T_fric = sign·(...): the paper's polynomial is negative (-)
   double forgetting = 0.998;            ///< RLS forgetting factor per observation (-)

@@ -23,8 +23,12 @@ double wrap4pi(double a) {
   return a < 0.0 ? a + kFourPi : a;
 }
 
-void add(ErrorStats& s, double est, double truth, double pct, double nm) {
+void add(ErrorStats& s, double est, double truth, double pct, double nm, double sd = -1.0) {
   const double err = est - truth;
+  if (sd > 0.0) {
+    ++s.with_sd;
+    if (std::fabs(err) <= sd) ++s.covered;
+  }
   const double allowed = std::max(pct * 0.01 * std::fabs(truth), nm);
   ++s.n;
   if (std::fabs(err) <= allowed) ++s.pass;
@@ -53,6 +57,9 @@ sim::Scenario warmup_scenario(const sim::Scenario& sc) {
   w.air = sc.air;
   w.dyno = sc.dyno;
   w.fuel_factor = sc.fuel_factor;  // the engine's injectors as they are
+  w.friction = sc.friction;
+  w.spark_offset_deg = sc.spark_offset_deg;
+  w.intake_temp_c = sc.intake_temp_c;
   w.step_deg = sc.step_deg;
   w.duration_s = 5.0;
   // 1 s plateaus (≈ 8/16/25/33 cycles), 0.3 s ramps (rejected by the learner's steadiness test), dyno-held
@@ -99,11 +106,17 @@ ScenarioResult evaluate(const sim::Scenario& sc, const EvalOptions& opt) { retur
 
 ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, const EvalOptions& opt) {
   AnglePipelineConfig cfg = opt.base;
-  cfg.engine = sc.engine;
+  cfg.engine = opt.spec_engine ? *opt.spec_engine : sc.engine;
   cfg.wheel = sc.wheel;
-  cfg.friction.c = opt.friction_prior;
+  if (opt.friction_prior) {
+    cfg.friction.c = *opt.friction_prior;
+    cfg.friction.prior_from_geometry = false;
+  } else {
+    cfg.friction.prior_from_geometry = true;
+  }
   AnglePipeline pipe(cfg);
   if (opt.friction) pipe.friction().import_coefficients(*opt.friction);
+  if (opt.idle_correction) pipe.friction().import_idle_correction((*opt.idle_correction)[0], (*opt.idle_correction)[1]);
 
   std::vector<ToothSample> samples = sim::ideal_tooth_samples(out, sc);
   const int teeth = sc.wheel.teeth();
@@ -217,6 +230,7 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
       sig = sim::signals_at(out, t_s);
       last_sig = sig;
     }
+    if (opt.load_lost_after_s >= 0.0 && t_s >= opt.load_lost_after_s) sig.load_torque_valid = false;
     const std::uint8_t ready = pipe.on_tooth(s, sig);
     if (!(ready & AnglePipeline::kCycleReady)) continue;
     const CycleOutput& o = pipe.cycle_output();
@@ -269,6 +283,10 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
     row.indicated_crank = o.indicated_crank.torque_nm;
     row.indicated_eso = o.indicated_eso.torque_nm;
     row.fused = o.fused.brake_nm;
+    row.brake_sd = o.brake.uncertainty;
+    row.indicated_sd = o.indicated.uncertainty;
+    row.fused_sd = o.fused.sd_nm;
+    row.friction_prior = pipe.friction().is_prior();
     row.quality = o.fused.quality;
     row.brake_valid = o.brake.health == Health::kValid;
     row.indicated_valid = o.indicated.health == Health::kValid;
@@ -285,9 +303,9 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
     have_prev = true;
     const double pct = row.transient ? opt.transient_pct : opt.steady_pct;
     const double nm = row.transient ? opt.transient_nm : opt.steady_nm;
-    if (row.brake_valid) add(r.brake, row.brake, row.brake_true, pct, nm);
-    if (row.indicated_valid) add(r.indicated, row.indicated, row.indicated_true, pct, nm);
-    if (o.fused.quality != FusionQuality::kInvalid) add(r.fused, row.fused, row.brake_true, pct, nm);
+    if (row.brake_valid || opt.score_all_cycles) add(r.brake, row.brake, row.brake_true, pct, nm, row.brake_sd);
+    if (row.indicated_valid || opt.score_all_cycles) add(r.indicated, row.indicated, row.indicated_true, pct, nm, row.indicated_sd);
+    if (o.fused.quality != FusionQuality::kInvalid) add(r.fused, row.fused, row.brake_true, pct, nm, row.fused_sd);
     add(r.friction, row.friction, row.friction_true, pct, nm);
     if (row.rls_valid) {
       add(r.load_rls, row.load_rls, row.load_star_true, pct, nm);
@@ -329,9 +347,35 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
   }
   r.misfires_found = static_cast<int>(found.size());
   r.friction_coefficients = pipe.friction().coefficients();
+  r.idle_correction_nm = pipe.friction().idle_correction_nm();
+  r.idle_rpm = pipe.friction().idle_speed_rpm();
   r.friction_observations = pipe.stats().friction_observations;
   r.stats = pipe.stats();
   return r;
+}
+
+BedResult evaluate_bed_engine(const sim::BedEngine& e, const EvalOptions& options, bool short_run) {
+  BedResult b;
+  b.engine = e.name;
+  b.report = e.report;
+  EvalOptions o = options;
+  o.spec_engine = e.spec;
+  o.friction_prior.reset();  // generic correlation from the spec-sheet displacement
+  o.friction.reset();
+  o.idle_correction.reset();
+  o.score_all_cycles = true;
+  o.can_lost_after_s = -1.0;
+  o.load_lost_after_s = -1.0;
+  b.learn = evaluate(sim::bed_learning_run(e), o);
+  // Carry the learned state into the evaluated recording (as the daemon's --state-dir does).
+  if (b.learn.friction_observations > 0) o.friction = b.learn.friction_coefficients;
+  if (b.learn.idle_rpm > 0.0) o.idle_correction = std::array<double, 2>{b.learn.idle_correction_nm, b.learn.idle_rpm};
+  const sim::Scenario sc = sim::bed_eval_run(e, short_run);
+  const sim::SimOutput out = sim::simulate(sc);
+  b.with_load = evaluate(sc, out, o);
+  o.load_lost_after_s = 0.0;
+  b.without_load = evaluate(sc, out, o);
+  return b;
 }
 
 std::array<double, 4> learn_friction(const EvalOptions& options) {

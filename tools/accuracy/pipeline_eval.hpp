@@ -10,6 +10,7 @@
 #include "angle_pipeline.hpp"
 #include "params.hpp"
 #include "engine_sim.hpp"
+#include "unseen_engines.hpp"
 
 namespace torqued::eval {
 
@@ -24,7 +25,13 @@ struct EvalOptions {
   ToothTable tooth_table = ToothTable::kLearned;
   ToothLearnParams tooth_learn{};       ///< learner tuning for kLearned
   std::optional<std::array<double, 4>> friction;  ///< import these friction coefficients before the run
-  std::array<double, 4> friction_prior{0.0, 0.0, 0.0, 0.0};  ///< start here when `friction` is empty ("not told")
+  /// Start here when `friction` is empty ("not told"); empty: the generic correlation from the geometry
+  /// (FrictionParams::prior_from_geometry).
+  std::optional<std::array<double, 4>> friction_prior = std::array<double, 4>{0.0, 0.0, 0.0, 0.0};
+  std::optional<std::array<double, 2>> idle_correction;  ///< import [correction N m, idle rpm] after `friction`
+  std::optional<EngineGeometry> spec_engine;  ///< configure the pipeline with this geometry (spec sheet), not the truth
+  bool score_all_cycles = false;        ///< score brake/indicated on every cycle after skip, whatever their health
+  double load_lost_after_s = -1.0;      ///< >= 0: the load-torque signal (only) disappears from this time on
   int skip_cycles = 12;                 ///< cycles ignored at the start (RLS / ESO convergence)
   double can_lost_after_s = -1.0;       ///< >= 0: CAN signals disappear from this time on
   double steady_pct = 3.0, steady_nm = 2.0;     ///< issue 5 tolerances
@@ -42,6 +49,8 @@ struct CycleCompare {
   double friction = 0.0, friction_true = 0.0;
   double load_rls = 0.0, load_star_true = 0.0;  ///< extended load T_load + T_fric
   double indicated_crank = 0.0, indicated_eso = 0.0, fused = 0.0;
+  double brake_sd = 0.0, indicated_sd = 0.0, fused_sd = 0.0;  ///< claimed 1σ (N m)
+  bool friction_prior = false;  ///< the friction law still rested on the prior
   FusionQuality quality = FusionQuality::kInvalid;
   bool brake_valid = false, indicated_valid = false, rls_valid = false, eso_valid = false;
 };
@@ -53,6 +62,8 @@ struct ErrorStats {
   double rms_nm = 0.0;
   double max_rel_pct = 0.0; ///< max |err| / |truth| (%)
   double worst_ratio = 0.0; ///< max |err| / allowed (≤ 1: all pass)
+  int covered = 0;          ///< cycles with |err| ≤ claimed 1σ (when a σ was given)
+  int with_sd = 0;          ///< cycles that carried a claimed 1σ
 };
 
 struct ScenarioResult {
@@ -64,6 +75,7 @@ struct ScenarioResult {
   std::array<double, kMaxCylinders> imbalance_est{}, imbalance_true{};
   int misfires_true = 0, misfires_found = 0, misfires_false = 0;
   std::array<double, 4> friction_coefficients{};
+  double idle_correction_nm = 0.0, idle_rpm = 0.0;  ///< learned idle correction at the end of the run
   std::uint64_t friction_observations = 0;
   std::vector<CycleCompare> rows;
   AnglePipelineStats stats;
@@ -87,6 +99,16 @@ std::vector<double> learned_width_ratios(const sim::Scenario& scenario, const To
 ScenarioResult evaluate(const sim::Scenario& scenario, const EvalOptions& options);
 /// Same on an already simulated output.
 ScenarioResult evaluate(const sim::Scenario& scenario, const sim::SimOutput& out, const EvalOptions& options);
+
+/// One engine of the unseen-engines bed (issue 14): configured from its spec sheet only, friction from the generic
+/// prior, learned on bed_learning_run(), then bed_eval_run() evaluated from that learned state with and without the
+/// load-torque signal (other CAN signals stay). Brake/indicated scored on every cycle after `skip_cycles`.
+struct BedResult {
+  std::string engine;
+  bool report = false;
+  ScenarioResult learn, with_load, without_load;
+};
+BedResult evaluate_bed_engine(const sim::BedEngine& engine, const EvalOptions& options, bool short_run);
 
 /// Learn friction on the "fuel_cut" coast-down, then on "demo", starting at the prior; returns the coefficients.
 std::array<double, 4> learn_friction(const EvalOptions& options);
