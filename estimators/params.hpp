@@ -116,6 +116,12 @@ struct FrictionParams {
   double idle_outlier_frac = 0.35;      ///< idle observations farther than this fraction from the current friction
                                         ///< at idle are rejected (counted) once the idle level is established (-)
   double idle_max_correction_frac = 0.5;///< |idle correction| ≤ this fraction of the law at idle (-)
+  int idle_after_cut_cycles = 25;       ///< idle observations only this many firing cycles after a fuel cut-off, so
+                                        ///< that the RLS memory holds no coasting windows (cycles)
+  double idle_max_rls_sd_nm = 1.5;      ///< and only with an RLS load 1σ below this (tight, settled) (N m)
+  double idle_speed_tolerance = 0.03;   ///< steady idle: cycle-to-cycle speed change below this fraction (-)
+  double prior_rel_sd = 0.4;            ///< 1σ of the generic prior, fraction of the friction (issue 14: ±40 %) (-)
+  double learned_sd_nm = 2.0;           ///< 1σ claimed for the learned friction law (N m)
   bool learn = true;                    ///< self-learn at idle and in fuel cut-off (EN-34)
   double sign = -1.0;                   ///< T_fric = sign·(...): the paper's polynomial is negative (-)
   double forgetting = 0.998;            ///< RLS forgetting factor per observation (-)
@@ -140,6 +146,8 @@ struct FusionParams {
   double max_can_age_s = 0.1;       ///< CAN inputs older than this count as lost (s)
   bool blend = false;               ///< blend agreeing valid sources by inverse variance (false: pick the best)
   double gate_sigma = 3.0;          ///< a source farther than gate_sigma·σ(difference) from the best is not blended (-)
+  double can_load_sd_nm = 0.5;      ///< 1σ of the measured load torque (torque flange / e-machine) (N m)
+  double brake_sd_ema = 0.05;       ///< EMA weight per segment of the measured error variances (≈ 20-segment memory) (-)
 };
 struct ToothLearnParams {
   bool learn = true;                ///< learn per-tooth angle corrections

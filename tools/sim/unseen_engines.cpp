@@ -96,17 +96,19 @@ const std::vector<BedEngine>& unseen_engines() {
 Scenario bed_learning_run(const BedEngine& e) {
   Scenario s = e.truth;
   s.name = e.name + "_learn";
-  s.duration_s = 9.0;
+  s.duration_s = 12.0;
   s.warmup_s = 1.5;
   s.idle_control = true;
-  // Idle (free engine), then dyno-held plateaus, an overrun ramp 3500 -> 1500 rpm in fuel cut-off, firing
-  // again.
+  // Idle (free engine), a dyno-held overrun ramp 3500 -> 1500 rpm in fuel cut-off, then firing plateaus at
+  // several speeds and manifold pressures (the references of the fuel model).
   s.load_phases = {{0.0, LoadMode::kTorque}, {2.5, LoadMode::kDynoSpeed}};
   s.load_torque_nm = {{0.0, 0.0}};
-  s.speed_rpm = {{0.0, 800.0},  {2.5, 800.0},  {3.0, 1500.0}, {3.8, 1500.0}, {4.2, 2500.0}, {5.0, 2500.0},
-                 {5.4, 3500.0}, {6.0, 3500.0}, {7.5, 1500.0}, {8.0, 2000.0}, {9.0, 2000.0}};
-  s.map_target_kpa = {{0.0, 20.0}, {2.5, 20.0}, {2.7, 50.0}, {6.0, 50.0}, {7.5, 50.0}, {7.6, 60.0}};
-  s.fuel_cuts = {{6.0, 7.5, 1000.0}};
+  s.speed_rpm = {{0.0, 800.0},  {2.5, 800.0},  {3.2, 3500.0}, {3.6, 3500.0}, {5.1, 1500.0},
+                 {6.5, 1500.0}, {7.0, 2500.0}, {9.0, 2500.0}, {9.5, 3500.0}, {12.0, 3500.0}};
+  s.map_target_kpa = {{0.0, 20.0},  {2.5, 20.0},  {2.7, 50.0}, {5.2, 50.0},  {5.3, 40.0},
+                      {6.0, 40.0},  {6.05, 80.0}, {7.0, 80.0}, {7.05, 45.0}, {8.0, 45.0},
+                      {8.05, 90.0}, {9.0, 90.0},  {9.5, 60.0}, {10.5, 60.0}, {10.55, 35.0}};
+  s.fuel_cuts = {{3.6, 5.1, 1000.0}};
   return s;
 }
 
