@@ -284,9 +284,12 @@ void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals&
     const bool use_fuel =
         fuel_ind_.health == Health::kValid &&
         (trk.health != Health::kValid || fuel_ind_.uncertainty < o.indicated_crank.uncertainty);
-    o.indicated = use_fuel ? fuel_ind_ : o.indicated_crank;
-    o.brake = make(seg.t_ns, o.indicated.torque_nm - fric, std::hypot(o.indicated.uncertainty, fric_sd),
-                   worst(o.indicated.health, fric_h));
+    // Both chains were scored against T_ind,ref = balance + learned friction: their brake (value − friction)
+    // carries the measured σ alone, their indicated also the friction's.
+    const TorqueEstimate& src = use_fuel ? fuel_ind_ : o.indicated_crank;
+    o.indicated =
+        make(seg.t_ns, src.torque_nm, std::hypot(src.uncertainty, fric_sd), worst(src.health, fric_h));
+    o.brake = make(seg.t_ns, src.torque_nm - fric, src.uncertainty, worst(src.health, fric_h));
     o.load = make(seg.t_ns, o.brake.torque_nm - dke_nm, o.brake.uncertainty, o.brake.health);
   }
   // Extended load for the in-cycle observers: measured load + friction, or the crank-only estimate without
@@ -372,7 +375,7 @@ void AnglePipeline::fuse(const SegmentEnergy& seg, const EngineSignals& sig, Cyc
   e.newest_input_ns = seg.t_ns < sig.t_ns ? seg.t_ns : sig.t_ns;
   FusionSource& c = fin.src[static_cast<std::size_t>(FusionSourceId::kCrankOnly)];
   c.brake_nm = o.indicated_crank.torque_nm - fric;
-  c.sd_nm = std::hypot(o.indicated_crank.uncertainty, fric_sd);
+  c.sd_nm = o.indicated_crank.uncertainty;  // measured against balance + learned friction (see cycle_balance)
   c.health = worst(o.load_rls.health, fric_h);
   c.uses_can = false;
   c.newest_input_ns = seg.t_ns;
@@ -381,7 +384,7 @@ void AnglePipeline::fuse(const SegmentEnergy& seg, const EngineSignals& sig, Cyc
   const TorqueEstimate& m = fuel_ok ? fuel_ind_ : o.indicated_eso;
   FusionSource& z = fin.src[static_cast<std::size_t>(FusionSourceId::kEso)];
   z.brake_nm = m.torque_nm - fric;
-  z.sd_nm = std::hypot(m.uncertainty, fric_sd);
+  z.sd_nm = fuel_ok ? m.uncertainty : std::hypot(m.uncertainty, fric_sd);
   z.health = worst(m.health, fric_h);
   z.uses_can = true;
   z.newest_input_ns = sig.t_ns;
