@@ -135,6 +135,14 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_BOOL("friction.learn_at_idle", friction.params.learn_at_idle, "learn a local idle correction of the law from the steady-idle friction (off: only C4 learns at idle)");
   TQ_INT("friction.idle_steady_cycles", friction.params.idle_steady_cycles, closed(1, 100000), "cycles", "idle observations only after this many cycles of steady idle");
   TQ_NUM("friction.idle_fade_rpm", friction.params.idle_fade_rpm, closed(0.0, 20000.0), "rpm", "the idle correction fades linearly from the idle speed to 0 at this speed");
+  TQ_BOOL("friction.prior_from_geometry", friction.params.prior_from_geometry, "start from the generic Barnes-Moss FMEP correlation scaled by the displacement (Heywood 1988 sec. 13.5) instead of friction.c");
+  TQ_NUM("friction.idle_outlier_frac", friction.params.idle_outlier_frac, open_closed(0.0, 10.0), "", "idle observations farther than this fraction from the established idle friction are rejected");
+  TQ_NUM("friction.idle_max_correction_frac", friction.params.idle_max_correction_frac, closed(0.0, 10.0), "", "|idle correction| at most this fraction of the law at idle");
+  TQ_INT("friction.idle_after_cut_cycles", friction.params.idle_after_cut_cycles, closed(0, 100000), "cycles", "idle observations only this many firing cycles after a fuel cut-off (RLS memory free of coasting windows)");
+  TQ_NUM("friction.idle_max_rls_sd_nm", friction.params.idle_max_rls_sd_nm, open_closed(0.0, 1e4), "N m", "idle observations only with an RLS load 1 sigma below this");
+  TQ_NUM("friction.idle_speed_tolerance", friction.params.idle_speed_tolerance, open_closed(0.0, 1.0), "", "steady idle: cycle-to-cycle speed change below this fraction");
+  TQ_NUM("friction.prior_rel_sd", friction.params.prior_rel_sd, open_closed(0.0, 10.0), "", "1 sigma of the friction prior, fraction of the friction (until learned)");
+  TQ_NUM("friction.learned_sd_nm", friction.params.learned_sd_nm, open_closed(0.0, 1e4), "N m", "1 sigma claimed for the learned friction law");
   TQ_BOOL("cylinder.enabled", cylinder.enabled, "per-cylinder torque, imbalance and misfire");
   TQ_NUM("cylinder.misfire_threshold", cylinder.params.misfire_threshold, open_open(0.0, 1.0), "", "misfire when cylinder torque < threshold x cycle mean");
   TQ_NUM("cylinder.imbalance_filter", cylinder.params.imbalance_filter, open_closed(0.0, 1.0), "", "EMA weight per cycle of the imbalance (1 = none)");
@@ -143,6 +151,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_BOOL("fusion.blend", fusion.blend, "blend agreeing valid sources by inverse variance (false: pick the best)");
   TQ_NUM("fusion.gate_sigma", fusion.gate_sigma, open_closed(0.0, 1e3), "", "a source farther than gate_sigma x sigma(difference) from the best is not blended");
   TQ_BOOL("fusion.time_estimate", fusion.time_estimate, "use the time chain's UIO brake estimate (Na et al.) as the fusion's lowest-priority source");
+  TQ_NUM("fusion.can_load_sd_nm", fusion.can_load_sd_nm, open_closed(0.0, 1e4), "N m", "1 sigma of the measured load torque (torque flange / e-machine)");
+  TQ_NUM("fusion.brake_sd_ema", fusion.brake_sd_ema, open_closed(0.0, 1.0), "", "EMA weight per segment of the measured error variances");
   TQ_BOOL("tooth_learn.enabled", tooth_learn.enabled, "apply the per-tooth angle correction table");
   TQ_BOOL("tooth_learn.learn", tooth_learn.params.learn, "learn per-tooth corrections while running");
   TQ_INT("tooth_learn.min_cycles", tooth_learn.params.min_cycles, closed(1, 100000), "cycles", "cycles averaged before the table is used");

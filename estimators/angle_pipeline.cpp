@@ -1,5 +1,6 @@
 #include "angle_pipeline.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -8,6 +9,8 @@ namespace torqued {
 namespace {
 constexpr double kFourPi = 4.0 * std::numbers::pi;
 constexpr double kRadSToRpm = 30.0 / std::numbers::pi;
+/// Misfire decisions only after this many firing cycles (the CAN fuel flag leads the injections that resume).
+constexpr int kMisfireArmCycles = 2;
 
 TorqueEstimate make(std::int64_t t, double v, double sd, Health h) noexcept {
   TorqueEstimate e;
@@ -17,23 +20,41 @@ TorqueEstimate make(std::int64_t t, double v, double sd, Health h) noexcept {
   e.health = std::isfinite(v) ? h : Health::kNumerical;
   return e;
 }
-Health worst(Health a, Health b) noexcept { return static_cast<std::uint8_t>(a) > static_cast<std::uint8_t>(b) ? a : b; }
+Health worst(Health a, Health b) noexcept {
+  return static_cast<std::uint8_t>(a) > static_cast<std::uint8_t>(b) ? a : b;
+}
+}  // namespace
+
+namespace {
+/// The configuration with the friction prior resolved (generic correlation from the displacement unless
+/// told).
+AnglePipelineConfig resolve_prior(AnglePipelineConfig c) noexcept {
+  if (c.friction.prior_from_geometry) {
+    const double r = c.engine.crank_radius_m();
+    const double vd =
+        std::numbers::pi * 0.25 * c.engine.bore_m * c.engine.bore_m * 2.0 * r * c.engine.cylinders;
+    c.friction.c = generic_friction_prior(vd, c.friction.sign);
+  }
+  return c;
+}
 }  // namespace
 
 AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
-    : cfg_(config),
+    : cfg_(resolve_prior(config)),
       energy_(config.engine, config.wheel, config.energies),
       wide_(energy_, config.energies.cycle_ke_window_deg, 0.5 * config.energies.energy_window_deg),
       rls_(config.engine, config.wheel, config.energies),
-      friction_(config.friction),
+      friction_(cfg_.friction),
       eso_(config.engine, config.energies),
+      fuel_(config.engine, config.fuel),
       cyl_(config.engine, config.cylinder),
       fusion_(config.fusion),
       pre_(config.engine, config.wheel, config.preprocess),
       kalman_(config.engine, config.wheel, config.kalman),
       fourier_(config.engine, config.wheel, config.fourier) {
   // CF-14: refuse unstable Fourier gains (the config loader reports the reason; here the method is just off).
-  fourier_ok_ = config.run_fourier && !FourierObserver::check_stability(config.fourier, config.engine, config.wheel);
+  fourier_ok_ =
+      config.run_fourier && !FourierObserver::check_stability(config.fourier, config.engine, config.wheel);
   reset();
 }
 
@@ -42,6 +63,7 @@ void AnglePipeline::reset() noexcept {
   wide_.reset();
   rls_.reset();
   eso_.reset();
+  fuel_ind_ = TorqueEstimate{};
   cyl_.reset();
   fusion_.reset();
   pre_.reset();
@@ -60,7 +82,8 @@ void AnglePipeline::reset() noexcept {
   since_cut_segments_ = 1 << 30;  // no fuel cut-off seen yet
   idle_steady_cycles_ = 0;
   prev_cycle_rpm_ = 0.0;
-  brake_var_ = 4.0;
+  brake_var_ = cfg_.fusion.can_load_sd_nm * cfg_.fusion.can_load_sd_nm;
+  fired_ = true;
   have_prev_brake_ = false;
   have_prev_load_ = false;
   held_map_pa_ = 0.0;
@@ -105,8 +128,8 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   tooth_.speed_rad_s = speed;
   pre_.update(s);
   const ToothKinematics& kin = pre_.state();
-  tooth_.accel_rad_s2 = kin.valid ? kin.accel_rad_s2
-                                  : (have_prev_ ? (speed - prev_speed_) / (0.5 * (s.dt_s + prev_dt_)) : 0.0);
+  tooth_.accel_rad_s2 =
+      kin.valid ? kin.accel_rad_s2 : (have_prev_ ? (speed - prev_speed_) / (0.5 * (s.dt_s + prev_dt_)) : 0.0);
   tooth_.speed_lp_rad_s = kin.valid ? kin.speed_lp_rad_s : speed;
   tooth_.valid = have_prev_;
   // In-cycle observers (Chauvin): they estimate the net torque; the extended load turns it into T_ind.
@@ -133,14 +156,16 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   const bool load_ok = can_fresh && sig.load_torque_valid && std::isfinite(sig.load_torque_nm);
 
   bool works_ok = true;
-  for (int m = 0; m < cfg_.engine.cylinders; ++m) works_ok = works_ok && cyl_work_ok_[static_cast<std::size_t>(m)];
+  for (int m = 0; m < cfg_.engine.cylinders; ++m)
+    works_ok = works_ok && cyl_work_ok_[static_cast<std::size_t>(m)];
   // CAN lost: the RLS keeps running on the last MAP / spark advance it saw (they move slowly at a steady
   // operating point); the fusion marks the result crank-only with can_lost set.
   if (can_fresh && sig.map_valid && std::isfinite(sig.map_pa)) {
     held_map_pa_ = sig.map_pa;
     have_map_ = true;
   }
-  if (can_fresh && sig.spark_valid && std::isfinite(sig.spark_advance_deg)) held_spark_deg_ = sig.spark_advance_deg;
+  if (can_fresh && sig.spark_valid && std::isfinite(sig.spark_advance_deg))
+    held_spark_deg_ = sig.spark_advance_deg;
   rls_.update(s, held_map_pa_, have_map_, held_spark_deg_, cyl_work_j_, works_ok);
 
   wide_done_ = wide_.update(s);  // completes on the same tooth as boundary 0's per-cylinder window
@@ -154,12 +179,13 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   return ready;
 }
 
-void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh) noexcept {
-  ++stats_.segments;
-  const int n = cfg_.engine.cylinders;
+// ---------------------------------------------------------------------------------------------------------------------
+// Per segment (issue 12 item 2: named steps and named gates).
+
+void AnglePipeline::count_fuel_state(const EngineSignals& sig, bool can_fresh) noexcept {
   const bool cut_known = can_fresh && sig.fuel_cutoff_valid;
-  const bool fired = !(cut_known && sig.fuel_cutoff);
-  if (fired) {
+  fired_ = !(cut_known && sig.fuel_cutoff);
+  if (fired_) {
     ++fired_segments_;
     ++since_cut_segments_;
     cut_segments_ = 0;
@@ -168,20 +194,14 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
     fired_segments_ = 0;
     since_cut_segments_ = 0;
   }
-  CycleOutput o;
-  o.t_ns = seg.t_ns;
-  o.seq = cycle_.seq + 1;
-  o.boundary = seg.boundary;
-  o.cycle_end = seg.boundary == 0;
-  o.cylinders = cycle_.cylinders;
+}
 
-  const TorqueEstimate rls = rls_.estimate();
-  o.load_rls = rls;
+void AnglePipeline::segment_work(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh,
+                                 CycleOutput& o) noexcept {
+  const int n = cfg_.engine.cylinders;
+  const TorqueEstimate& rls = o.load_rls;
   const bool rls_ok = rls.health == Health::kValid;
-
-  // --- Segment work (per-cylinder measure) and ESO ---------------------------------------------------------------
-  const double seg_rpm = seg.speed_rad_s * kRadSToRpm;
-  const double fric_seg = friction_.friction_nm(seg_rpm, oil_c_);
+  const double fric_seg = friction_.friction_nm(seg.speed_rad_s * kRadSToRpm, oil_c_);
   double seg_load_star = 0.0;
   bool seg_ok = seg.segment_valid;
   if (seg.load_valid) {
@@ -193,112 +213,156 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
   }
   const double work = seg.d_ke_segment_j + seg_load_star * seg.segment_rad;
   const auto pos = static_cast<std::size_t>(seg.ended_position);
-  if (seg_ok) {
-    cyl_work_j_[pos] = work;  // the segment holds this cylinder's whole-cycle net work (see CylinderTorque)
-    cyl_work_ok_[pos] = true;
-  } else {
-    cyl_work_ok_[pos] = false;
-  }
-  // Per-cylinder work per cycle = segment work (its share of the cycle); CylinderTorque divides by 4π.
-  // Misfire decisions only after two firing cycles: the CAN flag leads the injections that actually resume.
-  if (cyl_.on_segment(seg.t_ns, seg.ended_position, work, seg_ok, fired && fired_segments_ > 2 * n)) {
+  cyl_work_j_[pos] =
+      seg_ok ? work : cyl_work_j_[pos];  // the segment holds this cylinder's whole-cycle net work
+  cyl_work_ok_[pos] = seg_ok;
+  // Misfire decisions only after kMisfireArmCycles firing cycles: the CAN flag leads the injections that
+  // resume.
+  if (cyl_.on_segment(seg.t_ns, seg.ended_position, work, seg_ok,
+                      fired_ && fired_segments_ > kMisfireArmCycles * n)) {
     o.cylinders = cyl_.cycle();
     stats_.misfires = cyl_.misfires();
     ++stats_.cycles;
   }
-
   EsoInput ein;
   ein.t_ns = seg.t_ns;
   ein.ke_j = seg.ke_j;
   ein.segment_rad = seg.segment_rad;
   ein.segment_dt_s = seg.segment_dt_s;
-  ein.fuel_kg = fired ? sig.fuel_mass_kg : 0.0;
+  ein.fuel_kg = fired_ ? sig.fuel_mass_kg : 0.0;
   ein.lambda = sig.lambda_valid ? sig.lambda : 1.0;
   ein.friction_nm = fric_seg;
   ein.load_nm = seg.load_valid ? seg.load_mean_nm : rls.torque_nm - fric_seg;
   ein.valid = seg.segment_valid && can_fresh && sig.fuel_mass_valid && (seg.load_valid || rls_ok);
   eso_.update(ein);
   o.indicated_eso = eso_.estimate();
+}
 
-  // --- Rolling 720° balance ---------------------------------------------------------------------------------------
-  if (!seg.cycle_valid) {
-    o.brake = o.indicated = o.friction = o.load = o.brake_energy = o.indicated_crank = make(seg.t_ns, 0.0, 0.0, Health::kNotConverged);
-    o.fused = fusion_.estimate();
-    cycle_ = o;
-    return;
-  }
-  o.speed_mean_rad_s = kFourPi / seg.cycle_dt_s;
+double AnglePipeline::friction_sd_nm(double fric) const noexcept {
+  // Until learned the law is the generic correlation, whose spread across engines is ≈ ±40 % (issue 14).
+  return friction_.is_prior() ? cfg_.friction.prior_rel_sd * std::fabs(fric) : cfg_.friction.learned_sd_nm;
+}
+
+void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh,
+                                  double dke_nm, CycleOutput& o) noexcept {
   const double rpm = o.speed_mean_rad_s * kRadSToRpm;
-  // Δ(½Jθ̇²)/4π; at boundary 0 from the wide window when it completed here (jitter noise / ≈ 4, CycleKeWindow)
-  const bool wide = o.cycle_end && wide_done_ && wide_.cycle_valid();
-  const double dke_nm = (wide ? wide_.d_ke_cycle_j() : seg.d_ke_cycle_j) / kFourPi;
   const double fric = friction_.friction_nm(rpm, oil_c_);
   const Health fric_h = friction_.health();
-  o.friction = make(seg.t_ns, fric, 2.0, fric_h);
-
+  const double fric_sd = friction_sd_nm(fric);
+  o.friction = make(seg.t_ns, fric, fric_sd, fric_h);
   // Energy balance with the measured load: the brake torque needs no friction model.
-  const bool can_load = seg.cycle_load_valid;
-  if (can_load) {
+  if (seg.cycle_load_valid) {
     const double brake = dke_nm + seg.cycle_load_mean_nm;
     if (have_prev_brake_) {
       const double d = brake - prev_brake_;
-      brake_var_ += 0.05 * (0.5 * d * d - brake_var_);
+      brake_var_ += cfg_.fusion.brake_sd_ema * (0.5 * d * d - brake_var_);  // ½: a difference of two cycles
     }
     prev_brake_ = brake;
     have_prev_brake_ = true;
-    o.brake_energy = make(seg.t_ns, brake, std::sqrt(brake_var_) + 0.5, Health::kValid);
+    o.brake_energy =
+        make(seg.t_ns, brake, std::sqrt(brake_var_) + cfg_.fusion.can_load_sd_nm, Health::kValid);
   } else {
     o.brake_energy = make(seg.t_ns, 0.0, 0.0, Health::kStaleInput);
   }
-  // Crank only: indicated from the extended load tracked through load changes (LoadRls rule 4; the plain RLS lags).
+  // Crank only: indicated from the extended load tracked through load changes (LoadRls rule 4). Its claimed
+  // 1σ is at least the RMS error measured against the energy balance while a load signal was present.
   const TorqueEstimate trk = rls_.tracked();
-  o.indicated_crank = make(seg.t_ns, dke_nm + trk.torque_nm, trk.uncertainty + 1.0, trk.health);
-
-  if (can_load) {
-    o.load = make(seg.t_ns, seg.cycle_load_mean_nm, 0.5, Health::kValid);
+  o.indicated_crank = make(seg.t_ns, dke_nm + trk.torque_nm,
+                           std::max(trk.uncertainty, std::sqrt(crank_err_var_)), trk.health);
+  // Fuel model (ECU fuel mass on CAN, efficiency learned against the energy balance).
+  const bool fuel_in = can_fresh && sig.fuel_mass_valid && have_map_;
+  fuel_ind_ = fuel_in ? fuel_.estimate(seg.t_ns, fired_ ? sig.fuel_mass_kg : 0.0, held_map_pa_)
+                      : make(seg.t_ns, 0.0, 0.0, Health::kStaleInput);
+  if (seg.cycle_load_valid) {
+    o.load = make(seg.t_ns, seg.cycle_load_mean_nm, cfg_.fusion.can_load_sd_nm, Health::kValid);
     o.brake = o.brake_energy;
-    o.indicated = make(seg.t_ns, o.brake_energy.torque_nm + fric, o.brake_energy.uncertainty + 2.0, fric_h);
+    o.indicated = make(seg.t_ns, o.brake_energy.torque_nm + fric,
+                       std::hypot(o.brake_energy.uncertainty, fric_sd), fric_h);
   } else {
-    o.load = make(seg.t_ns, trk.torque_nm - fric, trk.uncertainty + 2.0, worst(trk.health, fric_h));
-    o.indicated = o.indicated_crank;
-    o.brake = make(seg.t_ns, o.indicated_crank.torque_nm - fric, o.indicated_crank.uncertainty + 2.0,
-                   worst(rls.health, fric_h));
+    // No load signal: the more certain of the fuel model and the compression-window chain (claimed 1σ, both
+    // measured).
+    const bool use_fuel =
+        fuel_ind_.health == Health::kValid &&
+        (trk.health != Health::kValid || fuel_ind_.uncertainty < o.indicated_crank.uncertainty);
+    // Both chains were scored against T_ind,ref = balance + learned friction: their brake (value − friction)
+    // carries the measured σ alone, their indicated also the friction's.
+    const TorqueEstimate& src = use_fuel ? fuel_ind_ : o.indicated_crank;
+    o.indicated =
+        make(seg.t_ns, src.torque_nm, std::hypot(src.uncertainty, fric_sd), worst(src.health, fric_h));
+    o.brake = make(seg.t_ns, src.torque_nm - fric, src.uncertainty, worst(src.health, fric_h));
+    o.load = make(seg.t_ns, o.brake.torque_nm - dke_nm, o.brake.uncertainty, o.brake.health);
   }
+  // Extended load for the in-cycle observers: measured load + friction, or the crank-only estimate without
+  // it.
+  load_star_nm_ = seg.cycle_load_valid ? seg.cycle_load_mean_nm + fric : o.load.torque_nm + fric;
+  (void)sig;
+}
 
-  // Extended load for the in-cycle observers: measured load + friction, or the RLS estimate without CAN.
-  load_star_nm_ = can_load ? seg.cycle_load_mean_nm + fric : rls.torque_nm;
+bool AnglePipeline::motoring_observation_allowed(const SegmentEnergy& seg, const EngineSignals& sig,
+                                                 bool load_steady) const noexcept {
+  // Fuel cut-off for the whole 720° window plus one segment for the CAN flag's delay.
+  return cut_segments_ > cfg_.engine.cylinders + 1 && seg.cycle_load_valid && load_steady && sig.map_valid;
+}
 
-  // --- Friction learning (EN-24..36) -------------------------------------------------------------------------------
-  // Fuel cut-off for the whole window (+1 segment margin for the CAN flag's delay): T_ind = motored (pumping)
-  // torque, so T_fric = T_motored − Δ(½Jθ̇²)/4π − T_load.
-  const bool load_steady = have_prev_load_ && std::fabs(seg.cycle_load_mean_nm - prev_load_) <= cfg_.friction.max_load_change_nm;
+bool AnglePipeline::idle_observation_allowed(const SegmentEnergy& seg, const TorqueEstimate& rls, double rpm,
+                                             bool cycle_end) const noexcept {
+  const int n = cfg_.engine.cylinders;
+  const FrictionParams& f = cfg_.friction;
+  return cycle_end && fired_segments_ > n && since_cut_segments_ > f.idle_after_cut_cycles * n &&
+         seg.cycle_load_valid && rls.health == Health::kValid && rls.uncertainty < f.idle_max_rls_sd_nm &&
+         idle_steady_cycles_ >= f.idle_steady_cycles && rpm < cfg_.energies.idle_max_rpm &&
+         std::fabs(seg.cycle_load_mean_nm) < cfg_.energies.idle_max_load_nm;
+}
+
+bool AnglePipeline::fuel_reference_allowed(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh,
+                                           bool load_steady, bool cycle_end) const noexcept {
+  // A reference cycle: measured load (energy balance), learned friction, firing for a whole window, fuel on
+  // CAN.
+  return cycle_end && seg.cycle_load_valid && load_steady && !friction_.is_prior() &&
+         fired_segments_ > cfg_.engine.cylinders && can_fresh && sig.fuel_mass_valid && have_map_;
+}
+
+void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,
+                          const CycleOutput& o) noexcept {
+  const double rpm = o.speed_mean_rad_s * kRadSToRpm;
+  const bool load_steady =
+      have_prev_load_ && std::fabs(seg.cycle_load_mean_nm - prev_load_) <= cfg_.friction.max_load_change_nm;
   prev_load_ = seg.cycle_load_mean_nm;
-  have_prev_load_ = can_load;
-  if (cut_segments_ > n + 1 && can_load && load_steady && sig.map_valid) {
+  have_prev_load_ = seg.cycle_load_valid;
+  // EN-24..36 in fuel cut-off: T_ind = motored (pumping) torque, so T_fric = T_motored − Δ(½Jθ̇²)/4π − T_load.
+  if (motoring_observation_allowed(seg, sig, load_steady)) {
     const double obs = rls_.motored_torque_nm(sig.map_pa) - dke_nm - seg.cycle_load_mean_nm;
     if (friction_.observe_motoring(rpm, oil_c_, obs)) ++stats_.friction_observations;
   }
-  // Idle: no load, firing, RLS converged -> its extended load is the friction (EN-30..33 learn C4 from it).
-  // The same value sets the friction learner's local idle correction (below the fuel cut-off resume speed, which
-  // motoring observations never reach). Only with a tight, settled RLS (tooth errors learned, 1σ < 1.5 N m,
-  // 25 firing cycles after a fuel cut-off so that its memory holds no coasting windows).
-  // Steady idle only: the RLS remembers ≈ 10 cycles, so the speed (±3 %) and load must have held for
-  // friction.idle_steady_cycles cycles (idle-controller undershoots and ramps through idle gave ±1.5 N m outliers).
+  // Steady idle (speed within idle_speed_tolerance for idle_steady_cycles; the RLS remembers ≈ 10 cycles).
   if (o.cycle_end) {
-    const bool steady = rpm < cfg_.energies.idle_max_rpm && can_load && load_steady &&
-                        std::fabs(rpm - prev_cycle_rpm_) < 0.03 * rpm;
+    const bool steady = rpm < cfg_.energies.idle_max_rpm && seg.cycle_load_valid && load_steady &&
+                        std::fabs(rpm - prev_cycle_rpm_) < cfg_.friction.idle_speed_tolerance * rpm;
     idle_steady_cycles_ = steady ? idle_steady_cycles_ + 1 : 0;
     prev_cycle_rpm_ = rpm;
   }
-  if (o.cycle_end && fired_segments_ > n && since_cut_segments_ > 25 * n && can_load && rls_ok && rls.uncertainty < 1.5 &&
-      idle_steady_cycles_ >= cfg_.friction.idle_steady_cycles &&
-      rpm < cfg_.energies.idle_max_rpm &&
-      std::fabs(seg.cycle_load_mean_nm) < cfg_.energies.idle_max_load_nm) {
-    const double idle_fric = rls.torque_nm - seg.cycle_load_mean_nm;
-    friction_.observe_idle(rpm, oil_c_, idle_fric);  // C4 (EN-30..33) and the local idle correction
+  // Idle: no load, firing, RLS settled -> its extended load is the friction (EN-30..33; local idle
+  // correction). The learner rejects observations far from the established idle level (no collapse on one bad
+  // input).
+  if (idle_observation_allowed(seg, o.load_rls, rpm, o.cycle_end)) {
+    friction_.observe_idle(rpm, oil_c_, o.load_rls.torque_nm - seg.cycle_load_mean_nm);
   }
+  // Crank-only references: the energy balance with the measured load is the truth the crank-only chains are
+  // scored against (fuel-model efficiency; measured 1σ of the compression-window chain).
+  if (fuel_reference_allowed(seg, sig, can_fresh, load_steady, o.cycle_end)) {
+    const double t_ind_ref = o.brake_energy.torque_nm + o.friction.torque_nm;
+    (void)fuel_.learn(sig.fuel_mass_kg, held_map_pa_, t_ind_ref);
+    if (o.indicated_crank.health == Health::kValid) {
+      const double e = o.indicated_crank.torque_nm - t_ind_ref;
+      crank_err_var_ += cfg_.fusion.brake_sd_ema * (e * e - crank_err_var_);
+    }
+  }
+}
 
-  // --- Fusion -------------------------------------------------------------------------------------------------------
+void AnglePipeline::fuse(const SegmentEnergy& seg, const EngineSignals& sig, CycleOutput& o) noexcept {
+  const double fric = o.friction.torque_nm;
+  const double fric_sd = o.friction.uncertainty;
+  const Health fric_h = o.friction.health;
   FusionInput fin;
   fin.t_ns = seg.t_ns;
   fin.can_t_ns = sig.t_ns;
@@ -311,18 +375,48 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
   e.newest_input_ns = seg.t_ns < sig.t_ns ? seg.t_ns : sig.t_ns;
   FusionSource& c = fin.src[static_cast<std::size_t>(FusionSourceId::kCrankOnly)];
   c.brake_nm = o.indicated_crank.torque_nm - fric;
-  c.sd_nm = o.indicated_crank.uncertainty + 2.0;
-  c.health = worst(rls.health, fric_h);
+  c.sd_nm = o.indicated_crank.uncertainty;  // measured against balance + learned friction (see cycle_balance)
+  c.health = worst(o.load_rls.health, fric_h);
   c.uses_can = false;
   c.newest_input_ns = seg.t_ns;
+  // Model-based slot: the learned fuel model when valid, else the ESO.
+  const bool fuel_ok = fuel_ind_.health == Health::kValid;
+  const TorqueEstimate& m = fuel_ok ? fuel_ind_ : o.indicated_eso;
   FusionSource& z = fin.src[static_cast<std::size_t>(FusionSourceId::kEso)];
-  z.brake_nm = o.indicated_eso.torque_nm - fric;
-  z.sd_nm = o.indicated_eso.uncertainty + 2.0;
-  z.health = worst(o.indicated_eso.health, fric_h);
+  z.brake_nm = m.torque_nm - fric;
+  z.sd_nm = fuel_ok ? m.uncertainty : std::hypot(m.uncertainty, fric_sd);
+  z.health = worst(m.health, fric_h);
   z.uses_can = true;
   z.newest_input_ns = sig.t_ns;
   fin.src[static_cast<std::size_t>(FusionSourceId::kExternal)] = external_;
   o.fused = fusion_.update(fin);
+}
+
+void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh) noexcept {
+  ++stats_.segments;
+  count_fuel_state(sig, can_fresh);
+  CycleOutput o;
+  o.t_ns = seg.t_ns;
+  o.seq = cycle_.seq + 1;
+  o.boundary = seg.boundary;
+  o.cycle_end = seg.boundary == 0;
+  o.cylinders = cycle_.cylinders;
+  o.load_rls = rls_.estimate();
+  segment_work(seg, sig, can_fresh, o);
+  if (!seg.cycle_valid) {
+    o.brake = o.indicated = o.friction = o.load = o.brake_energy = o.indicated_crank =
+        make(seg.t_ns, 0.0, 0.0, Health::kNotConverged);
+    o.fused = fusion_.estimate();
+    cycle_ = o;
+    return;
+  }
+  o.speed_mean_rad_s = kFourPi / seg.cycle_dt_s;
+  // Δ(½Jθ̇²)/4π; at boundary 0 from the wide window when it completed here (jitter noise / ≈ 4, CycleKeWindow)
+  const bool wide = o.cycle_end && wide_done_ && wide_.cycle_valid();
+  const double dke_nm = (wide ? wide_.d_ke_cycle_j() : seg.d_ke_cycle_j) / kFourPi;
+  cycle_balance(seg, sig, can_fresh, dke_nm, o);
+  learn(seg, sig, can_fresh, dke_nm, o);
+  fuse(seg, sig, o);
   cycle_ = o;
 }
 

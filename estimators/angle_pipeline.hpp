@@ -1,7 +1,7 @@
 #pragma once
 // The angle pipeline: every angle-domain method, run per crank tooth (DESIGN.md data flow; issue 5).
-// Constructed from the engine/wheel geometry and the tuning structs, sized at construction; on_tooth() is real-time
-// safe (no allocation, no locks, no exceptions, no I/O).
+// Constructed from the engine/wheel geometry and the tuning structs, sized at construction; on_tooth() is
+// real-time safe (no allocation, no locks, no exceptions, no I/O).
 //
 // Per tooth:   speed, acceleration (ToothPreprocessor); in-cycle indicated torque from the Chauvin TV-Kalman
 //              (APS gains) and Fourier observers (helper "angle"), each given the latest extended load
@@ -13,9 +13,11 @@
 //   load       = CAN load (or RLS extended load − friction when CAN is lost)
 //   fused      = TorqueFusion of {energy+CAN, crank-only, ESO, external}
 // Per cycle:   per-cylinder indicated torque, imbalance, misfire (CylinderTorque).
-// Learning:    friction C1..C3 from fuel cut-off cycles (energy balance + measured load + modelled pumping loop),
+// Learning:    friction C1..C3 from fuel cut-off cycles (energy balance + measured load + modelled pumping
+// loop),
 //              C4 at idle from the RLS extended load (= friction when the load is zero).
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 
@@ -27,6 +29,7 @@
 #include "estimate.hpp"
 #include "fourier_observer.hpp"
 #include "friction_learner.hpp"
+#include "fuel_torque.hpp"
 #include "indicated_eso.hpp"
 #include "load_rls.hpp"
 #include "params.hpp"
@@ -46,8 +49,9 @@ struct AnglePipelineConfig {
   PreprocessParams preprocess{};
   KalmanParams kalman{};
   FourierParams fourier{};
-  bool run_kalman = true;            ///< Chauvin TV-Kalman in-cycle indicated torque per tooth
-  bool run_fourier = true;           ///< Chauvin Fourier observer per tooth (disabled if its gains fail CF-14)
+  FuelTorqueParams fuel{};
+  bool run_kalman = true;   ///< Chauvin TV-Kalman in-cycle indicated torque per tooth
+  bool run_fourier = true;  ///< Chauvin Fourier observer per tooth (disabled if its gains fail CF-14)
   double default_oil_temp_c = 90.0;  ///< used until an oil temperature arrives on CAN (°C)
 };
 
@@ -55,30 +59,31 @@ struct AnglePipelineConfig {
 struct ToothOutput {
   std::int64_t t_ns = 0;
   int tooth = 0;
-  double angle_rad = 0.0;      ///< edge angle within 720° from tooth 0 (rad)
-  double speed_rad_s = 0.0;    ///< w/dt of the period ending here (rad/s)
-  double accel_rad_s2 = 0.0;   ///< θ̈ from the pre-processor's [θ̇, θ̈] Kalman filter (rad/s²)
-  double speed_lp_rad_s = 0.0; ///< low-passed speed (rad/s)
-  TorqueEstimate kalman_ind;   ///< Chauvin TV-Kalman T̂_ind; its t_ns is the edge it refers to (fixed-lag smoother)
+  double angle_rad = 0.0;       ///< edge angle within 720° from tooth 0 (rad)
+  double speed_rad_s = 0.0;     ///< w/dt of the period ending here (rad/s)
+  double accel_rad_s2 = 0.0;    ///< θ̈ from the pre-processor's [θ̇, θ̈] Kalman filter (rad/s²)
+  double speed_lp_rad_s = 0.0;  ///< low-passed speed (rad/s)
+  TorqueEstimate
+      kalman_ind;  ///< Chauvin TV-Kalman T̂_ind; its t_ns is the edge it refers to (fixed-lag smoother)
   TorqueEstimate fourier_ind;  ///< Fourier observer T̂_ind at this edge
   bool valid = false;
 };
 
 /// Per-segment output (rolling 720° means), with the per-cylinder record refreshed once per cycle.
 struct CycleOutput {
-  std::int64_t t_ns = 0;        ///< time of the tooth that completed the segment (ns)
-  std::uint32_t seq = 0;        ///< segments reported since reset
-  int boundary = 0;             ///< boundary index (0: cylinder-1 segment starts: a full cycle ended)
-  bool cycle_end = false;       ///< boundary == 0: `cylinders` is new
-  double speed_mean_rad_s = 0.0;  ///< 4π / duration of the 720° window (rad/s)
-  TorqueEstimate brake;         ///< best brake torque of the pipeline's own methods (N m)
-  TorqueEstimate indicated;     ///< best indicated torque (N m)
-  TorqueEstimate friction;      ///< friction at the window's speed and oil temperature (N m)
-  TorqueEstimate load;          ///< load torque: CAN, or RLS extended load − friction (N m)
-  TorqueEstimate brake_energy;  ///< Δ(½Jθ̇²)/4π + CAN load (N m)
+  std::int64_t t_ns = 0;           ///< time of the tooth that completed the segment (ns)
+  std::uint32_t seq = 0;           ///< segments reported since reset
+  int boundary = 0;                ///< boundary index (0: cylinder-1 segment starts: a full cycle ended)
+  bool cycle_end = false;          ///< boundary == 0: `cylinders` is new
+  double speed_mean_rad_s = 0.0;   ///< 4π / duration of the 720° window (rad/s)
+  TorqueEstimate brake;            ///< best brake torque of the pipeline's own methods (N m)
+  TorqueEstimate indicated;        ///< best indicated torque (N m)
+  TorqueEstimate friction;         ///< friction at the window's speed and oil temperature (N m)
+  TorqueEstimate load;             ///< load torque: CAN, or RLS extended load − friction (N m)
+  TorqueEstimate brake_energy;     ///< Δ(½Jθ̇²)/4π + CAN load (N m)
   TorqueEstimate indicated_crank;  ///< Δ(½Jθ̇²)/4π + RLS extended load (N m), crank only
-  TorqueEstimate load_rls;      ///< RLS extended load T_load + T_fric (N m)
-  TorqueEstimate indicated_eso; ///< ESO (N m)
+  TorqueEstimate load_rls;         ///< RLS extended load T_load + T_fric (N m)
+  TorqueEstimate indicated_eso;    ///< ESO (N m)
   FusedTorque fused;
   CylinderCycle cylinders;
 };
@@ -106,7 +111,8 @@ class AnglePipeline {
   /// Real-time safe. Returns a mask of k*Ready flags telling which outputs are new.
   std::uint8_t on_tooth(const ToothSample& s, const EngineSignals& sig) noexcept;
 
-  /// Optional external brake estimate for the fusion (e.g. the time pipeline's UIO); used at the next segment.
+  /// Optional external brake estimate for the fusion (e.g. the time pipeline's UIO); used at the next
+  /// segment.
   void set_external(const FusionSource& src) noexcept { external_ = src; }
 
   [[nodiscard]] const ToothOutput& tooth_output() const noexcept { return tooth_; }
@@ -115,10 +121,34 @@ class AnglePipeline {
   [[nodiscard]] FrictionLearner& friction() noexcept { return friction_; }
   [[nodiscard]] const FrictionLearner& friction() const noexcept { return friction_; }
   [[nodiscard]] const LoadRls& load_rls() const noexcept { return rls_; }
+  /// Fuel-based indicated torque (learned efficiency; persisted with friction, see FuelTorqueState).
+  [[nodiscard]] FuelTorque& fuel_model() noexcept { return fuel_; }
+  [[nodiscard]] const FuelTorque& fuel_model() const noexcept { return fuel_; }
+  /// Measured variance of the compression-window chain's indicated torque vs the energy balance (N m²).
+  [[nodiscard]] double crank_error_var() const noexcept { return crank_err_var_; }
+  void import_crank_error_var(double v) noexcept {
+    if (std::isfinite(v) && v >= 0.0) crank_err_var_ = v;
+  }
   [[nodiscard]] const AnglePipelineConfig& config() const noexcept { return cfg_; }
 
  private:
   void on_segment(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh) noexcept;
+  // on_segment's steps, in order, and its gates (each gate is one named condition of the learning rules).
+  void count_fuel_state(const EngineSignals& sig, bool can_fresh) noexcept;
+  void segment_work(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh,
+                    CycleOutput& o) noexcept;
+  void cycle_balance(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,
+                     CycleOutput& o) noexcept;
+  void learn(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,
+             const CycleOutput& o) noexcept;
+  void fuse(const SegmentEnergy& seg, const EngineSignals& sig, CycleOutput& o) noexcept;
+  [[nodiscard]] bool motoring_observation_allowed(const SegmentEnergy& seg, const EngineSignals& sig,
+                                                  bool load_steady) const noexcept;
+  [[nodiscard]] bool idle_observation_allowed(const SegmentEnergy& seg, const TorqueEstimate& rls, double rpm,
+                                              bool cycle_end) const noexcept;
+  [[nodiscard]] bool fuel_reference_allowed(const SegmentEnergy& seg, const EngineSignals& sig,
+                                            bool can_fresh, bool load_steady, bool cycle_end) const noexcept;
+  [[nodiscard]] double friction_sd_nm(double fric) const noexcept;
 
   AnglePipelineConfig cfg_;
   CycleEnergy energy_;
@@ -126,13 +156,18 @@ class AnglePipeline {
   LoadRls rls_;
   FrictionLearner friction_;
   IndicatedEso eso_;
+  FuelTorque fuel_;
+  TorqueEstimate fuel_ind_{};  ///< fuel-model indicated torque of the current window
+  double crank_err_var_ =
+      0.0;             ///< measured variance of the compression-window chain vs the energy balance (N m²)
+  bool fired_ = true;  ///< current segment fires (no fuel cut-off flag)
   CylinderTorque cyl_;
   TorqueFusion fusion_;
   ToothPreprocessor pre_;
   ChauvinKalman kalman_;
   FourierObserver fourier_;
-  bool wide_done_ = false;   ///< wide_ completed on the current tooth
-  bool fourier_ok_ = false;  ///< gains passed check_stability() at construction
+  bool wide_done_ = false;     ///< wide_ completed on the current tooth
+  bool fourier_ok_ = false;    ///< gains passed check_stability() at construction
   double load_star_nm_ = 0.0;  ///< latest extended load handed to the in-cycle observers (N m)
 
   ToothOutput tooth_;
@@ -144,16 +179,16 @@ class AnglePipeline {
   double oil_c_ = 90.0;
   double prev_speed_ = 0.0, prev_dt_ = 0.0;
   bool have_prev_ = false;
-  int cut_segments_ = 0;     ///< consecutive segments in fuel cut-off
-  int fired_segments_ = 0;   ///< consecutive segments firing
+  int cut_segments_ = 0;        ///< consecutive segments in fuel cut-off
+  int fired_segments_ = 0;      ///< consecutive segments firing
   int since_cut_segments_ = 0;  ///< firing segments since the last fuel cut-off (large: none seen)
   int idle_steady_cycles_ = 0;  ///< consecutive cycles at steady idle (speed ±3 %, load steady)
   double prev_cycle_rpm_ = 0.0;
-  double brake_var_ = 4.0;   ///< running variance of segment-to-segment brake changes (N m²)
+  double brake_var_ = 4.0;  ///< running variance of segment-to-segment brake changes (N m²)
   double prev_brake_ = 0.0;
   bool have_prev_brake_ = false;
-  double prev_load_ = 0.0;   ///< previous window's mean CAN load (N m)
-  double held_map_pa_ = 0.0; ///< last fresh MAP (Pa), held while CAN is lost
+  double prev_load_ = 0.0;    ///< previous window's mean CAN load (N m)
+  double held_map_pa_ = 0.0;  ///< last fresh MAP (Pa), held while CAN is lost
   bool have_map_ = false;
   double held_spark_deg_ = 0.0;  ///< last fresh spark advance (deg), NaN until one arrived
   bool have_prev_load_ = false;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 namespace torqued {
 
@@ -16,6 +17,14 @@ bool finite4(const std::array<double, 4>& c) noexcept {
   return true;
 }
 }  // namespace
+
+std::array<double, 4> generic_friction_prior(double displacement_m3, double sign) noexcept {
+  // Barnes-Moss (Heywood 1988 §13.5): fmep = 0.97 + 0.15 k + 0.05 k² bar, k = N/1000; T = fmep V_d / 4π.
+  constexpr double kBar = 1e5;
+  const double to_nm = displacement_m3 / (4.0 * std::numbers::pi);
+  const double s = sign != 0.0 ? sign : 1.0;
+  return {0.97 * kBar * to_nm / s, 0.15 * kBar * to_nm / kS2 / s, 0.05 * kBar * to_nm / kS3 / s, 0.0};
+}
 
 FrictionLearner::FrictionLearner(const FrictionParams& params) noexcept : params_(params), base_(params.c) {
   reset();
@@ -90,12 +99,23 @@ bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double f
     ++n_rejected_;
     return false;
   }
+  // Outlier rejection (issue 14: one bad input must not collapse the idle friction): once an idle level is
+  // established (learned or imported), an observation farther than idle_outlier_frac from it is rejected.
+  const double current = this->friction_nm(speed_rpm, oil_temp_c);
+  const bool established = n_idle_ + idle_prior_n_ >= static_cast<std::uint64_t>(kIdlePriorObservations / 2);
+  if (established && std::fabs(friction_nm - current) > params_.idle_outlier_frac * std::fabs(current)) {
+    ++n_rejected_;
+    return false;
+  }
   ++n_idle_;
   if (params_.learn_at_idle) {
-    // Local correction: running mean of (observed − law) over the idle observations (gain 1/n, floor 0.1).
+    // Local correction: running mean of (observed − law) over the idle observations (gain 1/n, floor 0.1),
+    // bounded to ±idle_max_correction_frac of the law at idle.
     const double g = std::max(0.1, 1.0 / static_cast<double>(n_idle_ + idle_prior_n_));
     idle_rpm_ = idle_rpm_ > 0.0 ? idle_rpm_ + g * (speed_rpm - idle_rpm_) : speed_rpm;
-    idle_corr_nm_ += g * ((friction_nm - law_nm(speed_rpm, oil_temp_c)) - idle_corr_nm_);
+    const double law = law_nm(speed_rpm, oil_temp_c);
+    const double bound = params_.idle_max_correction_frac * std::fabs(law);
+    idle_corr_nm_ = std::clamp(idle_corr_nm_ + g * ((friction_nm - law) - idle_corr_nm_), -bound, bound);
   }
   const double ln = std::log(friction_nm);
   if (!have_idle_ref_) {

@@ -25,6 +25,16 @@
 
 namespace torqued {
 
+/// Generic prior of the EN-24 coefficients from the swept volume (issue 14): the Barnes-Moss correlation of total
+/// friction mean effective pressure of warm 4-stroke SI engines (845-2000 cm³), as given in J. B. Heywood,
+/// "Internal Combustion Engine Fundamentals", McGraw-Hill 1988, §13.5:
+///   fmep [bar] = 0.97 + 0.15 (N/1000) + 0.05 (N/1000)²,  N in rpm,
+/// and the mean friction torque of a 4-stroke engine T_fric = fmep · V_d / 4π. Stroke enters through V_d only (the
+/// Patton-Nitschke-Heywood / Sandoval-Heywood models add mean-piston-speed terms: a finer prior, not used here).
+/// C4 = 0 (the correlation is for a warm engine; the oil-temperature law is learned at idle). Returned in the
+/// learner's units for the given `sign` (C = T / sign).
+[[nodiscard]] std::array<double, 4> generic_friction_prior(double displacement_m3, double sign) noexcept;
+
 class FrictionLearner {
  public:
   explicit FrictionLearner(const FrictionParams& params) noexcept;
@@ -62,6 +72,8 @@ class FrictionLearner {
   [[nodiscard]] std::uint64_t motoring_observations() const noexcept { return n_motoring_; }
   [[nodiscard]] std::uint64_t idle_observations() const noexcept { return n_idle_; }
   [[nodiscard]] std::uint64_t rejected() const noexcept { return n_rejected_; }
+  /// True while the law rests on the prior alone (no motoring observation learned, nothing imported).
+  [[nodiscard]] bool is_prior() const noexcept { return !imported_ && n_motoring_ == 0 && n_idle_ == 0; }
   /// kValid once `min_observations` motoring observations were learned (or coefficients were imported),
   /// kNotConverged before (the prior is still used), kDisabled when learning is off (fixed law: kValid).
   [[nodiscard]] Health health() const noexcept;

@@ -107,8 +107,21 @@ struct EnergiesParams {
                                         ///< period); the energy balance takes each tooth's load this much later (s)
 };
 struct FrictionParams {
-  /// T_fric = (C1 + C2 n + C3 n²) e^{C4 t_oil}, n in rpm, t_oil in °C (EN-24); paper values as defaults.
+  /// T_fric = (C1 + C2 n + C3 n²) e^{C4 t_oil}, n in rpm, t_oil in °C (EN-24). Used as the starting point only
+  /// when prior_from_geometry is false (the paper's engine's values are kept as the example).
   std::array<double, 4> c{-23.86, 2.45e-3, -5.20e-6, -4.67e-3};
+  /// Start from the generic Barnes-Moss FMEP correlation scaled by the displacement (friction_learner.hpp), not
+  /// from `c`: nothing of one particular engine is assumed until friction is learned.
+  bool prior_from_geometry = true;
+  double idle_outlier_frac = 0.35;      ///< idle observations farther than this fraction from the current friction
+                                        ///< at idle are rejected (counted) once the idle level is established (-)
+  double idle_max_correction_frac = 0.5;///< |idle correction| ≤ this fraction of the law at idle (-)
+  int idle_after_cut_cycles = 25;       ///< idle observations only this many firing cycles after a fuel cut-off, so
+                                        ///< that the RLS memory holds no coasting windows (cycles)
+  double idle_max_rls_sd_nm = 1.5;      ///< and only with an RLS load 1σ below this (tight, settled) (N m)
+  double idle_speed_tolerance = 0.03;   ///< steady idle: cycle-to-cycle speed change below this fraction (-)
+  double prior_rel_sd = 0.4;            ///< 1σ of the generic prior, fraction of the friction (issue 14: ±40 %) (-)
+  double learned_sd_nm = 2.0;           ///< 1σ claimed for the learned friction law (N m)
   bool learn = true;                    ///< self-learn at idle and in fuel cut-off (EN-34)
   double sign = -1.0;                   ///< T_fric = sign·(...): the paper's polynomial is negative (-)
   double forgetting = 0.998;            ///< RLS forgetting factor per observation (-)
@@ -134,6 +147,8 @@ struct FusionParams {
   bool blend = false;               ///< blend agreeing valid sources by inverse variance (false: pick the best)
   double gate_sigma = 3.0;          ///< a source farther than gate_sigma·σ(difference) from the best is not blended (-)
   bool time_estimate = false;       ///< the time chain's UIO brake estimate is the fusion's external source
+  double can_load_sd_nm = 0.5;      ///< 1σ of the measured load torque (torque flange / e-machine) (N m)
+  double brake_sd_ema = 0.05;       ///< EMA weight per segment of the measured error variances (≈ 20-segment memory) (-)
 };
 struct ToothLearnParams {
   bool learn = true;                ///< learn per-tooth angle corrections

@@ -18,6 +18,14 @@ const FusedTorque& TorqueFusion::update(const FusionInput& in) noexcept {
                                           s.sd_nm > 0.0 && std::isfinite(s.sd_nm) && !(s.uses_can && o.can_lost);
     if (primary < 0 && usable[static_cast<std::size_t>(i)]) primary = i;
   }
+  // Rule 2b: without the energy balance (no measured load), the usable source with the smallest claimed 1σ leads
+  // (the claimed σ of the crank-only and model-based sources are measured against the balance while it was there).
+  if (primary > 0) {
+    for (int i = primary + 1; i < kFusionSources; ++i) {
+      const auto iu = static_cast<std::size_t>(i);
+      if (usable[iu] && in.src[iu].sd_nm < in.src[static_cast<std::size_t>(primary)].sd_nm) primary = i;
+    }
+  }
   if (primary < 0) {
     // Nothing usable: hold the last good value, say so.
     o.brake_nm = have_good_ ? out_.brake_nm : 0.0;
@@ -35,8 +43,8 @@ const FusedTorque& TorqueFusion::update(const FusionInput& in) noexcept {
   std::int64_t newest = p.newest_input_ns;
   o.used_mask = static_cast<std::uint8_t>(1u << primary);
   if (params_.blend) {
-    for (int i = primary + 1; i < kFusionSources; ++i) {
-      if (!usable[static_cast<std::size_t>(i)]) continue;
+    for (int i = 0; i < kFusionSources; ++i) {
+      if (i == primary || !usable[static_cast<std::size_t>(i)]) continue;
       const FusionSource& s = in.src[static_cast<std::size_t>(i)];
       const double gate = params_.gate_sigma * std::sqrt(p.sd_nm * p.sd_nm + s.sd_nm * s.sd_nm);
       if (std::fabs(s.brake_nm - p.brake_nm) > gate) continue;

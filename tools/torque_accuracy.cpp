@@ -1,8 +1,8 @@
 // torque-accuracy: runs simulator scenarios through the angle pipeline and prints the accuracy table vs truth
-// (issue 5 targets). Friction is learned first on the "fuel_cut" coast-down from a zero prior (the pipeline is not
-// told the simulator's friction law), then imported into every scenario, as the daemon would persist it.
+// (issue 5 targets). Friction is learned first on the "fuel_cut" coast-down from a zero prior (the pipeline
+// is not told the simulator's friction law), then imported into every scenario, as the daemon would persist
+// it.
 #include <CLI/CLI.hpp>
-
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -20,24 +20,70 @@ std::string cell(const ErrorStats& s) {
   std::snprintf(buf, sizeof buf, "%5.1f %4.1f%% %3d%%", s.max_abs_nm, s.max_rel_pct, 100 * s.pass / s.n);
   return buf;
 }
+std::string rm(const ErrorStats& s) {
+  if (s.n == 0) return "     -      -";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%6.1f %6.1f", s.rms_nm, s.max_abs_nm);
+  return buf;
+}
+std::string pass_cov(const ErrorStats& s) {
+  if (s.n == 0) return "   -    -";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%3d%% %3d%%", 100 * s.pass / s.n,
+                s.with_sd > 0 ? 100 * s.covered / s.with_sd : 0);
+  return buf;
+}
+
+/// Issue 14: the accuracy table of the unseen-engines bed.
+int run_bed(bool all, bool short_run, const torqued::eval::EvalOptions& base) {
+  std::printf(
+      "unseen-engines bed (%s runs): estimators configured from the spec sheet only; friction starts from "
+      "the\n"
+      "generic Barnes-Moss prior, is learned on a learning recording (idle + overrun), and the evaluated\n"
+      "recording starts from that state. Cells: RMS and max |error| (N m) over every cycle after %d;\n"
+      "pass = %% cycles within 5 %% or 3 N m steady, 8 %% or 5 N m transient; cov = %% cycles with |error| "
+      "<= claimed 1 sigma.\n",
+      short_run ? "short" : "full", base.skip_cycles);
+  std::printf("%-11s %4s | %-25s | %-13s | %-13s | %-25s | %-13s | %-13s | %s\n", "engine", "cyc",
+              "WITH LOAD brake rms max", "indicated", "friction", "WITHOUT brake rms max", "indicated",
+              "fused", "brake pass/cov  ind pass/cov");
+  for (const auto& e : torqued::sim::unseen_engines()) {
+    if (!all && !e.report) continue;
+    const auto b = torqued::eval::evaluate_bed_engine(e, base, short_run);
+    const auto& w = b.with_load;
+    const auto& n = b.without_load;
+    std::printf("%-11s %4d | %-13s %-11s | %-13s | %-13s | %-13s %-11s | %-13s | %-13s | %s  %s\n",
+                b.engine.c_str(), w.cycles, rm(w.brake).c_str(), pass_cov(w.brake).c_str(),
+                rm(w.indicated).c_str(), rm(w.friction).c_str(), rm(n.brake).c_str(),
+                pass_cov(n.brake).c_str(), rm(n.indicated).c_str(), rm(n.fused).c_str(),
+                pass_cov(n.brake).c_str(), pass_cov(n.indicated).c_str());
+    std::fflush(stdout);
+  }
+  return 0;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"Accuracy of the angle pipeline (brake, indicated, fused, crank-only, RLS load, ESO, per-cylinder,\n"
-               "misfire) on the simulator's scenarios. Cells: max |error| N m, max |error| % of truth, % of cycles\n"
-               "within tolerance (3 % or 2 N m steady, 5 % or 3 N m in transients)."};
+  CLI::App app{
+      "Accuracy of the angle pipeline (brake, indicated, fused, crank-only, RLS load, ESO, per-cylinder,\n"
+      "misfire) on the simulator's scenarios. Cells: max |error| N m, max |error| % of truth, % of cycles\n"
+      "within tolerance (3 % or 2 N m steady, 5 % or 3 N m in transients)."};
   std::vector<std::string> names;
   bool raw_teeth = false, true_teeth = false, paper_prior = false;
   int skip = 12;
   double can_lost = -1.0;
-  std::string csv_dir;
+  std::string csv_dir, bed;
+  bool bed_all = false, bed_short = false;
   app.add_option("-s,--scenario", names, "scenario(s); default: all built-in scenarios");
   app.add_flag("--raw-teeth", raw_teeth, "do not correct tooth widths (nominal wheel)");
-  app.add_flag("--true-tooth-errors", true_teeth,
-               "correct tooth widths with the simulator's TRUE machining errors instead of the learned table");
-  app.add_flag("--paper-friction", paper_prior, "start friction learning from the paper's coefficients instead of 0");
+  app.add_flag(
+      "--true-tooth-errors", true_teeth,
+      "correct tooth widths with the simulator's TRUE machining errors instead of the learned table");
+  app.add_flag("--paper-friction", paper_prior,
+               "start friction learning from the paper's coefficients instead of 0");
   app.add_option("--skip", skip, "cycles skipped at the start of each scenario (convergence)");
-  app.add_option("--can-lost-after", can_lost, "drop all CAN signals from this time on (s): crank-only fallback");
+  app.add_option("--can-lost-after", can_lost,
+                 "drop all CAN signals from this time on (s): crank-only fallback");
   app.add_option("--csv", csv_dir, "write per-cycle comparison CSVs into this directory");
   torqued::eval::RecordingOptions rec;
   app.add_option("--recording", rec.config_path,
@@ -49,10 +95,19 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_option("--state-dir", rec.state_dir, "--recording: learned state loaded at start and saved at the end");
   app.add_option("--skip-s", rec.skip_s, "--recording: seconds after the first edge left out of the evaluation");
+  app.add_option("--bed", bed, "run a test bed instead of the scenarios: 'unseen' (issue 14, report engines)")
+      ->check(CLI::IsMember({"unseen"}));
+  app.add_flag("--bed-all", bed_all, "with --bed: also the tuning engines");
+  app.add_flag("--bed-short", bed_short, "with --bed: the short evaluated recordings (the ctest subset)");
   CLI11_PARSE(app, argc, argv);
   if (!rec.config_path.empty()) {
     if (rec.out_dir.empty()) rec.out_dir = "accuracy-out";
     return torqued::eval::run_recording(rec);
+  }
+  if (!bed.empty()) {
+    torqued::eval::EvalOptions bo;
+    bo.skip_cycles = skip;
+    return run_bed(bed_all, bed_short, bo);
   }
   if (names.empty()) names = torqued::sim::scenario_names();
 
@@ -66,32 +121,34 @@ int main(int argc, char** argv) {
   std::printf("friction learned on fuel_cut (prior %s): C1=%.3f C2=%.4g C3=%.4g C4=%.4g\n",
               paper_prior ? "paper" : "zero", fric[0], fric[1], fric[2], fric[3]);
   opt.friction = fric;
-  std::printf("tooth table: %s\n", raw_teeth    ? "none (nominal widths)"
-                                   : true_teeth ? "simulator's true machining errors"
-                                                : "learned by ToothErrorLearner on a warm-up recording of the same wheel "
-                                                  "(1000-4000 rpm plateaus + fuel cut-off, 5 s)");
-  std::printf("%-16s %5s %4s | %-17s | %-17s | %-17s | %-17s | %-17s | %-17s | %6s | %-14s | %s\n", "scenario", "rpm",
-              "cyc", "brake (CAN)", "indicated", "fused", "brake crank-only", "RLS load*", "ESO indicated", "imb pp",
-              "tooth ° w/e", "misfire found/true/false");
+  std::printf("tooth table: %s\n",
+              raw_teeth    ? "none (nominal widths)"
+              : true_teeth ? "simulator's true machining errors"
+                           : "learned by ToothErrorLearner on a warm-up recording of the same wheel "
+                             "(1000-4000 rpm plateaus + fuel cut-off, 5 s)");
+  std::printf("%-16s %5s %4s | %-17s | %-17s | %-17s | %-17s | %-17s | %-17s | %6s | %-14s | %s\n",
+              "scenario", "rpm", "cyc", "brake (CAN)", "indicated", "fused", "brake crank-only", "RLS load*",
+              "ESO indicated", "imb pp", "tooth ° w/e", "misfire found/true/false");
   for (const auto& name : names) {
     const auto sc = torqued::sim::scenario_by_name(name);
     const auto r = torqued::eval::evaluate(sc, opt);
-    std::printf("%-16s %5.0f %4d | %s | %s | %s | %s | %s | %s | %6.2f | %.4f/%.3f%s | %d/%d/%d\n", name.c_str(),
-                r.mean_rpm, r.cycles, cell(r.brake).c_str(), cell(r.indicated).c_str(), cell(r.fused).c_str(),
-                cell(r.brake_crank).c_str(), cell(r.load_rls).c_str(), cell(r.indicated_eso).c_str(),
-                r.imbalance_max_pp, r.tooth_resid_deg, r.tooth_edge_resid_deg,
+    std::printf("%-16s %5.0f %4d | %s | %s | %s | %s | %s | %s | %6.2f | %.4f/%.3f%s | %d/%d/%d\n",
+                name.c_str(), r.mean_rpm, r.cycles, cell(r.brake).c_str(), cell(r.indicated).c_str(),
+                cell(r.fused).c_str(), cell(r.brake_crank).c_str(), cell(r.load_rls).c_str(),
+                cell(r.indicated_eso).c_str(), r.imbalance_max_pp, r.tooth_resid_deg, r.tooth_edge_resid_deg,
                 opt.tooth_table == ToothTable::kLearned && !r.tooth_low_orders ? "*" : " ", r.misfires_found,
                 r.misfires_true, r.misfires_false);
     std::fflush(stdout);
     if (!csv_dir.empty()) {
       std::ofstream f(csv_dir + "/" + name + "_cycles.csv");
-      f << "t_s,transient,speed_rpm,brake_nm,brake_true_nm,indicated_nm,indicated_true_nm,friction_nm,friction_true_nm,"
+      f << "t_s,transient,speed_rpm,brake_nm,brake_true_nm,indicated_nm,indicated_true_nm,friction_nm,"
+           "friction_true_nm,"
            "load_rls_nm,load_star_true_nm,indicated_crank_nm,indicated_eso_nm,fused_nm,quality\n";
       for (const auto& w : r.rows) {
         f << w.t_s << ',' << w.transient << ',' << w.speed_rpm << ',' << w.brake << ',' << w.brake_true << ','
-          << w.indicated << ',' << w.indicated_true << ',' << w.friction << ',' << w.friction_true << ',' << w.load_rls
-          << ',' << w.load_star_true << ',' << w.indicated_crank << ',' << w.indicated_eso << ',' << w.fused << ','
-          << torqued::to_string(w.quality) << '\n';
+          << w.indicated << ',' << w.indicated_true << ',' << w.friction << ',' << w.friction_true << ','
+          << w.load_rls << ',' << w.load_star_true << ',' << w.indicated_crank << ',' << w.indicated_eso
+          << ',' << w.fused << ',' << torqued::to_string(w.quality) << '\n';
       }
     }
   }

@@ -136,3 +136,39 @@ TEST(FrictionLearner, PersistedIdleCorrectionIsRestoredAndRefinedNotReplaced) {
   ASSERT_TRUE(restarted.observe_idle(800.0, 90.0, idle_true + 5.5));
   EXPECT_NEAR(restarted.idle_correction_nm() - before, 5.5 / (1.0 + FrictionLearner::kIdlePriorObservations), 0.05);
 }
+
+TEST(FrictionLearner, GenericPriorIsBarnesMossByDisplacement) {
+  // Barnes-Moss (Heywood 1988 §13.5) for a 2.0 L engine at 2000 rpm: (0.97 + 0.30 + 0.20) bar · 2e-3 m³ / 4π.
+  const double expected = 1.47e5 * 2.0e-3 / (4.0 * M_PI);
+  FrictionParams p;
+  p.c = torqued::generic_friction_prior(2.0e-3, p.sign);
+  FrictionLearner fl(p);
+  EXPECT_NEAR(fl.friction_nm(2000.0, 90.0), expected, 1e-9);
+  EXPECT_NEAR(fl.friction_nm(2000.0, 20.0), expected, 1e-9);  // C4 = 0: no oil law assumed
+  EXPECT_TRUE(fl.is_prior());
+  EXPECT_EQ(fl.health(), Health::kNotConverged);  // flagged as a prior until learned
+}
+
+TEST(FrictionLearner, IdleFrictionDoesNotCollapseOnBadIdleObservationsAfterFuelCutOff) {
+  // Regression (issue 14): after a fuel cut-off a biased load estimate fed the idle correction 0.9 N m against a
+  // true (and already learned) 16.4 N m, and idle friction collapsed to 0.9 N m.
+  FrictionParams p;
+  p.c = torqued::generic_friction_prior(1.6e-3, p.sign);
+  FrictionLearner fl(p);
+  for (int k = 0; k < 30; ++k) EXPECT_TRUE(fl.observe_idle(800.0, 90.0, 16.4 + 0.2 * std::sin(k)));
+  ASSERT_NEAR(fl.friction_nm(800.0, 90.0), 16.4, 0.5);
+  const auto rejected_before = fl.rejected();
+  for (int k = 0; k < 200; ++k) (void)fl.observe_idle(800.0, 90.0, 0.9);
+  EXPECT_NEAR(fl.friction_nm(800.0, 90.0), 16.4, 0.1 * 16.4);
+  EXPECT_EQ(fl.rejected(), rejected_before + 200u);
+}
+
+TEST(FrictionLearner, IdleCorrectionIsBounded) {
+  // A first idle observation far from the prior moves the correction by at most idle_max_correction_frac of the law.
+  FrictionParams p;
+  p.c = torqued::generic_friction_prior(1.6e-3, p.sign);
+  FrictionLearner fl(p);
+  const double law = fl.law_nm(800.0, 90.0);
+  (void)fl.observe_idle(800.0, 90.0, 10.0 * law);
+  EXPECT_LE(fl.friction_nm(800.0, 90.0), (1.0 + p.idle_max_correction_frac) * law + 1e-9);
+}

@@ -1,16 +1,16 @@
 #include "pipeline_eval.hpp"
 
-#include "crank_kinematics.hpp"
-#include "tooth_error_learner.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <numbers>
 #include <mutex>
+#include <numbers>
 #include <set>
 #include <tuple>
 #include <utility>
+
+#include "crank_kinematics.hpp"
+#include "tooth_error_learner.hpp"
 
 namespace torqued::eval {
 
@@ -23,14 +23,19 @@ double wrap4pi(double a) {
   return a < 0.0 ? a + kFourPi : a;
 }
 
-void add(ErrorStats& s, double est, double truth, double pct, double nm) {
+void add(ErrorStats& s, double est, double truth, double pct, double nm, double sd = -1.0) {
   const double err = est - truth;
+  if (sd > 0.0) {
+    ++s.with_sd;
+    if (std::fabs(err) <= sd) ++s.covered;
+  }
   const double allowed = std::max(pct * 0.01 * std::fabs(truth), nm);
   ++s.n;
   if (std::fabs(err) <= allowed) ++s.pass;
   s.max_abs_nm = std::max(s.max_abs_nm, std::fabs(err));
   s.rms_nm += err * err;
-  if (std::fabs(truth) > 1e-6) s.max_rel_pct = std::max(s.max_rel_pct, 100.0 * std::fabs(err) / std::fabs(truth));
+  if (std::fabs(truth) > 1e-6)
+    s.max_rel_pct = std::max(s.max_rel_pct, 100.0 * std::fabs(err) / std::fabs(truth));
   s.worst_ratio = std::max(s.worst_ratio, std::fabs(err) / allowed);
 }
 void finish(ErrorStats& s) { s.rms_nm = s.n > 0 ? std::sqrt(s.rms_nm / s.n) : 0.0; }
@@ -53,12 +58,15 @@ sim::Scenario warmup_scenario(const sim::Scenario& sc) {
   w.air = sc.air;
   w.dyno = sc.dyno;
   w.fuel_factor = sc.fuel_factor;  // the engine's injectors as they are
+  w.friction = sc.friction;
+  w.spark_offset_deg = sc.spark_offset_deg;
+  w.intake_temp_c = sc.intake_temp_c;
   w.step_deg = sc.step_deg;
   w.duration_s = 5.0;
   // 1 s plateaus (≈ 8/16/25/33 cycles), 0.3 s ramps (rejected by the learner's steadiness test), dyno-held
   // fuel cut-off at 4000 rpm for the last 0.7 s (motored cycles).
-  w.speed_rpm = {{0.0, 1000.0}, {1.0, 1000.0}, {1.3, 2000.0}, {2.0, 2000.0}, {2.3, 3000.0},
-                 {3.0, 3000.0}, {3.3, 4000.0}, {5.0, 4000.0}};
+  w.speed_rpm = {{0.0, 1000.0}, {1.0, 1000.0}, {1.3, 2000.0}, {2.0, 2000.0},
+                 {2.3, 3000.0}, {3.0, 3000.0}, {3.3, 4000.0}, {5.0, 4000.0}};
   w.map_target_kpa = {{0.0, 65.0}};
   w.fuel_cuts = {{4.3, 5.0, 1000.0}};
   return w;
@@ -95,15 +103,26 @@ std::vector<double> learned_width_ratios(const sim::Scenario& sc, const ToothLea
   return it->second.ratio;
 }
 
-ScenarioResult evaluate(const sim::Scenario& sc, const EvalOptions& opt) { return evaluate(sc, sim::simulate(sc), opt); }
+ScenarioResult evaluate(const sim::Scenario& sc, const EvalOptions& opt) {
+  return evaluate(sc, sim::simulate(sc), opt);
+}
 
 ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, const EvalOptions& opt) {
   AnglePipelineConfig cfg = opt.base;
-  cfg.engine = sc.engine;
+  cfg.engine = opt.spec_engine ? *opt.spec_engine : sc.engine;
   cfg.wheel = sc.wheel;
-  cfg.friction.c = opt.friction_prior;
+  if (opt.friction_prior) {
+    cfg.friction.c = *opt.friction_prior;
+    cfg.friction.prior_from_geometry = false;
+  } else {
+    cfg.friction.prior_from_geometry = true;
+  }
   AnglePipeline pipe(cfg);
   if (opt.friction) pipe.friction().import_coefficients(*opt.friction);
+  if (opt.fuel_state) pipe.fuel_model().import_state(*opt.fuel_state);
+  if (opt.crank_err_var) pipe.import_crank_error_var(*opt.crank_err_var);
+  if (opt.idle_correction)
+    pipe.friction().import_idle_correction((*opt.idle_correction)[0], (*opt.idle_correction)[1]);
 
   std::vector<ToothSample> samples = sim::ideal_tooth_samples(out, sc);
   const int teeth = sc.wheel.teeth();
@@ -119,13 +138,14 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
       const auto pi = static_cast<std::size_t>(p);
       nominal[pi] = s.width_rad;
       if (opt.tooth_table == ToothTable::kTrue) {
-        s.width_rad += out.tooth_error_rad[pi] - out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
+        s.width_rad +=
+            out.tooth_error_rad[pi] - out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
       } else if (opt.tooth_table == ToothTable::kLearned && ratio.size() == nominal.size()) {
         s.width_rad *= ratio[pi];
       }
     }
-    // Residual of the width correction in use vs the true width error (the wheel's, not the jitter's), and of the
-    // edge angles (cumulative width residual, mean removed): what the kinetic-energy windows see.
+    // Residual of the width correction in use vs the true width error (the wheel's, not the jitter's), and of
+    // the edge angles (cumulative width residual, mean removed): what the kinetic-energy windows see.
     std::vector<double> edge(static_cast<std::size_t>(teeth), 0.0);
     double ss = 0.0, cum = 0.0, mean_e = 0.0;
     for (int p = 0; p < teeth; ++p) {
@@ -134,7 +154,8 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
           out.tooth_error_rad[pi] - out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
       double used = 0.0;
       if (opt.tooth_table == ToothTable::kTrue) used = true_err;
-      if (opt.tooth_table == ToothTable::kLearned && ratio.size() == nominal.size()) used = (ratio[pi] - 1.0) * nominal[pi];
+      if (opt.tooth_table == ToothTable::kLearned && ratio.size() == nominal.size())
+        used = (ratio[pi] - 1.0) * nominal[pi];
       ss += (used - true_err) * (used - true_err);
       cum += used - true_err;
       edge[pi] = cum;
@@ -154,10 +175,10 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
     }
   }
 
-  // Exact truth over the pipeline's own 720° windows: the energy form d(½Jθ̇²)/dθ = T_ind − T_fric − T_load holds
-  // exactly in the simulator, so the true angle-mean of T_brake − T_load over [a, b] is ΔKE_true/(b − a), with KE
-  // from the true edge speeds, averaged over the same ±window/2 as the estimator. Load and friction are smooth
-  // and are integrated by the trapezoid rule over the edges.
+  // Exact truth over the pipeline's own 720° windows: the energy form d(½Jθ̇²)/dθ = T_ind − T_fric − T_load
+  // holds exactly in the simulator, so the true angle-mean of T_brake − T_load over [a, b] is ΔKE_true/(b −
+  // a), with KE from the true edge speeds, averaged over the same ±window/2 as the estimator. Load and
+  // friction are smooth and are integrated by the trapezoid rule over the edges.
   const CrankKinematics kin(sc.engine);
   const std::size_t nt = out.teeth.size();
   std::vector<double> abs_a(nt), ke(nt), cum_load(nt, 0.0), cum_fric(nt, 0.0);
@@ -179,8 +200,8 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
     const double f = (a - abs_a[j - 1]) / (abs_a[j] - abs_a[j - 1]);
     return cum[j - 1] + f * (cum[j] - cum[j - 1]);
   };
-  // The pipeline's 720° balance averages KE over [b + w/2 − W, b + w/2) (energies.cycle_ke_window_deg = W, or ±w/2
-  // when 0): the truth uses the same window (an exact balance averaged over the same boundary shifts).
+  // The pipeline's 720° balance averages KE over [b + w/2 − W, b + w/2) (energies.cycle_ke_window_deg = W, or
+  // ±w/2 when 0): the truth uses the same window (an exact balance averaged over the same boundary shifts).
   const double wide_w = cfg.energies.cycle_ke_window_deg * kDeg;
   const double lo_w = wide_w > 0.0 && wide_w < 2.0 * std::numbers::pi ? half_w - wide_w : -half_w;
   const auto ke_at = [&](double a) {
@@ -217,6 +238,7 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
       sig = sim::signals_at(out, t_s);
       last_sig = sig;
     }
+    if (opt.load_lost_after_s >= 0.0 && t_s >= opt.load_lost_after_s) sig.load_torque_valid = false;
     const std::uint8_t ready = pipe.on_tooth(s, sig);
     if (!(ready & AnglePipeline::kCycleReady)) continue;
     const CycleOutput& o = pipe.cycle_output();
@@ -269,13 +291,18 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
     row.indicated_crank = o.indicated_crank.torque_nm;
     row.indicated_eso = o.indicated_eso.torque_nm;
     row.fused = o.fused.brake_nm;
+    row.brake_sd = o.brake.uncertainty;
+    row.indicated_sd = o.indicated.uncertainty;
+    row.fused_sd = o.fused.sd_nm;
+    row.friction_prior = pipe.friction().is_prior();
     row.quality = o.fused.quality;
     row.brake_valid = o.brake.health == Health::kValid;
     row.indicated_valid = o.indicated.health == Health::kValid;
     row.rls_valid = o.load_rls.health == Health::kValid;
     row.eso_valid = o.indicated_eso.health == Health::kValid;
     // Transient: the true brake torque or speed moves between consecutive cycles.
-    if (have_prev && (std::fabs(row.brake_true - prev_true) > 1.5 || std::fabs(row.speed_rpm - prev_rpm) > 0.01 * prev_rpm)) {
+    if (have_prev && (std::fabs(row.brake_true - prev_true) > 1.5 ||
+                      std::fabs(row.speed_rpm - prev_rpm) > 0.01 * prev_rpm)) {
       transient_hold = 2;
     }
     row.transient = transient_hold > 0;
@@ -285,9 +312,12 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
     have_prev = true;
     const double pct = row.transient ? opt.transient_pct : opt.steady_pct;
     const double nm = row.transient ? opt.transient_nm : opt.steady_nm;
-    if (row.brake_valid) add(r.brake, row.brake, row.brake_true, pct, nm);
-    if (row.indicated_valid) add(r.indicated, row.indicated, row.indicated_true, pct, nm);
-    if (o.fused.quality != FusionQuality::kInvalid) add(r.fused, row.fused, row.brake_true, pct, nm);
+    if (row.brake_valid || opt.score_all_cycles)
+      add(r.brake, row.brake, row.brake_true, pct, nm, row.brake_sd);
+    if (row.indicated_valid || opt.score_all_cycles)
+      add(r.indicated, row.indicated, row.indicated_true, pct, nm, row.indicated_sd);
+    if (o.fused.quality != FusionQuality::kInvalid)
+      add(r.fused, row.fused, row.brake_true, pct, nm, row.fused_sd);
     add(r.friction, row.friction, row.friction_true, pct, nm);
     if (row.rls_valid) {
       add(r.load_rls, row.load_rls, row.load_star_true, pct, nm);
@@ -305,7 +335,8 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
     }
     if (!any_mis && !c1.fuel_cut && std::fabs(mean) > 1.0) {
       for (int j = 0; j < n; ++j) {
-        imb_true_sum[static_cast<std::size_t>(j)] += (c1.cyl_ind_mean_nm[static_cast<std::size_t>(j)] / mean - 1.0) * 100.0;
+        imb_true_sum[static_cast<std::size_t>(j)] +=
+            (c1.cyl_ind_mean_nm[static_cast<std::size_t>(j)] / mean - 1.0) * 100.0;
       }
       ++imb_true_n;
     }
@@ -313,8 +344,8 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
   }
   r.cycles = static_cast<int>(r.rows.size());
   if (r.cycles > 0) r.mean_rpm /= r.cycles;
-  for (ErrorStats* s : {&r.brake, &r.indicated, &r.fused, &r.brake_crank, &r.indicated_crank, &r.indicated_eso,
-                        &r.friction, &r.load_rls}) {
+  for (ErrorStats* s : {&r.brake, &r.indicated, &r.fused, &r.brake_crank, &r.indicated_crank,
+                        &r.indicated_eso, &r.friction, &r.load_rls}) {
     finish(*s);
   }
   const CycleOutput& last = pipe.cycle_output();
@@ -329,14 +360,46 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
   }
   r.misfires_found = static_cast<int>(found.size());
   r.friction_coefficients = pipe.friction().coefficients();
+  r.idle_correction_nm = pipe.friction().idle_correction_nm();
+  r.idle_rpm = pipe.friction().idle_speed_rpm();
+  r.fuel_state = pipe.fuel_model().state();
+  r.crank_err_var = pipe.crank_error_var();
   r.friction_observations = pipe.stats().friction_observations;
   r.stats = pipe.stats();
   return r;
 }
 
+BedResult evaluate_bed_engine(const sim::BedEngine& e, const EvalOptions& options, bool short_run) {
+  BedResult b;
+  b.engine = e.name;
+  b.report = e.report;
+  EvalOptions o = options;
+  o.spec_engine = e.spec;
+  o.friction_prior.reset();  // generic correlation from the spec-sheet displacement
+  o.friction.reset();
+  o.idle_correction.reset();
+  o.score_all_cycles = true;
+  o.can_lost_after_s = -1.0;
+  o.load_lost_after_s = -1.0;
+  b.learn = evaluate(sim::bed_learning_run(e), o);
+  // Carry the learned state into the evaluated recording (as the daemon's --state-dir does).
+  if (b.learn.friction_observations > 0) o.friction = b.learn.friction_coefficients;
+  if (b.learn.idle_rpm > 0.0)
+    o.idle_correction = std::array<double, 2>{b.learn.idle_correction_nm, b.learn.idle_rpm};
+  o.fuel_state = b.learn.fuel_state;
+  o.crank_err_var = b.learn.crank_err_var;
+  const sim::Scenario sc = sim::bed_eval_run(e, short_run);
+  const sim::SimOutput out = sim::simulate(sc);
+  b.with_load = evaluate(sc, out, o);
+  o.load_lost_after_s = 0.0;
+  b.without_load = evaluate(sc, out, o);
+  return b;
+}
+
 std::array<double, 4> learn_friction(const EvalOptions& options) {
-  // The daemon keeps learning over its life and persists the coefficients; here: the fuel_cut coast-down from the
-  // prior, then the demo run (whose fuel cut-off starts at 3500 rpm) continuing from the persisted coefficients.
+  // The daemon keeps learning over its life and persists the coefficients; here: the fuel_cut coast-down from
+  // the prior, then the demo run (whose fuel cut-off starts at 3500 rpm) continuing from the persisted
+  // coefficients.
   EvalOptions o = options;
   o.friction.reset();
   o.can_lost_after_s = -1.0;  // learning runs see CAN

@@ -8,8 +8,9 @@
 #include <vector>
 
 #include "angle_pipeline.hpp"
-#include "params.hpp"
 #include "engine_sim.hpp"
+#include "params.hpp"
+#include "unseen_engines.hpp"
 
 namespace torqued::eval {
 
@@ -22,14 +23,24 @@ enum class ToothTable {
 
 struct EvalOptions {
   ToothTable tooth_table = ToothTable::kLearned;
-  ToothLearnParams tooth_learn{};       ///< learner tuning for kLearned
+  ToothLearnParams tooth_learn{};                 ///< learner tuning for kLearned
   std::optional<std::array<double, 4>> friction;  ///< import these friction coefficients before the run
-  std::array<double, 4> friction_prior{0.0, 0.0, 0.0, 0.0};  ///< start here when `friction` is empty ("not told")
-  int skip_cycles = 12;                 ///< cycles ignored at the start (RLS / ESO convergence)
-  double can_lost_after_s = -1.0;       ///< >= 0: CAN signals disappear from this time on
-  double steady_pct = 3.0, steady_nm = 2.0;     ///< issue 5 tolerances
+  /// Start here when `friction` is empty ("not told"); empty: the generic correlation from the geometry
+  /// (FrictionParams::prior_from_geometry).
+  std::optional<std::array<double, 4>> friction_prior = std::array<double, 4>{0.0, 0.0, 0.0, 0.0};
+  std::optional<std::array<double, 2>>
+      idle_correction;                        ///< import [correction N m, idle rpm] after `friction`
+  std::optional<FuelTorqueState> fuel_state;  ///< import this learned fuel-model state
+  std::optional<double> crank_err_var;  ///< import this measured compression-window chain variance (N m²)
+  std::optional<EngineGeometry>
+      spec_engine;                ///< configure the pipeline with this geometry (spec sheet), not the truth
+  bool score_all_cycles = false;  ///< score brake/indicated on every cycle after skip, whatever their health
+  double load_lost_after_s = -1.0;  ///< >= 0: the load-torque signal (only) disappears from this time on
+  int skip_cycles = 12;             ///< cycles ignored at the start (RLS / ESO convergence)
+  double can_lost_after_s = -1.0;   ///< >= 0: CAN signals disappear from this time on
+  double steady_pct = 3.0, steady_nm = 2.0;  ///< issue 5 tolerances
   double transient_pct = 5.0, transient_nm = 3.0;
-  AnglePipelineConfig base{};           ///< tuning (engine/wheel are taken from the scenario)
+  AnglePipelineConfig base{};  ///< tuning (engine/wheel are taken from the scenario)
 };
 
 /// One compared cycle (the pipeline's rolling 720° window ending at boundary 0).
@@ -42,17 +53,21 @@ struct CycleCompare {
   double friction = 0.0, friction_true = 0.0;
   double load_rls = 0.0, load_star_true = 0.0;  ///< extended load T_load + T_fric
   double indicated_crank = 0.0, indicated_eso = 0.0, fused = 0.0;
+  double brake_sd = 0.0, indicated_sd = 0.0, fused_sd = 0.0;  ///< claimed 1σ (N m)
+  bool friction_prior = false;                                ///< the friction law still rested on the prior
   FusionQuality quality = FusionQuality::kInvalid;
   bool brake_valid = false, indicated_valid = false, rls_valid = false, eso_valid = false;
 };
 
 struct ErrorStats {
   int n = 0;
-  int pass = 0;             ///< cycles within tolerance
+  int pass = 0;  ///< cycles within tolerance
   double max_abs_nm = 0.0;
   double rms_nm = 0.0;
-  double max_rel_pct = 0.0; ///< max |err| / |truth| (%)
-  double worst_ratio = 0.0; ///< max |err| / allowed (≤ 1: all pass)
+  double max_rel_pct = 0.0;  ///< max |err| / |truth| (%)
+  double worst_ratio = 0.0;  ///< max |err| / allowed (≤ 1: all pass)
+  int covered = 0;           ///< cycles with |err| ≤ claimed 1σ (when a σ was given)
+  int with_sd = 0;           ///< cycles that carried a claimed 1σ
 };
 
 struct ScenarioResult {
@@ -60,26 +75,30 @@ struct ScenarioResult {
   int cycles = 0;
   double mean_rpm = 0.0;
   ErrorStats brake, indicated, fused, brake_crank, indicated_crank, indicated_eso, friction, load_rls;
-  double imbalance_max_pp = 0.0;          ///< |filtered imbalance − true imbalance| max over cylinders (pp)
+  double imbalance_max_pp = 0.0;  ///< |filtered imbalance − true imbalance| max over cylinders (pp)
   std::array<double, kMaxCylinders> imbalance_est{}, imbalance_true{};
   int misfires_true = 0, misfires_found = 0, misfires_false = 0;
   std::array<double, 4> friction_coefficients{};
+  double idle_correction_nm = 0.0, idle_rpm = 0.0;  ///< learned idle correction at the end of the run
+  FuelTorqueState fuel_state{};                     ///< learned fuel-model state at the end of the run
+  double crank_err_var = 0.0;
   std::uint64_t friction_observations = 0;
   std::vector<CycleCompare> rows;
   AnglePipelineStats stats;
-  double tooth_resid_deg = 0.0;           ///< RMS(width correction used − true width error) over the teeth (deg)
-  double tooth_edge_resid_deg = 0.0;      ///< RMS of the edge-angle residual (cumulative, mean removed) (deg)
-  std::uint64_t tooth_learn_cycles = 0;   ///< warm-up cycles the learner used (kLearned)
-  bool tooth_low_orders = false;          ///< learner separated the firing orders (kLearned)
+  double tooth_resid_deg = 0.0;  ///< RMS(width correction used − true width error) over the teeth (deg)
+  double tooth_edge_resid_deg = 0.0;     ///< RMS of the edge-angle residual (cumulative, mean removed) (deg)
+  std::uint64_t tooth_learn_cycles = 0;  ///< warm-up cycles the learner used (kLearned)
+  bool tooth_low_orders = false;         ///< learner separated the firing orders (kLearned)
 };
 
-/// Warm-up recording for the tooth-error learner: the same engine, wheel (machining errors come from the seed) and
-/// sensors as `scenario`, steady plateaus 1000/2000/3000/4000 rpm at mid load (firing) then a fuel cut-off
-/// coast-down, as the daemon sees over its first minutes of life. Misfires and the scenario's schedules removed.
+/// Warm-up recording for the tooth-error learner: the same engine, wheel (machining errors come from the
+/// seed) and sensors as `scenario`, steady plateaus 1000/2000/3000/4000 rpm at mid load (firing) then a fuel
+/// cut-off coast-down, as the daemon sees over its first minutes of life. Misfires and the scenario's
+/// schedules removed.
 [[nodiscard]] sim::Scenario warmup_scenario(const sim::Scenario& scenario);
 
-/// Learned tooth table of the scenario's wheel: width ratio (true/nominal) per physical tooth (cached per seed,
-/// engine and wheel). `cycles`/`low_orders` (optional) report the learner's state.
+/// Learned tooth table of the scenario's wheel: width ratio (true/nominal) per physical tooth (cached per
+/// seed, engine and wheel). `cycles`/`low_orders` (optional) report the learner's state.
 std::vector<double> learned_width_ratios(const sim::Scenario& scenario, const ToothLearnParams& params,
                                          std::uint64_t* cycles = nullptr, bool* low_orders = nullptr);
 
@@ -88,7 +107,19 @@ ScenarioResult evaluate(const sim::Scenario& scenario, const EvalOptions& option
 /// Same on an already simulated output.
 ScenarioResult evaluate(const sim::Scenario& scenario, const sim::SimOutput& out, const EvalOptions& options);
 
-/// Learn friction on the "fuel_cut" coast-down, then on "demo", starting at the prior; returns the coefficients.
+/// One engine of the unseen-engines bed (issue 14): configured from its spec sheet only, friction from the
+/// generic prior, learned on bed_learning_run(), then bed_eval_run() evaluated from that learned state with
+/// and without the load-torque signal (other CAN signals stay). Brake/indicated scored on every cycle after
+/// `skip_cycles`.
+struct BedResult {
+  std::string engine;
+  bool report = false;
+  ScenarioResult learn, with_load, without_load;
+};
+BedResult evaluate_bed_engine(const sim::BedEngine& engine, const EvalOptions& options, bool short_run);
+
+/// Learn friction on the "fuel_cut" coast-down, then on "demo", starting at the prior; returns the
+/// coefficients.
 std::array<double, 4> learn_friction(const EvalOptions& options);
 
 }  // namespace torqued::eval

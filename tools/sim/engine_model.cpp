@@ -17,6 +17,7 @@ EngineModel::EngineModel(const Scenario& sc)
     : n_(sc.engine.cylinders),
       geo_(sc.engine),
       comb_(sc.combustion),
+      fric_(sc.friction),
       r_(sc.engine.crank_radius_m()),
       l_(sc.engine.rod_m),
       lambda_(r_ / l_),
@@ -46,6 +47,13 @@ double EngineModel::friction_nm(double omega_rad_s, double oil_temp_c) const noe
   // T_fric = −(C1 + C2 n + C3 n²) e^{C4 t_oil} > 0 (docs/simulator.md §4).
   constexpr double kC1 = -23.86, kC2 = 2.45e-3, kC3 = -5.20e-6, kC4 = -4.67e-3;
   const double n = omega_rad_s * 30.0 / kPi;
+  if (!fric_.paper_law) {
+    // Bed engines: FMEP polynomial in speed; mean torque = FMEP V_d / 4π (4-stroke).
+    const double k = n / 1000.0;
+    const double fmep_pa = 1e3 * (fric_.fmep0_kpa + fric_.fmep1_kpa * k + fric_.fmep2_kpa * k * k) *
+                           std::exp(fric_.oil_coeff_per_c * (oil_temp_c - fric_.oil_ref_c));
+    return fmep_pa * displacement_m3() / kFourPi;
+  }
   return -(kC1 + kC2 * n + kC3 * n * n) * std::exp(kC4 * oil_temp_c);
 }
 

@@ -65,6 +65,7 @@ class EngineModel {
   int n_;
   EngineGeometry geo_;
   CombustionParams comb_;
+  FrictionModel fric_;
   double r_, l_, lambda_, area_, vc_;
   double evo_rad_, bd_end_rad_, dur_rad_;
   std::array<double, kMaxCylinders> tdc_base_{}, sin_base_{}, cos_base_{};

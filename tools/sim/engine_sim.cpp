@@ -254,7 +254,7 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
         else fuel_cut_now = true;
       }
     }
-    spark_deg = sc.spark_advance_deg.empty() ? spark_map_deg(omega_f / kRpm, air.map_pa())
+    spark_deg = sc.spark_advance_deg.empty() ? spark_map_deg(omega_f / kRpm, air.map_pa()) + sc.spark_offset_deg
                                              : evaluate(sc.spark_advance_deg, t_rel, 15.0);
     const double oil_c = evaluate(sc.oil_temp_c, t_rel, 90.0);
 

@@ -108,6 +108,17 @@ struct SensorParams {
   double lambda_noise = 0.005;       ///< lambda sensor noise 1σ (-)
 };
 
+/// Friction of the simulated engine (docs/simulator.md §4). Default: the Energies 2019 law (EN-27) that the demo and
+/// the built-in scenarios use. The unseen-engines bed (unseen_engines.hpp) draws its own FMEP polynomial instead.
+struct FrictionModel {
+  bool paper_law = true;           ///< true: EN-27 with the paper's coefficients (fields below unused)
+  double fmep0_kpa = 100.0;        ///< FMEP = fmep0 + fmep1 (n/1000) + fmep2 (n/1000)^2, n in rpm (kPa)
+  double fmep1_kpa = 15.0;         ///< (kPa per 1000 rpm)
+  double fmep2_kpa = 5.0;          ///< (kPa per (1000 rpm)^2)
+  double oil_coeff_per_c = -4.0e-3;///< FMEP × e^{k (t_oil − oil_ref_c)} (1/°C)
+  double oil_ref_c = 90.0;         ///< (°C)
+};
+
 /// Mean-value (Crossley & Cook) mode exists separately (mean_value_engine.hpp, helper "time").
 struct Scenario {
   std::string name;
@@ -131,6 +142,8 @@ struct Scenario {
   Schedule oil_temp_c{};                 ///< oil temperature (°C); empty: 90
   double coolant_temp_c = 88.0;
   double intake_temp_c = 30.0;
+  double spark_offset_deg = 0.0;         ///< added to the built-in spark map (combustion phasing of another ECU) (deg)
+  FrictionModel friction{};
   CombustionParams combustion{};
   AirPathParams air{};
   DynoParams dyno{};

@@ -1,0 +1,87 @@
+#include "fuel_torque.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace torqued {
+
+namespace {
+constexpr double kFourPi = 4.0 * std::numbers::pi;
+}
+
+FuelTorque::FuelTorque(const EngineGeometry& engine, const FuelTorqueParams& params) noexcept
+    : params_(params),
+      n_cyl_(engine.cylinders),
+      vd_4pi_(std::numbers::pi * 0.25 * engine.bore_m * engine.bore_m * engine.stroke_m * engine.cylinders /
+              kFourPi) {
+  reset();
+}
+
+void FuelTorque::reset() noexcept {
+  st_ = FuelTorqueState{};
+  st_.theta = {params_.eta_prior, params_.p_exh_prior_pa * vd_4pi_};
+  const double s1 = params_.eta_prior_sd, s2 = params_.p_exh_prior_sd_pa * vd_4pi_;
+  st_.p = {s1 * s1, 0.0, 0.0, s2 * s2};
+  st_.resid_var = params_.residual_sd_nm * params_.residual_sd_nm;
+}
+
+TorqueEstimate FuelTorque::estimate(std::int64_t t_ns, double fuel_kg, double map_pa) const noexcept {
+  TorqueEstimate e;
+  e.t_ns = t_ns;
+  if (!std::isfinite(fuel_kg) || !std::isfinite(map_pa)) {
+    e.health = Health::kInvalidInput;
+    return e;
+  }
+  const double f = n_cyl_ * fuel_kg * params_.fuel_lhv_j_kg / kFourPi;
+  e.torque_nm = st_.theta[0] * f + map_pa * vd_4pi_ - st_.theta[1];
+  // 1σ: measured residual RMS plus the parameter uncertainty at this operating point.
+  const double v_par = f * f * st_.p[0] - 2.0 * f * st_.p[1] + st_.p[3];
+  e.uncertainty = std::sqrt(st_.resid_var + std::max(0.0, v_par));
+  e.health = valid() ? Health::kValid : Health::kNotConverged;
+  return e;
+}
+
+bool FuelTorque::learn(double fuel_kg, double map_pa, double t_ind_ref) noexcept {
+  if (!std::isfinite(fuel_kg) || !std::isfinite(map_pa) || !std::isfinite(t_ind_ref) || !(fuel_kg > 0.0))
+    return false;
+  const double phi[2] = {n_cyl_ * fuel_kg * params_.fuel_lhv_j_kg / kFourPi, -1.0};
+  const double y = t_ind_ref - map_pa * vd_4pi_;
+  const double err = y - (phi[0] * st_.theta[0] + phi[1] * st_.theta[1]);
+  if (valid() && err * err > 25.0 * st_.resid_var) return false;  // 5σ outlier
+  const double r = params_.residual_sd_nm * params_.residual_sd_nm;
+  const double pphi[2] = {st_.p[0] * phi[0] + st_.p[1] * phi[1], st_.p[2] * phi[0] + st_.p[3] * phi[1]};
+  const double lam = params_.forgetting;
+  const double denom = lam * r + phi[0] * pphi[0] + phi[1] * pphi[1];
+  if (!(denom > 0.0)) return false;
+  const double k[2] = {pphi[0] / denom, pphi[1] / denom};
+  st_.theta[0] += k[0] * err;
+  st_.theta[1] += k[1] * err;
+  std::array<double, 4> pn{};
+  for (int i = 0; i < 2; ++i) {
+    for (int j = 0; j < 2; ++j) {
+      pn[static_cast<std::size_t>(2 * i + j)] =
+          (st_.p[static_cast<std::size_t>(2 * i + j)] - k[i] * pphi[j]) / lam;
+    }
+  }
+  pn[1] = pn[2] = 0.5 * (pn[1] + pn[2]);
+  st_.p = pn;
+  // Residual variance from the a-priori errors (includes the reference's own noise: conservative).
+  st_.resid_var += params_.sd_ema * (err * err - st_.resid_var);
+  ++st_.references;
+  return true;
+}
+
+bool FuelTorque::import_state(const FuelTorqueState& s) noexcept {
+  for (double v : s.theta) {
+    if (!std::isfinite(v)) return false;
+  }
+  for (double v : s.p) {
+    if (!std::isfinite(v)) return false;
+  }
+  if (!std::isfinite(s.resid_var) || s.resid_var < 0.0) return false;
+  st_ = s;
+  return true;
+}
+
+}  // namespace torqued

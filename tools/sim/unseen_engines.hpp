@@ -1,0 +1,35 @@
+#pragma once
+// The "unseen engines" test bed (issue 14 item 4): a fixed list of seeded engines whose true parameters are
+// drawn from plausible ranges around a spec sheet, so that estimators are evaluated on engines they were not
+// tuned on. Each engine has a spec sheet (what a user configures: bore, stroke, rod, compression ratio,
+// firing order, wheel, catalogue inertia and oscillating mass) and a hidden truth (inertia ±10 %, oscillating
+// mass ±10 %, friction level ±40 % and shape, combustion phasing and duration, heat loss, valve timing incl.
+// an EVO late enough to overlap the next cylinder's compression window, tooth errors 0.02-0.1°). 3, 4 and 6
+// cylinders; 60-2 and 36-1 wheels. Engines are split into "tuning" engines (may be looked at while choosing
+// estimator tunings) and "report" engines (only for the accuracy table). docs/simulator.md §7.
+#include <string>
+#include <vector>
+
+#include "engine_sim.hpp"
+
+namespace torqued::sim {
+
+struct BedEngine {
+  std::string name;
+  bool report = false;    ///< false: tuning engine
+  EngineGeometry spec{};  ///< spec-sheet geometry handed to the estimators (inertia, m_osc catalogue values)
+  Scenario truth{};       ///< hidden truth: engine, wheel, combustion, friction, sensors (schedules empty)
+};
+
+/// The fixed list (deterministic: drawn from fixed seeds).
+[[nodiscard]] const std::vector<BedEngine>& unseen_engines();
+
+/// Learning recording: plateaus, idle, an overrun (fuel cut-off with the dyno holding speed) and a free
+/// fuel cut-off coast-down; the load signal is on CAN. The estimator state learned here is carried into the
+/// evaluated recording, as a daemon in service does.
+[[nodiscard]] Scenario bed_learning_run(const BedEngine& e);
+/// Evaluated recording: steady plateaus at several speeds and loads, throttle and load transients, a fuel
+/// cut-off. `short_run`: a 4 s subset (ctest).
+[[nodiscard]] Scenario bed_eval_run(const BedEngine& e, bool short_run = false);
+
+}  // namespace torqued::sim
