@@ -52,7 +52,8 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
   const auto t0 = std::chrono::steady_clock::now();
   bool first = true;
   std::int64_t next_tick = 0, next_status = 0;
-  std::uint64_t status_seq = 0, n = 0;
+  std::uint64_t n = 0;
+  StatusTracker status;
   ReplayMerger::Item item;
   auto counters = [&] {
     RuntimeCounters c;
@@ -98,7 +99,7 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
       time.on_frame(item.frame);
     }
     while (next_status <= t) {
-      sink.emit(make_status(counters(), ++status_seq, next_status, next_status - r.first_t_ns));
+      sink.emit(status.next(counters(), next_status, next_status - r.first_t_ns));
       next_status += s.status_period_ns;
     }
     r.last_t_ns = t;
@@ -106,7 +107,7 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
   }
   RuntimeCounters c = counters();
   c.flags |= torque_STATUS_REPLAY_DONE;
-  sink.emit(make_status(c, ++status_seq, r.last_t_ns, r.last_t_ns - r.first_t_ns));
+  sink.emit(status.next(c, r.last_t_ns, r.last_t_ns - r.first_t_ns));
   r.counters = c;
   if (state) r.learned = angle.chain().learned_state(*state);
   r.samples = sink.n_;
