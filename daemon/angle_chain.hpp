@@ -19,6 +19,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "angle_pipeline.hpp"
 #include "crank_decoder.hpp"
@@ -102,6 +103,11 @@ class AngleChain {
   [[nodiscard]] ChainStatus status() const noexcept;
   [[nodiscard]] const AnglePipeline* pipeline() const noexcept { return pipeline_.get(); }
   [[nodiscard]] const ToothErrorLearner* learner() const noexcept { return learner_.get(); }
+  /// CAN frames too short for a bound signal, one line per signal naming the first such frame (empty: none).
+  /// Not real-time: call after the chain stopped.
+  [[nodiscard]] std::vector<std::string> describe_bad_frames() const {
+    return store_ ? store_->describe_bad_frames() : std::vector<std::string>{};
+  }
 
   /// Feedback (4), before the first edge: restore persisted friction coefficients and tooth corrections.
   /// Returns what was applied ("" when nothing).

@@ -75,6 +75,7 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
   const ReplayResult r =
       run_fast_replay(s, edges, can, can_time_offset_ns(cfg), dbc, out, &g_fast_stop, spath.empty() ? nullptr : &st);
   if (!r.error.empty()) spdlog::error("replay: {}", r.error);
+  for (const auto& b : r.bad_frames) spdlog::warn("can: {}", b);
   if (!spath.empty()) {
     spdlog::info("learned state applied at start: {}", r.imported.empty() ? "nothing" : r.imported);
     std::string serr;

@@ -110,6 +110,7 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
   sink.emit(status.next(c, r.last_t_ns, r.last_t_ns - r.first_t_ns));
   r.counters = c;
   if (state) r.learned = angle.chain().learned_state(*state);
+  r.bad_frames = angle.chain().describe_bad_frames();
   r.samples = sink.n_;
   sink.flush();  // the recording's last buffers are written inside the timed loop
   r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

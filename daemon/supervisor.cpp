@@ -260,6 +260,7 @@ int Supervisor::shutdown() {
     spdlog::warn("drain did not finish within {} s", opt_.drain_timeout_s);
     exit_code = 1;
   }
+  for (const auto& b : rt_.angle_stage().chain().describe_bad_frames()) spdlog::warn("can: {}", b);
   save();
   if (saver_ && !saver_->finish(opt_.drain_timeout_s)) spdlog::warn("learned state: the last save did not finish");
   if (saver_)
