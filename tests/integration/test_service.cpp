@@ -22,6 +22,7 @@
 #include <thread>
 #include <tuple>
 
+#include "daemon_test.hpp"
 #include "process.hpp"
 #include "state_store.hpp"
 
@@ -38,27 +39,9 @@ std::size_t csv_rows(const std::string& path) {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-class Service : public ::testing::Test {
+class Service : public test::DaemonTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("torqued_svc_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    config_ = test::write_demo_config(dir_.string());
-  }
-  void TearDown() override {
-    if (!HasFailure()) fs::remove_all(dir_);
-  }
-  std::string log() const { return test::slurp((dir_ / "daemon.log").string()); }
-  std::vector<std::string> args(std::vector<std::string> extra) const {
-    std::vector<std::string> a{TORQUED_EXE, "--config",    config_,
-                               "--no-dds",  "--state-dir", (dir_ / "state").string()};
-    a.insert(a.end(), extra.begin(), extra.end());
-    return a;
-  }
-  fs::path dir_;
-  std::string config_;
+  Service() : DaemonTest("torqued_svc_") {}
 };
 
 /// A NOTIFY_SOCKET of our own: collects the datagrams with their arrival time.
