@@ -87,8 +87,9 @@ TEST_F(AngleChainTest, OneRecordPerToothAndOneSegmentPerFiringInOrder) {
     while (order[ia] != a.cylinder) ++ia;
     EXPECT_EQ(b.cylinder, order[(ia + 1) % 4]) << "segment " << i;
     EXPECT_TRUE(b.status.synced);
-    if (i >= 4)  // the first segments come before a whole 720° window was seen (speed 0, empty window)
+    if (i >= 4) {  // the first segments come before a whole 720° window was seen (speed 0, empty window)
       EXPECT_NEAR(static_cast<double>(b.source_t_ns - b.window_start_t_ns) * 1e-9, 0.040, 1e-5) << "segment " << i;
+    }
     if (rec.outs[i].cycle_end) ++cycle_ends;
   }
   EXPECT_NEAR(static_cast<double>(cycle_ends), static_cast<double>(chain.cycles()), 1.0);
@@ -150,10 +151,11 @@ TEST_F(AngleChainTest, TimeEstimateReachesTheFusionOnlyWhenConfigured) {
     int used = 0;
     for (const CycleOutput& o : rec.outs)
       if (o.fused.used_mask & (1u << static_cast<int>(FusionSourceId::kExternal))) ++used;
-    if (on)
+    if (on) {
       EXPECT_GT(used, 0);
-    else
+    } else {
       EXPECT_EQ(used, 0);
+    }
   }
 }
 
