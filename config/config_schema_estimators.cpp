@@ -150,8 +150,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("tooth_learn.min_rpm", tooth_learn.params.min_rpm, closed(0.0, 20000.0), "rpm", "learn only above this speed");
   TQ_NUM("tooth_learn.max_rpm", tooth_learn.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "and below this speed");
   TQ_NUM("tooth_learn.speed_weight_exp", tooth_learn.params.speed_weight_exp, closed(0.0, 10.0), "", "residuals weighted by speed^p");
-  TQ_BOOL("tooth_learn.fit_all_even", tooth_learn.params.fit_all_even, "also fit even non-firing cycle harmonics");
-  TQ_BOOL("tooth_learn.learn_low_orders", tooth_learn.params.learn_low_orders, "also learn the firing orders from the spread across speeds");
+  TQ_BOOL("tooth_learn.learn_low_orders", tooth_learn.params.learn_low_orders, "also learn the per-revolution orders inside the per-cycle fit (from fuel cut-off and the spread of speeds); false: hold them at the imported table");
+  TQ_INT("tooth_learn.min_overrun_cycles", tooth_learn.params.min_overrun_cycles, closed(1, 100000), "cycles", "clean fuel cut-off cycles before the overrun identifies a per-revolution order");
 }
 
 }  // namespace torqued::schema_detail

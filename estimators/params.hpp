@@ -143,9 +143,11 @@ struct ToothLearnParams {
   double min_rpm = 600.0;           ///< learn only above this speed (rpm)
   double max_rpm = 7000.0;          ///< and below this one (rpm)
   double speed_weight_exp = 4.0;    ///< residuals weighted by speed^p (ripple ∝ 1/speed²): high speeds dominate
-  bool fit_all_even = false;        ///< also fit even non-firing cycle harmonics (then their tooth orders are lost)
-  bool learn_low_orders = true;     ///< also learn the firing orders (2, 4 per rev for 4-cyl) from the spread of
-                                    ///< speeds: intercept of a quadratic regression on 1/speed² (needs ≥ 2 speeds)
+  bool learn_low_orders = true;     ///< also learn the per-revolution orders the per-cycle fit absorbs (below
+                                    ///< fit_harmonics/2 per rev) from what identifies them: fuel cut-off cycles
+                                    ///< and/or the spread of speeds (wheel part speed-independent, ripple ∝ 1/speed²)
+  int min_overrun_cycles = 8;       ///< clean fuel cut-off cycles (whole cycle and the one before cut) needed before
+                                    ///< the overrun identifies a per-revolution order (cycles)
 };
 
 }  // namespace torqued
