@@ -1,13 +1,15 @@
 // torque-accuracy: runs simulator scenarios through the angle pipeline and prints the accuracy table vs truth
-// (issue 5 targets). Friction is learned first on the "fuel_cut" coast-down from a zero prior (the pipeline is not
-// told the simulator's friction law), then imported into every scenario, as the daemon would persist it.
+// (issue 5 targets). Friction is learned first on the "fuel_cut" coast-down from a zero prior (the pipeline
+// is not told the simulator's friction law), then imported into every scenario, as the daemon would persist
+// it.
 #include <CLI/CLI.hpp>
-
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <string>
 #include <vector>
 
+#include "cylinder_eval.hpp"
 #include "pipeline_eval.hpp"
 
 using torqued::eval::ErrorStats;
@@ -22,61 +24,88 @@ std::string cell(const ErrorStats& s) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"Accuracy of the angle pipeline (brake, indicated, fused, crank-only, RLS load, ESO, per-cylinder,\n"
-               "misfire) on the simulator's scenarios. Cells: max |error| N m, max |error| % of truth, % of cycles\n"
-               "within tolerance (3 % or 2 N m steady, 5 % or 3 N m in transients)."};
+  CLI::App app{
+      "Accuracy of the angle pipeline (brake, indicated, fused, crank-only, RLS load, ESO, per-cylinder,\n"
+      "misfire) on the simulator's scenarios. Cells: max |error| N m, max |error| % of truth, % of cycles\n"
+      "within tolerance (3 % or 2 N m steady, 5 % or 3 N m in transients)."};
   std::vector<std::string> names;
   bool raw_teeth = false, true_teeth = false, paper_prior = false;
   int skip = 12;
   double can_lost = -1.0;
   std::string csv_dir;
+  bool cylinders = false;
+  int random_engines = 4;
+  std::uint64_t random_seed = 15;
   app.add_option("-s,--scenario", names, "scenario(s); default: all built-in scenarios");
   app.add_flag("--raw-teeth", raw_teeth, "do not correct tooth widths (nominal wheel)");
-  app.add_flag("--true-tooth-errors", true_teeth,
-               "correct tooth widths with the simulator's TRUE machining errors instead of the learned table");
-  app.add_flag("--paper-friction", paper_prior, "start friction learning from the paper's coefficients instead of 0");
+  app.add_flag(
+      "--true-tooth-errors", true_teeth,
+      "correct tooth widths with the simulator's TRUE machining errors instead of the learned table");
+  app.add_flag("--paper-friction", paper_prior,
+               "start friction learning from the paper's coefficients instead of 0");
   app.add_option("--skip", skip, "cycles skipped at the start of each scenario (convergence)");
-  app.add_option("--can-lost-after", can_lost, "drop all CAN signals from this time on (s): crank-only fallback");
+  app.add_option("--can-lost-after", can_lost,
+                 "drop all CAN signals from this time on (s): crank-only fallback");
   app.add_option("--csv", csv_dir, "write per-cycle comparison CSVs into this directory");
+  app.add_flag(
+      "--cylinders", cylinders,
+      "per-cylinder table instead (issue 15): imbalance error per cylinder and speed, in-cycle RMS and lag, "
+      "misfires, on the simulator's scenarios and randomised engines");
+  app.add_option("--random-engines", random_engines, "--cylinders: number of randomised engines");
+  app.add_option("--random-seed", random_seed, "--cylinders: seed of the randomised engines");
+  torqued::ToothLearnParams learn;
+  app.add_option("--fit-harmonics", learn.fit_harmonics, "tooth learner: harmonics of the per-cycle fit");
   CLI11_PARSE(app, argc, argv);
-  if (names.empty()) names = torqued::sim::scenario_names();
+  if (names.empty() && !cylinders) names = torqued::sim::scenario_names();
 
   torqued::eval::EvalOptions opt;
   using torqued::eval::ToothTable;
   opt.tooth_table = raw_teeth ? ToothTable::kNone : true_teeth ? ToothTable::kTrue : ToothTable::kLearned;
   opt.skip_cycles = skip;
+  opt.tooth_learn = learn;
   opt.can_lost_after_s = can_lost;
   if (paper_prior) opt.friction_prior = torqued::FrictionParams{}.c;
   const auto fric = torqued::eval::learn_friction(opt);
   std::printf("friction learned on fuel_cut (prior %s): C1=%.3f C2=%.4g C3=%.4g C4=%.4g\n",
               paper_prior ? "paper" : "zero", fric[0], fric[1], fric[2], fric[3]);
   opt.friction = fric;
-  std::printf("tooth table: %s\n", raw_teeth    ? "none (nominal widths)"
-                                   : true_teeth ? "simulator's true machining errors"
-                                                : "learned by ToothErrorLearner on a warm-up recording of the same wheel "
-                                                  "(1000-4000 rpm plateaus + fuel cut-off, 5 s)");
-  std::printf("%-16s %5s %4s | %-17s | %-17s | %-17s | %-17s | %-17s | %-17s | %6s | %-14s | %s\n", "scenario", "rpm",
-              "cyc", "brake (CAN)", "indicated", "fused", "brake crank-only", "RLS load*", "ESO indicated", "imb pp",
-              "tooth ° w/e", "misfire found/true/false");
+  std::printf("tooth table: %s\n",
+              raw_teeth    ? "none (nominal widths)"
+              : true_teeth ? "simulator's true machining errors"
+                           : "learned by ToothErrorLearner on a warm-up recording of the same wheel "
+                             "(1000-4000 rpm plateaus + fuel cut-off, 5 s)");
+  if (cylinders) {
+    std::vector<torqued::eval::CylinderCaseResult> rows;
+    for (const auto& c : torqued::eval::cylinder_cases(random_engines, random_seed)) {
+      if (!names.empty() && std::find(names.begin(), names.end(), c.scenario.name) == names.end()) continue;
+      rows.push_back(torqued::eval::evaluate_case(c, opt));
+      torqued::eval::print_cylinder_table({rows.back()}, rows.size() == 1);
+    }
+    return 0;
+  }
+  std::printf("%-16s %5s %4s | %-17s | %-17s | %-17s | %-17s | %-17s | %-17s | %6s | %-14s | %s\n",
+              "scenario", "rpm", "cyc", "brake (CAN)", "indicated", "fused", "brake crank-only", "RLS load*",
+              "ESO indicated", "imb pp", "tooth ° w/e", "misfire found/true/false");
   for (const auto& name : names) {
     const auto sc = torqued::sim::scenario_by_name(name);
     const auto r = torqued::eval::evaluate(sc, opt);
-    std::printf("%-16s %5.0f %4d | %s | %s | %s | %s | %s | %s | %6.2f | %.4f/%.3f%s | %d/%d/%d\n", name.c_str(),
-                r.mean_rpm, r.cycles, cell(r.brake).c_str(), cell(r.indicated).c_str(), cell(r.fused).c_str(),
-                cell(r.brake_crank).c_str(), cell(r.load_rls).c_str(), cell(r.indicated_eso).c_str(),
-                r.imbalance_max_pp, r.tooth_resid_deg, r.tooth_edge_resid_deg,
+    std::printf("%-16s %5.0f %4d | %s | %s | %s | %s | %s | %s | %6.2f | %.4f/%.3f%s | %d/%d/%d\n",
+                name.c_str(), r.mean_rpm, r.cycles, cell(r.brake).c_str(), cell(r.indicated).c_str(),
+                cell(r.fused).c_str(), cell(r.brake_crank).c_str(), cell(r.load_rls).c_str(),
+                cell(r.indicated_eso).c_str(), r.imbalance_max_pp, r.tooth_resid_deg, r.tooth_edge_resid_deg,
                 opt.tooth_table == ToothTable::kLearned && !r.tooth_low_orders ? "*" : " ", r.misfires_found,
                 r.misfires_true, r.misfires_false);
     std::fflush(stdout);
     if (!csv_dir.empty()) {
       std::ofstream f(csv_dir + "/" + name + "_cycles.csv");
-      f << "t_s,transient,speed_rpm,brake_nm,brake_true_nm,indicated_nm,indicated_true_nm,friction_nm,friction_true_nm,"
+      f << "t_s,transient,speed_rpm,brake_nm,brake_true_nm,indicated_nm,indicated_true_nm,friction_nm,"
+           "friction_true_nm,"
            "load_rls_nm,load_star_true_nm,indicated_crank_nm,indicated_eso_nm,fused_nm,quality\n";
       for (const auto& w : r.rows) {
         f << w.t_s << ',' << w.transient << ',' << w.speed_rpm << ',' << w.brake << ',' << w.brake_true << ','
-          << w.indicated << ',' << w.indicated_true << ',' << w.friction << ',' << w.friction_true << ',' << w.load_rls
-          << ',' << w.load_star_true << ',' << w.indicated_crank << ',' << w.indicated_eso << ',' << w.fused << ','
-          << torqued::to_string(w.quality) << '\n';
+          << w.indicated << ',' << w.indicated_true << ',' << w.friction << ',' << w.friction_true << ','
+          << w.load_rls << ',' << w.load_star_true << ',' << w.indicated_crank << ',' << w.indicated_eso
+          << ',' << w.fused << ',' << torqued::to_string(w.quality) << '\n';
       }
     }
   }
