@@ -127,6 +127,9 @@ struct CylinderParams {
   double misfire_threshold = 0.5;   ///< misfire when a cylinder's torque < threshold × cycle mean (-)
   double imbalance_filter = 0.2;    ///< EMA weight per cycle of the published imbalance (1 = no filter) (-)
   double min_mean_nm = 5.0;         ///< no misfire decision while the median segment-mean torque is below this (N m)
+  double share_floor_imep_bar = 0.5;  ///< imbalance shares are relative to max(cycle-mean work, this IMEP × swept
+                                      ///< volume per cylinder): below any firing idle (1-2 bar net IMEP), so a small
+                                      ///< or negative mean (overrun, idle after cut-off) cannot blow the shares up (bar)
 };
 /// Fused brake torque for the torque-split controller (ESTIMATORS.md §4; rule in torque_fusion.hpp).
 struct FusionParams {
