@@ -55,6 +55,19 @@ int main(int argc, char** argv) {
   app.add_option("--random-seed", random_seed, "--cylinders: seed of the randomised engines");
   torqued::ToothLearnParams learn;
   app.add_option("--fit-harmonics", learn.fit_harmonics, "tooth learner: harmonics of the per-cycle fit");
+  torqued::KalmanParams kalman;
+  torqued::FourierParams fourier;
+  app.add_option("--kalman-lag", kalman.smoother_lag, "Kalman fixed-lag smoother (teeth)");
+  app.add_option("--kalman-torque-sd", kalman.torque_sd_nm,
+                 "Kalman process noise: 1 sigma of the net torque (N m)");
+  app.add_option("--kalman-delta", kalman.delta, "Kalman coloured-noise pole (1/rad)");
+  app.add_option("--kalman-edge-noise", kalman.edge_noise_deg, "Kalman R: edge-angle error (deg)");
+  app.add_option("--kalman-jitter", kalman.jitter_s, "Kalman R: timestamp jitter (s)");
+  app.add_option("--fourier-lref", fourier.l_ref, "Fourier observer L_ref");
+  app.add_option("--fourier-lke", fourier.l_ke, "Fourier observer L_ke");
+  app.add_option("--fourier-harmonics", fourier.harmonics, "Fourier observer n_h");
+  app.add_option("--fourier-gain-ref-rpm", fourier.gain_ref_rpm,
+                 "Fourier observer gain reference speed (rpm)");
   CLI11_PARSE(app, argc, argv);
   if (names.empty() && !cylinders) names = torqued::sim::scenario_names();
 
@@ -63,6 +76,8 @@ int main(int argc, char** argv) {
   opt.tooth_table = raw_teeth ? ToothTable::kNone : true_teeth ? ToothTable::kTrue : ToothTable::kLearned;
   opt.skip_cycles = skip;
   opt.tooth_learn = learn;
+  opt.base.kalman = kalman;
+  opt.base.fourier = fourier;
   opt.can_lost_after_s = can_lost;
   if (paper_prior) opt.friction_prior = torqued::FrictionParams{}.c;
   const auto fric = torqued::eval::learn_friction(opt);

@@ -46,6 +46,7 @@ InCycleStats incycle_stats(const std::vector<double>& est, const std::vector<dou
   const double p2p = p2p_n > 0 ? p2p_sum / p2p_n : mx - mn;
   a.n = static_cast<int>(n);
   a.rms_pct_p2p = 100.0 * std::sqrt(se / static_cast<double>(n)) / p2p;
+  a.bias_pct_p2p = 100.0 * (me - mt) / p2p;
   constexpr int kMaxShift = 12;
   std::array<double, 2 * kMaxShift + 1> cc{};
   for (int s = -kMaxShift; s <= kMaxShift; ++s) {
@@ -226,7 +227,7 @@ CylinderCaseResult evaluate_case(const CylinderCase& c, const EvalOptions& optio
 
 void print_cylinder_table(const std::vector<CylinderCaseResult>& rows, bool header) {
   if (header)
-    std::printf("%-9s %-20s %2s %5s %4s | %-31s | %-31s | %5s | %-12s | %-12s | %s\n", "group", "case", "n",
+    std::printf("%-9s %-20s %2s %5s %4s | %-31s | %-31s | %5s | %-16s | %-16s | %s\n", "group", "case", "n",
                 "rpm", "kPa", "imbalance est % by cylinder", "error pp by cylinder", "max", "kalman %/deg",
                 "fourier %/deg", "misfire found/true/false");
   for (const auto& r : rows) {
@@ -239,10 +240,12 @@ void print_cylinder_table(const std::vector<CylinderCaseResult>& rows, bool head
                           r.imbalance_est[ci] - r.imbalance_true[ci]);
     }
     std::printf(
-        "%-9s %-20s %2d %5.0f %4.0f | %-31s | %-31s | %5.2f | %5.1f %5.1f  | %5.1f %5.1f  | %d/%d/%d%s\n",
+        "%-9s %-20s %2d %5.0f %4.0f | %-31s | %-31s | %5.2f | %5.1f %+5.1f %4.1f | %5.1f %+5.1f %4.1f | "
+        "%d/%d/%d%s\n",
         r.group.c_str(), r.name.c_str(), r.cylinders, r.mean_rpm, r.map_kpa, est, err, r.imbalance_max_pp,
-        r.kalman.rms_pct_p2p, r.kalman.lag_deg, r.fourier.rms_pct_p2p, r.fourier.lag_deg, r.misfires_found,
-        r.misfires_true, r.misfires_false, r.table_low_orders ? "" : "  (wheel orders held)");
+        r.kalman.rms_pct_p2p, r.kalman.bias_pct_p2p, r.kalman.lag_deg, r.fourier.rms_pct_p2p,
+        r.fourier.bias_pct_p2p, r.fourier.lag_deg, r.misfires_found, r.misfires_true, r.misfires_false,
+        r.table_low_orders ? "" : "  (wheel orders held)");
     std::fflush(stdout);
   }
 }

@@ -23,6 +23,7 @@ struct InCycleStats {
   int n = 0;
   double rms_pct_p2p = 0.0;  ///< RMS(estimate − truth) / mean per-cycle peak-to-peak of truth × 100
   double lag_deg = 0.0;      ///< estimate behind truth at the cross-correlation maximum (deg)
+  double bias_pct_p2p = 0.0;  ///< mean(estimate − truth) / p2p × 100 (the extended-load error, not the shape)
 };
 
 struct CylinderCaseResult {
