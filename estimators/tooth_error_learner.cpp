@@ -300,9 +300,13 @@ void ToothErrorLearner::identify_orders(double* low) noexcept {
           v = (cxx_ * cb_[j] - cx_ * cxb_[j]) / vcx;
           break;
         case ToothOrderSource::kSpeeds: {
+          // firing orders carry the full gas-torque ripple (x² term for the ln non-linearity); a non-firing
+          // order only an imbalance, small enough for the linear law (a less noisy intercept)
           const double r0 = sb_[j], r1 = sxb_[j], r2 = sxxb_[j];
-          v = (r0 * (m11 * m22 - m12 * m12) - m01 * (r1 * m22 - m12 * r2) + m02 * (r1 * m12 - m11 * r2)) /
-              det;
+          v = id.firing ? (r0 * (m11 * m22 - m12 * m12) - m01 * (r1 * m22 - m12 * r2) +
+                           m02 * (r1 * m12 - m11 * r2)) /
+                              det
+                        : (sxx_ * r0 - sx_ * r1) / vx;
           break;
         }
         case ToothOrderSource::kHeld:
@@ -319,9 +323,12 @@ void ToothErrorLearner::recompute() noexcept {
   const auto nbs = static_cast<std::size_t>(nb_);
   std::fill(low_coef_.begin(), low_coef_.end(), 0.0);
   identify_orders(low_coef_.data());
-  // Plausibility of the firing-speed regression: machining errors are independent per edge, so the width
-  // error holds little at the low orders (a few % of its RMS). A larger part means the ripple did not follow
-  // 1/ω̄² (mixed loads, transients): hold those orders instead.
+  // Plausibility of the 1/ω̄² regressions (firing or overrun): machining errors are independent per edge, so
+  // the width error holds little at the low orders (a few % of its RMS). A larger part means the ripple did
+  // not follow 1/ω̄² (mixed loads, a coast-down with falling MAP, transients): hold those orders instead.
+  const auto regressed = [](ToothOrderSource src) {
+    return src == ToothOrderSource::kSpeeds || src == ToothOrderSource::kOverrunSpeeds;
+  };
   double hf_ss = 0.0, sp_ss = 0.0;
   const double wsum = wsum_ > 0.0 ? wsum_ : 1.0;
   for (int p = 0; p < t; ++p) {
@@ -331,7 +338,7 @@ void ToothErrorLearner::recompute() noexcept {
       hf += resid_sum_[k] / wsum;
       const double* b = &basis_[k * nbs];
       for (const auto& id : ids_) {
-        if (id.source != ToothOrderSource::kSpeeds) continue;
+        if (!regressed(id.source)) continue;
         const auto j0 = static_cast<std::size_t>(4 * id.order);
         sp += b[j0] * low_coef_[j0] + b[j0 + 1] * low_coef_[j0 + 1];
       }
@@ -342,7 +349,7 @@ void ToothErrorLearner::recompute() noexcept {
   }
   if (sp_ss >= 0.25 * hf_ss) {
     for (auto& id : ids_) {
-      if (id.source != ToothOrderSource::kSpeeds) continue;
+      if (!regressed(id.source)) continue;
       id.source = ToothOrderSource::kHeld;
       id.cycles = 0.0;
       const auto j0 = static_cast<std::size_t>(4 * id.order);
