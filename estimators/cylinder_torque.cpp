@@ -62,6 +62,7 @@ void CylinderTorque::reset() noexcept {
   fired_.fill(false);
   ema_.fill(0.0);
   ema_init_ = false;
+  share_var_ = params_.share_noise_prior * params_.share_noise_prior;
   cycles_ = 0;
   out_ = CylinderCycle{};
   out_.cylinders = engine_.cylinders;
@@ -109,7 +110,12 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
     // Misfire: compare with the median of the other cylinders (robust to a second misfire in the same cycle).
     const double med = median_of_others(work_, n, m);
     if (med / seg_rad <= params_.min_mean_nm) low_load = true;
-    if (fired_[mi] && med / seg_rad > params_.min_mean_nm && work_[mi] < params_.misfire_threshold * med) {
+    // and, once the cycle-to-cycle noise of the shares is known, a deficit beyond misfire_sigma·σ (high
+    // speed: jitter makes single segments swing; a missing combustion is a deficit of ~100 % of the mean)
+    const double sigma_j = std::sqrt(share_var_) * scale;
+    const bool beyond_noise = med - work_[mi] > params_.misfire_sigma * sigma_j;
+    if (fired_[mi] && med / seg_rad > params_.min_mean_nm && work_[mi] < params_.misfire_threshold * med &&
+        beyond_noise) {
       o.misfire[ci] = true;
       ++o.misfire_count;
       ++misfires_;
@@ -125,10 +131,14 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
       o.detection == MisfireDetection::kActive || o.detection == MisfireDetection::kWheelUnlearned;
   if (usable && o.misfire_count == 0 && o.mean_nm > params_.min_mean_nm) {
     const double a = ema_init_ ? params_.imbalance_filter : 1.0;
+    double var = 0.0;
     for (int c = 0; c < n; ++c) {
       const auto ci = static_cast<std::size_t>(c);
+      const double d = 0.01 * (o.imbalance_pct[ci] - ema_[ci]);  // this cycle's share noise (fraction)
+      var += d * d / n;
       ema_[ci] += a * (o.imbalance_pct[ci] - ema_[ci]);
     }
+    if (ema_init_) share_var_ += params_.imbalance_filter * (var - share_var_);
     ema_init_ = true;
   }
   o.imbalance_filtered_pct = ema_;

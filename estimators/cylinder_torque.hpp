@@ -13,7 +13,8 @@
 //                 issue 15 item 3)
 //   misfire_m   = W_m < threshold · median_{j≠m} W_j, decided only while the engine fires (no fuel cut-off)
 //   and
-//                 the reference exceeds min_mean_nm (segment-mean torque).
+//                 the reference exceeds min_mean_nm (segment-mean torque), and the deficit med − W_m exceeds
+//                 misfire_sigma × the running cycle-to-cycle noise of the shares (× the share scale)
 // Where a misfire cannot be decided the record says why (`detection`) and its health is not kValid:
 // kNotExcited in overrun (no combustion to miss) and below min_mean_nm, kNotConverged while the wheel's tooth
 // table is unlearned (tooth errors bias each segment's work; misfires are still flagged, with that caveat),
@@ -74,6 +75,8 @@ class CylinderTorque {
   std::array<bool, kMaxCylinders> fired_{};
   std::array<double, kMaxCylinders> ema_{};
   bool ema_init_ = false;
+  double share_var_ =
+      0.0;  ///< EMA of the squared cycle-to-cycle share noise (fraction², pooled over cylinders)
   bool wheel_learned_ = true;
   double w_floor_j_ = 0.0;  ///< share floor (J)
   std::uint32_t cycles_ = 0;

@@ -127,6 +127,11 @@ struct CylinderParams {
   double misfire_threshold = 0.5;   ///< misfire when a cylinder's torque < threshold × cycle mean (-)
   double imbalance_filter = 0.2;    ///< EMA weight per cycle of the published imbalance (1 = no filter) (-)
   double min_mean_nm = 5.0;         ///< no misfire decision while the median segment-mean torque is below this (N m)
+  double misfire_sigma = 4.0;       ///< a misfire's deficit must also exceed this many σ of the running share noise
+                                    ///< (0: off) (-)
+  double share_noise_prior = 0.15;  ///< share noise σ (fraction of the mean) assumed until measured: with
+                                    ///< misfire_sigma 4 a misfire needs a 60 % deficit at first (a missing
+                                    ///< combustion is ~100 %) (-)
   double share_floor_imep_bar = 0.5;  ///< imbalance shares are relative to max(cycle-mean work, this IMEP × swept
                                       ///< volume per cylinder): below any firing idle (1-2 bar net IMEP), so a small
                                       ///< or negative mean (overrun, idle after cut-off) cannot blow the shares up (bar)

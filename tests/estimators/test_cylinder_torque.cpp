@@ -131,3 +131,28 @@ TEST(CylinderTorque, HealthSaysWhyMisfireDetectionIsOff) {
   EXPECT_EQ(ct.cycle().detection, torqued::MisfireDetection::kActive);
   EXPECT_EQ(ct.cycle().health, torqued::Health::kValid);
 }
+
+TEST(CylinderTorque, NoisySharesNeedADeficitBeyondTheirNoise) {
+  // GIVEN 40 cycles whose segments swing ±20 % from cycle to cycle (jitter at high speed), no misfire
+  EngineGeometry g;
+  CylinderTorque ct(g, CylinderParams{});
+  for (int i = 0; i < 40; ++i) {
+    const double a = (i % 2 == 0) ? 60.0 : -60.0, b = (i % 3 == 0) ? 60.0 : -60.0;
+    ASSERT_TRUE(feed(ct, {300.0 + a, 300.0 - a, 300.0 + b, 300.0 - b}));
+    EXPECT_EQ(ct.cycle().misfire_count, 0) << i;
+  }
+  // WHEN a segment falls to 45 % of the others (below misfire_threshold 0.5, but within 4σ of the share
+  // noise)
+  ASSERT_TRUE(feed(ct, {300.0, 300.0, 135.0, 300.0}));
+  // THEN it is not a misfire
+  EXPECT_EQ(ct.cycle().misfire_count, 0);
+  // AND a missing combustion (negative segment work) still is
+  ASSERT_TRUE(feed(ct, {300.0, 300.0, -60.0, 300.0}));
+  EXPECT_TRUE(ct.cycle().misfire[3]);
+  // AND with the gate off (misfire_sigma 0) the 45 % segment is flagged as before
+  CylinderParams p;
+  p.misfire_sigma = 0.0;
+  CylinderTorque plain(g, p);
+  ASSERT_TRUE(feed(plain, {300.0, 300.0, 135.0, 300.0}));
+  EXPECT_TRUE(plain.cycle().misfire[3]);
+}
