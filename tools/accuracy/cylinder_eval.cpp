@@ -155,6 +155,15 @@ sim::Scenario idle_misfire(std::uint64_t seed) {
   return s;
 }
 
+sim::Scenario idle_after_cut_misfire(std::uint64_t seed) {
+  sim::Scenario s = sim::scenario_by_name("fuel_cut");
+  s.name = "idle_after_cut_misfire";
+  s.seed = seed;
+  s.duration_s = 6.0;
+  for (int c : {40, 44, 48, 49, 52, 56}) s.misfires.push_back({c, 1 + c % 4});
+  return s;
+}
+
 std::vector<CylinderCase> cylinder_cases(int random_engines, std::uint64_t seed) {
   std::vector<CylinderCase> cases;
   for (const char* name : {"imbalance", "three_cyl", "wheel_36_1", "misfire", "fuel_cut", "idle"}) {
@@ -169,6 +178,7 @@ std::vector<CylinderCase> cylinder_cases(int random_engines, std::uint64_t seed)
     cases.push_back({"balanced", s});
   }
   cases.push_back({"misfire", idle_misfire(sd++)});
+  cases.push_back({"misfire", idle_after_cut_misfire(sd++)});
   for (int rpm : {1000, 2000, 3000, 4000, 6000}) {
     for (double map : {35.0, 65.0, 95.0}) {
       sim::Scenario s = steady("incycle_" + std::to_string(rpm) + "_" + std::to_string(static_cast<int>(map)),

@@ -50,6 +50,9 @@ struct CylinderCaseResult {
 /// Idle (800 rpm, declutched, idle controller) with single misfires and one cylinder misfiring every cycle.
 [[nodiscard]] sim::Scenario idle_misfire(std::uint64_t seed);
 
+/// The fuel_cut coast-down (3000 rpm, declutched) back to idle, with misfires after fuel resumes.
+[[nodiscard]] sim::Scenario idle_after_cut_misfire(std::uint64_t seed);
+
 /// Evaluate one case (tooth table learned on the warm-up recording of the same wheel, friction `friction`).
 [[nodiscard]] CylinderCaseResult evaluate_case(const CylinderCase& c, const EvalOptions& options);
 
