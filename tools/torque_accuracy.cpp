@@ -55,6 +55,8 @@ int main(int argc, char** argv) {
   app.add_option("--random-seed", random_seed, "--cylinders: seed of the randomised engines");
   torqued::ToothLearnParams learn;
   app.add_option("--fit-harmonics", learn.fit_harmonics, "tooth learner: harmonics of the per-cycle fit");
+  app.add_option("--speed-weight-exp", learn.speed_weight_exp,
+                 "tooth learner: residuals weighted by speed^p");
   torqued::KalmanParams kalman;
   torqued::FourierParams fourier;
   app.add_option("--kalman-lag", kalman.smoother_lag, "Kalman fixed-lag smoother (teeth)");
