@@ -15,6 +15,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -134,8 +135,9 @@ class Subscriber {
   std::array<dds_entity_t, dds::kTopicCount> readers_{};
   std::array<dds::AnySample, kBatch> buf_{};
   std::array<std::uint64_t, dds::kTopicCount> received_{}, gaps_{};
-  std::map<std::pair<int, std::uint16_t>, std::uint64_t> last_seq_;  ///< (topic, engine) -> seq
+  std::map<std::pair<int, std::uint16_t>, std::uint64_t> last_seq_;  ///< (topic*256+method, engine) -> seq
   bool done_ = false;
+  std::optional<std::chrono::steady_clock::time_point> done_seen_;
 };
 
 std::uint64_t Subscriber::take(dds::Topic t) {
@@ -154,7 +156,9 @@ std::uint64_t Subscriber::take(dds::Topic t) {
       if (!info[static_cast<std::size_t>(i)].valid_data) continue;
       const dds::AnySample& a = buf_[static_cast<std::size_t>(i)];
       const auto [engine, seq] = a.visit([](const auto& v) { return std::pair{v.engine_id, v.seq}; });
-      auto& last = last_seq_[{static_cast<int>(t), engine}];
+      // seq counts per instance: (engine) and, for EstimatorTorque, (engine, method).
+      const int instance = t == dds::Topic::kEstimatorTorque ? a.u.estimator.method : 0;
+      auto& last = last_seq_[{static_cast<int>(t) * 256 + instance, engine}];
       if (last != 0 && seq > last + 1) gaps_[static_cast<std::size_t>(t)] += seq - last - 1;
       if (seq > last) last = seq;
       if (t == dds::Topic::kDaemonStatus && (a.u.status.flags & torque_STATUS_REPLAY_DONE)) done_ = true;
@@ -174,7 +178,10 @@ int Subscriber::run() {
   while (!g_stop) {
     dds_waitset_wait(waitset_, nullptr, 0, DDS_MSECS(100));
     std::uint64_t got = 0;
-    for (int i = 0; i < dds::kTopicCount; ++i) got += take(static_cast<dds::Topic>(i));
+    // CrankState first: the in-cycle samples taken after it find their crank-angle anchors already there.
+    got += take(dds::Topic::kCrankState);
+    for (int i = 0; i < dds::kTopicCount; ++i)
+      if (static_cast<dds::Topic>(i) != dds::Topic::kCrankState) got += take(static_cast<dds::Topic>(i));
     total += got;
     const auto now = std::chrono::steady_clock::now();
     if (got) last_data = now;
@@ -182,7 +189,9 @@ int Subscriber::run() {
       std::fprintf(stderr, "torque-dash: %s: MCAP recording stopped\n", mcap_->error().c_str());
       mcap_.reset();
     }
-    if (o_.until_done && done_) break;
+    // The end-of-replay status may overtake the last samples of the other topics: take them for 0.5 s more.
+    if (done_ && !done_seen_) done_seen_ = now;
+    if (o_.until_done && done_seen_ && now - *done_seen_ > std::chrono::milliseconds(500)) break;
     if (o_.duration_s > 0 && std::chrono::duration<double>(now - t0).count() >= o_.duration_s) break;
     if (o_.idle_exit_s > 0 && total > 0 &&
         std::chrono::duration<double>(now - last_data).count() >= o_.idle_exit_s)

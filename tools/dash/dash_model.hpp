@@ -60,8 +60,8 @@ struct Limits {
       4096;  ///< EngineTorque ring per engine (≈16 s of segments+cycles at 6000 rpm, 4 cyl)
   std::size_t incycle_points =
       2048;                    ///< in-cycle ring per engine (≈ 25 cycles of 2 methods at every 2nd tooth)
-  std::size_t pending = 1024;  ///< in-cycle samples waiting for their CrankState anchor
-  std::size_t anchors = 64;    ///< CrankState anchors kept for interpolation
+  std::size_t pending = 8192;  ///< in-cycle samples waiting for their CrankState anchor (≈1 s at 6000 rpm)
+  std::size_t anchors = 1024;  ///< CrankState anchors kept for interpolation (≈1.7 s at 6000 rpm)
   std::size_t engines = 16;    ///< engine ids shown (more are counted and ignored)
 };
 

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <vector>
@@ -185,11 +186,12 @@ Hub::Stats Hub::stats() {
 void Hub::sender_loop() {
   auto next = std::chrono::steady_clock::now();
   std::vector<std::pair<mg_connection*, std::deque<Out>>> batch;
-  while (!stop_) {
+  for (bool last = false; !last;) {  // after stop(): one more pass, so what was queued goes out
     {
       std::unique_lock lk(q_mu_);
       cv_.wait_until(lk, next, [&] { return stop_.load(); });
     }
+    last = stop_;
     next += std::chrono::milliseconds(o_.period_ms);
     if (std::chrono::steady_clock::now() > next) next = std::chrono::steady_clock::now();
     std::lock_guard wl(conn_mu_);
@@ -210,7 +212,11 @@ void Hub::sender_loop() {
     for (auto& [conn, q] : batch) {
       for (const Out& o : q) {
         const int op = o.binary ? MG_WEBSOCKET_OPCODE_BINARY : MG_WEBSOCKET_OPCODE_TEXT;
-        if (mg_websocket_write(conn, op, o.bytes.data(), o.bytes.size()) <= 0) break;  // closing
+        const int w = mg_websocket_write(conn, op, o.bytes.data(), o.bytes.size());
+        if (w <= 0) {
+          std::fprintf(stderr, "torque-dash: websocket write returned %d\n", w);
+          break;
+        }
         sent_.fetch_add(1, std::memory_order_relaxed);
       }
     }
