@@ -67,7 +67,7 @@ void append_status(std::string& out, const torque_DaemonStatus& s) {
   out += "]}";
 }
 
-void append_cylinder(std::string& out, const torque_CylinderTorque& s) {
+void append_cylinder(std::string& out, const torque_CylinderTorque& s, const EngineView& v) {
   out += "{\"t_s\":";
   num(out, seconds(s.source_t_ns), "%.3f");
   out += ",\"cycle\":" + std::to_string(s.cycle) + ",\"misfire_mask\":" + std::to_string(s.misfire_mask) +
@@ -81,6 +81,14 @@ void append_cylinder(std::string& out, const torque_CylinderTorque& s) {
   for (int i = 0; i < n; ++i) {
     if (i) out += ',';
     num(out, s.imbalance_pct[i], "%.2f");
+  }
+  out +=
+      "],\"misfires\":[";  // counts since the dashboard started, and when the latest was (misfires flash by)
+  for (int i = 0; i < n; ++i) out += (i ? "," : "") + std::to_string(v.misfires[static_cast<std::size_t>(i)]);
+  out += "],\"last_misfire_t_s\":[";
+  for (int i = 0; i < n; ++i) {
+    if (i) out += ',';
+    num(out, v.last_misfire_t_s[static_cast<std::size_t>(i)], "%.3f");
   }
   out += "]}";
 }
@@ -183,6 +191,11 @@ void Model::add(const torque_CylinderTorque& s) {
   if (!v) return;
   v->cylinder = s;
   v->have_cylinder = true;
+  for (int i = 0; i < 8 && i < s.cylinders; ++i)
+    if (s.misfire_mask & (1u << i)) {
+      ++v->misfires[static_cast<std::size_t>(i)];
+      v->last_misfire_t_s[static_cast<std::size_t>(i)] = seconds(s.source_t_ns);
+    }
   ++v->cylinder_version;
 }
 
@@ -273,7 +286,7 @@ void Model::append_engine(std::string& out, std::uint16_t id, const EngineView& 
   }
   out += ']';
   if (v.have_cylinder && c.cylinder != v.cylinder_version)
-    append_cylinder(out += ",\"cylinder\":", v.cylinder);
+    append_cylinder(out += ",\"cylinder\":", v.cylinder, v);
   if (v.have_status && c.status != v.status_version) append_status(out += ",\"status\":", v.status);
   if (v.have_crank && c.crank != v.crank_version) append_crank(out += ",\"crank\":", v.crank);
   out += ",\"unplaced\":" + std::to_string(v.unplaced) + '}';

@@ -77,6 +77,8 @@ struct EngineView {
   torque_DaemonStatus status{};
   torque_CrankState crank{};
   std::uint64_t cylinder_version = 0, status_version = 0, crank_version = 0;
+  std::array<std::uint64_t, 8> misfires{};  ///< misfired cycles per cylinder since the dashboard started
+  std::array<double, 8> last_misfire_t_s{-1, -1, -1, -1, -1, -1, -1, -1};  ///< edge clock of the latest (s)
   std::uint64_t incycle_cycle = 0;
   double last_angle_deg = -1;
   std::uint64_t unplaced = 0;  ///< in-cycle samples dropped: no anchor around their time, or pending full

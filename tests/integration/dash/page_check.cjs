@@ -1,10 +1,13 @@
 // Drives the torque-dash page in Debian's headless Chromium (playwright-core, no browser download) during a
-// paced replay and asserts that live values appear and update. Usage: node page_check.cjs URL SCREENSHOT.png
+// paced replay and asserts that live values appear and update.
+// Usage: node page_check.cjs URL SCREENSHOT.png [HOLD_S] (HOLD_S: keep the page open and live that much longer
+// before the screenshot, as a user watching it would).
 // Exit 0 = pass; prints one line per check.
 'use strict';
 const {chromium} = require('playwright-core');
 
-const [url, shot] = process.argv.slice(2);
+const [url, shot, holdArg] = process.argv.slice(2);
+const holdS = Number(holdArg || 0);
 const fail = msg => { console.error(`FAIL: ${msg}`); process.exitCode = 1; };
 const sleep = ms => new Promise(r => setTimeout(r, ms));
 
@@ -68,6 +71,12 @@ async function readValues(page) {
     if (!['OK', 'DEGRADED'].includes(b.health)) fail(`daemon health "${b.health}"`);
     if (b.statusRows < 3) fail('status table empty');
     if (errors.length) fail(`page errors: ${errors.join(' | ')}`);
+    if (holdS > 0) {
+      await sleep(holdS * 1000);
+      const c = await readValues(page);
+      console.log(`after ${holdS} s more: t=${c.t} s rpm=${c.rpm} fused=${c.fused} cycle=${c.cycle} samples=${c.samples}`);
+      if (!(c.samples > b.samples)) fail('the page stopped updating');
+    }
     await page.screenshot({path: shot, fullPage: true});
     console.log(`screenshot: ${shot}`);
   } finally {

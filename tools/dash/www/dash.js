@@ -92,11 +92,13 @@ const barLabels = {
     const meta = chart.getDatasetMeta(0);
     ctx.save(); ctx.font = '12px sans-serif'; ctx.textAlign = 'center';
     meta.data.forEach((bar, i) => {
-      const mis = (c.misfire_mask >> i) & 1;
+      const mis = recentMisfire(c, i);
       ctx.fillStyle = mis ? '#c62828' : '#333';
       const imb = c.imbalance_pct[i];
       ctx.fillText(`${imb === null ? '–' : (imb >= 0 ? '+' : '') + imb.toFixed(1)} %`, bar.x, bar.y - 6);
       if (mis) ctx.fillText('MISFIRE', bar.x, bar.y - 20);
+      const n = c.misfires[i];
+      if (n) { ctx.fillStyle = mis ? '#fff' : '#c62828'; ctx.fillText(`${n} misfire${n > 1 ? 's' : ''}`, bar.x, chart.chartArea.bottom - 8); }
     });
     ctx.restore();
   }
@@ -194,13 +196,19 @@ function drawInCycle(st) {
   charts.incycle.update('none');
 }
 
+// A misfire lasts one cycle: its cylinder stays red for MISFIRE_HOLD_S of the edge clock.
+const MISFIRE_HOLD_S = 2.0;
+function recentMisfire(c, i) {
+  return ((c.misfire_mask >> i) & 1) || (c.last_misfire_t_s[i] >= 0 && c.t_s - c.last_misfire_t_s[i] < MISFIRE_HOLD_S);
+}
+
 function drawCylinders(st) {
   const c = st.cylinder;
   if (!c) return;
   const n = c.indicated.length;
   charts.cyl.data.labels = Array.from({length: n}, (_, i) => `cyl ${i + 1}`);
   charts.cyl.data.datasets[0].data = c.indicated;
-  charts.cyl.data.datasets[0].backgroundColor = c.indicated.map((_, i) => ((c.misfire_mask >> i) & 1) ? '#c62828' : '#43a047');
+  charts.cyl.data.datasets[0].backgroundColor = c.indicated.map((_, i) => recentMisfire(c, i) ? '#c62828' : '#43a047');
   charts.cyl.$cyl = c;
   charts.cyl.update('none');
 }
