@@ -11,7 +11,7 @@
 //   frames ──► SignalStore ──EngineSignals──► pipeline, learner (2) fuel cut-off flag gates the learner
 //
 // Feedback loops, all in angle_chain.cpp: (1) learned tooth table → decoder edge corrections, applied at the
-// cycle boundary; (2) CAN fuel cut-off → tooth learner; (3) time pipeline's UIO brake estimate → fusion's
+// cycle boundary, and "wheel learned" → in-cycle observers and per-cylinder record (their health says when not); (2) CAN fuel cut-off → tooth learner; (3) time pipeline's UIO brake estimate → fusion's
 // external source (fusion.time_estimate); (4) learned state import/export (friction law, tooth table).
 // on_edge/on_frame/poll/set_time_estimate are real-time safe: no allocation, no lock, no blocking.
 #include <array>
