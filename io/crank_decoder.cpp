@@ -34,6 +34,8 @@ const char* to_string(SyncLossReason r) noexcept {
       return "stall";
     case SyncLossReason::kCamPhase:
       return "cam_phase";
+    case SyncLossReason::kPattern:
+      return "pattern_mismatch";
   }
   return "unknown";
 }
@@ -101,6 +103,10 @@ CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& para
       min_gap_ratio_ = std::min(min_gap_ratio_, ratio);
     }
   }
+  if (pattern_sync()) {  // the cam pattern or the width code gives the position, not the gaps
+    error_ = check_pattern();
+    return;
+  }
   if (num_gaps_ == 0) {
     error_ = "wheel: no gap (missing tooth) to sync on";
     return;
@@ -167,6 +173,7 @@ void CrankDecoder::reset() noexcept {
   lost_this_rev_ = 0;
   pending_flags_ = 0;
   has_pending_ = have_inactive_ = false;
+  pattern_fresh_ = true;
 }
 
 bool CrankDecoder::on_edge(const EdgeEvent& edge, ToothEvent& out) noexcept {
@@ -174,10 +181,24 @@ bool CrankDecoder::on_edge(const EdgeEvent& edge, ToothEvent& out) noexcept {
   if (teeth_ == 0) return false;
   if (edge.channel == params_.crank_channel) {
     const bool active = (edge.level != 0) == wheel_.rising_edge;
+    if (!active) last_opp_t_ns_ = edge.t_ns;
     if (min_pulse_ns_ > 0) return debounce(edge.t_ns, active, out);
     if (!active) return false;
     ++stats_.crank_edges;
     return on_crank(edge.t_ns, out);
+  }
+  if (edge.channel == params_.cam_channel && params_.cam_pattern.n > 0) {
+    // Cam-synced wheel: the edges of the polarities the pattern lists, placed at the next crank tooth.
+    bool listed = false;
+    for (int j = 0; j < params_.cam_pattern.n; ++j)
+      listed = listed || params_.cam_pattern.edges[static_cast<std::size_t>(j)].rising == (edge.level != 0);
+    if (!listed || !params_.use_cam) return false;
+    ++stats_.cam_edges;
+    if (cam_pend_n_ < static_cast<int>(cam_pend_.size()))
+      cam_pend_[static_cast<std::size_t>(cam_pend_n_++)] = CamPending{edge.t_ns, edge.level != 0};
+    else
+      ++stats_.cam_phase_errors;  // more cam edges in one tooth interval than any pattern has
+    return false;
   }
   if (edge.channel == params_.cam_channel && (edge.level != 0) == params_.cam_rising) {
     ++stats_.cam_edges;
@@ -192,6 +213,7 @@ bool CrankDecoder::debounce(std::int64_t t_ns, bool active, ToothEvent& out) noe
   if (active) {
     if (have_inactive_ && t_ns - last_inactive_t_ns_ < min_pulse_ns_) {  // end of a narrow gap-glitch
       ++stats_.debounced_edges;
+      ++stats_.rejected_edges;
       pending_flags_ |= kToothNoiseRejected;
       return false;
     }
@@ -210,6 +232,7 @@ bool CrankDecoder::debounce(std::int64_t t_ns, bool active, ToothEvent& out) noe
   has_pending_ = false;
   if (t_ns - pending_t_ns_ < min_pulse_ns_) {
     ++stats_.debounced_edges;
+    ++stats_.rejected_edges;
     pending_flags_ |= kToothNoiseRejected;
     return false;
   }
@@ -229,6 +252,7 @@ bool CrankDecoder::poll(std::int64_t now_ns) noexcept {
   ref_prev_ns_ = 0;
   u1_ = u2_ = 0.0;
   period_ns_ = 0;
+  pattern_fresh_ = true;
   return true;
 }
 
@@ -242,6 +266,7 @@ bool CrankDecoder::on_crank(std::int64_t t_ns, ToothEvent& out) noexcept {
   const std::int64_t period = t_ns - last_t_ns_;
   if (period <= 0) {  // duplicate or backwards timestamp: cannot be a tooth
     ++stats_.noise_edges;
+    ++stats_.rejected_edges;
     pending_flags_ |= kToothNoiseRejected;
     return false;
   }
@@ -258,6 +283,8 @@ bool CrankDecoder::on_crank(std::int64_t t_ns, ToothEvent& out) noexcept {
     ref_provisional_ = false;
     period_ns_ = 0;
     last_t_ns_ = t_ns;
+    pattern_fresh_ = true;
+    cam_pend_n_ = 0;
     out = ToothEvent{};
     out.t_ns = out.source_t_ns = t_ns;
     out.tooth = -1;
@@ -268,7 +295,8 @@ bool CrankDecoder::on_crank(std::int64_t t_ns, ToothEvent& out) noexcept {
     return true;
   }
   if (state_ == SyncState::kStalled) state_ = SyncState::kSyncing;
-  return state_ == SyncState::kSynced ? synced_step(t_ns, period, out) : syncing_step(t_ns, period, out);
+  if (state_ == SyncState::kSynced) return synced_step(t_ns, period, out);
+  return pattern_sync() ? pattern_syncing_step(t_ns, period, out) : syncing_step(t_ns, period, out);
 }
 
 bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEvent& out) noexcept {
@@ -298,6 +326,7 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
       normal = true;
     } else if (r < params_.syncing_runt_fraction) {
       ++stats_.noise_edges;
+      ++stats_.rejected_edges;
       pending_flags_ |= kToothNoiseRejected;
       return false;
     } else if (r >= gap_threshold_) {
@@ -408,6 +437,7 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   // is a missing gap, not noise).
   if (static_cast<double>(period) < params_.runt_fraction * u1_ * pitch_rad_ * std::min(trend, 1.0)) {
     ++stats_.noise_edges;
+    ++stats_.rejected_edges;
     pending_flags_ |= kToothNoiseRejected;
     return false;
   }
@@ -479,6 +509,7 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   last_t_ns_ = t_ns;
   const int idx = rev_ * teeth_ + i;
   const int prev = (idx - advance + 2 * teeth_) % (2 * teeth_);
+  if (pattern_sync()) pattern_check_synced(t_ns, prev, idx, advance);
   ++stats_.synced_teeth;
   emit(t_ns, idx, w + corr_[static_cast<std::size_t>(idx)] - corr_[static_cast<std::size_t>(prev)], period,
        out);
@@ -493,6 +524,7 @@ void CrankDecoder::lose_sync(SyncLossReason reason, std::int64_t t_ns) noexcept 
   phase_known_ = false;
   since_gap_ = -1;
   hist_len_ = 0;
+  pattern_fresh_ = true;
 }
 
 void CrankDecoder::emit(std::int64_t t_ns, int tooth, double width_rad, std::int64_t period_ns,

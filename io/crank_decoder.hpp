@@ -26,6 +26,23 @@
 
 namespace torqued {
 
+/// One cam edge of a cam-synced wheel: its crank angle in the 720° cycle (deg, from tooth 0 of the first
+/// revolution) and its polarity.
+struct CamEdgeSpec {
+  double angle_deg = 0.0;
+  bool rising = true;
+};
+
+/// Cam pattern of a cam-synced wheel (issue 13): crank wheels without a gap (4G63: 2 teeth, Nissan CAS: 12)
+/// or with a symmetric one (Miata NB2: 4 teeth, 70°/110°) take their position from the cam edges. n = 0: no
+/// pattern (the crank gap syncs, the cam window below gives the phase).
+struct CamPattern {
+  static constexpr int kMaxEdges = 8;
+  int n = 0;
+  std::array<CamEdgeSpec, kMaxEdges> edges{};
+  double tolerance_deg = 15.0;  ///< an observed cam edge matches a pattern edge within this (crank deg)
+};
+
 /// Decoder tuning; defaults work for the simulator and common Hall sensors. Validated by config/.
 struct DecoderParams {
   double gap_ratio_min = 0.6;  /// gap candidate if P/P_pred >= gap_ratio_min × nominal gap ratio
@@ -55,6 +72,13 @@ struct DecoderParams {
   double cam_window_end_deg = 360.0;
   std::uint8_t crank_channel = 0;  ///< EdgeEvent::channel of the crank signal
   std::uint8_t cam_channel = 1;    ///< EdgeEvent::channel of the cam signal
+  /// Cam-synced wheel (set by a named wheel, io/wheel_names): position and 720° phase from these cam edges.
+  CamPattern cam_pattern;
+  /// Pulse-width-coded wheel (GM 24x): bit i (period ending at tooth i) is 1 when the opposite crank edge
+  /// comes before width_code_threshold of that period (narrow), 0 after it (wide). Teeth <= 32.
+  bool width_coded = false;
+  std::uint32_t width_code = 0;
+  double width_code_threshold = 0.5;
 };
 
 /// Why sync was lost (DecoderStats::last_loss_reason).
@@ -66,24 +90,29 @@ enum class SyncLossReason : std::uint8_t {
   kPeriodTooShort,    ///< a period between runt threshold and sync_ratio_min
   kStall,             ///< no edge within stall_timeout_ns
   kCamPhase,          ///< cam edge outside its window while synced (phase re-established)
+  kPattern,           ///< cam pattern or pulse-width code contradicted the decoded position twice in a row
 };
 [[nodiscard]] const char* to_string(SyncLossReason r) noexcept;
 [[nodiscard]] const char* to_string(SyncState s) noexcept;
 
 struct DecoderStats {
-  std::uint64_t edges = 0;             ///< all edges seen
-  std::uint64_t crank_edges = 0;       ///< crank edges of the selected polarity
-  std::uint64_t teeth = 0;             ///< ToothEvents produced
-  std::uint64_t synced_teeth = 0;      ///< ... of which while synced
-  std::uint64_t cam_edges = 0;         ///< cam edges of the selected polarity
-  std::uint64_t noise_edges = 0;       ///< runt edges rejected (earlier than runt_fraction of a pitch)
-  std::uint64_t debounced_edges = 0;   ///< tooth edges rejected as glitch pulses (shorter than min_pulse_us)
-  std::uint64_t lost_teeth = 0;        ///< teeth interpolated
-  std::uint64_t gaps = 0;              ///< gaps seen (syncing and synced)
-  std::uint64_t syncs = 0;             ///< times sync was (re)acquired
-  std::uint64_t sync_losses = 0;       ///< times sync was lost (stalls excluded)
-  std::uint64_t stalls = 0;            ///< stall time-outs
-  std::uint64_t cam_phase_errors = 0;  ///< cam edges outside the window
+  std::uint64_t edges = 0;            ///< all edges seen
+  std::uint64_t crank_edges = 0;      ///< crank edges of the selected polarity
+  std::uint64_t teeth = 0;            ///< ToothEvents produced
+  std::uint64_t synced_teeth = 0;     ///< ... of which while synced
+  std::uint64_t cam_edges = 0;        ///< cam edges of the selected polarity
+  std::uint64_t noise_edges = 0;      ///< runt edges rejected (earlier than runt_fraction of a pitch)
+  std::uint64_t debounced_edges = 0;  ///< tooth edges rejected as glitch pulses (shorter than min_pulse_us)
+  std::uint64_t lost_teeth = 0;       ///< teeth interpolated
+  std::uint64_t gaps = 0;             ///< gaps seen (syncing and synced)
+  std::uint64_t syncs = 0;            ///< times sync was (re)acquired
+  std::uint64_t sync_losses = 0;      ///< times sync was lost (stalls excluded)
+  std::uint64_t stalls = 0;           ///< stall time-outs
+  std::uint64_t cam_phase_errors =
+      0;  ///< cam edges outside the window / not in the cam pattern where decoded
+  std::uint64_t width_code_errors =
+      0;                             ///< pulse-width-coded wheels: tooth whose width bit contradicts the code
+  std::uint64_t rejected_edges = 0;  ///< crank edges not used as teeth: noise_edges + debounced_edges
   SyncLossReason last_loss_reason = SyncLossReason::kNone;
   std::int64_t last_loss_t_ns = 0;
 };
@@ -132,6 +161,19 @@ class CrankDecoder {
   bool syncing_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
   bool synced_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
   void lose_sync(SyncLossReason reason, std::int64_t t_ns) noexcept;
+  // Pattern sync (cam-synced and pulse-width-coded wheels), crank_decoder_pattern.cpp.
+  [[nodiscard]] bool pattern_sync() const noexcept {
+    return params_.cam_pattern.n > 0 || params_.width_coded;
+  }
+  [[nodiscard]] std::string check_pattern() noexcept;
+  bool pattern_syncing_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
+  void pattern_collect(std::int64_t t_ns) noexcept;
+  [[nodiscard]] int width_bit(std::int64_t t_ns) const noexcept;
+  [[nodiscard]] bool cam_match(int& k) const noexcept;
+  [[nodiscard]] bool width_match(int& k) const noexcept;
+  void pattern_check_synced(std::int64_t t_ns, int prev_idx, int idx, int advance) noexcept;
+  [[nodiscard]] double cycle_angle_deg(int idx) const noexcept;
+  [[nodiscard]] bool cam_edge_fits(double angle_deg, bool rising, double tol) const noexcept;
   void emit(std::int64_t t_ns, int tooth, double width_rad, std::int64_t period_ns, ToothEvent& out) noexcept;
   [[nodiscard]] int next_tooth(int i) const noexcept { return i + 1 == teeth_ ? 0 : i + 1; }
   [[nodiscard]] double clamp_trend(double x) const noexcept {
@@ -179,6 +221,29 @@ class CrankDecoder {
   int normal_run_ = 0;  ///< syncing: consecutive normal periods
   int lost_this_rev_ = 0;
   std::uint32_t pending_flags_ = 0;
+  // Pattern sync state.
+  struct CamObs {
+    double pos;  ///< tooth counter of the interval's first tooth + fraction of the interval
+    bool rising;
+  };
+  struct CamPending {
+    std::int64_t t_ns;
+    bool rising;
+  };
+  static constexpr int kCamRing = 16;
+  bool pattern_fresh_ = true;  ///< next tooth restarts the pattern search (previous tooth = counter 0)
+  int count_ = 0;              ///< teeth since the restart (counter of the current tooth + 1)
+  int span_start_ = 0;         ///< first tooth counter covered by the observations
+  std::array<CamObs, kCamRing> cam_obs_{};
+  int cam_obs_n_ = 0;
+  std::array<CamPending, 8>
+      cam_pend_{};  ///< cam edges since the last tooth (placed when the next tooth comes)
+  int cam_pend_n_ = 0;
+  std::uint64_t bits_ = 0;  ///< width bits, newest in bit 0
+  int nbits_ = 0;
+  int code_window_ = 0;              ///< bits needed to identify the position on a width-coded wheel
+  std::int64_t last_opp_t_ns_ = -1;  ///< time of the last opposite (non-tooth) crank edge
+  int pattern_misses_ = 0;           ///< consecutive pattern contradictions while synced
   DecoderStats stats_;
 };
 

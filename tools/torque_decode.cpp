@@ -2,8 +2,9 @@
 // (issue 3 "Inspecting recordings"). Streams; progress on a terminal; one-line summary at the end.
 //   torque-decode --edges edges.csv [--can can.log --dbc demo.dbc] [--wheel 60-2] [--config torqued.yaml]
 //                 --out-teeth teeth.csv --out-can can.csv
-#include <CLI/CLI.hpp>
+#include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <cinttypes>
@@ -15,7 +16,6 @@
 #include <numbers>
 #include <optional>
 #include <string>
-#include <unistd.h>
 
 #include "backend_factory.hpp"
 #include "candump_source.hpp"
@@ -32,7 +32,7 @@ using namespace torqued;
 
 struct Options {
   std::string edges, can, dbc, config, wheel = "60-2", format = "csv", crank = "crank", cam = "cam";
-  std::string out_teeth, out_can;
+  std::string out_teeth, out_can, first_row = "levels";
   double can_offset_s = 0.0;
   bool can_offset_given = false;
   bool falling = false, quiet = false;
@@ -70,9 +70,10 @@ struct CsvOut {
 
 int main(int argc, char** argv) {
   Options o;
-  CLI::App app{"torque-decode: decode a crank/cam edge capture and/or a candump log to CSV.\n"
-               "Per tooth: time, tooth index in 720 deg, angle, rpm, sync state, events (noise edge, lost tooth, "
-               "gap, resync). Per CAN frame: time and every DBC signal by name. Ends with a one-line summary."};
+  CLI::App app{
+      "torque-decode: decode a crank/cam edge capture and/or a candump log to CSV.\n"
+      "Per tooth: time, tooth index in 720 deg, angle, rpm, sync state, events (noise edge, lost tooth, "
+      "gap, resync). Per CAN frame: time and every DBC signal by name. Ends with a one-line summary."};
   app.add_option("--edges", o.edges, "edge capture: logic-analyzer CSV (Time [s],crank,cam) or bare list");
   app.add_option("--format", o.format, "edge file format: csv | list")->check(CLI::IsMember({"csv", "list"}));
   app.add_option("--can", o.can, "candump -l log");
@@ -81,8 +82,15 @@ int main(int argc, char** argv) {
   app.add_flag("--falling", o.falling, "teeth are marked by falling crank edges");
   app.add_option("--crank", o.crank, "crank column name in the edge CSV");
   app.add_option("--cam", o.cam, "cam column name in the edge CSV (\"\" = none)");
-  app.add_option("--can-offset", o.can_offset_s, "seconds added to CAN times (e.g. -1700000000 for the demo)");
-  app.add_option("--config", o.config, "torqued YAML: wheel, decoder, inputs, DBC from there (other options override paths)");
+  app.add_option(
+         "--first-row", o.first_row,
+         "edge CSV first row: levels (initial levels, Saleae/sigrok) | edges (every channel starts low, "
+         "as rusEFI's reader)")
+      ->check(CLI::IsMember({"levels", "edges"}));
+  app.add_option("--can-offset", o.can_offset_s,
+                 "seconds added to CAN times (e.g. -1700000000 for the demo)");
+  app.add_option("--config", o.config,
+                 "torqued YAML: wheel, decoder, inputs, DBC from there (other options override paths)");
   app.add_option("--out-teeth", o.out_teeth, "per-tooth CSV output");
   app.add_option("--out-can", o.out_can, "per-signal CAN CSV output (one row per decoded signal)");
   app.add_flag("-q,--quiet", o.quiet, "no progress display");
@@ -124,17 +132,18 @@ int main(int argc, char** argv) {
     dbc = load_dbc(cfg, &err);
     if (!o.can_offset_given) can_offset_ns = can_time_offset_ns(cfg);
   } else {
-    if (!wheel_from_name(o.wheel, wheel, &err)) {
+    if (!trigger_from_name(o.wheel, wheel, params, &err)) {
       std::fprintf(stderr, "torque-decode: %s\n", err.c_str());
       return 2;
     }
-    wheel.rising_edge = !o.falling;
+    if (o.falling) wheel.rising_edge = false;  // pattern wheels set the edge their angles refer to
     params.use_cam = !o.cam.empty();
     if (!o.edges.empty()) {
       if (o.format == "csv") {
         EdgeCsvOptions eo;
         eo.crank_column = o.crank;
         eo.cam_column = o.cam;
+        if (o.first_row == "edges") eo.first_row = EdgeCsvFirstRow::kEdgesFromLow;
         auto s = std::make_unique<EdgeCsvSource>(o.edges, eo);
         if (!s->ok()) err = s->last_error();
         edges = std::move(s);
@@ -219,8 +228,10 @@ int main(int argc, char** argv) {
         }
         if (teeth_csv.f != nullptr) {
           std::fprintf(teeth_csv.f, "%" PRId64 ",%.9f,%d,%.4f,%.2f,%s,%d,%s\n", tooth.t_ns, tooth.t_ns * 1e-9,
-                       tooth.tooth, tooth.sync == SyncState::kSynced ? tooth.angle_rad * 180.0 / std::numbers::pi : -1.0,
-                       rpm, to_string(tooth.sync), tooth.phase_known ? 1 : 0, events_text(tooth.events).c_str());
+                       tooth.tooth,
+                       tooth.sync == SyncState::kSynced ? tooth.angle_rad * 180.0 / std::numbers::pi : -1.0,
+                       rpm, to_string(tooth.sync), tooth.phase_known ? 1 : 0,
+                       events_text(tooth.events).c_str());
         }
       }
     } else {
@@ -239,9 +250,9 @@ int main(int argc, char** argv) {
           if (can_csv.f != nullptr) {
             const std::int64_t raw = s.raw(f.data.data(), f.len);
             const std::string* label = s.value_name(raw);
-            std::fprintf(can_csv.f, "%" PRId64 ",%.6f,%u,0x%X,%s,%s,%.10g,%s,%s\n", f.t_ns, f.t_ns * 1e-9, f.bus, f.id,
-                         m->name.c_str(), s.name.c_str(), s.decode(f.data.data(), f.len), s.unit.c_str(),
-                         label ? label->c_str() : "");
+            std::fprintf(can_csv.f, "%" PRId64 ",%.6f,%u,0x%X,%s,%s,%.10g,%s,%s\n", f.t_ns, f.t_ns * 1e-9,
+                         f.bus, f.id, m->name.c_str(), s.name.c_str(), s.decode(f.data.data(), f.len),
+                         s.unit.c_str(), label ? label->c_str() : "");
           }
         }
         bad ? ++frames_bad_dlc : ++frames_decoded;
@@ -269,13 +280,13 @@ int main(int argc, char** argv) {
 
   const DecoderStats& ds = decoder.stats();
   std::printf("edges %" PRIu64 " (crank %" PRIu64 ", cam %" PRIu64 "), teeth %" PRIu64 " (synced %" PRIu64
-              "), syncs %" PRIu64 ", sync losses %" PRIu64 " (last: %s), stalls %" PRIu64 ", noise edges %" PRIu64
-              ", lost teeth %" PRIu64 ", cam phase errors %" PRIu64 ", rpm %.0f-%.0f, frames %" PRIu64
-              " (decoded %" PRIu64 ", unknown id %" PRIu64 ", bad dlc %" PRIu64 "), bad lines %" PRIu64 " edges / %" PRIu64
-              " can\n",
+              "), syncs %" PRIu64 ", sync losses %" PRIu64 " (last: %s), stalls %" PRIu64
+              ", noise edges %" PRIu64 ", lost teeth %" PRIu64 ", cam phase errors %" PRIu64
+              ", rpm %.0f-%.0f, frames %" PRIu64 " (decoded %" PRIu64 ", unknown id %" PRIu64
+              ", bad dlc %" PRIu64 "), bad lines %" PRIu64 " edges / %" PRIu64 " can\n",
               ds.edges, ds.crank_edges, ds.cam_edges, ds.teeth, ds.synced_teeth, ds.syncs, ds.sync_losses,
               to_string(ds.last_loss_reason), ds.stalls, ds.noise_edges, ds.lost_teeth, ds.cam_phase_errors,
-              rpm_max > 0 ? rpm_min : 0.0, rpm_max, merger.frames_out(), frames_decoded, frames_unknown, frames_bad_dlc,
-              edges ? edges->stats().bad_lines : 0, can ? can->stats().bad_lines : 0);
+              rpm_max > 0 ? rpm_min : 0.0, rpm_max, merger.frames_out(), frames_decoded, frames_unknown,
+              frames_bad_dlc, edges ? edges->stats().bad_lines : 0, can ? can->stats().bad_lines : 0);
   return 0;
 }
