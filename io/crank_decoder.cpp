@@ -116,6 +116,12 @@ CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& para
     const int d = (gap_tooth_[static_cast<std::size_t>(j)] - prev + t) % t;
     gap_count_[static_cast<std::size_t>(j)] = d == 0 ? t : d;
   }
+  // Longest run of consecutive gap periods the wheel has (36-2-2-2: a gap, one tooth, a gap = two in a row).
+  max_gap_run_ = 1;
+  for (int j = 0, run = 0; j < 2 * num_gaps_; ++j) {
+    run = gap_count_[static_cast<std::size_t>(j % num_gaps_)] == 1 ? run + 1 : 0;
+    max_gap_run_ = std::min(num_gaps_, std::max(max_gap_run_, run + 1));
+  }
   // Gap candidate threshold: gap_ratio_min x the smallest gap, but never below the geometric midpoint between
   // a tooth (1) and that gap (on 36-1 a cranking period may grow 30 % from one tooth to the next).
   gap_threshold_ = std::max(params.gap_ratio_min * min_gap_ratio_, std::sqrt(min_gap_ratio_));
@@ -309,6 +315,7 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
     ref_provisional_ = true;
     u1_ = u2_ = 0.0;
     since_gap_ = -1;
+    gap_run_ = 0;
   } else {
     // Predicted normal period: the last one times the trend of the last two (clamped).
     double pred = static_cast<double>(ref_period_ns_);
@@ -332,6 +339,14 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
     } else if (r >= gap_threshold_) {
       if (r > params_.gap_ratio_max * (width_[static_cast<std::size_t>(gap_tooth_[0])] / pitch_rad_) * 4.0) {
         // Far too slow for any gap: speed collapsed; start over with this period as reference.
+        since_gap_ = -1;
+        hist_len_ = 0;
+        ref_prev_ns_ = 0;
+        ref_period_ns_ = period;
+      } else if (++gap_run_ > max_gap_run_) {
+        // More gaps in a row than the wheel has: the reference is no tooth period (the rest of a glitch's
+        // period after a sync loss, issue 13); rebuild it from this period.
+        gap_run_ = 0;
         since_gap_ = -1;
         hist_len_ = 0;
         ref_prev_ns_ = 0;
@@ -395,6 +410,7 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
       }
     } else {
       normal = true;
+      gap_run_ = 0;
       ref_prev_ns_ = ref_period_ns_;
       ref_period_ns_ = period;
     }

@@ -218,7 +218,9 @@ class CrankDecoder {
   int since_gap_ = -1;                ///< syncing: teeth since the last gap candidate (-1: no gap seen yet)
   std::array<int, kMaxGaps> hist_{};  ///< syncing: teeth counts between recent gap candidates (newest last)
   int hist_len_ = 0;
-  int normal_run_ = 0;  ///< syncing: consecutive normal periods
+  int normal_run_ = 0;   ///< syncing: consecutive normal periods
+  int gap_run_ = 0;      ///< syncing: consecutive gap candidates
+  int max_gap_run_ = 1;  ///< most consecutive gap periods on the wheel
   int lost_this_rev_ = 0;
   std::uint32_t pending_flags_ = 0;
   // Pattern sync state.
