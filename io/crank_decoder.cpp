@@ -40,6 +40,22 @@ const char* to_string(SyncLossReason r) noexcept {
   return "unknown";
 }
 
+const char* to_string(DecoderEventKind k) noexcept {
+  switch (k) {
+    case DecoderEventKind::kFirstEdge:
+      return "first_edge";
+    case DecoderEventKind::kSynced:
+      return "synced";
+    case DecoderEventKind::kLost:
+      return "lost_sync";
+    case DecoderEventKind::kStalled:
+      return "stalled";
+    case DecoderEventKind::kCamPhase:
+      return "cam_phase_error";
+  }
+  return "unknown";
+}
+
 const char* to_string(SyncState s) noexcept {
   switch (s) {
     case SyncState::kNoSignal:
@@ -59,6 +75,8 @@ const char* to_string(SyncState s) noexcept {
 CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& params)
     : wheel_(wheel), params_(params) {
   min_pulse_ns_ = static_cast<std::int64_t>(std::llround(params.min_pulse_us * 1e3));
+  cam_win_start_ = params.cam_window_start_deg;
+  cam_win_end_ = params.cam_window_end_deg;
   const int t = wheel.teeth();
   if (t < 2 || t > kMaxTeeth) {
     error_ = "wheel: tooth count " + std::to_string(t) + " outside 2.." + std::to_string(kMaxTeeth);
@@ -250,6 +268,7 @@ bool CrankDecoder::poll(std::int64_t now_ns) noexcept {
   if (!have_edge_ || state_ == SyncState::kStalled || state_ == SyncState::kNoSignal) return false;
   if (now_ns - last_t_ns_ <= params_.stall_timeout_ns) return false;
   ++stats_.stalls;
+  note(DecoderEventKind::kStalled, now_ns, state_, SyncState::kStalled, SyncLossReason::kStall, -1);
   state_ = SyncState::kStalled;
   phase_known_ = false;
   since_gap_ = -1;
@@ -266,6 +285,7 @@ bool CrankDecoder::on_crank(std::int64_t t_ns, ToothEvent& out) noexcept {
   if (!have_edge_) {
     have_edge_ = true;
     last_t_ns_ = t_ns;
+    note(DecoderEventKind::kFirstEdge, t_ns, state_, SyncState::kSyncing, SyncLossReason::kNone, -1);
     state_ = SyncState::kSyncing;
     return false;  // one edge is no period yet
   }
@@ -278,7 +298,10 @@ bool CrankDecoder::on_crank(std::int64_t t_ns, ToothEvent& out) noexcept {
   }
   if (period > params_.stall_timeout_ns) {
     // Engine stopped (or signal lost) and restarted: begin a new sync from this edge.
-    if (state_ != SyncState::kStalled) ++stats_.stalls;
+    if (state_ != SyncState::kStalled) {
+      ++stats_.stalls;
+      note(DecoderEventKind::kStalled, t_ns, state_, SyncState::kStalled, SyncLossReason::kStall, -1);
+    }
     state_ = SyncState::kSyncing;
     phase_known_ = false;
     since_gap_ = -1;
@@ -396,6 +419,8 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
             tooth_ = gap_tooth_[static_cast<std::size_t>(match)];
             if (tooth_ == 0)
               rev_ ^= 1;  // keep rev_ meaning "revolution of tooth_"; phase from the cam anyway
+            note(DecoderEventKind::kSynced, t_ns, SyncState::kSyncing, SyncState::kSynced,
+                 SyncLossReason::kNone, rev_ * teeth_ + tooth_);
             period_ns_ = period;
             const double w = width_[static_cast<std::size_t>(tooth_)];
             last_width_rad_ = w;
@@ -534,6 +559,7 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
 
 void CrankDecoder::lose_sync(SyncLossReason reason, std::int64_t t_ns) noexcept {
   ++stats_.sync_losses;
+  note(DecoderEventKind::kLost, t_ns, state_, SyncState::kLostSync, reason, -1);
   stats_.last_loss_reason = reason;
   stats_.last_loss_t_ns = t_ns;
   state_ = SyncState::kLostSync;
@@ -569,10 +595,10 @@ void CrankDecoder::on_cam(std::int64_t t_ns) noexcept {
   const double dt = static_cast<double>(t_ns - last_t_ns_);
   const double advance = std::min(dt * (last_width_rad_ / static_cast<double>(period_ns_)), w_next);
   const double a_deg = (angle_[static_cast<std::size_t>(tooth_)] + advance) / kDegToRad;
-  const bool in_this =
-      in_window_deg(a_deg + 360.0 * rev_, params_.cam_window_start_deg, params_.cam_window_end_deg);
-  const bool in_other =
-      in_window_deg(a_deg + 360.0 * (rev_ ^ 1), params_.cam_window_start_deg, params_.cam_window_end_deg);
+  if (params_.cam_window_auto && !cam_learned_ && !cam_learn_step(a_deg)) return;
+  const bool in_this = in_window_deg(a_deg + 360.0 * rev_, cam_win_start_, cam_win_end_);
+  const bool in_other = in_window_deg(a_deg + 360.0 * (rev_ ^ 1), cam_win_start_, cam_win_end_);
+  if (!params_.cam_window_auto) stats_.cam_angle_deg = a_deg + 360.0 * (in_this ? rev_ : rev_ ^ 1);
   if (in_this && (!in_other || phase_known_)) {
     phase_known_ = true;
     return;
@@ -580,6 +606,7 @@ void CrankDecoder::on_cam(std::int64_t t_ns) noexcept {
   if (in_other && !in_this) {
     if (phase_known_) {
       ++stats_.cam_phase_errors;  // phase flipped: trust the cam, flag the next tooth
+      note(DecoderEventKind::kCamPhase, t_ns, state_, state_, SyncLossReason::kCamPhase, -1);
       stats_.last_loss_reason = SyncLossReason::kCamPhase;
       stats_.last_loss_t_ns = t_ns;
       pending_flags_ |= kToothResynced;
@@ -589,6 +616,28 @@ void CrankDecoder::on_cam(std::int64_t t_ns) noexcept {
     return;
   }
   ++stats_.cam_phase_errors;  // outside the window in both revolutions (or window covers both: ambiguous)
+  note(DecoderEventKind::kCamPhase, t_ns, state_, state_, SyncLossReason::kCamPhase, -1);
+}
+
+// cam_window: auto. a_deg: the cam edge's angle within the revolution. Returns true once learned (the window
+// is then set around the mean angle, in the revolution of the first learning edge = revolution 0).
+bool CrankDecoder::cam_learn_step(double a_deg) noexcept {
+  double d = std::fmod(a_deg - cam_learn_first_ + 540.0, 360.0) - 180.0;
+  if (cam_learn_n_ == 0 || std::abs(d) > params_.cam_auto_spread_deg) {  // (re)start
+    cam_learn_n_ = 0;
+    cam_learn_first_ = a_deg;
+    cam_learn_sum_ = 0.0;
+    d = 0.0;
+    rev_ = 0;  // this edge's revolution is revolution 0
+  }
+  cam_learn_sum_ += d;
+  if (++cam_learn_n_ < std::max(1, params_.cam_auto_edges)) return false;
+  const double a = std::fmod(cam_learn_first_ + cam_learn_sum_ / cam_learn_n_ + 360.0, 360.0);
+  cam_learned_ = true;
+  stats_.cam_angle_deg = a;
+  cam_win_start_ = std::fmod(a - 90.0 + 720.0, 720.0);
+  cam_win_end_ = a + 90.0;
+  return true;
 }
 
 }  // namespace torqued

@@ -21,6 +21,7 @@
 #include <span>
 #include <string>
 
+#include "decoder_events.hpp"
 #include "engine_geometry.hpp"
 #include "records.hpp"
 
@@ -70,6 +71,13 @@ struct DecoderParams {
   bool cam_rising = true;                       ///< which cam edge marks the phase
   double cam_window_start_deg = 0.0;  ///< cam edge must fall in [start, end) crank degrees of the 720° cycle
   double cam_window_end_deg = 360.0;
+  /// cam_window: auto — learn the cam edge's crank angle from the first cam_auto_edges synced cam edges (all
+  /// within cam_auto_spread_deg of each other, else learning restarts), then use the window [a − 90°, a +
+  /// 90°) with the first learning edge's revolution as revolution 0. The angle found is in
+  /// DecoderStats::cam_angle_deg.
+  bool cam_window_auto = false;
+  int cam_auto_edges = 4;
+  double cam_auto_spread_deg = 10.0;
   std::uint8_t crank_channel = 0;  ///< EdgeEvent::channel of the crank signal
   std::uint8_t cam_channel = 1;    ///< EdgeEvent::channel of the cam signal
   /// Cam-synced wheel (set by a named wheel, io/wheel_names): position and 720° phase from these cam edges.
@@ -113,6 +121,8 @@ struct DecoderStats {
   std::uint64_t width_code_errors =
       0;                             ///< pulse-width-coded wheels: tooth whose width bit contradicts the code
   std::uint64_t rejected_edges = 0;  ///< crank edges not used as teeth: noise_edges + debounced_edges
+  double cam_angle_deg =
+      -1.0;  ///< cam edge angle in the 720° cycle, learned (cam_window_auto) or last measured
   SyncLossReason last_loss_reason = SyncLossReason::kNone;
   std::int64_t last_loss_t_ns = 0;
 };
@@ -154,6 +164,11 @@ class CrankDecoder {
   /// Back to kNoSignal; keeps counters and corrections.
   void reset() noexcept;
 
+  /// Sync-state transitions go to `log` (nullptr = none, the default), one DecoderEvent each with its edge
+  /// time; another thread drains it (DecoderEventLog::pop) and logs at debug level. The log must outlive the
+  /// decoder's use of it. Set before the first edge.
+  void set_event_log(DecoderEventLog* log) noexcept { events_ = log; }
+
  private:
   bool on_crank(std::int64_t t_ns, ToothEvent& out) noexcept;
   bool debounce(std::int64_t t_ns, bool active, ToothEvent& out) noexcept;
@@ -161,6 +176,12 @@ class CrankDecoder {
   bool syncing_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
   bool synced_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
   void lose_sync(SyncLossReason reason, std::int64_t t_ns) noexcept;
+  void note(DecoderEventKind kind, std::int64_t t_ns, SyncState from, SyncState to, SyncLossReason reason,
+            int tooth) noexcept {
+    if (events_ != nullptr)
+      events_->push(DecoderEvent{t_ns, kind, from, to, static_cast<std::uint8_t>(reason),
+                                 static_cast<std::int16_t>(tooth)});
+  }
   // Pattern sync (cam-synced and pulse-width-coded wheels), crank_decoder_pattern.cpp.
   [[nodiscard]] bool pattern_sync() const noexcept {
     return params_.cam_pattern.n > 0 || params_.width_coded;
@@ -247,6 +268,12 @@ class CrankDecoder {
   std::int64_t last_opp_t_ns_ = -1;  ///< time of the last opposite (non-tooth) crank edge
   int pattern_misses_ = 0;           ///< consecutive pattern contradictions while synced
   DecoderStats stats_;
+  DecoderEventLog* events_ = nullptr;
+  double cam_win_start_ = 0.0, cam_win_end_ = 360.0;  ///< cam window in use (configured or learned)
+  bool cam_learned_ = false;
+  int cam_learn_n_ = 0;
+  double cam_learn_first_ = 0.0, cam_learn_sum_ = 0.0;
+  bool cam_learn_step(double a_deg) noexcept;
 };
 
 }  // namespace torqued

@@ -204,6 +204,8 @@ bool CrankDecoder::pattern_syncing_step(std::int64_t t_ns, std::int64_t period, 
     const int idx = params_.cam_pattern.n > 0 ? (k + count_ - 1) % (2 * teeth_) : rev_ * teeth_ + k;
     state_ = SyncState::kSynced;
     ++stats_.syncs;
+    note(DecoderEventKind::kSynced, t_ns, SyncState::kSyncing, SyncState::kSynced, SyncLossReason::kNone,
+         idx);
     lost_this_rev_ = 0;
     pattern_misses_ = 0;
     tooth_ = idx % teeth_;

@@ -3,6 +3,7 @@
 // and angle match the truth once synced, and every disturbance is counted.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -285,6 +286,73 @@ TEST(CrankDecoder, CamGivesPhaseAndWithoutCamPhaseStaysUnknown) {
     }
   }
   EXPECT_EQ(off_by_rev, checked);
+}
+
+// Issue 13, cam phase: a cam edge outside a fixed window is a counted cam phase error (never a silent phase);
+// cam_window: auto learns the cam edge's angle and reports it; a cam edge that then comes elsewhere is an
+// error.
+TEST(CrankDecoder, CamOutsideItsWindowIsCountedAndAutoWindowLearnsTheAngle) {
+  SynthOptions o;
+  o.cam_rise_deg = 400.0;  // in the second revolution of the simulator's cycle
+  o.duration_s = 0.4;
+  const auto s = test::synthesize(o);
+  DecoderParams narrow;  // the configured window misses the cam: every synced cam edge is an error
+  narrow.cam_window_start_deg = 100.0;
+  narrow.cam_window_end_deg = 200.0;
+  const auto bad = run(s, o.wheel, narrow);
+  EXPECT_EQ(bad.checked, 0);  // the phase is never claimed
+  EXPECT_GE(bad.stats.cam_phase_errors, 8u);
+
+  DecoderParams autop;
+  autop.cam_window_auto = true;
+  CrankDecoder dec(o.wheel, autop);
+  DecoderEventLog log;
+  dec.set_event_log(&log);
+  std::map<std::int64_t, int> truth;
+  for (const auto& t : s.teeth) truth[t.t_ns] = t.tooth720;
+  ToothEvent ev;
+  int phased = 0, consistent = 0;
+  for (const auto& e : s.edges) {
+    if (dec.on_edge(e, ev) && ev.sync == SyncState::kSynced && ev.phase_known) {
+      ++phased;
+      consistent += ev.tooth == (truth[ev.t_ns] + 58) % 116 ? 1 : 0;  // the cam's revolution is revolution 0
+    }
+  }
+  EXPECT_NEAR(dec.stats().cam_angle_deg, 40.0, 0.5);  // 400° of the cycle, in its own revolution
+  EXPECT_EQ(dec.stats().cam_phase_errors, 0u);
+  EXPECT_GT(phased, 500);
+  EXPECT_EQ(consistent, phased);
+  // Transitions were logged with their edge times: first edge, then synced.
+  DecoderEvent de;
+  ASSERT_TRUE(log.pop(de));
+  EXPECT_EQ(de.kind, DecoderEventKind::kFirstEdge);
+  EXPECT_EQ(de.t_ns, s.edges.front().t_ns);
+  ASSERT_TRUE(log.pop(de));
+  EXPECT_EQ(de.kind, DecoderEventKind::kSynced);
+  EXPECT_EQ(de.to, SyncState::kSynced);
+  EXPECT_TRUE(truth.count(de.t_ns) == 1);
+  EXPECT_FALSE(log.pop(de));
+
+  // Learned, then a stray cam edge 150° away from the learned angle: counted, logged, phase kept.
+  std::vector<EdgeEvent> edges = s.edges;
+  const std::size_t mid = edges.size() * 3 / 4;
+  for (std::size_t k = mid; k < edges.size(); ++k) {
+    if (edges[k].channel == 1 && edges[k].level == 1) {  // a cam rise: add one 150° later (at 3000 rpm)
+      const std::int64_t t = edges[k].t_ns + static_cast<std::int64_t>(150.0 / 18000.0 * 1e9);
+      auto it = std::lower_bound(edges.begin(), edges.end(), t,
+                                 [](const EdgeEvent& a, std::int64_t x) { return a.t_ns < x; });
+      edges.insert(it, {EdgeEvent{t, 1, 1}, EdgeEvent{t + 1000, 1, 0}});
+      break;
+    }
+  }
+  CrankDecoder dec3(o.wheel, autop);
+  dec3.set_event_log(&log);
+  for (const auto& e : edges) dec3.on_edge(e, ev);
+  EXPECT_EQ(dec3.stats().cam_phase_errors, 1u);
+  EXPECT_EQ(dec3.stats().sync_losses, 0u);
+  bool logged = false;
+  while (log.pop(de)) logged = logged || de.kind == DecoderEventKind::kCamPhase;
+  EXPECT_TRUE(logged);
 }
 
 TEST(CrankDecoder, FallingEdgeWheel) {
