@@ -13,6 +13,7 @@
 #include "config_schema.hpp"
 #include "daemon_run.hpp"
 #include "logging.hpp"
+#include "cam_check.hpp"
 
 #ifndef TORQUED_VERSION
 #define TORQUED_VERSION "0.0.0"
@@ -34,6 +35,7 @@ int check_config(const std::string& path, bool check_files) {
                                                  : std::to_string(c.wheel.geometry.positions) + "-" +
                                                        std::to_string(c.wheel.geometry.missing))
             << ", dds domain " << c.dds.domain_id << ")\n";
+  if (check_files) for (const auto& w : torqued::cam_window_warnings(c)) std::cerr << "warning: " << w << "\n";
   return 0;
 }
 
