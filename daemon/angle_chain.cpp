@@ -11,6 +11,7 @@ AngleChain::AngleChain(const StageSettings& s, const DbcDatabase* dbc, AngleChai
     error_ = "crank decoder: " + decoder_.error();
     return;
   }
+  decoder_.set_event_log(&transitions_);
   if (dbc) {
     store_ = std::make_unique<SignalStore>(*dbc);
     error_ = bind_signals(*store_, s_.signals);

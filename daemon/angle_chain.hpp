@@ -24,6 +24,7 @@
 #include "angle_pipeline.hpp"
 #include "crank_decoder.hpp"
 #include "dbc.hpp"
+#include "decoder_events.hpp"
 #include "sample_sink.hpp"
 #include "signal_store.hpp"
 #include "stage_settings.hpp"
@@ -98,6 +99,9 @@ class AngleChain {
   void set_signal_timeouts(const std::array<std::int64_t, kSignalCount>& timeout_ns) noexcept;
 
   [[nodiscard]] const CrankDecoder& decoder() const noexcept { return decoder_; }
+  /// The decoder's sync-state transitions (lock-free SPSC ring: this chain's thread pushes, one other thread
+  /// or the same one later pops them for the debug log).
+  [[nodiscard]] DecoderEventLog& transitions() noexcept { return transitions_; }
   [[nodiscard]] std::uint64_t cycles() const noexcept { return cycles_; }
   [[nodiscard]] std::int64_t last_t_ns() const noexcept { return last_t_ns_; }
   [[nodiscard]] ChainStatus status() const noexcept;
@@ -133,6 +137,7 @@ class AngleChain {
   StageSettings s_;
   AngleChainSink& out_;
   ToothSink* time_;
+  DecoderEventLog transitions_;
   CrankDecoder decoder_;
   std::unique_ptr<SignalStore> store_;
   std::unique_ptr<AnglePipeline> pipeline_;

@@ -76,6 +76,9 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
       run_fast_replay(s, edges, can, can_time_offset_ns(cfg), dbc, out, &g_fast_stop, spath.empty() ? nullptr : &st);
   if (!r.error.empty()) spdlog::error("replay: {}", r.error);
   for (const auto& b : r.bad_frames) spdlog::warn("can: {}", b);
+  for (const DecoderEvent& e : r.transitions.events) log_transition(e);
+  if (r.transitions.not_kept > 0)
+    spdlog::debug("decoder: {} more transitions not logged", r.transitions.not_kept);
   if (!spath.empty()) {
     spdlog::info("learned state applied at start: {}", r.imported.empty() ? "nothing" : r.imported);
     std::string serr;

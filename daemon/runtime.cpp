@@ -296,6 +296,8 @@ void Runtime::angle_publish_counters() noexcept {
   n_edges_.store(ds.edges, std::memory_order_relaxed);
   teeth_.store(ds.teeth, std::memory_order_relaxed);
   sync_losses_.store(ds.sync_losses, std::memory_order_relaxed);
+  rejected_edges_.store(ds.rejected_edges, std::memory_order_relaxed);
+  cam_phase_errors_.store(ds.cam_phase_errors, std::memory_order_relaxed);
   cycles_.store(chain.cycles(), std::memory_order_relaxed);
   frames_.store(angle_frames_, std::memory_order_relaxed);
   stale_mask_.store(chain.status().stale_mask, std::memory_order_relaxed);
@@ -448,6 +450,8 @@ RuntimeCounters Runtime::counters() const noexcept {
   c.cycles = cycles_.load(std::memory_order_relaxed);
   c.can_frames = frames_.load(std::memory_order_relaxed);
   c.sync_losses = sync_losses_.load(std::memory_order_relaxed);
+  c.rejected_edges = rejected_edges_.load(std::memory_order_relaxed);
+  c.cam_phase_errors = cam_phase_errors_.load(std::memory_order_relaxed);
   c.ring_drops_edge = edge_ring_.drops() + tooth_ring_.drops();
   c.ring_drops_can = can_angle_ring_.drops() + can_time_ring_.drops();
   c.ring_drops_out = out_angle_ring_.drops() + out_time_ring_.drops() + out_status_ring_.drops();

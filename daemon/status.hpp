@@ -14,6 +14,7 @@ struct RuntimeCounters {
   std::int64_t run_latency_p50_ns = 0, run_latency_p99_ns = 0, run_latency_max_ns = 0;  ///< whole run
   /// Publisher pre-wakes (paced replay) and those whose poll ended without a sample.
   std::uint64_t publisher_polls = 0, publisher_poll_misses = 0;
+  std::uint64_t rejected_edges = 0, cam_phase_errors = 0;  ///< decoder: glitches rejected, cam disagreements
   std::uint32_t flags = 0;            ///< torque_STATUS_*
   std::uint32_t sensor_timeouts = 0;  ///< bit per EngineSignals quantity
   bool synced = false;
@@ -47,6 +48,8 @@ inline dds::AnySample make_status(const RuntimeCounters& c, const RuntimeCounter
   s.sensor_timeouts = c.sensor_timeouts;
   s.publisher_polls = c.publisher_polls;
   s.publisher_poll_misses = c.publisher_poll_misses;
+  s.rejected_edges = c.rejected_edges;
+  s.cam_phase_errors = c.cam_phase_errors;
   s.flags = c.flags;
   const auto dropped = [](const RuntimeCounters& x) {
     return x.ring_drops_edge + x.ring_drops_can + x.ring_drops_out + x.source_drops;

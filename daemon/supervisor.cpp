@@ -13,6 +13,7 @@
 #include "clocks.hpp"
 #include "config.hpp"
 #include "config_loader.hpp"
+#include "crank_decoder.hpp"
 #include "logging.hpp"
 #include "rt_setup.hpp"
 #include "runtime.hpp"
@@ -38,6 +39,15 @@ RestoreResult restore_for_run(const std::string& spath, const StateContext& ctx,
 
 ThreadRt thread_rt(const ThreadConfig& t, const char* name) {
   return ThreadRt{t.policy == SchedPolicy::kFifo, t.priority, t.cpus, name};
+}
+
+void log_transition(const DecoderEvent& e) {
+  if (e.kind == DecoderEventKind::kLost)
+    spdlog::debug("decoder: {} at t={:.6f} s, {} -> {} ({})", to_string(e.kind), static_cast<double>(e.t_ns) * 1e-9,
+                  to_string(e.from), to_string(e.to), to_string(static_cast<SyncLossReason>(e.reason)));
+  else
+    spdlog::debug("decoder: {} at t={:.6f} s, {} -> {}{}", to_string(e.kind), static_cast<double>(e.t_ns) * 1e-9,
+                  to_string(e.from), to_string(e.to), e.tooth >= 0 ? " at tooth " + std::to_string(e.tooth) : "");
 }
 
 namespace {
@@ -203,6 +213,8 @@ bool Supervisor::start() {
 }
 
 bool Supervisor::tick_once(std::int64_t now) {
+  DecoderEvent ev{};
+  while (rt_.angle_stage().chain().transitions().pop(ev)) log_transition(ev);
   if (stall_after_s_ >= 0 && now - t0_ >= static_cast<std::int64_t>(stall_after_s_ * 1e9)) rt_.test_stall(true);
   const bool record_failed = recorder_ && recorder_->write_failed();
   if (record_failed && !record_error_reported_) {  // at once; estimation goes on

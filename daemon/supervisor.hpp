@@ -6,6 +6,7 @@
 #include <string>
 
 #include "daemon_run.hpp"
+#include "decoder_events.hpp"
 #include "replay_inputs.hpp"
 #include "rt_setup.hpp"
 #include "sample_recorder.hpp"
@@ -25,6 +26,9 @@ struct ThreadConfig;
 /// The checked learned state of the previous run, as every mode loads it: identity, checksum and physical
 /// bounds checked, rejected files set aside (state_store.hpp); nothing with --fresh-state. Logs what happened.
 [[nodiscard]] RestoreResult restore_for_run(const std::string& spath, const StateContext& ctx, const RunOptions& opt);
+
+/// One decoder sync-state transition at debug level, with its edge time.
+void log_transition(const DecoderEvent& e);
 
 /// Runs the paced replay or live mode until a signal (or --exit-when-done); returns the exit code
 /// (0 clean, 1 start-up failure or drain time-out, 3 recording failed).
