@@ -14,6 +14,8 @@ struct RuntimeCounters {
   std::int64_t run_latency_p50_ns = 0, run_latency_p99_ns = 0, run_latency_max_ns = 0;  ///< whole run
   /// Publisher pre-wakes (paced replay) and those whose poll ended without a sample.
   std::uint64_t publisher_polls = 0, publisher_poll_misses = 0;
+  /// Paced replay / live: times the angle thread slept (one wake-up each); not in DaemonStatus (no field).
+  std::uint64_t angle_wakeups = 0;
   std::uint32_t flags = 0;            ///< torque_STATUS_*
   std::uint32_t sensor_timeouts = 0;  ///< bit per EngineSignals quantity
   bool synced = false;

@@ -273,10 +273,11 @@ int Supervisor::shutdown() {
   const RuntimeCounters c = rt_.counters();
   spdlog::info(
       "stopped: {} edges, {} teeth, {} cycles, {} CAN frames, drops edge/can/out/source {}/{}/{}/{}, overruns {}, "
-      "latency over the run p50/p99/max {:.1f}/{:.1f}/{:.1f} us, publisher pre-wakes {} (timed out {})",
+      "latency over the run p50/p99/max {:.1f}/{:.1f}/{:.1f} us, publisher pre-wakes {} (timed out {}), "
+      "angle thread wake-ups {}",
       c.edges, c.teeth, c.cycles, c.can_frames, c.ring_drops_edge, c.ring_drops_can, c.ring_drops_out,
       c.source_drops, c.overruns, c.run_latency_p50_ns * 1e-3, c.run_latency_p99_ns * 1e-3,
-      c.run_latency_max_ns * 1e-3, c.publisher_polls, c.publisher_poll_misses);
+      c.run_latency_max_ns * 1e-3, c.publisher_polls, c.publisher_poll_misses, c.angle_wakeups);
   return exit_code;
 }
 
