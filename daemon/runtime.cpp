@@ -83,6 +83,9 @@ void Runtime::start_thread(std::thread& t, const ThreadRt& rt, void (Runtime::*f
 
 bool Runtime::start() {
   if (!ok()) return false;
+  // Our threads (and any created later without attributes) get kThreadStackBytes, not RLIMIT_STACK (8 MiB),
+  // which mlockall would make resident. run_daemon sets it before Cyclone's threads exist, too.
+  if (const RtOutcome st = set_default_thread_stack(); !st.ok) warnings_.push_back(st.message);
   if (opt_.lock_memory) {
     const RtOutcome o = lock_memory();
     if (!o.ok) {

@@ -61,6 +61,13 @@ PacedRun run_paced(const std::string& path, const StageSettings& s, double speed
   o.lock_memory = false;
   o.angle.fifo = o.time.fifo = o.source.fifo = o.publisher.fifo = false;  // unprivileged test
   o.publisher_spin_ns = 150'000;
+  std::atomic<std::size_t> stack_min{~std::size_t{0}}, stack_max{0};
+  o.rt_thread_hook = [&](const char*, bool exiting) {
+    if (exiting) return;
+    const std::size_t n = current_thread_stack_size();
+    for (std::size_t m = stack_min.load(); n < m && !stack_min.compare_exchange_weak(m, n);) {}
+    for (std::size_t m = stack_max.load(); n > m && !stack_max.compare_exchange_weak(m, n);) {}
+  };
   EdgeCsvSource src(path, {});
   EXPECT_TRUE(src.ok());
   VectorSink sink;
@@ -71,6 +78,10 @@ PacedRun run_paced(const std::string& path, const StageSettings& s, double speed
   for (int i = 0; i < 500 && !rt.input_done(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   EXPECT_TRUE(rt.input_done());
   EXPECT_TRUE(rt.stop_and_drain(2'000'000'000));
+  // Runtime::start sizes the stacks of the threads it creates (not RLIMIT_STACK's 8 MiB, which mlockall would
+  // make resident).
+  EXPECT_EQ(stack_min.load(), kThreadStackBytes);
+  EXPECT_EQ(stack_max.load(), kThreadStackBytes);
   return {sink.v, rt.counters()};
 }
 
