@@ -100,8 +100,8 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
 
 int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   Config cfg = cfg_in;
-  // Before any thread exists (Cyclone's included): stacks of kThreadStackBytes, not 8 MiB each made resident by
-  // mlockall.
+  // Before any thread exists (Cyclone's included): stacks of kThreadStackBytes, not 8 MiB each made resident
+  // by mlockall.
   if (const RtOutcome st = set_default_thread_stack(); !st.ok) spdlog::warn("thread stacks: {}", st.message);
   if (opt.record_dir) cfg.output.record_dir = *opt.record_dir;
   const bool fast = opt.mode ? *opt.mode == "fast" : cfg.replay.mode == ReplayMode::kFast;

@@ -33,8 +33,10 @@ RtOutcome set_default_thread_stack(std::size_t bytes) noexcept {
     fail(o, "pthread_getattr_default_np", err);
     return o;
   }
-  if (const int err = pthread_attr_setstacksize(&attr, bytes)) fail(o, "pthread_attr_setstacksize", err);
-  else if (const int err2 = pthread_setattr_default_np(&attr)) fail(o, "pthread_setattr_default_np", err2);
+  if (const int err = pthread_attr_setstacksize(&attr, bytes))
+    fail(o, "pthread_attr_setstacksize", err);
+  else if (const int err2 = pthread_setattr_default_np(&attr))
+    fail(o, "pthread_setattr_default_np", err2);
   pthread_attr_destroy(&attr);
   return o;
 }
@@ -55,9 +57,12 @@ MemoryUse read_memory_use() noexcept {
   char line[256];
   while (std::fgets(line, sizeof line, f)) {
     unsigned long long kb = 0;
-    if (std::sscanf(line, "VmRSS: %llu kB", &kb) == 1) m.rss = static_cast<std::size_t>(kb) * 1024;
-    else if (std::sscanf(line, "VmHWM: %llu kB", &kb) == 1) m.peak = static_cast<std::size_t>(kb) * 1024;
-    else if (std::sscanf(line, "VmLck: %llu kB", &kb) == 1) m.locked = static_cast<std::size_t>(kb) * 1024;
+    if (std::sscanf(line, "VmRSS: %llu kB", &kb) == 1)
+      m.rss = static_cast<std::size_t>(kb) * 1024;
+    else if (std::sscanf(line, "VmHWM: %llu kB", &kb) == 1)
+      m.peak = static_cast<std::size_t>(kb) * 1024;
+    else if (std::sscanf(line, "VmLck: %llu kB", &kb) == 1)
+      m.locked = static_cast<std::size_t>(kb) * 1024;
   }
   std::fclose(f);
   return m;

@@ -270,8 +270,9 @@ Runtime::DueItem Runtime::angle_process_due() noexcept {
     last_t_ns_.store(e->e.t_ns, std::memory_order_relaxed);
     edge_ring_.pop_front();
   }
-  // Frames due now are taken now. A frame not due yet gets a wake-up of its own only when no edge waits in the
-  // ring: otherwise it is taken, in order, before the first edge after it, at that edge's (or a later) wake-up.
+  // Frames due now are taken now. A frame not due yet gets a wake-up of its own only when no edge waits in
+  // the ring: otherwise it is taken, in order, before the first edge after it, at that edge's (or a later)
+  // wake-up.
   while (const FrameIn* f = can_angle_ring_.front()) {
     if (f->ingest_ns == 0 && !stop_sources_.load(std::memory_order_relaxed)) {
       const std::int64_t due = clock_.due_mono_ns(f->f.t_ns);
@@ -287,12 +288,13 @@ Runtime::DueItem Runtime::angle_process_due() noexcept {
   return next;
 }
 
-// An edge can make the chain emit samples only if it is a crank edge of the wheel's polarity (or any crank edge
-// when the decoder debounces: the opposite edge then confirms the held tooth). Cam edges and the other crank
-// edges only change the decoder's state: they need no wake-up at their own due time, as long as the decoder
-// sees them, in order, before the next edge that can emit. So the angle thread sleeps until the first
+// An edge can make the chain emit samples only if it is a crank edge of the wheel's polarity (or any crank
+// edge when the decoder debounces: the opposite edge then confirms the held tooth). Cam edges and the other
+// crank edges only change the decoder's state: they need no wake-up at their own due time, as long as the
+// decoder sees them, in order, before the next edge that can emit. So the angle thread sleeps until the first
 // emitting edge queued (looking at most kLookahead records ahead) and takes the edges before it at that
-// wake-up, each stamped with its own due time. No emitting edge queued yet: the first edge's due time, as before.
+// wake-up, each stamped with its own due time. No emitting edge queued yet: the first edge's due time, as
+// before.
 Runtime::DueItem Runtime::next_wakeup(const EdgeEvent& first, std::int64_t first_due) noexcept {
   constexpr std::size_t kLookahead = 64;
   const auto emits = [this](const EdgeEvent& e) {

@@ -162,7 +162,7 @@ class Runtime {
   std::atomic<std::int64_t> edge_timeout_ns_{0};
   std::atomic<std::int64_t> next_due_mono_ns_{0};  ///< paced replay: due time of the edge the angle thread waits for
   std::atomic<bool> next_due_tooth_{false};         ///< ... and whether it is a crank tooth edge
-  std::atomic<std::uint64_t> angle_wakeups_{0};  ///< times the angle thread went to sleep (timer or futex)
+  std::atomic<std::uint64_t> angle_wakeups_{0};     ///< times the angle thread went to sleep (timer or futex)
   std::atomic<std::uint64_t> pub_polls_{0}, pub_poll_misses_{0};  ///< pre-wakes, and those that saw no sample
   ReplayClock clock_;                    ///< recording time ↔ monotonic time (replay and live edge clock)
   LatestValue<TorqueEstimate> time_estimate_;  ///< time thread → angle thread: UIO brake estimate (fusion)

@@ -273,7 +273,8 @@ int Supervisor::shutdown() {
   const RuntimeCounters c = rt_.counters();
   const MemoryUse mem = read_memory_use();
   spdlog::info(
-      "stopped: {} edges, {} teeth, {} cycles, {} CAN frames, drops edge/can/out/source {}/{}/{}/{}, overruns {}, "
+      "stopped: {} edges, {} teeth, {} cycles, {} CAN frames, drops edge/can/out/source {}/{}/{}/{}, "
+      "overruns {}, "
       "latency over the run p50/p99/max {:.1f}/{:.1f}/{:.1f} us, publisher pre-wakes {} (timed out {}), "
       "angle thread wake-ups {}, memory RSS {:.1f} MiB (peak {:.1f}, locked {:.1f})",
       c.edges, c.teeth, c.cycles, c.can_frames, c.ring_drops_edge, c.ring_drops_can, c.ring_drops_out,

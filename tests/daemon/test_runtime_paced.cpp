@@ -1,9 +1,9 @@
-// tests/daemon/test_runtime_paced.cpp: a paced replay (threads, wake-ups at due times) gives the same angle-chain
-// values as the fast replay (one thread, no clock) of the same recording: when and how often the angle thread
-// wakes must not change what the decoder and the estimators see. The angle thread takes cam edges and the
-// falling crank edges at the next tooth edge's wake-up (not at their own due time): it must still hand them to
-// the decoder in order. Checked on a 60-2 wheel with a cam, with and without the decoder's debounce (with it,
-// the falling edge is the one that releases each tooth).
+// tests/daemon/test_runtime_paced.cpp: a paced replay (threads, wake-ups at due times) gives the same
+// angle-chain values as the fast replay (one thread, no clock) of the same recording: when and how often the
+// angle thread wakes must not change what the decoder and the estimators see. The angle thread takes cam
+// edges and the falling crank edges at the next tooth edge's wake-up (not at their own due time): it must
+// still hand them to the decoder in order. Checked on a 60-2 wheel with a cam, with and without the decoder's
+// debounce (with it, the falling edge is the one that releases each tooth).
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -65,8 +65,10 @@ PacedRun run_paced(const std::string& path, const StageSettings& s, double speed
   o.rt_thread_hook = [&](const char*, bool exiting) {
     if (exiting) return;
     const std::size_t n = current_thread_stack_size();
-    for (std::size_t m = stack_min.load(); n < m && !stack_min.compare_exchange_weak(m, n);) {}
-    for (std::size_t m = stack_max.load(); n > m && !stack_max.compare_exchange_weak(m, n);) {}
+    for (std::size_t m = stack_min.load(); n < m && !stack_min.compare_exchange_weak(m, n);) {
+    }
+    for (std::size_t m = stack_max.load(); n > m && !stack_max.compare_exchange_weak(m, n);) {
+    }
   };
   EdgeCsvSource src(path, {});
   EXPECT_TRUE(src.ok());
@@ -75,7 +77,8 @@ PacedRun run_paced(const std::string& path, const StageSettings& s, double speed
   Runtime rt(s, o, &src, nullptr, 0, nullptr, sink);
   EXPECT_TRUE(rt.ok()) << rt.error();
   EXPECT_TRUE(rt.start()) << rt.error();
-  for (int i = 0; i < 500 && !rt.input_done(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  for (int i = 0; i < 500 && !rt.input_done(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   EXPECT_TRUE(rt.input_done());
   EXPECT_TRUE(rt.stop_and_drain(2'000'000'000));
   // Runtime::start sizes the stacks of the threads it creates (not RLIMIT_STACK's 8 MiB, which mlockall would
@@ -95,7 +98,8 @@ void expect_same_values(const std::vector<dds::AnySample>& paced, const std::vec
     // Bit-identical: same inputs in the same order through the same code.
     ASSERT_EQ(0, std::memcmp(&a[i].u, &b[i].u, sizeof a[i].u))
         << "sample " << i << " (topic " << static_cast<int>(a[i].topic) << ", t "
-        << a[i].visit([](const auto& v) { return v.source_t_ns; }) << ") differs between paced and fast replay";
+        << a[i].visit([](const auto& v) { return v.source_t_ns; })
+        << ") differs between paced and fast replay";
   }
   EXPECT_GT(cycles, 20) << "per-cycle EngineTorque samples compared";
 }
