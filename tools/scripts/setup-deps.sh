@@ -14,9 +14,10 @@ PKGS=(
   can-utils iproute2
   python3 python3-matplotlib python3-numpy
 )
-# Extra packages only the heavier test tiers need (VM for vcan, latency tools, foreign DDS peer).
+# Extra packages only the heavier test tiers need (VM for vcan, latency tools, foreign DDS peer, iceoryx RouDi
+# for the shared-memory test).
 if [[ "${TORQUED_DEPS_FULL:-1}" == "1" ]]; then
-  PKGS+=(qemu-system-x86 busybox-static cpio rt-tests stress-ng libfastrtps-dev fastddsgen)
+  PKGS+=(qemu-system-x86 busybox-static cpio rt-tests stress-ng libfastrtps-dev fastddsgen iceoryx)
 fi
 
 missing=()
