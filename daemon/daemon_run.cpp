@@ -158,8 +158,8 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
 
   const int rc = run_supervised(cfg, opt, in, recorder.get(), fanout);
   if (publisher)
-    spdlog::info("dds: {} samples written ({} through shared-memory loans), {} write errors", publisher->written(),
-                 publisher->loaned_writes(), publisher->write_errors());
+    spdlog::info("dds: {} samples written ({} through shared-memory loans), {} write errors",
+                 publisher->written(), publisher->loaned_writes(), publisher->write_errors());
   return rc;
 }
 

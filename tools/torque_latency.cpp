@@ -3,9 +3,10 @@
 // EngineTorque, and measures receive time - ingest_t_ns (the edge's due time on CLOCK_REALTIME). Optionally
 // loads the other core (stress-ng --cpu 1) and runs cyclictest and ddsperf alongside, printing their figures
 // side by side with ours, and the ratio of ours to those floors.
-// It subscribes on the daemon's own DDS domain and topic prefix (from --config) and keeps only the samples of its
-// engine_id; its logs and the daemon's state directory are in a private temporary directory (mkdtemp, removed
-// at the end unless --keep-logs), so two runs or another daemon on the machine do not mix their figures.
+// It subscribes on the daemon's own DDS domain and topic prefix (from --config) and keeps only the samples of
+// its engine_id; its logs and the daemon's state directory are in a private temporary directory (mkdtemp,
+// removed at the end unless --keep-logs), so two runs or another daemon on the machine do not mix their
+// figures.
 //   CYCLONEDDS_URI=file://$PWD/config/cyclonedds-loopback.xml torque-latency --torqued build/daemon/torqued
 //   --config config/demo.yaml --duration 15 --stress --cyclictest [--plot latency.png]
 #include <sched.h>
@@ -255,8 +256,8 @@ void ddsperf_summary(const char* log, double& p50, double& p99, std::size_t& n) 
 }
 
 /// The floors measured in the same run and our ratio to them: cyclictest p50 (one timer wake-up of a
-/// SCHED_FIFO thread) + ddsperf's one-way p50 (one DDS hop into an idle process) against edge -> received p50;
-/// cyclictest's p99.9 against ours (target: 2x). Printed only for the floors that were measured.
+/// SCHED_FIFO thread) + ddsperf's one-way p50 (one DDS hop into an idle process) against edge -> received
+/// p50; cyclictest's p99.9 against ours (target: 2x). Printed only for the floors that were measured.
 void print_floors(const Stats& total, const Stats& daemon, const Stats& dds, double cyc_p50, double cyc_p999,
                   double dds_one_way) {
   if (total.us.empty() || (cyc_p50 < 0 && dds_one_way < 0)) return;
@@ -270,9 +271,10 @@ void print_floors(const Stats& total, const Stats& daemon, const Stats& dds, dou
   std::printf("\n");
   if (cyc_p50 >= 0 && dds_one_way >= 0) {
     const double floor = cyc_p50 + dds_one_way;
-    std::printf("vs floor: edge -> received p50 %.1f us, floor (cyclictest p50 + ddsperf one-way) %.1f us: "
-                "%.2fx, %+.1f us (targets: <= cyclictest p50 + 15 us = %.1f us, <= 50 us)\n",
-                p50, floor, p50 / floor, p50 - floor, cyc_p50 + 15.0);
+    std::printf(
+        "vs floor: edge -> received p50 %.1f us, floor (cyclictest p50 + ddsperf one-way) %.1f us: "
+        "%.2fx, %+.1f us (targets: <= cyclictest p50 + 15 us = %.1f us, <= 50 us)\n",
+        p50, floor, p50 / floor, p50 - floor, cyc_p50 + 15.0);
   }
   if (cyc_p999 > 0)
     std::printf("vs floor: edge -> received p99.9 %.1f us, cyclictest p99.9 %.1f us: %.2fx (target <= 2x)\n",
@@ -285,7 +287,8 @@ void remove_dir(const std::string& dir, bool keep) {
     return;
   }
   const std::string cmd = "rm -rf " + shell_quote(dir);
-  if (std::system(cmd.c_str()) != 0) std::fprintf(stderr, "torque-latency: could not remove %s\n", dir.c_str());
+  if (std::system(cmd.c_str()) != 0)
+    std::fprintf(stderr, "torque-latency: could not remove %s\n", dir.c_str());
 }
 
 }  // namespace
@@ -347,7 +350,8 @@ int main(int argc, char** argv) {
   s.engine_id = static_cast<std::uint16_t>(cfg.config->dds.engine_id);
   auto reliable = [](const TopicQos& q) { return q.reliability == Reliability::kReliable; };
   s.qos[static_cast<std::size_t>(dds::Topic::kCrankState)].reliable = reliable(cfg.config->dds.crank_state);
-  s.qos[static_cast<std::size_t>(dds::Topic::kEngineTorque)].reliable = reliable(cfg.config->dds.engine_torque);
+  s.qos[static_cast<std::size_t>(dds::Topic::kEngineTorque)].reliable =
+      reliable(cfg.config->dds.engine_torque);
 
   // Private paths: logs of the daemon and the helpers, the daemon's state directory.
   char tmpl[] = "/tmp/torque-latency-XXXXXX";
@@ -441,10 +445,12 @@ int main(int argc, char** argv) {
       a.insert(a.begin(), pre.begin(), pre.end());
       return a;
     };
-    // On the daemon's domain: the same network path (two runs with --ddsperf on one domain share their pongs).
+    // On the daemon's domain: the same network path (two runs with --ddsperf on one domain share their
+    // pongs).
     const std::string domain = std::to_string(s.domain_id);
     helpers.push_back(spawn(with_pre({"ddsperf", "-i", domain, "-D", dur, "pong"}), "/dev/null"));
-    helpers.push_back(spawn(with_pre({"ddsperf", "-i", domain, "-D", dur, "ping", rate}), ddsperf_log.c_str()));
+    helpers.push_back(
+        spawn(with_pre({"ddsperf", "-i", domain, "-D", dur, "ping", rate}), ddsperf_log.c_str()));
   }
   const pid_t daemon = spawn({torqued, "--config", config, "--speed", std::to_string(speed),
                               "--wait-subscribers", "1", "--state-dir", state_dir},
@@ -536,8 +542,7 @@ int main(int argc, char** argv) {
   histogram(crank_us, "tooth edge -> CrankState");
   if (!plot.empty()) {
     const std::string csv = plot + ".data.csv";
-    const auto cyc = cyclic ? read_cyclictest(cyclic_log.c_str()).hist
-                            : std::vector<std::pair<int, long>>{};
+    const auto cyc = cyclic ? read_cyclictest(cyclic_log.c_str()).hist : std::vector<std::pair<int, long>>{};
     if (!write_plot_data(csv,
                          {{"crank_total", &crank_us},
                           {"crank_daemon", &rx.crank.in_daemon},

@@ -1,10 +1,10 @@
-// tests/integration/test_dds_shm.cpp: opt-in same-host delivery through shared memory (Cyclone DDS + iceoryx).
-// RouDi (iox-roudi, config/roudi_config.toml) runs; torqued publishes the paced demo with
+// tests/integration/test_dds_shm.cpp: opt-in same-host delivery through shared memory (Cyclone DDS +
+// iceoryx). RouDi (iox-roudi, config/roudi_config.toml) runs; torqued publishes the paced demo at 4x with
 // config/cyclonedds-shm.xml and QoS that iceoryx can carry (no deadline, keep-last 16, reliable). Two
-// subscribers on the same host take EngineTorque and CrankState: this process, with shared memory (its readers
-// must report it), and a child process with the loopback configuration without SharedMemory (the network path,
-// as a subscriber on another host would). Both must receive the same samples, bit for bit, with no seq gap; the
-// daemon's writers must have gone through shared memory with loans. Skipped when iox-roudi is not installed.
+// subscribers on this host take EngineTorque and CrankState: one with cyclonedds-shm.xml (its readers must
+// report shared memory), one with cyclonedds-loopback.xml (no SharedMemory: the network path, as a subscriber
+// on another host has). Both must receive the same samples, bit for bit, with no seq gap; the daemon's
+// writers must have gone through shared memory with loans. Skipped when iox-roudi is not installed.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -112,11 +112,12 @@ std::vector<T> read_all(const std::string& path) {
   return v;
 }
 
-/// Child process: one subscriber. Receives until 3 s without a sample (after the first) or 60 s, writes what it
-/// got to dir/<tag>_engine.bin and dir/<tag>_crank.bin, exits 0 (2: DDS set-up failed, 3: its readers use shared
-/// memory or not, unlike `shm`). In a child so that this process never registers with RouDi (which sends
-/// SIGTERM to its registered processes when it stops).
-[[noreturn]] void subscriber(const std::string& config, bool shm, const std::string& dir, const std::string& tag) {
+/// Child process: one subscriber. Receives until 3 s without a sample (after the first) or 60 s, writes what
+/// it got to dir/<tag>_engine.bin and dir/<tag>_crank.bin, exits 0 (2: DDS set-up failed, 3: its readers use
+/// shared memory or not, unlike `shm`). In a child so that this process never registers with RouDi (which
+/// sends SIGTERM to its registered processes when it stops).
+[[noreturn]] void subscriber(const std::string& config, bool shm, const std::string& dir,
+                             const std::string& tag) {
   Subscriber sub(xml(config));
   if (!sub.ok()) _exit(2);
   if (sub.shared_memory() != shm) _exit(3);
@@ -144,7 +145,8 @@ void expect_same(std::vector<T> shm, std::vector<T> net, const char* topic) {
   ASSERT_EQ(shm.size(), net.size()) << topic << ": shared memory and network path received different counts";
   for (std::size_t i = 0; i < shm.size(); ++i) {
     ASSERT_EQ(shm[i].seq, i + 1) << topic << ": seq gap over shared memory";
-    ASSERT_EQ(0, std::memcmp(&shm[i], &net[i], sizeof(T))) << topic << " sample seq " << shm[i].seq << " differs";
+    ASSERT_EQ(0, std::memcmp(&shm[i], &net[i], sizeof(T)))
+        << topic << " sample seq " << shm[i].seq << " differs";
   }
 }
 
@@ -160,13 +162,14 @@ TEST(DdsSharedMemory, SameSamplesOverSharedMemoryAndTheNetworkPath) {
   for (const auto& [from, to] : std::vector<std::pair<std::string, std::string>>{
            {"../data/demo/", kSrc + "/data/demo/"},
            {"dbc: demo.dbc", "dbc: " + kSrc + "/config/demo.dbc"},
-           {"domain_id: 0", "domain_id: " + std::to_string(kDomain) +
-                                "\n  qos:\n"
-                                "    engine_torque: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n"
-                                "    estimator_torque: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n"
-                                "    cylinder_torque: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n"
-                                "    crank_state: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n"
-                                "    status: {reliability: reliable, history_depth: 4, deadline_ms: 0}"}}) {
+           {"domain_id: 0",
+            "domain_id: " + std::to_string(kDomain) +
+                "\n  qos:\n"
+                "    engine_torque: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n"
+                "    estimator_torque: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n"
+                "    cylinder_torque: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n"
+                "    crank_state: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n"
+                "    status: {reliability: reliable, history_depth: 4, deadline_ms: 0}"}}) {
     for (std::size_t at = y.find(from); at != std::string::npos; at = y.find(from, at + to.size()))
       y.replace(at, from.size(), to);
   }
@@ -175,8 +178,10 @@ TEST(DdsSharedMemory, SameSamplesOverSharedMemoryAndTheNetworkPath) {
 
   test::Process rd({roudi, "-c", kSrc + "/config/roudi_config.toml"}, {}, (dir / "roudi.log").string());
   const auto roudi_log = [&] { return test::slurp((dir / "roudi.log").string()); };
-  ASSERT_TRUE(test::eventually(10, [&] { return roudi_log().find("RouDi is ready") != std::string::npos || !rd.running(); }));
-  if (!rd.running()) GTEST_SKIP() << "RouDi did not start (one per host: another one running?): " << roudi_log();
+  ASSERT_TRUE(test::eventually(
+      10, [&] { return roudi_log().find("RouDi is ready") != std::string::npos || !rd.running(); }));
+  if (!rd.running())
+    GTEST_SKIP() << "RouDi did not start (one per host: another one running?): " << roudi_log();
 
   // Both subscribers in children, forked before anything here creates a thread.
   const pid_t net = ::fork();
@@ -184,25 +189,27 @@ TEST(DdsSharedMemory, SameSamplesOverSharedMemoryAndTheNetworkPath) {
   const pid_t shm = ::fork();
   if (shm == 0) subscriber("cyclonedds-shm.xml", true, dir.string(), "shm");
 
-  test::Process d({TORQUED_EXE, "--config", cfg, "--speed", "4", "--exit-when-done", "--wait-subscribers", "2",
-                   "--state-dir", (dir / "state").string()},
-                  {"CYCLONEDDS_URI=file://" + kSrc + "/config/cyclonedds-shm.xml"}, (dir / "daemon.log").string());
+  test::Process d({TORQUED_EXE, "--config", cfg, "--speed", "4", "--exit-when-done", "--wait-subscribers",
+                   "2", "--state-dir", (dir / "state").string()},
+                  {"CYCLONEDDS_URI=file://" + kSrc + "/config/cyclonedds-shm.xml"},
+                  (dir / "daemon.log").string());
   const bool exited = d.wait(60);
   const std::string log = test::slurp((dir / "daemon.log").string());
   for (const auto& [pid, what] : {std::pair{net, "network"}, std::pair{shm, "shared-memory"}}) {
     int st = 0;
     ASSERT_EQ(::waitpid(pid, &st, 0), pid);
     EXPECT_TRUE(WIFEXITED(st) && WEXITSTATUS(st) == 0)
-        << what << " subscriber: status " << st << " (exit 3: shared memory " << (what[0] == 'n' ? "used" : "not used")
-        << ")";
+        << what << " subscriber: status " << st << " (exit 3: shared memory "
+        << (what[0] == 'n' ? "used" : "not used") << ")";
   }
   rd.signal(SIGINT);
   EXPECT_TRUE(rd.wait(10));
   ASSERT_TRUE(exited) << log;
   EXPECT_EQ(d.exit_code(), 0) << log;
 
-  EXPECT_NE(log.find("DDS shared memory (iceoryx) for: EngineTorque EstimatorTorque CylinderTorque CrankState"),
-            std::string::npos)
+  EXPECT_NE(
+      log.find("DDS shared memory (iceoryx) for: EngineTorque EstimatorTorque CylinderTorque CrankState"),
+      std::string::npos)
       << log;
   const auto at = log.find(" through shared-memory loans");
   ASSERT_NE(at, std::string::npos) << log;
