@@ -20,9 +20,10 @@ void fail(RtOutcome& o, const char* what, int err) {
 }
 }  // namespace
 
-RtOutcome lock_memory() noexcept {
+RtOutcome lock_memory(bool on_fault) noexcept {
   RtOutcome o;
-  if (mlockall(MCL_CURRENT | MCL_FUTURE) != 0) fail(o, "mlockall(MCL_CURRENT|MCL_FUTURE)", errno);
+  if (mlockall(MCL_CURRENT | MCL_FUTURE | (on_fault ? MCL_ONFAULT : 0)) != 0)
+    fail(o, on_fault ? "mlockall(MCL_CURRENT|MCL_FUTURE|MCL_ONFAULT)" : "mlockall(MCL_CURRENT|MCL_FUTURE)", errno);
   return o;
 }
 

@@ -87,7 +87,7 @@ bool Runtime::start() {
   // which mlockall would make resident. run_daemon sets it before Cyclone's threads exist, too.
   if (const RtOutcome st = set_default_thread_stack(); !st.ok) warnings_.push_back(st.message);
   if (opt_.lock_memory) {
-    const RtOutcome o = lock_memory();
+    const RtOutcome o = lock_memory(opt_.lock_on_fault);
     if (!o.ok) {
       flags_.fetch_or(torque_STATUS_MLOCK_FAILED, std::memory_order_relaxed);
       if (opt_.require_rt) {

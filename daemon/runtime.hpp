@@ -38,6 +38,7 @@ struct RuntimeOptions {
   double speed = 1.0;  ///< replay speed factor (paced replay); ignored for live sources
   bool replay = true;  ///< file sources paced by their timestamps (false: live sources)
   bool lock_memory = true;
+  bool lock_on_fault = false;  ///< mlockall(... | MCL_ONFAULT): lock pages when first touched
   bool require_rt = false;  ///< start() fails when SCHED_FIFO/mlockall are not permitted
   ThreadRt angle{true, 80, {}, "torqued-angle"};
   ThreadRt time{true, 70, {}, "torqued-time"};

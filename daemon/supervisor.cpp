@@ -47,6 +47,7 @@ RuntimeOptions runtime_options(const Config& cfg, const RunOptions& opt) {
   ro.replay = cfg.inputs.edges.backend == EdgeBackend::kFile && cfg.inputs.can.backend == CanBackend::kFile;
   ro.speed = opt.speed ? *opt.speed : cfg.replay.speed;
   ro.lock_memory = cfg.realtime.lock_memory;
+  ro.lock_on_fault = cfg.realtime.lock_on_fault;
   ro.require_rt = cfg.realtime.require_rt;
   ro.angle = thread_rt(cfg.realtime.angle, "torqued-angle");
   ro.time = thread_rt(cfg.realtime.time, "torqued-time");
