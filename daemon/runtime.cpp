@@ -267,6 +267,7 @@ Runtime::DueItem Runtime::angle_process_due() noexcept {
       can_angle_ring_.pop_front();
     }
     angle_->on_edge(e->e, ingest);
+    if (e->e.channel == s_.decoder.crank_channel) last_crank_active_ = (e->e.level != 0) == s_.wheel.rising_edge;
     last_t_ns_.store(e->e.t_ns, std::memory_order_relaxed);
     edge_ring_.pop_front();
   }
@@ -288,24 +289,30 @@ Runtime::DueItem Runtime::angle_process_due() noexcept {
   return next;
 }
 
-// An edge can make the chain emit samples only if it is a crank edge of the wheel's polarity (or any crank
-// edge when the decoder debounces: the opposite edge then confirms the held tooth). Cam edges and the other
-// crank edges only change the decoder's state: they need no wake-up at their own due time, as long as the
-// decoder sees them, in order, before the next edge that can emit. So the angle thread sleeps until the first
-// emitting edge queued (looking at most kLookahead records ahead) and takes the edges before it at that
-// wake-up, each stamped with its own due time. No emitting edge queued yet: the first edge's due time, as
-// before.
+// An edge can make the chain emit samples only if it is a crank edge of the wheel's polarity, or, when the decoder
+// debounces (decoder.min_pulse_us > 0), the opposite crank edge, which confirms the held tooth (an edge of the
+// wheel's polarity then emits only when the opposite edge before it was missing). Cam edges and the other crank
+// edges only change the decoder's state: they need no wake-up at their own due time, as long as the decoder sees
+// them, in order, before the next edge that can emit. So the angle thread sleeps until the first such edge queued
+// (looking at most kLookahead records ahead) and takes the edges before it at that wake-up, each stamped with its
+// own due time. No such edge queued yet: the first edge's due time, as before. A wrong guess costs latency only
+// (the samples come at the next wake-up), never order or values.
+bool Runtime::edge_may_emit(const EdgeEvent& e, bool& prev_active) const noexcept {
+  if (e.channel != s_.decoder.crank_channel) return false;
+  const bool active = (e.level != 0) == s_.wheel.rising_edge;
+  const bool emits = s_.decoder.min_pulse_us > 0.0 ? !active || prev_active : active;
+  prev_active = active;
+  return emits;
+}
+
 Runtime::DueItem Runtime::next_wakeup(const EdgeEvent& first, std::int64_t first_due) noexcept {
   constexpr std::size_t kLookahead = 64;
-  const auto emits = [this](const EdgeEvent& e) {
-    return e.channel == s_.decoder.crank_channel &&
-           (s_.decoder.min_pulse_us > 0.0 || (e.level != 0) == s_.wheel.rising_edge);
-  };
-  if (emits(first)) return DueItem{first_due, true};
+  bool prev_active = last_crank_active_;
+  if (edge_may_emit(first, prev_active)) return DueItem{first_due, true};
   for (std::size_t i = 1; i < kLookahead; ++i) {
     const EdgeIn* e = edge_ring_.peek(i);
     if (!e || e->ingest_ns != 0) break;
-    if (emits(e->e)) return DueItem{clock_.due_mono_ns(e->e.t_ns), true};
+    if (edge_may_emit(e->e, prev_active)) return DueItem{clock_.due_mono_ns(e->e.t_ns), true};
   }
   return DueItem{first_due, false};
 }

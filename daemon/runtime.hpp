@@ -125,6 +125,8 @@ class Runtime {
   };
   DueItem angle_process_due() noexcept;
   DueItem next_wakeup(const EdgeEvent& first, std::int64_t first_due) noexcept;
+  bool edge_may_emit(const EdgeEvent& e, bool& prev_active) const noexcept;
+  bool last_crank_active_ = false;  ///< angle thread: the last crank edge processed had the wheel's polarity
   void angle_check_edge_timeout() noexcept;
   void angle_publish_counters() noexcept;
   static constexpr std::int64_t kReadAheadNs =
