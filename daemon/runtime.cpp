@@ -267,7 +267,8 @@ Runtime::DueItem Runtime::angle_process_due() noexcept {
       can_angle_ring_.pop_front();
     }
     angle_->on_edge(e->e, ingest);
-    if (e->e.channel == s_.decoder.crank_channel) last_crank_active_ = (e->e.level != 0) == s_.wheel.rising_edge;
+    if (e->e.channel == s_.decoder.crank_channel)
+      last_crank_active_ = (e->e.level != 0) == s_.wheel.rising_edge;
     last_t_ns_.store(e->e.t_ns, std::memory_order_relaxed);
     edge_ring_.pop_front();
   }
@@ -289,14 +290,14 @@ Runtime::DueItem Runtime::angle_process_due() noexcept {
   return next;
 }
 
-// An edge can make the chain emit samples only if it is a crank edge of the wheel's polarity, or, when the decoder
-// debounces (decoder.min_pulse_us > 0), the opposite crank edge, which confirms the held tooth (an edge of the
-// wheel's polarity then emits only when the opposite edge before it was missing). Cam edges and the other crank
-// edges only change the decoder's state: they need no wake-up at their own due time, as long as the decoder sees
-// them, in order, before the next edge that can emit. So the angle thread sleeps until the first such edge queued
-// (looking at most kLookahead records ahead) and takes the edges before it at that wake-up, each stamped with its
-// own due time. No such edge queued yet: the first edge's due time, as before. A wrong guess costs latency only
-// (the samples come at the next wake-up), never order or values.
+// An edge can make the chain emit samples only if it is a crank edge of the wheel's polarity, or, when the
+// decoder debounces (decoder.min_pulse_us > 0), the opposite crank edge, which confirms the held tooth (an
+// edge of the wheel's polarity then emits only when the opposite edge before it was missing). Cam edges and
+// the other crank edges only change the decoder's state: they need no wake-up at their own due time, as long
+// as the decoder sees them, in order, before the next edge that can emit. So the angle thread sleeps until
+// the first such edge queued (looking at most kLookahead records ahead) and takes the edges before it at that
+// wake-up, each stamped with its own due time. No such edge queued yet: the first edge's due time, as before.
+// A wrong guess costs latency only (the samples come at the next wake-up), never order or values.
 bool Runtime::edge_may_emit(const EdgeEvent& e, bool& prev_active) const noexcept {
   if (e.channel != s_.decoder.crank_channel) return false;
   const bool active = (e.level != 0) == s_.wheel.rising_edge;

@@ -129,9 +129,9 @@ TEST_P(PacedEqualsFast, SameAngleChainValuesAndAboutOneWakeUpPerTooth) {
   const RuntimeCounters& c = paced.counters;
   EXPECT_EQ(c.ring_drops_edge + c.ring_drops_out, 0u);
   EXPECT_GT(c.edges, 2 * static_cast<std::uint64_t>(teeth)) << "rising + falling crank edges and cam edges";
-  // About one sleep per tooth edge, not one per edge (before: 2 per tooth + cam edges): the falling crank edges
-  // and the cam edges ride on the tooth edges' wake-ups. The margin covers the few other sleeps (start, end, a
-  // read-ahead batch ending on a non-tooth edge, the 50 ms bound).
+  // About one sleep per tooth edge, not one per edge (before: 2 per tooth + cam edges): the falling crank
+  // edges and the cam edges ride on the tooth edges' wake-ups. The margin covers the few other sleeps (start,
+  // end, a read-ahead batch ending on a non-tooth edge, the 50 ms bound).
   EXPECT_GT(c.angle_wakeups, 0u);
   EXPECT_LT(c.angle_wakeups, static_cast<std::uint64_t>(teeth) * 11 / 10 + 20)
       << c.angle_wakeups << " angle-thread wake-ups for " << teeth << " teeth and " << c.edges << " edges";
