@@ -140,6 +140,7 @@ struct RealtimeConfig {
   ThreadConfig source{SchedPolicy::kFifo, 85, {}};
   ThreadConfig publisher{SchedPolicy::kFifo, 60, {}};  // below the pipelines; not allocation-free (DDS)
   bool lock_memory = true;   ///< mlockall(MCL_CURRENT|MCL_FUTURE) before the threads start
+  bool lock_on_fault = false;  ///< ... with MCL_ONFAULT: lock pages when first touched, not every mapped page
   bool require_rt = false;   ///< refuse to start when SCHED_FIFO / mlockall are not permitted (else warn)
   int publisher_spin_us = 150;  ///< paced replay: publisher wakes at the next edge's due time and polls this long
 };

@@ -254,6 +254,11 @@ void add_rest(std::vector<SchemaEntry>& t) {
   add_thread(t, "source", TQ_REF(ThreadConfig, realtime.source), "source threads (edges, CAN)");
   add_thread(t, "publisher", TQ_REF(ThreadConfig, realtime.publisher), "DDS publisher thread");
   t.push_back(boolean("realtime.lock_memory", TQ_REF(bool, realtime.lock_memory), "mlockall before the threads start"));
+  t.push_back(boolean("realtime.lock_on_fault", TQ_REF(bool, realtime.lock_on_fault),
+                      "mlockall with MCL_ONFAULT: pages are locked when first touched instead of every mapped page "
+                      "at once (the real-time threads' stacks and rings are prefaulted at start; keeps mappings "
+                      "never touched, e.g. iceoryx's 66 MB management segment with shared memory, out of RSS; "
+                      "a page first touched later costs one minor fault)"));
   t.push_back(boolean("realtime.require_rt", TQ_REF(bool, realtime.require_rt),
                       "refuse to start when SCHED_FIFO/mlockall are not permitted (else warn)"));
   t.push_back(integer("realtime.publisher_spin_us", TQ_REF(int, realtime.publisher_spin_us), closed(0, 10000), "us",

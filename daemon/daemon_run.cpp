@@ -103,6 +103,9 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
 
 int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   Config cfg = cfg_in;
+  // Before any thread exists (Cyclone's included): stacks of kThreadStackBytes, not 8 MiB each made resident
+  // by mlockall.
+  if (const RtOutcome st = set_default_thread_stack(); !st.ok) spdlog::warn("thread stacks: {}", st.message);
   if (opt.record_dir) cfg.output.record_dir = *opt.record_dir;
   const bool fast = opt.mode ? *opt.mode == "fast" : cfg.replay.mode == ReplayMode::kFast;
   RunInputs in = open_inputs(cfg);
@@ -144,6 +147,8 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
     }
     spdlog::info("DDS domain {} topics {}/* engine_id {}", s.dds.domain_id, s.dds.topic_prefix,
                  s.dds.engine_id);
+    if (const std::string shm = publisher->shared_memory_topics(); !shm.empty())
+      spdlog::info("DDS shared memory (iceoryx) for: {}", shm);
     wait_for_subscribers(*publisher, opt);
   }
   OutputFanout fanout(recorder.get(), publisher.get(), s.dds.engine_id);
@@ -154,7 +159,11 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
     return recording_failed(recorder.get()) ? std::max(rc, 3) : rc;
   }
 
-  return run_supervised(cfg, opt, in, recorder.get(), fanout);
+  const int rc = run_supervised(cfg, opt, in, recorder.get(), fanout);
+  if (publisher)
+    spdlog::info("dds: {} samples written ({} through shared-memory loans), {} write errors",
+                 publisher->written(), publisher->loaned_writes(), publisher->write_errors());
+  return rc;
 }
 
 }  // namespace torqued

@@ -2,6 +2,10 @@
 
 #include <time.h>
 
+#include <cstring>
+
+#include "dds/ddsc/dds_loan_api.h"
+
 namespace torqued {
 
 std::int64_t DdsPublisher::realtime_ns() noexcept {
@@ -31,7 +35,20 @@ DdsPublisher::DdsPublisher(const dds::DdsSettings& settings, bool stamp_times)
       error_ = "dds_create_writer '" + settings_.topic_name(t) + "': " + dds_strretcode(writers_[static_cast<std::size_t>(i)]);
       return;
     }
+    shm_[static_cast<std::size_t>(i)] = dds_is_shared_memory_available(writers_[static_cast<std::size_t>(i)]);
+    loan_[static_cast<std::size_t>(i)] = dds_is_loan_available(writers_[static_cast<std::size_t>(i)]);
   }
+}
+
+std::string DdsPublisher::shared_memory_topics() const {
+  std::string r;
+  for (int i = 0; i < dds::kTopicCount; ++i)
+    if (shm_[static_cast<std::size_t>(i)]) {
+      if (!r.empty()) r += ' ';
+      r += dds::kTopicNames[i];
+      if (!loan_[static_cast<std::size_t>(i)]) r += "(no loans)";
+    }
+  return r;
 }
 
 DdsPublisher::~DdsPublisher() {
@@ -46,9 +63,18 @@ bool DdsPublisher::write(dds::AnySample& s) noexcept {
   }
   const std::int64_t now = stamp_times_ ? realtime_ns() : 0;
   const std::uint16_t engine = settings_.engine_id;
+  const bool loan = loan_[static_cast<std::size_t>(s.topic)];
   const dds_return_t rc = s.visit([&](auto& v) {
     v.engine_id = engine;
     v.publish_t_ns = now;
+    // Shared memory: fill a sample lent by iceoryx (fixed-size type: one copy, no serialisation) and hand it
+    // back with dds_write, which publishes it to same-host readers and serialises it only for remote ones.
+    void* lent = nullptr;
+    if (loan && dds_loan_sample(w, &lent) == DDS_RETCODE_OK && lent) {
+      std::memcpy(lent, &v, sizeof v);
+      ++loaned_;
+      return dds_write(w, lent);
+    }
     return dds_write(w, &v);
   });
   if (rc != DDS_RETCODE_OK) {

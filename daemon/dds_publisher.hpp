@@ -28,6 +28,11 @@ class DdsPublisher {
   bool write(dds::AnySample& s) noexcept;
   [[nodiscard]] std::uint64_t written() const noexcept { return written_; }
   [[nodiscard]] std::uint64_t write_errors() const noexcept { return write_errors_; }
+  /// Samples written through a loan of iceoryx shared memory (same host: no serialisation, no socket).
+  [[nodiscard]] std::uint64_t loaned_writes() const noexcept { return loaned_; }
+  /// Topics whose writer delivers through shared memory, e.g. "EngineTorque CrankState" ("" when none):
+  /// Cyclone's SharedMemory enabled, RouDi running, QoS eligible (volatile, keep-last, no deadline).
+  [[nodiscard]] std::string shared_memory_topics() const;
   /// Number of matched readers of a topic (for tests and the startup log).
   [[nodiscard]] int matched_readers(dds::Topic t) const noexcept;
 
@@ -38,8 +43,9 @@ class DdsPublisher {
   bool stamp_times_;
   dds_entity_t participant_ = 0;
   std::array<dds_entity_t, dds::kTopicCount> writers_{};
+  std::array<bool, dds::kTopicCount> shm_{}, loan_{};  ///< through shared memory / lends samples
   std::string error_;
-  std::uint64_t written_ = 0, write_errors_ = 0;
+  std::uint64_t written_ = 0, write_errors_ = 0, loaned_ = 0;
 };
 
 }  // namespace torqued

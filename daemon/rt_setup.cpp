@@ -5,6 +5,7 @@
 #include <sys/mman.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 
 namespace torqued {
@@ -19,16 +20,59 @@ void fail(RtOutcome& o, const char* what, int err) {
 }
 }  // namespace
 
-RtOutcome lock_memory() noexcept {
+RtOutcome lock_memory(bool on_fault) noexcept {
   RtOutcome o;
-  if (mlockall(MCL_CURRENT | MCL_FUTURE) != 0) fail(o, "mlockall(MCL_CURRENT|MCL_FUTURE)", errno);
+  if (mlockall(MCL_CURRENT | MCL_FUTURE | (on_fault ? MCL_ONFAULT : 0)) != 0)
+    fail(o, on_fault ? "mlockall(MCL_CURRENT|MCL_FUTURE|MCL_ONFAULT)" : "mlockall(MCL_CURRENT|MCL_FUTURE)", errno);
   return o;
+}
+
+RtOutcome set_default_thread_stack(std::size_t bytes) noexcept {
+  RtOutcome o;
+  pthread_attr_t attr;
+  if (const int err = pthread_getattr_default_np(&attr)) {
+    fail(o, "pthread_getattr_default_np", err);
+    return o;
+  }
+  if (const int err = pthread_attr_setstacksize(&attr, bytes))
+    fail(o, "pthread_attr_setstacksize", err);
+  else if (const int err2 = pthread_setattr_default_np(&attr))
+    fail(o, "pthread_setattr_default_np", err2);
+  pthread_attr_destroy(&attr);
+  return o;
+}
+
+std::size_t current_thread_stack_size() noexcept {
+  pthread_attr_t attr;
+  if (pthread_getattr_np(pthread_self(), &attr) != 0) return 0;
+  std::size_t size = 0;
+  if (pthread_attr_getstacksize(&attr, &size) != 0) size = 0;
+  pthread_attr_destroy(&attr);
+  return size;
+}
+
+MemoryUse read_memory_use() noexcept {
+  MemoryUse m;
+  std::FILE* f = std::fopen("/proc/self/status", "re");
+  if (!f) return m;
+  char line[256];
+  while (std::fgets(line, sizeof line, f)) {
+    unsigned long long kb = 0;
+    if (std::sscanf(line, "VmRSS: %llu kB", &kb) == 1)
+      m.rss = static_cast<std::size_t>(kb) * 1024;
+    else if (std::sscanf(line, "VmHWM: %llu kB", &kb) == 1)
+      m.peak = static_cast<std::size_t>(kb) * 1024;
+    else if (std::sscanf(line, "VmLck: %llu kB", &kb) == 1)
+      m.locked = static_cast<std::size_t>(kb) * 1024;
+  }
+  std::fclose(f);
+  return m;
 }
 
 void prefault_stack(std::size_t bytes) noexcept {
   // A volatile buffer the compiler cannot drop; alloca-free and bounded.
   constexpr std::size_t kChunk = 4096;
-  volatile unsigned char buf[256 * 1024];
+  volatile unsigned char buf[kPrefaultStackBytes];
   const std::size_t n = bytes < sizeof buf ? bytes : sizeof buf;
   for (std::size_t i = 0; i < n; i += kChunk) buf[i] = 0;
 }

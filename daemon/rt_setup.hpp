@@ -24,8 +24,9 @@ struct RtOutcome {
   std::string message;         ///< what failed and why (errno text)
 };
 
-/// mlockall(MCL_CURRENT | MCL_FUTURE).
-RtOutcome lock_memory() noexcept;
+/// mlockall(MCL_CURRENT | MCL_FUTURE), with MCL_ONFAULT when on_fault (pages locked when first touched: mapped
+/// pages never touched, such as the unused part of a shared-memory segment, stay out of RSS).
+RtOutcome lock_memory(bool on_fault = false) noexcept;
 /// Applies affinity, policy/priority and the name to the CALLING thread, then prefaults its stack.
 RtOutcome apply_to_current_thread(const ThreadRt& rt) noexcept;
 /// Gives the calling thread `rt`'s policy, priority and affinity (not its name) until destroyed, then
@@ -50,7 +51,32 @@ class ScopedThreadRt {
   RtOutcome outcome_;
 };
 
+/// Stack size of every thread of the daemon (ours and Cyclone's): with mlockall(MCL_FUTURE) a thread's whole
+/// stack mapping becomes resident, and glibc's default (RLIMIT_STACK, 8 MiB) made ten threads 80 MiB of RSS.
+/// The deepest of our threads uses a few tens of KiB (the prefault below is the largest frame); Cyclone's are
+/// set in config/cyclonedds-*.xml (Threads/Thread/StackSize) to the same size.
+inline constexpr std::size_t kThreadStackBytes = 512 * 1024;
+/// Prefaulted part of each real-time thread's stack (what prefault_stack touches).
+inline constexpr std::size_t kPrefaultStackBytes = 256 * 1024;
+
+static_assert(kPrefaultStackBytes + 128 * 1024 <= kThreadStackBytes, "room above the prefaulted part");
+
+/// Default stack size of the threads created afterwards without attributes (std::thread, Cyclone's threads
+/// without a configured StackSize): pthread_setattr_default_np. Call before creating any thread.
+RtOutcome set_default_thread_stack(std::size_t bytes = kThreadStackBytes) noexcept;
+/// Stack size of the calling thread (pthread_getattr_np), 0 when unknown.
+std::size_t current_thread_stack_size() noexcept;
+
+/// The process's memory as the kernel counts it (/proc/self/status), in bytes; 0 when not readable.
+struct MemoryUse {
+  std::size_t rss = 0;     ///< VmRSS: resident now
+  std::size_t peak = 0;    ///< VmHWM: peak resident
+  std::size_t locked = 0;  ///< VmLck: locked (mlockall)
+};
+/// Reads /proc/self/status (not real-time: opens a file).
+MemoryUse read_memory_use() noexcept;
+
 /// Touches `bytes` of the calling thread's stack so later use does not page-fault.
-void prefault_stack(std::size_t bytes = 256 * 1024) noexcept;
+void prefault_stack(std::size_t bytes = kPrefaultStackBytes) noexcept;
 
 }  // namespace torqued

@@ -83,8 +83,11 @@ void Runtime::start_thread(std::thread& t, const ThreadRt& rt, void (Runtime::*f
 
 bool Runtime::start() {
   if (!ok()) return false;
+  // Our threads (and any created later without attributes) get kThreadStackBytes, not RLIMIT_STACK (8 MiB),
+  // which mlockall would make resident. run_daemon sets it before Cyclone's threads exist, too.
+  if (const RtOutcome st = set_default_thread_stack(); !st.ok) warnings_.push_back(st.message);
   if (opt_.lock_memory) {
-    const RtOutcome o = lock_memory();
+    const RtOutcome o = lock_memory(opt_.lock_on_fault);
     if (!o.ok) {
       flags_.fetch_or(torque_STATUS_MLOCK_FAILED, std::memory_order_relaxed);
       if (opt_.require_rt) {
@@ -230,10 +233,13 @@ void Runtime::angle_loop() {
     next_due_tooth_.store(next.tooth, std::memory_order_relaxed);
     next_due_mono_ns_.store(next.due, std::memory_order_release);
     if (next.due != 0) {
-      const std::int64_t until = std::min(next.due, mono_ns() + 50'000'000);
+      const std::int64_t now = mono_ns();
+      const std::int64_t until = std::min(next.due, now + 50'000'000);
+      if (until > now) angle_wakeups_.fetch_add(1, std::memory_order_relaxed);
       timespec ts{static_cast<time_t>(until / 1'000'000'000), static_cast<long>(until % 1'000'000'000)};
       clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
     } else {
+      if (!has_work()) angle_wakeups_.fetch_add(1, std::memory_order_relaxed);
       angle_wake_.wait_for(50'000'000, has_work);
     }
   }
@@ -249,8 +255,7 @@ Runtime::DueItem Runtime::angle_process_due() noexcept {
     if (ingest == 0) {
       const std::int64_t due = clock_.due_mono_ns(e->e.t_ns);
       if (due - mono_ns() > 0 && !stop_sources_.load(std::memory_order_relaxed)) {
-        next.due = due;
-        next.tooth = e->e.channel == s_.decoder.crank_channel && (e->e.level != 0) == s_.wheel.rising_edge;
+        next = next_wakeup(e->e, due);
         break;
       }
       ingest = realtime_ns() + (due - mono_ns());  // the edge "happens" at its due time (includes our wake-up)
@@ -262,14 +267,19 @@ Runtime::DueItem Runtime::angle_process_due() noexcept {
       can_angle_ring_.pop_front();
     }
     angle_->on_edge(e->e, ingest);
+    if (e->e.channel == s_.decoder.crank_channel)
+      last_crank_active_ = (e->e.level != 0) == s_.wheel.rising_edge;
     last_t_ns_.store(e->e.t_ns, std::memory_order_relaxed);
     edge_ring_.pop_front();
   }
-  while (const FrameIn* f = can_angle_ring_.front()) {  // frames with no later edge yet: at their due time
+  // Frames due now are taken now. A frame not due yet gets a wake-up of its own only when no edge waits in
+  // the ring: otherwise it is taken, in order, before the first edge after it, at that edge's (or a later)
+  // wake-up.
+  while (const FrameIn* f = can_angle_ring_.front()) {
     if (f->ingest_ns == 0 && !stop_sources_.load(std::memory_order_relaxed)) {
       const std::int64_t due = clock_.due_mono_ns(f->f.t_ns);
-      if (due > mono_ns() || (next.due != 0 && due > next.due)) {
-        if (next.due == 0 || due < next.due) next = DueItem{due, false};
+      if (due > mono_ns()) {
+        if (next.due == 0) next = DueItem{due, false};
         break;
       }
     }
@@ -278,6 +288,34 @@ Runtime::DueItem Runtime::angle_process_due() noexcept {
     can_angle_ring_.pop_front();
   }
   return next;
+}
+
+// An edge can make the chain emit samples only if it is a crank edge of the wheel's polarity, or, when the
+// decoder debounces (decoder.min_pulse_us > 0), the opposite crank edge, which confirms the held tooth (an
+// edge of the wheel's polarity then emits only when the opposite edge before it was missing). Cam edges and
+// the other crank edges only change the decoder's state: they need no wake-up at their own due time, as long
+// as the decoder sees them, in order, before the next edge that can emit. So the angle thread sleeps until
+// the first such edge queued (looking at most kLookahead records ahead) and takes the edges before it at that
+// wake-up, each stamped with its own due time. No such edge queued yet: the first edge's due time, as before.
+// A wrong guess costs latency only (the samples come at the next wake-up), never order or values.
+bool Runtime::edge_may_emit(const EdgeEvent& e, bool& prev_active) const noexcept {
+  if (e.channel != s_.decoder.crank_channel) return false;
+  const bool active = (e.level != 0) == s_.wheel.rising_edge;
+  const bool emits = s_.decoder.min_pulse_us > 0.0 ? !active || prev_active : active;
+  prev_active = active;
+  return emits;
+}
+
+Runtime::DueItem Runtime::next_wakeup(const EdgeEvent& first, std::int64_t first_due) noexcept {
+  constexpr std::size_t kLookahead = 64;
+  bool prev_active = last_crank_active_;
+  if (edge_may_emit(first, prev_active)) return DueItem{first_due, true};
+  for (std::size_t i = 1; i < kLookahead; ++i) {
+    const EdgeIn* e = edge_ring_.peek(i);
+    if (!e || e->ingest_ns != 0) break;
+    if (edge_may_emit(e->e, prev_active)) return DueItem{clock_.due_mono_ns(e->e.t_ns), true};
+  }
+  return DueItem{first_due, false};
 }
 
 // No edge for a while: let the decoder time out (stalled) on the edge clock, flag the edge time-out.
@@ -463,6 +501,7 @@ RuntimeCounters Runtime::counters() const noexcept {
   c.run_latency_p50_ns = lat_run_p50_.load(std::memory_order_relaxed);
   c.run_latency_p99_ns = lat_run_p99_.load(std::memory_order_relaxed);
   c.run_latency_max_ns = lat_run_max_.load(std::memory_order_relaxed);
+  c.angle_wakeups = angle_wakeups_.load(std::memory_order_relaxed);
   c.publisher_polls = pub_polls_.load(std::memory_order_relaxed);
   c.publisher_poll_misses = pub_poll_misses_.load(std::memory_order_relaxed);
   c.flags = flags_.load(std::memory_order_relaxed);

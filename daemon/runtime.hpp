@@ -38,6 +38,7 @@ struct RuntimeOptions {
   double speed = 1.0;  ///< replay speed factor (paced replay); ignored for live sources
   bool replay = true;  ///< file sources paced by their timestamps (false: live sources)
   bool lock_memory = true;
+  bool lock_on_fault = false;  ///< mlockall(... | MCL_ONFAULT): lock pages when first touched
   bool require_rt = false;  ///< start() fails when SCHED_FIFO/mlockall are not permitted
   ThreadRt angle{true, 80, {}, "torqued-angle"};
   ThreadRt time{true, 70, {}, "torqued-time"};
@@ -123,6 +124,9 @@ class Runtime {
     bool tooth = false;    ///< it is a crank tooth edge
   };
   DueItem angle_process_due() noexcept;
+  DueItem next_wakeup(const EdgeEvent& first, std::int64_t first_due) noexcept;
+  bool edge_may_emit(const EdgeEvent& e, bool& prev_active) const noexcept;
+  bool last_crank_active_ = false;  ///< angle thread: the last crank edge processed had the wheel's polarity
   void angle_check_edge_timeout() noexcept;
   void angle_publish_counters() noexcept;
   static constexpr std::int64_t kReadAheadNs =
@@ -161,6 +165,7 @@ class Runtime {
   std::atomic<std::int64_t> edge_timeout_ns_{0};
   std::atomic<std::int64_t> next_due_mono_ns_{0};  ///< paced replay: due time of the edge the angle thread waits for
   std::atomic<bool> next_due_tooth_{false};         ///< ... and whether it is a crank tooth edge
+  std::atomic<std::uint64_t> angle_wakeups_{0};     ///< times the angle thread went to sleep (timer or futex)
   std::atomic<std::uint64_t> pub_polls_{0}, pub_poll_misses_{0};  ///< pre-wakes, and those that saw no sample
   ReplayClock clock_;                    ///< recording time ↔ monotonic time (replay and live edge clock)
   LatestValue<TorqueEstimate> time_estimate_;  ///< time thread → angle thread: UIO brake estimate (fusion)

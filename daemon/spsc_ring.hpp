@@ -69,6 +69,15 @@ class SpscRing {
     }
     return &slots_[head & mask_];
   }
+  /// Consumer side: pointer to the i-th oldest record (0 = front()), nullptr when fewer are queued.
+  [[nodiscard]] const T* peek(std::size_t i) noexcept {
+    const std::size_t head = head_.load(std::memory_order_relaxed);
+    if (tail_cache_ - head <= i) {
+      tail_cache_ = tail_.load(std::memory_order_acquire);
+      if (tail_cache_ - head <= i) return nullptr;
+    }
+    return &slots_[(head + i) & mask_];
+  }
   /// Consumer side: removes the record returned by front().
   void pop_front() noexcept { head_.store(head_.load(std::memory_order_relaxed) + 1, std::memory_order_release); }
 

@@ -15,6 +15,8 @@ struct RuntimeCounters {
   /// Publisher pre-wakes (paced replay) and those whose poll ended without a sample.
   std::uint64_t publisher_polls = 0, publisher_poll_misses = 0;
   std::uint64_t rejected_edges = 0, cam_phase_errors = 0;  ///< decoder: glitches rejected, cam disagreements
+  /// Paced replay / live: times the angle thread slept (one wake-up each); not in DaemonStatus (no field).
+  std::uint64_t angle_wakeups = 0;
   std::uint32_t flags = 0;            ///< torque_STATUS_*
   std::uint32_t sensor_timeouts = 0;  ///< bit per EngineSignals quantity
   bool synced = false;

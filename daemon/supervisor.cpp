@@ -57,6 +57,7 @@ RuntimeOptions runtime_options(const Config& cfg, const RunOptions& opt) {
   ro.replay = cfg.inputs.edges.backend == EdgeBackend::kFile && cfg.inputs.can.backend == CanBackend::kFile;
   ro.speed = opt.speed ? *opt.speed : cfg.replay.speed;
   ro.lock_memory = cfg.realtime.lock_memory;
+  ro.lock_on_fault = cfg.realtime.lock_on_fault;
   ro.require_rt = cfg.realtime.require_rt;
   ro.angle = thread_rt(cfg.realtime.angle, "torqued-angle");
   ro.time = thread_rt(cfg.realtime.time, "torqued-time");
@@ -283,12 +284,17 @@ int Supervisor::shutdown() {
     exit_code = 3;
   }
   const RuntimeCounters c = rt_.counters();
+  const MemoryUse mem = read_memory_use();
   spdlog::info(
-      "stopped: {} edges, {} teeth, {} cycles, {} CAN frames, drops edge/can/out/source {}/{}/{}/{}, overruns {}, "
-      "latency over the run p50/p99/max {:.1f}/{:.1f}/{:.1f} us, publisher pre-wakes {} (timed out {})",
+      "stopped: {} edges, {} teeth, {} cycles, {} CAN frames, drops edge/can/out/source {}/{}/{}/{}, "
+      "overruns {}, "
+      "latency over the run p50/p99/max {:.1f}/{:.1f}/{:.1f} us, publisher pre-wakes {} (timed out {}), "
+      "angle thread wake-ups {}, memory RSS {:.1f} MiB (peak {:.1f}, locked {:.1f})",
       c.edges, c.teeth, c.cycles, c.can_frames, c.ring_drops_edge, c.ring_drops_can, c.ring_drops_out,
       c.source_drops, c.overruns, c.run_latency_p50_ns * 1e-3, c.run_latency_p99_ns * 1e-3,
-      c.run_latency_max_ns * 1e-3, c.publisher_polls, c.publisher_poll_misses);
+      c.run_latency_max_ns * 1e-3, c.publisher_polls, c.publisher_poll_misses, c.angle_wakeups,
+      static_cast<double>(mem.rss) / 1048576.0, static_cast<double>(mem.peak) / 1048576.0,
+      static_cast<double>(mem.locked) / 1048576.0);
   return exit_code;
 }
 

@@ -2,7 +2,11 @@
 // process (this one). Starts the daemon (paced replay) as a child process, subscribes to CrankState and
 // EngineTorque, and measures receive time - ingest_t_ns (the edge's due time on CLOCK_REALTIME). Optionally
 // loads the other core (stress-ng --cpu 1) and runs cyclictest and ddsperf alongside, printing their figures
-// side by side with ours.
+// side by side with ours, and the ratio of ours to those floors.
+// It subscribes on the daemon's own DDS domain and topic prefix (from --config) and keeps only the samples of
+// its engine_id; its logs and the daemon's state directory are in a private temporary directory (mkdtemp,
+// removed at the end unless --keep-logs), so two runs or another daemon on the machine do not mix their
+// figures.
 //   CYCLONEDDS_URI=file://$PWD/config/cyclonedds-loopback.xml torque-latency --torqued build/daemon/torqued
 //   --config config/demo.yaml --duration 15 --stress --cyclictest [--plot latency.png]
 #include <sched.h>
@@ -26,6 +30,7 @@
 #define TORQUED_LATENCY_PLOT_SCRIPT "tools/scripts/plot_latency.py"
 #endif
 
+#include "config_loader.hpp"
 #include "dds/dds.h"
 #include "qos.hpp"
 #include "topics.hpp"
@@ -83,6 +88,8 @@ struct Stats {
 template <class Sample>
 struct TopicLatency {
   dds_entity_t reader = 0;
+  std::uint16_t engine_id = 0;  ///< only this engine's samples (others on the domain are counted, not used)
+  std::size_t other_engines = 0;
   Stats total, in_daemon, dds;
   std::array<Sample, 64> buf{};
   std::array<void*, 64> ptr{};
@@ -96,6 +103,10 @@ struct TopicLatency {
     for (int i = 0; i < n; ++i) {
       const Sample& v = buf[static_cast<std::size_t>(i)];
       if (!info[static_cast<std::size_t>(i)].valid_data || v.ingest_t_ns <= 0) continue;
+      if (v.engine_id != engine_id) {
+        ++other_engines;
+        continue;
+      }
       total.add(static_cast<double>(now - v.ingest_t_ns) * 1e-3);
       if (v.publish_t_ns > 0) {
         in_daemon.add(static_cast<double>(v.publish_t_ns - v.ingest_t_ns) * 1e-3);
@@ -244,10 +255,47 @@ void ddsperf_summary(const char* log, double& p50, double& p99, std::size_t& n) 
   p99 = b[n / 2];
 }
 
+/// The floors measured in the same run and our ratio to them: cyclictest p50 (one timer wake-up of a
+/// SCHED_FIFO thread) + ddsperf's one-way p50 (one DDS hop into an idle process) against edge -> received
+/// p50; cyclictest's p99.9 against ours (target: 2x). Printed only for the floors that were measured.
+void print_floors(const Stats& total, const Stats& daemon, const Stats& dds, double cyc_p50, double cyc_p999,
+                  double dds_one_way) {
+  if (total.us.empty() || (cyc_p50 < 0 && dds_one_way < 0)) return;
+  const double p50 = total.pct(50), p999 = total.pct(99.9);
+  if (cyc_p50 >= 0)
+    std::printf("vs floor: edge -> dds_write p50 %.1f us = cyclictest p50 %+.1f us; ", daemon.pct(50),
+                daemon.pct(50) - cyc_p50);
+  if (dds_one_way >= 0)
+    std::printf("dds_write -> received p50 %.1f us = ddsperf one-way %+.1f us", dds.pct(50),
+                dds.pct(50) - dds_one_way);
+  std::printf("\n");
+  if (cyc_p50 >= 0 && dds_one_way >= 0) {
+    const double floor = cyc_p50 + dds_one_way;
+    std::printf(
+        "vs floor: edge -> received p50 %.1f us, floor (cyclictest p50 + ddsperf one-way) %.1f us: "
+        "%.2fx, %+.1f us (targets: <= cyclictest p50 + 15 us = %.1f us, <= 50 us)\n",
+        p50, floor, p50 / floor, p50 - floor, cyc_p50 + 15.0);
+  }
+  if (cyc_p999 > 0)
+    std::printf("vs floor: edge -> received p99.9 %.1f us, cyclictest p99.9 %.1f us: %.2fx (target <= 2x)\n",
+                p999, cyc_p999, p999 / cyc_p999);
+}
+
+void remove_dir(const std::string& dir, bool keep) {
+  if (keep) {
+    std::printf("logs kept in %s\n", dir.c_str());
+    return;
+  }
+  const std::string cmd = "rm -rf " + shell_quote(dir);
+  if (std::system(cmd.c_str()) != 0)
+    std::fprintf(stderr, "torque-latency: could not remove %s\n", dir.c_str());
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string torqued = "torqued", config, ddsperf_log = "/tmp/torque-latency-ddsperf.log";
+  std::string torqued = "torqued", config;
+  bool keep_logs = false;
   std::string plot, plot_script = TORQUED_LATENCY_PLOT_SCRIPT, title;
   double duration_s = 15, speed = 1.0;
   bool stress = false, cyclic = false, ddsperf = false, use_waitset = false;
@@ -287,7 +335,33 @@ int main(int argc, char** argv) {
   app.add_option("--plot-script", plot_script, "plot script (run with /usr/bin/python3)")
       ->capture_default_str();
   app.add_option("--title", title, "plot title");
+  app.add_flag("--keep-logs", keep_logs, "keep the temporary directory with the daemon's and helpers' logs");
   CLI11_PARSE(app, argc, argv);
+
+  // The daemon's DDS settings: same domain, topic prefix and engine_id as the daemon this run starts.
+  const LoadResult cfg = load_config(config);
+  if (!cfg.ok()) {
+    for (const auto& e : cfg.errors) std::fprintf(stderr, "torque-latency: %s\n", e.c_str());
+    return 2;
+  }
+  dds::DdsSettings s;
+  s.domain_id = static_cast<std::uint32_t>(cfg.config->dds.domain_id);
+  s.topic_prefix = cfg.config->dds.topic_prefix;
+  s.engine_id = static_cast<std::uint16_t>(cfg.config->dds.engine_id);
+  auto reliable = [](const TopicQos& q) { return q.reliability == Reliability::kReliable; };
+  s.qos[static_cast<std::size_t>(dds::Topic::kCrankState)].reliable = reliable(cfg.config->dds.crank_state);
+  s.qos[static_cast<std::size_t>(dds::Topic::kEngineTorque)].reliable =
+      reliable(cfg.config->dds.engine_torque);
+
+  // Private paths: logs of the daemon and the helpers, the daemon's state directory.
+  char tmpl[] = "/tmp/torque-latency-XXXXXX";
+  const char* tmp = mkdtemp(tmpl);
+  if (!tmp) {
+    std::fprintf(stderr, "torque-latency: mkdtemp: %s\n", std::strerror(errno));
+    return 2;
+  }
+  const std::string dir = tmp, daemon_log = dir + "/torqued.log", cyclic_log = dir + "/cyclictest.log",
+                    ddsperf_log = dir + "/ddsperf.log", state_dir = dir + "/state";
 
   if (sub_cpu >= 0) {
     cpu_set_t set;
@@ -311,7 +385,6 @@ int main(int argc, char** argv) {
     else
       mlockall(MCL_CURRENT | MCL_FUTURE);
   }
-  dds::DdsSettings s;
   const dds_entity_t pp = dds_create_participant(s.domain_id, nullptr, nullptr);
   if (pp < 0) {
     std::fprintf(stderr, "dds_create_participant failed\n");
@@ -336,6 +409,7 @@ int main(int argc, char** argv) {
     dds_delete_qos(q);
     return r;
   };
+  rx.crank.engine_id = rx.engine.engine_id = s.engine_id;
   rx.crank.reader = reader(dds::Topic::kCrankState);
   rx.engine.reader = reader(dds::Topic::kEngineTorque);
   if (lis) dds_delete_listener(lis);
@@ -357,7 +431,7 @@ int main(int argc, char** argv) {
         "cyclictest", "-m",   "-q", "-p", "80", "-i", std::to_string(cyclic_interval_us),
         "-h",         "2000", "-D", dur};
     if (sub_cpu >= 0) a.insert(a.end(), {"-a", std::to_string(sub_cpu)});
-    helpers.push_back(spawn(a, "/tmp/torque-latency-cyclictest.log"));
+    helpers.push_back(spawn(a, cyclic_log.c_str()));
   }
   if (ddsperf) {
     // Same scheduling as our subscriber, and pinged at a rate like the tooth rate (a CPU woken from idle for
@@ -371,12 +445,16 @@ int main(int argc, char** argv) {
       a.insert(a.begin(), pre.begin(), pre.end());
       return a;
     };
-    helpers.push_back(spawn(with_pre({"ddsperf", "-D", dur, "pong"}), "/dev/null"));
-    helpers.push_back(spawn(with_pre({"ddsperf", "-D", dur, "ping", rate}), ddsperf_log.c_str()));
+    // On the daemon's domain: the same network path (two runs with --ddsperf on one domain share their
+    // pongs).
+    const std::string domain = std::to_string(s.domain_id);
+    helpers.push_back(spawn(with_pre({"ddsperf", "-i", domain, "-D", dur, "pong"}), "/dev/null"));
+    helpers.push_back(
+        spawn(with_pre({"ddsperf", "-i", domain, "-D", dur, "ping", rate}), ddsperf_log.c_str()));
   }
   const pid_t daemon = spawn({torqued, "--config", config, "--speed", std::to_string(speed),
-                              "--wait-subscribers", "1", "--state-dir", "/tmp/torque-latency-state"},
-                             "/tmp/torque-latency-torqued.log");
+                              "--wait-subscribers", "1", "--state-dir", state_dir},
+                             daemon_log.c_str());
 
   const auto t_end = std::chrono::steady_clock::now() + std::chrono::duration<double>(duration_s + 1.5);
   while (std::chrono::steady_clock::now() < t_end) {
@@ -402,8 +480,12 @@ int main(int argc, char** argv) {
   }
   dds_delete(pp);
 
-  std::printf("torque-latency: %.0f s paced replay at %.1fx%s\n", duration_s, speed,
-              stress ? ", stress-ng --cpu 1" : "");
+  std::printf("torque-latency: %.0f s paced replay at %.1fx%s; DDS domain %u, topics %s/*, engine_id %u\n",
+              duration_s, speed, stress ? ", stress-ng --cpu 1" : "", s.domain_id, s.topic_prefix.c_str(),
+              static_cast<unsigned>(s.engine_id));
+  if (rx.crank.other_engines + rx.engine.other_engines > 0)
+    std::printf("ignored %zu samples of other engine_ids on this domain and prefix\n",
+                rx.crank.other_engines + rx.engine.other_engines);
   std::printf("%-38s %8s %8s %8s %8s %8s\n", "path", "n", "p50_us", "p99_us", "p99.9_us", "max_us");
   auto row = [](const char* name, const Stats& st) {
     std::printf("%-38s %8zu %8.1f %8.1f %8.1f %8.1f\n", name, st.us.size(), st.pct(50), st.pct(99),
@@ -417,10 +499,13 @@ int main(int argc, char** argv) {
   row("  dds_write -> received (DDS)", rx.engine.dds);
   std::printf("subscriber: %s, %s\n", use_waitset ? "waitset" : "listener (receive thread)",
               sub_prio > 0 ? "SCHED_FIFO requested" : "SCHED_OTHER");
+  double cyc_p50 = -1, cyc_p999 = -1, dds_one_way = -1;
   if (cyclic) {
     double p50 = 0, p99 = 0, p999 = 0, mx = 0;
     long late_1ms = 0;
-    cyclictest_summary(read_cyclictest("/tmp/torque-latency-cyclictest.log"), p50, p99, p999, mx, late_1ms);
+    cyclictest_summary(read_cyclictest(cyclic_log.c_str()), p50, p99, p999, mx, late_1ms);
+    cyc_p50 = p50;
+    cyc_p999 = p999;
     const std::string name = "cyclictest -i " + std::to_string(cyclic_interval_us) + " (same run)";
     std::printf("%-38s %8s %8.1f %8.1f %8.1f %8.1f\n", name.c_str(), "-", p50, p99, p999, mx);
     std::printf(
@@ -432,29 +517,32 @@ int main(int argc, char** argv) {
     double p50 = 0, p99 = 0;
     std::size_t n = 0;
     ddsperf_summary(ddsperf_log.c_str(), p50, p99, n);
-    if (n > 0)
+    if (n > 0) {
       std::printf("%-38s %8s %8.1f %8.1f %8s %8s\n", "ddsperf one-way (round trip / 2)", "-", p50 / 2,
                   p99 / 2, "-", "-");
+      dds_one_way = p50 / 2;
+    }
     std::printf(
-        "ddsperf ping %d Hz / pong (round trip p50 %.1f us, p99 %.1f us; median of %zu one-second reports): "
-        "%s\n",
-        ddsperf_rate_hz, p50, p99, n, ddsperf_log.c_str());
+        "ddsperf ping %d Hz / pong (round trip p50 %.1f us, p99 %.1f us; median of %zu one-second reports)\n",
+        ddsperf_rate_hz, p50, p99, n);
+    if (n == 0) keep_logs = true;
   }
+  print_floors(crank_us, rx.crank.in_daemon, rx.crank.dds, cyc_p50, cyc_p999, dds_one_way);
   {  // the daemon's own counters (ring drops, time-thread overruns) from its final log line
-    FILE* f = std::fopen("/tmp/torque-latency-torqued.log", "r");
+    FILE* f = std::fopen(daemon_log.c_str(), "r");
     char line[1024];
     std::string last;
     while (f && std::fgets(line, sizeof line, f))
       if (std::strstr(line, "stopped:")) last = line;
     if (f) std::fclose(f);
-    std::printf("daemon: %s", last.empty() ? "no final counters (see /tmp/torque-latency-torqued.log)\n"
+    if (last.empty()) keep_logs = true;
+    std::printf("daemon: %s", last.empty() ? ("no final counters (see " + daemon_log + ")\n").c_str()
                                            : last.substr(last.find("stopped:")).c_str());
   }
   histogram(crank_us, "tooth edge -> CrankState");
   if (!plot.empty()) {
     const std::string csv = plot + ".data.csv";
-    const auto cyc = cyclic ? read_cyclictest("/tmp/torque-latency-cyclictest.log").hist
-                            : std::vector<std::pair<int, long>>{};
+    const auto cyc = cyclic ? read_cyclictest(cyclic_log.c_str()).hist : std::vector<std::pair<int, long>>{};
     if (!write_plot_data(csv,
                          {{"crank_total", &crank_us},
                           {"crank_daemon", &rx.crank.in_daemon},
@@ -462,6 +550,7 @@ int main(int argc, char** argv) {
                           {"engine_total", &engine_us}},
                          cyc)) {
       std::fprintf(stderr, "torque-latency: cannot write %s: %s\n", csv.c_str(), std::strerror(errno));
+      remove_dir(dir, keep_logs);
       return 1;
     }
     char dflt[160];
@@ -473,10 +562,13 @@ int main(int argc, char** argv) {
                             shell_quote(title.empty() ? std::string(dflt) : title);
     if (std::system(cmd.c_str()) != 0) {
       std::fprintf(stderr, "torque-latency: plot failed (%s); data kept in %s\n", cmd.c_str(), csv.c_str());
+      remove_dir(dir, keep_logs);
       return 1;
     }
     std::remove(csv.c_str());
     std::printf("plot: %s\n", plot.c_str());
   }
+  if (crank_us.us.empty()) keep_logs = true;
+  remove_dir(dir, keep_logs);
   return crank_us.us.empty() ? 1 : 0;
 }

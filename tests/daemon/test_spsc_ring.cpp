@@ -58,6 +58,24 @@ TEST(SpscRing, FrontAndPopFront) {
   EXPECT_EQ(r.front(), nullptr);
 }
 
+TEST(SpscRing, PeekReadsQueuedRecordsInOrderWithoutRemovingThem) {
+  SpscRing<int> r(4);
+  EXPECT_EQ(r.peek(0), nullptr);
+  for (int v : {1, 2, 3}) ASSERT_TRUE(r.try_push(v));
+  ASSERT_NE(r.peek(2), nullptr);
+  EXPECT_EQ(*r.peek(0), 1);
+  EXPECT_EQ(*r.peek(2), 3);
+  EXPECT_EQ(r.peek(3), nullptr);
+  r.pop_front();
+  EXPECT_EQ(*r.peek(0), 2);
+  EXPECT_EQ(*r.peek(1), 3);
+  EXPECT_EQ(r.peek(2), nullptr);
+  ASSERT_TRUE(r.try_push(4));
+  ASSERT_TRUE(r.try_push(5));  // wraps around the 4 slots
+  EXPECT_EQ(*r.peek(3), 5);
+  EXPECT_EQ(r.size(), 4u);
+}
+
 TEST(SpscRing, PushPopDoNotAllocate) {
   SpscRing<std::uint64_t> r(64);
   torqued::test::AllocationScope scope;

@@ -6,6 +6,7 @@
 //   - learned state survives kill -9 (atomic writes) and is loaded at the next start;
 //   - fast replay through the real binary is byte-identical across runs (determinism);
 //   - Cyclone DDS's own threads in the daemon run with the publisher thread's real-time scheduling;
+//   - paced with DDS and mlockall, the daemon stays within 64 MiB resident (thread stacks of 512 KiB);
 //   - without the right to SCHED_FIFO and mlockall it runs anyway, says so and flags it in DaemonStatus,
 //     unless realtime.require_rt is set.
 #include <algorithm>
@@ -416,6 +417,44 @@ TEST_F(Service, CycloneThreadsInheritThePublisherScheduling) {
   EXPECT_GE(cyclone, 3) << "Cyclone's threads not found by name: " << all;
   // The main (supervisor) thread went back to what it had.
   EXPECT_EQ(by_name["torqued"].first, SCHED_OTHER) << all;
+}
+
+/// A field of /proc/<pid>/status in kB (-1 when not found).
+long proc_status_kb(pid_t pid, const std::string& field) {
+  std::istringstream in(test::slurp("/proc/" + std::to_string(pid) + "/status"));
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind(field + ":", 0) == 0) return std::stol(line.substr(field.size() + 1));
+  return -1;
+}
+
+TEST_F(Service, PacedWithDdsAndLockedMemoryStaysWithin64MiB) {
+  // mlockall makes every mapped page resident, thread stacks included: 8 MiB each by default (108 MiB in all
+  // before the stacks were sized). On DDS domain 8 (other tests use 0 and 9).
+  std::string cfg = test::write_demo_config(dir_.string());
+  {
+    std::string y = test::slurp(cfg);
+    ASSERT_NE(y.find("domain_id: 0"), std::string::npos);
+    y.replace(y.find("domain_id: 0"), 12, "domain_id: 8");
+    std::ofstream(cfg) << y;
+  }
+  test::Process d(
+      {TORQUED_EXE, "--config", cfg, "--state-dir", (dir_ / "state").string()},
+      {std::string("CYCLONEDDS_URI=file://") + TORQUED_SOURCE_DIR + "/config/cyclonedds-loopback.xml"},
+      (dir_ / "daemon.log").string());
+  ASSERT_TRUE(test::eventually(15, [&] { return log().find("running") != std::string::npos; })) << log();
+  std::this_thread::sleep_for(std::chrono::seconds(2));  // rings, recorder, DDS in use
+  const long rss_kb = proc_status_kb(d.pid(), "VmRSS"), locked_kb = proc_status_kb(d.pid(), "VmLck");
+  d.signal(SIGTERM);
+  ASSERT_TRUE(d.wait(5)) << log();
+  ASSERT_GT(rss_kb, 0);
+  EXPECT_LE(rss_kb, 64 * 1024) << "VmRSS " << rss_kb << " kB (VmLck " << locked_kb << " kB)";
+  if (locked_kb == 0) std::printf("note: mlockall refused here, RSS %ld kB without it\n", rss_kb);
+  // The stopped line reports it too.
+  const std::string l = log();
+  const auto at = l.find("memory RSS ");
+  ASSERT_NE(at, std::string::npos) << l;
+  EXPECT_LE(std::stod(l.substr(at + 11)), 64.0) << l.substr(at, 60);
 }
 
 }  // namespace

@@ -15,9 +15,10 @@ PKGS=(
   python3 python3-matplotlib python3-numpy
   libcivetweb-dev nlohmann-json3-dev libjs-chart.js   # torque-dash (HTTP/WebSocket server, JSON, page plots)
 )
-# Extra packages only the heavier test tiers need (VM for vcan, latency tools, foreign DDS peer).
+# Extra packages only the heavier test tiers need (VM for vcan, latency tools, foreign DDS peer, iceoryx RouDi
+# for the shared-memory test).
 if [[ "${TORQUED_DEPS_FULL:-1}" == "1" ]]; then
-  PKGS+=(qemu-system-x86 busybox-static cpio rt-tests stress-ng libfastrtps-dev fastddsgen)
+  PKGS+=(qemu-system-x86 busybox-static cpio rt-tests stress-ng libfastrtps-dev fastddsgen iceoryx)
   # torque-dash tests: Debian's Chromium (driven by playwright-core, no browser download) and Node.js/npm for
   # the Foxglove client (@foxglove/ws-protocol) and the MCAP reference reader (@mcap/core).
   PKGS+=(chromium nodejs)  # npm comes with the machine's Node.js (nodejs package)
