@@ -83,6 +83,7 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
     spdlog::info("learned state applied at start: {}", r.imported.empty() ? "nothing" : r.imported);
     std::string serr;
     st.saved_at_t_ns = r.last_t_ns;
+    st.identity = sctx.identity;  // the chain's state is this configuration's engine and wheel
     if (r.learned && rs.may_save) {
       if (check_state(st, sctx, spath, &serr) && save_state_atomic(spath, st, sctx.identity, &serr))
         spdlog::info("learned state saved to {}", spath);

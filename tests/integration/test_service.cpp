@@ -211,6 +211,31 @@ TEST_F(Service, SighupAppliesDecimationLive) {
   EXPECT_EQ(last_step, 1) << "the last rows come after the reload";
 }
 
+TEST_F(Service, FastReplayCarriesLearnedStateLikeTheService) {
+  // GIVEN fast replay with --state-dir WHEN run twice THEN the first run learns from the prior and saves, the
+  // second starts from that state (friction law and the wheel's table) and gives different (learned) output;
+  // --fresh-state starts from the prior again and reproduces the first run byte for byte.
+  const auto run = [&](const std::string& rec, std::vector<std::string> extra, const std::string& log_name) {
+    extra.insert(extra.end(), {"--replay", "fast", "--record", (dir_ / rec).string()});
+    test::Process d(args(extra), {}, (dir_ / log_name).string());
+    EXPECT_TRUE(d.wait(60));
+    EXPECT_EQ(d.exit_code(), 0) << test::slurp((dir_ / log_name).string());
+    return test::slurp((dir_ / log_name).string());
+  };
+  const std::string l1 = run("r1", {}, "1.log");
+  EXPECT_NE(l1.find("learned state applied at start: nothing"), std::string::npos) << l1;
+  EXPECT_NE(l1.find("learned state saved to"), std::string::npos) << l1;
+  const std::string l2 = run("r2", {}, "2.log");
+  EXPECT_NE(l2.find("learned state applied at start: friction law"), std::string::npos) << l2;
+  EXPECT_NE(l2.find("58 tooth corrections"), std::string::npos) << l2;
+  const std::string l3 = run("r3", {"--fresh-state"}, "3.log");
+  EXPECT_NE(l3.find("--fresh-state"), std::string::npos) << l3;
+  const std::string c1 = test::slurp((dir_ / "r1" / "engine_cycle.csv").string());
+  ASSERT_GT(c1.size(), 1000u);
+  EXPECT_NE(c1, test::slurp((dir_ / "r2" / "engine_cycle.csv").string())) << "the learned state changed nothing";
+  EXPECT_EQ(c1, test::slurp((dir_ / "r3" / "engine_cycle.csv").string())) << "--fresh-state is not a fresh start";
+}
+
 TEST_F(Service, LearnedStateSurvivesKill9) {
   // GIVEN a paced replay at 4x WHEN the learned state has been saved and the daemon is killed with SIGKILL
   // THEN the state file is complete and parses, and the next start applies it (friction law and the wheel's
