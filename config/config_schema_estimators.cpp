@@ -161,7 +161,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("fuel.forgetting", fuel.forgetting, open_closed(0.9, 1.0), "", "RLS forgetting factor per reference cycle (1 = none)");
   TQ_NUM("fuel.residual_sd_nm", fuel.residual_sd_nm, open_closed(0.0, 1e4), "N m", "measurement 1 sigma of one reference cycle (RLS weight; initial residual sigma)");
   TQ_INT("fuel.min_references", fuel.min_references, closed(1, 1000000), "cycles", "reference cycles before the fuel model is valid");
-  TQ_NUM("fuel.sd_ema", fuel.sd_ema, open_closed(0.0, 1.0), "", "EMA weight per reference cycle of the measured residual variance");
+  TQ_NUM("fuel.sd_ema", fuel.sd_ema, open_closed(0.0, 1.0), "", "weight of the measured residual variance per reference cycle: EMA weight until valid, then the floor of a running mean (1/k)");
   TQ_NUM("fuel.fuel_lhv_j_kg", fuel.fuel_lhv_j_kg, open_closed(1e6, 2e8), "J/kg", "lower heating value of the fuel (gasoline 43 MJ/kg, Heywood app. D)");
   TQ_BOOL("tooth_learn.enabled", tooth_learn.enabled, "apply the per-tooth angle correction table");
   TQ_BOOL("tooth_learn.learn", tooth_learn.params.learn, "learn per-tooth corrections while running");

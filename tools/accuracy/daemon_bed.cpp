@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <numbers>
 #include <vector>
@@ -96,8 +97,11 @@ void finish(DaemonBedStats& s) {
   s.bias_nm /= s.n;
 }
 
-DaemonBedRun score(const std::vector<Row>& rows, const sim::SimOutput& out, int skip) {
+DaemonBedRun score(const std::vector<Row>& rows, const sim::SimOutput& out, int skip, const fs::path& csv) {
   DaemonBedRun r;
+  std::string text =
+      "t_s,transient,brake_true_nm,brake_nm,brake_sd_nm,indicated_true_nm,indicated_nm,indicated_sd_nm,"
+      "friction_true_nm,friction_nm,fused_nm,fused_sd_nm\n";
   double prev_true = 0.0, prev_rpm = 0.0;
   bool have_prev = false;
   int hold = 0;
@@ -119,7 +123,14 @@ DaemonBedRun score(const std::vector<Row>& rows, const sim::SimOutput& out, int 
     add(r.indicated, x.indicated.torque_nm, w.ind, x.indicated.uncertainty, transient);
     add(r.friction, x.friction.torque_nm, w.fric, x.friction.uncertainty, transient);
     if (x.fused_valid) add(r.fused, x.fused, w.brake, x.fused_sd, transient);
+    char line[320];
+    std::snprintf(line, sizeof line, "%.6f,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f\n", x.t1_s,
+                  transient ? 1 : 0, w.brake, x.brake.torque_nm, x.brake.uncertainty, w.ind,
+                  x.indicated.torque_nm, x.indicated.uncertainty, w.fric, x.friction.torque_nm, x.fused,
+                  x.fused_sd);
+    text += line;
   }
+  sim::write_text_file(csv, text);
   for (DaemonBedStats* s : {&r.brake, &r.indicated, &r.friction, &r.fused}) finish(*s);
   return r;
 }
@@ -186,8 +197,8 @@ bool evaluate_bed_engine_daemon(const sim::BedEngine& e, const DaemonBedOptions&
     if (!replay(dir / "eval" / "torqued.yaml", &st, nullptr, with, &r.learned, error) ||
         !replay(dir / "eval" / "torqued_noload.yaml", &st, nullptr, without, nullptr, error))
       return false;
-    r.with_load = score(with.rows, ev_out, opt.skip_cycles);
-    r.without_load = score(without.rows, ev_out, opt.skip_cycles);
+    r.with_load = score(with.rows, ev_out, opt.skip_cycles, dir / "eval" / "cycles_load.csv");
+    r.without_load = score(without.rows, ev_out, opt.skip_cycles, dir / "eval" / "cycles_noload.csv");
   } catch (const std::exception& ex) {
     error = e.name + ": " + ex.what();
     return false;
