@@ -49,33 +49,28 @@ struct Tap final : AngleChainSink {
   }
 };
 
-/// Angle-weighted truth means over (t0, t1] from the per-tooth truth.
+/// Truth of the chain's cycle-end window (t0, t1]: the simulator's cycle whose end is nearest t1 (the chain's
+/// boundary-0 windows close on the same crank angle as the simulator's cycles), accepted within an eighth of
+/// a cycle. Per-tooth truth averaged over the window would be biased by the tooth sampling (gap, firing
+/// peaks).
 struct WindowTruth {
   double brake = 0.0, ind = 0.0, fric = 0.0, rpm = 0.0;
   bool ok = false;
 };
 WindowTruth window_truth(const sim::SimOutput& out, double t0, double t1) {
   WindowTruth w;
-  const auto& teeth = out.teeth;
-  auto it = std::lower_bound(teeth.begin(), teeth.end(), t0,
-                             [](const sim::ToothTruth& t, double v) { return t.t_s < v; });
-  if (it == teeth.begin() || it == teeth.end()) return w;
-  double sum_w = 0.0;
-  double prev = (it - 1)->angle720_rad;
-  for (; it != teeth.end() && it->t_s <= t1; ++it) {
-    double d = it->angle720_rad - prev;
-    if (d < 0.0) d += kFourPi;
-    prev = it->angle720_rad;
-    w.brake += d * it->t_brake_nm;
-    w.ind += d * it->t_ind_nm;
-    w.fric += d * it->t_fric_nm;
-    sum_w += d;
+  const auto& cy = out.cycles;
+  auto it = std::lower_bound(cy.begin(), cy.end(), t1,
+                             [](const sim::CycleTruth& c, double v) { return c.t_end_s < v; });
+  const sim::CycleTruth* best = nullptr;
+  for (auto c = it == cy.begin() ? it : it - 1; c != cy.end() && c <= it; ++c) {
+    if (!best || std::fabs(c->t_end_s - t1) < std::fabs(best->t_end_s - t1)) best = &*c;
   }
-  if (sum_w < 0.9 * kFourPi) return w;
-  w.brake /= sum_w;
-  w.ind /= sum_w;
-  w.fric /= sum_w;
-  w.rpm = kFourPi / (t1 - t0) * 30.0 / std::numbers::pi;
+  if (!best || std::fabs(best->t_end_s - t1) > 0.125 * (t1 - t0)) return w;
+  w.brake = best->t_brake_mean_nm;
+  w.ind = best->t_ind_mean_nm;
+  w.fric = best->t_fric_mean_nm;
+  w.rpm = best->speed_mean_rad_s * 30.0 / std::numbers::pi;
   w.ok = true;
   return w;
 }
