@@ -65,6 +65,7 @@ void AnglePipeline::reset() noexcept {
   eso_.reset();
   fuel_ind_ = TorqueEstimate{};
   win_fill_ = win_pos_ = 0;
+  fired_prev_ = true;
   cyl_.reset();
   fusion_.reset();
   pre_.reset();
@@ -299,6 +300,11 @@ void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals&
   double win_fuel = 0.0, win_map = 0.0;
   fuel_ind_ = fuel_window(win_fuel, win_map) ? fuel_.estimate(seg.t_ns, win_fuel, win_map)
                                              : make(seg.t_ns, 0.0, 0.0, Health::kStaleInput);
+  // In fuel cut-off for the whole window the indicated torque is the motored (pumping) torque, the model the
+  // friction law was learned against in cut-off (learn(): T_fric = T_motored − ΔKE − T_load): the model-based
+  // indicated torque is then T_motored, and brake = T_motored − friction is as good as the learned law.
+  if (cut_segments_ > cfg_.engine.cylinders && have_map_ && !friction_.is_prior())
+    fuel_ind_ = make(seg.t_ns, rls_.motored_torque_nm(held_map_pa_), cfg_.friction.learned_sd_nm, Health::kValid);
   if (seg.cycle_load_valid) {
     o.load = make(seg.t_ns, seg.cycle_load_mean_nm, cfg_.fusion.can_load_sd_nm, Health::kValid);
     o.brake = o.brake_energy;
@@ -422,7 +428,10 @@ void AnglePipeline::fuse(const SegmentEnergy& seg, const EngineSignals& sig, Cyc
 void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh) noexcept {
   ++stats_.segments;
   count_fuel_state(sig, can_fresh);
-  push_fuel_window(can_fresh && sig.fuel_mass_valid && have_map_, fired_ ? sig.fuel_mass_kg : 0.0);
+  // The CAN cut-off flag leads the injections by about one segment (both ways): the window takes the flag of
+  // the previous segment.
+  push_fuel_window(can_fresh && sig.fuel_mass_valid && have_map_, fired_prev_ ? sig.fuel_mass_kg : 0.0);
+  fired_prev_ = fired_;
   CycleOutput o;
   o.t_ns = seg.t_ns;
   o.seq = cycle_.seq + 1;
