@@ -12,6 +12,7 @@
 
 #include "crank_decoder.hpp"  // DecoderParams (io/, header only)
 #include "engine_geometry.hpp"
+#include "fuel_torque.hpp"  // FuelTorqueParams
 #include "params.hpp"
 
 namespace torqued {
@@ -100,6 +101,7 @@ struct EstimatorsConfig {
   EstimatorToggle<FrictionParams> friction;
   EstimatorToggle<CylinderParams> cylinder;
   EstimatorToggle<ToothLearnParams> tooth_learn;
+  FuelTorqueParams fuel;  ///< fuel-based indicated torque (learned efficiency; no-load brake torque)
   double default_oil_temp_c = 90.0;  ///< friction law's oil temperature until OilTemp arrives on CAN (°C)
 };
 

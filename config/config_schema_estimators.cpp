@@ -156,6 +156,16 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_BOOL("fusion.time_estimate", fusion.time_estimate, "use the time chain's UIO brake estimate (Na et al.) as the fusion's lowest-priority source");
   TQ_NUM("fusion.can_load_sd_nm", fusion.can_load_sd_nm, open_closed(0.0, 1e4), "N m", "1 sigma of the measured load torque (torque flange / e-machine)");
   TQ_NUM("fusion.brake_sd_ema", fusion.brake_sd_ema, open_closed(0.0, 1.0), "", "EMA weight per segment of the measured error variances");
+  // Fuel-based indicated torque (estimators/fuel_torque.hpp): efficiency learned while a load reference exists.
+  TQ_NUM("fuel.eta_prior", fuel.eta_prior, open_open(0.0, 1.0), "", "prior gross indicated fuel conversion efficiency (Heywood fig. 13-9 order of magnitude)");
+  TQ_NUM("fuel.eta_prior_sd", fuel.eta_prior_sd, open_closed(0.0, 1.0), "", "1 sigma of the efficiency prior");
+  TQ_NUM("fuel.p_exh_prior_pa", fuel.p_exh_prior_pa, closed(0.0, 1e6), "Pa", "prior exhaust pressure of the pumping loop (ambient + back-pressure)");
+  TQ_NUM("fuel.p_exh_prior_sd_pa", fuel.p_exh_prior_sd_pa, open_closed(0.0, 1e6), "Pa", "1 sigma of the exhaust pressure prior");
+  TQ_NUM("fuel.forgetting", fuel.forgetting, open_closed(0.9, 1.0), "", "RLS forgetting factor per reference cycle (1 = none)");
+  TQ_NUM("fuel.residual_sd_nm", fuel.residual_sd_nm, open_closed(0.0, 1e4), "N m", "measurement 1 sigma of one reference cycle (RLS weight; initial residual sigma)");
+  TQ_INT("fuel.min_references", fuel.min_references, closed(1, 1000000), "cycles", "reference cycles before the fuel model is valid");
+  TQ_NUM("fuel.sd_ema", fuel.sd_ema, open_closed(0.0, 1.0), "", "weight of the measured residual variance per reference cycle: EMA weight until valid, then the floor of a running mean (1/k)");
+  TQ_NUM("fuel.fuel_lhv_j_kg", fuel.fuel_lhv_j_kg, open_closed(1e6, 2e8), "J/kg", "lower heating value of the fuel (gasoline 43 MJ/kg, Heywood app. D)");
   TQ_BOOL("tooth_learn.enabled", tooth_learn.enabled, "apply the per-tooth angle correction table");
   TQ_BOOL("tooth_learn.learn", tooth_learn.params.learn, "learn per-tooth corrections while running");
   TQ_INT("tooth_learn.min_cycles", tooth_learn.params.min_cycles, closed(1, 100000), "cycles", "cycles averaged before the table is used");

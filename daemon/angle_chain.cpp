@@ -1,6 +1,7 @@
 #include "angle_chain.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <numbers>
 
 namespace torqued {
@@ -164,7 +165,14 @@ bool AngleChain::snapshot(LearnedSnapshot& snap) const noexcept {
   }
   snap.n_teeth = corr_n_;
   std::copy_n(corr_.begin(), corr_n_, snap.teeth.begin());
-  return snap.friction_valid || snap.n_teeth > 0;
+  if (pipeline_) {
+    const FuelTorqueState& f = pipeline_->fuel_model().state();
+    snap.fuel_valid = fuel_imported_ || f.references > 0;
+    if (snap.fuel_valid) snap.fuel = f;
+    snap.crank_var = pipeline_->crank_error_var();
+    snap.crank_var_valid = crank_var_imported_ || snap.crank_var > 0.0;
+  }
+  return snap.friction_valid || snap.n_teeth > 0 || snap.fuel_valid || snap.crank_var_valid;
 }
 
 bool AngleChain::learned_state(LearnedState& st) const {
@@ -174,6 +182,8 @@ bool AngleChain::learned_state(LearnedState& st) const {
   if (snap.friction_valid) st.friction = snap.friction;
   if (snap.idle_valid) st.friction_idle = snap.idle;
   st.tooth_corrections_rad.assign(snap.teeth.begin(), snap.teeth.begin() + snap.n_teeth);
+  if (snap.fuel_valid) st.fuel = snap.fuel;
+  if (snap.crank_var_valid) st.crank_error_var = snap.crank_var;
   return true;
 }
 
@@ -199,6 +209,16 @@ std::string AngleChain::import_state(const LearnedState& st) {
       what += std::string(what.empty() ? "" : ", ") + "tooth corrections REJECTED (" + std::to_string(n) +
               " values for a wheel of " + std::to_string(s_.wheel.teeth()) + " teeth)";
     }
+  }
+  if (st.fuel && pipeline_ && pipeline_->fuel_model().import_state(*st.fuel)) {
+    fuel_imported_ = true;
+    what += (what.empty() ? "" : ", ") + std::string("fuel model (") + std::to_string(st.fuel->references) +
+            " reference cycles)";
+  }
+  if (st.crank_error_var && pipeline_ && std::isfinite(*st.crank_error_var) && *st.crank_error_var >= 0.0) {
+    pipeline_->import_crank_error_var(*st.crank_error_var);
+    crank_var_imported_ = true;
+    what += (what.empty() ? "" : ", ") + std::string("crank-only error variance");
   }
   state_changed_ = !what.empty();
   return what;

@@ -66,6 +66,10 @@ struct LearnedSnapshot {
   std::array<double, 2> idle{};      ///< idle correction (N m), idle speed (rpm)
   int n_teeth = 0;                   ///< tooth corrections applied to the decoder (0: none)
   std::array<double, 2 * kMaxTeeth> teeth{};
+  bool fuel_valid = false;  ///< fuel model learned from references, or imported
+  FuelTorqueState fuel{};
+  bool crank_var_valid = false;  ///< crank-only error variance measured, or imported
+  double crank_var = 0.0;        ///< (N m^2)
 };
 
 /// Receives the chain's records, on the chain's thread, in order. Implementations must be real-time safe.
@@ -113,7 +117,8 @@ class AngleChain {
     return store_ ? store_->describe_bad_frames() : std::vector<std::string>{};
   }
 
-  /// Feedback (4), before the first edge: restore persisted friction coefficients and tooth corrections.
+  /// Feedback (4), before the first edge: restore persisted friction coefficients, tooth corrections, the fuel
+  /// model and the measured crank-only error variance.
   /// Returns what was applied ("" when nothing).
   std::string import_state(const LearnedState& st);
   /// The state learned so far (friction when learned or imported, tooth table once applied). False when
@@ -153,6 +158,8 @@ class AngleChain {
   std::array<double, 2 * kMaxTeeth> corr_{};  ///< the tooth table last given to the decoder
   int corr_n_ = 0;                            ///< its length (0: none applied)
   bool friction_imported_ = false;
+  bool fuel_imported_ = false;
+  bool crank_var_imported_ = false;
   bool state_changed_ = false;
 };
 

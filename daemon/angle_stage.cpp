@@ -167,6 +167,15 @@ void AngleStage::publish_snapshot() noexcept {
     snap_teeth_[static_cast<std::size_t>(i)].store(scratch_.teeth[static_cast<std::size_t>(i)],
                                                    std::memory_order_relaxed);
   snap_n_teeth_.store(scratch_.n_teeth, std::memory_order_relaxed);
+  if (scratch_.fuel_valid) {
+    const FuelTorqueState& f = scratch_.fuel;
+    const std::array<double, 8> v{f.theta[0], f.theta[1], f.p[0], f.p[1], f.p[2], f.p[3], f.resid_var,
+                                  static_cast<double>(f.references)};
+    for (std::size_t i = 0; i < v.size(); ++i) snap_fuel_[i].store(v[i], std::memory_order_relaxed);
+  }
+  snap_fuel_valid_.store(scratch_.fuel_valid, std::memory_order_relaxed);
+  snap_crank_var_.store(scratch_.crank_var, std::memory_order_relaxed);
+  snap_crank_var_valid_.store(scratch_.crank_var_valid, std::memory_order_relaxed);
   snap_seq_.fetch_add(1, std::memory_order_release);  // even: consistent
 }
 
@@ -189,6 +198,18 @@ bool AngleStage::export_state(LearnedState& st) const {
     for (int i = 0; i < n; ++i)
       tmp.tooth_corrections_rad[static_cast<std::size_t>(i)] =
           snap_teeth_[static_cast<std::size_t>(i)].load(std::memory_order_relaxed);
+    if (snap_fuel_valid_.load(std::memory_order_relaxed)) {
+      std::array<double, 8> v{};
+      for (std::size_t i = 0; i < v.size(); ++i) v[i] = snap_fuel_[i].load(std::memory_order_relaxed);
+      FuelTorqueState f;
+      f.theta = {v[0], v[1]};
+      f.p = {v[2], v[3], v[4], v[5]};
+      f.resid_var = v[6];
+      f.references = static_cast<std::uint32_t>(v[7]);
+      tmp.fuel = f;
+    }
+    if (snap_crank_var_valid_.load(std::memory_order_relaxed))
+      tmp.crank_error_var = snap_crank_var_.load(std::memory_order_relaxed);
     std::atomic_thread_fence(std::memory_order_acquire);
     if (snap_seq_.load(std::memory_order_relaxed) == s0) {
       st = std::move(tmp);

@@ -69,6 +69,10 @@ class AngleStage final : public AngleChainSink {
   std::atomic<bool> snap_friction_valid_{false};
   std::array<std::atomic<double>, 2> snap_idle_{};  ///< friction idle correction (N m), idle speed (rpm)
   std::atomic<bool> snap_idle_valid_{false};
+  std::array<std::atomic<double>, 8> snap_fuel_{};  ///< FuelTorqueState: theta[2], p[4], resid_var, references
+  std::atomic<bool> snap_fuel_valid_{false};
+  std::atomic<double> snap_crank_var_{0.0};
+  std::atomic<bool> snap_crank_var_valid_{false};
 };
 
 }  // namespace torqued

@@ -43,6 +43,7 @@ StageSettings stage_settings_from(const Config& cfg) {
   s.angle.friction = cfg.estimators.friction.params;
   s.angle.cylinder = cfg.estimators.cylinder.params;
   s.angle.fusion = cfg.estimators.fusion;
+  s.angle.fuel = cfg.estimators.fuel;
   s.angle.default_oil_temp_c = cfg.estimators.default_oil_temp_c;
   s.angle_enabled = cfg.estimators.energies.enabled;
   s.angle.preprocess = cfg.estimators.preprocess;

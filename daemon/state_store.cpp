@@ -116,6 +116,8 @@ StateContext state_context_from(const Config& cfg) {
   const double vd = e.cylinders * std::numbers::pi / 4.0 * e.bore_m * e.bore_m * e.stroke_m;
   ctx.max_friction_nm = std::max(kMaxFrictionMepPa * vd / (4.0 * std::numbers::pi),
                                  2.0 * max_abs_friction(ctx.friction, ctx.friction.c));
+  ctx.max_eta = e.compression_ratio > 1.0 ? 1.0 - std::pow(e.compression_ratio, 1.0 - 1.4) : 1.0;
+  ctx.max_torque_sd_nm = kMaxFrictionMepPa * vd / (4.0 * std::numbers::pi);
   return ctx;
 }
 
@@ -134,6 +136,13 @@ std::string serialize_state(const LearnedState& s, const std::string& identity) 
     for (double c : s.tooth_corrections_rad) text += fmt(" %.17g", c);
     text += '\n';
   }
+  if (s.fuel) {
+    const FuelTorqueState& f = *s.fuel;
+    text += "fuel_model" + fmt(" %.17g", f.theta[0]) + fmt(" %.17g", f.theta[1]);
+    for (double v : f.p) text += fmt(" %.17g", v);
+    text += fmt(" %.17g", f.resid_var) + " " + std::to_string(f.references) + "\n";
+  }
+  if (s.crank_error_var) text += "crank_error_var" + fmt(" %.17g", *s.crank_error_var) + "\n";
   text += "saved_at_t_ns " + std::to_string(s.saved_at_t_ns) + "\n";
   char sum[32];
   std::snprintf(sum, sizeof sum, "checksum crc32 %08x\n", crc32(text.data(), text.size()));
@@ -161,6 +170,23 @@ bool parse_line(const std::string& key, std::istringstream& ls, LearnedState& s,
     for (double& v : s.tooth_corrections_rad)
       if (!(ls >> v) || !std::isfinite(v))
         return *what = "expected " + std::to_string(n) + " finite corrections", false;
+  } else if (key == "fuel_model") {
+    FuelTorqueState f;
+    std::int64_t refs = -1;
+    bool ok = static_cast<bool>(ls >> f.theta[0] >> f.theta[1]);
+    for (double& v : f.p) ok = ok && static_cast<bool>(ls >> v);
+    ok = ok && (ls >> f.resid_var >> refs) && refs >= 0 && refs <= 0xFFFFFFFFll;
+    for (double v : {f.theta[0], f.theta[1], f.p[0], f.p[1], f.p[2], f.p[3], f.resid_var}) ok = ok && std::isfinite(v);
+    if (!ok)
+      return *what = "expected efficiency, pumping term (N m), 4 covariance entries, residual variance (N m^2) "
+                     "and a reference count",
+             false;
+    f.references = static_cast<std::uint32_t>(refs);
+    s.fuel = f;
+  } else if (key == "crank_error_var") {
+    double v = 0.0;
+    if (!(ls >> v) || !std::isfinite(v)) return *what = "expected a finite variance (N m^2)", false;
+    s.crank_error_var = v;
   } else if (key == "saved_at_t_ns") {
     if (!(ls >> s.saved_at_t_ns)) return *what = "expected an integer time", false;
   } else if (key == "identity" && s.version >= 2) {
@@ -221,8 +247,38 @@ std::optional<LearnedState> parse_state(const std::string& text, const std::stri
   return s;
 }
 
+namespace {
+/// Physical bounds of a learned fuel model: 0 < efficiency < Otto efficiency; |pumping term| and the residual
+/// 1 sigma within the torque of kMaxFrictionMepPa; covariance symmetric positive semi-definite.
+bool check_fuel(const FuelTorqueState& f, const StateContext& ctx, std::string* what) {
+  if (!(f.theta[0] > 0.0 && f.theta[0] < ctx.max_eta)) {
+    *what = "fuel model efficiency " + fmt("%g", f.theta[0]) + " not in (0, " + fmt("%g", ctx.max_eta) +
+            ") (the Otto cycle's at this compression ratio)";
+    return false;
+  }
+  if (!(std::abs(f.theta[1]) <= ctx.max_torque_sd_nm)) {
+    *what = "fuel model pumping term " + fmt("%g", f.theta[1]) + " N m beyond " + fmt("%g", ctx.max_torque_sd_nm) +
+            " N m";
+    return false;
+  }
+  if (!(f.resid_var >= 0.0 && std::sqrt(f.resid_var) <= ctx.max_torque_sd_nm)) {
+    *what = "fuel model residual variance " + fmt("%g", f.resid_var) + " N m^2 out of range";
+    return false;
+  }
+  const double tol = 1e-9 * (std::abs(f.p[1]) + std::abs(f.p[2])) + 1e-300;
+  if (!(f.p[0] >= 0.0 && f.p[3] >= 0.0 && std::abs(f.p[1] - f.p[2]) <= tol &&
+        f.p[1] * f.p[2] <= f.p[0] * f.p[3] * (1.0 + 1e-9))) {
+    *what = "fuel model covariance [" + fmt("%g", f.p[0]) + fmt(" %g", f.p[1]) + fmt(" %g", f.p[2]) +
+            fmt(" %g", f.p[3]) + "] is not symmetric positive semi-definite";
+    return false;
+  }
+  return true;
+}
+}  // namespace
+
 bool check_state(const LearnedState& s, const StateContext& ctx, const std::string& name,
                  std::string* error) {
+  std::string fuel_err;
   auto fail = [&](const std::string& what) {
     if (error) *error = name + ": " + what;
     return false;
@@ -256,6 +312,13 @@ bool check_state(const LearnedState& s, const StateContext& ctx, const std::stri
       return fail("idle speed " + fmt("%g", v[1]) + " rpm not in (0, " + fmt("%g", ctx.friction.max_rpm) +
                   "]");
     if (!s.friction) return fail("an idle friction correction without friction coefficients");
+  }
+  if (s.fuel && !check_fuel(*s.fuel, ctx, &fuel_err)) return fail(fuel_err);
+  if (s.crank_error_var) {
+    const double v = *s.crank_error_var;
+    if (!(v >= 0.0 && std::sqrt(v) <= ctx.max_torque_sd_nm))
+      return fail("crank-only error variance " + fmt("%g", v) + " N m^2 not in [0, (" +
+                  fmt("%g", ctx.max_torque_sd_nm) + " N m)^2]");
   }
   return true;
 }

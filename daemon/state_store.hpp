@@ -7,8 +7,11 @@
 //   friction <c1> <c2> <c3> <c4>                    (optional)
 //   friction_idle <correction N m> <idle speed rpm>  (optional: FrictionLearner's local idle correction)
 //   tooth_corrections <n> <rad_0> ... <rad_n-1>      (optional)
+//   fuel_model <eta> <p_exh V_d/4pi N m> <P00> <P01> <P10> <P11> <resid var N m^2> <references>  (optional)
+//   crank_error_var <N m^2>                          (optional: measured variance of the crank-only chain)
 //   saved_at_t_ns <edge-clock time>
 //   checksum crc32 <8 hex digits of CRC-32 (IEEE) over every byte before this line>
+// fuel_model and crank_error_var were added to version 2 (issue 14); version 2 files without them still load.
 // Version 1 files (no identity, no checksum) are still read and checked against the bounds; the next save
 // rewrites them as version 2.
 //
@@ -32,6 +35,7 @@
 #include <thread>
 #include <vector>
 
+#include "fuel_torque.hpp"
 #include "params.hpp"
 
 namespace torqued {
@@ -42,6 +46,8 @@ struct LearnedState {
   std::optional<std::array<double, 4>> friction;       ///< FrictionLearner coefficients [C1..C4]
   std::optional<std::array<double, 2>> friction_idle;  ///< idle correction (N m) and its idle speed (rpm)
   std::vector<double> tooth_corrections_rad;           ///< ToothErrorLearner table (empty = none)
+  std::optional<FuelTorqueState> fuel;    ///< FuelTorque learned efficiency / pumping / covariance
+  std::optional<double> crank_error_var;  ///< measured crank-only indicated error variance (N m^2)
   std::int64_t saved_at_t_ns = 0;
   std::string identity;  ///< read from the file (version 2); written from StateContext on save
   int version = 2;       ///< read from the file
@@ -54,6 +60,10 @@ struct StateContext {
   double max_tooth_corr_rad = 0;  ///< |correction| < half a tooth pitch (the decoder's own limit)
   FrictionParams friction;        ///< law (sign) and speed range the coefficients are evaluated over
   double max_friction_nm = 0;  ///< |T_fric| bound over n in [0, friction.max_rpm], t_oil in [-40, 200] degC
+  /// Upper bound of the gross indicated efficiency: the air-standard Otto cycle at the configured compression
+  /// ratio, 1 - r^(1-gamma) with gamma = 1.4 (Heywood 1988 eq. 5.31); no real cycle converts more.
+  double max_eta = 1.0;
+  double max_torque_sd_nm = 0;  ///< bound of a learned 1 sigma (N m): the torque of kMaxFrictionMepPa
 };
 
 /// Friction mean effective pressure no engine reaches (Pa): 50 bar. Motored friction is 1-3 bar fmep at rated

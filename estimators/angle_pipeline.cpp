@@ -64,6 +64,8 @@ void AnglePipeline::reset() noexcept {
   rls_.reset();
   eso_.reset();
   fuel_ind_ = TorqueEstimate{};
+  win_fill_ = win_pos_ = 0;
+  fired_prev_ = true;
   cyl_.reset();
   fusion_.reset();
   pre_.reset();
@@ -196,6 +198,31 @@ void AnglePipeline::count_fuel_state(const EngineSignals& sig, bool can_fresh) n
   }
 }
 
+void AnglePipeline::push_fuel_window(bool fuel_in, double fuel_kg) noexcept {
+  if (!fuel_in || !std::isfinite(fuel_kg)) {
+    win_fill_ = 0;  // a gap in the fuel signal: the window restarts
+    return;
+  }
+  const int n = cfg_.engine.cylinders;
+  win_fuel_kg_[static_cast<std::size_t>(win_pos_)] = fuel_kg;
+  win_map_pa_[static_cast<std::size_t>(win_pos_)] = held_map_pa_;
+  win_pos_ = (win_pos_ + 1) % n;
+  win_fill_ = std::min(win_fill_ + 1, n);
+}
+
+bool AnglePipeline::fuel_window(double& fuel_kg, double& map_pa) const noexcept {
+  const int n = cfg_.engine.cylinders;
+  if (win_fill_ < n) return false;
+  fuel_kg = map_pa = 0.0;
+  for (int i = 0; i < n; ++i) {
+    fuel_kg += win_fuel_kg_[static_cast<std::size_t>(i)];
+    map_pa += win_map_pa_[static_cast<std::size_t>(i)];
+  }
+  fuel_kg /= n;
+  map_pa /= n;
+  return true;
+}
+
 void AnglePipeline::segment_work(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh,
                                  CycleOutput& o) noexcept {
   const int n = cfg_.engine.cylinders;
@@ -270,9 +297,14 @@ void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals&
   o.indicated_crank = make(seg.t_ns, dke_nm + trk.torque_nm,
                            std::max(trk.uncertainty, std::sqrt(crank_err_var_)), trk.health);
   // Fuel model (ECU fuel mass on CAN, efficiency learned against the energy balance).
-  const bool fuel_in = can_fresh && sig.fuel_mass_valid && have_map_;
-  fuel_ind_ = fuel_in ? fuel_.estimate(seg.t_ns, fired_ ? sig.fuel_mass_kg : 0.0, held_map_pa_)
-                      : make(seg.t_ns, 0.0, 0.0, Health::kStaleInput);
+  double win_fuel = 0.0, win_map = 0.0;
+  fuel_ind_ = fuel_window(win_fuel, win_map) ? fuel_.estimate(seg.t_ns, win_fuel, win_map)
+                                             : make(seg.t_ns, 0.0, 0.0, Health::kStaleInput);
+  // In fuel cut-off for the whole window the indicated torque is the motored (pumping) torque, the model the
+  // friction law was learned against in cut-off (learn(): T_fric = T_motored − ΔKE − T_load): the model-based
+  // indicated torque is then T_motored, and brake = T_motored − friction is as good as the learned law.
+  if (cut_segments_ > cfg_.engine.cylinders && have_map_ && !friction_.is_prior())
+    fuel_ind_ = make(seg.t_ns, rls_.motored_torque_nm(held_map_pa_), cfg_.friction.learned_sd_nm, Health::kValid);
   if (seg.cycle_load_valid) {
     o.load = make(seg.t_ns, seg.cycle_load_mean_nm, cfg_.fusion.can_load_sd_nm, Health::kValid);
     o.brake = o.brake_energy;
@@ -351,7 +383,8 @@ void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bo
   // scored against (fuel-model efficiency; measured 1σ of the compression-window chain).
   if (fuel_reference_allowed(seg, sig, can_fresh, load_steady, o.cycle_end)) {
     const double t_ind_ref = o.brake_energy.torque_nm + o.friction.torque_nm;
-    (void)fuel_.learn(sig.fuel_mass_kg, held_map_pa_, t_ind_ref);
+    double win_fuel = 0.0, win_map = 0.0;
+    if (fuel_window(win_fuel, win_map)) (void)fuel_.learn(win_fuel, win_map, t_ind_ref);
     if (o.indicated_crank.health == Health::kValid) {
       const double e = o.indicated_crank.torque_nm - t_ind_ref;
       crank_err_var_ += cfg_.fusion.brake_sd_ema * (e * e - crank_err_var_);
@@ -395,6 +428,10 @@ void AnglePipeline::fuse(const SegmentEnergy& seg, const EngineSignals& sig, Cyc
 void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh) noexcept {
   ++stats_.segments;
   count_fuel_state(sig, can_fresh);
+  // The CAN cut-off flag leads the injections by about one segment (both ways): the window takes the flag of
+  // the previous segment.
+  push_fuel_window(can_fresh && sig.fuel_mass_valid && have_map_, fired_prev_ ? sig.fuel_mass_kg : 0.0);
+  fired_prev_ = fired_;
   CycleOutput o;
   o.t_ns = seg.t_ns;
   o.seq = cycle_.seq + 1;

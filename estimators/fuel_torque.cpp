@@ -66,9 +66,14 @@ bool FuelTorque::learn(double fuel_kg, double map_pa, double t_ind_ref) noexcept
   }
   pn[1] = pn[2] = 0.5 * (pn[1] + pn[2]);
   st_.p = pn;
-  // Residual variance from the a-priori errors (includes the reference's own noise: conservative).
-  st_.resid_var += params_.sd_ema * (err * err - st_.resid_var);
+  // Residual variance from the a-priori errors (includes the reference's own noise: conservative). Once valid,
+  // a running mean over every reference since (weight 1/k, floored at sd_ema): the claimed 1σ then covers the
+  // whole range of operating points learned, not only the last plateau.
+  const bool was_valid = valid();
   ++st_.references;
+  const double kn = static_cast<double>(st_.references) - params_.min_references;
+  const double w = was_valid && kn >= 1.0 ? std::max(1.0 / kn, params_.sd_ema) : params_.sd_ema;
+  st_.resid_var += w * (err * err - st_.resid_var);
   return true;
 }
 

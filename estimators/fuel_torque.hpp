@@ -10,8 +10,8 @@
 // / 4π) whenever a reference is present: T_ind,ref = energy-balance brake torque with the measured load +
 // learned friction. Priors: η_g = 0.38 (typical gross indicated fuel conversion efficiency of a warm SI
 // engine at λ = 1, Heywood fig. 13-9 order of magnitude), p_exh = 105 kPa (ambient + a few kPa of exhaust
-// back-pressure); both with wide priors. The claimed 1σ is the RMS of the reference residuals (EMA), so that
-// it is measured, not assumed. Real-time safe: no allocation, no exceptions.
+// back-pressure); both with wide priors. The claimed 1σ is the RMS of the reference residuals (running mean over
+// every reference once valid, then an EMA with a long memory), so that it is measured, not assumed. Real-time safe: no allocation, no exceptions.
 #include <array>
 #include <cstdint>
 
@@ -28,7 +28,7 @@ struct FuelTorqueParams {
   double forgetting = 0.999;           ///< RLS forgetting per reference cycle (-)
   double residual_sd_nm = 2.0;         ///< measurement 1σ of one reference cycle (N m)
   int min_references = 30;             ///< reference cycles before the estimate is valid (-)
-  double sd_ema = 0.05;                ///< EMA weight of the residual variance (-)
+  double sd_ema = 0.005;  ///< residual variance: EMA weight before valid, floor of the running-mean weight 1/k after (-)
   double fuel_lhv_j_kg = 43e6;         ///< q_LHV (J/kg)
 };
 

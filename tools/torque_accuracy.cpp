@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "cylinder_eval.hpp"
+#include "daemon_bed.hpp"
 #include "pipeline_eval.hpp"
 #include "recording_eval.hpp"
 
@@ -63,6 +64,52 @@ int run_bed(bool all, bool short_run, const torqued::eval::EvalOptions& base) {
   }
   return 0;
 }
+std::string ds(const torqued::eval::DaemonBedStats& s) {
+  if (s.n == 0) return "     -      -";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%6.1f %6.1f", s.rms_nm, s.max_abs_nm);
+  return buf;
+}
+std::string dpc(const torqued::eval::DaemonBedStats& s) {
+  if (s.n == 0) return "   -    -";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%3d%% %3d%%", 100 * s.pass / s.n, 100 * s.covered / s.n);
+  return buf;
+}
+
+/// Issue 14 through the daemon's chain: the unseen-engines bed as recordings replayed by run_fast_replay.
+int run_bed_daemon(bool all, const torqued::eval::DaemonBedOptions& opt) {
+  std::printf(
+      "unseen-engines bed THROUGH THE DAEMON'S CHAIN (%s runs): each engine's recordings written as edges.csv +\n"
+      "can.log + demo.dbc + torqued config (spec sheet) under %s/; learn recording replayed with the load signal\n"
+      "(run_fast_replay), its learned state saved/restored as the daemon does, evaluated recording replayed from\n"
+      "that state with and without the load signal. Cells: RMS and max |error| (N m) over every cycle-end record\n"
+      "after %d; pass = %% within 5 %% or 3 N m steady, 8 %% or 5 N m transient; cov = %% with |error| <= claimed "
+      "1 sigma.\n",
+      opt.short_run ? "short" : "full", opt.out_dir.c_str(), opt.skip_cycles);
+  std::printf("%-10s %4s | %-13s %-9s | %-13s | %-13s | %-13s %-9s | %-13s %-9s | %-13s | %-13s\n", "engine", "cyc",
+              "LOAD brake", "pass/cov", "indicated", "friction", "NO LOAD brake", "pass/cov", "indicated",
+              "pass/cov", "fused", "friction");
+  int rc = 0;
+  for (const auto& e : torqued::sim::unseen_engines()) {
+    if (!all && !e.report) continue;
+    torqued::eval::DaemonBedResult b;
+    std::string err;
+    if (!torqued::eval::evaluate_bed_engine_daemon(e, opt, b, err)) {
+      std::fprintf(stderr, "error: %s\n", err.c_str());
+      rc = 1;
+      continue;
+    }
+    const auto& w = b.with_load;
+    const auto& n = b.without_load;
+    std::printf("%-10s %4d | %-13s %-9s | %-13s | %-13s | %-13s %-9s | %-13s %-9s | %-13s | %-13s\n",
+                b.engine.c_str(), w.cycles, ds(w.brake).c_str(), dpc(w.brake).c_str(), ds(w.indicated).c_str(),
+                ds(w.friction).c_str(), ds(n.brake).c_str(), dpc(n.brake).c_str(), ds(n.indicated).c_str(),
+                dpc(n.indicated).c_str(), ds(n.fused).c_str(), ds(n.friction).c_str());
+    std::fflush(stdout);
+  }
+  return rc;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -100,8 +147,11 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_option("--state-dir", rec.state_dir, "--recording: learned state loaded at start and saved at the end");
   app.add_option("--skip-s", rec.skip_s, "--recording: seconds after the first edge left out of the evaluation");
-  app.add_option("--bed", bed, "run a test bed instead of the scenarios: 'unseen' (issue 14, report engines)")
-      ->check(CLI::IsMember({"unseen"}));
+  app.add_option("--bed", bed, "run a test bed instead of the scenarios: 'unseen' (issue 14, report engines, ideal teeth into a copy of "
+                 "the pipeline) or 'unseen-daemon' (the same engines as recordings through the daemon's chain)")
+      ->check(CLI::IsMember({"unseen", "unseen-daemon"}));
+  std::string bed_out = "bed-daemon";
+  app.add_option("--bed-out", bed_out, "--bed unseen-daemon: directory for the recordings, configs and state files");
   app.add_flag("--bed-all", bed_all, "with --bed: also the tuning engines");
   app.add_flag("--bed-short", bed_short, "with --bed: the short evaluated recordings (the ctest subset)");
   app.add_flag(
@@ -131,6 +181,13 @@ int main(int argc, char** argv) {
   if (!rec.config_path.empty()) {
     if (rec.out_dir.empty()) rec.out_dir = "accuracy-out";
     return torqued::eval::run_recording(rec);
+  }
+  if (bed == "unseen-daemon") {
+    torqued::eval::DaemonBedOptions o;
+    o.out_dir = bed_out;
+    o.short_run = bed_short;
+    o.skip_cycles = skip;
+    return run_bed_daemon(bed_all, o);
   }
   if (!bed.empty()) {
     torqued::eval::EvalOptions bo;

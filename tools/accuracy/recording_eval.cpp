@@ -119,6 +119,8 @@ int run_recording(const RecordingOptions& opt) {
               r.counters.cycles, r.counters.sync_losses, r.imported.empty() ? "none" : r.imported.c_str());
   if (!spath.empty() && r.learned) {
     std::string serr;
+    st.identity = sctx.identity;  // learned by this configuration (as StateSaver does)
+    st.version = 2;
     std::filesystem::create_directories(opt.state_dir, ec);
     if (!check_state(st, sctx, spath, &serr) || !save_state_atomic(spath, st, sctx.identity, &serr))
       std::cerr << "warning: learned state not saved: " << serr << "\n";

@@ -7,6 +7,8 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "can_codec.hpp"
+
 namespace torqued::sim {
 
 namespace {
@@ -145,6 +147,39 @@ void write_outputs(const SimOutput& out, const Scenario& sc, const std::filesyst
   write_text_file(dir / "truth_cycle.csv", truth_cycle_csv(out, sc));
   write_text_file(dir / "engine.yaml", engine_yaml(sc));
   write_text_file(dir / "tooth_errors.csv", tooth_errors_csv(out));
+}
+
+std::string torqued_config_yaml(const EngineGeometry& engine, const Scenario& sc, bool load_signal) {
+  Scenario spec = sc;
+  spec.engine = engine;
+  std::string s = "# torqued configuration of torque-sim recording '" + sc.name + "' (" +
+                  (load_signal ? "with the load-torque signal: dynamometer" : "no load-torque signal: vehicle") +
+                  ").\n# Engine section: the spec sheet, not the simulator's hidden truth. Other keys: defaults.\n";
+  const std::string eng = engine_yaml(spec);
+  s += eng.substr(eng.find('\n') + 1);  // without engine_yaml's own comment line
+  s += "inputs:\n  edges: {backend: file, path: edges.csv, format: csv}\n";
+  appendf(s, "  can: {backend: file, path: can.log, time_offset_s: -%" PRId64 "}\n", kCandumpEpochS);
+  s += "can:\n  dbc: demo.dbc\n  signals:\n";
+  s += "    map:           {message: ENGINE_1, signal: MAP, timeout_ms: 100}\n"
+       "    intake_temp:   {message: ENGINE_1, signal: IntakeAirTemp, timeout_ms: 100}\n"
+       "    throttle:      {message: ENGINE_1, signal: Throttle, timeout_ms: 100}\n"
+       "    maf:           {message: ENGINE_2, signal: MAF, timeout_ms: 100}\n"
+       "    fuel_mass:     {message: ENGINE_2, signal: FuelMass, timeout_ms: 100}\n"
+       "    spark_advance: {message: ENGINE_2, signal: SparkAdvance, timeout_ms: 100}\n"
+       "    lambda:        {message: ENGINE_2, signal: Lambda, timeout_ms: 100}\n"
+       "    fuel_cutoff:   {message: ENGINE_2, signal: FuelCutoff, timeout_ms: 100}\n"
+       "    oil_temp:      {message: ENGINE_3, signal: OilTemp, timeout_ms: 500}\n";
+  if (load_signal) s += "    load_torque:   {message: DYNO_1, signal: LoadTorque, timeout_ms: 100}\n";
+  s += "output:\n  record_dir: \"\"\n  state_dir: \"\"\n";
+  return s;
+}
+
+void write_recording(const SimOutput& out, const Scenario& sc, const EngineGeometry& engine,
+                     const std::filesystem::path& dir) {
+  write_outputs(out, sc, dir);
+  write_text_file(dir / "demo.dbc", demo_dbc_text());
+  write_text_file(dir / "torqued.yaml", torqued_config_yaml(engine, sc, true));
+  write_text_file(dir / "torqued_noload.yaml", torqued_config_yaml(engine, sc, false));
 }
 
 }  // namespace torqued::sim

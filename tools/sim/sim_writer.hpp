@@ -17,6 +17,16 @@ inline constexpr std::int64_t kCandumpEpochS = 1700000000;
 [[nodiscard]] std::string tooth_errors_csv(const SimOutput& out);
 [[nodiscard]] std::string engine_yaml(const Scenario& sc);          ///< engine: and wheel: sections of the config
 
+/// A torqued configuration replaying edges.csv / can.log / demo.dbc of the same directory: engine section from
+/// `engine` (the spec sheet a user would configure, not the simulator's truth), wheel from `sc`, every CAN
+/// signal of demo.dbc mapped; the load-torque signal only when `load_signal` (dynamometer) is set.
+[[nodiscard]] std::string torqued_config_yaml(const EngineGeometry& engine, const Scenario& sc, bool load_signal);
+
+/// write_outputs() plus demo.dbc, torqued.yaml (with the load signal) and torqued_noload.yaml (vehicle case),
+/// configured with `engine` (spec sheet). Throws std::runtime_error naming the file on failure.
+void write_recording(const SimOutput& out, const Scenario& sc, const EngineGeometry& engine,
+                     const std::filesystem::path& dir);
+
 /// Writes edges.csv, can.log, truth_tooth.csv, truth_cycle.csv, engine.yaml, tooth_errors.csv into `dir`
 /// (created if needed). Throws std::runtime_error naming the file on failure.
 void write_outputs(const SimOutput& out, const Scenario& sc, const std::filesystem::path& dir);

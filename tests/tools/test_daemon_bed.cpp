@@ -1,0 +1,60 @@
+// tests/tools/test_daemon_bed.cpp: the unseen-engines bed THROUGH THE DAEMON'S CHAIN
+// (tools/accuracy/daemon_bed.cpp, issue 14 item 2): two report engines (never used for tuning: I4 with a 36-1
+// wheel, I6 with a 60-2 wheel) are written by the simulator as recordings + torqued configs from their spec
+// sheets, learned with the load signal (state file saved and restored as the daemon does), then replayed
+// (short evaluated recording) with and without the load signal. Tolerances: the issue 14 targets (5 % or 3 N
+// m steady, 8 % or 5 N m transient) on >= 90 % of the cycles, RMS limits a little above what the chain gives
+// today. Label slow (about 10 s).
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <string>
+
+#include "daemon_bed.hpp"
+
+namespace torqued::eval {
+namespace {
+namespace fs = std::filesystem;
+
+class DaemonBed : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(DaemonBed, LearnedStateCarriesTheNoLoadBrakeTorqueToTheTargets) {
+  const sim::BedEngine* e = nullptr;
+  for (const auto& b : sim::unseen_engines())
+    if (b.name == GetParam()) e = &b;
+  ASSERT_NE(e, nullptr);
+  ASSERT_TRUE(e->report) << "only report engines are scored";
+  DaemonBedOptions opt;
+  opt.out_dir = (fs::temp_directory_path() / ("torqued_daemon_bed_" + std::to_string(::getpid()))).string();
+  opt.short_run = true;
+  DaemonBedResult r;
+  std::string err;
+  ASSERT_TRUE(evaluate_bed_engine_daemon(*e, opt, r, err)) << err;
+  // The evaluated runs started from the learn run's state file: friction, tooth table and the fuel model.
+  EXPECT_NE(r.learned.find("friction law"), std::string::npos) << r.learned;
+  EXPECT_NE(r.learned.find("fuel model"), std::string::npos) << r.learned;
+  const DaemonBedRun& w = r.with_load;
+  const DaemonBedRun& n = r.without_load;
+  ASSERT_GT(w.cycles, 50);
+  ASSERT_EQ(w.brake.n, n.brake.n);
+  // With the load signal: the energy balance (no friction model needed).
+  EXPECT_LT(w.brake.rms_nm, 2.0);
+  EXPECT_GE(w.brake.pass, 95 * w.brake.n / 100);
+  EXPECT_GE(w.brake.covered, 60 * w.brake.n / 100) << "claimed 1 sigma of the energy balance";
+  // Without it: learned fuel model - learned friction.
+  EXPECT_LT(n.brake.rms_nm, 4.0);
+  EXPECT_LT(n.brake.max_abs_nm, 15.0);
+  EXPECT_GE(n.brake.pass, 90 * n.brake.n / 100);
+  EXPECT_LT(n.indicated.rms_nm, 5.0);
+  // Claimed 1 sigma: >= 25 % coverage only (the I6 60-2 engine covers 30 %, the target 68 % is not reached:
+  // see docs/angle_pipeline.md, the fuel model's residual is measured at the learn run's operating points
+  // only).
+  EXPECT_GE(n.brake.covered, 25 * n.brake.n / 100);
+  fs::remove_all(opt.out_dir);
+}
+
+INSTANTIATE_TEST_SUITE_P(ReportEngines, DaemonBed, ::testing::Values("rep_i4_36", "rep_i6_60"));
+
+}  // namespace
+}  // namespace torqued::eval

@@ -1,0 +1,204 @@
+#include "daemon_bed.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <numbers>
+#include <vector>
+
+#include "config_loader.hpp"
+#include "fast_replay.hpp"
+#include "replay_inputs.hpp"
+#include "sim_writer.hpp"
+#include "state_store.hpp"
+
+namespace torqued::eval {
+namespace {
+namespace fs = std::filesystem;
+constexpr double kFourPi = 4.0 * std::numbers::pi;
+
+struct NoSink final : SampleSink {
+  void emit(const dds::AnySample&) noexcept override {}
+};
+
+/// One cycle-end record of the chain.
+struct Row {
+  double t0_s = 0.0, t1_s = 0.0;
+  TorqueEstimate brake, indicated, friction;
+  double fused = 0.0, fused_sd = 0.0;
+  bool fused_valid = false;
+};
+
+struct Tap final : AngleChainSink {
+  std::vector<Row> rows;
+  void on_tooth(const ChainTooth&) noexcept override {}
+  void on_segment(const ChainSegment& s) noexcept override {
+    const CycleOutput& o = *s.out;
+    if (!o.cycle_end || s.window_start_t_ns >= s.source_t_ns) return;
+    Row r;
+    r.t0_s = static_cast<double>(s.window_start_t_ns) * 1e-9;
+    r.t1_s = static_cast<double>(s.source_t_ns) * 1e-9;
+    r.brake = o.brake;
+    r.indicated = o.indicated;
+    r.friction = o.friction;
+    r.fused = o.fused.brake_nm;
+    r.fused_sd = o.fused.sd_nm;
+    r.fused_valid = o.fused.quality != FusionQuality::kInvalid;
+    rows.push_back(r);
+  }
+};
+
+/// Truth of the chain's cycle-end window (t0, t1]: the simulator's cycle whose end is nearest t1 (the chain's
+/// boundary-0 windows close on the same crank angle as the simulator's cycles), accepted within an eighth of
+/// a cycle. Per-tooth truth averaged over the window would be biased by the tooth sampling (gap, firing
+/// peaks).
+struct WindowTruth {
+  double brake = 0.0, ind = 0.0, fric = 0.0, rpm = 0.0;
+  bool ok = false;
+};
+WindowTruth window_truth(const sim::SimOutput& out, double t0, double t1) {
+  WindowTruth w;
+  const auto& cy = out.cycles;
+  auto it = std::lower_bound(cy.begin(), cy.end(), t1,
+                             [](const sim::CycleTruth& c, double v) { return c.t_end_s < v; });
+  const sim::CycleTruth* best = nullptr;
+  for (auto c = it == cy.begin() ? it : it - 1; c != cy.end() && c <= it; ++c) {
+    if (!best || std::fabs(c->t_end_s - t1) < std::fabs(best->t_end_s - t1)) best = &*c;
+  }
+  if (!best || std::fabs(best->t_end_s - t1) > 0.125 * (t1 - t0)) return w;
+  w.brake = best->t_brake_mean_nm;
+  w.ind = best->t_ind_mean_nm;
+  w.fric = best->t_fric_mean_nm;
+  w.rpm = best->speed_mean_rad_s * 30.0 / std::numbers::pi;
+  w.ok = true;
+  return w;
+}
+
+void add(DaemonBedStats& s, double est, double truth, double sd, bool transient) {
+  const double err = est - truth;
+  const double allowed =
+      transient ? std::max(0.08 * std::fabs(truth), 5.0) : std::max(0.05 * std::fabs(truth), 3.0);
+  ++s.n;
+  if (std::fabs(err) <= allowed) ++s.pass;
+  if (std::fabs(err) <= sd) ++s.covered;
+  s.rms_nm += err * err;
+  s.bias_nm += err;
+  s.max_abs_nm = std::max(s.max_abs_nm, std::fabs(err));
+}
+void finish(DaemonBedStats& s) {
+  if (s.n == 0) return;
+  s.rms_nm = std::sqrt(s.rms_nm / s.n);
+  s.bias_nm /= s.n;
+}
+
+DaemonBedRun score(const std::vector<Row>& rows, const sim::SimOutput& out, int skip, const fs::path& csv) {
+  DaemonBedRun r;
+  std::string text =
+      "t_s,transient,brake_true_nm,brake_nm,brake_sd_nm,indicated_true_nm,indicated_nm,indicated_sd_nm,"
+      "friction_true_nm,friction_nm,fused_nm,fused_sd_nm\n";
+  double prev_true = 0.0, prev_rpm = 0.0;
+  bool have_prev = false;
+  int hold = 0;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const Row& x = rows[i];
+    const WindowTruth w = window_truth(out, x.t0_s, x.t1_s);
+    if (!w.ok) continue;
+    // Transient as in pipeline_eval: the true brake torque or the speed moves between consecutive cycles.
+    if (have_prev && (std::fabs(w.brake - prev_true) > 1.5 || std::fabs(w.rpm - prev_rpm) > 0.01 * prev_rpm))
+      hold = 2;
+    const bool transient = hold > 0;
+    if (hold > 0) --hold;
+    prev_true = w.brake;
+    prev_rpm = w.rpm;
+    have_prev = true;
+    if (static_cast<int>(i) < skip) continue;
+    ++r.cycles;
+    add(r.brake, x.brake.torque_nm, w.brake, x.brake.uncertainty, transient);
+    add(r.indicated, x.indicated.torque_nm, w.ind, x.indicated.uncertainty, transient);
+    add(r.friction, x.friction.torque_nm, w.fric, x.friction.uncertainty, transient);
+    if (x.fused_valid) add(r.fused, x.fused, w.brake, x.fused_sd, transient);
+    char line[320];
+    std::snprintf(line, sizeof line, "%.6f,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f\n", x.t1_s,
+                  transient ? 1 : 0, w.brake, x.brake.torque_nm, x.brake.uncertainty, w.ind,
+                  x.indicated.torque_nm, x.indicated.uncertainty, w.fric, x.friction.torque_nm, x.fused,
+                  x.fused_sd);
+    text += line;
+  }
+  sim::write_text_file(csv, text);
+  for (DaemonBedStats* s : {&r.brake, &r.indicated, &r.friction, &r.fused}) finish(*s);
+  return r;
+}
+
+/// Replays `config` from `state_in` (may be null); the learned state at the end into `state_out` (may be
+/// null).
+bool replay(const fs::path& config, const LearnedState* state_in, LearnedState* state_out, Tap& tap,
+            std::string* imported, std::string& error) {
+  const LoadResult lr = load_config(config.string());
+  if (!lr.config) {
+    error = config.string() + ": " + (lr.errors.empty() ? std::string("invalid") : lr.errors.front());
+    return false;
+  }
+  RunInputs in = open_inputs(*lr.config);
+  if (!in.ok()) {
+    error = config.string() + ": " + in.error;
+    return false;
+  }
+  NoSink sink;
+  LearnedState st;
+  if (state_in) st = *state_in;
+  const ReplayResult rr = run_fast_replay(in.settings, in.edges.get(), in.can.get(), in.can_offset_ns,
+                                          in.dbc_ptr(), sink, nullptr, &st, &tap);
+  if (!rr.error.empty()) {
+    error = config.string() + ": replay: " + rr.error;
+    return false;
+  }
+  if (imported) *imported = rr.imported;
+  if (state_out && rr.learned) {
+    // Saved and restored exactly as the daemon does (identity, checksum, physical bounds).
+    const StateContext ctx = state_context_from(*lr.config);
+    const std::string path = (config.parent_path() / "state" / "learned_state.txt").string();
+    st.identity = ctx.identity;
+    st.version = 2;
+    if (!check_state(st, ctx, path, &error) || !save_state_atomic(path, st, ctx.identity, &error))
+      return false;
+    const RestoreResult rs = restore_learned_state(path, ctx);
+    if (!rs.state) {
+      error = path + ": " + (rs.warnings.empty() ? std::string("not restored") : rs.warnings.front());
+      return false;
+    }
+    *state_out = *rs.state;
+  }
+  return true;
+}
+}  // namespace
+
+bool evaluate_bed_engine_daemon(const sim::BedEngine& e, const DaemonBedOptions& opt, DaemonBedResult& r,
+                                std::string& error) {
+  r = DaemonBedResult{};
+  r.engine = e.name;
+  try {
+    const fs::path dir = fs::path(opt.out_dir) / e.name;
+    const sim::Scenario learn = sim::bed_learning_run(e);
+    const sim::SimOutput learn_out = sim::simulate(learn);
+    sim::write_recording(learn_out, learn, e.spec, dir / "learn");
+    LearnedState st;
+    Tap learn_tap;
+    if (!replay(dir / "learn" / "torqued.yaml", nullptr, &st, learn_tap, nullptr, error)) return false;
+    const sim::Scenario ev = sim::bed_eval_run(e, opt.short_run);
+    const sim::SimOutput ev_out = sim::simulate(ev);
+    sim::write_recording(ev_out, ev, e.spec, dir / "eval");
+    Tap with, without;
+    if (!replay(dir / "eval" / "torqued.yaml", &st, nullptr, with, &r.learned, error) ||
+        !replay(dir / "eval" / "torqued_noload.yaml", &st, nullptr, without, nullptr, error))
+      return false;
+    r.with_load = score(with.rows, ev_out, opt.skip_cycles, dir / "eval" / "cycles_load.csv");
+    r.without_load = score(without.rows, ev_out, opt.skip_cycles, dir / "eval" / "cycles_noload.csv");
+  } catch (const std::exception& ex) {
+    error = e.name + ": " + ex.what();
+    return false;
+  }
+  return true;
+}
+
+}  // namespace torqued::eval

@@ -1,0 +1,45 @@
+#pragma once
+// torque-accuracy --bed unseen-daemon: the unseen-engines bed (tools/sim/unseen_engines.hpp) through the
+// daemon's own angle chain. For each bed engine the simulator writes its recordings as a torqued input
+// (edges.csv, can.log, demo.dbc, torqued.yaml / torqued_noload.yaml configured from the spec sheet); the
+// learning recording is replayed with the load signal (run_fast_replay, as `torqued --replay fast`), its
+// learned state is saved as the daemon saves it (checked, state file) and read back; the evaluated recording
+// is then replayed from that state with and without the load signal. Every cycle-end record (rolling 720°
+// window) is scored against the simulator's truth averaged over the same window (angle-weighted per-tooth
+// truth). Not real-time code.
+#include <cstdint>
+#include <string>
+
+#include "unseen_engines.hpp"
+
+namespace torqued::eval {
+
+struct DaemonBedStats {
+  int n = 0;
+  int pass = 0;     ///< within 5 % or 3 N m steady, 8 % or 5 N m transient (issue 14)
+  int covered = 0;  ///< |error| <= claimed 1 sigma
+  double rms_nm = 0.0, max_abs_nm = 0.0, bias_nm = 0.0;
+};
+
+struct DaemonBedRun {
+  int cycles = 0;
+  DaemonBedStats brake, indicated, friction, fused;
+};
+
+struct DaemonBedResult {
+  std::string engine;
+  std::string learned;  ///< what the evaluated runs imported
+  DaemonBedRun with_load, without_load;
+};
+
+struct DaemonBedOptions {
+  std::string out_dir = "bed-daemon";  ///< recordings, state files and configs are left here
+  bool short_run = false;              ///< the 4 s evaluated recording
+  int skip_cycles = 12;                ///< cycles left out at the start of each evaluated run
+};
+
+/// One engine; false with `error` set when a recording could not be written or replayed.
+bool evaluate_bed_engine_daemon(const sim::BedEngine& e, const DaemonBedOptions& opt, DaemonBedResult& r,
+                                std::string& error);
+
+}  // namespace torqued::eval
