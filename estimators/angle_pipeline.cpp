@@ -11,6 +11,9 @@ constexpr double kFourPi = 4.0 * std::numbers::pi;
 constexpr double kRadSToRpm = 30.0 / std::numbers::pi;
 /// Misfire decisions only after this many firing cycles (the CAN fuel flag leads the injections that resume).
 constexpr int kMisfireArmCycles = 2;
+/// Intake valve closing before firing TDC (deg): IVC is typically 40-60° after BDC (Heywood 1988 §6.3), i.e.
+/// ≈ 130° before TDC; the fuel of a cycle is decided there (port injection closes with the valve).
+constexpr double kIvcBeforeTdcDeg = 130.0;
 
 TorqueEstimate make(std::int64_t t, double v, double sd, Health h) noexcept {
   TorqueEstimate e;
@@ -65,7 +68,7 @@ void AnglePipeline::reset() noexcept {
   eso_.reset();
   fuel_ind_ = TorqueEstimate{};
   win_fill_ = win_pos_ = 0;
-  fired_prev_ = true;
+  fired_hist_.fill(true);
   cyl_.reset();
   fusion_.reset();
   pre_.reset();
@@ -428,10 +431,15 @@ void AnglePipeline::fuse(const SegmentEnergy& seg, const EngineSignals& sig, Cyc
 void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh) noexcept {
   ++stats_.segments;
   count_fuel_state(sig, can_fresh);
-  // The CAN cut-off flag leads the injections by about one segment (both ways): the window takes the flag of
-  // the previous segment.
-  push_fuel_window(can_fresh && sig.fuel_mass_valid && have_map_, fired_prev_ ? sig.fuel_mass_kg : 0.0);
-  fired_prev_ = fired_;
+  // The CAN cut-off flag leads the work it changes: a cylinder's fuel is decided at its intake valve closing,
+  // ≈ kIvcBeforeTdcDeg before its firing TDC, and the work lands in the segment after that TDC. The window takes
+  // the flag of 1 + round(kIvcBeforeTdcDeg · n / 720°) segments earlier (2 for 2..8 cylinders).
+  for (std::size_t i = fired_hist_.size() - 1; i > 0; --i) fired_hist_[i] = fired_hist_[i - 1];
+  fired_hist_[0] = fired_;
+  const auto lag = static_cast<std::size_t>(
+      std::min<long>(static_cast<long>(fired_hist_.size()) - 1,
+                     1 + std::lround(kIvcBeforeTdcDeg * cfg_.engine.cylinders / 720.0)));
+  push_fuel_window(can_fresh && sig.fuel_mass_valid && have_map_, fired_hist_[lag] ? sig.fuel_mass_kg : 0.0);
   CycleOutput o;
   o.t_ns = seg.t_ns;
   o.seq = cycle_.seq + 1;

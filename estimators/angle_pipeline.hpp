@@ -170,7 +170,7 @@ class AnglePipeline {
   /// is evaluated on their means, i.e. over the same 720° window as the energy balance it is scored against.
   std::array<double, kMaxCylinders> win_fuel_kg_{}, win_map_pa_{};
   int win_fill_ = 0, win_pos_ = 0;
-  bool fired_prev_ = true;  ///< fired_ of the previous segment (the CAN cut-off flag leads the injections)
+  std::array<bool, 4> fired_hist_{true, true, true, true};  ///< fired_ of the last segments (newest first)
   void push_fuel_window(bool fuel_in, double fuel_kg) noexcept;
   [[nodiscard]] bool fuel_window(double& fuel_kg, double& map_pa) const noexcept;
   double crank_err_var_ =
