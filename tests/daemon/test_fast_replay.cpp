@@ -94,7 +94,7 @@ TEST_F(FastReplayTest, TwoRunsAreByteIdentical) {
   for (const auto& e : fs::directory_iterator(dir_ / "a")) {
     const auto other = dir_ / "b" / e.path().filename();
     ASSERT_TRUE(fs::exists(other)) << other;
-    EXPECT_EQ(slurp(e.path()), slurp(other)) << e.path().filename() << " differs between runs";
+    EXPECT_TRUE(slurp(e.path()) == slurp(other)) << e.path().filename() << " differs between runs";  // no multi-MB diff
     ++files;
   }
   EXPECT_GE(files, 3);  // engine_cycle, crank_state, daemon_status
