@@ -20,6 +20,7 @@
 #include "fast_replay.hpp"
 #include "replay_inputs.hpp"
 #include "logging.hpp"
+#include "metrics.hpp"
 #include "output_fanout.hpp"
 #include "rt_setup.hpp"
 #include "runtime.hpp"
@@ -215,9 +216,21 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
     wait_for_subscribers(*publisher, opt);
   }
   OutputFanout fanout(recorder.get(), publisher.get(), s.dds.engine_id);
+  // Metrics (metrics.enabled): a tap in front of the output, served by the endpoint's own threads.
+  std::unique_ptr<metrics::MetricsServer> metrics;
+  if (cfg.metrics.enabled) {
+    std::string merr;
+    metrics = metrics::MetricsServer::start(cfg.metrics, fanout, state_path(cfg, opt), &merr);
+    if (!metrics) {
+      spdlog::critical("{}", merr);
+      return 1;
+    }
+    spdlog::info("metrics: http://{}/metrics", cfg.metrics.address);
+  }
+  SampleSink& out = metrics ? metrics->sink() : static_cast<SampleSink&>(fanout);
 
   if (fast) {
-    const int rc = run_fast(s, cfg, opt, edges.get(), can.get(), dbc ? &*dbc : nullptr, fanout);
+    const int rc = run_fast(s, cfg, opt, edges.get(), can.get(), dbc ? &*dbc : nullptr, out);
     if (recorder) recorder->flush(true);
     return recording_failed(recorder.get()) ? std::max(rc, 3) : rc;
   }
@@ -242,7 +255,7 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   ro.source = thread_rt(cfg.realtime.source, "torqued-source");
   ro.publisher = thread_rt(cfg.realtime.publisher, "torqued-pub");
   ro.publisher_spin_ns = static_cast<std::int64_t>(cfg.realtime.publisher_spin_us) * 1000;
-  Runtime rt(s, ro, edges.get(), can.get(), can_time_offset_ns(cfg), dbc ? &*dbc : nullptr, fanout);
+  Runtime rt(s, ro, edges.get(), can.get(), can_time_offset_ns(cfg), dbc ? &*dbc : nullptr, out);
   if (!rt.ok()) {
     spdlog::critical("{}", rt.error());
     return 1;
@@ -315,12 +328,18 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
         c.flags |= torque_STATUS_REPLAY_DONE;
         done_reported = true;
       }
-      rt.push_status(make_status(c, ++status_seq, rt.last_source_t_ns(), now - t0));
+      const dds::AnySample status = make_status(c, ++status_seq, rt.last_source_t_ns(), now - t0);
+      rt.push_status(status);
+      if (metrics) metrics->on_status(status.u.status);
       notify_status(c, static_cast<double>(now - t0) * 1e-9);
       next_status += s.status_period_ns;
-      if (done_reported && opt.exit_when_done) {
-        spdlog::info("input consumed: stopping (--exit-when-done)");
-        break;
+      if (done && c.flags & torque_STATUS_REPLAY_DONE) {
+        if (opt.exit_when_done || cfg.replay.exit_when_done) {
+          spdlog::info("replay finished: input consumed; stopping (--exit-when-done / replay.exit_when_done)");
+          break;
+        }
+        spdlog::info("replay finished: input consumed; still running (DaemonStatus flags REPLAY_DONE) until "
+                     "SIGTERM/Ctrl-C, or set replay.exit_when_done / --exit-when-done to exit here");
       }
     }
     // Watchdog: ping only while every pipeline thread made progress since the last ping.
