@@ -10,13 +10,15 @@ PKGS=(
   libeigen3-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libsystemd-dev systemd libgpiod-dev
-  libreaderwriterqueue-dev libboost-dev
+  libreaderwriterqueue-dev libboost-dev prometheus-cpp-dev
   can-utils iproute2
   python3 python3-matplotlib python3-numpy
+  debhelper dpkg-dev help2man lintian
 )
-# Extra packages only the heavier test tiers need (VM for vcan, latency tools, foreign DDS peer).
+# Extra packages only the heavier test tiers need (VM for vcan, latency tools, foreign DDS peer, a real
+# Prometheus server scraping the metrics endpoint).
 if [[ "${TORQUED_DEPS_FULL:-1}" == "1" ]]; then
-  PKGS+=(qemu-system-x86 busybox-static cpio rt-tests stress-ng libfastrtps-dev fastddsgen)
+  PKGS+=(qemu-system-x86 busybox-static cpio rt-tests stress-ng libfastrtps-dev fastddsgen prometheus curl)
 fi
 
 missing=()
