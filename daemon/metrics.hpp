@@ -20,13 +20,14 @@
 #include <string>
 #include <vector>
 
+#include <prometheus/metric_family.h>
+
 #include "config.hpp"
 #include "sample_sink.hpp"
 #include "topics.hpp"
 
 namespace prometheus {
 class Exposer;
-struct MetricFamily;
 }  // namespace prometheus
 
 namespace torqued::metrics {
