@@ -3,6 +3,8 @@
 // is not told the simulator's friction law), then imported into every scenario, as the daemon would persist
 // it.
 #include <CLI/CLI.hpp>
+
+#include "cli_exit.hpp"
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -99,7 +101,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"unseen"}));
   app.add_flag("--bed-all", bed_all, "with --bed: also the tuning engines");
   app.add_flag("--bed-short", bed_short, "with --bed: the short evaluated recordings (the ctest subset)");
-  CLI11_PARSE(app, argc, argv);
+  app.footer("Exit status: 0 done (tables printed); 1 a recording could not be read or the output not written; 2 command-line error (unknown option, bad value, file that does not exist) or --config refused / its inputs cannot be opened.");
+  TORQUED_CLI_PARSE(app, argc, argv);
   if (!rec.config_path.empty()) {
     if (rec.out_dir.empty()) rec.out_dir = "accuracy-out";
     return torqued::eval::run_recording(rec);

@@ -4,6 +4,8 @@
 //                 --out-teeth teeth.csv --out-can can.csv
 #include <CLI/CLI.hpp>
 
+#include "cli_exit.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cinttypes>
@@ -86,7 +88,8 @@ int main(int argc, char** argv) {
   app.add_option("--out-teeth", o.out_teeth, "per-tooth CSV output");
   app.add_option("--out-can", o.out_can, "per-signal CAN CSV output (one row per decoded signal)");
   app.add_flag("-q,--quiet", o.quiet, "no progress display");
-  CLI11_PARSE(app, argc, argv);
+  app.footer("Exit status: 0 done; 1 an input could not be read or parsed, or the output not written; 2 command-line error (unknown option, bad value, file that does not exist, inconsistent options).");
+  TORQUED_CLI_PARSE(app, argc, argv);
   o.can_offset_given = app.count("--can-offset") > 0;
 
   WheelGeometry wheel;

@@ -12,6 +12,8 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+
+#include "cli_exit.hpp"
 #include <algorithm>
 #include <array>
 #include <cerrno>
@@ -287,7 +289,8 @@ int main(int argc, char** argv) {
   app.add_option("--plot-script", plot_script, "plot script (run with /usr/bin/python3)")
       ->capture_default_str();
   app.add_option("--title", title, "plot title");
-  CLI11_PARSE(app, argc, argv);
+  app.footer("Exit status: 0 done; 1 no latency sample measured, the daemon could not be started or DDS failed; 2 command-line error (unknown option, bad value, file that does not exist).");
+  TORQUED_CLI_PARSE(app, argc, argv);
 
   if (sub_cpu >= 0) {
     cpu_set_t set;
