@@ -18,10 +18,10 @@
 #include "config_loader.hpp"
 #include "dds_publisher.hpp"
 #include "fast_replay.hpp"
+#include "replay_inputs.hpp"
 #include "logging.hpp"
 #include "metrics.hpp"
 #include "output_fanout.hpp"
-#include "replay_inputs.hpp"
 #include "rt_setup.hpp"
 #include "runtime.hpp"
 #include "sample_recorder.hpp"
@@ -40,13 +40,11 @@ std::string state_path(const Config& cfg, const RunOptions& opt) {
 }
 
 /// The checked learned state of the previous run, as every mode loads it: identity, checksum and physical
-/// bounds checked, rejected files set aside (state_store.hpp); nothing with --fresh-state. Logs what
-/// happened.
+/// bounds checked, rejected files set aside (state_store.hpp); nothing with --fresh-state. Logs what happened.
 RestoreResult restore_for_run(const std::string& spath, const StateContext& ctx, const RunOptions& opt) {
   RestoreResult rs;
   if (opt.fresh_state)
-    rs.infos.push_back("learned state not loaded (--fresh-state): learning from the prior; saved to " +
-                       spath);
+    rs.infos.push_back("learned state not loaded (--fresh-state): learning from the prior; saved to " + spath);
   else
     rs = restore_learned_state(spath, ctx);
   for (const auto& w : rs.warnings) spdlog::warn("{}", w);
@@ -146,8 +144,8 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
   RestoreResult rs;
   if (!spath.empty()) rs = restore_for_run(spath, sctx, opt);
   LearnedState st = rs.state ? *rs.state : LearnedState{};
-  const ReplayResult r = run_fast_replay(s, edges, can, can_time_offset_ns(cfg), dbc, out, &g_fast_stop,
-                                         spath.empty() ? nullptr : &st);
+  const ReplayResult r =
+      run_fast_replay(s, edges, can, can_time_offset_ns(cfg), dbc, out, &g_fast_stop, spath.empty() ? nullptr : &st);
   if (!r.error.empty()) spdlog::error("replay: {}", r.error);
   if (!spath.empty()) {
     spdlog::info("learned state applied at start: {}", r.imported.empty() ? "nothing" : r.imported);
@@ -335,15 +333,13 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
       if (metrics) metrics->on_status(status.u.status);
       notify_status(c, static_cast<double>(now - t0) * 1e-9);
       next_status += s.status_period_ns;
-      if (done && c.flags & torque_STATUS_REPLAY_DONE) {
+      if (done && c.flags & torque_STATUS_REPLAY_DONE) {  // once, at the end of a paced replay
         if (opt.exit_when_done || cfg.replay.exit_when_done) {
-          spdlog::info(
-              "replay finished: input consumed; stopping (--exit-when-done / replay.exit_when_done)");
+          spdlog::info("replay finished: input consumed; stopping (--exit-when-done / replay.exit_when_done)");
           break;
         }
-        spdlog::info(
-            "replay finished: input consumed; still running (DaemonStatus flags REPLAY_DONE) until "
-            "SIGTERM/Ctrl-C, or set replay.exit_when_done / --exit-when-done to exit here");
+        spdlog::info("replay finished: input consumed; still running (DaemonStatus flags REPLAY_DONE) until "
+                     "SIGTERM/Ctrl-C, or set replay.exit_when_done / --exit-when-done to exit here");
       }
     }
     // Watchdog: ping only while every pipeline thread made progress since the last ping.
