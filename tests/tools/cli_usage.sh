@@ -39,13 +39,13 @@ out=$("$ev" -e "$tmp/est.csv" -t "$tmp/truth.csv" -c fused_nm=t_brake_mean_nm -c
 grep -q "max|err|" <<<"$out" && ! grep -q "MAE(max)" <<<"$out" || fail "accuracy column not named max|err|: $out"
 (($(grep -c "^plot:" <<<"$out") == 1)) || fail "'plot:' not printed exactly once: $out"
 head -c 8 "$tmp/p.png" | od -An -c | grep -q "P   N   G" || fail "no PNG written"
-# Panels: two quantities (t_brake_mean_nm, t_ind_mean_nm); fused and brake identical -> one merged series.
+# Panels (pair names as torque-eval writes them in the plot CSV, "EST vs TRUTH"): two quantities (t_brake_mean_nm, t_ind_mean_nm); fused and brake identical -> one merged series.
 /usr/bin/python3 - "$src/tools/scripts/plot_torque.py" <<'PY' || fail "plot grouping"
 import importlib.util, sys
 spec = importlib.util.spec_from_file_location("plot_torque", sys.argv[1]); m = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(m)
-t = [0.0, 1.0]; s = {"fused_nm = tb": (t, [1.0, 2.0], [1.5, 2.5]), "brake_nm = tb": (t, [1.0, 2.0], [1.5, 2.5]),
-                     "indicated_nm = tb": (t, [3.0, 4.0], [1.5, 2.5]), "fused_nm = ti": (t, [1.0, 2.0], [3.0, 3.0])}
+t = [0.0, 1.0]; s = {"fused_nm vs tb": (t, [1.0, 2.0], [1.5, 2.5]), "brake_nm vs tb": (t, [1.0, 2.0], [1.5, 2.5]),
+                     "indicated_nm vs tb": (t, [3.0, 4.0], [1.5, 2.5]), "fused_nm vs ti": (t, [1.0, 2.0], [3.0, 3.0])}
 g = m.by_quantity(s)
 assert list(g) == ["tb", "ti"], g.keys()
 assert [e[0] for e in g["tb"]] == ["fused_nm = brake_nm (identical)", "indicated_nm"], [e[0] for e in g["tb"]]

@@ -38,7 +38,8 @@ def by_quantity(series):
     """truth column -> list of (label, t, est, truth); identical estimates merged into one entry."""
     groups = OrderedDict()
     for name, (t, est, truth) in series.items():
-        est_col, _, truth_col = (x.strip() for x in name.partition("="))
+        sep = " vs " if " vs " in name else "="  # torque-eval writes "EST vs TRUTH"
+        est_col, _, truth_col = (x.strip() for x in name.partition(sep))
         g = groups.setdefault(truth_col or name, [])
         for i, (label, t0, est0, truth0) in enumerate(g):
             if t0 == t and est0 == est:
