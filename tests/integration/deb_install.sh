@@ -51,6 +51,7 @@ install -d -o "$(inside id -u torqued)" -g "$(inside id -g torqued)" -m 0750 "$m
 
 # --- start as the service would, READY, publishes, metrics ---------------------------------------------------
 start_service() {  # $1: log file inside the root
+  rm -f "$m/run/notify"  # a fresh socket for each start (as systemd gives each start its own)
   python3 - "$m/run/notify" "$tmp/notify.txt" <<'PY' &
 import socket, sys
 s = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM); s.bind(sys.argv[1])
@@ -74,8 +75,14 @@ echo "READY=1 received"
 n=$(inside env CYCLONEDDS_URI="$env_uri" torque-echo --topic engine --format json --count 5 --duration 20 -q | wc -l)
 ((n >= 5)) || fail "torque-echo received $n EngineTorque samples, expected 5"
 echo "published: torque-echo received $n EngineTorque samples"
-curl -s --max-time 3 http://127.0.0.1:9464/metrics | grep -qE '^torqued_edges_total [1-9]' ||
-  fail "metrics endpoint 127.0.0.1:9464 does not show edges"
+for _ in $(seq 20); do  # DaemonStatus (and so the counters) comes once a second
+  curl -s --max-time 3 http://127.0.0.1:9464/metrics >"$tmp/metrics.txt" 2>/dev/null
+  grep -qE '^torqued_edges_total [1-9]' "$tmp/metrics.txt" && break
+  sleep 0.5
+done
+grep -qE '^torqued_edges_total [1-9]' "$tmp/metrics.txt" ||
+  fail "metrics endpoint 127.0.0.1:9464 does not show edges: $(grep -E 'edges|status_received' "$tmp/metrics.txt")"
+echo "metrics: $(grep -E '^torqued_(edges_total|health) ' "$tmp/metrics.txt" | tr '\n' ' ')"
 for _ in $(seq 60); do [[ -s "$m/var/lib/torqued/learned_state.txt" ]] && break; sleep 0.5; done
 [[ -s "$m/var/lib/torqued/learned_state.txt" ]] || fail "no learned state saved within 30 s"
 
@@ -110,4 +117,7 @@ for f in /usr/bin/torqued /etc/torqued/torqued.yaml /etc/torqued/cyclonedds.xml 
          /etc/systemd/system/multi-user.target.wants/torqued.service; do
   [[ ! -e "$m$f" && ! -L "$m$f" ]] || fail "$f left after purge"
 done
+# Documented (docs/daemon.md): the learned state and the system user stay after purge.
+[[ -s "$m/var/lib/torqued/learned_state.txt" ]] || fail "purge removed the learned state (documented as kept)"
+inside getent passwd torqued >/dev/null || fail "purge removed the user (documented as kept)"
 echo "PASS: install, READY, publish, kill -9 restart with learned state, stop, upgrade keeping the conffile, purge"
