@@ -127,6 +127,11 @@ void add_wheel(std::vector<SchemaEntry>& t) {
   we.set = [](Config& c, const ConfigValue& v) { c.wheel.decoder.cam_window_end_deg = v.d; };
   we.get = [](const Config& c) { ConfigValue v; v.d = c.wheel.decoder.cam_window_end_deg; return v; };
   t.push_back(std::move(we));
+  t.push_back(choice<bool>(d + "cam_window", TQ_REF(bool, wheel.decoder.cam_window_auto), {{"fixed", false}, {"auto", true}},
+                           "fixed: the cam edge must fall in [cam_window_start_deg, cam_window_end_deg); auto: learn the cam edge's angle from the first synced cycles (its revolution = the first of the cycle) and use +-90 deg around it"));
+  t.push_back(integer(d + "cam_auto_edges", TQ_REF(int, wheel.decoder.cam_auto_edges), closed(1, 100), "",
+                      "cam_window auto: consistent cam edges needed to learn the cam angle"));
+  dn("cam_auto_spread_deg", &DecoderParams::cam_auto_spread_deg, {0.0, 90.0, false, true}, "cam_window auto: learning cam edges must agree within this (crank deg)");
 }
 
 void add_inputs(std::vector<SchemaEntry>& t) {

@@ -147,6 +147,9 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("cylinder.misfire_threshold", cylinder.params.misfire_threshold, open_open(0.0, 1.0), "", "misfire when cylinder torque < threshold x cycle mean");
   TQ_NUM("cylinder.imbalance_filter", cylinder.params.imbalance_filter, open_closed(0.0, 1.0), "", "EMA weight per cycle of the imbalance (1 = none)");
   TQ_NUM("cylinder.min_mean_nm", cylinder.params.min_mean_nm, closed(0.0, 1e4), "N m", "no misfire decision below this mean torque");
+  TQ_NUM("cylinder.misfire_sigma", cylinder.params.misfire_sigma, closed(0.0, 100.0), "", "a misfire's deficit must also exceed this many sigma of the running cycle-to-cycle share noise (0: off)");
+  TQ_NUM("cylinder.share_noise_prior", cylinder.params.share_noise_prior, closed(0.0, 10.0), "", "share noise sigma (fraction of the mean) assumed until measured");
+  TQ_NUM("cylinder.share_floor_imep_bar", cylinder.params.share_floor_imep_bar, open_closed(0.0, 100.0), "bar", "imbalance shares relative to max(cycle-mean work, this IMEP x swept volume per cylinder)");
   TQ_NUM("fusion.max_can_age_s", fusion.max_can_age_s, open_closed(0.0, 60.0), "s", "CAN inputs older than this count as lost");
   TQ_BOOL("fusion.blend", fusion.blend, "blend agreeing valid sources by inverse variance (false: pick the best)");
   TQ_NUM("fusion.gate_sigma", fusion.gate_sigma, open_closed(0.0, 1e3), "", "a source farther than gate_sigma x sigma(difference) from the best is not blended");
@@ -161,8 +164,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("tooth_learn.min_rpm", tooth_learn.params.min_rpm, closed(0.0, 20000.0), "rpm", "learn only above this speed");
   TQ_NUM("tooth_learn.max_rpm", tooth_learn.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "and below this speed");
   TQ_NUM("tooth_learn.speed_weight_exp", tooth_learn.params.speed_weight_exp, closed(0.0, 10.0), "", "residuals weighted by speed^p");
-  TQ_BOOL("tooth_learn.fit_all_even", tooth_learn.params.fit_all_even, "also fit even non-firing cycle harmonics");
-  TQ_BOOL("tooth_learn.learn_low_orders", tooth_learn.params.learn_low_orders, "also learn the firing orders from the spread across speeds");
+  TQ_BOOL("tooth_learn.learn_low_orders", tooth_learn.params.learn_low_orders, "also learn the per-revolution orders inside the per-cycle fit (from fuel cut-off and the spread of speeds); false: hold them at the imported table");
+  TQ_INT("tooth_learn.min_overrun_cycles", tooth_learn.params.min_overrun_cycles, closed(1, 100000), "cycles", "clean fuel cut-off cycles before the overrun identifies a per-revolution order");
 }
 
 }  // namespace torqued::schema_detail

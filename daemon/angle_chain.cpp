@@ -11,6 +11,7 @@ AngleChain::AngleChain(const StageSettings& s, const DbcDatabase* dbc, AngleChai
     error_ = "crank decoder: " + decoder_.error();
     return;
   }
+  decoder_.set_event_log(&transitions_);
   if (dbc) {
     store_ = std::make_unique<SignalStore>(*dbc);
     error_ = bind_signals(*store_, s_.signals);
@@ -22,8 +23,10 @@ AngleChain::AngleChain(const StageSettings& s, const DbcDatabase* dbc, AngleChai
     ac.wheel = s_.wheel;
     pipeline_ = std::make_unique<AnglePipeline>(ac);
   }
-  if (s_.tooth_learn_enabled)
+  if (s_.tooth_learn_enabled) {
     learner_ = std::make_unique<ToothErrorLearner>(s_.engine, s_.wheel, s_.tooth_learn);
+    if (pipeline_) pipeline_->set_wheel_learned(false);  // until the learner is ready or a table is imported
+  }
 }
 
 AngleChain::~AngleChain() = default;
@@ -138,6 +141,7 @@ void AngleChain::on_cycle_end() noexcept {
     const bool applied =
         decoder_.set_tooth_corrections(std::span<const double>(corr_.data(), static_cast<std::size_t>(n)));
     corr_n_ = applied ? n : 0;
+    if (applied && pipeline_) pipeline_->set_wheel_learned(true);
   }
   state_changed_ = true;
 }
@@ -189,6 +193,7 @@ std::string AngleChain::import_state(const LearnedState& st) {
     if (decoder_.set_tooth_corrections(tab)) {
       std::copy(st.tooth_corrections_rad.begin(), st.tooth_corrections_rad.end(), corr_.begin());
       corr_n_ = static_cast<int>(n);
+      if (pipeline_) pipeline_->set_wheel_learned(true);
       what += (what.empty() ? "" : ", ") + std::to_string(n) + " tooth corrections";
     } else {
       what += std::string(what.empty() ? "" : ", ") + "tooth corrections REJECTED (" + std::to_string(n) +

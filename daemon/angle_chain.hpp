@@ -11,7 +11,7 @@
 //   frames ──► SignalStore ──EngineSignals──► pipeline, learner (2) fuel cut-off flag gates the learner
 //
 // Feedback loops, all in angle_chain.cpp: (1) learned tooth table → decoder edge corrections, applied at the
-// cycle boundary; (2) CAN fuel cut-off → tooth learner; (3) time pipeline's UIO brake estimate → fusion's
+// cycle boundary, and "wheel learned" → in-cycle observers and per-cylinder record (their health says when not); (2) CAN fuel cut-off → tooth learner; (3) time pipeline's UIO brake estimate → fusion's
 // external source (fusion.time_estimate); (4) learned state import/export (friction law, tooth table).
 // on_edge/on_frame/poll/set_time_estimate are real-time safe: no allocation, no lock, no blocking.
 #include <array>
@@ -19,10 +19,12 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "angle_pipeline.hpp"
 #include "crank_decoder.hpp"
 #include "dbc.hpp"
+#include "decoder_events.hpp"
 #include "sample_sink.hpp"
 #include "signal_store.hpp"
 #include "stage_settings.hpp"
@@ -97,11 +99,19 @@ class AngleChain {
   void set_signal_timeouts(const std::array<std::int64_t, kSignalCount>& timeout_ns) noexcept;
 
   [[nodiscard]] const CrankDecoder& decoder() const noexcept { return decoder_; }
+  /// The decoder's sync-state transitions (lock-free SPSC ring: this chain's thread pushes, one other thread
+  /// or the same one later pops them for the debug log).
+  [[nodiscard]] DecoderEventLog& transitions() noexcept { return transitions_; }
   [[nodiscard]] std::uint64_t cycles() const noexcept { return cycles_; }
   [[nodiscard]] std::int64_t last_t_ns() const noexcept { return last_t_ns_; }
   [[nodiscard]] ChainStatus status() const noexcept;
   [[nodiscard]] const AnglePipeline* pipeline() const noexcept { return pipeline_.get(); }
   [[nodiscard]] const ToothErrorLearner* learner() const noexcept { return learner_.get(); }
+  /// CAN frames too short for a bound signal, one line per signal naming the first such frame (empty: none).
+  /// Not real-time: call after the chain stopped.
+  [[nodiscard]] std::vector<std::string> describe_bad_frames() const {
+    return store_ ? store_->describe_bad_frames() : std::vector<std::string>{};
+  }
 
   /// Feedback (4), before the first edge: restore persisted friction coefficients and tooth corrections.
   /// Returns what was applied ("" when nothing).
@@ -127,6 +137,7 @@ class AngleChain {
   StageSettings s_;
   AngleChainSink& out_;
   ToothSink* time_;
+  DecoderEventLog transitions_;
   CrankDecoder decoder_;
   std::unique_ptr<SignalStore> store_;
   std::unique_ptr<AnglePipeline> pipeline_;

@@ -16,5 +16,5 @@ target_link_libraries(torqued_daemon_core PUBLIC torqued_io torqued_idl torqued_
 target_sources(torqued_daemon_core PRIVATE ${CMAKE_CURRENT_LIST_DIR}/stage_settings.cpp)
 target_link_libraries(torqued_daemon_core PUBLIC torqued_config PkgConfig::SYSTEMD)
 # The supervisor (config, logging, sd_notify) lives in torqued_daemon with logging.cpp.
-target_sources(torqued_daemon PRIVATE ${CMAKE_CURRENT_LIST_DIR}/daemon_run.cpp)
+target_sources(torqued_daemon PRIVATE ${CMAKE_CURRENT_LIST_DIR}/daemon_run.cpp ${CMAKE_CURRENT_LIST_DIR}/supervisor.cpp)
 target_link_libraries(torqued_daemon PUBLIC torqued_daemon_core)

@@ -34,12 +34,25 @@ class TimeFeed final : public ToothSink {
   TimeStage& t_;
 };
 
+/// Keeps the first kMaxTransitions decoder transitions for the caller's debug log (the rest are counted).
+void drain_transitions(DecoderEventLog& log, ReplayResult::Transitions& out) noexcept {
+  DecoderEvent e{};
+  while (log.pop(e)) {
+    if (out.events.size() < out.events.capacity()) {
+      out.events.push_back(e);  // capacity reserved before the loop: no allocation here
+    } else {
+      ++out.not_kept;
+    }
+  }
+}
+
 }  // namespace
 
 ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSource* can, std::int64_t can_offset_ns,
                              const DbcDatabase* dbc, SampleSink& out, const volatile bool* stop,
                              LearnedState* state, AngleChainSink* tap) {
   ReplayResult r;
+  r.transitions.events.reserve(ReplayResult::Transitions::kMaxKept);
   CountingSink sink(out);
   TimeStage time(s, dbc, sink);
   TimeFeed feed(time);
@@ -52,7 +65,8 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
   const auto t0 = std::chrono::steady_clock::now();
   bool first = true;
   std::int64_t next_tick = 0, next_status = 0;
-  std::uint64_t status_seq = 0, n = 0;
+  std::uint64_t n = 0;
+  StatusTracker status;
   ReplayMerger::Item item;
   auto counters = [&] {
     RuntimeCounters c;
@@ -60,6 +74,8 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
     c.edges = ds.edges;
     c.teeth = ds.teeth;
     c.sync_losses = ds.sync_losses;
+    c.rejected_edges = ds.rejected_edges;
+    c.cam_phase_errors = ds.cam_phase_errors;
     c.cycles = angle.chain().cycles();
     c.can_frames = merger.frames_out();
     c.source_drops = (edges ? edges->stats().bad_lines + edges->stats().dropped : 0) +
@@ -98,17 +114,21 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
       time.on_frame(item.frame);
     }
     while (next_status <= t) {
-      sink.emit(make_status(counters(), ++status_seq, next_status, next_status - r.first_t_ns));
+      drain_transitions(angle.chain().transitions(), r.transitions);
+      sink.emit(status.next(counters(), next_status, next_status - r.first_t_ns));
       next_status += s.status_period_ns;
     }
     r.last_t_ns = t;
     ++n;
   }
+  drain_transitions(angle.chain().transitions(), r.transitions);
+  r.transitions.not_kept += angle.chain().transitions().dropped();  // ring full between two drains
   RuntimeCounters c = counters();
   c.flags |= torque_STATUS_REPLAY_DONE;
-  sink.emit(make_status(c, ++status_seq, r.last_t_ns, r.last_t_ns - r.first_t_ns));
+  sink.emit(status.next(c, r.last_t_ns, r.last_t_ns - r.first_t_ns));
   r.counters = c;
   if (state) r.learned = angle.chain().learned_state(*state);
+  r.bad_frames = angle.chain().describe_bad_frames();
   r.samples = sink.n_;
   sink.flush();  // the recording's last buffers are written inside the timed loop
   r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

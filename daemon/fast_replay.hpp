@@ -5,6 +5,7 @@
 // the merger (edges first), so the same input gives byte-identical CSV output.
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "angle_chain.hpp"
 #include "dbc.hpp"
@@ -24,6 +25,12 @@ struct ReplayResult {
   std::string error;               ///< a source failed (the replay kept going with the other)
   std::string imported;            ///< what of the initial learned state was applied ("" = nothing)
   bool learned = false;            ///< `state` holds what the chain learned (or was given) by the end
+  std::vector<std::string> bad_frames;  ///< CAN frames too short for their signals (one line per signal)
+  struct Transitions {
+    static constexpr std::size_t kMaxKept = 1000;
+    std::vector<DecoderEvent> events;  ///< the decoder's sync-state transitions, in order (first kMaxKept)
+    std::uint64_t not_kept = 0;
+  } transitions;
   [[nodiscard]] double speedup() const noexcept {
     return wall_s > 0.0 ? static_cast<double>(last_t_ns - first_t_ns) * 1e-9 / wall_s : 0.0;
   }

@@ -34,7 +34,7 @@ class LatestValue {
       for (std::size_t i = 0; i < kWords; ++i) w[i] = words_[i].load(std::memory_order_relaxed);
       std::atomic_thread_fence(std::memory_order_acquire);
       if (seq_.load(std::memory_order_relaxed) != s0) continue;
-      std::memcpy(&out, w.data(), sizeof(T));
+      std::memcpy(static_cast<void*>(&out), w.data(), sizeof(T));
       seen_ = s0;
       return true;
     }

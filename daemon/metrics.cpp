@@ -52,20 +52,25 @@ constexpr std::pair<std::uint32_t, const char*> kFlags[] = {
     {torque_STATUS_NO_SYNC, "no_sync"},
     {torque_STATUS_DROPS, "drops"},
     {torque_STATUS_REPLAY_DONE, "replay_done"},
-    {torque_STATUS_DRAINING, "draining"}};
+    {torque_STATUS_DRAINING, "draining"},
+    {torque_STATUS_OVERRUNS, "overruns"},
+    {torque_STATUS_RECORD_ERROR, "record_error"}};
 
 void status_families(const torque_DaemonStatus& s, bool have, std::vector<MetricFamily>& out) {
   const auto C = MetricType::Counter;
   const auto G = MetricType::Gauge;
   single(out, "torqued_status_received",
-         "1 once the supervisor has built a DaemonStatus (0: the figures below are "
-         "not filled yet)",
+         "1 once a DaemonStatus was published (0: the figures below are not filled yet)",
          G, have ? 1 : 0);
   single(out, "torqued_edges_total", "edges consumed by the crank decoder", C, static_cast<double>(s.edges));
   single(out, "torqued_teeth_total", "teeth produced by the decoder", C, static_cast<double>(s.teeth));
   single(out, "torqued_can_frames_total", "CAN frames consumed", C, static_cast<double>(s.can_frames));
   single(out, "torqued_cycles_total", "720 degree cycles completed", C, static_cast<double>(s.cycles));
   single(out, "torqued_sync_losses_total", "crank sync losses", C, static_cast<double>(s.sync_losses));
+  single(out, "torqued_rejected_edges_total", "crank edges rejected by the decoder as noise or debounced", C,
+         static_cast<double>(s.rejected_edges));
+  single(out, "torqued_cam_phase_errors_total", "cam edges outside their window or disagreeing with the phase", C,
+         static_cast<double>(s.cam_phase_errors));
   auto& drops = family(out, "torqued_ring_drops_total", "records dropped because a ring was full", C);
   add(drops, static_cast<double>(s.ring_drops_edge), {{"ring", "edge"}});
   add(drops, static_cast<double>(s.ring_drops_can), {{"ring", "can"}});
@@ -206,6 +211,9 @@ void MetricsTap::emit(const dds::AnySample& s) noexcept {
       x.samples.fetch_add(1, kRelaxed);
       break;
     }
+    case dds::Topic::kDaemonStatus:
+      status.store(s.u.status);
+      break;
     case dds::Topic::kCrankState:
       sync_state.store(s.u.crank.sync, kRelaxed);
       crank_samples.fetch_add(1, kRelaxed);
@@ -246,12 +254,6 @@ std::unique_ptr<MetricsServer> MetricsServer::start(const MetricsConfig& cfg, Sa
   return m;
 }
 
-void MetricsServer::on_status(const torque_DaemonStatus& s) {
-  const std::lock_guard<std::mutex> lock(mu_);
-  status_ = s;
-  have_status_ = true;
-}
-
 int MetricsServer::port() const {
   if (!exposer_) return 0;
   const auto ports = exposer_->GetListeningPorts();
@@ -266,6 +268,11 @@ std::vector<MetricFamily> MetricsServer::collect() const {
   bool have = false;
   {
     const std::lock_guard<std::mutex> lock(mu_);
+    torque_DaemonStatus fresh;
+    if (tap_.status.load_new(fresh)) {
+      status_ = fresh;
+      have_status_ = true;
+    }
     s = status_;
     have = have_status_;
   }

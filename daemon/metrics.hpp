@@ -7,7 +7,8 @@
 //     live) or the fast replay loop: per-method last value/uncertainty/health, engine torque, crank sync
 //     state and the ingest -> publish latency histogram. Relaxed atomics only: no allocation, no lock, no
 //     blocking.
-//   - the supervisor hands each DaemonStatus it builds to on_status() (mutex; not a real-time thread).
+//   - the DaemonStatus samples the supervisor builds pass through the same tap (on their way to DDS): the newest
+//     is kept in a seqlock slot (LatestValue), so the supervisor needs no hook of its own.
 //   - the HTTP threads of prometheus-cpp (civetweb) build the exposition on each scrape from those, plus the
 //     age of the learned-state file (its mtime). The real-time threads never see this module.
 // Values of one method (value, uncertainty, health) are read one by one: a scrape may mix two consecutive
@@ -23,6 +24,7 @@
 #include <prometheus/metric_family.h>
 
 #include "config.hpp"
+#include "latest_value.hpp"
 #include "sample_sink.hpp"
 #include "topics.hpp"
 
@@ -60,6 +62,7 @@ class MetricsTap final : public SampleSink {
   std::array<std::atomic<std::uint64_t>, kLatencyBuckets.size() + 1> latency_bucket{};  ///< not cumulative
   std::atomic<std::uint64_t> latency_count{0};
   std::atomic<std::int64_t> latency_sum_ns{0};
+  LatestValue<torque_DaemonStatus> status;  ///< newest DaemonStatus (single reader: MetricsServer, under its mutex)
 
  private:
   SampleSink& next_;
@@ -77,8 +80,6 @@ class MetricsServer {
 
   /// Put this sink where `next` was: it records and forwards every sample.
   [[nodiscard]] SampleSink& sink() noexcept { return tap_; }
-  /// Supervisor: the DaemonStatus just built (counters, flags, health, latency percentiles).
-  void on_status(const torque_DaemonStatus& s);
   /// The families a scrape returns (also used by the unit test, without HTTP).
   [[nodiscard]] std::vector<prometheus::MetricFamily> collect() const;
   /// The port actually bound (address ...:0 picks a free one).
@@ -89,11 +90,11 @@ class MetricsServer {
 
  private:
   class Collector;
-  MetricsTap tap_;
+  mutable MetricsTap tap_;  // mutable: reading its status slot advances the reader's sequence
   std::string state_file_;
-  mutable std::mutex mu_;
-  torque_DaemonStatus status_{};
-  bool have_status_ = false;
+  mutable std::mutex mu_;                 ///< the HTTP threads' side: one reader of tap_.status at a time
+  mutable torque_DaemonStatus status_{};  ///< newest DaemonStatus seen by a scrape
+  mutable bool have_status_ = false;
   std::shared_ptr<Collector> collector_;
   std::unique_ptr<prometheus::Exposer> exposer_;
 };

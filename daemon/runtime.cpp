@@ -258,6 +258,7 @@ Runtime::DueItem Runtime::angle_process_due() noexcept {
     while (const FrameIn* f = can_angle_ring_.front()) {
       if (f->f.t_ns > e->e.t_ns) break;
       angle_->on_frame(f->f);
+      ++angle_frames_;
       can_angle_ring_.pop_front();
     }
     angle_->on_edge(e->e, ingest);
@@ -273,6 +274,7 @@ Runtime::DueItem Runtime::angle_process_due() noexcept {
       }
     }
     angle_->on_frame(f->f);
+    ++angle_frames_;
     can_angle_ring_.pop_front();
   }
   return next;
@@ -294,7 +296,10 @@ void Runtime::angle_publish_counters() noexcept {
   n_edges_.store(ds.edges, std::memory_order_relaxed);
   teeth_.store(ds.teeth, std::memory_order_relaxed);
   sync_losses_.store(ds.sync_losses, std::memory_order_relaxed);
+  rejected_edges_.store(ds.rejected_edges, std::memory_order_relaxed);
+  cam_phase_errors_.store(ds.cam_phase_errors, std::memory_order_relaxed);
   cycles_.store(chain.cycles(), std::memory_order_relaxed);
+  frames_.store(angle_frames_, std::memory_order_relaxed);
   stale_mask_.store(chain.status().stale_mask, std::memory_order_relaxed);
   synced_.store(chain.decoder().state() == SyncState::kSynced, std::memory_order_relaxed);
 }
@@ -347,6 +352,10 @@ void Runtime::take_latency_period() noexcept {
   lat_p50_.store(f.p50_ns, std::memory_order_relaxed);
   lat_p99_.store(f.p99_ns, std::memory_order_relaxed);
   lat_max_.store(f.max_ns, std::memory_order_relaxed);
+  const LatencyFigures r = latency_.run();
+  lat_run_p50_.store(r.p50_ns, std::memory_order_relaxed);
+  lat_run_p99_.store(r.p99_ns, std::memory_order_relaxed);
+  lat_run_max_.store(r.max_ns, std::memory_order_relaxed);
   lat_period_start_ns_ = mono_ns();
 }
 
@@ -404,6 +413,8 @@ void Runtime::publisher_loop() {
     }
   }
   drain_out();
+  lat_period_start_ns_ = 0;  // the figures of the last, partial period and of the whole run
+  if (latency_.period_count() > 0) take_latency_period();
 }
 
 // ---- supervisor interface --------------------------------------------------------------------------------
@@ -437,7 +448,10 @@ RuntimeCounters Runtime::counters() const noexcept {
   c.edges = n_edges_.load(std::memory_order_relaxed);
   c.teeth = teeth_.load(std::memory_order_relaxed);
   c.cycles = cycles_.load(std::memory_order_relaxed);
+  c.can_frames = frames_.load(std::memory_order_relaxed);
   c.sync_losses = sync_losses_.load(std::memory_order_relaxed);
+  c.rejected_edges = rejected_edges_.load(std::memory_order_relaxed);
+  c.cam_phase_errors = cam_phase_errors_.load(std::memory_order_relaxed);
   c.ring_drops_edge = edge_ring_.drops() + tooth_ring_.drops();
   c.ring_drops_can = can_angle_ring_.drops() + can_time_ring_.drops();
   c.ring_drops_out = out_angle_ring_.drops() + out_time_ring_.drops() + out_status_ring_.drops();
@@ -446,6 +460,9 @@ RuntimeCounters Runtime::counters() const noexcept {
   c.latency_p50_ns = lat_p50_.load(std::memory_order_relaxed);
   c.latency_p99_ns = lat_p99_.load(std::memory_order_relaxed);
   c.latency_max_ns = lat_max_.load(std::memory_order_relaxed);
+  c.run_latency_p50_ns = lat_run_p50_.load(std::memory_order_relaxed);
+  c.run_latency_p99_ns = lat_run_p99_.load(std::memory_order_relaxed);
+  c.run_latency_max_ns = lat_run_max_.load(std::memory_order_relaxed);
   c.publisher_polls = pub_polls_.load(std::memory_order_relaxed);
   c.publisher_poll_misses = pub_poll_misses_.load(std::memory_order_relaxed);
   c.flags = flags_.load(std::memory_order_relaxed);

@@ -10,17 +10,22 @@ namespace torqued {
 struct RuntimeCounters {
   std::uint64_t edges = 0, teeth = 0, can_frames = 0, cycles = 0, sync_losses = 0;
   std::uint64_t ring_drops_edge = 0, ring_drops_can = 0, ring_drops_out = 0, source_drops = 0, overruns = 0;
-  std::int64_t latency_p50_ns = 0, latency_p99_ns = 0, latency_max_ns = 0;
+  std::int64_t latency_p50_ns = 0, latency_p99_ns = 0, latency_max_ns = 0;  ///< last status period
+  std::int64_t run_latency_p50_ns = 0, run_latency_p99_ns = 0, run_latency_max_ns = 0;  ///< whole run
   /// Publisher pre-wakes (paced replay) and those whose poll ended without a sample.
   std::uint64_t publisher_polls = 0, publisher_poll_misses = 0;
+  std::uint64_t rejected_edges = 0, cam_phase_errors = 0;  ///< decoder: glitches rejected, cam disagreements
   std::uint32_t flags = 0;            ///< torque_STATUS_*
   std::uint32_t sensor_timeouts = 0;  ///< bit per EngineSignals quantity
   bool synced = false;
 };
 
-/// Builds the status sample; health: FAILED when not synced for the whole run, DEGRADED on any flag/drop.
-inline dds::AnySample make_status(const RuntimeCounters& c, std::uint64_t seq, std::int64_t source_t_ns,
-                                  std::int64_t uptime_ns) noexcept {
+/// Builds the status sample from the counters (monotonic, whole run) and what changed since `prev` (the previous
+/// status): DROPS and OVERRUNS say "since the previous status" and clear when the condition has gone; the
+/// counters keep the history. Health: DEGRADED while any condition flag is set, FAILED when not synced and
+/// no edges come.
+inline dds::AnySample make_status(const RuntimeCounters& c, const RuntimeCounters& prev, std::uint64_t seq,
+                                  std::int64_t source_t_ns, std::int64_t uptime_ns) noexcept {
   dds::AnySample a;
   a.topic = dds::Topic::kDaemonStatus;
   auto& s = a.u.status;
@@ -43,17 +48,39 @@ inline dds::AnySample make_status(const RuntimeCounters& c, std::uint64_t seq, s
   s.sensor_timeouts = c.sensor_timeouts;
   s.publisher_polls = c.publisher_polls;
   s.publisher_poll_misses = c.publisher_poll_misses;
+  s.rejected_edges = c.rejected_edges;
+  s.cam_phase_errors = c.cam_phase_errors;
   s.flags = c.flags;
+  const auto dropped = [](const RuntimeCounters& x) {
+    return x.ring_drops_edge + x.ring_drops_can + x.ring_drops_out + x.source_drops;
+  };
   if (!c.synced) s.flags |= torque_STATUS_NO_SYNC;
   if (c.sensor_timeouts) s.flags |= torque_STATUS_CAN_TIMEOUT;
-  if (c.ring_drops_edge + c.ring_drops_can + c.ring_drops_out + c.overruns > 0) s.flags |= torque_STATUS_DROPS;
+  if (dropped(c) > dropped(prev)) s.flags |= torque_STATUS_DROPS;
+  if (c.overruns > prev.overruns) s.flags |= torque_STATUS_OVERRUNS;
   s.health = torque_DAEMON_OK;
-  if (s.flags & (torque_STATUS_NO_SYNC | torque_STATUS_CAN_TIMEOUT | torque_STATUS_DROPS | torque_STATUS_EDGE_TIMEOUT |
-                 torque_STATUS_RT_NOT_PERMITTED | torque_STATUS_MLOCK_FAILED))
+  if (s.flags & (torque_STATUS_NO_SYNC | torque_STATUS_CAN_TIMEOUT | torque_STATUS_DROPS | torque_STATUS_OVERRUNS |
+                 torque_STATUS_EDGE_TIMEOUT | torque_STATUS_RT_NOT_PERMITTED | torque_STATUS_MLOCK_FAILED |
+                 torque_STATUS_RECORD_ERROR))
     s.health = torque_DAEMON_DEGRADED;
   if (!c.synced && (s.flags & torque_STATUS_EDGE_TIMEOUT)) s.health = torque_DAEMON_FAILED;
   if (!c.synced) s.validity |= torque_VALIDITY_NO_SYNC;
   return a;
 }
+
+/// The status samples of one run: keeps the previous counters so each sample's condition flags cover the time
+/// since the previous one.
+class StatusTracker {
+ public:
+  dds::AnySample next(const RuntimeCounters& c, std::int64_t source_t_ns, std::int64_t uptime_ns) noexcept {
+    dds::AnySample a = make_status(c, prev_, ++seq_, source_t_ns, uptime_ns);
+    prev_ = c;
+    return a;
+  }
+
+ private:
+  RuntimeCounters prev_{};
+  std::uint64_t seq_ = 0;
+};
 
 }  // namespace torqued

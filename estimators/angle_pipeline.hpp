@@ -115,6 +115,14 @@ class AnglePipeline {
   /// segment.
   void set_external(const FusionSource& src) noexcept { external_ = src; }
 
+  /// Whether the wheel's tooth table is learned (or imported): until it is, the in-cycle observers and the
+  /// per-cylinder record say so in their health (issue 15). Default: learned (no learner in use).
+  void set_wheel_learned(bool learned) noexcept {
+    cyl_.set_wheel_learned(learned);
+    kalman_.set_wheel_learned(learned);
+    fourier_.set_wheel_learned(learned);
+  }
+
   [[nodiscard]] const ToothOutput& tooth_output() const noexcept { return tooth_; }
   [[nodiscard]] const CycleOutput& cycle_output() const noexcept { return cycle_; }
   [[nodiscard]] const AnglePipelineStats& stats() const noexcept { return stats_; }

@@ -11,7 +11,8 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr double kRpm = std::numbers::pi / 30.0;
 }  // namespace
 
-ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& wheel, const KalmanParams& params)
+ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& wheel,
+                             const KalmanParams& params)
     : params_(params), table_(ToothAngleTable::build(engine, wheel)) {
   params_.smoother_lag = std::clamp(params_.smoother_lag, 0, kMaxLag);  // config loader rejects; guard anyway
   edge_sd_rad_ = params_.edge_noise_deg * kDeg;
@@ -39,7 +40,8 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
   const int bins = std::max(2, params_.speed_bins);
   bin_log_speed_.resize(static_cast<std::size_t>(bins));
   const double l0 = std::log(params_.min_rpm * kRpm), l1 = std::log(params_.max_rpm * kRpm);
-  for (int b = 0; b < bins; ++b) bin_log_speed_[static_cast<std::size_t>(b)] = l0 + (l1 - l0) * b / (bins - 1);
+  for (int b = 0; b < bins; ++b)
+    bin_log_speed_[static_cast<std::size_t>(b)] = l0 + (l1 - l0) * b / (bins - 1);
   if (params_.periodic_gains) {
     aps_gain_.assign(static_cast<std::size_t>(bins * kk), Vec::Zero());
     for (int b = 0; b < bins; ++b) {
@@ -64,8 +66,8 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
 }
 
 double ChauvinKalman::measurement_var(int k, double speed_rad_s) const noexcept {
-  const double rel = ToothPreprocessor::speed_sq_rel_sd(table_.width_rad[static_cast<std::size_t>(k)], speed_rad_s,
-                                                        edge_sd_rad_, params_.jitter_s);
+  const double rel = ToothPreprocessor::speed_sq_rel_sd(table_.width_rad[static_cast<std::size_t>(k)],
+                                                        speed_rad_s, edge_sd_rad_, params_.jitter_s);
   const double sd = rel * speed_rad_s * speed_rad_s;
   return sd * sd + 1e-9;
 }
@@ -207,11 +209,13 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
   // (CK-11) split into measurement update and prediction: x̂_{k|k} = x̂_{k|k−1} + K (y − C x̂_{k|k−1}).
   x_ += gain * (y - x_(0));
   last_gain_ = gain;
-  for (int i = kMaxLag; i > 0; --i) edge_t_ns_[static_cast<std::size_t>(i)] = edge_t_ns_[static_cast<std::size_t>(i - 1)];
+  for (int i = kMaxLag; i > 0; --i)
+    edge_t_ns_[static_cast<std::size_t>(i)] = edge_t_ns_[static_cast<std::size_t>(i - 1)];
   edge_t_ns_[0] = s.t_ns;
   ++teeth_seen_;
   ++stats_.updates;
-  // With APS gains P is only set at a (re)start (checked there): 64 checks per tooth were a third of update().
+  // With APS gains P is only set at a (re)start (checked there): 64 checks per tooth were a third of
+  // update().
   if (!params_.periodic_gains) p_finite_ = p_.allFinite();
   if (!x_.allFinite() || !p_finite_) {
     ++stats_.resets;
@@ -223,7 +227,7 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
   est_.t_ns = edge_t_ns_[static_cast<std::size_t>(params_.smoother_lag)];
   est_.uncertainty = std::sqrt(std::max(0.0, out_var));
   est_tooth_ = (k - params_.smoother_lag + kk) % kk;
-  est_.health = teeth_seen_ >= kk ? Health::kValid : Health::kNotConverged;
+  est_.health = (teeth_seen_ >= kk && wheel_learned_) ? Health::kValid : Health::kNotConverged;
   predict(k);
   expected_tooth_ = (k + 1) % kk;
   return true;

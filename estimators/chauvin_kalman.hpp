@@ -1,7 +1,7 @@
 #pragma once
 // Chauvin's time-varying Kalman filter for the combustion (indicated) torque in the angle domain
-// (Chauvin et al., "Real-time combustion torque estimation ... using time-varying Kalman filtering", eqs. (3)-(13),
-// coloured-noise model (18)); ESTIMATORS.md §2.1.
+// (Chauvin et al., "Real-time combustion torque estimation ... using time-varying Kalman filtering", eqs.
+// (3)-(13), coloured-noise model (18)); ESTIMATORS.md §2.1.
 //
 // State (one sample per tooth period, index k in the 720° cycle, see ToothAngleTable):
 //   x = [θ̇²(k), x2(k), x2(k−1), …, x2(k−kMaxLag)],  x2 = T_ind − T*_load (net torque, N m).
@@ -10,15 +10,15 @@
 // which is (CK-3) [1 − 2Δα f̄/J ≈ J_k/J_{k+1}] without its first-order truncation and with exact unequal steps
 // across the gap. Coloured noise (CK-18): x2(k+1) = 2a x2(k) − a² x2(k−1) + (1−a)² u(k), a = e^{−δΔ_k}.
 // The extra lags (beyond the paper's q = 2) make a fixed-lag smoother: the filtered estimate of x2(k−d)
-// uses d more teeth of speed and removes most of the predictor's phase lag (d = smoother_lag, latency d teeth).
-// Measurement y_k = θ̇²(k) = (w_k/dt_k)², R_k from the edge-angle error and jitter (relative, so R ∝ θ̇⁴).
-// Because R depends on speed, the asymptotic periodic gains (APS, CK §VI and Bittanti Theorem 3) are computed
-// at start-up for a log-spaced set of speeds and interpolated; the exact-Riccati variant (11)-(13) runs P on line.
+// uses d more teeth of speed and removes most of the predictor's phase lag (d = smoother_lag, latency d
+// teeth). Measurement y_k = θ̇²(k) = (w_k/dt_k)², R_k from the edge-angle error and jitter (relative, so R ∝
+// θ̇⁴). Because R depends on speed, the asymptotic periodic gains (APS, CK §VI and Bittanti Theorem 3) are
+// computed at start-up for a log-spaced set of speeds and interpolated; the exact-Riccati variant (11)-(13)
+// runs P on line.
+#include <Eigen/Core>
 #include <array>
 #include <cstdint>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "engine_geometry.hpp"
 #include "estimate.hpp"
@@ -31,9 +31,9 @@ namespace torqued {
 /// Counters (never silent).
 struct KalmanStats {
   std::uint64_t updates = 0;
-  std::uint64_t rejected = 0;      ///< not synced / invalid sample
-  std::uint64_t skipped_teeth = 0; ///< tooth index jumps bridged by prediction
-  std::uint64_t resets = 0;        ///< numerical resets (non-finite state or covariance)
+  std::uint64_t rejected = 0;       ///< not synced / invalid sample
+  std::uint64_t skipped_teeth = 0;  ///< tooth index jumps bridged by prediction
+  std::uint64_t resets = 0;         ///< numerical resets (non-finite state or covariance)
 };
 
 class ChauvinKalman {
@@ -49,6 +49,10 @@ class ChauvinKalman {
   void reset() noexcept;
   /// Extended load T*_load = T_load + T_fric (N m), added to x̂2 to give T̂_ind (CK eq. (1)). Default 0.
   void set_extended_load(double torque_nm) noexcept { load_star_nm_ = torque_nm; }
+  /// Whether the tooth widths it is given are corrected by a learned table (issue 15 item 2). While false the
+  /// estimate runs but its health is kNotConverged: an unlearned wheel puts the tooth errors into the
+  /// in-cycle torque (tens of % of peak-to-peak). Default true (a caller without a learner decides).
+  void set_wheel_learned(bool learned) noexcept { wheel_learned_ = learned; }
   /// Real-time safe (no allocation, no exception). Returns false if the sample was rejected.
   bool update(const ToothSample& s) noexcept;
 
@@ -64,7 +68,8 @@ class ChauvinKalman {
   [[nodiscard]] const Vec& last_gain() const noexcept { return last_gain_; }
   /// APS filter gain at tooth k for speed ω (interpolated between the precomputed speed bins).
   [[nodiscard]] Vec periodic_gain(int k, double speed_rad_s) const noexcept;
-  /// One exact Riccati step (CK-12/13) for tooth k at speed ω: returns the filter gain and advances P in place.
+  /// One exact Riccati step (CK-12/13) for tooth k at speed ω: returns the filter gain and advances P in
+  /// place.
   void riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) const noexcept;
   /// Measurement noise variance R_k at speed ω ((rad/s)^4).
   [[nodiscard]] double measurement_var(int k, double speed_rad_s) const noexcept;
@@ -77,20 +82,21 @@ class ChauvinKalman {
 
   KalmanParams params_;
   ToothAngleTable table_;
-  std::vector<double> a11_, b12_, acol_;   ///< per tooth: J_k/J_{k+1}, 2Δ_k/J_{k+1}, a = e^{−δΔ_k}
-  double qu_ = 0.0;                        ///< variance of u (N m)²
-  std::vector<double> bin_log_speed_;      ///< ln ω of each APS speed bin
-  std::vector<Vec> aps_gain_;              ///< [bin * K + k]
+  std::vector<double> a11_, b12_, acol_;  ///< per tooth: J_k/J_{k+1}, 2Δ_k/J_{k+1}, a = e^{−δΔ_k}
+  double qu_ = 0.0;                       ///< variance of u (N m)²
+  std::vector<double> bin_log_speed_;     ///< ln ω of each APS speed bin
+  std::vector<Vec> aps_gain_;             ///< [bin * K + k]
   double edge_sd_rad_ = 0.0;
 
   Vec x_ = Vec::Zero();
   Mat p_ = Mat::Zero();
-  bool p_finite_ = true;                  ///< p_.allFinite() as of its last change (APS: P changes only at a restart)
+  bool p_finite_ = true;  ///< p_.allFinite() as of its last change (APS: P changes only at a restart)
   Vec last_gain_ = Vec::Zero();
   TorqueEstimate est_;
   int est_tooth_ = 0;
+  bool wheel_learned_ = true;
   double load_star_nm_ = 0.0;
-  double mean_speed_ = 0.0;               ///< running mean speed over ≈ one cycle (rad/s), schedules R / gains
+  double mean_speed_ = 0.0;  ///< running mean speed over ≈ one cycle (rad/s), schedules R / gains
   int expected_tooth_ = -1;
   int teeth_seen_ = 0;
   std::array<std::int64_t, kMaxLag + 1> edge_t_ns_{};  ///< edge times of the last teeth, [0] = newest

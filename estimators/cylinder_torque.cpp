@@ -1,16 +1,58 @@
 #include "cylinder_torque.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
 namespace torqued {
 
+const char* to_string(MisfireDetection d) noexcept {
+  switch (d) {
+    case MisfireDetection::kActive:
+      return "active";
+    case MisfireDetection::kOverrun:
+      return "overrun";
+    case MisfireDetection::kLowLoad:
+      return "low-load";
+    case MisfireDetection::kWheelUnlearned:
+      return "wheel-unlearned";
+    case MisfireDetection::kInvalid:
+      return "invalid";
+  }
+  return "?";
+}
+
 namespace {
 constexpr double kFourPi = 4.0 * std::numbers::pi;
+
+/// Median of work[0..n) without element m (≤ 7 values, insertion sort).
+double median_of_others(const std::array<double, kMaxCylinders>& work, int n, int m) noexcept {
+  std::array<double, kMaxCylinders> others{};
+  int k = 0;
+  for (int j = 0; j < n; ++j) {
+    if (j != m) others[static_cast<std::size_t>(k++)] = work[static_cast<std::size_t>(j)];
+  }
+  for (int a = 1; a < k; ++a) {
+    const double v = others[static_cast<std::size_t>(a)];
+    int b = a - 1;
+    while (b >= 0 && others[static_cast<std::size_t>(b)] > v) {
+      others[static_cast<std::size_t>(b + 1)] = others[static_cast<std::size_t>(b)];
+      --b;
+    }
+    others[static_cast<std::size_t>(b + 1)] = v;
+  }
+  if (k == 0) return 0.0;
+  return (k % 2 == 1)
+             ? others[static_cast<std::size_t>(k / 2)]
+             : 0.5 * (others[static_cast<std::size_t>(k / 2 - 1)] + others[static_cast<std::size_t>(k / 2)]);
+}
 }  // namespace
 
 CylinderTorque::CylinderTorque(const EngineGeometry& engine, const CylinderParams& params) noexcept
     : engine_(engine), params_(params) {
+  const double swept_m3 = 0.25 * std::numbers::pi * engine.bore_m * engine.bore_m * engine.stroke_m;
+  w_floor_j_ =
+      params.share_floor_imep_bar * 1e5 * swept_m3;  // IMEP × V_d = indicated work per cylinder and cycle
   reset();
 }
 
@@ -20,12 +62,14 @@ void CylinderTorque::reset() noexcept {
   fired_.fill(false);
   ema_.fill(0.0);
   ema_init_ = false;
+  share_var_ = params_.share_noise_prior * params_.share_noise_prior;
   cycles_ = 0;
   out_ = CylinderCycle{};
   out_.cylinders = engine_.cylinders;
 }
 
-bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, bool valid, bool fired) noexcept {
+bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, bool valid,
+                                bool fired) noexcept {
   const int n = engine_.cylinders;
   if (position < 0 || position >= n) return false;
   const auto p = static_cast<std::size_t>(position);
@@ -48,52 +92,68 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
   }
   if (!all_valid) {
     o.health = Health::kInvalidInput;
+    o.detection = MisfireDetection::kInvalid;
     o.imbalance_filtered_pct = out_.imbalance_filtered_pct;
     out_ = o;
     return true;
   }
   const double mean_w = sum / n;
+  const double scale = std::max(mean_w, w_floor_j_);  // > 0: shares stay bounded when the mean is small
   o.mean_nm = sum / kFourPi;
+  const double seg_rad = kFourPi / n;
+  bool low_load = false;
   for (int m = 0; m < n; ++m) {
     const auto mi = static_cast<std::size_t>(m);
     const auto ci = static_cast<std::size_t>(engine_.firing_order[mi] - 1);
     o.torque_nm[ci] = work_[mi] / kFourPi;
-    o.imbalance_pct[ci] = std::fabs(mean_w) > 1e-9 ? (work_[mi] / mean_w - 1.0) * 100.0 : 0.0;
+    o.imbalance_pct[ci] = (work_[mi] - mean_w) / scale * 100.0;
     // Misfire: compare with the median of the other cylinders (robust to a second misfire in the same cycle).
-    std::array<double, kMaxCylinders> others{};
-    int k = 0;
-    for (int j = 0; j < n; ++j) {
-      if (j != m) others[static_cast<std::size_t>(k++)] = work_[static_cast<std::size_t>(j)];
-    }
-    for (int a = 1; a < k; ++a) {  // insertion sort of ≤ 7 values
-      const double v = others[static_cast<std::size_t>(a)];
-      int b = a - 1;
-      while (b >= 0 && others[static_cast<std::size_t>(b)] > v) {
-        others[static_cast<std::size_t>(b + 1)] = others[static_cast<std::size_t>(b)];
-        --b;
-      }
-      others[static_cast<std::size_t>(b + 1)] = v;
-    }
-    const double med = (k % 2 == 1) ? others[static_cast<std::size_t>(k / 2)]
-                                    : 0.5 * (others[static_cast<std::size_t>(k / 2 - 1)] + others[static_cast<std::size_t>(k / 2)]);
-    const double seg_rad = kFourPi / n;
-    if (fired_[mi] && med / seg_rad > params_.min_mean_nm && work_[mi] < params_.misfire_threshold * med) {
+    const double med = median_of_others(work_, n, m);
+    if (med / seg_rad <= params_.min_mean_nm) low_load = true;
+    // and, once the cycle-to-cycle noise of the shares is known, a deficit beyond misfire_sigma·σ (high
+    // speed: jitter makes single segments swing; a missing combustion is a deficit of ~100 % of the mean)
+    const double sigma_j = std::sqrt(share_var_) * scale;
+    const bool beyond_noise = med - work_[mi] > params_.misfire_sigma * sigma_j;
+    if (fired_[mi] && med / seg_rad > params_.min_mean_nm && work_[mi] < params_.misfire_threshold * med &&
+        beyond_noise) {
       o.misfire[ci] = true;
       ++o.misfire_count;
       ++misfires_;
     }
   }
-  // Filtered imbalance over firing cycles without misfire.
-  if (all_fired && o.misfire_count == 0 && o.mean_nm > params_.min_mean_nm) {
+  o.detection = !all_fired        ? MisfireDetection::kOverrun
+                : low_load        ? MisfireDetection::kLowLoad
+                : !wheel_learned_ ? MisfireDetection::kWheelUnlearned
+                                  : MisfireDetection::kActive;
+  // Filtered imbalance over firing cycles without misfire where detection is active (or only the wheel
+  // unlearned).
+  const bool usable =
+      o.detection == MisfireDetection::kActive || o.detection == MisfireDetection::kWheelUnlearned;
+  if (usable && o.misfire_count == 0 && o.mean_nm > params_.min_mean_nm) {
     const double a = ema_init_ ? params_.imbalance_filter : 1.0;
+    double var = 0.0;
     for (int c = 0; c < n; ++c) {
       const auto ci = static_cast<std::size_t>(c);
+      const double d = 0.01 * (o.imbalance_pct[ci] - ema_[ci]);  // this cycle's share noise (fraction)
+      var += d * d / n;
       ema_[ci] += a * (o.imbalance_pct[ci] - ema_[ci]);
     }
+    if (ema_init_) share_var_ += params_.imbalance_filter * (var - share_var_);
     ema_init_ = true;
   }
   o.imbalance_filtered_pct = ema_;
-  o.health = ema_init_ ? Health::kValid : Health::kNotConverged;
+  switch (o.detection) {
+    case MisfireDetection::kActive:
+      o.health = Health::kValid;
+      break;
+    case MisfireDetection::kOverrun:
+    case MisfireDetection::kLowLoad:
+      o.health = Health::kNotExcited;
+      break;
+    default:
+      o.health = Health::kNotConverged;
+      break;
+  }
   out_ = o;
   return true;
 }

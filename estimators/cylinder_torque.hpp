@@ -1,14 +1,25 @@
 #pragma once
 // Per-cylinder indicated torque, imbalance and misfire per cycle (ESTIMATORS.md §4, beyond the papers).
-// Measure: the indicated work of each firing segment, W_m = Δ(½Jθ̇²)_segment + ∫(T_load + T_fric) dθ (energy balance,
-// CycleEnergy). The segment of firing position m starts 20° before its TDC, so it holds cylinder m's whole combustion
-// and expansion; the compression work it also holds belongs to the next cylinder and is the same for all cylinders
-// (same MAP), so W_m − mean(W) is cylinder m's surplus. Cylinder m's share of the cycle-mean indicated torque is
-// W_m / 4π (the shares add up to the cycle mean). This energy gain is robust at 4000 rpm where the speed dip of a
-// misfire is small, because it integrates over the whole segment instead of looking at a speed minimum.
-//   imbalance_m = (W_m / mean_j W_j − 1) · 100 %
-//   misfire_m   = W_m < threshold · median_{j≠m} W_j, decided only while the engine fires (no fuel cut-off) and
-//                 the reference exceeds min_mean_nm (segment-mean torque).
+// Measure: the indicated work of each firing segment, W_m = Δ(½Jθ̇²)_segment + ∫(T_load + T_fric) dθ (energy
+// balance, CycleEnergy). The segment of firing position m starts 20° before its TDC, so it holds cylinder m's
+// whole combustion and expansion; the compression work it also holds belongs to the next cylinder and is the
+// same for all cylinders (same MAP), so W_m − mean(W) is cylinder m's surplus. Cylinder m's share of the
+// cycle-mean indicated torque is W_m / 4π (the shares add up to the cycle mean). This energy gain is robust
+// at 4000 rpm where the speed dip of a misfire is small, because it integrates over the whole segment instead
+// of looking at a speed minimum.
+//   imbalance_m = (W_m − W̄) / max(W̄, W_floor) · 100 %, W̄ = mean_j W_j, W_floor = share_floor_imep_bar × swept
+//                 volume of one cylinder: the usual (W_m/W̄ − 1) wherever the engine fires (idle is 1-2 bar
+//                 net IMEP), bounded where the mean is small or negative (overrun, idle after a fuel cut-off;
+//                 issue 15 item 3)
+//   misfire_m   = W_m < threshold · median_{j≠m} W_j, decided only while the engine fires (no fuel cut-off)
+//   and
+//                 the reference exceeds min_mean_nm (segment-mean torque), and the deficit med − W_m exceeds
+//                 misfire_sigma × the running cycle-to-cycle noise of the shares (× the share scale)
+// Where a misfire cannot be decided the record says why (`detection`) and its health is not kValid:
+// kNotExcited in overrun (no combustion to miss) and below min_mean_nm, kNotConverged while the wheel's tooth
+// table is unlearned (tooth errors bias each segment's work; misfires are still flagged, with that caveat),
+// kInvalidInput on bad segments. The filtered imbalance is updated only from cycles where detection is active
+// and nothing misfired.
 #include <array>
 #include <cstdint>
 
@@ -18,16 +29,27 @@
 
 namespace torqued {
 
+/// Why misfire detection is (not) active this cycle.
+enum class MisfireDetection : std::uint8_t {
+  kActive = 0,
+  kOverrun = 1,  ///< fuel cut-off on some cylinder: nothing fires, nothing can misfire
+  kLowLoad = 2,  ///< median segment-mean torque below min_mean_nm: a missing combustion is not told apart
+  kWheelUnlearned = 3,  ///< tooth table not learned yet: detection runs, the shares carry the wheel's bias
+  kInvalid = 4,         ///< a segment was invalid (lost teeth, non-finite work)
+};
+[[nodiscard]] const char* to_string(MisfireDetection d) noexcept;
+
 struct CylinderCycle {
-  std::int64_t t_ns = 0;     ///< time of the tooth that completed the cycle (ns)
-  std::uint32_t cycle = 0;   ///< cycles completed since reset
+  std::int64_t t_ns = 0;    ///< time of the tooth that completed the cycle (ns)
+  std::uint32_t cycle = 0;  ///< cycles completed since reset
   int cylinders = 0;
-  std::array<double, kMaxCylinders> torque_nm{};           ///< W_m / 4π by cylinder number − 1 (N m)
-  std::array<double, kMaxCylinders> imbalance_pct{};       ///< this cycle (%)
+  std::array<double, kMaxCylinders> torque_nm{};               ///< W_m / 4π by cylinder number − 1 (N m)
+  std::array<double, kMaxCylinders> imbalance_pct{};           ///< this cycle (%)
   std::array<double, kMaxCylinders> imbalance_filtered_pct{};  ///< EMA over firing cycles without misfire (%)
   std::array<bool, kMaxCylinders> misfire{};
   int misfire_count = 0;
-  double mean_nm = 0.0;      ///< Σ torque_nm = cycle-mean indicated torque (N m)
+  double mean_nm = 0.0;  ///< Σ torque_nm = cycle-mean indicated torque (N m)
+  MisfireDetection detection = MisfireDetection::kInvalid;
   Health health = Health::kNotConverged;
 };
 
@@ -35,11 +57,14 @@ class CylinderTorque {
  public:
   CylinderTorque(const EngineGeometry& engine, const CylinderParams& params) noexcept;
   void reset() noexcept;
-  /// The segment of firing position `position` (0 = first in the firing order) ended with indicated work `work_j`.
-  /// `fired`: fuel was injected (no fuel cut-off). Returns true when the last position of the cycle ended; then
-  /// cycle() holds the record. Real-time safe.
+  /// The segment of firing position `position` (0 = first in the firing order) ended with indicated work
+  /// `work_j`. `fired`: fuel was injected (no fuel cut-off). Returns true when the last position of the cycle
+  /// ended; then cycle() holds the record. Real-time safe.
   bool on_segment(std::int64_t t_ns, int position, double work_j, bool valid, bool fired) noexcept;
   [[nodiscard]] const CylinderCycle& cycle() const noexcept { return out_; }
+  /// Whether the crank wheel's tooth table is learned (default true: a wheel without table is the caller's
+  /// call).
+  void set_wheel_learned(bool learned) noexcept { wheel_learned_ = learned; }
   [[nodiscard]] std::uint64_t misfires() const noexcept { return misfires_; }
 
  private:
@@ -50,6 +75,10 @@ class CylinderTorque {
   std::array<bool, kMaxCylinders> fired_{};
   std::array<double, kMaxCylinders> ema_{};
   bool ema_init_ = false;
+  double share_var_ =
+      0.0;  ///< EMA of the squared cycle-to-cycle share noise (fraction², pooled over cylinders)
+  bool wheel_learned_ = true;
+  double w_floor_j_ = 0.0;  ///< share floor (J)
   std::uint32_t cycles_ = 0;
   std::uint64_t misfires_ = 0;
   CylinderCycle out_;

@@ -1,12 +1,11 @@
 #include "fourier_observer.hpp"
 
+#include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <sstream>
-
-#include <Eigen/Dense>
-#include <Eigen/Eigenvalues>
 
 namespace torqued {
 
@@ -79,8 +78,8 @@ std::optional<std::string> FourierObserver::check_stability(const FourierParams&
   const ToothAngleTable t = ToothAngleTable::build(engine, wheel);
   const int nc = 2 * params.harmonics + 1;
   if (nc >= t.samples) {
-    why << "fourier.harmonics = " << params.harmonics << ": 2 n_h + 1 = " << nc
-        << " must be below the " << t.samples << " samples per cycle of this wheel";
+    why << "fourier.harmonics = " << params.harmonics << ": 2 n_h + 1 = " << nc << " must be below the "
+        << t.samples << " samples per cycle of this wheel";
     return why.str();
   }
   if (!(params.l_ke > 0.0) || !(params.l_a0 > 0.0) || !(params.l_ref > 0.0)) {
@@ -99,8 +98,9 @@ std::optional<std::string> FourierObserver::check_stability(const FourierParams&
     }
     const double bound = 0.5 * d * sum;
     if (!(params.l_ke > bound)) {
-      why << "fourier gains break the stability condition (CF-14) at tooth " << k << ": l_ke = " << params.l_ke
-          << " must exceed (dalpha/2) sum l_k f_k^2 = " << bound << " (lower l_a0/l_ref or raise l_ke)";
+      why << "fourier gains break the stability condition (CF-14) at tooth " << k
+          << ": l_ke = " << params.l_ke << " must exceed (dalpha/2) sum l_k f_k^2 = " << bound
+          << " (lower l_a0/l_ref or raise l_ke)";
       return why.str();
     }
   }
@@ -161,19 +161,21 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
     mean_speed_ = omega;
   }
   mean_speed_ += (omega - mean_speed_) / kk;
-  // Beyond the paper: scale the gains by (ω_ref/ω̄)² above ω_ref, so that the energy innovation, whose noise from
-  // edge-angle error grows as θ̇², moves the coefficients by the same relative amount at every speed.
+  // Beyond the paper: scale the gains by (ω_ref/ω̄)² above ω_ref, so that the energy innovation, whose noise
+  // from edge-angle error grows as θ̇², moves the coefficients by the same relative amount at every speed.
   double scale = 1.0;
-  if (ref_speed_ > 0.0 && mean_speed_ > ref_speed_) scale = (ref_speed_ / mean_speed_) * (ref_speed_ / mean_speed_);
+  if (ref_speed_ > 0.0 && mean_speed_ > ref_speed_)
+    scale = (ref_speed_ / mean_speed_) * (ref_speed_ / mean_speed_);
   const double d = table_.step_rad[static_cast<std::size_t>(k)] * scale;
   const double err = phi_ - phi_meas;  // (CF-8): L_n (ŷ_n − y_n) = Δα [L_ke, l_j f_j]ᵀ (φ̂ − ½ J y)
-  // Torque at e_k reaches the energy error only at later teeth: evaluating the waveform `lag` teeth back with the
-  // newest coefficients is a fixed-lag smoother (beyond the paper).
+  // Torque at e_k reaches the energy error only at later teeth: evaluating the waveform `lag` teeth back with
+  // the newest coefficients is a fixed-lag smoother (beyond the paper).
   const int k_out = (k - lag_ + kk) % kk;
   // One pass over the coefficients: the model torque at e_k with the coefficients before this tooth, their
-  // update (CF-8), and the output torque at e_{k_out} with the updated ones. Same operations in the same order
-  // as net_torque_at(k), the update loop, net_torque_at(k_out) one after the other (identical bits), but the
-  // two sums are independent chains of additions that now overlap (per tooth, the sums' latency dominated).
+  // update (CF-8), and the output torque at e_{k_out} with the updated ones. Same operations in the same
+  // order as net_torque_at(k), the update loop, net_torque_at(k_out) one after the other (identical bits),
+  // but the two sums are independent chains of additions that now overlap (per tooth, the sums' latency
+  // dominated).
   const double* f = &basis_[static_cast<std::size_t>(k * nc_)];
   const double* fo = &basis_[static_cast<std::size_t>(k_out * nc_)];
   double t_model = 0.0, t_net = 0.0;
@@ -187,7 +189,8 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
   phi_ += table_.step_rad[static_cast<std::size_t>(k)] * (t_model - params_.l_ke * err);
   ++stats_.updates;
   ++teeth_seen_;
-  for (int i = kMaxLag; i > 0; --i) edge_t_ns_[static_cast<std::size_t>(i)] = edge_t_ns_[static_cast<std::size_t>(i - 1)];
+  for (int i = kMaxLag; i > 0; --i)
+    edge_t_ns_[static_cast<std::size_t>(i)] = edge_t_ns_[static_cast<std::size_t>(i - 1)];
   edge_t_ns_[0] = s.t_ns;
   if (!std::isfinite(phi_) || !std::isfinite(t_net)) {
     ++stats_.resets;
@@ -199,7 +202,7 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
   est_.torque_nm = t_net + load_star_nm_;
   est_.uncertainty = 0.0;
   est_tooth_ = k_out;
-  est_.health = teeth_seen_ >= 2 * kk ? Health::kValid : Health::kNotConverged;
+  est_.health = (teeth_seen_ >= 2 * kk && wheel_learned_) ? Health::kValid : Health::kNotConverged;
   expected_tooth_ = (k + 1) % kk;
   return true;
 }

@@ -1,6 +1,6 @@
 #pragma once
-// Chauvin's adaptive Fourier-basis observer of the mass torque (Chauvin et al., "Periodic input estimation for
-// linear periodic systems: automotive engine applications" / Fourier observer paper, eqs. (2)-(14));
+// Chauvin's adaptive Fourier-basis observer of the mass torque (Chauvin et al., "Periodic input estimation
+// for linear periodic systems: automotive engine applications" / Fourier observer paper, eqs. (2)-(14));
 // ESTIMATORS.md §2.2.
 //   φ = ½ J(α) α̇²,  dφ/dα = T_ind − T*_load ≈ a0 + Σ_{i=1..n_h} a_i cos(iα/2) + b_i sin(iα/2)   (CF-2, CF-3)
 // Discrete observer (CF-8/10) per tooth sample k (step Δ_k between period centres, basis at the edge e_k):
@@ -38,11 +38,12 @@ class FourierObserver {
   /// Gains must have passed check_stability(); the constructor does not re-check (config loader's job).
   FourierObserver(const EngineGeometry& engine, const WheelGeometry& wheel, const FourierParams& params);
 
-  /// Why these gains must be refused, or nullopt when acceptable. Checks, for the configured wheel and engine:
-  /// 1 ≤ n_h ≤ kMaxHarmonics, 2n_h + 1 < samples per cycle, strictly positive gains, the paper's condition (CF-14)
-  /// L_ke > (Δα/2) Σ_k l_k f_k(n)² at every tooth n, and (beyond the paper, because (CF-14) alone does not bound
-  /// the discrete error dynamics) the spectral radius of the closed-loop error transition over one cycle < 1.
-  /// Runs at configuration load (allocates, uses an eigen-solver): never call it on the real-time path.
+  /// Why these gains must be refused, or nullopt when acceptable. Checks, for the configured wheel and
+  /// engine: 1 ≤ n_h ≤ kMaxHarmonics, 2n_h + 1 < samples per cycle, strictly positive gains, the paper's
+  /// condition (CF-14) L_ke > (Δα/2) Σ_k l_k f_k(n)² at every tooth n, and (beyond the paper, because (CF-14)
+  /// alone does not bound the discrete error dynamics) the spectral radius of the closed-loop error
+  /// transition over one cycle < 1. Runs at configuration load (allocates, uses an eigen-solver): never call
+  /// it on the real-time path.
   [[nodiscard]] static std::optional<std::string> check_stability(const FourierParams& params,
                                                                   const EngineGeometry& engine,
                                                                   const WheelGeometry& wheel);
@@ -53,6 +54,10 @@ class FourierObserver {
   void reset() noexcept;
   /// Extended load T*_load = T_load + T_fric (N m), added to give T̂_ind (CF eq. (1)). Default 0.
   void set_extended_load(double torque_nm) noexcept { load_star_nm_ = torque_nm; }
+  /// Whether the tooth widths it is given are corrected by a learned table (issue 15 item 2). While false the
+  /// estimate runs but its health is kNotConverged: an unlearned wheel puts the tooth errors into the
+  /// in-cycle torque (tens of % of peak-to-peak). Default true (a caller without a learner decides).
+  void set_wheel_learned(bool learned) noexcept { wheel_learned_ = learned; }
   /// Real-time safe. Returns false if the sample was rejected.
   bool update(const ToothSample& s) noexcept;
 
@@ -69,13 +74,14 @@ class FourierObserver {
  private:
   FourierParams params_;
   ToothAngleTable table_;
-  int nc_ = 0;                     ///< 2 n_h + 1
-  std::vector<double> basis_;      ///< f_j(e_k) at [k * nc_ + j]
+  int nc_ = 0;                 ///< 2 n_h + 1
+  std::vector<double> basis_;  ///< f_j(e_k) at [k * nc_ + j]
   std::array<double, kMaxCoeffs> l_{};
   std::array<double, kMaxCoeffs> c_{};
   double phi_ = 0.0;
-  double mean_speed_ = 0.0;        ///< running mean speed over ≈ one cycle (rad/s), for gain_ref_rpm
-  double ref_speed_ = 0.0;         ///< gain_ref_rpm in rad/s (0: off)
+  double mean_speed_ = 0.0;  ///< running mean speed over ≈ one cycle (rad/s), for gain_ref_rpm
+  double ref_speed_ = 0.0;   ///< gain_ref_rpm in rad/s (0: off)
+  bool wheel_learned_ = true;
   double load_star_nm_ = 0.0;
   TorqueEstimate est_;
   int est_tooth_ = 0;

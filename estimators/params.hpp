@@ -55,7 +55,7 @@ struct KalmanParams {
   double torque_sd_nm = 300.0; ///< stationary 1σ of the net torque x2 under h(z); sets Q (N m)
   double edge_noise_deg = 0.005; ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.005 learned)
   double jitter_s = 0.3e-6;    ///< timestamp jitter used for R (s)
-  int smoother_lag = 4;        ///< output x2(n-lag | n), 0..6 teeth (fixed-lag smoother; 0 = paper's predictor)
+  int smoother_lag = 6;        ///< output x2(n-lag | n), 0..6 teeth (fixed-lag smoother; 0 = paper's predictor)
   bool periodic_gains = true;  ///< use precomputed asymptotic periodic gains (APS) instead of exact Riccati
   double min_rpm = 500.0;      ///< lowest speed of the APS gain schedule (rpm)
   double max_rpm = 8000.0;     ///< highest speed of the APS gain schedule (rpm)
@@ -140,6 +140,14 @@ struct CylinderParams {
   double misfire_threshold = 0.5;   ///< misfire when a cylinder's torque < threshold × cycle mean (-)
   double imbalance_filter = 0.2;    ///< EMA weight per cycle of the published imbalance (1 = no filter) (-)
   double min_mean_nm = 5.0;         ///< no misfire decision while the median segment-mean torque is below this (N m)
+  double misfire_sigma = 4.0;       ///< a misfire's deficit must also exceed this many σ of the running share noise
+                                    ///< (0: off) (-)
+  double share_noise_prior = 0.15;  ///< share noise σ (fraction of the mean) assumed until measured: with
+                                    ///< misfire_sigma 4 a misfire needs a 60 % deficit at first (a missing
+                                    ///< combustion is ~100 %) (-)
+  double share_floor_imep_bar = 0.5;  ///< imbalance shares are relative to max(cycle-mean work, this IMEP × swept
+                                      ///< volume per cylinder): below any firing idle (1-2 bar net IMEP), so a small
+                                      ///< or negative mean (overrun, idle after cut-off) cannot blow the shares up (bar)
 };
 /// Fused brake torque for the torque-split controller (ESTIMATORS.md §4; rule in torque_fusion.hpp).
 struct FusionParams {
@@ -159,9 +167,11 @@ struct ToothLearnParams {
   double min_rpm = 600.0;           ///< learn only above this speed (rpm)
   double max_rpm = 7000.0;          ///< and below this one (rpm)
   double speed_weight_exp = 4.0;    ///< residuals weighted by speed^p (ripple ∝ 1/speed²): high speeds dominate
-  bool fit_all_even = false;        ///< also fit even non-firing cycle harmonics (then their tooth orders are lost)
-  bool learn_low_orders = true;     ///< also learn the firing orders (2, 4 per rev for 4-cyl) from the spread of
-                                    ///< speeds: intercept of a quadratic regression on 1/speed² (needs ≥ 2 speeds)
+  bool learn_low_orders = true;     ///< also learn the per-revolution orders the per-cycle fit absorbs (below
+                                    ///< fit_harmonics/2 per rev) from what identifies them: fuel cut-off cycles
+                                    ///< and/or the spread of speeds (wheel part speed-independent, ripple ∝ 1/speed²)
+  int min_overrun_cycles = 8;       ///< clean fuel cut-off cycles (whole cycle and the one before cut) needed before
+                                    ///< the overrun identifies a per-revolution order (cycles)
 };
 
 }  // namespace torqued

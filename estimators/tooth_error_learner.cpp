@@ -1,12 +1,25 @@
 #include "tooth_error_learner.hpp"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
 
-#include <Eigen/Dense>
-
 namespace torqued {
+
+const char* to_string(ToothOrderSource s) noexcept {
+  switch (s) {
+    case ToothOrderSource::kHeld:
+      return "held";
+    case ToothOrderSource::kOverrun:
+      return "overrun";
+    case ToothOrderSource::kOverrunSpeeds:
+      return "overrun-speeds";
+    case ToothOrderSource::kSpeeds:
+      return "speeds";
+  }
+  return "?";
+}
 
 namespace {
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
@@ -19,17 +32,22 @@ ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGe
     : params_(params), table_(ToothAngleTable::build(engine, wheel)) {
   const int kk = table_.samples;
   const int h = std::clamp(params_.fit_harmonics, 1, std::min(kMaxFitHarmonics, kk / 4));
-  // Smooth basis of the engine's speed ripple: odd cycle harmonics (half orders; a wheel error repeats every
-  // revolution and has none) and the firing harmonics (multiples of n_cyl per cycle). Even non-firing harmonics
-  // are left out so the low orders of the tooth error stay in the residual; only imbalance ripple shares them.
+  // Smooth basis of the engine's speed ripple: every cycle harmonic up to H. Odd ones (half orders) never
+  // hold wheel error; even ones are per-revolution orders that hold both and are separated in recompute().
   std::vector<int> harmonics;
-  for (int hh = 1; hh <= h; ++hh) {
-    if (hh % 2 == 1 || hh % engine.cylinders == 0 || params_.fit_all_even) harmonics.push_back(hh);
-  }
+  for (int hh = 1; hh <= h; ++hh) harmonics.push_back(hh);
   nb_ = 2 * static_cast<int>(harmonics.size()) + 2;
   col_per_rev_.assign(static_cast<std::size_t>(nb_), 0);
+  col_firing_.assign(static_cast<std::size_t>(nb_), 0);
   for (std::size_t q = 0; q < harmonics.size(); ++q) {
     col_per_rev_[2 * q + 2] = col_per_rev_[2 * q + 3] = harmonics[q] % 2 == 0 ? 1 : 0;
+    col_firing_[2 * q + 2] = col_firing_[2 * q + 3] = harmonics[q] % engine.cylinders == 0 ? 1 : 0;
+    if (harmonics[q] % 2 == 0) {
+      ToothOrderId id;
+      id.order = harmonics[q] / 2;
+      id.firing = harmonics[q] % engine.cylinders == 0;
+      ids_.push_back(id);
+    }
   }
   const auto ks = static_cast<std::size_t>(kk);
   const auto nbs = static_cast<std::size_t>(nb_);
@@ -40,10 +58,10 @@ ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGe
     const auto i = static_cast<std::size_t>(k);
     const double c = table_.edge_rad[i] - 0.5 * table_.width_rad[i];  // period centre, wheel angle in 720°
     b(k, 0) = 1.0;
-    // Speed change within the cycle: the linear trend (c − 2π)/2π is NOT orthogonal to per-revolution patterns
-    // (its per-rev sawtooth part took ≈ half of the wheel's first order, 0.025° edge error): the trend is
-    // removed with the measured revolution times (finish_cycle) and only its anti-periodic part (a step between
-    // the two revolutions, orthogonal to any wheel pattern) is fitted.
+    // Speed change within the cycle: the linear trend (c − 2π)/2π is NOT orthogonal to per-revolution
+    // patterns (its per-rev sawtooth part took ≈ half of the wheel's first order, 0.025° edge error): the
+    // trend is removed with the measured revolution times (finish_cycle) and only its anti-periodic part (a
+    // step between the two revolutions, orthogonal to any wheel pattern) is fitted.
     trend_[static_cast<std::size_t>(k)] = (c - kTwoPi) / kTwoPi;
     b(k, 1) = k < table_.teeth ? -0.5 : 0.5;
     for (std::size_t q = 0; q < harmonics.size(); ++q) {
@@ -55,16 +73,20 @@ ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGe
   const Eigen::MatrixXd g = (b.transpose() * b).ldlt().solve(b.transpose());
   pinv_.resize(nbs * ks);
   for (int j = 0; j < nb_; ++j)
-    for (int k = 0; k < kk; ++k) pinv_[static_cast<std::size_t>(j) * ks + static_cast<std::size_t>(k)] = g(j, k);
+    for (int k = 0; k < kk; ++k)
+      pinv_[static_cast<std::size_t>(j) * ks + static_cast<std::size_t>(k)] = g(j, k);
   z_.assign(ks, 0.0);
   resid_sum_.assign(ks, 0.0);
   coef_.assign(nbs, 0.0);
   sb_.assign(nbs, 0.0);
   sxb_.assign(nbs, 0.0);
   sxxb_.assign(nbs, 0.0);
+  cb_.assign(nbs, 0.0);
+  cxb_.assign(nbs, 0.0);
+  low_coef_.assign(nbs, 0.0);
+  imp_coef_.assign(nbs, 0.0);
   const auto ts = static_cast<std::size_t>(table_.teeth);
   eps_.assign(ts, 0.0);
-  lf_.assign(ts, 0.0);
   eps_import_.assign(ts, 0.0);
   ratio_.assign(ts, 1.0);
   reset();
@@ -76,6 +98,16 @@ void ToothErrorLearner::reset() noexcept {
   std::fill(sb_.begin(), sb_.end(), 0.0);
   std::fill(sxb_.begin(), sxb_.end(), 0.0);
   std::fill(sxxb_.begin(), sxxb_.end(), 0.0);
+  std::fill(cb_.begin(), cb_.end(), 0.0);
+  std::fill(cxb_.begin(), cxb_.end(), 0.0);
+  std::fill(imp_coef_.begin(), imp_coef_.end(), 0.0);
+  nc_ = cx_ = cxx_ = 0.0;
+  prev_all_cutoff_ = false;
+  for (auto& id : ids_) {
+    id.source = ToothOrderSource::kHeld;
+    id.cycles = 0.0;
+    id.edge_amplitude_rad = 0.0;
+  }
   std::fill(eps_.begin(), eps_.end(), 0.0);
   std::fill(eps_import_.begin(), eps_import_.end(), 0.0);
   std::fill(ratio_.begin(), ratio_.end(), 1.0);
@@ -99,6 +131,7 @@ void ToothErrorLearner::update(const ToothSample& s) noexcept {
     if (collected_ > 0) ++stats_.cycles_rejected;
     next_tooth_ = -1;
     collected_ = 0;
+    prev_all_cutoff_ = false;
     return;
   }
   if (s.tooth == 0) {
@@ -108,6 +141,7 @@ void ToothErrorLearner::update(const ToothSample& s) noexcept {
     first_dt_s_ = 0.0;
     last_dt_s_ = 0.0;
     cycle_cutoff_ = cutoff_;
+    cycle_all_cutoff_ = cutoff_;
     next_tooth_ = 0;
   }
   if (s.tooth != next_tooth_) {
@@ -120,9 +154,13 @@ void ToothErrorLearner::update(const ToothSample& s) noexcept {
   const double w = table_.width_rad[i] / s.dt_s;  // speed from the nominal width
   z_[i] = table_.j_center[i] * w * w;             // 2 × kinetic energy, normalised at the cycle end
   // time of the first and second revolution (equal angle spans) measure the change of speed over the cycle
-  if (s.tooth < table_.teeth) first_dt_s_ += s.dt_s; else last_dt_s_ += s.dt_s;
+  if (s.tooth < table_.teeth)
+    first_dt_s_ += s.dt_s;
+  else
+    last_dt_s_ += s.dt_s;
   cycle_time_s_ += s.dt_s;
   cycle_cutoff_ = cycle_cutoff_ || cutoff_;
+  cycle_all_cutoff_ = cycle_all_cutoff_ && cutoff_;
   ++collected_;
   next_tooth_ = (s.tooth + 1) % kk;
 }
@@ -132,7 +170,11 @@ void ToothErrorLearner::finish_cycle() noexcept {
   const auto ks = static_cast<std::size_t>(kk);
   const double omega = 2.0 * kTwoPi / cycle_time_s_;
   const double accel_frac = std::abs(last_dt_s_ - first_dt_s_) / first_dt_s_;
-  if (omega < params_.min_rpm * kRpm || omega > params_.max_rpm * kRpm || accel_frac > params_.max_accel_frac) {
+  // Overrun: this whole cycle and the previous one in cut-off (the last fired expansion has ended).
+  const bool overrun = cycle_all_cutoff_ && prev_all_cutoff_;
+  prev_all_cutoff_ = cycle_all_cutoff_;
+  if (omega < params_.min_rpm * kRpm || omega > params_.max_rpm * kRpm ||
+      accel_frac > params_.max_accel_frac) {
     ++stats_.cycles_rejected;
     return;
   }
@@ -144,6 +186,37 @@ void ToothErrorLearner::finish_cycle() noexcept {
   // E ∝ θ̇², z ≈ −(θ̇/ω̄ − 1) holds the trend −(ω2 − ω1)/ω̄ · (c − 2π)/2π (rev centres 2π apart).
   const double trend = -(kTwoPi / last_dt_s_ - kTwoPi / first_dt_s_) / omega;
   for (std::size_t k = 0; k < ks; ++k) z_[k] = -0.5 * (z_[k] / mean - 1.0) - trend * trend_[k];
+  fit_cycle();
+  // The leftover ripple (orders above the fit) falls as 1/ω̄², jitter noise grows with ω̄ but averages out:
+  // weight the residuals by (ω̄/ω_ref)^p so that high-speed (and cut-off) cycles dominate.
+  const double wgt = std::pow(omega / (1000.0 * kRpm), params_.speed_weight_exp);
+  for (std::size_t k = 0; k < ks; ++k) {
+    const double* b = &basis_[k * static_cast<std::size_t>(nb_)];
+    double fit = 0.0;
+    for (int j = 0; j < nb_; ++j) fit += b[j] * coef_[static_cast<std::size_t>(j)];
+    resid_sum_[k] += wgt * (z_[k] - fit);
+  }
+  wsum_ += wgt;
+  n_ += 1.0;
+  ++stats_.cycles_used;
+  if (cycle_cutoff_) ++stats_.cycles_cutoff;
+  const double x = (kRefSpeed / omega) * (kRefSpeed / omega);
+  if (overrun) {
+    ++stats_.cycles_overrun;
+    nc_ += 1.0;
+    cx_ += x;
+    cxx_ += x * x;
+    for (std::size_t j = 0; j < static_cast<std::size_t>(nb_); ++j) {
+      cb_[j] += coef_[j];
+      cxb_[j] += x * coef_[j];
+    }
+  }
+  if (!cycle_cutoff_) regress(omega);  // the ripple of motored cycles follows another law: firing cycles only
+  recompute();
+}
+
+void ToothErrorLearner::fit_cycle() noexcept {
+  const auto ks = static_cast<std::size_t>(table_.samples);
   // Least-squares fit of the smooth part: β = G z (G = (BᵀB)⁻¹Bᵀ precomputed), residual r = z − Bβ.
   // Four rows at a time: each sum keeps its own order (identical bits), the four chains of additions overlap
   // (one chain of `ks` dependent additions per row was the cost of this loop).
@@ -172,21 +245,6 @@ void ToothErrorLearner::finish_cycle() noexcept {
     for (std::size_t k = 0; k < ks; ++k) acc += g[k] * z_[k];
     coef_[static_cast<std::size_t>(row)] = acc;
   }
-  // The leftover ripple (orders above the fit) falls as 1/ω̄², jitter noise grows with ω̄ but averages out:
-  // weight the residuals by (ω̄/ω_ref)^p so that high-speed (and cut-off) cycles dominate.
-  const double wgt = std::pow(omega / (1000.0 * kRpm), params_.speed_weight_exp);
-  for (std::size_t k = 0; k < ks; ++k) {
-    const double* b = &basis_[k * static_cast<std::size_t>(nb_)];
-    double fit = 0.0;
-    for (int j = 0; j < nb_; ++j) fit += b[j] * coef_[static_cast<std::size_t>(j)];
-    resid_sum_[k] += wgt * (z_[k] - fit);
-  }
-  wsum_ += wgt;
-  n_ += 1.0;
-  ++stats_.cycles_used;
-  if (cycle_cutoff_) ++stats_.cycles_cutoff;
-  if (!cycle_cutoff_) regress(omega);  // the ripple of motored cycles follows another law: firing cycles only
-  recompute();
 }
 
 void ToothErrorLearner::regress(double omega) noexcept {
@@ -204,52 +262,128 @@ void ToothErrorLearner::regress(double omega) noexcept {
   }
 }
 
+void ToothErrorLearner::identify_orders(double* low) noexcept {
+  // Firing-cycle regression β_j = β_j0 + γ_j x + η_j x² (normal equations, Cramer's rule on the 3×3 moment
+  // matrix shared by all columns); needs a real spread of speeds (1σ of x above 20 % of its mean).
+  const double vx = nreg_ * sxx_ - sx_ * sx_;
+  const double m00 = nreg_, m01 = sx_, m02 = sxx_, m11 = sxx_, m12 = sx3_, m22 = sx4_;
+  const double det =
+      m00 * (m11 * m22 - m12 * m12) - m01 * (m01 * m22 - m12 * m02) + m02 * (m01 * m12 - m11 * m02);
+  const bool learn = params_.learn_low_orders;
+  const bool speeds = learn && nreg_ >= 6.0 && vx > 0.04 * sx_ * sx_ && std::abs(det) > 1e-12 * nreg_;
+  // Overrun: mean (non-firing orders) or linear regression on x (firing orders, needs a spread of speeds).
+  const bool ov_mean = learn && nc_ >= params_.min_overrun_cycles;
+  const double vcx = nc_ * cxx_ - cx_ * cx_;
+  const bool ov_speeds = ov_mean && vcx > 0.04 * cx_ * cx_;
+  for (std::size_t q = 0; q < ids_.size(); ++q) {
+    ToothOrderId& id = ids_[q];
+    const auto j0 = static_cast<std::size_t>(2 * id.order * 2);  // harmonic h = 2·order → columns 2h, 2h + 1
+    id.source = ToothOrderSource::kHeld;
+    id.cycles = 0.0;
+    if (!id.firing && ov_mean) {
+      id.source = ToothOrderSource::kOverrun;
+      id.cycles = nc_;
+    } else if (id.firing && ov_speeds) {
+      id.source = ToothOrderSource::kOverrunSpeeds;
+      id.cycles = nc_;
+    } else if (speeds) {
+      id.source = ToothOrderSource::kSpeeds;
+      id.cycles = nreg_;
+    }
+    for (std::size_t j = j0; j < j0 + 2; ++j) {
+      double v = 0.0;
+      switch (id.source) {
+        case ToothOrderSource::kOverrun:
+          v = cb_[j] / nc_;
+          break;
+        case ToothOrderSource::kOverrunSpeeds:
+          v = (cxx_ * cb_[j] - cx_ * cxb_[j]) / vcx;
+          break;
+        case ToothOrderSource::kSpeeds: {
+          // firing orders carry the full gas-torque ripple (x² term for the ln non-linearity); a non-firing
+          // order only an imbalance, small enough for the linear law (a less noisy intercept)
+          const double r0 = sb_[j], r1 = sxb_[j], r2 = sxxb_[j];
+          v = id.firing ? (r0 * (m11 * m22 - m12 * m12) - m01 * (r1 * m22 - m12 * r2) +
+                           m02 * (r1 * m12 - m11 * r2)) /
+                              det
+                        : (sxx_ * r0 - sx_ * r1) / vx;
+          break;
+        }
+        case ToothOrderSource::kHeld:
+          v = imp_coef_[j];
+          break;
+      }
+      low[j] = v;
+    }
+  }
+}
+
 void ToothErrorLearner::recompute() noexcept {
   const int t = table_.teeth;
   const auto nbs = static_cast<std::size_t>(nb_);
-  // Low orders: intercept of the regression β_j = β_j0 + γ_j x + η_j x² (normal equations, Cramer's rule on the
-  // 3×3 moment matrix shared by all columns); needs a real spread of speeds (1σ of x above 20 % of its mean).
-  const double vx = nreg_ * sxx_ - sx_ * sx_;
-  const double m00 = nreg_, m01 = sx_, m02 = sxx_, m11 = sxx_, m12 = sx3_, m22 = sx4_;
-  const double det = m00 * (m11 * m22 - m12 * m12) - m01 * (m01 * m22 - m12 * m02) + m02 * (m01 * m12 - m11 * m02);
-  bool low = params_.learn_low_orders && nreg_ >= 6.0 && vx > 0.04 * sx_ * sx_ && std::abs(det) > 1e-12 * nreg_;
-  double hf_ss = 0.0, lf_ss = 0.0;
+  std::fill(low_coef_.begin(), low_coef_.end(), 0.0);
+  identify_orders(low_coef_.data());
+  // Plausibility of the 1/ω̄² regressions (firing or overrun): machining errors are independent per edge, so
+  // the width error holds little at the low orders (a few % of its RMS). A larger part means the ripple did
+  // not follow 1/ω̄² (mixed loads, a coast-down with falling MAP, transients): hold those orders instead.
+  const auto regressed = [](ToothOrderSource src) {
+    return src == ToothOrderSource::kSpeeds || src == ToothOrderSource::kOverrunSpeeds;
+  };
+  double hf_ss = 0.0, sp_ss = 0.0;
+  const double wsum = wsum_ > 0.0 ? wsum_ : 1.0;
   for (int p = 0; p < t; ++p) {
-    double hf = 0.0, lf = 0.0;
+    double hf = 0.0, sp = 0.0;
     for (int rev = 0; rev < 2; ++rev) {
       const auto k = static_cast<std::size_t>(p + rev * t);
-      hf += resid_sum_[k] / wsum_;
-      if (low) {
-        // only the per-revolution columns (even cycle harmonics) can hold wheel error; columns 0 (constant) and
-        // 1 (trend: acceleration) never do
-        const double* b = &basis_[k * nbs];
-        for (std::size_t j = 2; j < nbs; ++j) {
-          if (col_per_rev_[j] == 0) continue;
-          const double r0 = sb_[j], r1 = sxb_[j], r2 = sxxb_[j];
-          const double beta0 =
-              (r0 * (m11 * m22 - m12 * m12) - m01 * (r1 * m22 - m12 * r2) + m02 * (r1 * m12 - m11 * r2)) / det;
-          lf += b[j] * beta0;
-        }
+      hf += resid_sum_[k] / wsum;
+      const double* b = &basis_[k * nbs];
+      for (const auto& id : ids_) {
+        if (!regressed(id.source)) continue;
+        const auto j0 = static_cast<std::size_t>(4 * id.order);
+        sp += b[j0] * low_coef_[j0] + b[j0 + 1] * low_coef_[j0 + 1];
       }
     }
     eps_[static_cast<std::size_t>(p)] = 0.5 * hf;
-    lf_[static_cast<std::size_t>(p)] = 0.5 * lf;
     hf_ss += hf * hf;
-    lf_ss += lf * lf;
+    sp_ss += sp * sp;
   }
-  // Plausibility: machining errors are independent per edge, so the width error holds little at the firing orders
-  // (a few % of its RMS). A larger low-order part means the ripple did not follow 1/ω̄² (mixed loads, transients):
-  // do not use it.
-  low = low && lf_ss < 0.25 * hf_ss;
-  low_orders_ok_ = low;
-  if (low) {
-    for (int p = 0; p < t; ++p) eps_[static_cast<std::size_t>(p)] += lf_[static_cast<std::size_t>(p)];
+  if (sp_ss >= 0.25 * hf_ss) {
+    for (auto& id : ids_) {
+      if (!regressed(id.source)) continue;
+      id.source = ToothOrderSource::kHeld;
+      id.cycles = 0.0;
+      const auto j0 = static_cast<std::size_t>(4 * id.order);
+      low_coef_[j0] = imp_coef_[j0];
+      low_coef_[j0 + 1] = imp_coef_[j0 + 1];
+    }
   }
+  bool all = !ids_.empty();
+  for (auto& id : ids_) {
+    const auto j0 = static_cast<std::size_t>(4 * id.order);
+    if (id.source == ToothOrderSource::kHeld) {
+      all = false;
+    } else {  // blend with the imported table by weight
+      for (std::size_t j = j0; j < j0 + 2; ++j)
+        low_coef_[j] =
+            (import_weight_ * imp_coef_[j] + id.cycles * low_coef_[j]) / (import_weight_ + id.cycles);
+    }
+    id.edge_amplitude_rad = std::hypot(low_coef_[j0], low_coef_[j0 + 1]) / id.order;
+  }
+  low_orders_ok_ = all;
+  // High orders: residual blended with the imported table's part above the fit; low orders: identified or
+  // held.
   double norm = 0.0;
   for (int p = 0; p < t; ++p) {
     const auto i = static_cast<std::size_t>(p);
-    const double e = (import_weight_ * eps_import_[i] + n_ * eps_[i]) / (import_weight_ + n_);
-    ratio_[i] = std::exp(e);
+    const double* b = &basis_[i * nbs];
+    double lo = 0.0, lo_imp = 0.0;
+    for (std::size_t j = 2; j < nbs; ++j) {
+      if (col_per_rev_[j] == 0) continue;
+      lo += b[j] * low_coef_[j];
+      lo_imp += b[j] * imp_coef_[j];
+    }
+    const double hi = (import_weight_ * (eps_import_[i] - lo_imp) + n_ * eps_[i]) / (import_weight_ + n_);
+    ratio_[i] = std::exp(hi + lo);
     norm += ratio_[i] * table_.width_rad[i];
   }
   norm /= kTwoPi;  // the true widths add up to one revolution
@@ -284,18 +418,18 @@ bool ToothErrorLearner::import_table(std::span<const double> edge_rad, int weigh
     eps_import_[i] = std::log(w_true / table_.width_rad[i]);
   }
   import_weight_ = weight_cycles;
-  if (n_ == 0.0) {
-    n_ = 0.0;
-    double norm = 0.0;
-    for (int p = 0; p < t; ++p) {
-      const auto i = static_cast<std::size_t>(p);
-      ratio_[i] = std::exp(eps_import_[i]);
-      norm += ratio_[i] * table_.width_rad[i];
+  // Project the imported table on the per-revolution columns (the value an order keeps while nothing
+  // identifies it).
+  const auto ks = static_cast<std::size_t>(table_.samples);
+  for (std::size_t j = 0; j < static_cast<std::size_t>(nb_); ++j) {
+    double acc = 0.0;
+    if (col_per_rev_[j] != 0) {
+      for (std::size_t k = 0; k < ks; ++k)
+        acc += pinv_[j * ks + k] * eps_import_[k % static_cast<std::size_t>(t)];
     }
-    for (auto& r : ratio_) r /= norm / kTwoPi;
-  } else {
-    recompute();
+    imp_coef_[j] = acc;
   }
+  recompute();
   return true;
 }
 

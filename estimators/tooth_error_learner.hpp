@@ -1,19 +1,30 @@
 #pragma once
-// Crank-wheel tooth-error learning (issue 5 item 6, ESTIMATORS.md §4). A per-tooth machining error changes the
-// true width of a tooth period by a FIXED FRACTION, so it appears in the measured speed as the same relative
-// pattern at every speed and load, repeating every revolution. The engine's own speed ripple does not:
+// Crank-wheel tooth-error learning (issue 5 item 6, ESTIMATORS.md §4). A per-tooth machining error changes
+// the true width of a tooth period by a FIXED FRACTION, so it appears in the measured speed as the same
+// relative pattern at every speed and load, repeating every revolution. The engine's own speed ripple does
+// not:
 //  - the inertia part (θ̇² ∝ 1/J(θ) from the reciprocating masses, ½J'θ̇²) is known: removed by using ½J(θ)θ̇²;
 //  - the torque part (gas and load) is a smooth function of the 720° angle whose relative size falls as 1/ω²
 //    (ΔE/E with E = ½Jω²); in fuel cut-off it is only the compression/expansion of the motored cylinders.
-// Per complete, steady cycle we form z_k = −½(E_k/Ē − 1), E_k = ½J(c_k)(w_k/dt_k)² with nominal w_k (the inertia
-// part cancels, the torque part W(θ) enters linearly, the tooth error as −2ε_p), remove the linear speed trend
-// measured by the two revolution times, and fit the smooth basis [1, step between the two revolutions,
-// cos/sin(hα/2) for odd h and firing multiples h = n_cyl·i up to H]. The residual,
-// averaged per physical tooth (weighted by speed⁴: the ripple falls as 1/ω̄²), is the tooth error except its
-// orders that coincide with firing harmonics (4-cyl: 2, 4, 6, … per rev up to H/2). The low-order part sits in the fitted
-// coefficients together with the ripple: each coefficient is regressed on x = 1/ω̄² (and x², since ln(E0 + ΔE)
-// is not linear in ΔE/E0 at low speed) across all learned cycles (several speeds, firing or cut-off); the
-// intercept (x → 0, no ripple) is the tooth-error part.
+// Per complete, steady cycle we form z_k = −½(E_k/Ē − 1), E_k = ½J(c_k)(w_k/dt_k)² with nominal w_k (the
+// inertia part cancels, the torque part W(θ) enters linearly, the tooth error as −2ε_p), remove the linear
+// speed trend measured by the two revolution times, and fit the smooth basis [1, step between the two
+// revolutions, cos/sin(hα/2) for every cycle harmonic h ≤ H]. The residual, averaged per physical tooth
+// (weighted by speed⁴: the ripple falls as 1/ω̄²), is the tooth error above order H/2 per revolution. The
+// per-revolution orders r = h/2 ≤ H/2 (even h) sit in the fitted coefficients together with the engine's
+// ripple at the same order, and each is identified by what separates the two (issue 15 item 1):
+//  - an order that is not a firing order (h not a multiple of n_cyl; on an I4 the once-per-revolution order,
+//  i.e.
+//    cylinders 1+4 against 2+3) carries engine ripple only through a cylinder imbalance. In fuel cut-off all
+//    cylinders are motored alike, so there the coefficient is the wheel alone ("overrun"). Firing cycles
+//    would read the imbalance as wheel error: they are used only through the speed law below, and only when
+//    no overrun exists;
+//  - a firing order carries the gas torque always (motored compression in cut-off). Its ripple share falls as
+//    1/ω̄², the wheel's does not: the intercept (x → 0) of a regression on x = 1/ω̄² across cut-off cycles at
+//    several speeds ("overrun speeds"), or across firing cycles at several speeds with an x² term since ln(E0
+//    + ΔE) is not linear in ΔE/E0 at low speed ("speeds");
+//  - an order nothing identifies is held: the imported (persisted) table's value, or zero.
+// order_ids() reports per order how it was identified, from how many cycles, and its edge amplitude.
 // The table is absolute (nominal widths, measured times), so the decoder may apply it to its output without
 // disturbing learning. Real-time safe update(); the table is recomputed at each cycle end (O(teeth·H)).
 #include <cstdint>
@@ -27,9 +38,30 @@
 
 namespace torqued {
 
+/// How a per-revolution order inside the per-cycle fit was identified.
+enum class ToothOrderSource : std::uint8_t {
+  kHeld = 0,     ///< nothing identifies it yet: imported table (or zero)
+  kOverrun = 1,  ///< non-firing order: mean over fuel cut-off cycles (no combustion, no imbalance)
+  kOverrunSpeeds =
+      2,        ///< firing order: intercept of the 1/ω̄² regression over cut-off cycles at several speeds
+  kSpeeds = 3,  ///< intercept of the 1/ω̄² (+ x²) regression over firing cycles at several speeds
+};
+[[nodiscard]] const char* to_string(ToothOrderSource s) noexcept;
+
+/// Identification of one per-revolution order of the wheel error (orders 1 .. fit_harmonics/2).
+struct ToothOrderId {
+  int order = 0;        ///< per revolution
+  bool firing = false;  ///< a firing order of the engine (gas torque ripple always present)
+  ToothOrderSource source = ToothOrderSource::kHeld;
+  double cycles = 0.0;              ///< cycles behind the value used
+  double edge_amplitude_rad = 0.0;  ///< amplitude of this order in the edge-angle table (rad)
+};
+
 struct ToothLearnStats {
-  std::uint64_t cycles_used = 0;      ///< cycles accumulated
-  std::uint64_t cycles_cutoff = 0;    ///< of which in fuel cut-off
+  std::uint64_t cycles_used = 0;    ///< cycles accumulated
+  std::uint64_t cycles_cutoff = 0;  ///< of which in fuel cut-off
+  std::uint64_t cycles_overrun =
+      0;  ///< clean cut-off cycles (whole cycle and the previous one cut) used as overrun
   std::uint64_t cycles_rejected = 0;  ///< incomplete (lost/invalid teeth), unsteady or out of speed range
 };
 
@@ -42,13 +74,16 @@ class ToothErrorLearner {
   void reset() noexcept;
   /// Fuel cut-off flag of the current cycle (counted in stats; learning runs firing and in cut-off).
   void set_fuel_cutoff(bool cutoff) noexcept { cutoff_ = cutoff; }
-  /// Real-time safe. Uses s.tooth, s.dt_s, s.t_ns, s.synced; ignores s.width_rad (learns against nominal widths).
+  /// Real-time safe. Uses s.tooth, s.dt_s, s.t_ns, s.synced; ignores s.width_rad (learns against nominal
+  /// widths).
   void update(const ToothSample& s) noexcept;
 
   /// Table usable: at least min_cycles cycles learned (or imported).
   [[nodiscard]] bool ready() const noexcept;
-  /// Low orders learned too: the cycles spread enough in speed to separate tooth error from ripple.
+  /// Every per-revolution order inside the per-cycle fit identified (none held).
   [[nodiscard]] bool low_orders_learned() const noexcept { return low_orders_ok_; }
+  /// Per-order identification (orders 1 .. fit_harmonics/2 per revolution).
+  [[nodiscard]] std::span<const ToothOrderId> order_ids() const noexcept { return ids_; }
   [[nodiscard]] const ToothLearnStats& stats() const noexcept { return stats_; }
   [[nodiscard]] int teeth() const noexcept { return table_.teeth; }
 
@@ -57,7 +92,8 @@ class ToothErrorLearner {
   /// Corrected width of the period ending at 720° sample k (rad): what ToothSample::width_rad should carry.
   [[nodiscard]] double corrected_width(int k) const noexcept;
   /// Edge-angle corrections δ_p (rad) per physical tooth, δ_0 = 0: true edge angle = nominal + δ_p.
-  /// This is the table CrankDecoder::set_tooth_corrections() takes and the daemon persists. out.size() = teeth().
+  /// This is the table CrankDecoder::set_tooth_corrections() takes and the daemon persists. out.size() =
+  /// teeth().
   void edge_corrections(std::span<double> out_rad) const noexcept;
   /// Restore a persisted table (edge corrections, rad) with the weight of `weight_cycles` learned cycles;
   /// learning continues and blends with it. Returns false if the size does not match.
@@ -65,38 +101,47 @@ class ToothErrorLearner {
 
  private:
   void finish_cycle() noexcept;
+  void fit_cycle() noexcept;
   void regress(double omega) noexcept;
   void recompute() noexcept;
+  void identify_orders(double* low_coef) noexcept;
 
   ToothLearnParams params_;
   ToothAngleTable table_;
-  int nb_ = 0;                       ///< fit columns 2H + 2
-  std::vector<double> basis_;        ///< B[k * nb_ + j] at period centres c_k
-  std::vector<double> trend_;        ///< (c_k − 2π)/2π: linear speed trend, removed with the measured rev times
-  std::vector<int> col_per_rev_;     ///< 1 where column j is an even cycle harmonic (can hold wheel error)
-  std::vector<double> pinv_;         ///< G = (BᵀB)⁻¹Bᵀ, [j * K + k]
+  int nb_ = 0;                 ///< fit columns 2H + 2
+  std::vector<double> basis_;  ///< B[k * nb_ + j] at period centres c_k
+  std::vector<double> trend_;  ///< (c_k − 2π)/2π: linear speed trend, removed with the measured rev times
+  std::vector<int> col_per_rev_;  ///< 1 where column j is an even cycle harmonic (can hold wheel error)
+  std::vector<int> col_firing_;   ///< 1 where column j is a firing harmonic (multiple of n_cyl per cycle)
+  std::vector<double> pinv_;      ///< G = (BᵀB)⁻¹Bᵀ, [j * K + k]
   // current cycle
-  std::vector<double> z_;            ///< z_k of the cycle being collected
+  std::vector<double> z_;  ///< z_k of the cycle being collected
   int next_tooth_ = -1;
   int collected_ = 0;
   double cycle_time_s_ = 0.0;
   double first_dt_s_ = 0.0, last_dt_s_ = 0.0;
   bool cutoff_ = false;
-  bool cycle_cutoff_ = false;
+  bool cycle_cutoff_ = false;      ///< any tooth of the cycle in cut-off
+  bool cycle_all_cutoff_ = false;  ///< every tooth of the cycle in cut-off
+  bool prev_all_cutoff_ = false;   ///< the previous complete cycle was all cut-off
   // accumulators
-  std::vector<double> resid_sum_;    ///< Σ residual per 720° sample
-  std::vector<double> coef_;         ///< scratch: coefficients of the last cycle
+  std::vector<double> resid_sum_;                        ///< Σ residual per 720° sample
+  std::vector<double> coef_;                             ///< scratch: coefficients of the last cycle
   double sx_ = 0.0, sxx_ = 0.0, sx3_ = 0.0, sx4_ = 0.0;  ///< Σx, Σx², Σx³, Σx⁴ (x = (ω_ref/ω̄)²)
-  std::vector<double> sb_, sxb_, sxxb_;  ///< per column: Σβ, Σxβ, Σx²β
+  std::vector<double> sb_, sxb_, sxxb_;                  ///< per column: Σβ, Σxβ, Σx²β
   double n_ = 0.0;
-  double wsum_ = 0.0;                ///< Σ weights of the residuals
-  double nreg_ = 0.0;                ///< firing cycles in the low-order regression
+  double wsum_ = 0.0;                       ///< Σ weights of the residuals
+  double nreg_ = 0.0;                       ///< firing cycles in the low-order regression
+  double nc_ = 0.0, cx_ = 0.0, cxx_ = 0.0;  ///< clean overrun cycles, Σx, Σx²
+  std::vector<double> cb_, cxb_;            ///< per column over overrun cycles: Σβ, Σxβ
+  std::vector<double> low_coef_;   ///< identified wheel coefficient per column (scratch of recompute)
+  std::vector<double> imp_coef_;   ///< imported table projected on the per-rev columns
+  std::vector<ToothOrderId> ids_;  ///< per order (index order − 1)
   // result
-  std::vector<double> eps_;          ///< ln(true/nominal width) per physical tooth (learned)
-  std::vector<double> lf_;           ///< low-order (firing-order) part of eps_
-  std::vector<double> eps_import_;   ///< imported prior
+  std::vector<double> eps_;         ///< ln(true/nominal width) per physical tooth (learned)
+  std::vector<double> eps_import_;  ///< imported prior
   double import_weight_ = 0.0;
-  std::vector<double> ratio_;        ///< exp(ε) normalised so that Σ ratio·w = 2π
+  std::vector<double> ratio_;  ///< exp(ε) normalised so that Σ ratio·w = 2π
   bool low_orders_ok_ = false;
   ToothLearnStats stats_;
 };

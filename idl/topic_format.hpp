@@ -48,6 +48,7 @@ template <class F> constexpr void visit_fields(const torque_DaemonStatus& s, F&&
   f("overruns", s.overruns); f("latency_p50_ns", s.latency_p50_ns); f("latency_p99_ns", s.latency_p99_ns);
   f("latency_max_ns", s.latency_max_ns); f("sensor_timeouts", s.sensor_timeouts);
   f("publisher_polls", s.publisher_polls); f("publisher_poll_misses", s.publisher_poll_misses);
+  f("rejected_edges", s.rejected_edges); f("cam_phase_errors", s.cam_phase_errors);
 }
 
 /// CSV header line (with '\n') of a topic: "t_ns,engine_id,seq,...".

@@ -34,6 +34,24 @@ const char* to_string(SyncLossReason r) noexcept {
       return "stall";
     case SyncLossReason::kCamPhase:
       return "cam_phase";
+    case SyncLossReason::kPattern:
+      return "pattern_mismatch";
+  }
+  return "unknown";
+}
+
+const char* to_string(DecoderEventKind k) noexcept {
+  switch (k) {
+    case DecoderEventKind::kFirstEdge:
+      return "first_edge";
+    case DecoderEventKind::kSynced:
+      return "synced";
+    case DecoderEventKind::kLost:
+      return "lost_sync";
+    case DecoderEventKind::kStalled:
+      return "stalled";
+    case DecoderEventKind::kCamPhase:
+      return "cam_phase_error";
   }
   return "unknown";
 }
@@ -57,6 +75,8 @@ const char* to_string(SyncState s) noexcept {
 CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& params)
     : wheel_(wheel), params_(params) {
   min_pulse_ns_ = static_cast<std::int64_t>(std::llround(params.min_pulse_us * 1e3));
+  cam_win_start_ = params.cam_window_start_deg;
+  cam_win_end_ = params.cam_window_end_deg;
   const int t = wheel.teeth();
   if (t < 2 || t > kMaxTeeth) {
     error_ = "wheel: tooth count " + std::to_string(t) + " outside 2.." + std::to_string(kMaxTeeth);
@@ -101,6 +121,10 @@ CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& para
       min_gap_ratio_ = std::min(min_gap_ratio_, ratio);
     }
   }
+  if (pattern_sync()) {  // the cam pattern or the width code gives the position, not the gaps
+    error_ = check_pattern();
+    return;
+  }
   if (num_gaps_ == 0) {
     error_ = "wheel: no gap (missing tooth) to sync on";
     return;
@@ -109,6 +133,12 @@ CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& para
     const int prev = gap_tooth_[static_cast<std::size_t>((j + num_gaps_ - 1) % num_gaps_)];
     const int d = (gap_tooth_[static_cast<std::size_t>(j)] - prev + t) % t;
     gap_count_[static_cast<std::size_t>(j)] = d == 0 ? t : d;
+  }
+  // Longest run of consecutive gap periods the wheel has (36-2-2-2: a gap, one tooth, a gap = two in a row).
+  max_gap_run_ = 1;
+  for (int j = 0, run = 0; j < 2 * num_gaps_; ++j) {
+    run = gap_count_[static_cast<std::size_t>(j % num_gaps_)] == 1 ? run + 1 : 0;
+    max_gap_run_ = std::min(num_gaps_, std::max(max_gap_run_, run + 1));
   }
   // Gap candidate threshold: gap_ratio_min x the smallest gap, but never below the geometric midpoint between
   // a tooth (1) and that gap (on 36-1 a cranking period may grow 30 % from one tooth to the next).
@@ -167,6 +197,7 @@ void CrankDecoder::reset() noexcept {
   lost_this_rev_ = 0;
   pending_flags_ = 0;
   has_pending_ = have_inactive_ = false;
+  pattern_fresh_ = true;
 }
 
 bool CrankDecoder::on_edge(const EdgeEvent& edge, ToothEvent& out) noexcept {
@@ -174,10 +205,24 @@ bool CrankDecoder::on_edge(const EdgeEvent& edge, ToothEvent& out) noexcept {
   if (teeth_ == 0) return false;
   if (edge.channel == params_.crank_channel) {
     const bool active = (edge.level != 0) == wheel_.rising_edge;
+    if (!active) last_opp_t_ns_ = edge.t_ns;
     if (min_pulse_ns_ > 0) return debounce(edge.t_ns, active, out);
     if (!active) return false;
     ++stats_.crank_edges;
     return on_crank(edge.t_ns, out);
+  }
+  if (edge.channel == params_.cam_channel && params_.cam_pattern.n > 0) {
+    // Cam-synced wheel: the edges of the polarities the pattern lists, placed at the next crank tooth.
+    bool listed = false;
+    for (int j = 0; j < params_.cam_pattern.n; ++j)
+      listed = listed || params_.cam_pattern.edges[static_cast<std::size_t>(j)].rising == (edge.level != 0);
+    if (!listed || !params_.use_cam) return false;
+    ++stats_.cam_edges;
+    if (cam_pend_n_ < static_cast<int>(cam_pend_.size()))
+      cam_pend_[static_cast<std::size_t>(cam_pend_n_++)] = CamPending{edge.t_ns, edge.level != 0};
+    else
+      ++stats_.cam_phase_errors;  // more cam edges in one tooth interval than any pattern has
+    return false;
   }
   if (edge.channel == params_.cam_channel && (edge.level != 0) == params_.cam_rising) {
     ++stats_.cam_edges;
@@ -192,6 +237,7 @@ bool CrankDecoder::debounce(std::int64_t t_ns, bool active, ToothEvent& out) noe
   if (active) {
     if (have_inactive_ && t_ns - last_inactive_t_ns_ < min_pulse_ns_) {  // end of a narrow gap-glitch
       ++stats_.debounced_edges;
+      ++stats_.rejected_edges;
       pending_flags_ |= kToothNoiseRejected;
       return false;
     }
@@ -210,6 +256,7 @@ bool CrankDecoder::debounce(std::int64_t t_ns, bool active, ToothEvent& out) noe
   has_pending_ = false;
   if (t_ns - pending_t_ns_ < min_pulse_ns_) {
     ++stats_.debounced_edges;
+    ++stats_.rejected_edges;
     pending_flags_ |= kToothNoiseRejected;
     return false;
   }
@@ -221,6 +268,7 @@ bool CrankDecoder::poll(std::int64_t now_ns) noexcept {
   if (!have_edge_ || state_ == SyncState::kStalled || state_ == SyncState::kNoSignal) return false;
   if (now_ns - last_t_ns_ <= params_.stall_timeout_ns) return false;
   ++stats_.stalls;
+  note(DecoderEventKind::kStalled, now_ns, state_, SyncState::kStalled, SyncLossReason::kStall, -1);
   state_ = SyncState::kStalled;
   phase_known_ = false;
   since_gap_ = -1;
@@ -229,6 +277,7 @@ bool CrankDecoder::poll(std::int64_t now_ns) noexcept {
   ref_prev_ns_ = 0;
   u1_ = u2_ = 0.0;
   period_ns_ = 0;
+  pattern_fresh_ = true;
   return true;
 }
 
@@ -236,18 +285,23 @@ bool CrankDecoder::on_crank(std::int64_t t_ns, ToothEvent& out) noexcept {
   if (!have_edge_) {
     have_edge_ = true;
     last_t_ns_ = t_ns;
+    note(DecoderEventKind::kFirstEdge, t_ns, state_, SyncState::kSyncing, SyncLossReason::kNone, -1);
     state_ = SyncState::kSyncing;
     return false;  // one edge is no period yet
   }
   const std::int64_t period = t_ns - last_t_ns_;
   if (period <= 0) {  // duplicate or backwards timestamp: cannot be a tooth
     ++stats_.noise_edges;
+    ++stats_.rejected_edges;
     pending_flags_ |= kToothNoiseRejected;
     return false;
   }
   if (period > params_.stall_timeout_ns) {
     // Engine stopped (or signal lost) and restarted: begin a new sync from this edge.
-    if (state_ != SyncState::kStalled) ++stats_.stalls;
+    if (state_ != SyncState::kStalled) {
+      ++stats_.stalls;
+      note(DecoderEventKind::kStalled, t_ns, state_, SyncState::kStalled, SyncLossReason::kStall, -1);
+    }
     state_ = SyncState::kSyncing;
     phase_known_ = false;
     since_gap_ = -1;
@@ -258,6 +312,8 @@ bool CrankDecoder::on_crank(std::int64_t t_ns, ToothEvent& out) noexcept {
     ref_provisional_ = false;
     period_ns_ = 0;
     last_t_ns_ = t_ns;
+    pattern_fresh_ = true;
+    cam_pend_n_ = 0;
     out = ToothEvent{};
     out.t_ns = out.source_t_ns = t_ns;
     out.tooth = -1;
@@ -268,7 +324,8 @@ bool CrankDecoder::on_crank(std::int64_t t_ns, ToothEvent& out) noexcept {
     return true;
   }
   if (state_ == SyncState::kStalled) state_ = SyncState::kSyncing;
-  return state_ == SyncState::kSynced ? synced_step(t_ns, period, out) : syncing_step(t_ns, period, out);
+  if (state_ == SyncState::kSynced) return synced_step(t_ns, period, out);
+  return pattern_sync() ? pattern_syncing_step(t_ns, period, out) : syncing_step(t_ns, period, out);
 }
 
 bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEvent& out) noexcept {
@@ -281,6 +338,7 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
     ref_provisional_ = true;
     u1_ = u2_ = 0.0;
     since_gap_ = -1;
+    gap_run_ = 0;
   } else {
     // Predicted normal period: the last one times the trend of the last two (clamped).
     double pred = static_cast<double>(ref_period_ns_);
@@ -298,11 +356,20 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
       normal = true;
     } else if (r < params_.syncing_runt_fraction) {
       ++stats_.noise_edges;
+      ++stats_.rejected_edges;
       pending_flags_ |= kToothNoiseRejected;
       return false;
     } else if (r >= gap_threshold_) {
       if (r > params_.gap_ratio_max * (width_[static_cast<std::size_t>(gap_tooth_[0])] / pitch_rad_) * 4.0) {
         // Far too slow for any gap: speed collapsed; start over with this period as reference.
+        since_gap_ = -1;
+        hist_len_ = 0;
+        ref_prev_ns_ = 0;
+        ref_period_ns_ = period;
+      } else if (++gap_run_ > max_gap_run_) {
+        // More gaps in a row than the wheel has: the reference is no tooth period (the rest of a glitch's
+        // period after a sync loss, issue 13); rebuild it from this period.
+        gap_run_ = 0;
         since_gap_ = -1;
         hist_len_ = 0;
         ref_prev_ns_ = 0;
@@ -352,6 +419,8 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
             tooth_ = gap_tooth_[static_cast<std::size_t>(match)];
             if (tooth_ == 0)
               rev_ ^= 1;  // keep rev_ meaning "revolution of tooth_"; phase from the cam anyway
+            note(DecoderEventKind::kSynced, t_ns, SyncState::kSyncing, SyncState::kSynced,
+                 SyncLossReason::kNone, rev_ * teeth_ + tooth_);
             period_ns_ = period;
             const double w = width_[static_cast<std::size_t>(tooth_)];
             last_width_rad_ = w;
@@ -366,6 +435,7 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
       }
     } else {
       normal = true;
+      gap_run_ = 0;
       ref_prev_ns_ = ref_period_ns_;
       ref_period_ns_ = period;
     }
@@ -408,6 +478,7 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   // is a missing gap, not noise).
   if (static_cast<double>(period) < params_.runt_fraction * u1_ * pitch_rad_ * std::min(trend, 1.0)) {
     ++stats_.noise_edges;
+    ++stats_.rejected_edges;
     pending_flags_ |= kToothNoiseRejected;
     return false;
   }
@@ -479,6 +550,7 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   last_t_ns_ = t_ns;
   const int idx = rev_ * teeth_ + i;
   const int prev = (idx - advance + 2 * teeth_) % (2 * teeth_);
+  if (pattern_sync()) pattern_check_synced(t_ns, prev, idx, advance);
   ++stats_.synced_teeth;
   emit(t_ns, idx, w + corr_[static_cast<std::size_t>(idx)] - corr_[static_cast<std::size_t>(prev)], period,
        out);
@@ -487,12 +559,14 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
 
 void CrankDecoder::lose_sync(SyncLossReason reason, std::int64_t t_ns) noexcept {
   ++stats_.sync_losses;
+  note(DecoderEventKind::kLost, t_ns, state_, SyncState::kLostSync, reason, -1);
   stats_.last_loss_reason = reason;
   stats_.last_loss_t_ns = t_ns;
   state_ = SyncState::kLostSync;
   phase_known_ = false;
   since_gap_ = -1;
   hist_len_ = 0;
+  pattern_fresh_ = true;
 }
 
 void CrankDecoder::emit(std::int64_t t_ns, int tooth, double width_rad, std::int64_t period_ns,
@@ -521,10 +595,10 @@ void CrankDecoder::on_cam(std::int64_t t_ns) noexcept {
   const double dt = static_cast<double>(t_ns - last_t_ns_);
   const double advance = std::min(dt * (last_width_rad_ / static_cast<double>(period_ns_)), w_next);
   const double a_deg = (angle_[static_cast<std::size_t>(tooth_)] + advance) / kDegToRad;
-  const bool in_this =
-      in_window_deg(a_deg + 360.0 * rev_, params_.cam_window_start_deg, params_.cam_window_end_deg);
-  const bool in_other =
-      in_window_deg(a_deg + 360.0 * (rev_ ^ 1), params_.cam_window_start_deg, params_.cam_window_end_deg);
+  if (params_.cam_window_auto && !cam_learned_ && !cam_learn_step(a_deg)) return;
+  const bool in_this = in_window_deg(a_deg + 360.0 * rev_, cam_win_start_, cam_win_end_);
+  const bool in_other = in_window_deg(a_deg + 360.0 * (rev_ ^ 1), cam_win_start_, cam_win_end_);
+  if (!params_.cam_window_auto) stats_.cam_angle_deg = a_deg + 360.0 * (in_this ? rev_ : rev_ ^ 1);
   if (in_this && (!in_other || phase_known_)) {
     phase_known_ = true;
     return;
@@ -532,6 +606,7 @@ void CrankDecoder::on_cam(std::int64_t t_ns) noexcept {
   if (in_other && !in_this) {
     if (phase_known_) {
       ++stats_.cam_phase_errors;  // phase flipped: trust the cam, flag the next tooth
+      note(DecoderEventKind::kCamPhase, t_ns, state_, state_, SyncLossReason::kCamPhase, -1);
       stats_.last_loss_reason = SyncLossReason::kCamPhase;
       stats_.last_loss_t_ns = t_ns;
       pending_flags_ |= kToothResynced;
@@ -541,6 +616,28 @@ void CrankDecoder::on_cam(std::int64_t t_ns) noexcept {
     return;
   }
   ++stats_.cam_phase_errors;  // outside the window in both revolutions (or window covers both: ambiguous)
+  note(DecoderEventKind::kCamPhase, t_ns, state_, state_, SyncLossReason::kCamPhase, -1);
+}
+
+// cam_window: auto. a_deg: the cam edge's angle within the revolution. Returns true once learned (the window
+// is then set around the mean angle, in the revolution of the first learning edge = revolution 0).
+bool CrankDecoder::cam_learn_step(double a_deg) noexcept {
+  double d = std::fmod(a_deg - cam_learn_first_ + 540.0, 360.0) - 180.0;
+  if (cam_learn_n_ == 0 || std::abs(d) > params_.cam_auto_spread_deg) {  // (re)start
+    cam_learn_n_ = 0;
+    cam_learn_first_ = a_deg;
+    cam_learn_sum_ = 0.0;
+    d = 0.0;
+    rev_ = 0;  // this edge's revolution is revolution 0
+  }
+  cam_learn_sum_ += d;
+  if (++cam_learn_n_ < std::max(1, params_.cam_auto_edges)) return false;
+  const double a = std::fmod(cam_learn_first_ + cam_learn_sum_ / cam_learn_n_ + 360.0, 360.0);
+  cam_learned_ = true;
+  stats_.cam_angle_deg = a;
+  cam_win_start_ = std::fmod(a - 90.0 + 720.0, 720.0);
+  cam_win_end_ = a + 90.0;
+  return true;
 }
 
 }  // namespace torqued

@@ -21,10 +21,28 @@
 #include <span>
 #include <string>
 
+#include "decoder_events.hpp"
 #include "engine_geometry.hpp"
 #include "records.hpp"
 
 namespace torqued {
+
+/// One cam edge of a cam-synced wheel: its crank angle in the 720° cycle (deg, from tooth 0 of the first
+/// revolution) and its polarity.
+struct CamEdgeSpec {
+  double angle_deg = 0.0;
+  bool rising = true;
+};
+
+/// Cam pattern of a cam-synced wheel (issue 13): crank wheels without a gap (4G63: 2 teeth, Nissan CAS: 12)
+/// or with a symmetric one (Miata NB2: 4 teeth, 70°/110°) take their position from the cam edges. n = 0: no
+/// pattern (the crank gap syncs, the cam window below gives the phase).
+struct CamPattern {
+  static constexpr int kMaxEdges = 8;
+  int n = 0;
+  std::array<CamEdgeSpec, kMaxEdges> edges{};
+  double tolerance_deg = 15.0;  ///< an observed cam edge matches a pattern edge within this (crank deg)
+};
 
 /// Decoder tuning; defaults work for the simulator and common Hall sensors. Validated by config/.
 struct DecoderParams {
@@ -53,8 +71,22 @@ struct DecoderParams {
   bool cam_rising = true;                       ///< which cam edge marks the phase
   double cam_window_start_deg = 0.0;  ///< cam edge must fall in [start, end) crank degrees of the 720° cycle
   double cam_window_end_deg = 360.0;
+  /// cam_window: auto — learn the cam edge's crank angle from the first cam_auto_edges synced cam edges (all
+  /// within cam_auto_spread_deg of each other, else learning restarts), then use the window [a − 90°, a +
+  /// 90°) with the first learning edge's revolution as revolution 0. The angle found is in
+  /// DecoderStats::cam_angle_deg.
+  bool cam_window_auto = false;
+  int cam_auto_edges = 4;
+  double cam_auto_spread_deg = 10.0;
   std::uint8_t crank_channel = 0;  ///< EdgeEvent::channel of the crank signal
   std::uint8_t cam_channel = 1;    ///< EdgeEvent::channel of the cam signal
+  /// Cam-synced wheel (set by a named wheel, io/wheel_names): position and 720° phase from these cam edges.
+  CamPattern cam_pattern;
+  /// Pulse-width-coded wheel (GM 24x): bit i (period ending at tooth i) is 1 when the opposite crank edge
+  /// comes before width_code_threshold of that period (narrow), 0 after it (wide). Teeth <= 32.
+  bool width_coded = false;
+  std::uint32_t width_code = 0;
+  double width_code_threshold = 0.5;
 };
 
 /// Why sync was lost (DecoderStats::last_loss_reason).
@@ -66,24 +98,31 @@ enum class SyncLossReason : std::uint8_t {
   kPeriodTooShort,    ///< a period between runt threshold and sync_ratio_min
   kStall,             ///< no edge within stall_timeout_ns
   kCamPhase,          ///< cam edge outside its window while synced (phase re-established)
+  kPattern,           ///< cam pattern or pulse-width code contradicted the decoded position twice in a row
 };
 [[nodiscard]] const char* to_string(SyncLossReason r) noexcept;
 [[nodiscard]] const char* to_string(SyncState s) noexcept;
 
 struct DecoderStats {
-  std::uint64_t edges = 0;             ///< all edges seen
-  std::uint64_t crank_edges = 0;       ///< crank edges of the selected polarity
-  std::uint64_t teeth = 0;             ///< ToothEvents produced
-  std::uint64_t synced_teeth = 0;      ///< ... of which while synced
-  std::uint64_t cam_edges = 0;         ///< cam edges of the selected polarity
-  std::uint64_t noise_edges = 0;       ///< runt edges rejected (earlier than runt_fraction of a pitch)
-  std::uint64_t debounced_edges = 0;   ///< tooth edges rejected as glitch pulses (shorter than min_pulse_us)
-  std::uint64_t lost_teeth = 0;        ///< teeth interpolated
-  std::uint64_t gaps = 0;              ///< gaps seen (syncing and synced)
-  std::uint64_t syncs = 0;             ///< times sync was (re)acquired
-  std::uint64_t sync_losses = 0;       ///< times sync was lost (stalls excluded)
-  std::uint64_t stalls = 0;            ///< stall time-outs
-  std::uint64_t cam_phase_errors = 0;  ///< cam edges outside the window
+  std::uint64_t edges = 0;            ///< all edges seen
+  std::uint64_t crank_edges = 0;      ///< crank edges of the selected polarity
+  std::uint64_t teeth = 0;            ///< ToothEvents produced
+  std::uint64_t synced_teeth = 0;     ///< ... of which while synced
+  std::uint64_t cam_edges = 0;        ///< cam edges of the selected polarity
+  std::uint64_t noise_edges = 0;      ///< runt edges rejected (earlier than runt_fraction of a pitch)
+  std::uint64_t debounced_edges = 0;  ///< tooth edges rejected as glitch pulses (shorter than min_pulse_us)
+  std::uint64_t lost_teeth = 0;       ///< teeth interpolated
+  std::uint64_t gaps = 0;             ///< gaps seen (syncing and synced)
+  std::uint64_t syncs = 0;            ///< times sync was (re)acquired
+  std::uint64_t sync_losses = 0;      ///< times sync was lost (stalls excluded)
+  std::uint64_t stalls = 0;           ///< stall time-outs
+  std::uint64_t cam_phase_errors =
+      0;  ///< cam edges outside the window / not in the cam pattern where decoded
+  std::uint64_t width_code_errors =
+      0;                             ///< pulse-width-coded wheels: tooth whose width bit contradicts the code
+  std::uint64_t rejected_edges = 0;  ///< crank edges not used as teeth: noise_edges + debounced_edges
+  double cam_angle_deg =
+      -1.0;  ///< cam edge angle in the 720° cycle, learned (cam_window_auto) or last measured
   SyncLossReason last_loss_reason = SyncLossReason::kNone;
   std::int64_t last_loss_t_ns = 0;
 };
@@ -125,6 +164,11 @@ class CrankDecoder {
   /// Back to kNoSignal; keeps counters and corrections.
   void reset() noexcept;
 
+  /// Sync-state transitions go to `log` (nullptr = none, the default), one DecoderEvent each with its edge
+  /// time; another thread drains it (DecoderEventLog::pop) and logs at debug level. The log must outlive the
+  /// decoder's use of it. Set before the first edge.
+  void set_event_log(DecoderEventLog* log) noexcept { events_ = log; }
+
  private:
   bool on_crank(std::int64_t t_ns, ToothEvent& out) noexcept;
   bool debounce(std::int64_t t_ns, bool active, ToothEvent& out) noexcept;
@@ -132,6 +176,25 @@ class CrankDecoder {
   bool syncing_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
   bool synced_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
   void lose_sync(SyncLossReason reason, std::int64_t t_ns) noexcept;
+  void note(DecoderEventKind kind, std::int64_t t_ns, SyncState from, SyncState to, SyncLossReason reason,
+            int tooth) noexcept {
+    if (events_ != nullptr)
+      events_->push(DecoderEvent{t_ns, kind, from, to, static_cast<std::uint8_t>(reason),
+                                 static_cast<std::int16_t>(tooth)});
+  }
+  // Pattern sync (cam-synced and pulse-width-coded wheels), crank_decoder_pattern.cpp.
+  [[nodiscard]] bool pattern_sync() const noexcept {
+    return params_.cam_pattern.n > 0 || params_.width_coded;
+  }
+  [[nodiscard]] std::string check_pattern() noexcept;
+  bool pattern_syncing_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
+  void pattern_collect(std::int64_t t_ns) noexcept;
+  [[nodiscard]] int width_bit(std::int64_t t_ns) const noexcept;
+  [[nodiscard]] bool cam_match(int& k) const noexcept;
+  [[nodiscard]] bool width_match(int& k) const noexcept;
+  void pattern_check_synced(std::int64_t t_ns, int prev_idx, int idx, int advance) noexcept;
+  [[nodiscard]] double cycle_angle_deg(int idx) const noexcept;
+  [[nodiscard]] bool cam_edge_fits(double angle_deg, bool rising, double tol) const noexcept;
   void emit(std::int64_t t_ns, int tooth, double width_rad, std::int64_t period_ns, ToothEvent& out) noexcept;
   [[nodiscard]] int next_tooth(int i) const noexcept { return i + 1 == teeth_ ? 0 : i + 1; }
   [[nodiscard]] double clamp_trend(double x) const noexcept {
@@ -176,10 +239,41 @@ class CrankDecoder {
   int since_gap_ = -1;                ///< syncing: teeth since the last gap candidate (-1: no gap seen yet)
   std::array<int, kMaxGaps> hist_{};  ///< syncing: teeth counts between recent gap candidates (newest last)
   int hist_len_ = 0;
-  int normal_run_ = 0;  ///< syncing: consecutive normal periods
+  int normal_run_ = 0;   ///< syncing: consecutive normal periods
+  int gap_run_ = 0;      ///< syncing: consecutive gap candidates
+  int max_gap_run_ = 1;  ///< most consecutive gap periods on the wheel
   int lost_this_rev_ = 0;
   std::uint32_t pending_flags_ = 0;
+  // Pattern sync state.
+  struct CamObs {
+    double pos;  ///< tooth counter of the interval's first tooth + fraction of the interval
+    bool rising;
+  };
+  struct CamPending {
+    std::int64_t t_ns;
+    bool rising;
+  };
+  static constexpr int kCamRing = 16;
+  bool pattern_fresh_ = true;  ///< next tooth restarts the pattern search (previous tooth = counter 0)
+  int count_ = 0;              ///< teeth since the restart (counter of the current tooth + 1)
+  int span_start_ = 0;         ///< first tooth counter covered by the observations
+  std::array<CamObs, kCamRing> cam_obs_{};
+  int cam_obs_n_ = 0;
+  std::array<CamPending, 8>
+      cam_pend_{};  ///< cam edges since the last tooth (placed when the next tooth comes)
+  int cam_pend_n_ = 0;
+  std::uint64_t bits_ = 0;  ///< width bits, newest in bit 0
+  int nbits_ = 0;
+  int code_window_ = 0;              ///< bits needed to identify the position on a width-coded wheel
+  std::int64_t last_opp_t_ns_ = -1;  ///< time of the last opposite (non-tooth) crank edge
+  int pattern_misses_ = 0;           ///< consecutive pattern contradictions while synced
   DecoderStats stats_;
+  DecoderEventLog* events_ = nullptr;
+  double cam_win_start_ = 0.0, cam_win_end_ = 360.0;  ///< cam window in use (configured or learned)
+  bool cam_learned_ = false;
+  int cam_learn_n_ = 0;
+  double cam_learn_first_ = 0.0, cam_learn_sum_ = 0.0;
+  bool cam_learn_step(double a_deg) noexcept;
 };
 
 }  // namespace torqued

@@ -57,6 +57,53 @@ constexpr NamedWheel kCatalogue[] = {
      "Subaru H4 (EJ): 13 teeth, 2 missing, 16 teeth, 2 missing, 1 tooth, 2 missing (speeduino/rusEFI "
      "'36-2-2-2 H4')."},
     {"36-2-2-2-h4", 36, {13, 2, 16, 2, 1, 2}, 6, "alias of 36-2-2-2"},
+    {"gm-24x",
+     24,
+     {24},
+     1,
+     "GM LS 24x (rusEFI TT_GM_24x): a falling edge every 15 deg, the rising edge 3 deg (narrow) or 12 deg "
+     "(wide) later; the narrow/wide code 0x0A33BE read LSB first (bit i = 1: the period ending at tooth i is "
+     "narrow) identifies the position after 7 teeth. Checked on gm_24x_cranking.csv: 66 consecutive periods "
+     "follow the code.",
+     true,
+     0,
+     {},
+     0.0,
+     true,
+     0x0A33BEu},
+    {"4g63",
+     2,
+     {2},
+     1,
+     "Mitsubishi 4G63 (rusEFI 2 teeth + VVT_MITSUBISHI_4G63): 2 crank teeth per revolution (rising), a cam "
+     "(distributor CAS) with one short (74 deg) and one long (178 deg) pulse per cycle. Cam edges read off "
+     "4g63-cranking.csv relative to the crank rising edges: F 31, R 317, F 495, R 677 deg.",
+     false,
+     4,
+     {{31.0, false}, {317.0, true}, {495.0, false}, {677.0, true}},
+     30.0},
+    {"nissan-cas-24+1",
+     12,
+     {12},
+     1,
+     "Nissan optical CAS 24+1 (rusEFI TT_12_TOOTH_CRANK + VVT_SINGLE_TOOTH): 24 slots per cam turn = 12 "
+     "teeth per crank revolution (rising), one cam slot per cycle; tooth 0 = the first tooth after the slot. "
+     "Slot edges read off cas_nissan_24_plus_1.csv: R 699.5, F 711 deg.",
+     false,
+     2,
+     {{699.5, true}, {711.0, false}},
+     10.0},
+    {"miata-nb2",
+     36,
+     {1, 6, 1, 10, 1, 6, 1, 10},
+     8,
+     "Mazda Miata NB2 (rusEFI HELLEN_NB2): 4 crank teeth at 0, 70, 180, 250 deg (rising; symmetric, 70/110 "
+     "deg), cam with a double tooth and a single tooth 360 deg apart. Cam rising edges read off "
+     "nb2-cranking-good.csv: 126 and 162 (double), 522 (single) deg.",
+     false,
+     3,
+     {{126.0, true}, {162.0, true}, {522.0, true}},
+     20.0},
     {"arctic-cat",
      24,
      {11, 1, 10, 2},
@@ -67,6 +114,24 @@ constexpr NamedWheel kCatalogue[] = {
      "states."},
 };
 }  // namespace
+
+bool trigger_from_name(std::string_view name, WheelGeometry& wheel, DecoderParams& params,
+                       std::string* error) {
+  if (!wheel_from_name(name, wheel, error)) return false;
+  params.cam_pattern = CamPattern{};
+  params.width_coded = false;
+  params.width_code = 0;
+  for (const NamedWheel& w : kCatalogue) {
+    if (name != w.name || (w.n_cam == 0 && !w.width_coded)) continue;
+    wheel.rising_edge = !w.falling;
+    params.cam_pattern.n = w.n_cam;
+    for (int j = 0; j < w.n_cam; ++j) params.cam_pattern.edges[static_cast<std::size_t>(j)] = w.cam[j];
+    if (w.n_cam > 0) params.cam_pattern.tolerance_deg = w.cam_tolerance_deg;
+    params.width_coded = w.width_coded;
+    params.width_code = w.width_code;
+  }
+  return true;
+}
 
 std::span<const NamedWheel> wheel_catalogue() noexcept { return kCatalogue; }
 

@@ -5,11 +5,13 @@
 #include <CLI/CLI.hpp>
 
 #include "cli_exit.hpp"
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <string>
 #include <vector>
 
+#include "cylinder_eval.hpp"
 #include "pipeline_eval.hpp"
 #include "recording_eval.hpp"
 
@@ -76,6 +78,9 @@ int main(int argc, char** argv) {
   double can_lost = -1.0;
   std::string csv_dir, bed;
   bool bed_all = false, bed_short = false;
+  bool cylinders = false;
+  int random_engines = 4;
+  std::uint64_t random_seed = 15;
   app.add_option("-s,--scenario", names, "scenario(s); default: all built-in scenarios");
   app.add_flag("--raw-teeth", raw_teeth, "do not correct tooth widths (nominal wheel)");
   app.add_flag(
@@ -101,6 +106,29 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"unseen"}));
   app.add_flag("--bed-all", bed_all, "with --bed: also the tuning engines");
   app.add_flag("--bed-short", bed_short, "with --bed: the short evaluated recordings (the ctest subset)");
+  app.add_flag(
+      "--cylinders", cylinders,
+      "per-cylinder table instead (issue 15): imbalance error per cylinder and speed, in-cycle RMS and lag, "
+      "misfires, on the simulator's scenarios and randomised engines");
+  app.add_option("--random-engines", random_engines, "--cylinders: number of randomised engines");
+  app.add_option("--random-seed", random_seed, "--cylinders: seed of the randomised engines");
+  torqued::ToothLearnParams learn;
+  app.add_option("--fit-harmonics", learn.fit_harmonics, "tooth learner: harmonics of the per-cycle fit");
+  app.add_option("--speed-weight-exp", learn.speed_weight_exp,
+                 "tooth learner: residuals weighted by speed^p");
+  torqued::KalmanParams kalman;
+  torqued::FourierParams fourier;
+  app.add_option("--kalman-lag", kalman.smoother_lag, "Kalman fixed-lag smoother (teeth)");
+  app.add_option("--kalman-torque-sd", kalman.torque_sd_nm,
+                 "Kalman process noise: 1 sigma of the net torque (N m)");
+  app.add_option("--kalman-delta", kalman.delta, "Kalman coloured-noise pole (1/rad)");
+  app.add_option("--kalman-edge-noise", kalman.edge_noise_deg, "Kalman R: edge-angle error (deg)");
+  app.add_option("--kalman-jitter", kalman.jitter_s, "Kalman R: timestamp jitter (s)");
+  app.add_option("--fourier-lref", fourier.l_ref, "Fourier observer L_ref");
+  app.add_option("--fourier-lke", fourier.l_ke, "Fourier observer L_ke");
+  app.add_option("--fourier-harmonics", fourier.harmonics, "Fourier observer n_h");
+  app.add_option("--fourier-gain-ref-rpm", fourier.gain_ref_rpm,
+                 "Fourier observer gain reference speed (rpm)");
   app.footer("Exit status: 0 done (tables printed); 1 a recording could not be read or the output not written; 2 command-line error (unknown option, bad value, file that does not exist) or --config refused / its inputs cannot be opened.");
   TORQUED_CLI_PARSE(app, argc, argv);
   if (!rec.config_path.empty()) {
@@ -112,12 +140,15 @@ int main(int argc, char** argv) {
     bo.skip_cycles = skip;
     return run_bed(bed_all, bed_short, bo);
   }
-  if (names.empty()) names = torqued::sim::scenario_names();
+  if (names.empty() && !cylinders) names = torqued::sim::scenario_names();
 
   torqued::eval::EvalOptions opt;
   using torqued::eval::ToothTable;
   opt.tooth_table = raw_teeth ? ToothTable::kNone : true_teeth ? ToothTable::kTrue : ToothTable::kLearned;
   opt.skip_cycles = skip;
+  opt.tooth_learn = learn;
+  opt.base.kalman = kalman;
+  opt.base.fourier = fourier;
   opt.can_lost_after_s = can_lost;
   if (paper_prior) opt.friction_prior = torqued::FrictionParams{}.c;
   const auto fric = torqued::eval::learn_friction(opt);
@@ -129,6 +160,15 @@ int main(int argc, char** argv) {
               : true_teeth ? "simulator's true machining errors"
                            : "learned by ToothErrorLearner on a warm-up recording of the same wheel "
                              "(1000-4000 rpm plateaus + fuel cut-off, 5 s)");
+  if (cylinders) {
+    std::vector<torqued::eval::CylinderCaseResult> rows;
+    for (const auto& c : torqued::eval::cylinder_cases(random_engines, random_seed)) {
+      if (!names.empty() && std::find(names.begin(), names.end(), c.scenario.name) == names.end()) continue;
+      rows.push_back(torqued::eval::evaluate_case(c, opt));
+      torqued::eval::print_cylinder_table({rows.back()}, rows.size() == 1);
+    }
+    return 0;
+  }
   std::printf("%-16s %5s %4s | %-17s | %-17s | %-17s | %-17s | %-17s | %-17s | %6s | %-14s | %s\n",
               "scenario", "rpm", "cyc", "brake (CAN)", "indicated", "fused", "brake crank-only", "RLS load*",
               "ESO indicated", "imb pp", "tooth ° w/e", "misfire found/true/false");

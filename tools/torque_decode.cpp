@@ -2,10 +2,11 @@
 // (issue 3 "Inspecting recordings"). Streams; progress on a terminal; one-line summary at the end.
 //   torque-decode --edges edges.csv [--can can.log --dbc demo.dbc] [--wheel 60-2] [--config torqued.yaml]
 //                 --out-teeth teeth.csv --out-can can.csv
+#include <unistd.h>
+
 #include <CLI/CLI.hpp>
 
 #include "cli_exit.hpp"
-
 #include <algorithm>
 #include <chrono>
 #include <cinttypes>
@@ -17,7 +18,6 @@
 #include <numbers>
 #include <optional>
 #include <string>
-#include <unistd.h>
 
 #include "backend_factory.hpp"
 #include "candump_source.hpp"
@@ -28,16 +28,45 @@
 #include "replay_merger.hpp"
 #include "wheel_names.hpp"
 
+#ifndef TORQUED_DECODE_PLOT_SCRIPT
+#define TORQUED_DECODE_PLOT_SCRIPT "tools/scripts/plot_decode.py"
+#endif
+
 namespace {
 
 using namespace torqued;
 
 struct Options {
   std::string edges, can, dbc, config, wheel = "60-2", format = "csv", crank = "crank", cam = "cam";
-  std::string out_teeth, out_can;
+  std::string out_teeth, out_can, first_row = "levels", out_revs, plot,
+                                  plot_script = TORQUED_DECODE_PLOT_SCRIPT;
   double can_offset_s = 0.0;
   bool can_offset_given = false;
-  bool falling = false, quiet = false;
+  bool falling = false, quiet = false, revs = false, transitions = false;
+};
+
+std::string shell_quote(const std::string& s) {
+  std::string q = "'";
+  for (const char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+/// Per-revolution speed (time from one synced tooth 0 to the next, no sync loss between) and the summary of
+/// sync transitions, drained from the decoder's event log after every edge (issue 13).
+struct RevTracker {
+  std::int64_t last_t0 = -1;
+  std::vector<std::pair<std::int64_t, double>> revs;  ///< (time of the closing tooth 0, rpm)
+  std::vector<DecoderEvent> losses, syncs;
+  std::uint64_t first_sync_edge = 0;
+  void on_tooth(const ToothEvent& t, int teeth_per_rev) {
+    if (t.sync != SyncState::kSynced) {
+      last_t0 = -1;
+      return;
+    }
+    if (t.tooth % teeth_per_rev != 0) return;
+    if (last_t0 >= 0) revs.emplace_back(t.t_ns, 60e9 / static_cast<double>(t.t_ns - last_t0));
+    last_t0 = t.t_ns;
+  }
 };
 
 std::string events_text(std::uint32_t e) {
@@ -68,13 +97,67 @@ struct CsvOut {
   }
 };
 
+void print_sync_summary(const CrankDecoder& decoder, const RevTracker& r, const Options& o) {
+  const DecoderStats& ds = decoder.stats();
+  if (r.syncs.empty()) {
+    std::printf("sync: never (%" PRIu64 " crank edges)\n", ds.crank_edges);
+  } else {
+    std::printf("sync: first at crank edge %" PRIu64 " (%.6f s, tooth %d), syncs %" PRIu64 ", losses %" PRIu64
+                ", stalls %" PRIu64 "\n",
+                r.first_sync_edge, r.syncs.front().t_ns * 1e-9, r.syncs.front().tooth, ds.syncs,
+                ds.sync_losses, ds.stalls);
+  }
+  for (std::size_t i = 0; i < r.losses.size() && i < 10; ++i) {
+    const DecoderEvent& l = r.losses[i];
+    const DecoderEvent* back = nullptr;
+    for (const auto& s : r.syncs)
+      if (s.t_ns > l.t_ns && back == nullptr) back = &s;
+    if (back)
+      std::printf("  loss at %.6f s: %s, resynced %.3f ms later\n", l.t_ns * 1e-9,
+                  to_string(static_cast<SyncLossReason>(l.reason)), (back->t_ns - l.t_ns) * 1e-6);
+    else
+      std::printf("  loss at %.6f s: %s, not resynced\n", l.t_ns * 1e-9,
+                  to_string(static_cast<SyncLossReason>(l.reason)));
+  }
+  if (r.losses.size() > 10) std::printf("  ... %zu more losses\n", r.losses.size() - 10);
+  std::printf("glitches: noise edges %" PRIu64 ", debounced edges %" PRIu64 ", lost teeth %" PRIu64
+              ", cam phase errors %" PRIu64 ", width code errors %" PRIu64 "\n",
+              ds.noise_edges, ds.debounced_edges, ds.lost_teeth, ds.cam_phase_errors, ds.width_code_errors);
+  if (!r.revs.empty()) {
+    double lo = 1e300, hi = 0.0, sum = 0.0;
+    for (const auto& [t, rpm] : r.revs) {
+      lo = std::min(lo, rpm);
+      hi = std::max(hi, rpm);
+      sum += rpm;
+    }
+    std::printf("revolutions %zu: rpm per revolution min %.2f, mean %.2f, max %.2f\n", r.revs.size(), lo,
+                sum / static_cast<double>(r.revs.size()), hi);
+  }
+  if (o.revs)
+    for (std::size_t i = 0; i < r.revs.size(); ++i)
+      std::printf("rev %zu  t %.6f s  %.2f rpm\n", i + 1, r.revs[i].first * 1e-9, r.revs[i].second);
+}
+
+bool write_revs(const RevTracker& r, const Options& o) {
+  if (o.out_revs.empty()) return true;
+  std::FILE* f = std::fopen(o.out_revs.c_str(), "w");
+  if (f == nullptr) {
+    std::fprintf(stderr, "torque-decode: cannot write %s: %s\n", o.out_revs.c_str(), std::strerror(errno));
+    return false;
+  }
+  std::fputs("t_ns,t_s,rpm\n", f);
+  for (const auto& [t, rpm] : r.revs) std::fprintf(f, "%" PRId64 ",%.9f,%.3f\n", t, t * 1e-9, rpm);
+  return std::fclose(f) == 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   Options o;
-  CLI::App app{"torque-decode: decode a crank/cam edge capture and/or a candump log to CSV.\n"
-               "Per tooth: time, tooth index in 720 deg, angle, rpm, sync state, events (noise edge, lost tooth, "
-               "gap, resync). Per CAN frame: time and every DBC signal by name. Ends with a one-line summary."};
+  CLI::App app{
+      "torque-decode: decode a crank/cam edge capture and/or a candump log to CSV.\n"
+      "Per tooth: time, tooth index in 720 deg, angle, rpm, sync state, events (noise edge, lost tooth, "
+      "gap, resync). Per CAN frame: time and every DBC signal by name. Ends with a one-line summary."};
   app.add_option("--edges", o.edges, "edge capture: logic-analyzer CSV (Time [s],crank,cam) or bare list");
   app.add_option("--format", o.format, "edge file format: csv | list")->check(CLI::IsMember({"csv", "list"}));
   app.add_option("--can", o.can, "candump -l log");
@@ -83,12 +166,27 @@ int main(int argc, char** argv) {
   app.add_flag("--falling", o.falling, "teeth are marked by falling crank edges");
   app.add_option("--crank", o.crank, "crank column name in the edge CSV");
   app.add_option("--cam", o.cam, "cam column name in the edge CSV (\"\" = none)");
-  app.add_option("--can-offset", o.can_offset_s, "seconds added to CAN times (e.g. -1700000000 for the demo)");
-  app.add_option("--config", o.config, "torqued YAML: wheel, decoder, inputs, DBC from there (other options override paths)");
+  app.add_option(
+         "--first-row", o.first_row,
+         "edge CSV first row: levels (initial levels, Saleae/sigrok) | edges (every channel starts low, "
+         "as rusEFI's reader)")
+      ->check(CLI::IsMember({"levels", "edges"}));
+  app.add_option("--can-offset", o.can_offset_s,
+                 "seconds added to CAN times (e.g. -1700000000 for the demo)");
+  app.add_option("--config", o.config,
+                 "torqued YAML: wheel, decoder, inputs, DBC from there (other options override paths)");
   app.add_option("--out-teeth", o.out_teeth, "per-tooth CSV output");
   app.add_option("--out-can", o.out_can, "per-signal CAN CSV output (one row per decoded signal)");
+  app.add_option("--out-revs", o.out_revs,
+                 "per-revolution CSV output: t_ns,t_s,rpm (synced tooth 0 to tooth 0)");
+  app.add_flag("--revs", o.revs, "print the per-revolution speed on stdout");
+  app.add_flag("--transitions", o.transitions, "print every sync-state transition (debug) on stderr");
+  app.add_option("--plot", o.plot,
+                 "PNG: speed per tooth with gaps, glitches and sync losses marked (python3-matplotlib)");
+  app.add_option("--plot-script", o.plot_script,
+                 "plot script (default: the source tree's tools/scripts/plot_decode.py)");
   app.add_flag("-q,--quiet", o.quiet, "no progress display");
-  app.footer("Exit status: 0 done; 1 an input could not be read or parsed, or the output not written; 2 command-line error (unknown option, bad value, file that does not exist, inconsistent options).");
+  app.footer("Exit status: 0 done; 1 an input could not be read or parsed, or an output not written; 2 command-line error (unknown option, bad value, file that does not exist, inconsistent options).");
   TORQUED_CLI_PARSE(app, argc, argv);
   o.can_offset_given = app.count("--can-offset") > 0;
 
@@ -127,17 +225,18 @@ int main(int argc, char** argv) {
     dbc = load_dbc(cfg, &err);
     if (!o.can_offset_given) can_offset_ns = can_time_offset_ns(cfg);
   } else {
-    if (!wheel_from_name(o.wheel, wheel, &err)) {
+    if (!trigger_from_name(o.wheel, wheel, params, &err)) {
       std::fprintf(stderr, "torque-decode: %s\n", err.c_str());
       return 2;
     }
-    wheel.rising_edge = !o.falling;
+    if (o.falling) wheel.rising_edge = false;  // pattern wheels set the edge their angles refer to
     params.use_cam = !o.cam.empty();
     if (!o.edges.empty()) {
       if (o.format == "csv") {
         EdgeCsvOptions eo;
         eo.crank_column = o.crank;
         eo.cam_column = o.cam;
+        if (o.first_row == "edges") eo.first_row = EdgeCsvFirstRow::kEdgesFromLow;
         auto s = std::make_unique<EdgeCsvSource>(o.edges, eo);
         if (!s->ok()) err = s->last_error();
         edges = std::move(s);
@@ -182,6 +281,12 @@ int main(int argc, char** argv) {
     return 2;
   }
 
+  DecoderEventLog events;
+  decoder.set_event_log(&events);
+  RevTracker revs;
+  // The plot reads the per-tooth CSV: without --out-teeth it goes next to the PNG and is removed afterwards.
+  const bool temp_teeth = !o.plot.empty() && o.out_teeth.empty();
+  if (temp_teeth) o.out_teeth = o.plot + ".teeth.csv";
   CsvOut teeth_csv, can_csv;
   if (!teeth_csv.open(o.out_teeth, "t_ns,t_s,tooth,angle_deg,rpm,sync,phase_known,events\n") ||
       !can_csv.open(o.out_can, "t_ns,t_s,bus,id,message,signal,value,unit,label\n")) {
@@ -214,7 +319,22 @@ int main(int argc, char** argv) {
     }
     if (st != SourceStatus::kOk) continue;
     if (item.kind == ReplayMerger::Kind::kEdge) {
-      if (decoder.on_edge(item.edge, tooth)) {
+      const bool got = decoder.on_edge(item.edge, tooth);
+      for (DecoderEvent ev; events.pop(ev);) {
+        if (o.transitions)
+          std::fprintf(
+              stderr, "debug: %.9f s %s -> %s: %s%s%s (tooth %d)\n", ev.t_ns * 1e-9, to_string(ev.from),
+              to_string(ev.to), to_string(ev.kind), ev.kind == DecoderEventKind::kLost ? " " : "",
+              ev.kind == DecoderEventKind::kLost ? to_string(static_cast<SyncLossReason>(ev.reason)) : "",
+              ev.tooth);
+        if (ev.kind == DecoderEventKind::kLost) revs.losses.push_back(ev);
+        if (ev.kind == DecoderEventKind::kSynced) {
+          if (revs.syncs.empty()) revs.first_sync_edge = decoder.stats().crank_edges;
+          revs.syncs.push_back(ev);
+        }
+      }
+      if (got) {
+        revs.on_tooth(tooth, decoder.teeth_per_rev());
         const double rpm = tooth.speed_rad_s * kRadSToRpm;
         if (tooth.sync == SyncState::kSynced) {
           rpm_min = std::min(rpm_min, rpm);
@@ -222,8 +342,10 @@ int main(int argc, char** argv) {
         }
         if (teeth_csv.f != nullptr) {
           std::fprintf(teeth_csv.f, "%" PRId64 ",%.9f,%d,%.4f,%.2f,%s,%d,%s\n", tooth.t_ns, tooth.t_ns * 1e-9,
-                       tooth.tooth, tooth.sync == SyncState::kSynced ? tooth.angle_rad * 180.0 / std::numbers::pi : -1.0,
-                       rpm, to_string(tooth.sync), tooth.phase_known ? 1 : 0, events_text(tooth.events).c_str());
+                       tooth.tooth,
+                       tooth.sync == SyncState::kSynced ? tooth.angle_rad * 180.0 / std::numbers::pi : -1.0,
+                       rpm, to_string(tooth.sync), tooth.phase_known ? 1 : 0,
+                       events_text(tooth.events).c_str());
         }
       }
     } else {
@@ -242,9 +364,9 @@ int main(int argc, char** argv) {
           if (can_csv.f != nullptr) {
             const std::int64_t raw = s.raw(f.data.data(), f.len);
             const std::string* label = s.value_name(raw);
-            std::fprintf(can_csv.f, "%" PRId64 ",%.6f,%u,0x%X,%s,%s,%.10g,%s,%s\n", f.t_ns, f.t_ns * 1e-9, f.bus, f.id,
-                         m->name.c_str(), s.name.c_str(), s.decode(f.data.data(), f.len), s.unit.c_str(),
-                         label ? label->c_str() : "");
+            std::fprintf(can_csv.f, "%" PRId64 ",%.6f,%u,0x%X,%s,%s,%.10g,%s,%s\n", f.t_ns, f.t_ns * 1e-9,
+                         f.bus, f.id, m->name.c_str(), s.name.c_str(), s.decode(f.data.data(), f.len),
+                         s.unit.c_str(), label ? label->c_str() : "");
           }
         }
         bad ? ++frames_bad_dlc : ++frames_decoded;
@@ -272,13 +394,29 @@ int main(int argc, char** argv) {
 
   const DecoderStats& ds = decoder.stats();
   std::printf("edges %" PRIu64 " (crank %" PRIu64 ", cam %" PRIu64 "), teeth %" PRIu64 " (synced %" PRIu64
-              "), syncs %" PRIu64 ", sync losses %" PRIu64 " (last: %s), stalls %" PRIu64 ", noise edges %" PRIu64
-              ", lost teeth %" PRIu64 ", cam phase errors %" PRIu64 ", rpm %.0f-%.0f, frames %" PRIu64
-              " (decoded %" PRIu64 ", unknown id %" PRIu64 ", bad dlc %" PRIu64 "), bad lines %" PRIu64 " edges / %" PRIu64
-              " can\n",
+              "), syncs %" PRIu64 ", sync losses %" PRIu64 " (last: %s), stalls %" PRIu64
+              ", noise edges %" PRIu64 ", lost teeth %" PRIu64 ", cam phase errors %" PRIu64
+              ", rpm %.0f-%.0f, frames %" PRIu64 " (decoded %" PRIu64 ", unknown id %" PRIu64
+              ", bad dlc %" PRIu64 "), bad lines %" PRIu64 " edges / %" PRIu64 " can\n",
               ds.edges, ds.crank_edges, ds.cam_edges, ds.teeth, ds.synced_teeth, ds.syncs, ds.sync_losses,
               to_string(ds.last_loss_reason), ds.stalls, ds.noise_edges, ds.lost_teeth, ds.cam_phase_errors,
-              rpm_max > 0 ? rpm_min : 0.0, rpm_max, merger.frames_out(), frames_decoded, frames_unknown, frames_bad_dlc,
-              edges ? edges->stats().bad_lines : 0, can ? can->stats().bad_lines : 0);
+              rpm_max > 0 ? rpm_min : 0.0, rpm_max, merger.frames_out(), frames_decoded, frames_unknown,
+              frames_bad_dlc, edges ? edges->stats().bad_lines : 0, can ? can->stats().bad_lines : 0);
+  print_sync_summary(decoder, revs, o);
+  if (teeth_csv.f != nullptr) std::fflush(teeth_csv.f);
+  if (!write_revs(revs, o)) return 1;
+  if (!o.plot.empty()) {
+    const std::string cmd =
+        "/usr/bin/python3 " + shell_quote(o.plot_script) + " --teeth " + shell_quote(o.out_teeth) +
+        " --teeth-per-rev " + std::to_string(decoder.teeth_per_rev()) + " --out " + shell_quote(o.plot) +
+        " --title " + shell_quote("torque-decode: " + (o.edges.empty() ? o.config : o.edges));
+    const int rc = std::system(cmd.c_str());
+    if (temp_teeth) std::filesystem::remove(o.out_teeth, ec);
+    if (rc != 0) {
+      std::fprintf(stderr, "torque-decode: plot failed (%s)\n", cmd.c_str());
+      return 1;
+    }
+    std::printf("plot: %s\n", o.plot.c_str());
+  }
   return 0;
 }

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <numbers>
 #include <vector>
@@ -21,7 +22,12 @@ struct Recorder final : AngleChainSink {
   std::vector<ChainTooth> teeth;
   std::vector<ChainSegment> segments;
   std::vector<CycleOutput> outs;
-  void on_tooth(const ChainTooth& t) noexcept override { teeth.push_back(t); }
+  std::vector<Health> kalman;  ///< in-cycle Kalman health of each tooth with estimates (taken in the callback:
+                               ///< ChainTooth::estimates points into the pipeline and is only valid then)
+  void on_tooth(const ChainTooth& t) noexcept override {
+    teeth.push_back(t);
+    if (t.estimates) kalman.push_back(t.estimates->kalman_ind.health);
+  }
   void on_segment(const ChainSegment& s) noexcept override {
     segments.push_back(s);
     outs.push_back(*s.out);
@@ -87,8 +93,9 @@ TEST_F(AngleChainTest, OneRecordPerToothAndOneSegmentPerFiringInOrder) {
     while (order[ia] != a.cylinder) ++ia;
     EXPECT_EQ(b.cylinder, order[(ia + 1) % 4]) << "segment " << i;
     EXPECT_TRUE(b.status.synced);
-    if (i >= 4)  // the first segments come before a whole 720° window was seen (speed 0, empty window)
+    if (i >= 4) {  // the first segments come before a whole 720° window was seen (speed 0, empty window)
       EXPECT_NEAR(static_cast<double>(b.source_t_ns - b.window_start_t_ns) * 1e-9, 0.040, 1e-5) << "segment " << i;
+    }
     if (rec.outs[i].cycle_end) ++cycle_ends;
   }
   EXPECT_NEAR(static_cast<double>(cycle_ends), static_cast<double>(chain.cycles()), 1.0);
@@ -117,6 +124,31 @@ TEST_F(AngleChainTest, ImportedToothTableReachesTheDecoderAndTheSnapshot) {
   EXPECT_EQ((*back.friction)[0], 10.0);
   run(chain);
   EXPECT_EQ(chain.decoder().stats().sync_losses, 0u);  // the imported table does not break the decoding
+}
+
+TEST_F(AngleChainTest, UnlearnedWheelIsSaidUntilATableIsLearnedOrImported) {
+  // GIVEN tooth learning on WHEN no table was learned or imported THEN the in-cycle Kalman estimate is not
+  // converged until the learner's table is applied (≥ 20 cycles of 50: ≥ 40 % of the teeth); WHEN a table for
+  // this wheel is imported THEN only the observer's own start-up (one cycle) is.
+  for (const bool imported : {false, true}) {
+    StageSettings s;
+    Recorder rec;
+    AngleChain chain(s, nullptr, rec, nullptr);
+    if (imported) {
+      LearnedState st;
+      st.tooth_corrections_rad.assign(58, 0.0);
+      ASSERT_NE(chain.import_state(st).find("58 tooth corrections"), std::string::npos);
+    }
+    run(chain);
+    ASSERT_GT(rec.kalman.size(), 2000u);
+    const auto nc = std::count(rec.kalman.begin(), rec.kalman.end(), Health::kNotConverged);
+    if (imported) {
+      EXPECT_LT(nc, 150);  // one cycle (116 teeth) of observer start-up
+    } else {
+      EXPECT_GT(nc, static_cast<long>(rec.kalman.size() * 4 / 10));
+      EXPECT_EQ(rec.kalman.back(), Health::kValid) << "valid once the learned table is applied";
+    }
+  }
 }
 
 TEST_F(AngleChainTest, ToothTableOfAnotherWheelIsRejectedLoudly) {
@@ -150,10 +182,11 @@ TEST_F(AngleChainTest, TimeEstimateReachesTheFusionOnlyWhenConfigured) {
     int used = 0;
     for (const CycleOutput& o : rec.outs)
       if (o.fused.used_mask & (1u << static_cast<int>(FusionSourceId::kExternal))) ++used;
-    if (on)
+    if (on) {
       EXPECT_GT(used, 0);
-    else
+    } else {
       EXPECT_EQ(used, 0);
+    }
   }
 }
 

@@ -42,18 +42,26 @@ TEST(Metrics, ExpositionReflectsSamplesAndStatus) {
   m.sink().emit(c);
   ASSERT_EQ(next.got.size(), 3u);  // forwarded, unchanged
   EXPECT_EQ(next.got[0].u.estimator.value_nm, 123.5);
+  EXPECT_TRUE(has_line("\n" + to_text(m.collect()), "torqued_status_received 0"));  // no DaemonStatus yet
 
   torque_DaemonStatus s{};
   s.edges = 1000;
+  s.rejected_edges = 4;
   s.ring_drops_can = 7;
   s.health = torque_DAEMON_DEGRADED;
   s.flags = torque_STATUS_CAN_TIMEOUT;
   s.sensor_timeouts = 1u << 1;  // maf
   s.latency_p99_ns = 150'000;
-  m.on_status(s);
+  dds::AnySample st;  // DaemonStatus reaches the tap like every other sample
+  st.topic = dds::Topic::kDaemonStatus;
+  st.u.status = s;
+  m.sink().emit(st);
 
   const std::string t = "\n" + to_text(m.collect());
   EXPECT_TRUE(has_line(t, "torqued_edges_total 1000")) << t;
+  EXPECT_TRUE(has_line(t, "torqued_rejected_edges_total 4"));
+  EXPECT_TRUE(has_line(t, "torqued_status_received 1"));
+  EXPECT_TRUE(has_line(t, "torqued_status_flag{flag=\"record_error\"} 0"));
   EXPECT_TRUE(has_line(t, "torqued_ring_drops_total{ring=\"can\"} 7"));
   EXPECT_TRUE(has_line(t, "torqued_health 1"));
   EXPECT_TRUE(has_line(t, "torqued_synced 1"));  // NO_SYNC not set

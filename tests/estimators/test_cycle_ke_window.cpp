@@ -51,7 +51,9 @@ TEST(CycleKeWindow, ConstantSpeedGivesNoCycleDifferenceAndKeScalesWithSpeedSquar
     for (const auto& s : seq)
       if (win.update(s)) {
         ++done;
-        if (done >= 2) EXPECT_TRUE(win.ke_valid());  // the first window may start before the first tooth
+        if (done >= 2) {  // the first window may start before the first tooth
+          EXPECT_TRUE(win.ke_valid());
+        }
         if (done >= 3) {
           ASSERT_TRUE(win.cycle_valid());
           EXPECT_NEAR(win.d_ke_cycle_j(), 0.0, 1e-6 * win.ke_j());

@@ -1,6 +1,8 @@
-// CylinderTorque: per-cylinder share of the cycle-mean indicated torque, imbalance, misfire (ESTIMATORS.md §4).
+// CylinderTorque: per-cylinder share of the cycle-mean indicated torque, imbalance, misfire (ESTIMATORS.md
+// §4).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <numbers>
 
 #include "alloc_counter.hpp"
@@ -84,4 +86,73 @@ TEST(CylinderTorque, DoesNotAllocate) {
   torqued::test::AllocationScope scope;
   for (int i = 0; i < 50; ++i) feed(ct, {300.0, 290.0, 310.0 - i, 300.0});
   EXPECT_EQ(scope.count(), 0u);
+}
+
+TEST(CylinderTorque, SharesStayBoundedWhenTheCycleMeanIsSmall) {
+  // GIVEN the default engine (swept volume π/4·B²·S per cylinder) and a share floor of 0.5 bar IMEP
+  EngineGeometry g;
+  const CylinderParams p;
+  const double floor_j =
+      p.share_floor_imep_bar * 1e5 * 0.25 * std::numbers::pi * g.bore_m * g.bore_m * g.stroke_m;
+  CylinderTorque ct(g, p);
+  // WHEN the cycle mean is ~0 (overrun / idle after cut-off): 1 J mean would give (W/W̄ − 1) of −2600 %
+  ASSERT_TRUE(feed(ct, {20.0, -10.0, 15.0, -21.0}));
+  const auto& c = ct.cycle();
+  // THEN the shares are the deviations relative to the floor, bounded by max|W − W̄| / floor
+  const double mean = (20.0 - 10.0 + 15.0 - 21.0) / 4.0;
+  EXPECT_NEAR(c.imbalance_pct[0], (20.0 - mean) / floor_j * 100.0, 1e-9);  // cylinder 1 = position 0
+  EXPECT_NEAR(c.imbalance_pct[3], (15.0 - mean) / floor_j * 100.0, 1e-9);  // cylinder 4 = position 2
+  for (int i = 0; i < 4; ++i)
+    EXPECT_LE(std::abs(c.imbalance_pct[static_cast<std::size_t>(i)]), 22.0 / floor_j * 100.0);
+  // AND above the floor the shares are the usual W/W̄ − 1 (checked in SharesAddUpAndImbalanceIsExact)
+  EXPECT_LT(floor_j, 0.25 * 300.0);
+}
+
+TEST(CylinderTorque, HealthSaysWhyMisfireDetectionIsOff) {
+  EngineGeometry g;
+  CylinderTorque ct(g, CylinderParams{});
+  // fuel cut-off: no combustion to miss
+  ASSERT_TRUE(feed(ct, {-40.0, -40.0, -40.0, -40.0}, false));
+  EXPECT_EQ(ct.cycle().detection, torqued::MisfireDetection::kOverrun);
+  EXPECT_EQ(ct.cycle().health, torqued::Health::kNotExcited);
+  // firing, but the median segment-mean torque (10 J / π rad = 3.2 N m) is below min_mean_nm (5 N m)
+  ASSERT_TRUE(feed(ct, {10.0, 10.0, -5.0, 10.0}));
+  EXPECT_EQ(ct.cycle().detection, torqued::MisfireDetection::kLowLoad);
+  EXPECT_EQ(ct.cycle().health, torqued::Health::kNotExcited);
+  EXPECT_EQ(ct.cycle().misfire_count, 0);
+  // unlearned wheel: detection runs (the misfire is flagged) but the record is not valid
+  ct.set_wheel_learned(false);
+  ASSERT_TRUE(feed(ct, {300.0, 300.0, -40.0, 300.0}));
+  EXPECT_EQ(ct.cycle().detection, torqued::MisfireDetection::kWheelUnlearned);
+  EXPECT_EQ(ct.cycle().health, torqued::Health::kNotConverged);
+  EXPECT_TRUE(ct.cycle().misfire[3]);
+  ct.set_wheel_learned(true);
+  ASSERT_TRUE(feed(ct, {300.0, 300.0, 300.0, 300.0}));
+  EXPECT_EQ(ct.cycle().detection, torqued::MisfireDetection::kActive);
+  EXPECT_EQ(ct.cycle().health, torqued::Health::kValid);
+}
+
+TEST(CylinderTorque, NoisySharesNeedADeficitBeyondTheirNoise) {
+  // GIVEN 40 cycles whose segments swing ±20 % from cycle to cycle (jitter at high speed), no misfire
+  EngineGeometry g;
+  CylinderTorque ct(g, CylinderParams{});
+  for (int i = 0; i < 40; ++i) {
+    const double a = (i % 2 == 0) ? 60.0 : -60.0, b = (i % 3 == 0) ? 60.0 : -60.0;
+    ASSERT_TRUE(feed(ct, {300.0 + a, 300.0 - a, 300.0 + b, 300.0 - b}));
+    EXPECT_EQ(ct.cycle().misfire_count, 0) << i;
+  }
+  // WHEN a segment falls to 45 % of the others (below misfire_threshold 0.5, but within 4σ of the share
+  // noise)
+  ASSERT_TRUE(feed(ct, {300.0, 300.0, 135.0, 300.0}));
+  // THEN it is not a misfire
+  EXPECT_EQ(ct.cycle().misfire_count, 0);
+  // AND a missing combustion (negative segment work) still is
+  ASSERT_TRUE(feed(ct, {300.0, 300.0, -60.0, 300.0}));
+  EXPECT_TRUE(ct.cycle().misfire[3]);
+  // AND with the gate off (misfire_sigma 0) the 45 % segment is flagged as before
+  CylinderParams p;
+  p.misfire_sigma = 0.0;
+  CylinderTorque plain(g, p);
+  ASSERT_TRUE(feed(plain, {300.0, 300.0, 135.0, 300.0}));
+  EXPECT_TRUE(plain.cycle().misfire[3]);
 }

@@ -38,8 +38,10 @@ TEST(MeanSpeedTracker, CycleMeanIsTheExactFourPiOverTheCycleTime) {
   for (int i = 0; i < 120; ++i) {
     const ToothSample s = wh.next();
     m.update(s);
-    if (i < 119) EXPECT_FALSE(m.valid()) << i;  // 120 teeth of 6° make the 720° window
-    if (i >= 0) sum_dt += s.dt_s;
+    if (i < 119) {  // 120 teeth of 6° make the 720° window
+      EXPECT_FALSE(m.valid()) << i;
+    }
+    sum_dt += s.dt_s;
   }
   ASSERT_TRUE(m.valid());
   EXPECT_NEAR(m.speed_rad_s(), 4.0 * kPi / sum_dt, 1e-9 * m.speed_rad_s());

@@ -1,7 +1,5 @@
-// Tooth-error learning: learned from cycles at several speeds and loads on a 0.05° wheel, the corrected widths
-// make the Chauvin observers meet the in-cycle targets; table export/import round trip; no allocation.
-#include "tooth_error_learner.hpp"
-
+// Tooth-error learning: learned from cycles at several speeds and loads on a 0.05° wheel, the corrected
+// widths make the Chauvin observers meet the in-cycle targets; table export/import round trip; no allocation.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -13,6 +11,7 @@
 #include "chauvin_kalman.hpp"
 #include "fourier_observer.hpp"
 #include "synthetic_crank.hpp"
+#include "tooth_error_learner.hpp"
 
 namespace torqued {
 namespace {
@@ -23,7 +22,7 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 ToothErrorLearner learn(std::vector<double>& edge_error_rad, std::size_t* allocations = nullptr) {
   ToothLearnParams p;
   p.min_cycles = 40;
-  p.fit_harmonics = 16;      // the synthetic torque waveform is speed-independent: the multi-speed separation of
+  p.fit_harmonics = 16;  // the synthetic torque waveform is speed-independent: the multi-speed separation of
   p.learn_low_orders = true;  // the low orders holds exactly here (on the simulator the defaults are better)
   ToothErrorLearner learner(EngineGeometry{}, WheelGeometry{}, p);
   for (double rpm : {1000.0, 2000.0, 3000.0, 4000.0}) {
@@ -64,10 +63,11 @@ TEST(ToothErrorLearner, LearnsWidthErrorsFromSeveralSpeedsWithoutAllocating) {
   std::printf("tooth widths: error %.4f deg RMS before, %.4f deg after learning\n", rms_true, rms_resid);
   EXPECT_LT(rms_resid, 0.01);
   EXPECT_GT(rms_true, 0.05);
-  // AND the edge angles (cumulative widths: what a kinetic-energy window over several teeth sees) are learned too.
-  // Their odd orders per revolution (the part that differs between edges 180° apart) decide the per-cylinder
-  // balance of a 4-cylinder engine; a smooth-fit column that absorbs per-revolution patterns (the old linear trend
-  // took ≈ half of the first order) leaves the widths almost right but these edges wrong.
+  // AND the edge angles (cumulative widths: what a kinetic-energy window over several teeth sees) are learned
+  // too. Their odd orders per revolution (the part that differs between edges 180° apart) decide the
+  // per-cylinder balance of a 4-cylinder engine; a smooth-fit column that absorbs per-revolution patterns
+  // (the old linear trend took ≈ half of the first order) leaves the widths almost right but these edges
+  // wrong.
   std::vector<double> edge(static_cast<std::size_t>(learner.teeth()));
   learner.edge_corrections(edge);
   const std::size_t half = edge.size() / 2;  // 29 teeth = 180° on the 60-2 wheel
@@ -79,8 +79,8 @@ TEST(ToothErrorLearner, LearnsWidthErrorsFromSeveralSpeedsWithoutAllocating) {
     s_true += t_odd * t_odd;
   }
   const double odd_resid = std::sqrt(s_resid / half) / kDeg, odd_true = std::sqrt(s_true / half) / kDeg;
-  std::printf("edge angles, odd orders per rev: error %.4f deg RMS before, %.4f deg after learning\n", odd_true,
-              odd_resid);
+  std::printf("edge angles, odd orders per rev: error %.4f deg RMS before, %.4f deg after learning\n",
+              odd_true, odd_resid);
   EXPECT_LT(odd_resid, 0.2 * odd_true);
 }
 
@@ -111,8 +111,8 @@ TEST(ToothErrorLearner, ObserversMeetTheInCycleTargetsWithLearnedWidths) {
       tf.push_back(run.t_ind_nm[n]);
     }
     const auto a = test::accuracy(ek, tk, 6.0), b = test::accuracy(ef, tf, 6.0);
-    std::printf("learned wheel %4.0f rpm: kalman %.1f %% %.1f deg, fourier %.1f %% %.1f deg\n", rpm, a.rms_pct_p2p,
-                a.lag_deg, b.rms_pct_p2p, b.lag_deg);
+    std::printf("learned wheel %4.0f rpm: kalman %.1f %% %.1f deg, fourier %.1f %% %.1f deg\n", rpm,
+                a.rms_pct_p2p, a.lag_deg, b.rms_pct_p2p, b.lag_deg);
     // THEN the Kalman filter meets RMS <= 15 % of p2p and |lag| <= 6° at every speed
     EXPECT_LE(a.rms_pct_p2p, 15.0) << rpm;
     EXPECT_LE(std::abs(a.lag_deg), 6.0) << rpm;
@@ -132,7 +132,8 @@ TEST(ToothErrorLearner, ExportImportRoundTrip) {
   EXPECT_FALSE(restored.ready());
   ASSERT_TRUE(restored.import_table(table, 1000));
   EXPECT_TRUE(restored.ready());
-  for (int p = 0; p < learner.teeth(); ++p) EXPECT_NEAR(restored.width_ratio(p), learner.width_ratio(p), 1e-12);
+  for (int p = 0; p < learner.teeth(); ++p)
+    EXPECT_NEAR(restored.width_ratio(p), learner.width_ratio(p), 1e-12);
   const std::vector<double> wrong(10, 0.0);
   EXPECT_FALSE(restored.import_table(wrong, 10));
 }
@@ -147,7 +148,8 @@ TEST(ToothErrorLearner, NotReadyBeforeMinCyclesAndRejectsUnsteadyCycles) {
   EXPECT_DOUBLE_EQ(learner.width_ratio(3), 1.0);
   EXPECT_EQ(learner.stats().cycles_used, 4u);  // cycles 1..4 complete (the first sample is not synced)
   // a cycle with a 10 % speed change is rejected
-  for (std::size_t n = run.samples.size() - 116; n < run.samples.size(); ++n) run.samples[n].dt_s *= 1.0 + 0.2 * (n % 116) / 116.0;
+  for (std::size_t n = run.samples.size() - 116; n < run.samples.size(); ++n)
+    run.samples[n].dt_s *= 1.0 + 0.2 * (n % 116) / 116.0;
   ToothErrorLearner l2(EngineGeometry{}, WheelGeometry{}, ToothLearnParams{});
   for (const auto& s : run.samples) l2.update(s);
   ToothSample end = run.samples.front();
@@ -157,6 +159,41 @@ TEST(ToothErrorLearner, NotReadyBeforeMinCyclesAndRejectsUnsteadyCycles) {
   l2.update(end);
   EXPECT_EQ(l2.stats().cycles_used, 3u);
   EXPECT_GE(l2.stats().cycles_rejected, 1u);
+}
+
+}  // namespace
+}  // namespace torqued
+
+namespace torqued {
+namespace {
+
+TEST(ToothErrorLearner, ObserversSayWhenTheWheelIsUnlearned) {
+  // GIVEN steady synthetic cycles and both in-cycle observers told that the tooth table is not learned
+  test::SyntheticSpec sp;
+  sp.cycles = 6;
+  const auto run = test::make_synthetic(sp);
+  ChauvinKalman kf(sp.engine, sp.wheel, KalmanParams{});
+  FourierObserver fo(sp.engine, sp.wheel, FourierParams{});
+  kf.set_wheel_learned(false);
+  fo.set_wheel_learned(false);
+  const std::size_t half = run.samples.size() / 2 + 5;
+  for (std::size_t n = 0; n < half; ++n) {
+    kf.update(run.samples[n]);
+    fo.update(run.samples[n]);
+  }
+  // THEN they run but their health says not converged (the wheel's tooth errors are in the torque)
+  EXPECT_EQ(kf.estimate().health, Health::kNotConverged);
+  EXPECT_EQ(fo.estimate().health, Health::kNotConverged);
+  EXPECT_TRUE(std::isfinite(kf.estimate().torque_nm));
+  // AND once the table is learned they are valid again
+  kf.set_wheel_learned(true);
+  fo.set_wheel_learned(true);
+  for (std::size_t n = half; n < run.samples.size(); ++n) {
+    kf.update(run.samples[n]);
+    fo.update(run.samples[n]);
+  }
+  EXPECT_EQ(kf.estimate().health, Health::kValid);
+  EXPECT_EQ(fo.estimate().health, Health::kValid);
 }
 
 }  // namespace

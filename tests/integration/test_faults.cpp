@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "config_loader.hpp"
+#include "daemon_test.hpp"
 #include "process.hpp"
 #include "sample_recorder.hpp"
 #include "state_store.hpp"
@@ -24,27 +25,9 @@ namespace torqued {
 namespace {
 namespace fs = std::filesystem;
 
-class Faults : public ::testing::Test {
+class Faults : public test::DaemonTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("torqued_faults_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    config_ = test::write_demo_config(dir_.string());
-  }
-  void TearDown() override {
-    if (!HasFailure()) fs::remove_all(dir_);
-  }
-  std::string log() const { return test::slurp((dir_ / "daemon.log").string()); }
-  std::vector<std::string> args(std::vector<std::string> extra) const {
-    std::vector<std::string> a{TORQUED_EXE, "--config",    config_,
-                               "--no-dds",  "--state-dir", (dir_ / "state").string()};
-    a.insert(a.end(), extra.begin(), extra.end());
-    return a;
-  }
-  fs::path dir_;
-  std::string config_;
+  Faults() : DaemonTest("torqued_faults_") {}
 };
 
 /// Data lines of a CSV file (header dropped) and whether its last line was complete.

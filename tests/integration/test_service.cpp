@@ -8,6 +8,7 @@
 //   - Cyclone DDS's own threads in the daemon run with the publisher thread's real-time scheduling;
 //   - without the right to SCHED_FIFO and mlockall it runs anyway, says so and flags it in DaemonStatus,
 //     unless realtime.require_rt is set.
+#include <algorithm>
 #include <gtest/gtest.h>
 #include <sched.h>
 #include <sys/socket.h>
@@ -21,35 +22,26 @@
 #include <thread>
 #include <tuple>
 
+#include "daemon_test.hpp"
 #include "process.hpp"
 #include "state_store.hpp"
 
 namespace torqued {
 namespace {
+
+/// Complete rows of a recorded CSV (header excluded); the recorder flushes at least once a second.
+std::size_t csv_rows(const std::string& path) {
+  const std::string t = test::slurp(path);
+  const auto n = static_cast<std::size_t>(std::count(t.begin(), t.end(), '\n'));
+  return n > 0 ? n - 1 : 0;
+}
+
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-class Service : public ::testing::Test {
+class Service : public test::DaemonTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("torqued_svc_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    config_ = test::write_demo_config(dir_.string());
-  }
-  void TearDown() override {
-    if (!HasFailure()) fs::remove_all(dir_);
-  }
-  std::string log() const { return test::slurp((dir_ / "daemon.log").string()); }
-  std::vector<std::string> args(std::vector<std::string> extra) const {
-    std::vector<std::string> a{TORQUED_EXE, "--config",    config_,
-                               "--no-dds",  "--state-dir", (dir_ / "state").string()};
-    a.insert(a.end(), extra.begin(), extra.end());
-    return a;
-  }
-  fs::path dir_;
-  std::string config_;
+  Service() : DaemonTest("torqued_svc_") {}
 };
 
 /// A NOTIFY_SOCKET of our own: collects the datagrams with their arrival time.
@@ -130,7 +122,7 @@ TEST_F(Service, SigtermDrainsAndFlushesWithinBound) {
   const std::string rec = (dir_ / "rec").string();
   test::Process d(args({"--record", rec}), {}, (dir_ / "daemon.log").string());
   ASSERT_TRUE(test::eventually(10, [&] { return log().find("running") != std::string::npos; })) << log();
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  ASSERT_TRUE(test::eventually(10, [&] { return csv_rows(rec + "/engine_segment.csv") > 10; })) << log();
   const auto t = Clock::now();
   d.signal(SIGTERM);
   ASSERT_TRUE(d.wait(5.0)) << "no exit within 5 s of SIGTERM\n" << log();
@@ -170,7 +162,7 @@ TEST_F(Service, SighupAppliesDecimationLive) {
   const std::string rec = (dir_ / "rec").string();
   test::Process d(args({"--record", rec}), {}, (dir_ / "daemon.log").string());
   ASSERT_TRUE(test::eventually(10, [&] { return log().find("running") != std::string::npos; })) << log();
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  ASSERT_TRUE(test::eventually(10, [&] { return csv_rows(rec + "/crank_state.csv") > 60; })) << log();  // > 20 steps of 10
   std::string y = test::slurp(config_);
   y.replace(y.find("  engine_id: 1"), 14, "  engine_id: 1\n  crank_state_decimation: 1");
   std::ofstream(config_) << y;
@@ -178,7 +170,8 @@ TEST_F(Service, SighupAppliesDecimationLive) {
   ASSERT_TRUE(test::eventually(5, [&] {
     return log().find("SIGHUP: applied decimation") != std::string::npos;
   })) << log();
-  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  const std::size_t at_reload = csv_rows(rec + "/crank_state.csv");
+  ASSERT_TRUE(test::eventually(10, [&] { return csv_rows(rec + "/crank_state.csv") > at_reload + 300; })) << log();
   d.signal(SIGTERM);
   ASSERT_TRUE(d.wait(5));
   EXPECT_EQ(d.exit_code(), 0);
@@ -219,7 +212,8 @@ TEST_F(Service, SighupAppliesDecimationLive) {
 
 TEST_F(Service, LearnedStateSurvivesKill9) {
   // GIVEN a paced replay at 4x WHEN the learned state has been saved and the daemon is killed with SIGKILL
-  // THEN the state file is complete and parses, and the next start loads it.
+  // THEN the state file is complete and parses, and the next start applies it (friction law and the wheel's
+  // 58 tooth corrections reach the angle chain).
   const std::string state = (dir_ / "state" / "learned_state.txt").string();
   {
     test::Process d(args({"--speed", "4"}), {}, (dir_ / "daemon.log").string());
@@ -240,10 +234,11 @@ TEST_F(Service, LearnedStateSurvivesKill9) {
   const std::string log2 = (dir_ / "daemon2.log").string();
   ASSERT_TRUE(test::eventually(10, [&] { return test::slurp(log2).find("running") != std::string::npos; }))
       << test::slurp(log2);
-  EXPECT_NE(
-      test::slurp(log2).find("learned state loaded from " + state + " (58 tooth corrections, friction)"),
-      std::string::npos)
+  // The line lists what the angle chain applied (a table the decoder refused would say REJECTED instead).
+  EXPECT_NE(test::slurp(log2).find("learned state loaded from " + state + ": friction law"), std::string::npos)
       << test::slurp(log2);
+  EXPECT_NE(test::slurp(log2).find(", 58 tooth corrections"), std::string::npos) << test::slurp(log2);
+  EXPECT_EQ(test::slurp(log2).find("REJECTED"), std::string::npos) << test::slurp(log2);
   d2.signal(SIGTERM);
   EXPECT_TRUE(d2.wait(5));
 }
@@ -311,7 +306,8 @@ TEST_F(Service, RunsWithoutRealtimeRightsAndFlagsIt) {
                                dir_),
                   {}, (dir_ / "daemon.log").string());
   ASSERT_TRUE(test::eventually(15, [&] { return log().find("running") != std::string::npos; })) << log();
-  std::this_thread::sleep_for(std::chrono::milliseconds(2500));  // two DaemonStatus periods
+  ASSERT_TRUE(test::eventually(10, [&] { return csv_rows(rec + "/daemon_status.csv") >= 2; }))  // two periods
+      << log();
   d.signal(SIGTERM);
   ASSERT_TRUE(d.wait(5)) << log();
   EXPECT_EQ(d.exit_code(), 0) << log();

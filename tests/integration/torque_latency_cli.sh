@@ -21,6 +21,6 @@ dds=$(echo "$out" | grep -F "dds_write -> received (DDS)" | head -1 | awk '{prin
 [ -n "$n" ] && [ "$n" -gt 200 ] || { echo "too few CrankState samples ($n): $out"; exit 1; }
 awk -v t="$total" -v a="$daemon" -v b="$dds" 'BEGIN { exit !(t > 0 && a > 0 && b > 0 && a < t && b < t) }' ||
   { echo "inconsistent split: total $total, daemon $daemon, DDS $dds: $out"; exit 1; }
-echo "$out" | grep -Eq "daemon: stopped: .* drops edge/can/out 0/0/0" || { echo "ring drops or no counters: $out"; exit 1; }
+echo "$out" | grep -Eq "daemon: stopped: .* drops edge/can/out/source 0/0/0/0" || { echo "ring drops or no counters: $out"; exit 1; }
 head -c 8 "$tmp/lat.png" | od -An -c | grep -q "P   N   G" || { echo "no PNG written: $out"; exit 1; }
 echo "torque-latency CLI OK: n=$n p50 total $total us (daemon $daemon, DDS $dds)"

@@ -2,9 +2,11 @@
 // end to end through factory, merger, decoder and signal store (no sync loss, signals fresh while synced).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 
 #include "backend_factory.hpp"
+#include "cam_check.hpp"
 #include "config_loader.hpp"
 #include "crank_decoder.hpp"
 #include "io_test_util.hpp"
@@ -149,7 +151,8 @@ TEST(BackendFactory, DemoRecordingEndToEnd) {
     ++synced;
     const EngineSignals s = store.signals_at(ev.t_ns);
     fresh_map += s.map_valid ? 1 : 0;
-    fresh_all += (s.map_valid && s.maf_valid && s.oil_temp_valid && s.load_torque_valid && s.lambda_valid) ? 1 : 0;
+    fresh_all +=
+        (s.map_valid && s.maf_valid && s.oil_temp_valid && s.load_torque_valid && s.lambda_valid) ? 1 : 0;
   }
   EXPECT_EQ(dec.stats().sync_losses, 0u);
   EXPECT_EQ(dec.stats().noise_edges, 0u);
@@ -163,5 +166,40 @@ TEST(BackendFactory, DemoRecordingEndToEnd) {
   EXPECT_EQ(edges->stats().bad_lines + can->stats().bad_lines, 0u);
 }
 
+}  // namespace
+}  // namespace torqued
+
+namespace torqued {
+namespace {
+// --check-config with a recording (issue 13): the demo's cam edge lies inside its configured window with a
+// margin; a window that misses it, or one whose edge sits on it, is warned about with the measured angle.
+TEST(BackendFactory, CamWindowCheckAgainstTheRecording) {
+  LoadResult lr = load_config(std::string(TORQUED_SOURCE_DIR) + "/config/demo.yaml");
+  ASSERT_TRUE(lr.ok());
+  Config c = *lr.config;
+  EXPECT_TRUE(cam_window_warnings(c).empty());
+  // Measure the angle with auto, then build windows around it.
+  DecoderParams p = decoder_params(c);
+  p.cam_window_auto = true;
+  std::string err;
+  auto src = make_edge_source(c, &err);
+  ASSERT_TRUE(src) << err;
+  CrankDecoder dec(c.wheel.geometry, p);
+  EdgeEvent e;
+  ToothEvent t;
+  while (dec.stats().cam_angle_deg < 0.0 && src->next(e) == SourceStatus::kOk) dec.on_edge(e, t);
+  const double a = dec.stats().cam_angle_deg;
+  ASSERT_GE(a, 0.0);
+  c.wheel.decoder.cam_window_start_deg = std::fmod(a + 100.0, 360.0);  // misses a and a + 360
+  c.wheel.decoder.cam_window_end_deg = c.wheel.decoder.cam_window_start_deg + 60.0;
+  auto w = cam_window_warnings(c);
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_NE(w[0].find("outside"), std::string::npos) << w[0];
+  c.wheel.decoder.cam_window_start_deg = a + 5.0 < 360.0 ? a + 5.0 : a - 355.0;  // edge 5° from the cam
+  c.wheel.decoder.cam_window_end_deg = c.wheel.decoder.cam_window_start_deg + 360.0;
+  w = cam_window_warnings(c);
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_NE(w[0].find("flip"), std::string::npos) << w[0];
+}
 }  // namespace
 }  // namespace torqued

@@ -1,8 +1,9 @@
 // Crank decoder on synthetic wheels with known truth (tests/io/synthetic_wheel.hpp): every condition of
-// issue 3 "Crank decoder". GIVEN a wheel and a speed profile, WHEN the edges are decoded, THEN tooth index and
-// angle match the truth once synced, and every disturbance is counted.
+// issue 3 "Crank decoder". GIVEN a wheel and a speed profile, WHEN the edges are decoded, THEN tooth index
+// and angle match the truth once synced, and every disturbance is counted.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -10,8 +11,8 @@
 
 #include "alloc_counter.hpp"
 #include "crank_decoder.hpp"
-#include "wheel_names.hpp"
 #include "synthetic_wheel.hpp"
+#include "wheel_names.hpp"
 
 namespace torqued {
 namespace {
@@ -22,8 +23,8 @@ using test::SynthOutput;
 struct Decoded {
   std::vector<ToothEvent> teeth;
   DecoderStats stats;
-  int mismatches = 0;       ///< synced+phased teeth whose index differs from the truth
-  int checked = 0;          ///< synced+phased teeth compared
+  int mismatches = 0;        ///< synced+phased teeth whose index differs from the truth
+  int checked = 0;           ///< synced+phased teeth compared
   double max_angle_err = 0;  ///< rad, over checked teeth
   double max_speed_err = 0;  ///< relative
   std::int64_t first_synced_ns = -1;
@@ -78,7 +79,10 @@ TEST(CrankDecoder, Clean60m2SyncsFastAndNeverLosesSync) {
 }
 
 TEST(CrankDecoder, OtherWheelsByConfigurationOnly) {
-  struct Case { WheelGeometry w; const char* name; };
+  struct Case {
+    WheelGeometry w;
+    const char* name;
+  };
   const std::vector<Case> cases = {
       {test::wheel_nm(36, 1), "36-1"},
       {test::wheel_nm(36, 2), "36-2"},
@@ -284,11 +288,79 @@ TEST(CrankDecoder, CamGivesPhaseAndWithoutCamPhaseStaysUnknown) {
   EXPECT_EQ(off_by_rev, checked);
 }
 
+// Issue 13, cam phase: a cam edge outside a fixed window is a counted cam phase error (never a silent phase);
+// cam_window: auto learns the cam edge's angle and reports it; a cam edge that then comes elsewhere is an
+// error.
+TEST(CrankDecoder, CamOutsideItsWindowIsCountedAndAutoWindowLearnsTheAngle) {
+  SynthOptions o;
+  o.cam_rise_deg = 400.0;  // in the second revolution of the simulator's cycle
+  o.duration_s = 0.4;
+  const auto s = test::synthesize(o);
+  DecoderParams narrow;  // the configured window misses the cam: every synced cam edge is an error
+  narrow.cam_window_start_deg = 100.0;
+  narrow.cam_window_end_deg = 200.0;
+  const auto bad = run(s, o.wheel, narrow);
+  EXPECT_EQ(bad.checked, 0);  // the phase is never claimed
+  EXPECT_GE(bad.stats.cam_phase_errors, 8u);
+
+  DecoderParams autop;
+  autop.cam_window_auto = true;
+  CrankDecoder dec(o.wheel, autop);
+  DecoderEventLog log;
+  dec.set_event_log(&log);
+  std::map<std::int64_t, int> truth;
+  for (const auto& t : s.teeth) truth[t.t_ns] = t.tooth720;
+  ToothEvent ev;
+  int phased = 0, consistent = 0;
+  for (const auto& e : s.edges) {
+    if (dec.on_edge(e, ev) && ev.sync == SyncState::kSynced && ev.phase_known) {
+      ++phased;
+      consistent += ev.tooth == (truth[ev.t_ns] + 58) % 116 ? 1 : 0;  // the cam's revolution is revolution 0
+    }
+  }
+  EXPECT_NEAR(dec.stats().cam_angle_deg, 40.0, 0.5);  // 400° of the cycle, in its own revolution
+  EXPECT_EQ(dec.stats().cam_phase_errors, 0u);
+  EXPECT_GT(phased, 500);
+  EXPECT_EQ(consistent, phased);
+  // Transitions were logged with their edge times: first edge, then synced.
+  DecoderEvent de;
+  ASSERT_TRUE(log.pop(de));
+  EXPECT_EQ(de.kind, DecoderEventKind::kFirstEdge);
+  EXPECT_EQ(de.t_ns, s.edges.front().t_ns);
+  ASSERT_TRUE(log.pop(de));
+  EXPECT_EQ(de.kind, DecoderEventKind::kSynced);
+  EXPECT_EQ(de.to, SyncState::kSynced);
+  EXPECT_TRUE(truth.count(de.t_ns) == 1);
+  EXPECT_FALSE(log.pop(de));
+
+  // Learned, then a stray cam edge 150° away from the learned angle: counted, logged, phase kept.
+  std::vector<EdgeEvent> edges = s.edges;
+  const std::size_t mid = edges.size() * 3 / 4;
+  for (std::size_t k = mid; k < edges.size(); ++k) {
+    if (edges[k].channel == 1 && edges[k].level == 1) {  // a cam rise: add one 150° later (at 3000 rpm)
+      const std::int64_t t = edges[k].t_ns + static_cast<std::int64_t>(150.0 / 18000.0 * 1e9);
+      auto it = std::lower_bound(edges.begin(), edges.end(), t,
+                                 [](const EdgeEvent& a, std::int64_t x) { return a.t_ns < x; });
+      edges.insert(it, {EdgeEvent{t, 1, 1}, EdgeEvent{t + 1000, 1, 0}});
+      break;
+    }
+  }
+  CrankDecoder dec3(o.wheel, autop);
+  dec3.set_event_log(&log);
+  for (const auto& e : edges) dec3.on_edge(e, ev);
+  EXPECT_EQ(dec3.stats().cam_phase_errors, 1u);
+  EXPECT_EQ(dec3.stats().sync_losses, 0u);
+  bool logged = false;
+  while (log.pop(de)) logged = logged || de.kind == DecoderEventKind::kCamPhase;
+  EXPECT_TRUE(logged);
+}
+
 TEST(CrankDecoder, FallingEdgeWheel) {
   SynthOptions o;
   auto s = test::synthesize(o);
   // Invert crank levels: the marking edges are now falling edges.
-  for (auto& e : s.edges) if (e.channel == 0) e.level ^= 1;
+  for (auto& e : s.edges)
+    if (e.channel == 0) e.level ^= 1;
   auto w = o.wheel;
   w.rising_edge = false;
   const auto d = run(s, w);
@@ -341,7 +413,9 @@ TEST(CrankDecoder, StoppingEngineIsNeverMisIndexed) {
     // period was taken for a lost tooth
     EXPECT_EQ(d.mismatches, 0) << w.positions;
     EXPECT_EQ(d.stats.lost_teeth, 0u) << w.positions;
-    EXPECT_GT(d.checked, w.teeth()) << w.positions << " syncs " << d.stats.syncs << " losses " << d.stats.sync_losses << " noise " << d.stats.noise_edges << " " << to_string(d.stats.last_loss_reason);
+    EXPECT_GT(d.checked, w.teeth()) << w.positions << " syncs " << d.stats.syncs << " losses "
+                                    << d.stats.sync_losses << " noise " << d.stats.noise_edges << " "
+                                    << to_string(d.stats.last_loss_reason);
   }
 }
 
@@ -362,7 +436,8 @@ TEST(CrankDecoder, FirstCombustionSqueezesTheGapWithoutLosingSync) {
       t += width / speed;
       edges.push_back(EdgeEvent{static_cast<std::int64_t>(t * 1e9), 0, 1});
       truth.push_back((rev % 2) * 58 + i);
-      if (rev % 2 == 0 && i == 7) edges.push_back(EdgeEvent{static_cast<std::int64_t>(t * 1e9) + 1000, 1, 1});  // cam ~45°
+      if (rev % 2 == 0 && i == 7)
+        edges.push_back(EdgeEvent{static_cast<std::int64_t>(t * 1e9) + 1000, 1, 1});  // cam ~45°
     }
   }
   CrankDecoder dec(w, DecoderParams{});
@@ -393,8 +468,9 @@ namespace torqued {
 namespace {
 
 // Issue 13: "36-2-1" was the mirror image of the Mitsubishi 4B11 wheel. In rotation order it is 17 teeth, one
-// missing, 16 teeth, two missing: after tooth 0 (first tooth after the two-tooth gap) come 16 one-pitch periods,
-// then a two-pitch period (the single gap), 15 more, then the three-pitch gap closing the revolution.
+// missing, 16 teeth, two missing: after tooth 0 (first tooth after the two-tooth gap) come 16 one-pitch
+// periods, then a two-pitch period (the single gap), 15 more, then the three-pitch gap closing the
+// revolution.
 TEST(WheelNames, Mitsubishi36m2m1IsInRotationOrder) {
   WheelGeometry w;
   std::string err;
@@ -408,9 +484,15 @@ TEST(WheelNames, Mitsubishi36m2m1IsInRotationOrder) {
 TEST(WheelNames, CatalogueEntriesAreValidAndUnknownNamesListThem) {
   for (const NamedWheel& n : wheel_catalogue()) {
     WheelGeometry w;
+    DecoderParams p;
     std::string err;
-    ASSERT_TRUE(wheel_from_name(n.name, w, &err)) << n.name << ": " << err;
-    const CrankDecoder dec(w, DecoderParams{});
+    ASSERT_TRUE(trigger_from_name(n.name, w, p, &err)) << n.name << ": " << err;
+    const CrankDecoder dec(w, p);
+    if (n.n_cam > 0 || n.width_coded) {  // pattern wheels: the crank alone cannot identify the position
+      WheelGeometry crank_only;
+      ASSERT_TRUE(wheel_from_name(n.name, crank_only, &err));
+      EXPECT_FALSE(CrankDecoder(crank_only, DecoderParams{}).valid()) << n.name;
+    }
     if (std::string(n.name) == "36-2-2") {  // symmetric: refused with a reason, never a silent non-sync
       EXPECT_FALSE(dec.valid());
       EXPECT_NE(dec.error().find("symmetric"), std::string::npos) << dec.error();

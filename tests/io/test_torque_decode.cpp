@@ -1,9 +1,10 @@
-// torque-decode end to end: runs the executable on synthetic recordings (and the demo when present) and checks
-// its CSV outputs and one-line summary.
+// torque-decode end to end: runs the executable on synthetic recordings (and the demo when present) and
+// checks its CSV outputs and one-line summary.
 #include <gtest/gtest.h>
 
 #include <array>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -69,15 +70,20 @@ TEST(TorqueDecode, SyntheticCaptureWithBadLines) {
 }
 
 TEST(TorqueDecode, CanLogWithDbc) {
-  test::TempFile dbc("VERSION \"\"\nBU_: ECU\nBO_ 256 ENGINE_1: 2 ECU\n SG_ EngineSpeed : 0|16@1+ (0.25,0) [0|16383.75] \"rpm\" X\n"
-                     "VAL_ 256 EngineSpeed 0 \"Stopped\" ;\n",
-                     ".dbc");
-  test::TempFile log("(1700000000.010000) can0 100#E02E\n(1700000000.020000) can0 100#0000\n"
-                     "(1700000000.030000) can0 555#01\nbroken\n(1700000000.040000) can0 100#E0\n");
+  test::TempFile dbc(
+      "VERSION \"\"\nBU_: ECU\nBO_ 256 ENGINE_1: 2 ECU\n SG_ EngineSpeed : 0|16@1+ (0.25,0) [0|16383.75] "
+      "\"rpm\" X\n"
+      "VAL_ 256 EngineSpeed 0 \"Stopped\" ;\n",
+      ".dbc");
+  test::TempFile log(
+      "(1700000000.010000) can0 100#E02E\n(1700000000.020000) can0 100#0000\n"
+      "(1700000000.030000) can0 555#01\nbroken\n(1700000000.040000) can0 100#E0\n");
   test::TempFile out("", ".csv");
-  const ToolRun r = run("--can " + log.path() + " --dbc " + dbc.path() + " --can-offset -1700000000 --out-can " + out.path());
+  const ToolRun r = run("--can " + log.path() + " --dbc " + dbc.path() +
+                        " --can-offset -1700000000 --out-can " + out.path());
   ASSERT_EQ(r.status, 0) << r.out;
-  EXPECT_NE(r.out.find("frames 4 (decoded 2, unknown id 1, bad dlc 1), bad lines 0 edges / 1 can"), std::string::npos)
+  EXPECT_NE(r.out.find("frames 4 (decoded 2, unknown id 1, bad dlc 1), bad lines 0 edges / 1 can"),
+            std::string::npos)
       << r.out;
   const std::string csv = slurp(out.path());
   EXPECT_NE(csv.find("10000000,0.010000,0,0x100,ENGINE_1,EngineSpeed,3000,rpm,\n"), std::string::npos) << csv;
@@ -104,5 +110,58 @@ TEST(TorqueDecode, DemoRecordingThroughConfig) {
   EXPECT_NE(r.out.find("unknown id 0, bad dlc 0), bad lines 0 edges / 0 can"), std::string::npos) << r.out;
 }
 
+}  // namespace
+}  // namespace torqued
+
+namespace torqued {
+namespace {
+// Issue 13: per-revolution speed and the sync/loss/glitch summary, on a real capture (rusEFI's GM 24x
+// cranking, pulse-width coded): one sync, no loss, the revolutions listed, CSV and stdout agree.
+TEST(TorqueDecode, PerRevolutionSpeedAndSyncSummaryOnARealCapture) {
+  const std::string dir = ::testing::TempDir();
+  const std::string revs = dir + "/gm_revs.csv";
+  const auto r =
+      run("--edges " + std::string(TORQUED_SOURCE_DIR) +
+          "/tests/data/captures/rusefi/gm_24x_cranking.csv --wheel gm-24x --cam '' --first-row edges "
+          "--revs --transitions --out-revs " +
+          revs);
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("sync: first at crank edge 8 "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("syncs 1, losses 0"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("width code errors 0"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("debug: "), std::string::npos) << r.out;  // transitions on stderr
+  const std::string csv = slurp(revs);
+  int rows = 0;
+  double last_rpm = 0.0;
+  std::istringstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "t_ns,t_s,rpm");
+  while (std::getline(in, line)) {
+    ++rows;
+    last_rpm = std::stod(line.substr(line.rfind(',') + 1));
+    EXPECT_NE(r.out.find("rev " + std::to_string(rows) + " "), std::string::npos) << rows;
+  }
+  EXPECT_GE(rows, 2);  // 66 teeth = 2.75 revolutions, synced after 8
+  EXPECT_GT(last_rpm, 60.0);
+  EXPECT_LT(last_rpm, 200.0);
+  EXPECT_NE(r.out.find("revolutions " + std::to_string(rows) + ":"), std::string::npos) << r.out;
+}
+
+// --plot writes a PNG (skipped where Debian's python3-matplotlib is missing).
+TEST(TorqueDecode, PlotWritesAPng) {
+  if (std::system("/usr/bin/python3 -c 'import matplotlib' >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "no python3-matplotlib";
+  const std::string png = ::testing::TempDir() + "/decode_plot.png";
+  std::remove(png.c_str());
+  const auto r = run("--edges " + std::string(TORQUED_SOURCE_DIR) +
+                     "/tests/data/captures/rusefi/noisy-trigger-3.csv --wheel 36-2 --cam '' --plot " + png);
+  ASSERT_EQ(r.status, 0) << r.out;
+  const std::string bytes = slurp(png);
+  ASSERT_GT(bytes.size(), 1000u);
+  EXPECT_EQ(bytes.substr(1, 3), "PNG");
+  std::ifstream teeth(png + ".teeth.csv");
+  EXPECT_FALSE(teeth.good());  // the temporary per-tooth CSV is removed
+}
 }  // namespace
 }  // namespace torqued

@@ -14,11 +14,15 @@ PKGS=(
   can-utils iproute2
   python3 python3-matplotlib python3-numpy
   debhelper dpkg-dev help2man lintian
+  libcivetweb-dev nlohmann-json3-dev libjs-chart.js   # torque-dash (HTTP/WebSocket server, JSON, page plots)
 )
 # Extra packages only the heavier test tiers need (VM for vcan, latency tools, foreign DDS peer, a real
 # Prometheus server scraping the metrics endpoint).
 if [[ "${TORQUED_DEPS_FULL:-1}" == "1" ]]; then
   PKGS+=(qemu-system-x86 busybox-static cpio rt-tests stress-ng libfastrtps-dev fastddsgen prometheus curl)
+  # torque-dash tests: Debian's Chromium (driven by playwright-core, no browser download) and Node.js/npm for
+  # the Foxglove client (@foxglove/ws-protocol) and the MCAP reference reader (@mcap/core).
+  PKGS+=(chromium nodejs)  # npm comes with the machine's Node.js (nodejs package)
 fi
 
 missing=()
@@ -28,7 +32,21 @@ for p in "${PKGS[@]}"; do
   fi
 done
 
+# npm packages of the torque-dash tests, into the project-local tools/dash/node_modules (in .gitignore), at the
+# versions of tools/dash/package-lock.json; only when missing or older than the lock file.
+npm_deps() {
+  [[ "${TORQUED_DEPS_FULL:-1}" == "1" ]] || return 0
+  local dir
+  dir="$(cd "$(dirname "${BASH_SOURCE[0]}")/../dash" && pwd)"
+  command -v npm >/dev/null || return 0
+  if [[ ! -f "$dir/node_modules/.package-lock.json" || "$dir/package-lock.json" -nt "$dir/node_modules/.package-lock.json" ]]; then
+    echo "setup-deps: installing the torque-dash test packages (npm ci in $dir)"
+    (cd "$dir" && npm ci --no-audit --no-fund --loglevel=error >/dev/null)
+  fi
+}
+
 if ((${#missing[@]} == 0)); then
+  npm_deps
   exit 0
 fi
 
@@ -38,4 +56,5 @@ if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
 $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+npm_deps
 echo "setup-deps: done"

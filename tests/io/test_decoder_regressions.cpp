@@ -1,0 +1,225 @@
+// Regression tests for the decoder failures of issue 13, one per failure, each failing on the decoder before
+// issue 13 (commit ea708b6; checked by building this file against that commit's torqued_io, see docs/io.md).
+// Edge streams are built by hand so each test shows exactly the signal that failed: constant speed, and only
+// the disturbance under test. The wheel is given as a tooth list so the old wheel names play no part.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include "crank_decoder.hpp"
+
+namespace torqued {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+WheelGeometry runs_wheel(int positions, const std::vector<int>& runs, bool rising = true) {
+  WheelGeometry w;
+  w.positions = positions;
+  int pos = 0, n = 0;
+  for (std::size_t r = 0; r < runs.size(); ++r) {
+    if (r % 2 == 0) {
+      for (int i = 0; i < runs[r]; ++i)
+        w.tooth_angles_deg[static_cast<std::size_t>(n++)] = 360.0 * (pos++) / positions;
+    } else {
+      pos += runs[r];
+    }
+  }
+  w.tooth_count = n;
+  w.missing = positions - n;
+  w.rising_edge = rising;
+  return w;
+}
+
+/// One tooth edge per tooth at constant speed `rpm` from angle 0 (tooth 0 of the first revolution), with
+/// `shift_pitch(rev, tooth)` moving each edge by that many pitches (negative = early). Each marking edge is
+/// followed by the opposite edge a quarter pitch later.
+struct Stream {
+  std::vector<EdgeEvent> edges;
+  std::vector<std::pair<std::int64_t, int>>
+      truth;  ///< (time, tooth index within a revolution) per real tooth
+};
+
+template <class Shift>
+Stream make_stream(const WheelGeometry& w, double rpm, int revs, Shift shift_pitch) {
+  Stream s;
+  const double rev_ns = 60e9 / rpm, pitch_ns = rev_ns / w.positions;
+  const std::uint8_t mark = w.rising_edge ? 1 : 0;
+  for (int rev = 0; rev < revs; ++rev) {
+    for (int i = 0; i < w.teeth(); ++i) {
+      const double t = 1e9 + rev * rev_ns + w.tooth_angles_deg[static_cast<std::size_t>(i)] / 360.0 * rev_ns +
+                       shift_pitch(rev, i) * pitch_ns;
+      s.edges.push_back(EdgeEvent{static_cast<std::int64_t>(std::llround(t)), 0, mark});
+      s.edges.push_back(EdgeEvent{static_cast<std::int64_t>(std::llround(t + 0.25 * pitch_ns)), 0,
+                                  static_cast<std::uint8_t>(1 - mark)});
+      s.truth.emplace_back(s.edges[s.edges.size() - 2].t_ns, i);
+    }
+  }
+  return s;
+}
+
+struct Result {
+  DecoderStats stats;
+  int wrong_index = 0;  ///< synced teeth whose index is not the true one
+  int synced = 0;
+  std::vector<ToothEvent> teeth;
+};
+
+/// Decodes; a synced tooth's index is checked against the real tooth at the same time (a synced tooth at the
+/// time of no real tooth, a glitch taken for a tooth, is wrong too).
+Result run(const WheelGeometry& w, const DecoderParams& p, const Stream& s) {
+  Result r;
+  CrankDecoder dec(w, p);
+  EXPECT_TRUE(dec.valid()) << dec.error();
+  ToothEvent t;
+  std::size_t k = 0;
+  for (const auto& e : s.edges) {
+    if (!dec.on_edge(e, t)) continue;
+    r.teeth.push_back(t);
+    if (t.sync != SyncState::kSynced) continue;
+    ++r.synced;
+    while (k < s.truth.size() && s.truth[k].first < t.t_ns) ++k;
+    if (k == s.truth.size() || s.truth[k].first != t.t_ns || t.tooth % w.teeth() != s.truth[k].second)
+      ++r.wrong_index;
+  }
+  r.stats = dec.stats();
+  return r;
+}
+
+// 4B11 36-2-1 on rising edges: the single gap (2 pitches) measures 1.8 and the tooth after it 1.16 pitch
+// (its edge early by 0.2 and 0.04 pitch). Against the trend-scaled prediction that tooth's ratio is 1.43,
+// which the old decoder called a lost tooth (any ratio above √2, tested before the normal window), and the
+// wrong width then dropped sync every revolution.
+TEST(DecoderRegression, ToothInsideTheNormalWindowAfterAGapIsNotLost) {
+  const WheelGeometry w = runs_wheel(36, {17, 1, 16, 2});  // 4B11 in rotation order
+  const Stream s =
+      make_stream(w, 1420.0, 30, [](int, int i) { return i == 17 ? -0.2 : (i == 18 ? -0.04 : 0.0); });
+  const Result r = run(w, DecoderParams{}, s);
+  EXPECT_EQ(r.stats.syncs, 1u);
+  EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
+  EXPECT_EQ(r.stats.lost_teeth, 0u);
+  EXPECT_EQ(r.wrong_index, 0);
+  EXPECT_GT(r.synced, 28 * w.teeth());
+}
+
+// One glitch edge at 0.55 of a period (not a runt, too short for a tooth) drops sync; the decoder must be
+// synced again within one revolution. The old one took the glitch period as its reference: every real tooth
+// after it looked like a gap and it never resynced.
+TEST(DecoderRegression, ResyncWithinOneRevolutionAfterAGlitch) {
+  const WheelGeometry w = runs_wheel(36, {35, 1});  // 36-1
+  Stream s = make_stream(w, 3000.0, 12, [](int, int) { return 0.0; });
+  const double pitch_ns = 60e9 / 3000.0 / 36;
+  // glitch: an extra rising edge 0.55 pitch after tooth 10 of revolution 4, and its falling edge
+  std::size_t at = 0;
+  for (std::size_t k = 0, m = 0; k < s.edges.size(); ++k) {
+    if (s.edges[k].level == 1 && m++ == 4 * 35 + 10) at = k;
+  }
+  const std::int64_t tg = s.edges[at].t_ns + static_cast<std::int64_t>(0.55 * pitch_ns);
+  s.edges.insert(s.edges.begin() + static_cast<long>(at) + 2,
+                 {EdgeEvent{tg, 0, 1}, EdgeEvent{tg + 2000, 0, 0}});
+  const Result r = run(w, DecoderParams{}, s);
+  ASSERT_GE(r.stats.syncs, 1u);
+  EXPECT_LE(r.stats.sync_losses, 1u);
+  // After the glitch: synced again no more than one revolution (35 teeth) later, and synced to the end.
+  int unsynced_after = 0;
+  bool seen_glitch = false;
+  for (const auto& t : r.teeth) {
+    if (t.t_ns >= tg) seen_glitch = true;
+    if (seen_glitch && t.sync != SyncState::kSynced) ++unsynced_after;
+  }
+  EXPECT_LE(unsynced_after, 35);
+  EXPECT_EQ(r.teeth.back().sync, SyncState::kSynced);
+  EXPECT_EQ(r.wrong_index, 0);
+}
+
+// 4B11 on falling edges: a 0.25 µs glitch pulse at 0.47 of a period. It is noise (counted), not a sync loss.
+TEST(DecoderRegression, QuarterMicrosecondGlitchAtPoint47OfAPeriodKeepsSync) {
+  const WheelGeometry w = runs_wheel(36, {17, 1, 16, 2}, false);
+  Stream s = make_stream(w, 1420.0, 10, [](int, int) { return 0.0; });
+  const double pitch_ns = 60e9 / 1420.0 / 36;
+  std::vector<EdgeEvent> out;
+  int marks = 0;
+  std::int64_t glitch_t = 0;
+  for (const auto& e : s.edges) {
+    out.push_back(e);
+    if (e.level == 0 && ++marks == 5 * 33 + 5) {  // after tooth 5 of revolution 5: 0.47 pitch later, 250 ns
+      glitch_t = e.t_ns + static_cast<std::int64_t>(0.47 * pitch_ns);
+    }
+    if (glitch_t > 0 && e.level == 1 && e.t_ns < glitch_t) {
+      out.push_back(EdgeEvent{glitch_t, 0, 0});
+      out.push_back(EdgeEvent{glitch_t + 250, 0, 1});
+      glitch_t = -1;
+    }
+  }
+  s.edges = out;
+  const Result r = run(w, DecoderParams{}, s);
+  EXPECT_EQ(r.stats.syncs, 1u);
+  EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
+  EXPECT_EQ(r.stats.noise_edges, 1u);
+  EXPECT_EQ(r.wrong_index, 0);
+}
+
+// Cranking at 300 rpm on a 36-2 wheel with ±10 % of a period of jitter on every edge (tooth-to-tooth period
+// ratios up to ±20 %, as on noisy-trigger-1): the old decoder's trend-extrapolated prediction turned the
+// jitter into unexpected gaps and dropped sync.
+TEST(DecoderRegression, CrankingSpeedRippleDoesNotDropSync) {
+  const WheelGeometry w = runs_wheel(36, {34, 2});
+  std::uint32_t seed = 12345u;
+  auto jitter = [&seed](int, int) {
+    seed = seed * 1664525u + 1013904223u;
+    return 0.2 * (static_cast<double>(seed >> 8) / 16777216.0 - 0.5);  // ±0.1 pitch
+  };
+  const Stream s = make_stream(w, 300.0, 12, jitter);
+  const Result r = run(w, DecoderParams{}, s);
+  EXPECT_EQ(r.stats.syncs, 1u);
+  EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
+  EXPECT_EQ(r.wrong_index, 0);
+  EXPECT_GT(r.synced, 10 * w.teeth());
+}
+
+#ifndef TORQUED_DECODER_BEFORE_ISSUE_13  // min_pulse_us did not exist before issue 13
+// Contact bounce on rising edges: 5 % of a period before every 7th tooth a 0.25 µs pulse. Without the
+// debounce its first edge is taken as the tooth (that tooth's speed 5 % off, the next one's the other way);
+// with min_pulse_us = 1 both of its edges are dropped and counted, and every tooth's speed is exact.
+TEST(DecoderRegression, MinPulseDebounceDropsBouncesAndKeepsToothTimes) {
+  const WheelGeometry w = runs_wheel(60, {58, 2});
+  const double rpm = 2000.0, pitch_ns = 60e9 / rpm / 60;
+  Stream s = make_stream(w, rpm, 8, [](int, int) { return 0.0; });
+  std::vector<EdgeEvent> out;
+  int bounces = 0, marks = 0;
+  for (const auto& e : s.edges) {
+    if (e.level == 1 && ++marks % 7 == 0) {
+      const auto tb = e.t_ns - static_cast<std::int64_t>(0.05 * pitch_ns);
+      out.push_back(EdgeEvent{tb, 0, 1});
+      out.push_back(EdgeEvent{tb + 250, 0, 0});
+      ++bounces;
+    }
+    out.push_back(e);
+  }
+  s.edges = out;
+  const double true_rad_s = rpm * 2.0 * kPi / 60.0;
+  auto max_err = [&](const Result& r) {
+    double m = 0.0;
+    for (const auto& t : r.teeth) {
+      if (t.sync == SyncState::kSynced && t.events == 0)
+        m = std::max(m, std::abs(t.speed_rad_s / true_rad_s - 1.0));
+    }
+    return m;
+  };
+  DecoderParams p;
+  const Result off = run(w, p, s);
+  EXPECT_GT(max_err(off), 0.03);  // without the filter the bounce moves the tooth times
+  p.min_pulse_us = 1.0;
+  const Result on = run(w, p, s);
+  EXPECT_EQ(on.stats.debounced_edges, static_cast<std::uint64_t>(bounces));
+  EXPECT_EQ(on.stats.rejected_edges, on.stats.debounced_edges + on.stats.noise_edges);
+  EXPECT_EQ(on.stats.sync_losses, 0u);
+  EXPECT_EQ(on.wrong_index, 0);
+  EXPECT_LT(max_err(on), 1e-4);
+}
+#endif
+
+}  // namespace
+}  // namespace torqued
