@@ -55,6 +55,6 @@ PY
 sed -e "s#\.\./data/demo#$src/data/demo#" -e "s#dbc: demo.dbc#dbc: $src/config/demo.dbc#" \
     -e "s#speed: 1.0#speed: 20.0\n  exit_when_done: true#" "$src/config/demo.yaml" >"$tmp/paced.yaml"
 timeout 30 "$build/daemon/torqued" --config "$tmp/paced.yaml" --no-dds --fresh-state >"$tmp/paced.log" 2>&1; rc=$?
-((rc == 0)) && grep -q "replay finished: input consumed; stopping" "$tmp/paced.log" ||
+((rc == 0)) && grep -q "end of the recording reached; stopping" "$tmp/paced.log" ||
   fail "paced replay with replay.exit_when_done: exit $rc, $(tail -3 "$tmp/paced.log")"
 echo "PASS"
