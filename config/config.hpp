@@ -155,6 +155,13 @@ struct OutputConfig {
 struct ReplayConfig {
   ReplayMode mode = ReplayMode::kFast;
   double speed = 1.0;       ///< paced replay speed factor (2 = twice real time)
+  bool exit_when_done = false;  ///< paced replay: exit once the recording is consumed (= --exit-when-done)
+};
+
+/// Prometheus exposition endpoint (daemon/metrics.hpp), served by its own threads, never the real-time ones.
+struct MetricsConfig {
+  bool enabled = false;
+  std::string address = "127.0.0.1:9464";  ///< HOST:PORT to listen on (loopback unless you mean otherwise)
 };
 
 struct LoggingConfig {
@@ -173,6 +180,7 @@ struct Config {
   RealtimeConfig realtime;
   OutputConfig output;
   ReplayConfig replay;
+  MetricsConfig metrics;
   LoggingConfig logging;
 };
 

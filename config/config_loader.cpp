@@ -124,6 +124,7 @@ class Loader {
     cfg_.wheel.decoder.use_cam = !cfg_.wheel.cam_channel.empty();
     cfg_.wheel.decoder.cam_rising = cfg_.wheel.cam_rising_edge;
     check_wheel_keys();
+    check_metrics_address();
     check_files();
     for (const auto& p : check_config_physics(cfg_)) {
       if (failed_.count(p.key)) continue;  // already reported as a bad value
@@ -290,6 +291,21 @@ class Loader {
     }
     values_[key] = node_text(n);
     e.set(cfg_, v);
+  }
+
+  /// metrics.address: HOST:PORT (PORT 1..65535; [v6]:PORT allowed), checked so the service fails at --check-config.
+  void check_metrics_address() {
+    const std::string& a = cfg_.metrics.address;
+    const auto colon = a.rfind(':');
+    bool ok = colon != std::string::npos && colon > 0 && colon + 1 < a.size() && colon + 6 >= a.size();
+    long port = 0;
+    for (std::size_t i = colon + 1; ok && i < a.size(); ++i) {
+      ok = a[i] >= '0' && a[i] <= '9';
+      port = port * 10 + (a[i] - '0');
+    }
+    if (ok && port >= 1 && port <= 65535) return;
+    const char* k = "metrics.address";
+    add(mark_of(k), k, a, "HOST:PORT, e.g. 127.0.0.1:9464 (port 1..65535)");
   }
 
   void check_wheel_keys() {

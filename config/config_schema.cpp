@@ -272,6 +272,14 @@ void add_rest(std::vector<SchemaEntry>& t) {
                                  {{"fast", ReplayMode::kFast}, {"paced", ReplayMode::kPaced}},
                                  "file replay as fast as possible (deterministic) or keeping the recording's timing"));
   t.push_back(number("replay.speed", TQ_REF(double, replay.speed), positive(1000.0), "x", "paced replay speed factor"));
+  t.push_back(boolean("replay.exit_when_done", TQ_REF(bool, replay.exit_when_done),
+                      "paced replay: exit (status 0) once the recording is consumed; else keep running and say so "
+                      "(= --exit-when-done)"));
+  t.push_back(boolean("metrics.enabled", TQ_REF(bool, metrics.enabled),
+                      "serve Prometheus metrics (text exposition format) on metrics.address at /metrics"));
+  t.push_back(text("metrics.address", TQ_REF(std::string, metrics.address),
+                   "HOST:PORT of the metrics endpoint (loopback by default; 0.0.0.0:PORT exposes it on every "
+                   "interface)"));
   t.push_back(choice<LogLevel>("logging.level", TQ_REF(LogLevel, logging.level),
                                {{"trace", LogLevel::kTrace}, {"debug", LogLevel::kDebug}, {"info", LogLevel::kInfo},
                                 {"warn", LogLevel::kWarn}, {"error", LogLevel::kError}, {"critical", LogLevel::kCritical},

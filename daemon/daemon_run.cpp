@@ -21,6 +21,7 @@
 #include "supervisor.hpp"
 #include "replay_inputs.hpp"
 #include "logging.hpp"
+#include "metrics.hpp"
 #include "output_fanout.hpp"
 #include "rt_setup.hpp"
 #include "runtime.hpp"
@@ -153,14 +154,26 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
     wait_for_subscribers(*publisher, opt);
   }
   OutputFanout fanout(recorder.get(), publisher.get(), s.dds.engine_id);
+  // Metrics (metrics.enabled, daemon/metrics.hpp): a tap in front of the output, served by its own threads.
+  std::unique_ptr<metrics::MetricsServer> metrics;
+  if (cfg.metrics.enabled) {
+    std::string merr;
+    metrics = metrics::MetricsServer::start(cfg.metrics, fanout, state_path(cfg, opt), &merr);
+    if (!metrics) {
+      spdlog::critical("{}", merr);
+      return 1;
+    }
+    spdlog::info("metrics: http://{}/metrics", cfg.metrics.address);
+  }
+  SampleSink& out = metrics ? metrics->sink() : static_cast<SampleSink&>(fanout);
 
   if (fast) {
-    const int rc = run_fast(s, cfg, opt, edges.get(), can.get(), dbc ? &*dbc : nullptr, fanout);
+    const int rc = run_fast(s, cfg, opt, edges.get(), can.get(), dbc ? &*dbc : nullptr, out);
     if (recorder) recorder->flush(true);
     return recording_failed(recorder.get()) ? std::max(rc, 3) : rc;
   }
 
-  const int rc = run_supervised(cfg, opt, in, recorder.get(), fanout);
+  const int rc = run_supervised(cfg, opt, in, recorder.get(), out);
   if (publisher)
     spdlog::info("dds: {} samples written ({} through shared-memory loans), {} write errors",
                  publisher->written(), publisher->loaned_writes(), publisher->write_errors());

@@ -2,6 +2,7 @@
 //   torqued --check-config FILE   validate a configuration, print every error (FILE:LINE:COL: ...), exit 0/1
 //   torqued --print-schema [yaml|text]  print every configuration key with default, bounds, unit, description
 //   torqued --config FILE         run (pipelines are wired by the daemon part; see docs/daemon.md)
+// Exit statuses: the footer of --help (app.footer below).
 #include <cstdio>
 #include <iostream>
 #include <string>
@@ -69,10 +70,19 @@ int main(int argc, char** argv) {
   app.add_option("--wait-subscribers", run.wait_subscribers, "wait (up to 10 s) for this many EngineTorque readers");
   check_opt->excludes(run_opt);
   schema_opt->excludes(run_opt)->excludes(check_opt);
+  app.footer(
+      "Exit status:\n"
+      "  0  run ended normally (SIGTERM/SIGINT, end of a fast replay, --exit-when-done); --check-config: valid\n"
+      "  1  configuration refused (every error printed as FILE:LINE:COL), an input/DDS/metrics endpoint could not\n"
+      "     be opened, the real-time set-up was refused with realtime.require_rt, or the drain at stop timed out\n"
+      "  2  command-line error: no --config/--check-config/--print-schema, unknown option, bad value, or a file\n"
+      "     that does not exist\n"
+      "  3  the CSV recording (output.record_dir / --record) failed; estimation and publishing went on");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    const int rc = app.exit(e);  // prints the message (or the help / version)
+    return rc == 0 ? 0 : 2;
   }
 
   if (*schema_opt) {
@@ -86,7 +96,9 @@ int main(int argc, char** argv) {
   }
   if (*check_opt) return check_config(check_path, !no_file_checks);
   if (!*run_opt) {
-    std::cerr << app.help();
+    std::cerr << "torqued: nothing to do: give --config FILE to run, --check-config FILE to validate a "
+                 "configuration, or --print-schema\n\n"
+              << app.help();
     return 2;
   }
 
@@ -103,5 +115,6 @@ int main(int argc, char** argv) {
   if (*speed_opt) run.speed = speed;
   if (*record_opt) run.record_dir = record_dir;
   if (*state_opt) run.state_dir = state_dir;
+  if (r.config->replay.exit_when_done) run.exit_when_done = true;  // config twin of --exit-when-done
   return torqued::run_daemon(*r.config, run);
 }

@@ -1,5 +1,5 @@
 #pragma once
-// Fixed-capacity single-producer/single-consumer lock-free ring (after rigtorp/SPSCQueue, CONVENTIONS.md).
+// Fixed-capacity single-producer/single-consumer lock-free ring (after rigtorp/SPSCQueue, github.com/rigtorp/SPSCQueue).
 // Why our own and not moodycamel/Boost: a full ring must drop the NEWEST record and count it, never allocate
 // and never block; the benchmark tests/daemon/bench_ring.cpp compares it with both libraries.
 //

@@ -3,6 +3,8 @@
 // is not told the simulator's friction law), then imported into every scenario, as the daemon would persist
 // it.
 #include <CLI/CLI.hpp>
+
+#include "cli_exit.hpp"
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
@@ -177,7 +179,8 @@ int main(int argc, char** argv) {
   app.add_option("--fourier-harmonics", fourier.harmonics, "Fourier observer n_h");
   app.add_option("--fourier-gain-ref-rpm", fourier.gain_ref_rpm,
                  "Fourier observer gain reference speed (rpm)");
-  CLI11_PARSE(app, argc, argv);
+  app.footer("Exit status: 0 done (tables printed); 1 a recording could not be read or the output not written; 2 command-line error (unknown option, bad value, file that does not exist) or --config refused / its inputs cannot be opened.");
+  TORQUED_CLI_PARSE(app, argc, argv);
   if (!rec.config_path.empty()) {
     if (rec.out_dir.empty()) rec.out_dir = "accuracy-out";
     return torqued::eval::run_recording(rec);

@@ -13,6 +13,8 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+
+#include "cli_exit.hpp"
 #include <cerrno>
 #include <chrono>
 #include <cinttypes>
@@ -176,7 +178,8 @@ int main(int argc, char** argv) {
   snd->add_option("--speed", speed, "replay speed factor (2 = twice as fast)")->check(CLI::Range(1e-3, 1e3));
   snd->add_flag("--fast", fast, "ignore timestamps: as fast as the socket accepts");
 
-  CLI11_PARSE(app, argc, argv);
+  app.footer("Exit status: 0 done; 1 an input could not be read or parsed, the output not written, or SocketCAN refused; 2 command-line error (unknown option, bad value, file that does not exist).");
+  TORQUED_CLI_PARSE(app, argc, argv);
   if (enc->parsed()) {
     try {
       cfg.id = static_cast<std::uint32_t>(std::stoul(id_text, nullptr, 0));

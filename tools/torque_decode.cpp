@@ -5,6 +5,8 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+
+#include "cli_exit.hpp"
 #include <algorithm>
 #include <chrono>
 #include <cinttypes>
@@ -184,7 +186,8 @@ int main(int argc, char** argv) {
   app.add_option("--plot-script", o.plot_script,
                  "plot script (default: the source tree's tools/scripts/plot_decode.py)");
   app.add_flag("-q,--quiet", o.quiet, "no progress display");
-  CLI11_PARSE(app, argc, argv);
+  app.footer("Exit status: 0 done; 1 an input could not be read or parsed, or an output not written; 2 command-line error (unknown option, bad value, file that does not exist, inconsistent options).");
+  TORQUED_CLI_PARSE(app, argc, argv);
   o.can_offset_given = app.count("--can-offset") > 0;
 
   WheelGeometry wheel;

@@ -22,6 +22,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "cli_exit.hpp"
 #include "dds/dds.h"
 #include "qos.hpp"
 #include "sample.hpp"
@@ -33,6 +34,48 @@ volatile sig_atomic_t g_stop = 0;
 void on_signal(int) { g_stop = 1; }
 
 using namespace torqued;
+
+/// Printed once under each table's header: what the coded columns mean (idl/torque.idl).
+constexpr const char* kHealthCodes =
+    "0 valid, 1 not converged, 2 not excited, 3 stale input, 4 invalid input, 5 no sync, 6 numerical, 7 "
+    "disabled";
+template <class T>
+const char* table_legend() {
+  if constexpr (std::is_same_v<T, torque_EngineTorque>)
+    return "# brake = indicated - friction (N m); fused = best brake estimate, \"=brake\" when it is the "
+           "brake value\n"
+           "# itself; src = method the fused value relies on most; q = quality (Health of fused: see "
+           "below);\n"
+           "# valid = validity bits: 0x01 no sync, 0x02 stale CAN, 0x04 not converged, 0x08 estimator "
+           "fault,\n"
+           "# 0x10 drops upstream (0x00 = fully valid)\n";
+  else if constexpr (std::is_same_v<T, torque_CrankState>)
+    return "# sync: 0 no signal, 1 syncing, 2 synced, 3 lost sync, 4 stalled; tooth -1 = not synced\n";
+  else if constexpr (std::is_same_v<T, torque_DaemonStatus>)
+    return "# health: 0 ok, 1 degraded, 2 failed; flags: 0x01 RT not permitted, 0x02 mlock failed, 0x04 edge "
+           "time-out,\n"
+           "# 0x08 CAN time-out, 0x10 no sync, 0x20 drops, 0x40 replay done, 0x80 draining\n";
+  else
+    return nullptr;
+}
+
+/// EngineTorque row of the live table: as dds::append_table_row, but the fused column says "=brake" when the
+/// fused value is the brake value (no second identical column of numbers) and names its source method.
+void append_engine_row(std::string& out, const torque_EngineTorque& s) {
+  char fused[16], line[200];
+  if (s.fused_nm == s.brake_nm)
+    std::snprintf(fused, sizeof fused, "%7s", "=brake");
+  else
+    std::snprintf(fused, sizeof fused, "%7.1f", s.fused_nm);
+  const char* src = s.fused_source < dds::kMethodCount ? dds::kMethodNames[s.fused_source].data() : "?";
+  std::snprintf(line, sizeof line, "%8.3f %-5s %5u %5.0f %7.1f %7.1f %7.1f %7.1f %s %-13s %2u 0x%02x\n",
+                static_cast<double>(s.source_t_ns) * 1e-9, s.kind == torque_KIND_CYCLE ? "cycle" : "seg",
+                s.cycle, s.speed_rad_s * 30.0 / 3.141592653589793, s.brake_nm, s.indicated_nm, s.friction_nm,
+                s.load_nm, fused, src, unsigned{s.quality}, s.validity);
+  out += line;
+}
+constexpr const char* kEngineHeader =
+    "   t [s] kind   cyc  rpm     brake   indic   frict    load   fused src            q valid\n";
 
 struct Options {
   std::vector<std::string> topics{"engine"};
@@ -204,10 +247,21 @@ class Echo {
           dds::append_json(line_, s);
         } else {
           if (!header_done_[static_cast<std::size_t>(t)]) {
-            line_ += dds::table_header<T>();
+            if constexpr (std::is_same_v<T, torque_EngineTorque>)
+              line_ += kEngineHeader;
+            else
+              line_ += dds::table_header<T>();
+            if (const char* legend = table_legend<T>()) line_ += legend;
+            if constexpr (std::is_same_v<T, torque_EstimatorTorque>)
+              line_ += std::string("# health: ") + kHealthCodes + "\n";
+            if constexpr (std::is_same_v<T, torque_EngineTorque>)
+              line_ += std::string("# q: ") + kHealthCodes + "\n";
             header_done_[static_cast<std::size_t>(t)] = true;
           }
-          dds::append_table_row(line_, s);
+          if constexpr (std::is_same_v<T, torque_EngineTorque>)
+            append_engine_row(line_, s);
+          else
+            dds::append_table_row(line_, s);
         }
         std::fwrite(line_.data(), 1, line_.size(), stdout);
       }
@@ -254,7 +308,10 @@ int main(int argc, char** argv) {
   app.add_option("--idle-exit", o.idle_exit_s,
                  "exit when no sample arrived for this many seconds (after the first)");
   app.add_flag("--quiet,-q", o.quiet, "no summary line on stderr");
-  CLI11_PARSE(app, argc, argv);
+  app.footer(
+      "Exit status: 0 done (signal, --count, --duration, --idle-exit or --until-done); 1 DDS error; 2 "
+      "command-line error (unknown option, bad value); 3 the daemon's writers are gone (--exit-on-lost).");
+  TORQUED_CLI_PARSE(app, argc, argv);
 
   struct sigaction sa {};
   sa.sa_handler = on_signal;

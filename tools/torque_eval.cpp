@@ -9,6 +9,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "cli_exit.hpp"
+
 #include "evaluator.hpp"
 
 #ifndef TORQUED_PLOT_SCRIPT
@@ -55,7 +57,8 @@ int main(int argc, char** argv) {
   app.add_option("--plot", plot, "write a PNG of estimated vs true torque");
   app.add_option("--plot-script", plot_script, "plot script (run with /usr/bin/python3)")->capture_default_str();
   app.add_option("--title", title, "plot title");
-  CLI11_PARSE(app, argc, argv);
+  app.footer("Exit status: 0 done (table printed, plot written); 1 a CSV could not be read or parsed, a column is not in it (the columns that exist are listed), or the plot failed; 2 command-line error (unknown option, bad value, file that does not exist).");
+  TORQUED_CLI_PARSE(app, argc, argv);
 
   if (truth_cycle.empty() && truth_tooth.empty()) {
     std::cerr << "error: give --truth (truth_cycle.csv) and/or --truth-tooth (truth_tooth.csv)\n";

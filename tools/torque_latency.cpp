@@ -16,6 +16,8 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+
+#include "cli_exit.hpp"
 #include <algorithm>
 #include <array>
 #include <cerrno>
@@ -336,7 +338,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--title", title, "plot title");
   app.add_flag("--keep-logs", keep_logs, "keep the temporary directory with the daemon's and helpers' logs");
-  CLI11_PARSE(app, argc, argv);
+  app.footer("Exit status: 0 done; 1 no latency sample measured, the daemon could not be started or DDS failed; 2 command-line error (unknown option, bad value, file that does not exist).");
+  TORQUED_CLI_PARSE(app, argc, argv);
 
   // The daemon's DDS settings: same domain, topic prefix and engine_id as the daemon this run starts.
   const LoadResult cfg = load_config(config);

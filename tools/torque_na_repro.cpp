@@ -3,6 +3,8 @@
 // speed-stepped scenario with Gaussian noise on speed and load, and prints ISE, MAE, SD over 5-30 s.
 #include <CLI/CLI.hpp>
 
+#include "cli_exit.hpp"
+
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -32,7 +34,8 @@ int main(int argc, char** argv) {
   app.add_option("--lambda1", repro.sliding.lambda1_nm, "sliding-mode gain (N m)")->check(CLI::PositiveNumber);
   app.add_flag("--square", square, "2000/3000 rpm square speed reference (Na 2015) instead of the 2017 steps");
   app.add_option("--csv", csv_path, "write t_s, truth and every estimate per sample to this CSV");
-  CLI11_PARSE(app, argc, argv);
+  app.footer("Exit status: 0 done; 1 the output could not be written; 2 command-line error (unknown option, bad value).");
+  TORQUED_CLI_PARSE(app, argc, argv);
 
   repro.sliding.k_s = repro.dirty.k_s = repro.adaptive.k_s = repro.uio.k_s;
   if (square) {

@@ -1,6 +1,8 @@
 // torque-sim: crank-angle-resolved engine simulator with ground truth (docs/simulator.md).
 #include <CLI/CLI.hpp>
 
+#include "cli_exit.hpp"
+
 #include <chrono>
 #include <cstdio>
 #include <exception>
@@ -25,7 +27,7 @@ int main(int argc, char** argv) {
       "  truth_cycle.csv  per 720 deg cycle: means, per-cylinder indicated torque, misfire and fuel-cut flags\n"
       "  engine.yaml      engine: and wheel: sections for the torqued config\n"
       "  tooth_errors.csv true machining error of each tooth (tests only)\n"
-      "With --mode mean-value it runs the Crossley & Cook mean-value engine of Na et al. (ESTIMATORS.md 1.5) in\n"
+      "With --mode mean-value it runs the Crossley & Cook mean-value engine of Na et al. 2017 (docs/time_estimators.md) in\n"
       "their speed-step scenario instead and writes mean_value.csv (measured and true speed, load, air flow, torque).\n"
       "Example: torque-sim --scenario demo --out data/demo"};
   std::string scenario = "demo";
@@ -46,7 +48,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"crank", "mean-value"}));
   app.add_option("--noise", noise, "mean-value mode: measurement noise scale (1 = Na's 10 rpm / 2 N m / 0.5 g/s)")
       ->check(CLI::Range(0.0, 100.0));
-  CLI11_PARSE(app, argc, argv);
+  app.footer("Exit status: 0 done; 1 unknown scenario, simulation or writing the output failed (message on stderr); 2 command-line error (unknown option, bad value, no --out).");
+  TORQUED_CLI_PARSE(app, argc, argv);
 
   try {
     if (list) {

@@ -11,19 +11,29 @@ namespace {
 
 /// Index of the truth cycle containing t ([t_start, t_end), or (t_start, t_end] when end_closed); -1 if none.
 long find_cycle(const std::vector<double>& t0, const std::vector<double>& t1, double t, bool end_closed) {
-  auto it = end_closed ? std::lower_bound(t0.begin(), t0.end(), t) : std::upper_bound(t0.begin(), t0.end(), t);
+  auto it =
+      end_closed ? std::lower_bound(t0.begin(), t0.end(), t) : std::upper_bound(t0.begin(), t0.end(), t);
   if (it == t0.begin()) return -1;
   const std::size_t c = static_cast<std::size_t>(it - t0.begin()) - 1;
   const bool inside = end_closed ? (t > t0[c] && t <= t1[c]) : (t >= t0[c] && t < t1[c]);
   return inside ? static_cast<long>(c) : -1;
 }
 
+/// "a, b, c": the header of a CSV, for messages naming a column that is not there.
+std::string join_names(const CsvTable& t) {
+  std::string out;
+  for (const auto& n : t.names) out += (out.empty() ? "" : ", ") + n;
+  return out.empty() ? "(none)" : out;
+}
+
 std::string fmt(double v, int prec = 3) {
   if (!std::isfinite(v)) return "-";
   char buf[64];
   const double a = std::abs(v);
-  if (a != 0.0 && (a >= 1e6 || a < 1e-3)) std::snprintf(buf, sizeof buf, "%.*e", prec - 1, v);
-  else std::snprintf(buf, sizeof buf, "%.*f", prec, v);
+  if (a != 0.0 && (a >= 1e6 || a < 1e-3))
+    std::snprintf(buf, sizeof buf, "%.*e", prec - 1, v);
+  else
+    std::snprintf(buf, sizeof buf, "%.*f", prec, v);
   return buf;
 }
 
@@ -35,8 +45,8 @@ std::optional<PairSpec> parse_pair(const std::string& s) {
   return PairSpec{s.substr(0, eq), s.substr(eq + 1)};
 }
 
-bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpec>& pairs, const EvalOptions& opt,
-              EvalReport& report, std::string& error) {
+bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpec>& pairs,
+              const EvalOptions& opt, EvalReport& report, std::string& error) {
   report = EvalReport{};
   report.est_rows = est.rows();
   // Estimate time on the edge clock (s).
@@ -46,7 +56,8 @@ bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpe
     return false;
   }
   std::vector<double> t(est.rows());
-  for (std::size_t i = 0; i < est.rows(); ++i) t[i] = c_tns >= 0 ? est.col(c_tns)[i] * 1e-9 : est.col(c_ts)[i];
+  for (std::size_t i = 0; i < est.rows(); ++i)
+    t[i] = c_tns >= 0 ? est.col(c_tns)[i] * 1e-9 : est.col(c_ts)[i];
   const int c_ws = est.column("window_start_t_ns");
   TimeRef ref = opt.time_ref;
   if (ref == TimeRef::kAuto) ref = c_ws >= 0 ? TimeRef::kMid : TimeRef::kSample;
@@ -59,7 +70,10 @@ bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpe
   std::vector<std::pair<int, double>> where;
   for (const auto& [name, value] : opt.where) {
     const int c = est.column(name);
-    if (c < 0) { error = est.path + ": --where column '" + name + "' not found"; return false; }
+    if (c < 0) {
+      error = est.path + ": --where column '" + name + "' not found; its columns are: " + join_names(est);
+      return false;
+    }
     where.emplace_back(c, value);
   }
   for (std::size_t i = 0; i < est.rows(); ++i) {
@@ -75,7 +89,10 @@ bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpe
   std::vector<double> c_t0, c_t1, c_num;
   if (cyc) {
     const int a = cyc->column("t_start_s"), b = cyc->column("t_end_s"), n = cyc->column("cycle");
-    if (a < 0 || b < 0) { error = cyc->path + ": needs t_start_s and t_end_s columns"; return false; }
+    if (a < 0 || b < 0) {
+      error = cyc->path + ": needs t_start_s and t_end_s columns";
+      return false;
+    }
     c_t0 = cyc->col(a);
     c_t1 = cyc->col(b);
     c_num = n >= 0 ? cyc->col(n) : std::vector<double>{};
@@ -85,7 +102,8 @@ bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpe
     double tq = t[i];
     if (ref == TimeRef::kMid) {
       const double ws = est.col(c_ws)[i] * 1e-9;
-      if (std::isfinite(ws) && ws >= 0.0 && ws < t[i]) tq = 0.5 * (ws + t[i]);  // else: no window, sample time
+      if (std::isfinite(ws) && ws >= 0.0 && ws < t[i])
+        tq = 0.5 * (ws + t[i]);  // else: no window, sample time
     }
     if (ref == TimeRef::kEnd) {
       // The row closes a cycle whose boundaries need not match the truth's: step back half a cycle.
@@ -101,7 +119,10 @@ bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpe
   std::vector<double> tt, tang;
   if (tooth) {
     const int c = tooth->column("t_s");
-    if (c < 0) { error = tooth->path + ": needs a t_s column"; return false; }
+    if (c < 0) {
+      error = tooth->path + ": needs a t_s column";
+      return false;
+    }
     tt = tooth->col(c);
     const int ca = tooth->column("angle720_deg");
     if (ca >= 0) {
@@ -118,12 +139,18 @@ bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpe
     PairResult r;
     r.spec = p;
     const int ce = est.column(p.est_col);
-    if (ce < 0) { error = est.path + ": estimate column '" + p.est_col + "' not found"; return false; }
+    if (ce < 0) {
+      error =
+          est.path + ": estimate column '" + p.est_col + "' not found; its columns are: " + join_names(est);
+      return false;
+    }
     const int cc = cyc ? cyc->column(p.truth_col) : -1;
     const int ct = tooth ? tooth->column(p.truth_col) : -1;
     if (cc < 0 && ct < 0) {
-      error = "truth column '" + p.truth_col + "' is in neither " + (cyc ? cyc->path : "(no --truth)") + " nor " +
-              (tooth ? tooth->path : "(no --truth-tooth)");
+      error = "truth column '" + p.truth_col + "' is in neither " + (cyc ? cyc->path : "(no --truth)") +
+              " nor " + (tooth ? tooth->path : "(no --truth-tooth)");
+      if (cyc) error += "\n  " + cyc->path + " columns: " + join_names(*cyc);
+      if (tooth) error += "\n  " + tooth->path + " columns: " + join_names(*tooth);
       return false;
     }
     r.per_cycle = cc >= 0;
@@ -132,15 +159,18 @@ bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpe
     for (std::size_t i : rows) {
       const double e = est.col(ce)[i];
       const long c = cycle_of(i);
-      const double y = r.per_cycle ? (c >= 0 ? cyc->col(cc)[std::size_t(c)] : std::nan("")) : interpolate(tt, tooth->col(ct), t[i]);
+      const double y = r.per_cycle ? (c >= 0 ? cyc->col(cc)[std::size_t(c)] : std::nan(""))
+                                   : interpolate(tt, tooth->col(ct), t[i]);
       if (!std::isfinite(e) || !std::isfinite(y)) continue;
       r.t_s.push_back(t[i]);
       r.est.push_back(e);
       r.truth.push_back(y);
       if (!tang.empty()) est_angle.push_back(interpolate(tt, tang, t[i]));
       if (c >= 0) {
-        est_sum[c].first += e; est_sum[c].second += 1;
-        truth_sum[c].first += y; truth_sum[c].second += 1;
+        est_sum[c].first += e;
+        est_sum[c].second += 1;
+        truth_sum[c].first += y;
+        truth_sum[c].second += 1;
       }
     }
     r.stats = error_stats(r.t_s, r.est, r.truth);
@@ -171,7 +201,10 @@ bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpe
       // In-cycle phase lag: truth on its angle grid vs estimate at the angles of its samples.
       std::vector<double> ea, ev;
       for (std::size_t i = 0; i < est_angle.size(); ++i)
-        if (std::isfinite(est_angle[i])) { ea.push_back(est_angle[i]); ev.push_back(r.est[i]); }
+        if (std::isfinite(est_angle[i])) {
+          ea.push_back(est_angle[i]);
+          ev.push_back(r.est[i]);
+        }
       r.lag = phase_lag(ea, ev, tang, tooth->col(ct), opt.max_lag_deg);
     }
     report.pairs.push_back(std::move(r));
@@ -179,15 +212,25 @@ bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpe
 
   if (!opt.misfire_col.empty()) {
     const int cm = est.column(opt.misfire_col);
-    if (cm < 0) { error = est.path + ": misfire column '" + opt.misfire_col + "' not found"; return false; }
-    if (!cyc) { error = "--misfire needs --truth (truth_cycle.csv with misfire1..N)"; return false; }
+    if (cm < 0) {
+      error = est.path + ": misfire column '" + opt.misfire_col +
+              "' not found; its columns are: " + join_names(est);
+      return false;
+    }
+    if (!cyc) {
+      error = "--misfire needs --truth (truth_cycle.csv with misfire1..N)";
+      return false;
+    }
     std::vector<int> truth_cols;
     for (int k = 1; k <= 8; ++k) {
       const int c = cyc->column("misfire" + std::to_string(k));
       if (c < 0) break;
       truth_cols.push_back(c);
     }
-    if (truth_cols.empty()) { error = cyc->path + ": no misfire1.. columns"; return false; }
+    if (truth_cols.empty()) {
+      error = cyc->path + ": no misfire1.. columns";
+      return false;
+    }
     std::map<long, std::uint32_t> masks;  // OR of the masks of the rows in each truth cycle
     for (std::size_t i : rows) {
       const long c = cycle_of(i);
@@ -209,26 +252,31 @@ std::string format_report(const EvalReport& r, double tolerance) {
   std::ostringstream os;
   os << "estimate rows: " << r.est_rows << ", used: " << r.rows_used << "\n";
   char line[512];
-  std::snprintf(line, sizeof line, "%-34s %-5s %7s %9s %9s %9s %9s %11s %8s %8s %9s\n", "estimate = truth", "join", "N",
-                "bias", "RMS", "MAE(max)", "SD", "ISE", "cyc%err", "lag_deg", "conv_cyc");
+  std::snprintf(line, sizeof line, "%-34s %-5s %7s %9s %9s %9s %9s %11s %8s %8s %9s\n", "estimate = truth",
+                "join", "N", "bias", "RMS", "max|err|", "SD", "ISE", "cyc%err", "lag_deg", "conv_cyc");
   os << line;
   for (const auto& p : r.pairs) {
     const std::string name = p.spec.est_col + " = " + p.spec.truth_col;
-    const std::string conv = p.converged_cycle ? std::to_string(*p.converged_cycle)
-                                               : (std::isfinite(p.converged_t_s) ? "t=" + fmt(p.converged_t_s, 2) : "never");
+    const std::string conv =
+        p.converged_cycle ? std::to_string(*p.converged_cycle)
+                          : (std::isfinite(p.converged_t_s) ? "t=" + fmt(p.converged_t_s, 2) : "never");
     std::snprintf(line, sizeof line, "%-34s %-5s %7zu %9s %9s %9s %9s %11s %8s %8s %9s\n", name.c_str(),
-                  p.per_cycle ? "cycle" : "tooth", p.stats.n, fmt(p.stats.bias).c_str(), fmt(p.stats.rms).c_str(),
-                  fmt(p.stats.mae).c_str(), fmt(p.stats.sd).c_str(), fmt(p.stats.ise).c_str(), fmt(p.cycle_pct, 2).c_str(),
+                  p.per_cycle ? "cycle" : "tooth", p.stats.n, fmt(p.stats.bias).c_str(),
+                  fmt(p.stats.rms).c_str(), fmt(p.stats.mae).c_str(), fmt(p.stats.sd).c_str(),
+                  fmt(p.stats.ise).c_str(), fmt(p.cycle_pct, 2).c_str(),
                   p.lag && p.lag->ok ? fmt(p.lag->lag_deg, 1).c_str() : "-", conv.c_str());
     os << line;
   }
-  os << "bias/RMS/MAE/SD in the columns' unit, ISE in unit^2 s, cyc%err = 100 sum|mean err|/sum|mean truth| per cycle,\n"
+  os << "bias/RMS/max|err|/SD in the columns' unit (max|err| = largest absolute error, the papers' \"MAE\"), "
+        "ISE in "
+        "unit^2 s,\ncyc%err = 100 sum|mean err|/sum|mean truth| per cycle,\n"
         "lag > 0: estimate lags truth (crank deg), conv_cyc: truth cycle after which |cycle-mean error| <= "
      << tolerance << "\n";
   if (r.misfire) {
     const auto& m = *r.misfire;
-    os << "misfire: " << m.true_misfires << " true, " << m.detected << " detected (recall " << fmt(100.0 * m.recall(), 1)
-       << " %), " << m.false_alarms << " false alarms in " << m.cylinder_cycles << " cylinder-cycles\n";
+    os << "misfire: " << m.true_misfires << " true, " << m.detected << " detected (recall "
+       << fmt(100.0 * m.recall(), 1) << " %), " << m.false_alarms << " false alarms in " << m.cylinder_cycles
+       << " cylinder-cycles\n";
   }
   for (const auto& n : r.notes) os << "note: " << n << "\n";
   return os.str();
@@ -236,7 +284,10 @@ std::string format_report(const EvalReport& r, double tolerance) {
 
 bool write_plot_csv(const EvalReport& r, const std::string& path, std::string& error) {
   std::FILE* f = std::fopen(path.c_str(), "w");
-  if (!f) { error = path + ": cannot write"; return false; }
+  if (!f) {
+    error = path + ": cannot write";
+    return false;
+  }
   std::fprintf(f, "pair,t_s,est,truth\n");
   for (const auto& p : r.pairs) {
     const std::string name = p.spec.est_col + " vs " + p.spec.truth_col;

@@ -12,9 +12,12 @@ speed=${1:-1}
 export CYCLONEDDS_URI="file://${root}/config/cyclonedds-loopback.xml"
 echo "== build (Release) ==" >&2
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build build -j"$(nproc)" --target torqued torque-echo torque-eval >/dev/null
+# Every tool the README names, so each of its commands works after this one.
+cmake --build build -j"$(nproc)" --target torqued torque-echo torque-eval torque-sim torque-decode torque-latency \
+  torque-accuracy torque-na-repro torque-canreplay >/dev/null
 out="${root}/build/demo"
 rm -rf "$out" && mkdir -p "$out"
+echo "== learned state: starts empty each run ($out/state, removed above), so every run prints the same numbers ==" >&2
 
 # Subscriber first (reliable, volatile: it must be there before the daemon publishes), live table of cycles.
 build/tools/torque-echo --topic engine --cycles-only --until-done --record "$out/echo" --duration 300 &
@@ -32,4 +35,4 @@ echo "== accuracy of the per-cycle brake torque received over DDS (torque-eval) 
 build/tools/torque-eval --estimate "$out/echo/engine_cycle.csv" --truth data/demo/truth_cycle.csv \
   --column fused_nm=t_brake_mean_nm --column brake_nm=t_brake_mean_nm --column indicated_nm=t_ind_mean_nm \
   --where quality=0 --plot "$out/torque.png" --title "torqued demo: fused brake torque vs truth"
-echo "plot: $out/torque.png   CSV: $out/echo/   daemon log: $out/torqued.log" >&2
+echo "CSV: $out/echo/   daemon log: $out/torqued.log   (torque-eval printed the plot's path above)" >&2

@@ -10,15 +10,16 @@ PKGS=(
   libeigen3-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libsystemd-dev systemd libgpiod-dev
-  libreaderwriterqueue-dev libboost-dev
+  libreaderwriterqueue-dev libboost-dev prometheus-cpp-dev
   can-utils iproute2
   python3 python3-matplotlib python3-numpy
+  debhelper dpkg-dev help2man lintian
   libcivetweb-dev nlohmann-json3-dev libjs-chart.js   # torque-dash (HTTP/WebSocket server, JSON, page plots)
 )
 # Extra packages only the heavier test tiers need (VM for vcan, latency tools, foreign DDS peer, iceoryx RouDi
-# for the shared-memory test).
+# for the shared-memory test, a real Prometheus server scraping the metrics endpoint).
 if [[ "${TORQUED_DEPS_FULL:-1}" == "1" ]]; then
-  PKGS+=(qemu-system-x86 busybox-static cpio rt-tests stress-ng libfastrtps-dev fastddsgen iceoryx)
+  PKGS+=(qemu-system-x86 busybox-static cpio rt-tests stress-ng libfastrtps-dev fastddsgen iceoryx prometheus curl)
   # torque-dash tests: Debian's Chromium (driven by playwright-core, no browser download) and Node.js/npm for
   # the Foxglove client (@foxglove/ws-protocol) and the MCAP reference reader (@mcap/core).
   PKGS+=(chromium nodejs)  # npm comes with the machine's Node.js (nodejs package)

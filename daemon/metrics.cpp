@@ -1,0 +1,289 @@
+#include "metrics.hpp"
+
+#include <prometheus/collectable.h>
+#include <prometheus/exposer.h>
+#include <prometheus/metric_family.h>
+#include <prometheus/text_serializer.h>
+#include <sys/stat.h>
+
+#include <cmath>
+#include <exception>
+
+#include "clocks.hpp"
+#include "signal_store.hpp"
+
+#ifndef TORQUED_VERSION
+#define TORQUED_VERSION "0.0.0"
+#endif
+
+namespace torqued::metrics {
+namespace {
+
+using prometheus::ClientMetric;
+using prometheus::MetricFamily;
+using prometheus::MetricType;
+using Labels = std::vector<ClientMetric::Label>;
+
+constexpr std::memory_order kRelaxed = std::memory_order_relaxed;
+
+MetricFamily& family(std::vector<MetricFamily>& out, std::string name, std::string help, MetricType type) {
+  out.push_back(MetricFamily{std::move(name), std::move(help), type, {}});
+  return out.back();
+}
+void add(MetricFamily& f, double v, Labels labels = {}) {
+  ClientMetric m;
+  m.label = std::move(labels);
+  if (f.type == MetricType::Counter)
+    m.counter.value = v;
+  else
+    m.gauge.value = v;
+  f.metric.push_back(std::move(m));
+}
+void single(std::vector<MetricFamily>& out, const char* name, const char* help, MetricType type, double v) {
+  add(family(out, name, help, type), v);
+}
+
+/// DaemonStatus.flags bits (idl/torque.idl STATUS_*).
+constexpr std::pair<std::uint32_t, const char*> kFlags[] = {
+    {torque_STATUS_RT_NOT_PERMITTED, "rt_not_permitted"},
+    {torque_STATUS_MLOCK_FAILED, "mlock_failed"},
+    {torque_STATUS_EDGE_TIMEOUT, "edge_timeout"},
+    {torque_STATUS_CAN_TIMEOUT, "can_timeout"},
+    {torque_STATUS_NO_SYNC, "no_sync"},
+    {torque_STATUS_DROPS, "drops"},
+    {torque_STATUS_REPLAY_DONE, "replay_done"},
+    {torque_STATUS_DRAINING, "draining"},
+    {torque_STATUS_OVERRUNS, "overruns"},
+    {torque_STATUS_RECORD_ERROR, "record_error"}};
+
+void status_families(const torque_DaemonStatus& s, bool have, std::vector<MetricFamily>& out) {
+  const auto C = MetricType::Counter;
+  const auto G = MetricType::Gauge;
+  single(out, "torqued_status_received",
+         "1 once a DaemonStatus was published (0: the figures below are not filled yet)",
+         G, have ? 1 : 0);
+  single(out, "torqued_edges_total", "edges consumed by the crank decoder", C, static_cast<double>(s.edges));
+  single(out, "torqued_teeth_total", "teeth produced by the decoder", C, static_cast<double>(s.teeth));
+  single(out, "torqued_can_frames_total", "CAN frames consumed", C, static_cast<double>(s.can_frames));
+  single(out, "torqued_cycles_total", "720 degree cycles completed", C, static_cast<double>(s.cycles));
+  single(out, "torqued_sync_losses_total", "crank sync losses", C, static_cast<double>(s.sync_losses));
+  single(out, "torqued_rejected_edges_total", "crank edges rejected by the decoder as noise or debounced", C,
+         static_cast<double>(s.rejected_edges));
+  single(out, "torqued_cam_phase_errors_total", "cam edges outside their window or disagreeing with the phase", C,
+         static_cast<double>(s.cam_phase_errors));
+  auto& drops = family(out, "torqued_ring_drops_total", "records dropped because a ring was full", C);
+  add(drops, static_cast<double>(s.ring_drops_edge), {{"ring", "edge"}});
+  add(drops, static_cast<double>(s.ring_drops_can), {{"ring", "can"}});
+  add(drops, static_cast<double>(s.ring_drops_out), {{"ring", "out"}});
+  single(out, "torqued_source_drops_total", "dropped/bad records reported by the sources", C,
+         static_cast<double>(s.source_drops));
+  single(out, "torqued_overruns_total", "time pipeline deadline misses", C, static_cast<double>(s.overruns));
+  single(out, "torqued_publisher_polls_total", "publisher pre-wakes for a tooth edge (paced replay)", C,
+         static_cast<double>(s.publisher_polls));
+  single(out, "torqued_publisher_poll_misses_total", "pre-wakes that ended without the edge's samples", C,
+         static_cast<double>(s.publisher_poll_misses));
+  auto& lat = family(out, "torqued_latency_period_seconds",
+                     "ingest -> publish latency over the last status period (DaemonStatus p50/p99/max)", G);
+  add(lat, static_cast<double>(s.latency_p50_ns) * 1e-9, {{"quantile", "0.5"}});
+  add(lat, static_cast<double>(s.latency_p99_ns) * 1e-9, {{"quantile", "0.99"}});
+  add(lat, static_cast<double>(s.latency_max_ns) * 1e-9, {{"quantile", "1"}});
+  single(out, "torqued_uptime_seconds", "time since the pipelines started", G,
+         static_cast<double>(s.uptime_ns) * 1e-9);
+  single(out, "torqued_source_time_seconds", "newest edge-clock time processed", G,
+         static_cast<double>(s.source_t_ns) * 1e-9);
+  single(out, "torqued_health", "DaemonStatus.health: 0 ok, 1 degraded, 2 failed", G, s.health);
+  single(out, "torqued_synced", "1 when the crank decoder is synced", G,
+         have && !(s.flags & torque_STATUS_NO_SYNC) ? 1 : 0);
+  auto& flags = family(out, "torqued_status_flag", "DaemonStatus.flags, one series per bit (1 = set)", G);
+  for (const auto& [bit, name] : kFlags) add(flags, (s.flags & bit) ? 1 : 0, {{"flag", name}});
+  auto& st = family(out, "torqued_sensor_timeout",
+                    "1 while that CAN quantity is stale (DaemonStatus.sensor_timeouts)", G);
+  for (int q = 0; q < kQuantityCount; ++q)
+    add(st, (s.sensor_timeouts >> q) & 1u, {{"signal", quantity_name(static_cast<Quantity>(q))}});
+}
+
+void tap_families(const MetricsTap& t, std::vector<MetricFamily>& out) {
+  auto& hist =
+      family(out, "torqued_publish_latency_seconds",
+             "ingest -> publish latency of every published sample since start", MetricType::Histogram);
+  ClientMetric h;
+  std::uint64_t cum = 0;
+  for (std::size_t b = 0; b < kLatencyBuckets.size(); ++b) {
+    cum += t.latency_bucket[b].load(kRelaxed);
+    h.histogram.bucket.push_back({cum, kLatencyBuckets[b]});
+  }
+  cum += t.latency_bucket[kLatencyBuckets.size()].load(kRelaxed);
+  h.histogram.bucket.push_back({cum, std::numeric_limits<double>::infinity()});
+  h.histogram.sample_count = cum;
+  h.histogram.sample_sum = static_cast<double>(t.latency_sum_ns.load(kRelaxed)) * 1e-9;
+  hist.metric.push_back(std::move(h));
+
+  auto& val = family(out, "torqued_estimator_torque_nm", "last EstimatorTorque.value_nm per method",
+                     MetricType::Gauge);
+  auto& unc = family(out, "torqued_estimator_uncertainty",
+                     "last EstimatorTorque.uncertainty per method (1-sigma N m, "
+                     "or excitation level for adaptive)",
+                     MetricType::Gauge);
+  auto& hl =
+      family(out, "torqued_estimator_health",
+             "last EstimatorTorque.health per method: 0 valid, 1 not "
+             "converged, 2 not excited, 3 stale input, 4 invalid input, 5 no sync, 6 numerical, 7 disabled",
+             MetricType::Gauge);
+  auto& n = family(out, "torqued_estimator_samples_total", "EstimatorTorque samples per method",
+                   MetricType::Counter);
+  for (int m = 0; m < dds::kMethodCount; ++m) {
+    const auto& x = t.method[static_cast<std::size_t>(m)];
+    const std::uint64_t k = x.samples.load(kRelaxed);
+    if (k == 0) continue;  // method disabled or not producing: no series (absent, not a stale 0)
+    const Labels l{{"method", std::string(dds::kMethodNames[m])}};
+    add(val, x.value.load(kRelaxed), l);
+    add(unc, x.uncertainty.load(kRelaxed), l);
+    add(hl, x.health.load(kRelaxed), l);
+    add(n, static_cast<double>(k), l);
+  }
+  auto& et = family(out, "torqued_engine_torque_nm",
+                    "last EngineTorque per kind (segment|cycle) and quantity", MetricType::Gauge);
+  auto& eq = family(out, "torqued_engine_quality",
+                    "last EngineTorque.quality (Health code of the fused estimate)", MetricType::Gauge);
+  for (int k = 0; k < kEngineKinds; ++k) {
+    const auto& e = t.engine[static_cast<std::size_t>(k)];
+    if (e.samples.load(kRelaxed) == 0) continue;
+    const std::string kind = k == torque_KIND_CYCLE ? "cycle" : "segment";
+    add(et, e.brake.load(kRelaxed), {{"kind", kind}, {"quantity", "brake"}});
+    add(et, e.indicated.load(kRelaxed), {{"kind", kind}, {"quantity", "indicated"}});
+    add(et, e.friction.load(kRelaxed), {{"kind", kind}, {"quantity", "friction"}});
+    add(et, e.load.load(kRelaxed), {{"kind", kind}, {"quantity", "load"}});
+    add(et, e.fused.load(kRelaxed), {{"kind", kind}, {"quantity", "fused"}});
+    add(eq, e.quality.load(kRelaxed), {{"kind", kind}});
+  }
+  single(out, "torqued_crank_sync_state",
+         "CrankState.sync of the newest sample: 0 no signal, 1 syncing, 2 synced, "
+         "3 lost sync, 4 stalled (-1: no CrankState yet)",
+         MetricType::Gauge, t.sync_state.load(kRelaxed));
+}
+
+void state_families(const std::string& file, std::vector<MetricFamily>& out) {
+  struct stat st {};
+  const bool have = !file.empty() && ::stat(file.c_str(), &st) == 0;
+  single(out, "torqued_learned_state_present", "1 when the learned-state file exists (output.state_dir)",
+         MetricType::Gauge, have ? 1 : 0);
+  if (!have) return;
+  const double mtime =
+      static_cast<double>(st.st_mtim.tv_sec) + static_cast<double>(st.st_mtim.tv_nsec) * 1e-9;
+  single(out, "torqued_learned_state_age_seconds", "time since the learned state was last saved (file mtime)",
+         MetricType::Gauge, static_cast<double>(realtime_ns()) * 1e-9 - mtime);
+}
+
+}  // namespace
+
+void MetricsTap::emit(const dds::AnySample& s) noexcept {
+  const std::int64_t ingest = s.visit([](const auto& v) { return v.ingest_t_ns; });
+  if (ingest > 0 && s.topic != dds::Topic::kDaemonStatus) {
+    const std::int64_t lat = realtime_ns() - ingest;
+    const double sec = static_cast<double>(lat) * 1e-9;
+    std::size_t b = 0;
+    while (b < kLatencyBuckets.size() && sec > kLatencyBuckets[b]) ++b;
+    latency_bucket[b].fetch_add(1, kRelaxed);
+    latency_count.fetch_add(1, kRelaxed);
+    latency_sum_ns.fetch_add(lat, kRelaxed);
+  }
+  switch (s.topic) {
+    case dds::Topic::kEstimatorTorque: {
+      const auto& e = s.u.estimator;
+      if (e.method < dds::kMethodCount) {
+        auto& m = method[e.method];
+        m.value.store(e.value_nm, kRelaxed);
+        m.uncertainty.store(e.uncertainty, kRelaxed);
+        m.health.store(e.health, kRelaxed);
+        m.samples.fetch_add(1, kRelaxed);
+      }
+      break;
+    }
+    case dds::Topic::kEngineTorque: {
+      const auto& e = s.u.engine;
+      auto& x = engine[e.kind == torque_KIND_CYCLE ? 1 : 0];
+      x.brake.store(e.brake_nm, kRelaxed);
+      x.indicated.store(e.indicated_nm, kRelaxed);
+      x.friction.store(e.friction_nm, kRelaxed);
+      x.load.store(e.load_nm, kRelaxed);
+      x.fused.store(e.fused_nm, kRelaxed);
+      x.quality.store(e.quality, kRelaxed);
+      x.samples.fetch_add(1, kRelaxed);
+      break;
+    }
+    case dds::Topic::kDaemonStatus:
+      status.store(s.u.status);
+      break;
+    case dds::Topic::kCrankState:
+      sync_state.store(s.u.crank.sync, kRelaxed);
+      crank_samples.fetch_add(1, kRelaxed);
+      break;
+    default:
+      break;
+  }
+  next_.emit(s);
+}
+
+class MetricsServer::Collector final : public prometheus::Collectable {
+ public:
+  explicit Collector(const MetricsServer& m) : m_(m) {}
+  std::vector<MetricFamily> Collect() const override { return m_.collect(); }
+
+ private:
+  const MetricsServer& m_;
+};
+
+MetricsServer::MetricsServer(SampleSink& next, std::string state_file)
+    : tap_(next), state_file_(std::move(state_file)) {}
+
+MetricsServer::~MetricsServer() {
+  exposer_.reset();  // stops the HTTP threads before the collector and the tap go
+}
+
+std::unique_ptr<MetricsServer> MetricsServer::start(const MetricsConfig& cfg, SampleSink& next,
+                                                    std::string state_file, std::string* error) {
+  auto m = std::make_unique<MetricsServer>(next, std::move(state_file));
+  try {
+    m->exposer_ = std::make_unique<prometheus::Exposer>(cfg.address, 2);
+  } catch (const std::exception& e) {
+    if (error) *error = "metrics.address " + cfg.address + ": cannot listen (" + e.what() + ")";
+    return nullptr;
+  }
+  m->collector_ = std::make_shared<Collector>(*m);
+  m->exposer_->RegisterCollectable(m->collector_);
+  return m;
+}
+
+int MetricsServer::port() const {
+  if (!exposer_) return 0;
+  const auto ports = exposer_->GetListeningPorts();
+  return ports.empty() ? 0 : ports.front();
+}
+
+std::vector<MetricFamily> MetricsServer::collect() const {
+  std::vector<MetricFamily> out;
+  single(out, "torqued_up", "1 while the daemon serves metrics (labels: version)", MetricType::Gauge, 1);
+  out.back().metric.back().label = {{"version", TORQUED_VERSION}};
+  torque_DaemonStatus s{};
+  bool have = false;
+  {
+    const std::lock_guard<std::mutex> lock(mu_);
+    torque_DaemonStatus fresh;
+    if (tap_.status.load_new(fresh)) {
+      status_ = fresh;
+      have_status_ = true;
+    }
+    s = status_;
+    have = have_status_;
+  }
+  status_families(s, have, out);
+  tap_families(tap_, out);
+  state_families(state_file_, out);
+  return out;
+}
+
+std::string to_text(const std::vector<MetricFamily>& families) {
+  return prometheus::TextSerializer().Serialize(families);
+}
+
+}  // namespace torqued::metrics
