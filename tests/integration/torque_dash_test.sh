@@ -49,19 +49,32 @@ wait_dash() {  # torque-dash --until-done exits after the daemon's end-of-replay
   touch "$tmp/done"
 }
 
+page_attempt() {  # returns 0 when every page check passed
+  rm -rf "$tmp/page_ready" "$tmp/port" "$tmp/rec" "$tmp/state"
+  start_dash
+  # The page first (Chromium may take many seconds to start on a loaded machine), then the replay at 1x.
+  node "$src/tests/integration/dash/page_check.cjs" "http://127.0.0.1:$port/" "$artifacts/dashboard.png" 0 \
+    "$tmp/page_ready" > "$tmp/node.log" 2>&1 &
+  node_pid=$!; pids="$pids $node_pid"
+  if ! wait_file "$tmp/page_ready" 60; then
+    cat "$tmp/node.log"; echo "the page did not load within 60 s"; kill "$node_pid" "$dash_pid" 2>/dev/null; return 1
+  fi
+  start_daemon 1
+  if ! wait "$node_pid"; then
+    cat "$tmp/node.log"; kill "$dash_pid" "$daemon_pid" 2>/dev/null; wait "$daemon_pid" 2>/dev/null; return 1
+  fi
+  cat "$tmp/node.log"
+  wait_daemon
+  kill "$dash_pid" 2>/dev/null; wait "$dash_pid" 2>/dev/null
+  return 0
+}
+
 case "$mode" in
   page)
     mkdir -p "$artifacts"
-    start_dash
-    # The page first (Chromium may take many seconds to start on a loaded machine), then the replay at 1x.
-    node "$src/tests/integration/dash/page_check.cjs" "http://127.0.0.1:$port/" "$artifacts/dashboard.png" 0 \
-      "$tmp/page_ready" > "$tmp/node.log" 2>&1 &
-    node_pid=$!; pids="$pids $node_pid"
-    wait_file "$tmp/page_ready" 60 || { cat "$tmp/node.log"; die "the page did not load within 60 s"; }
-    start_daemon 1
-    wait "$node_pid" || { cat "$tmp/node.log"; die "page checks failed"; }
-    cat "$tmp/node.log"
-    wait_daemon ;;
+    # One retry: a browser on a 2-core machine shared with the rest of the test tier can stall for seconds.
+    page_attempt || { echo "page checks failed once; retrying (a stalled browser under load)"; page_attempt; } ||
+      die "page checks failed twice" ;;
   foxglove)
     start_dash --until-done
     node "$src/tests/integration/dash/foxglove_check.cjs" "ws://127.0.0.1:$port/" "$tmp/ready" "$tmp/rec" \
