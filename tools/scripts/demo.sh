@@ -14,7 +14,7 @@ echo "== build (Release) ==" >&2
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
 # Every tool the README names, so each of its commands works after this one.
 cmake --build build -j"$(nproc)" --target torqued torque-echo torque-eval torque-sim torque-decode torque-latency \
-  torque-accuracy torque-na-repro torque-canreplay >/dev/null
+  torque-accuracy torque-na-repro torque-canreplay torque-dash >/dev/null
 out="${root}/build/demo"
 rm -rf "$out" && mkdir -p "$out"
 echo "== learned state: starts empty each run ($out/state, removed above), so every run prints the same numbers ==" >&2
