@@ -1,7 +1,7 @@
 #pragma once
 // The angle chain: the ONE place where crank/cam edges and CAN frames become per-tooth, per-segment and
-// per-cycle estimates. No DDS, no threads; the daemon (fast replay, paced replay, live), torque-accuracy and the
-// tests all drive this class, so a figure measured on it is a figure of the daemon.
+// per-cycle estimates. No DDS, no threads; the daemon (fast replay, paced replay, live), torque-accuracy and
+// the tests all drive this class, so a figure measured on it is a figure of the daemon.
 //
 //   edges  ──► CrankDecoder ──ToothEvent──► ToothSample ──► AnglePipeline ──► AngleChainSink (records)
 //                  ▲                             │  │            ▲
@@ -11,8 +11,9 @@
 //   frames ──► SignalStore ──EngineSignals──► pipeline, learner (2) fuel cut-off flag gates the learner
 //
 // Feedback loops, all in angle_chain.cpp: (1) learned tooth table → decoder edge corrections, applied at the
-// cycle boundary, and "wheel learned" → in-cycle observers and per-cylinder record (their health says when not); (2) CAN fuel cut-off → tooth learner; (3) time pipeline's UIO brake estimate → fusion's
-// external source (fusion.time_estimate); (4) learned state import/export (friction law, tooth table).
+// cycle boundary, and "wheel learned" → in-cycle observers and per-cylinder record (their health says when
+// not); (2) CAN fuel cut-off → tooth learner; (3) time pipeline's UIO brake estimate → fusion's external
+// source (fusion.time_estimate); (4) learned state import/export (friction law, tooth table).
 // on_edge/on_frame/poll/set_time_estimate are real-time safe: no allocation, no lock, no blocking.
 #include <array>
 #include <cstdint>
@@ -35,22 +36,23 @@ namespace torqued {
 
 /// What every record rests on at the moment it was made.
 struct ChainStatus {
-  bool synced = false;          ///< decoder synced and cam phase known
-  std::uint32_t stale_mask = 0; ///< bit i: EngineSignals quantity i bound but stale at the last tooth
+  bool synced = false;           ///< decoder synced and cam phase known
+  std::uint32_t stale_mask = 0;  ///< bit i: EngineSignals quantity i bound but stale at the last tooth
 };
 
 /// One decoded tooth.
 struct ChainTooth {
-  ToothEvent event;             ///< decoder output
-  ToothSample sample;           ///< what the estimators were given
-  double accel_rad_s2 = 0.0;    ///< pipeline's θ̈, or the speed difference when the pipeline has none yet
+  ToothEvent event;           ///< decoder output
+  ToothSample sample;         ///< what the estimators were given
+  double accel_rad_s2 = 0.0;  ///< pipeline's θ̈, or the speed difference when the pipeline has none yet
   const ToothOutput* estimates = nullptr;  ///< in-cycle estimates of this tooth (null: none valid)
   ChainStatus status;
 };
 
-/// One combustion segment (rolling 720° window ending at the segment boundary); cycle_end: a full cycle ended.
+/// One combustion segment (rolling 720° window ending at the segment boundary); cycle_end: a full cycle
+/// ended.
 struct ChainSegment {
-  std::int64_t source_t_ns = 0;      ///< source time of the tooth that closed the segment
+  std::int64_t source_t_ns = 0;  ///< source time of the tooth that closed the segment
   std::int64_t window_start_t_ns = 0;
   int cylinder = 0;                  ///< cylinder (1-based) whose firing segment just ended
   std::uint64_t cycle = 0;           ///< cycles completed by the chain
@@ -63,8 +65,8 @@ struct LearnedSnapshot {
   bool friction_valid = false;
   std::array<double, 4> friction{};  ///< C1..C4 of the friction law
   bool idle_valid = false;
-  std::array<double, 2> idle{};      ///< idle correction (N m), idle speed (rpm)
-  int n_teeth = 0;                   ///< tooth corrections applied to the decoder (0: none)
+  std::array<double, 2> idle{};  ///< idle correction (N m), idle speed (rpm)
+  int n_teeth = 0;               ///< tooth corrections applied to the decoder (0: none)
   std::array<double, 2 * kMaxTeeth> teeth{};
   bool fuel_valid = false;  ///< fuel model learned from references, or imported
   FuelTorqueState fuel{};
@@ -117,9 +119,8 @@ class AngleChain {
     return store_ ? store_->describe_bad_frames() : std::vector<std::string>{};
   }
 
-  /// Feedback (4), before the first edge: restore persisted friction coefficients, tooth corrections, the fuel
-  /// model and the measured crank-only error variance.
-  /// Returns what was applied ("" when nothing).
+  /// Feedback (4), before the first edge: restore persisted friction coefficients, tooth corrections, the
+  /// fuel model and the measured crank-only error variance. Returns what was applied ("" when nothing).
   std::string import_state(const LearnedState& st);
   /// The state learned so far (friction when learned or imported, tooth table once applied). False when
   /// nothing was learned or imported. Real-time safe.

@@ -59,9 +59,10 @@ void AngleStage::on_tooth(const ChainTooth& t) noexcept {
     c.events = te.events;
     out_.emit(a);
   }
-  // In-cycle indicated torque (Chauvin Kalman / Fourier), every n-th tooth. The Kalman estimate is a fixed-lag
-  // smoother: its t_ns is the edge it refers to (k-4), so each method is stamped with its own t_ns.
-  if (t.estimates && s_.tooth_estimator_decimation > 0 && ++tooth_est_count_ >= s_.tooth_estimator_decimation) {
+  // In-cycle indicated torque (Chauvin Kalman / Fourier), every n-th tooth. The Kalman estimate is a
+  // fixed-lag smoother: its t_ns is the edge it refers to (k-4), so each method is stamped with its own t_ns.
+  if (t.estimates && s_.tooth_estimator_decimation > 0 &&
+      ++tooth_est_count_ >= s_.tooth_estimator_decimation) {
     tooth_est_count_ = 0;
     emit_method(torque_METHOD_KALMAN, t.estimates->kalman_ind, t.estimates->kalman_ind.t_ns);
     emit_method(torque_METHOD_FOURIER, t.estimates->fourier_ind, t.estimates->fourier_ind.t_ns);
@@ -92,8 +93,8 @@ void AngleStage::on_segment(const ChainSegment& s) noexcept {
   emit_method(torque_METHOD_LOAD_RLS, o.load_rls, s.source_t_ns);
   emit_method(torque_METHOD_INDICATED_ESO, o.indicated_eso, s.source_t_ns);
   emit_method(torque_METHOD_FRICTION, o.friction, s.source_t_ns);
-  emit_method(torque_METHOD_FUSED, TorqueEstimate{o.fused.t_ns, o.fused.brake_nm, o.fused.sd_nm, o.fused.health},
-              s.source_t_ns);
+  emit_method(torque_METHOD_FUSED,
+              TorqueEstimate{o.fused.t_ns, o.fused.brake_nm, o.fused.sd_nm, o.fused.health}, s.source_t_ns);
   if (o.cycle_end) emit_cylinders(s);
   if (tap_) tap_->on_segment(s);
 }
@@ -158,7 +159,8 @@ void AngleStage::publish_snapshot() noexcept {
   if (!chain_.snapshot(scratch_)) return;
   snap_seq_.fetch_add(1, std::memory_order_acq_rel);  // odd: writing
   if (scratch_.friction_valid)
-    for (std::size_t i = 0; i < 4; ++i) snap_friction_[i].store(scratch_.friction[i], std::memory_order_relaxed);
+    for (std::size_t i = 0; i < 4; ++i)
+      snap_friction_[i].store(scratch_.friction[i], std::memory_order_relaxed);
   snap_friction_valid_.store(scratch_.friction_valid, std::memory_order_relaxed);
   if (scratch_.idle_valid)
     for (std::size_t i = 0; i < 2; ++i) snap_idle_[i].store(scratch_.idle[i], std::memory_order_relaxed);
@@ -169,8 +171,8 @@ void AngleStage::publish_snapshot() noexcept {
   snap_n_teeth_.store(scratch_.n_teeth, std::memory_order_relaxed);
   if (scratch_.fuel_valid) {
     const FuelTorqueState& f = scratch_.fuel;
-    const std::array<double, 8> v{f.theta[0], f.theta[1], f.p[0], f.p[1], f.p[2], f.p[3], f.resid_var,
-                                  static_cast<double>(f.references)};
+    const std::array<double, 8> v{f.theta[0], f.theta[1], f.p[0],      f.p[1],
+                                  f.p[2],     f.p[3],     f.resid_var, static_cast<double>(f.references)};
     for (std::size_t i = 0; i < v.size(); ++i) snap_fuel_[i].store(v[i], std::memory_order_relaxed);
   }
   snap_fuel_valid_.store(scratch_.fuel_valid, std::memory_order_relaxed);

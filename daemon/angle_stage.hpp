@@ -1,8 +1,8 @@
 #pragma once
 // Angle stage: the DDS mapping of the angle chain (angle_chain.hpp, where edges and frames become estimates).
 // Emits the decimated CrankState per tooth, the in-cycle EstimatorTorque (Kalman, Fourier) every n-th tooth,
-// EngineTorque + EstimatorTorque per combustion segment (rolling 720° window) and per cycle, CylinderTorque per
-// cycle, and keeps a lock-free snapshot of the learned state for the supervisor. Runs on the angle thread
+// EngineTorque + EstimatorTorque per combustion segment (rolling 720° window) and per cycle, CylinderTorque
+// per cycle, and keeps a lock-free snapshot of the learned state for the supervisor. Runs on the angle thread
 // (paced/live) or inline in fast replay; on_edge/on_frame/poll are real-time safe.
 #include <array>
 #include <atomic>
@@ -69,7 +69,8 @@ class AngleStage final : public AngleChainSink {
   std::atomic<bool> snap_friction_valid_{false};
   std::array<std::atomic<double>, 2> snap_idle_{};  ///< friction idle correction (N m), idle speed (rpm)
   std::atomic<bool> snap_idle_valid_{false};
-  std::array<std::atomic<double>, 8> snap_fuel_{};  ///< FuelTorqueState: theta[2], p[4], resid_var, references
+  std::array<std::atomic<double>, 8>
+      snap_fuel_{};  ///< FuelTorqueState: theta[2], p[4], resid_var, references
   std::atomic<bool> snap_fuel_valid_{false};
   std::atomic<double> snap_crank_var_{0.0};
   std::atomic<bool> snap_crank_var_valid_{false};

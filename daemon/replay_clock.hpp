@@ -32,7 +32,8 @@ class ReplayClock {
   /// Monotonic time (ns) at which recording time rec_ns is due. While paused: never (max).
   [[nodiscard]] std::int64_t due_mono_ns(std::int64_t rec_ns) const noexcept {
     if (paused_.load(std::memory_order_acquire)) return std::numeric_limits<std::int64_t>::max();
-    const std::int64_t base = anchor_mono_.load(std::memory_order_relaxed) + shift_.load(std::memory_order_relaxed);
+    const std::int64_t base =
+        anchor_mono_.load(std::memory_order_relaxed) + shift_.load(std::memory_order_relaxed);
     if (fast_) return base;
     return base + static_cast<std::int64_t>(
                       static_cast<double>(rec_ns - anchor_rec_.load(std::memory_order_relaxed)) / speed_);
@@ -42,8 +43,10 @@ class ReplayClock {
   [[nodiscard]] std::int64_t rec_at(std::int64_t mono_ns) const noexcept {
     if (paused_.load(std::memory_order_acquire)) mono_ns = paused_at_.load(std::memory_order_relaxed);
     if (fast_) return std::numeric_limits<std::int64_t>::max() / 2;
-    const std::int64_t el = mono_ns - anchor_mono_.load(std::memory_order_relaxed) - shift_.load(std::memory_order_relaxed);
-    return anchor_rec_.load(std::memory_order_relaxed) + static_cast<std::int64_t>(static_cast<double>(el) * speed_);
+    const std::int64_t el =
+        mono_ns - anchor_mono_.load(std::memory_order_relaxed) - shift_.load(std::memory_order_relaxed);
+    return anchor_rec_.load(std::memory_order_relaxed) +
+           static_cast<std::int64_t>(static_cast<double>(el) * speed_);
   }
 
   void pause(std::int64_t mono_ns) noexcept {

@@ -18,11 +18,11 @@ struct Config;
 struct RunInputs {
   StageSettings settings;
   std::unique_ptr<EdgeSource> edges;
-  std::unique_ptr<CanSource> can;  ///< null: no CAN input configured
-  std::optional<DbcDatabase> dbc;  ///< nullopt: no DBC configured
-  std::int64_t can_offset_ns = 0;  ///< added to every CAN frame time (inputs.can.time_offset)
+  std::unique_ptr<CanSource> can;         ///< null: no CAN input configured
+  std::optional<DbcDatabase> dbc;         ///< nullopt: no DBC configured
+  std::int64_t can_offset_ns = 0;         ///< added to every CAN frame time (inputs.can.time_offset)
   std::vector<std::string> dbc_warnings;  ///< accepted DBC with problems (file:line each), for the log
-  std::string error;               ///< "<config key>: <why>" when an input could not be opened
+  std::string error;                      ///< "<config key>: <why>" when an input could not be opened
 
   [[nodiscard]] bool ok() const noexcept { return error.empty(); }
   [[nodiscard]] const DbcDatabase* dbc_ptr() const noexcept { return dbc ? &*dbc : nullptr; }

@@ -29,7 +29,8 @@ std::string state_path(const Config& cfg, const RunOptions& opt) {
 RestoreResult restore_for_run(const std::string& spath, const StateContext& ctx, const RunOptions& opt) {
   RestoreResult rs;
   if (opt.fresh_state)
-    rs.infos.push_back("learned state not loaded (--fresh-state): learning from the prior; saved to " + spath);
+    rs.infos.push_back("learned state not loaded (--fresh-state): learning from the prior; saved to " +
+                       spath);
   else
     rs = restore_learned_state(spath, ctx);
   for (const auto& w : rs.warnings) spdlog::warn("{}", w);
@@ -43,11 +44,13 @@ ThreadRt thread_rt(const ThreadConfig& t, const char* name) {
 
 void log_transition(const DecoderEvent& e) {
   if (e.kind == DecoderEventKind::kLost)
-    spdlog::debug("decoder: {} at t={:.6f} s, {} -> {} ({})", to_string(e.kind), static_cast<double>(e.t_ns) * 1e-9,
-                  to_string(e.from), to_string(e.to), to_string(static_cast<SyncLossReason>(e.reason)));
+    spdlog::debug("decoder: {} at t={:.6f} s, {} -> {} ({})", to_string(e.kind),
+                  static_cast<double>(e.t_ns) * 1e-9, to_string(e.from), to_string(e.to),
+                  to_string(static_cast<SyncLossReason>(e.reason)));
   else
-    spdlog::debug("decoder: {} at t={:.6f} s, {} -> {}{}", to_string(e.kind), static_cast<double>(e.t_ns) * 1e-9,
-                  to_string(e.from), to_string(e.to), e.tooth >= 0 ? " at tooth " + std::to_string(e.tooth) : "");
+    spdlog::debug("decoder: {} at t={:.6f} s, {} -> {}{}", to_string(e.kind),
+                  static_cast<double>(e.t_ns) * 1e-9, to_string(e.from), to_string(e.to),
+                  e.tooth >= 0 ? " at tooth " + std::to_string(e.tooth) : "");
 }
 
 namespace {
@@ -120,7 +123,8 @@ void notify_status(const RuntimeCounters& c, double uptime_s) {
 
 class Supervisor {
  public:
-  Supervisor(Config& cfg, const RunOptions& opt, RunInputs& in, dds::SampleRecorder* recorder, SampleSink& out)
+  Supervisor(Config& cfg, const RunOptions& opt, RunInputs& in, dds::SampleRecorder* recorder,
+             SampleSink& out)
       : cfg_(cfg),
         opt_(opt),
         s_(in.settings),
@@ -171,7 +175,8 @@ class Supervisor {
 };
 
 bool Supervisor::start() {
-  // Signals are handled synchronously by this thread; blocked before any thread starts so all inherit the mask.
+  // Signals are handled synchronously by this thread; blocked before any thread starts so all inherit the
+  // mask.
   sigemptyset(&sigs_);
   sigaddset(&sigs_, SIGTERM);
   sigaddset(&sigs_, SIGINT);
@@ -216,7 +221,8 @@ bool Supervisor::start() {
 bool Supervisor::tick_once(std::int64_t now) {
   DecoderEvent ev{};
   while (rt_.angle_stage().chain().transitions().pop(ev)) log_transition(ev);
-  if (stall_after_s_ >= 0 && now - t0_ >= static_cast<std::int64_t>(stall_after_s_ * 1e9)) rt_.test_stall(true);
+  if (stall_after_s_ >= 0 && now - t0_ >= static_cast<std::int64_t>(stall_after_s_ * 1e9))
+    rt_.test_stall(true);
   const bool record_failed = recorder_ && recorder_->write_failed();
   if (record_failed && !record_error_reported_) {  // at once; estimation goes on
     spdlog::error("recording: {}; estimation and DDS publishing continue", recorder_->error());
@@ -228,8 +234,9 @@ bool Supervisor::tick_once(std::int64_t now) {
     if (done && !done_reported_) {
       c.flags |= torque_STATUS_REPLAY_DONE;
       done_reported_ = true;
-      spdlog::info("replay: end of the recording reached{}",
-                   opt_.exit_when_done ? "; stopping (--exit-when-done)" : "; still running (stop with SIGTERM)");
+      spdlog::info("replay: end of the recording reached{}", opt_.exit_when_done
+                                                                 ? "; stopping (--exit-when-done)"
+                                                                 : "; still running (stop with SIGTERM)");
     }
     if (record_failed) c.flags |= torque_STATUS_RECORD_ERROR;
     rt_.push_status(status_.next(c, rt_.last_source_t_ns(), now - t0_));
@@ -275,7 +282,8 @@ int Supervisor::shutdown() {
   }
   for (const auto& b : rt_.angle_stage().chain().describe_bad_frames()) spdlog::warn("can: {}", b);
   save();
-  if (saver_ && !saver_->finish(opt_.drain_timeout_s)) spdlog::warn("learned state: the last save did not finish");
+  if (saver_ && !saver_->finish(opt_.drain_timeout_s))
+    spdlog::warn("learned state: the last save did not finish");
   if (saver_)
     for (const auto& e : saver_->take_errors()) spdlog::warn("learned state not saved: {}", e);
   if (recorder_) recorder_->flush(true);

@@ -1,6 +1,6 @@
 #pragma once
-// The one mapping from an estimator's Health (and value) to the validity bits of the published topics, used by
-// every stage, so a Health value is flagged the same way on every topic.
+// The one mapping from an estimator's Health (and value) to the validity bits of the published topics, used
+// by every stage, so a Health value is flagged the same way on every topic.
 #include <cmath>
 #include <cstdint>
 
@@ -30,7 +30,8 @@ namespace torqued {
 
 /// Health bits, plus ESTIMATOR_FAULT for a non-finite value: NaN never leaves silently.
 [[nodiscard]] inline std::uint32_t validity_of(Health h, double value) noexcept {
-  return validity_of(h) | (std::isfinite(value) ? 0u : static_cast<std::uint32_t>(torque_VALIDITY_ESTIMATOR_FAULT));
+  return validity_of(h) |
+         (std::isfinite(value) ? 0u : static_cast<std::uint32_t>(torque_VALIDITY_ESTIMATOR_FAULT));
 }
 
 [[nodiscard]] inline std::uint32_t validity_of(const TorqueEstimate& e) noexcept {

@@ -1,9 +1,7 @@
 // tests/daemon/test_angle_chain.cpp: the angle chain (daemon/angle_chain.cpp) on a synthetic 60-2 wheel with
 // known speed: one record per decoded tooth, one segment per firing in firing order with its 720° window, the
-// learned-state feedback (import → decoder, snapshot, rejection of a table for another wheel), and the time-chain
-// fusion slot used only when fusion.time_estimate is set.
-#include "angle_chain.hpp"
-
+// learned-state feedback (import → decoder, snapshot, rejection of a table for another wheel), and the
+// time-chain fusion slot used only when fusion.time_estimate is set.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -11,6 +9,7 @@
 #include <numbers>
 #include <vector>
 
+#include "angle_chain.hpp"
 #include "edge_file_source.hpp"
 #include "synthetic_wheel.hpp"
 
@@ -22,8 +21,9 @@ struct Recorder final : AngleChainSink {
   std::vector<ChainTooth> teeth;
   std::vector<ChainSegment> segments;
   std::vector<CycleOutput> outs;
-  std::vector<Health> kalman;  ///< in-cycle Kalman health of each tooth with estimates (taken in the callback:
-                               ///< ChainTooth::estimates points into the pipeline and is only valid then)
+  std::vector<Health>
+      kalman;  ///< in-cycle Kalman health of each tooth with estimates (taken in the callback:
+               ///< ChainTooth::estimates points into the pipeline and is only valid then)
   void on_tooth(const ChainTooth& t) noexcept override {
     teeth.push_back(t);
     if (t.estimates) kalman.push_back(t.estimates->kalman_ind.health);
@@ -94,7 +94,8 @@ TEST_F(AngleChainTest, OneRecordPerToothAndOneSegmentPerFiringInOrder) {
     EXPECT_EQ(b.cylinder, order[(ia + 1) % 4]) << "segment " << i;
     EXPECT_TRUE(b.status.synced);
     if (i >= 4) {  // the first segments come before a whole 720° window was seen (speed 0, empty window)
-      EXPECT_NEAR(static_cast<double>(b.source_t_ns - b.window_start_t_ns) * 1e-9, 0.040, 1e-5) << "segment " << i;
+      EXPECT_NEAR(static_cast<double>(b.source_t_ns - b.window_start_t_ns) * 1e-9, 0.040, 1e-5)
+          << "segment " << i;
     }
     if (rec.outs[i].cycle_end) ++cycle_ends;
   }
@@ -116,7 +117,8 @@ TEST_F(AngleChainTest, ImportedToothTableReachesTheDecoderAndTheSnapshot) {
   LearnedSnapshot snap;
   ASSERT_TRUE(chain.snapshot(snap));
   ASSERT_EQ(snap.n_teeth, 58);
-  for (int i = 0; i < 58; ++i) EXPECT_EQ(snap.teeth[static_cast<std::size_t>(i)], st.tooth_corrections_rad[static_cast<std::size_t>(i)]);
+  for (int i = 0; i < 58; ++i)
+    EXPECT_EQ(snap.teeth[static_cast<std::size_t>(i)], st.tooth_corrections_rad[static_cast<std::size_t>(i)]);
   LearnedState back;
   ASSERT_TRUE(chain.learned_state(back));
   EXPECT_EQ(back.tooth_corrections_rad, st.tooth_corrections_rad);

@@ -1,8 +1,8 @@
-// tests/daemon/test_latency_histogram.cpp: latency percentiles of the publisher (daemon/latency_histogram.hpp):
-// period and whole-run figures, and no cap at the histogram's 10 ms range.
-#include "latency_histogram.hpp"
-
+// tests/daemon/test_latency_histogram.cpp: latency percentiles of the publisher
+// (daemon/latency_histogram.hpp): period and whole-run figures, and no cap at the histogram's 10 ms range.
 #include <gtest/gtest.h>
+
+#include "latency_histogram.hpp"
 
 namespace torqued {
 namespace {

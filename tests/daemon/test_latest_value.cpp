@@ -1,7 +1,5 @@
-// tests/daemon/test_latest_value.cpp: the time → angle thread slot (daemon/latest_value.hpp): newest value once,
-// nothing when nothing new, and no torn value under a concurrent writer (also run under TSan).
-#include "latest_value.hpp"
-
+// tests/daemon/test_latest_value.cpp: the time → angle thread slot (daemon/latest_value.hpp): newest value
+// once, nothing when nothing new, and no torn value under a concurrent writer (also run under TSan).
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -9,6 +7,7 @@
 #include <thread>
 
 #include "estimate.hpp"
+#include "latest_value.hpp"
 
 namespace torqued {
 namespace {

@@ -1,10 +1,11 @@
-// tests/daemon/test_replay_clock.cpp: the one recording-time ↔ monotonic-time formula (daemon/replay_clock.hpp):
-// speed 1 and 4, as fast as possible, live (speed ignored), a speed <= 0, pause and resume.
-#include "replay_clock.hpp"
-
+// tests/daemon/test_replay_clock.cpp: the one recording-time ↔ monotonic-time formula
+// (daemon/replay_clock.hpp): speed 1 and 4, as fast as possible, live (speed ignored), a speed <= 0, pause
+// and resume.
 #include <gtest/gtest.h>
 
 #include <limits>
+
+#include "replay_clock.hpp"
 
 namespace torqued {
 namespace {
@@ -52,11 +53,11 @@ TEST(ReplayClock, PauseFreezesRecordingTimeAndResumeShiftsDueTimes) {
   EXPECT_TRUE(c.paused());
   EXPECT_EQ(c.rec_at(5 * kS), 2 * kS);
   EXPECT_EQ(c.due_mono_ns(3 * kS), std::numeric_limits<std::int64_t>::max());  // nothing is due while paused
-  c.resume(4 * kS);  // paused for 3 s
+  c.resume(4 * kS);                                                            // paused for 3 s
   EXPECT_FALSE(c.paused());
   EXPECT_EQ(c.rec_at(4 * kS), 2 * kS);
   EXPECT_EQ(c.due_mono_ns(4 * kS), 5 * kS);  // 2 s of recording = 1 s of wall time after the resume
-  c.resume(9 * kS);                           // not paused: no effect
+  c.resume(9 * kS);                          // not paused: no effect
   EXPECT_EQ(c.due_mono_ns(4 * kS), 5 * kS);
 }
 

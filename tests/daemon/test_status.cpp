@@ -1,9 +1,9 @@
-// tests/daemon/test_status.cpp: DaemonStatus a controller can trust (daemon/status.hpp): drops and overruns are
-// separate flags that say "since the previous status" and clear when the condition has gone, while the counters
-// keep the history; a failed recording degrades health; health OK again once everything is clean.
-#include "status.hpp"
-
+// tests/daemon/test_status.cpp: DaemonStatus a controller can trust (daemon/status.hpp): drops and overruns
+// are separate flags that say "since the previous status" and clear when the condition has gone, while the
+// counters keep the history; a failed recording degrades health; health OK again once everything is clean.
 #include <gtest/gtest.h>
+
+#include "status.hpp"
 
 namespace torqued {
 namespace {
@@ -33,8 +33,9 @@ TEST(DaemonStatus, DropsOfAnyKindSetDropsForOnePeriod) {
   StatusTracker st;
   RuntimeCounters c = synced();
   (void)st.next(c, 0, 0);
-  for (std::uint64_t RuntimeCounters::*field : {&RuntimeCounters::ring_drops_edge, &RuntimeCounters::ring_drops_can,
-                                                &RuntimeCounters::ring_drops_out, &RuntimeCounters::source_drops}) {
+  for (std::uint64_t RuntimeCounters::*field :
+       {&RuntimeCounters::ring_drops_edge, &RuntimeCounters::ring_drops_can, &RuntimeCounters::ring_drops_out,
+        &RuntimeCounters::source_drops}) {
     c.*field += 3;
     const auto a = st.next(c, 0, 0).u.status;
     EXPECT_NE(a.flags & torque_STATUS_DROPS, 0u);

@@ -1,14 +1,13 @@
 // tests/daemon/test_time_stage.cpp: the time chain's DDS mapping (daemon/time_stage.cpp) and the one validity
 // mapping shared with the angle stage (daemon/validity.hpp): decimation, method ids, every Health flagged the
 // same way, a non-finite value never valid, and a bad step rejected.
-#include "time_stage.hpp"
-
 #include <gtest/gtest.h>
 
 #include <limits>
 #include <numbers>
 #include <vector>
 
+#include "time_stage.hpp"
 #include "validity.hpp"
 
 namespace torqued {
@@ -28,8 +27,9 @@ TEST(Validity, EveryHealthHasOneMeaning) {
   for (Health h : {Health::kInvalidInput, Health::kNumerical, Health::kDisabled})
     EXPECT_EQ(validity_of(h), static_cast<std::uint32_t>(torque_VALIDITY_ESTIMATOR_FAULT)) << to_string(h);
   // NaN never leaves as valid, whatever the health says.
-  EXPECT_NE(validity_of(Health::kValid, std::numeric_limits<double>::quiet_NaN()) & torque_VALIDITY_ESTIMATOR_FAULT,
-            0u);
+  EXPECT_NE(
+      validity_of(Health::kValid, std::numeric_limits<double>::quiet_NaN()) & torque_VALIDITY_ESTIMATOR_FAULT,
+      0u);
   EXPECT_EQ(validity_of(TorqueEstimate{0, 12.0, 1.0, Health::kValid}), 0u);
 }
 

@@ -1,13 +1,13 @@
 // tests/estimators/test_cycle_ke_window.cpp: the wide kinetic-energy window of the 720° balance
 // (estimators/cycle_ke_window.cpp) on exact tooth sequences of a 60-2 wheel: KE ∝ ω², no cycle difference at
 // constant speed, the exact difference after a speed step, a missing tooth invalidates, W ≤ 0 disables it.
-#include "cycle_ke_window.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numbers>
 #include <vector>
+
+#include "cycle_ke_window.hpp"
 
 namespace torqued {
 namespace {
@@ -46,7 +46,8 @@ TEST(CycleKeWindow, ConstantSpeedGivesNoCycleDifferenceAndKeScalesWithSpeedSquar
   for (int i = 0; i < 2; ++i) {
     CycleKeWindow win(f.energy, 120.0, 15.0);
     ASSERT_TRUE(win.enabled());
-    const auto seq = teeth(4, i == 0 ? +[](int, int) { return 200.0; } : +[](int, int) { return 400.0; });
+    const auto seq = teeth(
+        4, i == 0 ? +[](int, int) { return 200.0; } : +[](int, int) { return 400.0; });
     int done = 0;
     for (const auto& s : seq)
       if (win.update(s)) {
@@ -68,12 +69,13 @@ TEST(CycleKeWindow, ConstantSpeedGivesNoCycleDifferenceAndKeScalesWithSpeedSquar
 
 TEST(CycleKeWindow, SpeedStepGivesTheExactEnergyDifference) {
   // GIVEN 200 rad/s up to 360° into cycle 2 and 220 rad/s after (the step far from the window around boundary
-  // 0) WHEN the windows complete THEN the difference of the window-mean KE one cycle apart is KE(220)·(1 − 1/1.21)
-  // once (at the step), and 0 where speed was equal.
+  // 0) WHEN the windows complete THEN the difference of the window-mean KE one cycle apart is KE(220)·(1 −
+  // 1/1.21) once (at the step), and 0 where speed was equal.
   Fixture f;
   CycleKeWindow win(f.energy, 120.0, 15.0);
   std::vector<double> d, k;
-  for (const auto& s : teeth(5, +[](int c, int k) { return c * 116 + k < 2 * 116 + 58 ? 200.0 : 220.0; }))
+  for (const auto& s : teeth(
+           5, +[](int c, int k) { return c * 116 + k < 2 * 116 + 58 ? 200.0 : 220.0; }))
     if (win.update(s) && win.cycle_valid()) {
       d.push_back(win.d_ke_cycle_j());
       k.push_back(win.ke_j());
@@ -93,7 +95,8 @@ TEST(CycleKeWindow, MissingToothInvalidatesAndZeroWidthDisables) {
   CycleKeWindow off(f.energy, 0.0, 15.0);
   EXPECT_FALSE(off.enabled());
   CycleKeWindow win(f.energy, 120.0, 15.0);
-  auto seq = teeth(4, +[](int, int) { return 200.0; });
+  auto seq = teeth(
+      4, +[](int, int) { return 200.0; });
   seq.erase(seq.begin() + 116 * 2 + 3);  // one tooth lost in the third cycle, near the window (boundary 0)
   bool saw_invalid = false;
   for (const auto& s : seq)

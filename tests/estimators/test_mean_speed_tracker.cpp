@@ -1,12 +1,12 @@
 // tests/estimators/test_mean_speed_tracker.cpp: the mean crank speed of the time chain
-// (estimators/mean_speed_tracker.cpp): the 720° mean removes the firing ripple exactly, the window fills before
-// it is valid, a lost sync clears it, and a 180° window follows a speed change four times sooner.
-#include "mean_speed_tracker.hpp"
-
+// (estimators/mean_speed_tracker.cpp): the 720° mean removes the firing ripple exactly, the window fills
+// before it is valid, a lost sync clears it, and a 180° window follows a speed change four times sooner.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numbers>
+
+#include "mean_speed_tracker.hpp"
 
 namespace torqued {
 namespace {

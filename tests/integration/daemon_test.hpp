@@ -30,7 +30,8 @@ class DaemonTest : public ::testing::Test {
   [[nodiscard]] std::string log() const { return slurp((dir_ / "daemon.log").string()); }
   /// torqued --config <demo> --no-dds --state-dir <dir>/state, then `extra`.
   [[nodiscard]] std::vector<std::string> args(std::vector<std::string> extra) const {
-    std::vector<std::string> a{TORQUED_EXE, "--config", config_, "--no-dds", "--state-dir", (dir_ / "state").string()};
+    std::vector<std::string> a{TORQUED_EXE, "--config",    config_,
+                               "--no-dds",  "--state-dir", (dir_ / "state").string()};
     a.insert(a.end(), extra.begin(), extra.end());
     return a;
   }

@@ -21,9 +21,10 @@ namespace {
 class CycleTap final : public AngleChainSink {
  public:
   explicit CycleTap(std::FILE* f) : f_(f) {
-    std::fputs("t_ns,window_start_t_ns,cycle,speed_rad_s,brake_energy_nm,indicated_crank_nm,load_rls_nm,"
-               "indicated_eso_nm,friction_nm,brake_crank_nm,fused_nm,fused_quality\n",
-               f_);
+    std::fputs(
+        "t_ns,window_start_t_ns,cycle,speed_rad_s,brake_energy_nm,indicated_crank_nm,load_rls_nm,"
+        "indicated_eso_nm,friction_nm,brake_crank_nm,fused_nm,fused_quality\n",
+        f_);
   }
   void on_tooth(const ChainTooth&) noexcept override {}
   void on_segment(const ChainSegment& s) noexcept override {
@@ -31,8 +32,8 @@ class CycleTap final : public AngleChainSink {
     if (!o.cycle_end) return;
     std::fprintf(f_, "%" PRId64 ",%" PRId64 ",%" PRIu64 ",%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%d\n",
                  s.source_t_ns, s.window_start_t_ns, s.cycle, o.speed_mean_rad_s, o.brake_energy.torque_nm,
-                 o.indicated_crank.torque_nm, o.load_rls.torque_nm, o.indicated_eso.torque_nm, o.friction.torque_nm,
-                 o.indicated_crank.torque_nm - o.friction.torque_nm, o.fused.brake_nm,
+                 o.indicated_crank.torque_nm, o.load_rls.torque_nm, o.indicated_eso.torque_nm,
+                 o.friction.torque_nm, o.indicated_crank.torque_nm - o.friction.torque_nm, o.fused.brake_nm,
                  static_cast<int>(o.fused.quality));
   }
 
@@ -53,15 +54,16 @@ int evaluate_run(const RecordingOptions& opt, std::int64_t first_t_ns) {
   CsvTable engine, chain;
   Truth truth;
   truth.cycle.emplace();
-  if (!load_csv(opt.out_dir + "/engine_cycle.csv", engine) || !load_csv(opt.out_dir + "/chain_cycle.csv", chain) ||
-      !load_csv(opt.truth_cycle, *truth.cycle))
+  if (!load_csv(opt.out_dir + "/engine_cycle.csv", engine) ||
+      !load_csv(opt.out_dir + "/chain_cycle.csv", chain) || !load_csv(opt.truth_cycle, *truth.cycle))
     return 1;
   EvalOptions eo;
   eo.from_s = static_cast<double>(first_t_ns) * 1e-9 + opt.skip_s;
   std::string err;
   for (auto [table, pairs] :
-       {std::pair{&engine, std::vector<std::string>{"fused_nm=t_brake_mean_nm", "brake_nm=t_brake_mean_nm",
-                                                    "indicated_nm=t_ind_mean_nm", "friction_nm=t_fric_mean_nm"}},
+       {std::pair{&engine,
+                  std::vector<std::string>{"fused_nm=t_brake_mean_nm", "brake_nm=t_brake_mean_nm",
+                                           "indicated_nm=t_ind_mean_nm", "friction_nm=t_fric_mean_nm"}},
         std::pair{&chain, std::vector<std::string>{"brake_crank_nm=t_brake_mean_nm",
                                                    "indicated_crank_nm=t_ind_mean_nm"}}}) {
     std::vector<PairSpec> specs;
@@ -108,8 +110,8 @@ int run_recording(const RecordingOptions& opt) {
     for (const auto& w : rs.warnings) std::cerr << "warning: " << w << "\n";
     if (rs.state) st = *rs.state;
   }
-  const ReplayResult r = run_fast_replay(in.settings, in.edges.get(), in.can.get(), in.can_offset_ns, in.dbc_ptr(),
-                                         out, nullptr, spath.empty() ? nullptr : &st, &tap);
+  const ReplayResult r = run_fast_replay(in.settings, in.edges.get(), in.can.get(), in.can_offset_ns,
+                                         in.dbc_ptr(), out, nullptr, spath.empty() ? nullptr : &st, &tap);
   recorder.flush(true);
   std::fclose(f);
   if (!r.error.empty()) std::cerr << "warning: replay: " << r.error << "\n";
