@@ -72,14 +72,7 @@ InCycleStats incycle_stats(const std::vector<double>& est, const std::vector<dou
 /// to.
 void evaluate_incycle(const sim::Scenario& sc, const sim::SimOutput& out, const EvalOptions& opt,
                       CylinderCaseResult& r) {
-  AnglePipelineConfig cfg = opt.base;
-  cfg.engine = sc.engine;
-  cfg.wheel = sc.wheel;
-  if (opt.friction_prior) {  // else the generic correlation from the spec-sheet displacement
-    cfg.friction.c = *opt.friction_prior;
-    cfg.friction.prior_from_geometry = false;
-  }
-  AnglePipeline pipe(cfg);
+  AnglePipeline pipe(pipeline_config(sc, opt));
   if (opt.friction) pipe.friction().import_coefficients(*opt.friction);
   std::vector<ToothSample> samples = sim::ideal_tooth_samples(out, sc);
   const int teeth = sc.wheel.teeth();
@@ -121,14 +114,7 @@ void evaluate_incycle(const sim::Scenario& sc, const sim::SimOutput& out, const 
 std::array<double, kMaxCylinders> per_cylinder_imbalance(const sim::Scenario& sc, const sim::SimOutput& out,
                                                          const std::vector<double>& width_ratio,
                                                          const EvalOptions& opt) {
-  AnglePipelineConfig cfg = opt.base;
-  cfg.engine = sc.engine;
-  cfg.wheel = sc.wheel;
-  if (opt.friction_prior) {  // else the generic correlation from the spec-sheet displacement
-    cfg.friction.c = *opt.friction_prior;
-    cfg.friction.prior_from_geometry = false;
-  }
-  AnglePipeline pipe(cfg);
+  AnglePipeline pipe(pipeline_config(sc, opt));
   if (opt.friction) pipe.friction().import_coefficients(*opt.friction);
   std::vector<ToothSample> samples = sim::ideal_tooth_samples(out, sc);
   const int teeth = sc.wheel.teeth();

@@ -107,16 +107,17 @@ ScenarioResult evaluate(const sim::Scenario& sc, const EvalOptions& opt) {
   return evaluate(sc, sim::simulate(sc), opt);
 }
 
-ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, const EvalOptions& opt) {
+AnglePipelineConfig pipeline_config(const sim::Scenario& sc, const EvalOptions& opt) {
   AnglePipelineConfig cfg = opt.base;
   cfg.engine = opt.spec_engine ? *opt.spec_engine : sc.engine;
   cfg.wheel = sc.wheel;
-  if (opt.friction_prior) {
-    cfg.friction.c = *opt.friction_prior;
-    cfg.friction.prior_from_geometry = false;
-  } else {
-    cfg.friction.prior_from_geometry = true;
-  }
+  cfg.friction.prior_from_geometry = !opt.friction_prior;
+  if (opt.friction_prior) cfg.friction.c = *opt.friction_prior;
+  return cfg;
+}
+
+ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, const EvalOptions& opt) {
+  const AnglePipelineConfig cfg = pipeline_config(sc, opt);
   AnglePipeline pipe(cfg);
   if (opt.friction) pipe.friction().import_coefficients(*opt.friction);
   if (opt.fuel_state) pipe.fuel_model().import_state(*opt.fuel_state);

@@ -103,6 +103,9 @@ std::vector<double> learned_width_ratios(const sim::Scenario& scenario, const To
                                          std::uint64_t* cycles = nullptr, bool* low_orders = nullptr);
 
 /// Simulate `scenario` and evaluate the pipeline on it.
+/// The pipeline configuration of an evaluation: options.base with the scenario's (or the spec sheet's) engine and
+/// wheel, and the friction prior (options.friction_prior, else the generic correlation by displacement).
+AnglePipelineConfig pipeline_config(const sim::Scenario& scenario, const EvalOptions& options);
 ScenarioResult evaluate(const sim::Scenario& scenario, const EvalOptions& options);
 /// Same on an already simulated output.
 ScenarioResult evaluate(const sim::Scenario& scenario, const sim::SimOutput& out, const EvalOptions& options);
