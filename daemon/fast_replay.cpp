@@ -46,6 +46,25 @@ void drain_transitions(DecoderEventLog& log, ReplayResult::Transitions& out) noe
   }
 }
 
+/// DaemonStatus counters of the replay so far.
+RuntimeCounters replay_counters(const AngleChain& chain, const ReplayMerger& merger, EdgeSource* edges,
+                                CanSource* can) noexcept {
+  RuntimeCounters c;
+  const auto& ds = chain.decoder().stats();
+  c.edges = ds.edges;
+  c.teeth = ds.teeth;
+  c.sync_losses = ds.sync_losses;
+  c.rejected_edges = ds.rejected_edges;
+  c.cam_phase_errors = ds.cam_phase_errors;
+  c.cycles = chain.cycles();
+  c.can_frames = merger.frames_out();
+  c.source_drops = (edges ? edges->stats().bad_lines + edges->stats().dropped : 0) +
+                   (can ? can->stats().bad_lines + can->stats().dropped : 0);
+  c.sensor_timeouts = chain.status().stale_mask;
+  c.synced = chain.decoder().state() == SyncState::kSynced;
+  return c;
+}
+
 }  // namespace
 
 ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSource* can, std::int64_t can_offset_ns,
@@ -68,22 +87,7 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
   std::uint64_t n = 0;
   StatusTracker status;
   ReplayMerger::Item item;
-  auto counters = [&] {
-    RuntimeCounters c;
-    const auto& ds = angle.chain().decoder().stats();
-    c.edges = ds.edges;
-    c.teeth = ds.teeth;
-    c.sync_losses = ds.sync_losses;
-    c.rejected_edges = ds.rejected_edges;
-    c.cam_phase_errors = ds.cam_phase_errors;
-    c.cycles = angle.chain().cycles();
-    c.can_frames = merger.frames_out();
-    c.source_drops = (edges ? edges->stats().bad_lines + edges->stats().dropped : 0) +
-                     (can ? can->stats().bad_lines + can->stats().dropped : 0);
-    c.sensor_timeouts = angle.chain().status().stale_mask;
-    c.synced = angle.chain().decoder().state() == SyncState::kSynced;
-    return c;
-  };
+  auto counters = [&] { return replay_counters(angle.chain(), merger, edges, can); };
   for (;;) {
     if (stop && *stop) break;
     const SourceStatus st = merger.next(item);
