@@ -61,6 +61,13 @@ double AdaptiveTv::lambda_min(const Mat& a) noexcept {
   return mean - std::hypot(half_diff, off);
 }
 
+// A singular step: the estimator resets itself and says so (Health::kNumerical) for this sample.
+void AdaptiveTv::fail_numerical(std::int64_t t_ns) noexcept {
+  reset();
+  estimate_.t_ns = t_ns;
+  estimate_.health = Health::kNumerical;
+}
+
 void AdaptiveTv::update(const TimeSample& s) noexcept {
   estimate_.t_ns = s.t_ns;
   const Health input = check_time_sample(s, /*need_maf=*/true);
@@ -103,9 +110,7 @@ void AdaptiveTv::update(const TimeSample& s) noexcept {
     m_(0, 1) = m_(1, 0) = 0.5 * (m_(0, 1) + m_(1, 0));
     const double det_m = det2(m_);
     if (!(det_m > 0.0) || !std::isfinite(det_m)) {
-      reset();
-      estimate_.t_ns = s.t_ns;
-      estimate_.health = Health::kNumerical;
+      fail_numerical(s.t_ns);
       return;
     }
     k_ = inv2(m_, det_m);
@@ -117,9 +122,7 @@ void AdaptiveTv::update(const TimeSample& s) noexcept {
   const Mat a = Mat::Identity() + dt * g * sm;
   const double det_a = det2(a);
   if (!(std::abs(det_a) > 1e-300) || !std::isfinite(det_a)) {
-    reset();
-    estimate_.t_ns = s.t_ns;
-    estimate_.health = Health::kNumerical;
+    fail_numerical(s.t_ns);
     return;
   }
   theta_ = inv2(a, det_a) * (theta_ + dt * g * b);
@@ -127,9 +130,7 @@ void AdaptiveTv::update(const TimeSample& s) noexcept {
   lambda_min_p_ = lambda_min(p_);
   const double torque = phi.dot(theta_);  // τ̂_e = φᵀθ̂ (Theorem 3/4)
   if (!std::isfinite(torque) || !theta_.allFinite()) {
-    reset();
-    estimate_.t_ns = s.t_ns;
-    estimate_.health = Health::kNumerical;
+    fail_numerical(s.t_ns);
     return;
   }
   running_s_ += dt;

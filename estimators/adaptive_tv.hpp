@@ -57,6 +57,7 @@ class AdaptiveTv {
   [[nodiscard]] static double lambda_min(const Mat& a) noexcept;
 
  private:
+  void fail_numerical(std::int64_t t_ns) noexcept;
   void set_step(double step_s) noexcept;
 
   AdaptiveParams params_;
