@@ -151,6 +151,33 @@ void ChauvinKalman::predict(int k) noexcept {
   x_(0) = x1;
 }
 
+void ChauvinKalman::push_edge_time(std::int64_t t_ns) noexcept {
+  for (int i = kMaxLag; i > 0; --i)
+    edge_t_ns_[static_cast<std::size_t>(i)] = edge_t_ns_[static_cast<std::size_t>(i - 1)];
+  edge_t_ns_[0] = t_ns;
+}
+
+// Teeth lost before tooth k: predicted through (no measurement), or a restart when more than 1/8 of the cycle
+// is missing.
+void ChauvinKalman::bridge_lost_teeth(int k) noexcept {
+  const int kk = table_.samples;
+  const int missing = (k - expected_tooth_ + kk) % kk;
+  ++stats_.skipped_teeth;
+  if (missing > kk / 8) {
+    expected_tooth_ = -1;
+    return;
+  }
+  for (int m = 0; m < missing; ++m) {
+    const int km = (expected_tooth_ + m) % kk;
+    predict(km);
+    if (!params_.periodic_gains) {  // no measurement at a lost tooth: propagate P only
+      p_ = propagate(km, p_);
+      p_(1, 1) += std::pow(1.0 - acol_[static_cast<std::size_t>(km)], 4) * qu_;
+    }
+    push_edge_time(0);  // unknown time of the lost edge
+  }
+}
+
 bool ChauvinKalman::update(const ToothSample& s) noexcept {
   const int kk = table_.samples;
   if (const Health input = check_tooth_sample(s, kk); input != Health::kValid) {
@@ -162,26 +189,7 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
   const int k = s.tooth;
   const double omega = s.width_rad / s.dt_s;
   const double y = omega * omega;
-  if (expected_tooth_ >= 0 && k != expected_tooth_) {
-    const int missing = (k - expected_tooth_ + kk) % kk;
-    ++stats_.skipped_teeth;
-    if (missing > kk / 8) {
-      expected_tooth_ = -1;
-    } else {
-      for (int m = 0; m < missing; ++m) {
-        const int km = (expected_tooth_ + m) % kk;
-        predict(km);
-        if (!params_.periodic_gains) {  // no measurement at a lost tooth: propagate P only
-          p_ = propagate(km, p_);
-          p_(1, 1) += std::pow(1.0 - acol_[static_cast<std::size_t>(km)], 4) * qu_;
-        }
-        for (int i = kMaxLag; i > 0; --i) {
-          edge_t_ns_[static_cast<std::size_t>(i)] = edge_t_ns_[static_cast<std::size_t>(i - 1)];
-        }
-        edge_t_ns_[0] = 0;  // unknown time of the lost edge
-      }
-    }
-  }
+  if (expected_tooth_ >= 0 && k != expected_tooth_) bridge_lost_teeth(k);
   if (expected_tooth_ < 0) {
     // (Re)start: x̂ = [y, 0, ...], P0 = diag(R, σ², ...) (CK (11) initial condition m0).
     x_.setZero();
@@ -209,9 +217,7 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
   // (CK-11) split into measurement update and prediction: x̂_{k|k} = x̂_{k|k−1} + K (y − C x̂_{k|k−1}).
   x_ += gain * (y - x_(0));
   last_gain_ = gain;
-  for (int i = kMaxLag; i > 0; --i)
-    edge_t_ns_[static_cast<std::size_t>(i)] = edge_t_ns_[static_cast<std::size_t>(i - 1)];
-  edge_t_ns_[0] = s.t_ns;
+  push_edge_time(s.t_ns);
   ++teeth_seen_;
   ++stats_.updates;
   // With APS gains P is only set at a (re)start (checked there): 64 checks per tooth were a third of

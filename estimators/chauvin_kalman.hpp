@@ -75,6 +75,8 @@ class ChauvinKalman {
   [[nodiscard]] double measurement_var(int k, double speed_rad_s) const noexcept;
 
  private:
+  void push_edge_time(std::int64_t t_ns) noexcept;
+  void bridge_lost_teeth(int k) noexcept;
   void predict(int k) noexcept;  // x ← A_k x (and P in exact mode)
   [[nodiscard]] Mat transition(int k) const noexcept;
   /// A_k P A_kᵀ using the sparsity of A_k (per-tooth covariance propagation, CK-13).
