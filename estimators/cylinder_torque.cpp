@@ -125,37 +125,42 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
                 : low_load        ? MisfireDetection::kLowLoad
                 : !wheel_learned_ ? MisfireDetection::kWheelUnlearned
                                   : MisfireDetection::kActive;
-  // Filtered imbalance over firing cycles without misfire where detection is active (or only the wheel
-  // unlearned).
-  const bool usable =
-      o.detection == MisfireDetection::kActive || o.detection == MisfireDetection::kWheelUnlearned;
-  if (usable && o.misfire_count == 0 && o.mean_nm > params_.min_mean_nm) {
-    const double a = ema_init_ ? params_.imbalance_filter : 1.0;
-    double var = 0.0;
-    for (int c = 0; c < n; ++c) {
-      const auto ci = static_cast<std::size_t>(c);
-      const double d = 0.01 * (o.imbalance_pct[ci] - ema_[ci]);  // this cycle's share noise (fraction)
-      var += d * d / n;
-      ema_[ci] += a * (o.imbalance_pct[ci] - ema_[ci]);
-    }
-    if (ema_init_) share_var_ += params_.imbalance_filter * (var - share_var_);
-    ema_init_ = true;
-  }
+  update_filtered_imbalance(o);
   o.imbalance_filtered_pct = ema_;
-  switch (o.detection) {
-    case MisfireDetection::kActive:
-      o.health = Health::kValid;
-      break;
-    case MisfireDetection::kOverrun:
-    case MisfireDetection::kLowLoad:
-      o.health = Health::kNotExcited;
-      break;
-    default:
-      o.health = Health::kNotConverged;
-      break;
-  }
+  o.health = health_of(o.detection);
   out_ = o;
   return true;
+}
+
+// Filtered imbalance over firing cycles without misfire where detection is active (or only the wheel
+// unlearned), and the running share noise that gates the misfire decision.
+void CylinderTorque::update_filtered_imbalance(const CylinderCycle& o) noexcept {
+  const bool usable =
+      o.detection == MisfireDetection::kActive || o.detection == MisfireDetection::kWheelUnlearned;
+  if (!usable || o.misfire_count != 0 || !(o.mean_nm > params_.min_mean_nm)) return;
+  const int n = engine_.cylinders;
+  const double a = ema_init_ ? params_.imbalance_filter : 1.0;
+  double var = 0.0;
+  for (int c = 0; c < n; ++c) {
+    const auto ci = static_cast<std::size_t>(c);
+    const double d = 0.01 * (o.imbalance_pct[ci] - ema_[ci]);  // this cycle's share noise (fraction)
+    var += d * d / n;
+    ema_[ci] += a * (o.imbalance_pct[ci] - ema_[ci]);
+  }
+  if (ema_init_) share_var_ += params_.imbalance_filter * (var - share_var_);
+  ema_init_ = true;
+}
+
+Health CylinderTorque::health_of(MisfireDetection d) noexcept {
+  switch (d) {
+    case MisfireDetection::kActive:
+      return Health::kValid;
+    case MisfireDetection::kOverrun:
+    case MisfireDetection::kLowLoad:
+      return Health::kNotExcited;
+    default:
+      return Health::kNotConverged;
+  }
 }
 
 }  // namespace torqued

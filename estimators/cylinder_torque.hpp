@@ -68,6 +68,8 @@ class CylinderTorque {
   [[nodiscard]] std::uint64_t misfires() const noexcept { return misfires_; }
 
  private:
+  void update_filtered_imbalance(const CylinderCycle& o) noexcept;
+  static Health health_of(MisfireDetection d) noexcept;
   EngineGeometry engine_;
   CylinderParams params_;
   std::array<double, kMaxCylinders> work_{};
