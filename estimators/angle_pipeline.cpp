@@ -96,34 +96,30 @@ void AnglePipeline::reset() noexcept {
   held_spark_deg_ = std::nan("");
 }
 
+// A tooth the estimators cannot use (not synced, or invalid): it breaks the sequence in every estimator.
+std::uint8_t AnglePipeline::break_sequence(ToothSample s) noexcept {
+  s.synced = false;
+  have_prev_ = false;
+  pre_.update(s);
+  if (cfg_.run_kalman) kalman_.update(s);
+  if (fourier_ok_) fourier_.update(s);
+  energy_.update(s, 0.0, false);
+  wide_.update(s);
+  rls_.update(s, 0.0, false, 0.0, cyl_work_j_, false);
+  tooth_.valid = false;
+  return 0;
+}
+
 std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& sig) noexcept {
   ++stats_.teeth;
   if (!s.synced) {
     ++stats_.not_synced;
-    have_prev_ = false;
-    pre_.update(s);
-    if (cfg_.run_kalman) kalman_.update(s);
-    if (fourier_ok_) fourier_.update(s);
-    energy_.update(s, 0.0, false);
-    wide_.update(s);
-    rls_.update(s, 0.0, false, 0.0, cyl_work_j_, false);
-    tooth_.valid = false;
-    return 0;
+    return break_sequence(s);
   }
   if (!(s.dt_s > 0.0) || !(s.width_rad > 0.0) || !std::isfinite(s.dt_s) || !std::isfinite(s.width_rad) ||
       s.tooth < 0 || s.tooth >= energy_.samples()) {
     ++stats_.invalid;
-    have_prev_ = false;
-    ToothSample bad = s;
-    bad.synced = false;  // breaks the sequence in the estimators
-    pre_.update(bad);
-    if (cfg_.run_kalman) kalman_.update(bad);
-    if (fourier_ok_) fourier_.update(bad);
-    energy_.update(bad, 0.0, false);
-    wide_.update(bad);
-    rls_.update(bad, 0.0, false, 0.0, cyl_work_j_, false);
-    tooth_.valid = false;
-    return 0;
+    return break_sequence(s);
   }
   std::uint8_t ready = kToothReady;
   const double speed = s.width_rad / s.dt_s;
