@@ -29,9 +29,11 @@ void nominal_wheel_edges(const WheelGeometry& wheel, std::vector<double>& edge, 
   width.assign(static_cast<std::size_t>(t), 0.0);
   if (wheel.tooth_count > 0) {
     const double a0 = wheel.tooth_angles_deg[0];
-    for (int k = 0; k < t; ++k) edge[static_cast<std::size_t>(k)] = (wheel.tooth_angles_deg[static_cast<std::size_t>(k)] - a0) * kDeg;
+    for (int k = 0; k < t; ++k)
+      edge[static_cast<std::size_t>(k)] = (wheel.tooth_angles_deg[static_cast<std::size_t>(k)] - a0) * kDeg;
     for (int k = 0; k < t; ++k) {
-      const double prev = k == 0 ? edge[static_cast<std::size_t>(t - 1)] - kTwoPi : edge[static_cast<std::size_t>(k - 1)];
+      const double prev =
+          k == 0 ? edge[static_cast<std::size_t>(t - 1)] - kTwoPi : edge[static_cast<std::size_t>(k - 1)];
       width[static_cast<std::size_t>(k)] = edge[static_cast<std::size_t>(k)] - prev;
     }
   } else {
@@ -43,7 +45,8 @@ void nominal_wheel_edges(const WheelGeometry& wheel, std::vector<double>& edge, 
   }
 }
 
-CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& wheel, const EnergiesParams& params) {
+CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& wheel,
+                         const EnergiesParams& params) {
   const CrankKinematics kin(engine);
   ncyl_ = engine.cylinders;
   std::vector<double> e1, w1;
@@ -67,12 +70,13 @@ CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& whee
   }
   const double seg = kFourPi / ncyl_;
   const double half_w = 0.5 * params.energy_window_deg * kDeg;
-  for (int b = 0; b < ncyl_; ++b) boundary_[static_cast<std::size_t>(b)] = wrap4pi(b * seg + params.segment_offset_deg * kDeg);
+  for (int b = 0; b < ncyl_; ++b)
+    boundary_[static_cast<std::size_t>(b)] = wrap4pi(b * seg + params.segment_offset_deg * kDeg);
   for (int k = 0; k < samples_; ++k) {
     const auto i = static_cast<std::size_t>(k);
     for (int b = 0; b < ncyl_; ++b) {
-      // Half-open windows [−w/2, +w/2) with a tolerance: a centre exactly on a window edge (36-1 wheel: 10° pitch,
-      // ±15° window) must fall on the same side at every boundary despite rounding.
+      // Half-open windows [−w/2, +w/2) with a tolerance: a centre exactly on a window edge (36-1 wheel: 10°
+      // pitch, ±15° window) must fall on the same side at every boundary despite rounding.
       constexpr double kEps = 1e-9;
       const double d = diff720(center_[i] + kEps, boundary_[static_cast<std::size_t>(b)]);
       if (d >= -half_w && d < half_w) window_of_[i] = b;
@@ -91,9 +95,11 @@ CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& whee
     if (window_of_[static_cast<std::size_t>(next)] != w) window_last_[static_cast<std::size_t>(k)] = 1;
   }
   // CAN load delay line: room for τ at 8 teeth per 0.1 ms (60-2 wheel above 8000 rpm) plus two cycles' worth.
-  const double tau = std::isfinite(params.can_load_latency_s) ? std::max(0.0, params.can_load_latency_s) : 0.0;
+  const double tau =
+      std::isfinite(params.can_load_latency_s) ? std::max(0.0, params.can_load_latency_s) : 0.0;
   latency_ns_ = static_cast<std::int64_t>(std::llround(tau * 1e9));
-  if (latency_ns_ > 0) pending_.resize(static_cast<std::size_t>(2 * samples_) + static_cast<std::size_t>(std::ceil(tau * 8e4)));
+  if (latency_ns_ > 0)
+    pending_.resize(static_cast<std::size_t>(2 * samples_) + static_cast<std::size_t>(std::ceil(tau * 8e4)));
   reset();
 }
 
@@ -108,9 +114,10 @@ void CycleEnergy::add_load(int segment, double width_rad, double load_nm, bool l
 }
 
 void CycleEnergy::flush_pending(double load_nm, bool load_valid) noexcept {
-  // The load of the last τ of the ended segment has not arrived yet: hold the newest value. (A linear extrapolation
-  // along the recent slope removed more of the ramp error at 4000 rpm but overshot after steps and load decays,
-  // e.g. when the clutch opens before a fuel cut-off, and biased the friction learned there.)
+  // The load of the last τ of the ended segment has not arrived yet: hold the newest value. (A linear
+  // extrapolation along the recent slope removed more of the ramp error at 4000 rpm but overshot after steps
+  // and load decays, e.g. when the clutch opens before a fuel cut-off, and biased the friction learned
+  // there.)
   while (pend_count_ > 0) {
     const PendingTooth& p = pending_[pend_head_];
     add_load(p.segment, p.width_rad, load_nm, load_valid);
@@ -138,37 +145,21 @@ void CycleEnergy::reset() noexcept {
   seg_ = SegmentEnergy{};
 }
 
-bool CycleEnergy::update(const ToothSample& s, double load_nm, bool load_valid) noexcept {
-  if (!s.synced || s.tooth < 0 || s.tooth >= samples_ || !(s.dt_s > 0.0) || !(s.width_rad > 0.0) ||
-      !std::isfinite(s.dt_s) || !std::isfinite(s.width_rad)) {
-    if (expected_tooth_ >= 0) ++breaks_;
-    expected_tooth_ = -1;
-    win_open_ = false;
-    pend_count_ = 0;
-    ke_valid_.fill(false);
-    seg_ok_.fill(false);
-    seg_load_ok_.fill(false);
-    seg_load_mean_ok_.fill(false);
-    last_boundary_ = -1;
-    return false;
-  }
+void CycleEnergy::invalidate() noexcept {
+  win_open_ = false;
+  pend_count_ = 0;
+  ke_valid_.fill(false);
+  seg_ok_.fill(false);
+  seg_load_ok_.fill(false);
+  seg_load_mean_ok_.fill(false);
+  last_boundary_ = -1;
+}
+
+// Load work per segment (angle-mean load over the segment), each tooth period's load taken τ after it.
+void CycleEnergy::track_load(const ToothSample& s, bool first_after_break, double load_nm,
+                             bool load_valid) noexcept {
   const int k = s.tooth;
   const auto i = static_cast<std::size_t>(k);
-  if (expected_tooth_ >= 0 && k != expected_tooth_) {
-    // A tooth went missing: everything spanning the hole is unusable.
-    ++breaks_;
-    win_open_ = false;
-    pend_count_ = 0;
-    ke_valid_.fill(false);
-    seg_ok_.fill(false);
-    seg_load_ok_.fill(false);
-    seg_load_mean_ok_.fill(false);
-    last_boundary_ = -1;
-  }
-  const bool first_after_break = expected_tooth_ < 0 || k != expected_tooth_;
-  expected_tooth_ = (k + 1) % samples_;
-
-  // Load work per segment (angle-mean load over the segment), each tooth period's load taken τ after it.
   const int sg = segment_of_[i];
   const int prev_sg = segment_of_[static_cast<std::size_t>((k + samples_ - 1) % samples_)];
   if (sg != prev_sg || first_after_break) {
@@ -205,23 +196,11 @@ bool CycleEnergy::update(const ToothSample& s, double load_nm, bool load_valid) 
     pending_[tail] = PendingTooth{s.t_ns, sg, width_[i]};
     ++pend_count_;
   }
+}
 
-  // Kinetic energy window around a boundary.
-  const int b = window_of_[i];
-  if (b < 0) return false;
-  if (window_first_[i]) {
-    win_open_ = true;
-    win_ke_w_ = win_w_ = win_speed_w_ = 0.0;
-  }
-  if (!win_open_) return false;
-  const double speed = s.width_rad / s.dt_s;
-  const double w = width_[i];
-  win_ke_w_ += 0.5 * j_center_[i] * speed * speed * w;
-  win_speed_w_ += speed * w;
-  win_w_ += w;
-  if (!window_last_[i]) return false;
-  win_open_ = false;
-
+// The kinetic-energy window around boundary b closed on tooth s: the segment (and, at a full cycle, the
+// cycle) energy balance.
+void CycleEnergy::finish_window(const ToothSample& s, int b) noexcept {
   const auto bi = static_cast<std::size_t>(b);
   const double ke = win_ke_w_ / win_w_;
   const int prev_b = (b + ncyl_ - 1) % ncyl_;
@@ -266,6 +245,45 @@ bool CycleEnergy::update(const ToothSample& s, double load_nm, bool load_valid) 
   ke_valid_[bi] = true;
   last_boundary_ = b;
   seg_ = out;
+}
+
+bool CycleEnergy::update(const ToothSample& s, double load_nm, bool load_valid) noexcept {
+  if (!s.synced || s.tooth < 0 || s.tooth >= samples_ || !(s.dt_s > 0.0) || !(s.width_rad > 0.0) ||
+      !std::isfinite(s.dt_s) || !std::isfinite(s.width_rad)) {
+    if (expected_tooth_ >= 0) ++breaks_;
+    expected_tooth_ = -1;
+    invalidate();
+    return false;
+  }
+  const int k = s.tooth;
+  const auto i = static_cast<std::size_t>(k);
+  if (expected_tooth_ >= 0 && k != expected_tooth_) {
+    // A tooth went missing: everything spanning the hole is unusable.
+    ++breaks_;
+    invalidate();
+  }
+  const bool first_after_break = expected_tooth_ < 0 || k != expected_tooth_;
+  expected_tooth_ = (k + 1) % samples_;
+
+  track_load(s, first_after_break, load_nm, load_valid);
+
+  // Kinetic energy window around a boundary.
+  const int b = window_of_[i];
+  if (b < 0) return false;
+  if (window_first_[i]) {
+    win_open_ = true;
+    win_ke_w_ = win_w_ = win_speed_w_ = 0.0;
+  }
+  if (!win_open_) return false;
+  const double speed = s.width_rad / s.dt_s;
+  const double w = width_[i];
+  win_ke_w_ += 0.5 * j_center_[i] * speed * speed * w;
+  win_speed_w_ += speed * w;
+  win_w_ += w;
+  if (!window_last_[i]) return false;
+  win_open_ = false;
+
+  finish_window(s, b);
   return true;
 }
 

@@ -1,24 +1,26 @@
 #pragma once
 // Kinetic-energy balance per combustion segment and per 720° cycle (ESTIMATORS.md §0 energy form, CF-2):
 //   ½J(θ_b)θ̇_b² − ½J(θ_a)θ̇_a² = ∫_a^b (T_ind − T_fric − T_load) dθ
-// so the angle-mean indicated torque over [a, b] is ΔKE/(b − a) + mean(T_load + T_fric). Unlike a Kalman filter
-// whose torque model is zero-mean coloured noise, this has no bias during speed ramps (issue 5).
+// so the angle-mean indicated torque over [a, b] is ΔKE/(b − a) + mean(T_load + T_fric). Unlike a Kalman
+// filter whose torque model is zero-mean coloured noise, this has no bias during speed ramps (issue 5).
 //
-// Boundaries: one per firing cylinder, at each firing TDC + `segment_offset_deg` (default 20° before TDC so that a
-// cylinder's whole combustion lies inside "its" segment; compression work, equal for all cylinders, falls in the
-// previous one). The kinetic energy at a boundary is the angle-weighted mean of ½J(c_k)(w_k/dt_k)² over the tooth
-// periods whose centre c_k lies within ±energy_window/2 of it: the timestamp jitter and the machining error of the
-// interior edges cancel (the sum telescopes), only the two outer edges remain, divided by the window width. The
-// mean over a window equals the exact balance averaged over boundary shifts within the window, so it stays unbiased.
+// Boundaries: one per firing cylinder, at each firing TDC + `segment_offset_deg` (default 20° before TDC so
+// that a cylinder's whole combustion lies inside "its" segment; compression work, equal for all cylinders,
+// falls in the previous one). The kinetic energy at a boundary is the angle-weighted mean of
+// ½J(c_k)(w_k/dt_k)² over the tooth periods whose centre c_k lies within ±energy_window/2 of it: the
+// timestamp jitter and the machining error of the interior edges cancel (the sum telescopes), only the two
+// outer edges remain, divided by the window width. The mean over a window equals the exact balance averaged
+// over boundary shifts within the window, so it stays unbiased.
 //
-// CAN load latency (EnergiesParams::can_load_latency_s = τ). The measured load reaches us τ late (torque-flange
-// lag + the sample-and-hold of a 100 Hz CAN frame: ≈ 5 ms + 5 ms on the bench/simulator): the value seen at time t
-// is the flange torque of t − τ. The balance pairs ΔKE over [t_a, t_b] with the load over the same interval, so each
-// tooth period's load is taken τ after the tooth (a delay line of pending teeth, filled in when the load of their
-// time has arrived). At a segment end the teeth of its last τ are still pending; they get the newest load (hold
-// extrapolation). On a load ramp r the cycle-mean error drops from r·τ to r·τ²/(2·T_seg) while τ < T_seg (segment
-// duration; r·(τ − T_seg/2) above, e.g. 4000 rpm); a load step is booked in the segment where the flange saw it.
-// The load of a segment therefore stays in its own segment: per-cylinder works and the ESO get the same alignment.
+// CAN load latency (EnergiesParams::can_load_latency_s = τ). The measured load reaches us τ late
+// (torque-flange lag + the sample-and-hold of a 100 Hz CAN frame: ≈ 5 ms + 5 ms on the bench/simulator): the
+// value seen at time t is the flange torque of t − τ. The balance pairs ΔKE over [t_a, t_b] with the load
+// over the same interval, so each tooth period's load is taken τ after the tooth (a delay line of pending
+// teeth, filled in when the load of their time has arrived). At a segment end the teeth of its last τ are
+// still pending; they get the newest load (hold extrapolation). On a load ramp r the cycle-mean error drops
+// from r·τ to r·τ²/(2·T_seg) while τ < T_seg (segment duration; r·(τ − T_seg/2) above, e.g. 4000 rpm); a load
+// step is booked in the segment where the flange saw it. The load of a segment therefore stays in its own
+// segment: per-cylinder works and the ESO get the same alignment.
 //
 // Real-time safe update(); tables built at construction.
 #include <array>
@@ -32,9 +34,10 @@
 
 namespace torqued {
 
-/// Nominal edge angles of one revolution (rad, tooth 0 = first after the gap at 0) and the widths of the periods
-/// ending at them: N−M wheel or explicit `tooth_angles_deg`. Construction-time helper (allocates).
-void nominal_wheel_edges(const WheelGeometry& wheel, std::vector<double>& edge_rad, std::vector<double>& width_rad);
+/// Nominal edge angles of one revolution (rad, tooth 0 = first after the gap at 0) and the widths of the
+/// periods ending at them: N−M wheel or explicit `tooth_angles_deg`. Construction-time helper (allocates).
+void nominal_wheel_edges(const WheelGeometry& wheel, std::vector<double>& edge_rad,
+                         std::vector<double>& width_rad);
 
 /// What CycleEnergy reports when a boundary window completes (once per segment).
 struct SegmentEnergy {
@@ -61,8 +64,8 @@ class CycleEnergy {
   CycleEnergy(const EngineGeometry& engine, const WheelGeometry& wheel, const EnergiesParams& params);
 
   void reset() noexcept;
-  /// Real-time safe. `load_nm` is the load torque at this tooth (dyno / e-machine), `load_valid` whether known.
-  /// Returns true when a boundary window completed on this tooth; then segment() holds the new record.
+  /// Real-time safe. `load_nm` is the load torque at this tooth (dyno / e-machine), `load_valid` whether
+  /// known. Returns true when a boundary window completed on this tooth; then segment() holds the new record.
   bool update(const ToothSample& s, double load_nm, bool load_valid) noexcept;
   [[nodiscard]] const SegmentEnergy& segment() const noexcept { return seg_; }
 
@@ -82,12 +85,15 @@ class CycleEnergy {
   [[nodiscard]] std::uint64_t latency_overflows() const noexcept { return overflows_; }
 
  private:
+  void invalidate() noexcept;
+  void track_load(const ToothSample& s, bool first_after_break, double load_nm, bool load_valid) noexcept;
+  void finish_window(const ToothSample& s, int b) noexcept;
   int samples_ = 0, ncyl_ = 0;
   std::vector<double> center_, width_, j_center_;
-  std::vector<int> window_of_;       ///< boundary whose KE window holds tooth k, −1 if none
-  std::vector<int> window_first_;    ///< 1 if tooth k opens its window
-  std::vector<int> window_last_;     ///< 1 if tooth k closes its window
-  std::vector<int> segment_of_;      ///< firing position whose segment holds tooth k's centre
+  std::vector<int> window_of_;     ///< boundary whose KE window holds tooth k, −1 if none
+  std::vector<int> window_first_;  ///< 1 if tooth k opens its window
+  std::vector<int> window_last_;   ///< 1 if tooth k closes its window
+  std::vector<int> segment_of_;    ///< firing position whose segment holds tooth k's centre
   std::array<double, kMaxCylinders> boundary_{};
 
   /// A tooth period waiting for the load of its time (t + τ) to arrive.
@@ -103,20 +109,22 @@ class CycleEnergy {
   std::vector<PendingTooth> pending_;  ///< ring buffer, sized at construction
   std::size_t pend_head_ = 0, pend_count_ = 0;
   /// i + 1 modulo the ring size, for i < size (a `%` by the run-time size was a 64-bit division per tooth).
-  [[nodiscard]] std::size_t ring_next(std::size_t i) const noexcept { return i + 1 == pending_.size() ? 0 : i + 1; }
+  [[nodiscard]] std::size_t ring_next(std::size_t i) const noexcept {
+    return i + 1 == pending_.size() ? 0 : i + 1;
+  }
   std::uint64_t overflows_ = 0;
 
   // Running state.
   int expected_tooth_ = -1;
   double win_ke_w_ = 0.0, win_w_ = 0.0, win_speed_w_ = 0.0;
   bool win_open_ = false;
-  std::array<double, kMaxCylinders> seg_load_w_{};   ///< Σ load·w per firing segment being accumulated
+  std::array<double, kMaxCylinders> seg_load_w_{};  ///< Σ load·w per firing segment being accumulated
   std::array<double, kMaxCylinders> seg_w_{};
   std::array<bool, kMaxCylinders> seg_load_ok_{};
-  std::array<double, kMaxCylinders> ke_{};           ///< last KE per boundary
-  std::array<std::int64_t, kMaxCylinders> t_{};      ///< completion time per boundary
+  std::array<double, kMaxCylinders> ke_{};       ///< last KE per boundary
+  std::array<std::int64_t, kMaxCylinders> t_{};  ///< completion time per boundary
   std::array<bool, kMaxCylinders> ke_valid_{};
-  std::array<bool, kMaxCylinders> seg_ok_{};         ///< last segment ending at boundary b was valid
+  std::array<bool, kMaxCylinders> seg_ok_{};  ///< last segment ending at boundary b was valid
   std::array<double, kMaxCylinders> seg_load_mean_{};
   std::array<bool, kMaxCylinders> seg_load_mean_ok_{};
   std::array<double, kMaxCylinders> seg_angle_{};
