@@ -318,6 +318,73 @@ double LoadRls::window_gas_work(int w, double map_pa, const std::array<double, k
   return work;
 }
 
+// One RLS step on the window's observation y (N m) with angle-mean θ̈ phi_a (rad/s²); returns the a-priori error.
+double LoadRls::rls_step(double y, double phi_a) noexcept {
+  const double lam = params_.rls_forgetting;
+  double err;
+  if (params_.rls_estimate_inertia) {
+    // EN-15: Q = P ψ (λ + ψᵀPψ)⁻¹, Θ += Q (y − ψᵀΘ), P = (P − Q ψᵀ P)/λ, ψ = [θ̈, 1].
+    const double psi0 = phi_a, psi1 = 1.0;
+    const double pp0 = p_[0] * psi0 + p_[1] * psi1, pp1 = p_[2] * psi0 + p_[3] * psi1;
+    const double den = lam + psi0 * pp0 + psi1 * pp1;
+    err = y - (psi0 * theta_[0] + psi1 * theta_[1]);
+    last_obs_ = y - theta_[0] * psi0;
+    const double q0 = pp0 / den, q1 = pp1 / den;
+    theta_[0] += q0 * err;
+    theta_[1] += q1 * err;
+    const double n00 = (p_[0] - q0 * pp0) / lam, n01 = (p_[1] - q0 * pp1) / lam;
+    const double n11 = (p_[3] - q1 * pp1) / lam;
+    p_ = {n00, n01, n01, n11};
+  } else {
+    // Known J_rot: scalar RLS with forgetting on y − J_rot θ̈ = T_load*.
+    const double yy = y - engine_.j_rot_kgm2 * phi_a;
+    last_obs_ = yy;
+    err = yy - theta_[1];
+    const double den = lam + p_[3];
+    const double q = p_[3] / den;
+    theta_[1] += q * err;
+    p_[3] = (p_[3] - q * p_[3]) / lam;
+  }
+  return err;
+}
+
+// After a window: residual variance, the tracker RLS (rule 4), the estimates and their uncertainties.
+void LoadRls::publish(std::int64_t t_ns, double err, const Window& win) noexcept {
+  const double lam = params_.rls_forgetting;
+  ++windows_;
+  const double a = windows_ < 20 ? 1.0 / static_cast<double>(windows_) : 0.05;
+  resid_var_ += a * (err * err - resid_var_);
+  // Tracker RLS (rule 4): the same scalar recursion on the same observation, re-seeded at load changes.
+  {
+    const double yt = last_obs_;
+    const double q = trk_p_ / (lam + trk_p_);
+    trk_theta_ += q * (yt - trk_theta_);
+    trk_p_ = (trk_p_ - q * trk_p_) / lam;
+    if (fast_windows_ > 0) {
+      // After a load change the load keeps moving (dyno controller settling): hold the memory at one cycle of
+      // windows for a few cycles, then let it grow back to the RLS memory.
+      --fast_windows_;
+      trk_p_ = std::max(trk_p_, 1.0 / std::max(1.0, static_cast<double>(windows_tab_.size())));
+    }
+  }
+  track(last_obs_, win);
+  est_.t_ns = t_ns;
+  est_.torque_nm = theta_[1];
+  // Effective sample count of the forgetting factor: (1 + λ)/(1 − λ).
+  const double n_eff = std::min<double>(static_cast<double>(windows_), (1.0 + lam) / (1.0 - lam));
+  const double sd_rls = std::sqrt(resid_var_ / n_eff);
+  est_.uncertainty = sd_rls;
+  est_.health = windows_ >= static_cast<std::uint64_t>(params_.rls_min_windows) ? Health::kValid : Health::kNotConverged;
+  trk_ = est_;
+  if (z_valid_ && blend_ > 0.0) {
+    const double floor_sd = params_.rls_step_min_sd_nm;
+    trk_.torque_nm = z_cycle_;
+    trk_.uncertainty = std::sqrt(std::max(d_var_, floor_sd * floor_sd));
+  } else {
+    trk_.torque_nm = trk_theta_;
+  }
+}
+
 bool LoadRls::update(const ToothSample& s, double map_pa, bool map_valid, double spark_advance_deg,
                      const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid) noexcept {
   if (!s.synced || s.tooth < 0 || s.tooth >= samples_ || !(s.dt_s > 0.0) || !(s.width_rad > 0.0) ||
@@ -368,68 +435,13 @@ bool LoadRls::update(const ToothSample& s, double map_pa, bool map_valid, double
     return false;
   }
   last_y_ = y;
-  const double lam = params_.rls_forgetting;
-  double err;
-  if (params_.rls_estimate_inertia) {
-    // EN-15: Q = P ψ (λ + ψᵀPψ)⁻¹, Θ += Q (y − ψᵀΘ), P = (P − Q ψᵀ P)/λ, ψ = [θ̈, 1].
-    const double psi0 = phi_a, psi1 = 1.0;
-    const double pp0 = p_[0] * psi0 + p_[1] * psi1, pp1 = p_[2] * psi0 + p_[3] * psi1;
-    const double den = lam + psi0 * pp0 + psi1 * pp1;
-    err = y - (psi0 * theta_[0] + psi1 * theta_[1]);
-    last_obs_ = y - theta_[0] * psi0;
-    const double q0 = pp0 / den, q1 = pp1 / den;
-    theta_[0] += q0 * err;
-    theta_[1] += q1 * err;
-    const double n00 = (p_[0] - q0 * pp0) / lam, n01 = (p_[1] - q0 * pp1) / lam;
-    const double n11 = (p_[3] - q1 * pp1) / lam;
-    p_ = {n00, n01, n01, n11};
-  } else {
-    // Known J_rot: scalar RLS with forgetting on y − J_rot θ̈ = T_load*.
-    const double yy = y - engine_.j_rot_kgm2 * phi_a;
-    last_obs_ = yy;
-    err = yy - theta_[1];
-    const double den = lam + p_[3];
-    const double q = p_[3] / den;
-    theta_[1] += q * err;
-    p_[3] = (p_[3] - q * p_[3]) / lam;
-  }
+  const double err = rls_step(y, phi_a);
   if (!std::isfinite(theta_[0]) || !std::isfinite(theta_[1])) {
     reset();
     est_.health = Health::kNumerical;
     return false;
   }
-  ++windows_;
-  const double a = windows_ < 20 ? 1.0 / static_cast<double>(windows_) : 0.05;
-  resid_var_ += a * (err * err - resid_var_);
-  // Tracker RLS (rule 4): the same scalar recursion on the same observation, re-seeded at load changes.
-  {
-    const double yt = last_obs_;
-    const double q = trk_p_ / (lam + trk_p_);
-    trk_theta_ += q * (yt - trk_theta_);
-    trk_p_ = (trk_p_ - q * trk_p_) / lam;
-    if (fast_windows_ > 0) {
-      // After a load change the load keeps moving (dyno controller settling): hold the memory at one cycle of
-      // windows for a few cycles, then let it grow back to the RLS memory.
-      --fast_windows_;
-      trk_p_ = std::max(trk_p_, 1.0 / std::max(1.0, static_cast<double>(windows_tab_.size())));
-    }
-  }
-  track(last_obs_, win);
-  est_.t_ns = s.t_ns;
-  est_.torque_nm = theta_[1];
-  // Effective sample count of the forgetting factor: (1 + λ)/(1 − λ).
-  const double n_eff = std::min<double>(static_cast<double>(windows_), (1.0 + lam) / (1.0 - lam));
-  const double sd_rls = std::sqrt(resid_var_ / n_eff);
-  est_.uncertainty = sd_rls;
-  est_.health = windows_ >= static_cast<std::uint64_t>(params_.rls_min_windows) ? Health::kValid : Health::kNotConverged;
-  trk_ = est_;
-  if (z_valid_ && blend_ > 0.0) {
-    const double floor_sd = params_.rls_step_min_sd_nm;
-    trk_.torque_nm = z_cycle_;
-    trk_.uncertainty = std::sqrt(std::max(d_var_, floor_sd * floor_sd));
-  } else {
-    trk_.torque_nm = trk_theta_;
-  }
+  publish(s.t_ns, err, win);
   return true;
 }
 

@@ -107,6 +107,8 @@ class LoadRls {
     int position = 0;                                ///< firing position whose compression it covers
     bool closes_group = false;                       ///< last window of that firing to close (smallest shift)
   };
+  double rls_step(double y, double phi_a) noexcept;
+  void publish(std::int64_t t_ns, double err, const Window& win) noexcept;
   void track(double obs, const Window& win) noexcept;
   EngineGeometry engine_;
   EnergiesParams params_;
