@@ -426,8 +426,13 @@ TEST_F(Service, CycloneThreadsInheritThePublisherScheduling) {
       {std::string("CYCLONEDDS_URI=file://") + TORQUED_SOURCE_DIR + "/config/cyclonedds-loopback.xml"},
       (dir_ / "daemon.log").string());
   ASSERT_TRUE(test::eventually(15, [&] { return log().find("running") != std::string::npos; })) << log();
+  // "running" is logged once the threads are started; each names itself right after it starts: wait for the names.
   std::map<std::string, std::pair<int, int>> by_name;
-  for (const auto& [name, policy, prio] : thread_scheduling(d.pid())) by_name[name] = {policy, prio};
+  (void)test::eventually(10, [&] {
+    by_name.clear();
+    for (const auto& [name, policy, prio] : thread_scheduling(d.pid())) by_name[name] = {policy, prio};
+    return by_name.count("torqued-pub") > 0 && by_name.count("torqued-angle") > 0;
+  });
   d.signal(SIGTERM);
   EXPECT_TRUE(d.wait(5));
   std::string all;
