@@ -12,6 +12,7 @@ PKGS=(
   libsystemd-dev systemd libgpiod-dev
   libreaderwriterqueue-dev libboost-dev
   can-utils iproute2
+  clang libclang-rt-dev openssl
   python3 python3-matplotlib python3-numpy
 )
 # Extra packages only the heavier test tiers need (VM for vcan, latency tools, foreign DDS peer).
