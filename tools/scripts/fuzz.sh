@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Runs every libFuzzer target of fuzz/ for SECONDS each (default 5) from its seed corpus (fuzz/corpus/<name>,
+# read-only: new inputs go to a scratch directory) and prints the executions of each and in total.
+# Usage: tools/scripts/fuzz.sh [SECONDS] [BUILD_DIR]   (BUILD_DIR default build-fuzz, configured here with clang)
+# A crash leaves its reproducer in BUILD_DIR/fuzz-artifacts/ and makes the exit status non-zero.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+secs=${1:-5}
+dir=${2:-build-fuzz}
+if [[ ! -f "$dir/CMakeCache.txt" ]]; then
+  CC=clang CXX=clang++ cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTORQUED_FUZZ=ON \
+    -DTORQUED_BENCHMARKS=OFF >/dev/null
+fi
+cmake --build "$dir" -j"$(nproc)" --target fuzz_all >/dev/null
+mkdir -p "$dir/fuzz-artifacts"
+total=0
+status=0
+for t in edges:edge_csv candump:candump dbc:dbc config:config state:state; do
+  name=${t%%:*} corpus=fuzz/corpus/${t#*:}
+  scratch=$(mktemp -d)
+  log="$dir/fuzz-${name}.log"
+  if ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+    "$dir/fuzz/fuzz_${name}" -max_total_time="$secs" -timeout=10 -rss_limit_mb=2048 \
+    -artifact_prefix="$dir/fuzz-artifacts/${name}-" "$scratch" "$corpus" >"$log" 2>&1; then :; else
+    status=1
+    echo "fuzz_${name}: FAILED (see $log)"
+    grep -E "ERROR|runtime error" "$log" | head -5 || true
+  fi
+  rm -rf "$scratch"
+  runs=$(grep -oE "Done [0-9]+ runs" "$log" | grep -oE "[0-9]+" || echo 0)
+  total=$((total + runs))
+  echo "fuzz_${name}: ${runs} executions in ${secs} s"
+done
+echo "fuzz: ${total} executions in total"
+exit $status
