@@ -16,7 +16,9 @@ struct EngineGeometry {
   double bore_m = 0.0825;                             ///< bore (m)
   double stroke_m = 0.0860;                           ///< stroke (m) = 2R
   double rod_m = 0.1450;                              ///< connecting-rod length l (m)
-  double compression_ratio = 10.5;                    ///< r_c (-)
+  double compression_ratio = 10.5;                    ///< r_c (-): a spec-sheet value the configuration gives
+                                                      ///< (engine.compression_ratio); 10.5 is only a typical
+                                                      ///< port-injected gasoline engine's, not a tuning
   double j_rot_kgm2 = 0.16;                           ///< rotating inertia incl. flywheel and dyno side (kg m^2)
   double m_osc_kg = 0.55;                             ///< oscillating mass per cylinder (piston + 1/3 rod) (kg)
   double tdc_offset_rad = 1.5707963267948966;         ///< crank angle of cyl-1 firing TDC after first tooth after gap (rad)

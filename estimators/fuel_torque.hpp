@@ -23,7 +23,8 @@ namespace torqued {
 struct FuelTorqueParams {
   double eta_prior = 0.38;             ///< gross indicated efficiency prior (-)
   double eta_prior_sd = 0.10;          ///< its 1σ (-)
-  double p_exh_prior_pa = 105000.0;    ///< exhaust pressure prior (Pa)
+  double p_exh_prior_pa = 105000.0;    ///< exhaust pressure prior (Pa): physics (ambient + a typical exhaust
+                                       ///< system drop), learned while a torque reference is present
   double p_exh_prior_sd_pa = 15000.0;  ///< its 1σ (Pa)
   double forgetting = 0.999;           ///< RLS forgetting per reference cycle (-)
   double residual_sd_nm = 2.0;         ///< measurement 1σ of one reference cycle (N m)

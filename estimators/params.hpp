@@ -84,7 +84,9 @@ struct EnergiesParams {
   double ivc_abdc_deg = 0.0;            ///< intake valve closing after BDC: start of polytropic compression (deg)
   double evo_atdc_deg = 130.0;          ///< exhaust valve opening after firing TDC: end of polytropic expansion (deg)
   double blowdown_end_atdc_deg = 200.0; ///< cylinder pressure reaches the exhaust pressure here (cosine blend) (deg)
-  double exhaust_pressure_pa = 105000.0;///< exhaust back-pressure, for the pumping loop in fuel cut-off (Pa)
+  double exhaust_pressure_pa = 105000.0;///< exhaust back-pressure, for the pumping loop in fuel cut-off (Pa):
+                                        ///< physics, not tuning: ambient 1.013 bar + a typical 0.04 bar exhaust
+                                        ///< system drop at part load (Heywood ch. 6); configurable per engine
   double ivc_pressure_factor = 1.0;     ///< p_IVC = factor × MAP (volumetric-efficiency correction) (-)
   bool model_expansion_cylinder = true; ///< model the cylinder that fired 180° earlier in the RLS window (-)
   bool rls_estimate_inertia = false;    ///< regress [θ̈, 1] (paper) instead of [1] with the known J_rot (-)
@@ -106,10 +108,15 @@ struct EnergiesParams {
   double can_load_latency_s = 0.010;    ///< the CAN load torque lags the flange by this (sensor lag + half the frame
                                         ///< period); the energy balance takes each tooth's load this much later (s)
 };
+/// The Energies 2019 paper's friction law of its own test engine (EN-24 coefficients). An example of one engine,
+/// never a default: the simulator's reference engine uses it too, so a default taken from it would make our
+/// tables right and other engines wrong. torque-accuracy --paper-friction starts from it for comparison.
+inline constexpr std::array<double, 4> kEnergiesPaperFrictionC{-23.86, 2.45e-3, -5.20e-6, -4.67e-3};
+
 struct FrictionParams {
-  /// T_fric = (C1 + C2 n + C3 n²) e^{C4 t_oil}, n in rpm, t_oil in °C (EN-24). Used as the starting point only
-  /// when prior_from_geometry is false (the paper's engine's values are kept as the example).
-  std::array<double, 4> c{-23.86, 2.45e-3, -5.20e-6, -4.67e-3};
+  /// T_fric = (C1 + C2 n + C3 n²) e^{C4 t_oil}, n in rpm, t_oil in °C (EN-24). The starting point only when
+  /// prior_from_geometry is false; then the user gives the engine's own law (no default engine is assumed).
+  std::array<double, 4> c{0.0, 0.0, 0.0, 0.0};
   /// Start from the generic Barnes-Moss FMEP correlation scaled by the displacement (friction_learner.hpp), not
   /// from `c`: nothing of one particular engine is assumed until friction is learned.
   bool prior_from_geometry = true;

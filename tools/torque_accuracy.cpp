@@ -207,7 +207,7 @@ int main(int argc, char** argv) {
   opt.base.kalman = kalman;
   opt.base.fourier = fourier;
   opt.can_lost_after_s = can_lost;
-  if (paper_prior) opt.friction_prior = torqued::FrictionParams{}.c;
+  if (paper_prior) opt.friction_prior = torqued::kEnergiesPaperFrictionC;
   const auto fric = torqued::eval::learn_friction(opt);
   std::printf("friction learned on fuel_cut (prior %s): C1=%.3f C2=%.4g C3=%.4g C4=%.4g\n",
               paper_prior ? "paper" : "zero", fric[0], fric[1], fric[2], fric[3]);
