@@ -463,13 +463,8 @@ long proc_status_kb(pid_t pid, const std::string& field) {
 TEST_F(Service, PacedWithDdsAndLockedMemoryStaysWithin64MiB) {
   // mlockall makes every mapped page resident, thread stacks included: 8 MiB each by default (108 MiB in all
   // before the stacks were sized). On DDS domain 11 (other tests use 0, 7, 8 and 9).
-  std::string cfg = test::write_demo_config(dir_.string());
-  {
-    std::string y = test::slurp(cfg);
-    ASSERT_NE(y.find("domain_id: 0"), std::string::npos);
-    y.replace(y.find("domain_id: 0"), 12, "domain_id: 11");
-    std::ofstream(cfg) << y;
-  }
+  const std::string cfg = test::write_demo_config(dir_.string(), "domain_id: 0", "domain_id: 11");
+  ASSERT_NE(test::slurp(cfg).find("domain_id: 11"), std::string::npos);
   test::Process d(
       {TORQUED_EXE, "--config", cfg, "--state-dir", (dir_ / "state").string()},
       {std::string("CYCLONEDDS_URI=file://") + TORQUED_SOURCE_DIR + "/config/cyclonedds-loopback.xml"},
