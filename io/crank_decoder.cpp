@@ -77,30 +77,47 @@ CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& para
   min_pulse_ns_ = static_cast<std::int64_t>(std::llround(params.min_pulse_us * 1e3));
   cam_win_start_ = params.cam_window_start_deg;
   cam_win_end_ = params.cam_window_end_deg;
-  const int t = wheel.teeth();
-  if (t < 2 || t > kMaxTeeth) {
-    error_ = "wheel: tooth count " + std::to_string(t) + " outside 2.." + std::to_string(kMaxTeeth);
+  error_ = init_angles();
+  if (error_.empty()) error_ = init_gaps();
+  if (!error_.empty()) return;
+  if (pattern_sync()) {  // the cam pattern or the width code gives the position, not the gaps
+    error_ = check_pattern();
     return;
   }
+  if (num_gaps_ == 0) {
+    error_ = "wheel: no gap (missing tooth) to sync on";
+    return;
+  }
+  error_ = init_gap_identification();
+}
+
+// Tooth count and nominal tooth angles (listed, or N-M with equal pitch).
+std::string CrankDecoder::init_angles() {
+  const int t = wheel_.teeth();
+  if (t < 2 || t > kMaxTeeth)
+    return "wheel: tooth count " + std::to_string(t) + " outside 2.." + std::to_string(kMaxTeeth);
   teeth_ = t;
-  if (wheel.tooth_count > 0) {
+  if (wheel_.tooth_count > 0) {
     for (int i = 0; i < t; ++i) {
-      const double a = wheel.tooth_angles_deg[static_cast<std::size_t>(i)];
+      const double a = wheel_.tooth_angles_deg[static_cast<std::size_t>(i)];
       if (!(a >= 0.0 && a < 360.0) ||
-          (i > 0 && !(a > wheel.tooth_angles_deg[static_cast<std::size_t>(i - 1)]))) {
-        error_ = "wheel: tooth_angles_deg must be strictly increasing in [0, 360); entry " +
-                 std::to_string(i) + " is " + std::to_string(a);
-        return;
+          (i > 0 && !(a > wheel_.tooth_angles_deg[static_cast<std::size_t>(i - 1)]))) {
+        return "wheel: tooth_angles_deg must be strictly increasing in [0, 360); entry " + std::to_string(i) +
+               " is " + std::to_string(a);
       }
       angle_[static_cast<std::size_t>(i)] = a * kDegToRad;
     }
-  } else {
-    if (wheel.positions < 2 || wheel.missing < 1 || wheel.missing >= wheel.positions) {
-      error_ = "wheel: need positions >= 2 and 1 <= missing < positions (a gap is required for sync)";
-      return;
-    }
-    for (int i = 0; i < t; ++i) angle_[static_cast<std::size_t>(i)] = kTwoPi * i / wheel.positions;
+    return {};
   }
+  if (wheel_.positions < 2 || wheel_.missing < 1 || wheel_.missing >= wheel_.positions)
+    return "wheel: need positions >= 2 and 1 <= missing < positions (a gap is required for sync)";
+  for (int i = 0; i < t; ++i) angle_[static_cast<std::size_t>(i)] = kTwoPi * i / wheel_.positions;
+  return {};
+}
+
+// Period widths, the pitch (smallest width) and the gap teeth.
+std::string CrankDecoder::init_gaps() {
+  const int t = teeth_;
   pitch_rad_ = kTwoPi;
   for (int i = 0; i < t; ++i) {
     const double prev =
@@ -113,22 +130,17 @@ CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& para
   for (int i = 0; i < t; ++i) {
     const double ratio = width_[static_cast<std::size_t>(i)] / pitch_rad_;
     if (ratio > 1.5) {
-      if (num_gaps_ == kMaxGaps) {
-        error_ = "wheel: more than " + std::to_string(kMaxGaps) + " gaps";
-        return;
-      }
+      if (num_gaps_ == kMaxGaps) return "wheel: more than " + std::to_string(kMaxGaps) + " gaps";
       gap_tooth_[static_cast<std::size_t>(num_gaps_++)] = i;
       min_gap_ratio_ = std::min(min_gap_ratio_, ratio);
     }
   }
-  if (pattern_sync()) {  // the cam pattern or the width code gives the position, not the gaps
-    error_ = check_pattern();
-    return;
-  }
-  if (num_gaps_ == 0) {
-    error_ = "wheel: no gap (missing tooth) to sync on";
-    return;
-  }
+  return {};
+}
+
+// Gap-synced wheels: tooth counts between gaps, the gap threshold and the history that identifies a gap.
+std::string CrankDecoder::init_gap_identification() {
+  const int t = teeth_;
   for (int j = 0; j < num_gaps_; ++j) {
     const int prev = gap_tooth_[static_cast<std::size_t>((j + num_gaps_ - 1) % num_gaps_)];
     const int d = (gap_tooth_[static_cast<std::size_t>(j)] - prev + t) % t;
@@ -142,14 +154,17 @@ CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& para
   }
   // Gap candidate threshold: gap_ratio_min x the smallest gap, but never below the geometric midpoint between
   // a tooth (1) and that gap (on 36-1 a cranking period may grow 30 % from one tooth to the next).
-  gap_threshold_ = std::max(params.gap_ratio_min * min_gap_ratio_, std::sqrt(min_gap_ratio_));
-  if (gap_threshold_ <= 1.05) {
-    error_ = "decoder: the gap threshold must exceed 1.05 to tell a gap from a tooth";
-    return;
-  }
-  // Smallest history of gap-to-gap tooth counts that identifies the gap uniquely (plausibility + position).
-  history_needed_ = 0;
-  for (int len = 1; len <= num_gaps_ && history_needed_ == 0; ++len) {
+  gap_threshold_ = std::max(params_.gap_ratio_min * min_gap_ratio_, std::sqrt(min_gap_ratio_));
+  if (gap_threshold_ <= 1.05) return "decoder: the gap threshold must exceed 1.05 to tell a gap from a tooth";
+  history_needed_ = gap_history_needed();
+  if (history_needed_ == 0)
+    return "wheel: gap pattern is rotationally symmetric; the position cannot be identified";
+  return {};
+}
+
+// Smallest history of gap-to-gap tooth counts that identifies the gap uniquely (0: none does).
+int CrankDecoder::gap_history_needed() const noexcept {
+  for (int len = 1; len <= num_gaps_; ++len) {
     bool unique = true;
     for (int a = 0; a < num_gaps_ && unique; ++a) {
       for (int b = a + 1; b < num_gaps_ && unique; ++b) {
@@ -161,12 +176,9 @@ CrankDecoder::CrankDecoder(const WheelGeometry& wheel, const DecoderParams& para
         if (same) unique = false;
       }
     }
-    if (unique) history_needed_ = len;
+    if (unique) return len;
   }
-  if (history_needed_ == 0) {
-    error_ = "wheel: gap pattern is rotationally symmetric; the position cannot be identified";
-    return;
-  }
+  return 0;
 }
 
 bool CrankDecoder::set_tooth_corrections(std::span<const double> rad) noexcept {
@@ -314,13 +326,7 @@ bool CrankDecoder::on_crank(std::int64_t t_ns, ToothEvent& out) noexcept {
     last_t_ns_ = t_ns;
     pattern_fresh_ = true;
     cam_pend_n_ = 0;
-    out = ToothEvent{};
-    out.t_ns = out.source_t_ns = t_ns;
-    out.tooth = -1;
-    out.sync = SyncState::kStalled;
-    out.events = pending_flags_;
-    pending_flags_ = 0;
-    ++stats_.teeth;
+    emit_unsynced(t_ns, SyncState::kStalled, out);
     return true;
   }
   if (state_ == SyncState::kStalled) state_ = SyncState::kSyncing;
@@ -360,79 +366,7 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
       pending_flags_ |= kToothNoiseRejected;
       return false;
     } else if (r >= gap_threshold_) {
-      if (r > params_.gap_ratio_max * (width_[static_cast<std::size_t>(gap_tooth_[0])] / pitch_rad_) * 4.0) {
-        // Far too slow for any gap: speed collapsed; start over with this period as reference.
-        since_gap_ = -1;
-        hist_len_ = 0;
-        ref_prev_ns_ = 0;
-        ref_period_ns_ = period;
-      } else if (++gap_run_ > max_gap_run_) {
-        // More gaps in a row than the wheel has: the reference is no tooth period (the rest of a glitch's
-        // period after a sync loss, issue 13); rebuild it from this period.
-        gap_run_ = 0;
-        since_gap_ = -1;
-        hist_len_ = 0;
-        ref_prev_ns_ = 0;
-        ref_period_ns_ = period;
-      } else {
-        ++stats_.gaps;
-        ref_prev_ns_ = 0;  // the trend does not carry across a gap
-        const int run_before_gap = normal_run_;
-        normal_run_ = 0;
-        if (since_gap_ >= 0) {
-          if (hist_len_ == kMaxGaps) {
-            std::copy(hist_.begin() + 1, hist_.end(), hist_.begin());
-            --hist_len_;
-          }
-          hist_[static_cast<std::size_t>(hist_len_++)] = since_gap_ + 1;
-        }
-        since_gap_ = 0;
-        // Plausibility: the recent gap-to-gap tooth counts must match exactly one position of the wheel,
-        // and this gap's size must fit that gap's nominal ratio.
-        // A single-gap wheel is identified by its gap alone: sync at the first one (issue 13); multi-gap
-        // wheels need the tooth counts between their last gaps. Without a previous gap the teeth counted
-        // before this one must fit (half a revolution at least, no more than a revolution), else noise would
-        // sync on any long period.
-        const bool single_ok =
-            num_gaps_ == 1 && hist_len_ == 0 && run_before_gap >= teeth_ / 2 && run_before_gap < teeth_;
-        const int need = single_ok ? 0 : history_needed_;
-        if (hist_len_ >= need) {
-          int match = -1, matches = 0;
-          for (int j = 0; j < num_gaps_; ++j) {
-            bool ok = true;
-            for (int k = 0; k < need && ok; ++k) {
-              ok = hist_[static_cast<std::size_t>(hist_len_ - 1 - k)] ==
-                   gap_count_[static_cast<std::size_t>((j - k + 2 * num_gaps_) % num_gaps_)];
-            }
-            const double nominal =
-                width_[static_cast<std::size_t>(gap_tooth_[static_cast<std::size_t>(j)])] / pitch_rad_;
-            ok = ok && r >= params_.gap_ratio_min * nominal && r <= params_.gap_ratio_max * nominal;
-            if (ok) {
-              match = j;
-              ++matches;
-            }
-          }
-          if (matches == 1) {
-            state_ = SyncState::kSynced;
-            ++stats_.syncs;
-            lost_this_rev_ = 0;
-            tooth_ = gap_tooth_[static_cast<std::size_t>(match)];
-            if (tooth_ == 0)
-              rev_ ^= 1;  // keep rev_ meaning "revolution of tooth_"; phase from the cam anyway
-            note(DecoderEventKind::kSynced, t_ns, SyncState::kSyncing, SyncState::kSynced,
-                 SyncLossReason::kNone, rev_ * teeth_ + tooth_);
-            period_ns_ = period;
-            const double w = width_[static_cast<std::size_t>(tooth_)];
-            last_width_rad_ = w;
-            u1_ = static_cast<double>(period) / w;
-            u2_ = 0.0;
-            last_t_ns_ = t_ns;
-            pending_flags_ |= kToothGap | (stats_.syncs > 1 ? kToothResynced : 0u);
-            emit(t_ns, rev_ * teeth_ + tooth_, w, period, out);
-            return true;
-          }
-        }
-      }
+      if (syncing_gap(t_ns, period, r, out)) return true;
     } else {
       normal = true;
       gap_run_ = 0;
@@ -453,16 +387,107 @@ bool CrankDecoder::syncing_step(std::int64_t t_ns, std::int64_t period, ToothEve
   }
   period_ns_ = period;
   last_t_ns_ = t_ns;
+  emit_unsynced(t_ns, SyncState::kSyncing, out);
+  out.width_rad = normal ? pitch_rad_ : 0.0;
+  out.speed_rad_s = normal ? pitch_rad_ / (static_cast<double>(period) * 1e-9) : 0.0;
+  return true;
+}
+
+// Syncing: the period is a gap candidate (r = period / predicted tooth period). Returns true when the gap
+// identifies the wheel's position: the decoder is synced and `out` holds the gap tooth.
+bool CrankDecoder::syncing_gap(std::int64_t t_ns, std::int64_t period, double r, ToothEvent& out) noexcept {
+  if (r > params_.gap_ratio_max * (width_[static_cast<std::size_t>(gap_tooth_[0])] / pitch_rad_) * 4.0) {
+    restart_reference(period);  // far too slow for any gap: speed collapsed; start over from this period
+    return false;
+  }
+  if (++gap_run_ > max_gap_run_) {
+    // More gaps in a row than the wheel has: the reference is no tooth period (the rest of a glitch's
+    // period after a sync loss, issue 13); rebuild it from this period.
+    gap_run_ = 0;
+    restart_reference(period);
+    return false;
+  }
+  ++stats_.gaps;
+  ref_prev_ns_ = 0;  // the trend does not carry across a gap
+  const int run_before_gap = normal_run_;
+  normal_run_ = 0;
+  if (since_gap_ >= 0) {
+    if (hist_len_ == kMaxGaps) {
+      std::copy(hist_.begin() + 1, hist_.end(), hist_.begin());
+      --hist_len_;
+    }
+    hist_[static_cast<std::size_t>(hist_len_++)] = since_gap_ + 1;
+  }
+  since_gap_ = 0;
+  // Plausibility: the recent gap-to-gap tooth counts must match exactly one position of the wheel, and this
+  // gap's size must fit that gap's nominal ratio. A single-gap wheel is identified by its gap alone: sync at
+  // the first one (issue 13); multi-gap wheels need the tooth counts between their last gaps. Without a
+  // previous gap the teeth counted before this one must fit (half a revolution at least, no more than a
+  // revolution), else noise would sync on any long period.
+  const bool single_ok =
+      num_gaps_ == 1 && hist_len_ == 0 && run_before_gap >= teeth_ / 2 && run_before_gap < teeth_;
+  const int need = single_ok ? 0 : history_needed_;
+  if (hist_len_ < need) return false;
+  const int match = match_gap(need, r);
+  if (match < 0) return false;
+  sync_at_gap(t_ns, period, match, out);
+  return true;
+}
+
+// The one gap of the wheel whose recent history (need counts) and nominal ratio fit; -1 if none or several.
+int CrankDecoder::match_gap(int need, double r) const noexcept {
+  int match = -1, matches = 0;
+  for (int j = 0; j < num_gaps_; ++j) {
+    bool ok = true;
+    for (int k = 0; k < need && ok; ++k) {
+      ok = hist_[static_cast<std::size_t>(hist_len_ - 1 - k)] ==
+           gap_count_[static_cast<std::size_t>((j - k + 2 * num_gaps_) % num_gaps_)];
+    }
+    const double nominal =
+        width_[static_cast<std::size_t>(gap_tooth_[static_cast<std::size_t>(j)])] / pitch_rad_;
+    ok = ok && r >= params_.gap_ratio_min * nominal && r <= params_.gap_ratio_max * nominal;
+    if (ok) {
+      match = j;
+      ++matches;
+    }
+  }
+  return matches == 1 ? match : -1;
+}
+
+void CrankDecoder::sync_at_gap(std::int64_t t_ns, std::int64_t period, int match, ToothEvent& out) noexcept {
+  state_ = SyncState::kSynced;
+  ++stats_.syncs;
+  lost_this_rev_ = 0;
+  tooth_ = gap_tooth_[static_cast<std::size_t>(match)];
+  if (tooth_ == 0) rev_ ^= 1;  // keep rev_ meaning "revolution of tooth_"; phase from the cam anyway
+  note(DecoderEventKind::kSynced, t_ns, SyncState::kSyncing, SyncState::kSynced, SyncLossReason::kNone,
+       rev_ * teeth_ + tooth_);
+  period_ns_ = period;
+  const double w = width_[static_cast<std::size_t>(tooth_)];
+  last_width_rad_ = w;
+  u1_ = static_cast<double>(period) / w;
+  u2_ = 0.0;
+  last_t_ns_ = t_ns;
+  pending_flags_ |= kToothGap | (stats_.syncs > 1 ? kToothResynced : 0u);
+  emit(t_ns, rev_ * teeth_ + tooth_, w, period, out);
+}
+
+void CrankDecoder::restart_reference(std::int64_t period) noexcept {
+  since_gap_ = -1;
+  hist_len_ = 0;
+  ref_prev_ns_ = 0;
+  ref_period_ns_ = period;
+}
+
+// A tooth event with no tooth index (syncing, lost sync, stalled); carries the pending event flags.
+void CrankDecoder::emit_unsynced(std::int64_t t_ns, SyncState s, ToothEvent& out) noexcept {
   out = ToothEvent{};
   out.t_ns = out.source_t_ns = t_ns;
   out.tooth = -1;
-  out.width_rad = normal ? pitch_rad_ : 0.0;
-  out.speed_rad_s = normal ? pitch_rad_ / (static_cast<double>(period) * 1e-9) : 0.0;
-  out.sync = SyncState::kSyncing;
+  out.sync = s;
   out.events = pending_flags_;
   pending_flags_ = 0;
   ++stats_.teeth;
-  return true;
 }
 
 bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEvent& out) noexcept {
@@ -521,15 +546,17 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
     u1_ = u2_ = 0.0;
     period_ns_ = period;
     last_t_ns_ = t_ns;
-    out = ToothEvent{};
-    out.t_ns = out.source_t_ns = t_ns;
-    out.tooth = -1;
-    out.sync = SyncState::kLostSync;
-    out.events = pending_flags_;
-    pending_flags_ = 0;
-    ++stats_.teeth;
+    emit_unsynced(t_ns, SyncState::kLostSync, out);
     return true;
   }
+  accept_tooth(t_ns, period, i, w, advance, gap_tooth, out);
+  return true;
+}
+
+// Synced: tooth i (advance teeth after the last one; 2 = one lost tooth recovered) closes a period of width
+// w.
+void CrankDecoder::accept_tooth(std::int64_t t_ns, std::int64_t period, int i, double w, int advance,
+                                bool gap_tooth, ToothEvent& out) noexcept {
   // Crossing tooth 0 starts the other revolution of the 720° cycle.
   for (int k = 0, j = tooth_; k < advance; ++k) {
     j = next_tooth(j);
@@ -554,7 +581,6 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   ++stats_.synced_teeth;
   emit(t_ns, idx, w + corr_[static_cast<std::size_t>(idx)] - corr_[static_cast<std::size_t>(prev)], period,
        out);
-  return true;
 }
 
 void CrankDecoder::lose_sync(SyncLossReason reason, std::int64_t t_ns) noexcept {

@@ -175,6 +175,17 @@ class CrankDecoder {
   void on_cam(std::int64_t t_ns) noexcept;
   bool syncing_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
   bool synced_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
+  bool syncing_gap(std::int64_t t_ns, std::int64_t period_ns, double r, ToothEvent& out) noexcept;
+  [[nodiscard]] int match_gap(int need, double r) const noexcept;
+  void sync_at_gap(std::int64_t t_ns, std::int64_t period_ns, int match, ToothEvent& out) noexcept;
+  void restart_reference(std::int64_t period_ns) noexcept;
+  void emit_unsynced(std::int64_t t_ns, SyncState s, ToothEvent& out) noexcept;
+  void accept_tooth(std::int64_t t_ns, std::int64_t period_ns, int i, double w, int advance, bool gap_tooth,
+                    ToothEvent& out) noexcept;
+  std::string init_angles();
+  std::string init_gaps();
+  std::string init_gap_identification();
+  [[nodiscard]] int gap_history_needed() const noexcept;
   void lose_sync(SyncLossReason reason, std::int64_t t_ns) noexcept;
   void note(DecoderEventKind kind, std::int64_t t_ns, SyncState from, SyncState to, SyncLossReason reason,
             int tooth) noexcept {
