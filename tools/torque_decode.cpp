@@ -5,8 +5,6 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
-
-#include "cli_exit.hpp"
 #include <algorithm>
 #include <chrono>
 #include <cinttypes>
@@ -21,6 +19,7 @@
 
 #include "backend_factory.hpp"
 #include "candump_source.hpp"
+#include "cli_exit.hpp"
 #include "config_loader.hpp"
 #include "crank_decoder.hpp"
 #include "dbc.hpp"
@@ -150,14 +149,7 @@ bool write_revs(const RevTracker& r, const Options& o) {
   return std::fclose(f) == 0;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  Options o;
-  CLI::App app{
-      "torque-decode: decode a crank/cam edge capture and/or a candump log to CSV.\n"
-      "Per tooth: time, tooth index in 720 deg, angle, rpm, sync state, events (noise edge, lost tooth, "
-      "gap, resync). Per CAN frame: time and every DBC signal by name. Ends with a one-line summary."};
+void add_options(CLI::App& app, Options& o) {
   app.add_option("--edges", o.edges, "edge capture: logic-analyzer CSV (Time [s],crank,cam) or bare list");
   app.add_option("--format", o.format, "edge file format: csv | list")->check(CLI::IsMember({"csv", "list"}));
   app.add_option("--can", o.can, "candump -l log");
@@ -186,212 +178,212 @@ int main(int argc, char** argv) {
   app.add_option("--plot-script", o.plot_script,
                  "plot script (default: the source tree's tools/scripts/plot_decode.py)");
   app.add_flag("-q,--quiet", o.quiet, "no progress display");
-  app.footer("Exit status: 0 done; 1 an input could not be read or parsed, or an output not written; 2 command-line error (unknown option, bad value, file that does not exist, inconsistent options).");
-  TORQUED_CLI_PARSE(app, argc, argv);
-  o.can_offset_given = app.count("--can-offset") > 0;
+  app.footer(
+      "Exit status: 0 done; 1 an input could not be read or parsed, or an output not written; 2 command-line "
+      "error (unknown option, bad value, file that does not exist, inconsistent options).");
+}
 
+/// What is decoded, opened from --config or from the individual options.
+struct Inputs {
   WheelGeometry wheel;
   DecoderParams params;
   std::unique_ptr<EdgeSource> edges;
   std::unique_ptr<CanSource> can;
   std::optional<DbcDatabase> dbc;
-  std::int64_t can_offset_ns = static_cast<std::int64_t>(std::llround(o.can_offset_s * 1e9));
-  std::string err;
+  std::int64_t can_offset_ns = 0;
+  std::string err;  ///< a DBC parse error (reported only if no database could be built)
+};
 
-  if (!o.config.empty()) {
-    LoadResult lr = load_config(o.config);
-    if (!lr.ok()) {
-      for (const auto& e : lr.errors) std::fprintf(stderr, "%s\n", e.c_str());
-      return 1;
-    }
-    Config cfg = *lr.config;
-    if (!o.edges.empty()) cfg.inputs.edges.path = o.edges;
-    if (!o.can.empty()) cfg.inputs.can.path = o.can;
-    if (!o.dbc.empty()) cfg.can.dbc = o.dbc;
-    wheel = cfg.wheel.geometry;
-    params = decoder_params(cfg);
-    if (!cfg.inputs.edges.path.empty() || cfg.inputs.edges.backend != EdgeBackend::kFile) {
-      edges = make_edge_source(cfg, &err);
-      if (!edges) {
-        std::fprintf(stderr, "torque-decode: %s\n", err.c_str());
-        return 1;
-      }
-    }
-    can = make_can_source(cfg, &err);
-    if (!can && !err.empty()) {
-      std::fprintf(stderr, "torque-decode: %s\n", err.c_str());
-      return 1;
-    }
-    dbc = load_dbc(cfg, &err);
-    if (!o.can_offset_given) can_offset_ns = can_time_offset_ns(cfg);
-  } else {
-    if (!trigger_from_name(o.wheel, wheel, params, &err)) {
-      std::fprintf(stderr, "torque-decode: %s\n", err.c_str());
-      return 2;
-    }
-    if (o.falling) wheel.rising_edge = false;  // pattern wheels set the edge their angles refer to
-    params.use_cam = !o.cam.empty();
-    if (!o.edges.empty()) {
-      if (o.format == "csv") {
-        EdgeCsvOptions eo;
-        eo.crank_column = o.crank;
-        eo.cam_column = o.cam;
-        if (o.first_row == "edges") eo.first_row = EdgeCsvFirstRow::kEdgesFromLow;
-        auto s = std::make_unique<EdgeCsvSource>(o.edges, eo);
-        if (!s->ok()) err = s->last_error();
-        edges = std::move(s);
-      } else {
-        EdgeListOptions lo;
-        lo.level = o.falling ? 0 : 1;
-        auto s = std::make_unique<EdgeListSource>(o.edges, lo);
-        if (!s->ok()) err = s->last_error();
-        edges = std::move(s);
-      }
-      if (!err.empty()) {
-        std::fprintf(stderr, "torque-decode: %s\n", err.c_str());
-        return 1;
-      }
-    }
-    if (!o.can.empty()) {
-      auto s = std::make_unique<CandumpSource>(o.can);
-      if (!s->ok()) {
-        std::fprintf(stderr, "torque-decode: %s\n", s->last_error().c_str());
-        return 1;
-      }
-      can = std::move(s);
-    }
-    if (!o.dbc.empty()) {
-      DbcParseResult r = DbcDatabase::parse_file(o.dbc);
-      if (!r.errors.empty()) err = r.errors.front();
-      dbc = std::move(r.db);
-    }
-  }
-  if (!err.empty() && !dbc) {
-    std::fprintf(stderr, "torque-decode: %s\n", err.c_str());
+int fail(int status, const std::string& msg) {
+  std::fprintf(stderr, "torque-decode: %s\n", msg.c_str());
+  return status;
+}
+
+/// Returns 0, or the exit status after printing why.
+int open_from_config(const Options& o, Inputs& in) {
+  LoadResult lr = load_config(o.config);
+  if (!lr.ok()) {
+    for (const auto& e : lr.errors) std::fprintf(stderr, "%s\n", e.c_str());
     return 1;
   }
-  if (!edges && !can) {
-    std::fprintf(stderr, "torque-decode: nothing to decode: give --edges and/or --can (or --config)\n%s",
-                 app.help().c_str());
-    return 2;
+  Config cfg = *lr.config;
+  if (!o.edges.empty()) cfg.inputs.edges.path = o.edges;
+  if (!o.can.empty()) cfg.inputs.can.path = o.can;
+  if (!o.dbc.empty()) cfg.can.dbc = o.dbc;
+  in.wheel = cfg.wheel.geometry;
+  in.params = decoder_params(cfg);
+  if (!cfg.inputs.edges.path.empty() || cfg.inputs.edges.backend != EdgeBackend::kFile) {
+    in.edges = make_edge_source(cfg, &in.err);
+    if (!in.edges) return fail(1, in.err);
   }
-  CrankDecoder decoder(wheel, params);
-  if (!decoder.valid()) {
-    std::fprintf(stderr, "torque-decode: %s\n", decoder.error().c_str());
-    return 2;
-  }
+  in.can = make_can_source(cfg, &in.err);
+  if (!in.can && !in.err.empty()) return fail(1, in.err);
+  in.dbc = load_dbc(cfg, &in.err);
+  if (!o.can_offset_given) in.can_offset_ns = can_time_offset_ns(cfg);
+  return 0;
+}
 
+std::unique_ptr<EdgeSource> open_edge_file(const Options& o, std::string& err) {
+  if (o.format == "csv") {
+    EdgeCsvOptions eo;
+    eo.crank_column = o.crank;
+    eo.cam_column = o.cam;
+    if (o.first_row == "edges") eo.first_row = EdgeCsvFirstRow::kEdgesFromLow;
+    auto s = std::make_unique<EdgeCsvSource>(o.edges, eo);
+    if (!s->ok()) err = s->last_error();
+    return s;
+  }
+  EdgeListOptions lo;
+  lo.level = o.falling ? 0 : 1;
+  auto s = std::make_unique<EdgeListSource>(o.edges, lo);
+  if (!s->ok()) err = s->last_error();
+  return s;
+}
+
+/// Returns 0, or the exit status after printing why.
+int open_from_options(const Options& o, Inputs& in) {
+  if (!trigger_from_name(o.wheel, in.wheel, in.params, &in.err)) return fail(2, in.err);
+  if (o.falling) in.wheel.rising_edge = false;  // pattern wheels set the edge their angles refer to
+  in.params.use_cam = !o.cam.empty();
+  if (!o.edges.empty()) {
+    in.edges = open_edge_file(o, in.err);
+    if (!in.err.empty()) return fail(1, in.err);
+  }
+  if (!o.can.empty()) {
+    auto s = std::make_unique<CandumpSource>(o.can);
+    if (!s->ok()) return fail(1, s->last_error());
+    in.can = std::move(s);
+  }
+  if (!o.dbc.empty()) {
+    DbcParseResult r = DbcDatabase::parse_file(o.dbc);
+    if (!r.errors.empty()) in.err = r.errors.front();
+    in.dbc = std::move(r.db);
+  }
+  return 0;
+}
+
+/// The decoding loop's outputs and counters.
+struct Decoding {
   DecoderEventLog events;
-  decoder.set_event_log(&events);
   RevTracker revs;
-  // The plot reads the per-tooth CSV: without --out-teeth it goes next to the PNG and is removed afterwards.
-  const bool temp_teeth = !o.plot.empty() && o.out_teeth.empty();
-  if (temp_teeth) o.out_teeth = o.plot + ".teeth.csv";
   CsvOut teeth_csv, can_csv;
-  if (!teeth_csv.open(o.out_teeth, "t_ns,t_s,tooth,angle_deg,rpm,sync,phase_known,events\n") ||
-      !can_csv.open(o.out_can, "t_ns,t_s,bus,id,message,signal,value,unit,label\n")) {
-    std::fprintf(stderr, "torque-decode: cannot write output: %s\n", std::strerror(errno));
-    return 1;
-  }
-
-  // Progress on a terminal only (never in pipes/tests): fraction of input bytes consumed.
-  const bool tty = !o.quiet && ::isatty(STDERR_FILENO) != 0;
-  std::uint64_t total_bytes = 0;
-  std::error_code ec;
-  for (const auto* s : {&o.edges, &o.can}) {
-    if (!s->empty()) total_bytes += std::filesystem::file_size(*s, ec);
-  }
-  auto last_progress = std::chrono::steady_clock::now();
-
-  ReplayMerger merger(edges.get(), can.get(), can_offset_ns);
-  ReplayMerger::Item item;
-  ToothEvent tooth;
   double rpm_min = 1e300, rpm_max = 0;
-  std::uint64_t frames_decoded = 0, frames_unknown = 0, frames_bad_dlc = 0, n = 0;
+  std::uint64_t frames_decoded = 0, frames_unknown = 0, frames_bad_dlc = 0;
+};
+
+void on_edge(const Options& o, const EdgeEvent& edge, CrankDecoder& decoder, Decoding& d) {
   constexpr double kRadSToRpm = 60.0 / (2.0 * std::numbers::pi);
+  ToothEvent tooth;
+  const bool got = decoder.on_edge(edge, tooth);
+  for (DecoderEvent ev; d.events.pop(ev);) {
+    if (o.transitions)
+      std::fprintf(
+          stderr, "debug: %.9f s %s -> %s: %s%s%s (tooth %d)\n", ev.t_ns * 1e-9, to_string(ev.from),
+          to_string(ev.to), to_string(ev.kind), ev.kind == DecoderEventKind::kLost ? " " : "",
+          ev.kind == DecoderEventKind::kLost ? to_string(static_cast<SyncLossReason>(ev.reason)) : "",
+          ev.tooth);
+    if (ev.kind == DecoderEventKind::kLost) d.revs.losses.push_back(ev);
+    if (ev.kind == DecoderEventKind::kSynced) {
+      if (d.revs.syncs.empty()) d.revs.first_sync_edge = decoder.stats().crank_edges;
+      d.revs.syncs.push_back(ev);
+    }
+  }
+  if (!got) return;
+  d.revs.on_tooth(tooth, decoder.teeth_per_rev());
+  const double rpm = tooth.speed_rad_s * kRadSToRpm;
+  if (tooth.sync == SyncState::kSynced) {
+    d.rpm_min = std::min(d.rpm_min, rpm);
+    d.rpm_max = std::max(d.rpm_max, rpm);
+  }
+  if (d.teeth_csv.f != nullptr) {
+    std::fprintf(d.teeth_csv.f, "%" PRId64 ",%.9f,%d,%.4f,%.2f,%s,%d,%s\n", tooth.t_ns, tooth.t_ns * 1e-9,
+                 tooth.tooth,
+                 tooth.sync == SyncState::kSynced ? tooth.angle_rad * 180.0 / std::numbers::pi : -1.0, rpm,
+                 to_string(tooth.sync), tooth.phase_known ? 1 : 0, events_text(tooth.events).c_str());
+  }
+}
+
+void on_frame(const CanFrame& f, const std::optional<DbcDatabase>& dbc, Decoding& d) {
+  const DbcMessage* m = dbc ? dbc->find(f.id, f.extended) : nullptr;
+  if (m == nullptr) {
+    ++d.frames_unknown;
+    return;
+  }
+  bool bad = false;
+  for (const auto& s : m->signals) {
+    if (f.len < s.bytes_needed()) {
+      bad = true;
+      continue;
+    }
+    if (!m->signal_present(s, f.data.data(), f.len)) continue;
+    if (d.can_csv.f != nullptr) {
+      const std::int64_t raw = s.raw(f.data.data(), f.len);
+      const std::string* label = s.value_name(raw);
+      std::fprintf(d.can_csv.f, "%" PRId64 ",%.6f,%u,0x%X,%s,%s,%.10g,%s,%s\n", f.t_ns, f.t_ns * 1e-9, f.bus,
+                   f.id, m->name.c_str(), s.name.c_str(), s.decode(f.data.data(), f.len), s.unit.c_str(),
+                   label ? label->c_str() : "");
+    }
+  }
+  bad ? ++d.frames_bad_dlc : ++d.frames_decoded;
+}
+
+/// Progress on a terminal only (never in pipes/tests): fraction of input bytes consumed.
+struct Progress {
+  bool tty = false;
+  std::uint64_t total_bytes = 0, n = 0;
+  std::chrono::steady_clock::time_point last = std::chrono::steady_clock::now();
+  explicit Progress(const Options& o) : tty(!o.quiet && ::isatty(STDERR_FILENO) != 0) {
+    std::error_code ec;
+    for (const auto* s : {&o.edges, &o.can}) {
+      if (!s->empty()) total_bytes += std::filesystem::file_size(*s, ec);
+    }
+  }
+  void tick(const Inputs& in, const CrankDecoder& decoder, const ReplayMerger& merger) {
+    if (!tty || (++n & 0xFFFF) != 0) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last <= std::chrono::milliseconds(250) || total_bytes == 0) return;
+    last = now;
+    const std::uint64_t done =
+        (in.edges ? in.edges->stats().bytes : 0) + (in.can ? in.can->stats().bytes : 0);
+    std::fprintf(stderr, "\r%5.1f %%  %" PRIu64 " teeth  %" PRIu64 " frames", 100.0 * done / total_bytes,
+                 decoder.stats().teeth, merger.frames_out());
+  }
+  ~Progress() {
+    if (tty) std::fprintf(stderr, "\r%60s\r", "");
+  }
+};
+
+std::uint64_t decode_all(const Options& o, Inputs& in, CrankDecoder& decoder, Decoding& d) {
+  Progress progress(o);
+  ReplayMerger merger(in.edges.get(), in.can.get(), in.can_offset_ns);
+  ReplayMerger::Item item;
   for (;;) {
     const SourceStatus st = merger.next(item);
     if (st == SourceStatus::kEnd) break;
     if (st == SourceStatus::kError) {
-      std::fprintf(stderr, "torque-decode: input error: %s %s\n", edges ? edges->last_error().c_str() : "",
-                   can ? can->last_error().c_str() : "");
+      std::fprintf(stderr, "torque-decode: input error: %s %s\n",
+                   in.edges ? in.edges->last_error().c_str() : "",
+                   in.can ? in.can->last_error().c_str() : "");
       continue;
     }
     if (st != SourceStatus::kOk) continue;
-    if (item.kind == ReplayMerger::Kind::kEdge) {
-      const bool got = decoder.on_edge(item.edge, tooth);
-      for (DecoderEvent ev; events.pop(ev);) {
-        if (o.transitions)
-          std::fprintf(
-              stderr, "debug: %.9f s %s -> %s: %s%s%s (tooth %d)\n", ev.t_ns * 1e-9, to_string(ev.from),
-              to_string(ev.to), to_string(ev.kind), ev.kind == DecoderEventKind::kLost ? " " : "",
-              ev.kind == DecoderEventKind::kLost ? to_string(static_cast<SyncLossReason>(ev.reason)) : "",
-              ev.tooth);
-        if (ev.kind == DecoderEventKind::kLost) revs.losses.push_back(ev);
-        if (ev.kind == DecoderEventKind::kSynced) {
-          if (revs.syncs.empty()) revs.first_sync_edge = decoder.stats().crank_edges;
-          revs.syncs.push_back(ev);
-        }
-      }
-      if (got) {
-        revs.on_tooth(tooth, decoder.teeth_per_rev());
-        const double rpm = tooth.speed_rad_s * kRadSToRpm;
-        if (tooth.sync == SyncState::kSynced) {
-          rpm_min = std::min(rpm_min, rpm);
-          rpm_max = std::max(rpm_max, rpm);
-        }
-        if (teeth_csv.f != nullptr) {
-          std::fprintf(teeth_csv.f, "%" PRId64 ",%.9f,%d,%.4f,%.2f,%s,%d,%s\n", tooth.t_ns, tooth.t_ns * 1e-9,
-                       tooth.tooth,
-                       tooth.sync == SyncState::kSynced ? tooth.angle_rad * 180.0 / std::numbers::pi : -1.0,
-                       rpm, to_string(tooth.sync), tooth.phase_known ? 1 : 0,
-                       events_text(tooth.events).c_str());
-        }
-      }
-    } else {
-      const CanFrame& f = item.frame;
-      const DbcMessage* m = dbc ? dbc->find(f.id, f.extended) : nullptr;
-      if (m == nullptr) {
-        ++frames_unknown;
-      } else {
-        bool bad = false;
-        for (const auto& s : m->signals) {
-          if (f.len < s.bytes_needed()) {
-            bad = true;
-            continue;
-          }
-          if (!m->signal_present(s, f.data.data(), f.len)) continue;
-          if (can_csv.f != nullptr) {
-            const std::int64_t raw = s.raw(f.data.data(), f.len);
-            const std::string* label = s.value_name(raw);
-            std::fprintf(can_csv.f, "%" PRId64 ",%.6f,%u,0x%X,%s,%s,%.10g,%s,%s\n", f.t_ns, f.t_ns * 1e-9,
-                         f.bus, f.id, m->name.c_str(), s.name.c_str(), s.decode(f.data.data(), f.len),
-                         s.unit.c_str(), label ? label->c_str() : "");
-          }
-        }
-        bad ? ++frames_bad_dlc : ++frames_decoded;
-      }
-    }
-    if (tty && (++n & 0xFFFF) == 0) {
-      const auto now = std::chrono::steady_clock::now();
-      if (now - last_progress > std::chrono::milliseconds(250) && total_bytes > 0) {
-        last_progress = now;
-        const std::uint64_t done = (edges ? edges->stats().bytes : 0) + (can ? can->stats().bytes : 0);
-        std::fprintf(stderr, "\r%5.1f %%  %" PRIu64 " teeth  %" PRIu64 " frames", 100.0 * done / total_bytes,
-                     decoder.stats().teeth, merger.frames_out());
-      }
-    }
+    if (item.kind == ReplayMerger::Kind::kEdge)
+      on_edge(o, item.edge, decoder, d);
+    else
+      on_frame(item.frame, in.dbc, d);
+    progress.tick(in, decoder, merger);
   }
-  if (tty) std::fprintf(stderr, "\r%60s\r", "");
+  return merger.frames_out();
+}
 
+void print_summary(const Inputs& in, const CrankDecoder& decoder, const Decoding& d, std::uint64_t frames) {
   // Bad-line messages (first few of each source), then the one-line summary on stdout.
   auto report = [](const char* what, const std::vector<std::string>& msgs) {
     for (const auto& m : msgs) std::fprintf(stderr, "%s: %s\n", what, m.c_str());
   };
-  if (auto* s = dynamic_cast<EdgeCsvSource*>(edges.get())) report("bad line", s->bad_line_messages());
-  if (auto* s = dynamic_cast<EdgeListSource*>(edges.get())) report("bad line", s->bad_line_messages());
-  if (auto* s = dynamic_cast<CandumpSource*>(can.get())) report("bad line", s->bad_line_messages());
-
+  if (auto* s = dynamic_cast<EdgeCsvSource*>(in.edges.get())) report("bad line", s->bad_line_messages());
+  if (auto* s = dynamic_cast<EdgeListSource*>(in.edges.get())) report("bad line", s->bad_line_messages());
+  if (auto* s = dynamic_cast<CandumpSource*>(in.can.get())) report("bad line", s->bad_line_messages());
   const DecoderStats& ds = decoder.stats();
   std::printf("edges %" PRIu64 " (crank %" PRIu64 ", cam %" PRIu64 "), teeth %" PRIu64 " (synced %" PRIu64
               "), syncs %" PRIu64 ", sync losses %" PRIu64 " (last: %s), stalls %" PRIu64
@@ -400,23 +392,62 @@ int main(int argc, char** argv) {
               ", bad dlc %" PRIu64 "), bad lines %" PRIu64 " edges / %" PRIu64 " can\n",
               ds.edges, ds.crank_edges, ds.cam_edges, ds.teeth, ds.synced_teeth, ds.syncs, ds.sync_losses,
               to_string(ds.last_loss_reason), ds.stalls, ds.noise_edges, ds.lost_teeth, ds.cam_phase_errors,
-              rpm_max > 0 ? rpm_min : 0.0, rpm_max, merger.frames_out(), frames_decoded, frames_unknown,
-              frames_bad_dlc, edges ? edges->stats().bad_lines : 0, can ? can->stats().bad_lines : 0);
-  print_sync_summary(decoder, revs, o);
-  if (teeth_csv.f != nullptr) std::fflush(teeth_csv.f);
-  if (!write_revs(revs, o)) return 1;
-  if (!o.plot.empty()) {
-    const std::string cmd =
-        "/usr/bin/python3 " + shell_quote(o.plot_script) + " --teeth " + shell_quote(o.out_teeth) +
-        " --teeth-per-rev " + std::to_string(decoder.teeth_per_rev()) + " --out " + shell_quote(o.plot) +
-        " --title " + shell_quote("torque-decode: " + (o.edges.empty() ? o.config : o.edges));
-    const int rc = std::system(cmd.c_str());
-    if (temp_teeth) std::filesystem::remove(o.out_teeth, ec);
-    if (rc != 0) {
-      std::fprintf(stderr, "torque-decode: plot failed (%s)\n", cmd.c_str());
-      return 1;
-    }
-    std::printf("plot: %s\n", o.plot.c_str());
-  }
+              d.rpm_max > 0 ? d.rpm_min : 0.0, d.rpm_max, frames, d.frames_decoded, d.frames_unknown,
+              d.frames_bad_dlc, in.edges ? in.edges->stats().bad_lines : 0,
+              in.can ? in.can->stats().bad_lines : 0);
+}
+
+int run_plot(const Options& o, int teeth_per_rev, bool temp_teeth) {
+  const std::string cmd = "/usr/bin/python3 " + shell_quote(o.plot_script) + " --teeth " +
+                          shell_quote(o.out_teeth) + " --teeth-per-rev " + std::to_string(teeth_per_rev) +
+                          " --out " + shell_quote(o.plot) + " --title " +
+                          shell_quote("torque-decode: " + (o.edges.empty() ? o.config : o.edges));
+  const int rc = std::system(cmd.c_str());
+  std::error_code ec;
+  if (temp_teeth) std::filesystem::remove(o.out_teeth, ec);
+  if (rc != 0) return fail(1, "plot failed (" + cmd + ")");
+  std::printf("plot: %s\n", o.plot.c_str());
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  CLI::App app{
+      "torque-decode: decode a crank/cam edge capture and/or a candump log to CSV.\n"
+      "Per tooth: time, tooth index in 720 deg, angle, rpm, sync state, events (noise edge, lost tooth, "
+      "gap, resync). Per CAN frame: time and every DBC signal by name. Ends with a one-line summary."};
+  add_options(app, o);
+  TORQUED_CLI_PARSE(app, argc, argv);
+  o.can_offset_given = app.count("--can-offset") > 0;
+
+  Inputs in;
+  in.can_offset_ns = static_cast<std::int64_t>(std::llround(o.can_offset_s * 1e9));
+  if (const int rc = o.config.empty() ? open_from_options(o, in) : open_from_config(o, in); rc != 0)
+    return rc;
+  if (!in.err.empty() && !in.dbc) return fail(1, in.err);
+  if (!in.edges && !in.can) {
+    std::fprintf(stderr, "torque-decode: nothing to decode: give --edges and/or --can (or --config)\n%s",
+                 app.help().c_str());
+    return 2;
+  }
+  CrankDecoder decoder(in.wheel, in.params);
+  if (!decoder.valid()) return fail(2, decoder.error());
+
+  Decoding d;
+  decoder.set_event_log(&d.events);
+  // The plot reads the per-tooth CSV: without --out-teeth it goes next to the PNG and is removed afterwards.
+  const bool temp_teeth = !o.plot.empty() && o.out_teeth.empty();
+  if (temp_teeth) o.out_teeth = o.plot + ".teeth.csv";
+  if (!d.teeth_csv.open(o.out_teeth, "t_ns,t_s,tooth,angle_deg,rpm,sync,phase_known,events\n") ||
+      !d.can_csv.open(o.out_can, "t_ns,t_s,bus,id,message,signal,value,unit,label\n"))
+    return fail(1, std::string("cannot write output: ") + std::strerror(errno));
+
+  const std::uint64_t frames = decode_all(o, in, decoder, d);
+  print_summary(in, decoder, d, frames);
+  print_sync_summary(decoder, d.revs, o);
+  if (d.teeth_csv.f != nullptr) std::fflush(d.teeth_csv.f);
+  if (!write_revs(d.revs, o)) return 1;
+  return o.plot.empty() ? 0 : run_plot(o, decoder.teeth_per_rev(), temp_teeth);
 }
