@@ -37,67 +37,23 @@ std::string fmt(double v, int prec = 3) {
   return buf;
 }
 
-}  // namespace
-
-std::optional<PairSpec> parse_pair(const std::string& s) {
-  const auto eq = s.find('=');
-  if (eq == std::string::npos || eq == 0 || eq + 1 == s.size()) return std::nullopt;
-  return PairSpec{s.substr(0, eq), s.substr(eq + 1)};
-}
-
-bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpec>& pairs,
-              const EvalOptions& opt, EvalReport& report, std::string& error) {
-  report = EvalReport{};
-  report.est_rows = est.rows();
-  // Estimate time on the edge clock (s).
-  const int c_tns = est.column("t_ns"), c_ts = est.column("t_s");
-  if (c_tns < 0 && c_ts < 0) {
-    error = est.path + ": no t_ns (or t_s) column; columns are the header of the estimate CSV";
-    return false;
-  }
-  std::vector<double> t(est.rows());
-  for (std::size_t i = 0; i < est.rows(); ++i)
-    t[i] = c_tns >= 0 ? est.col(c_tns)[i] * 1e-9 : est.col(c_ts)[i];
-  const int c_ws = est.column("window_start_t_ns");
-  TimeRef ref = opt.time_ref;
-  if (ref == TimeRef::kAuto) ref = c_ws >= 0 ? TimeRef::kMid : TimeRef::kSample;
-  if (ref == TimeRef::kMid && c_ws < 0) {
-    error = est.path + ": --time-ref mid needs a window_start_t_ns column";
-    return false;
-  }
-  // Row filter.
-  std::vector<std::size_t> rows;
-  std::vector<std::pair<int, double>> where;
-  for (const auto& [name, value] : opt.where) {
-    const int c = est.column(name);
-    if (c < 0) {
-      error = est.path + ": --where column '" + name + "' not found; its columns are: " + join_names(est);
-      return false;
-    }
-    where.emplace_back(c, value);
-  }
-  for (std::size_t i = 0; i < est.rows(); ++i) {
-    if (!std::isfinite(t[i]) || t[i] < opt.from_s || t[i] > opt.to_s) continue;
-    bool keep = true;
-    for (const auto& [c, v] : where) keep = keep && est.col(c)[i] == v;
-    if (keep) rows.push_back(i);
-  }
-  report.rows_used = rows.size();
-
-  // Truth cycles.
-  const CsvTable* cyc = truth.cycle ? &*truth.cycle : nullptr;
+/// The estimate rows, their times and the truth tables, checked once; shared by every pair and the misfire
+/// count.
+struct Joined {
+  const CsvTable& est;
+  std::vector<double> t;          ///< estimate time on the edge clock (s)
+  std::vector<std::size_t> rows;  ///< rows kept by --where/--from/--to
+  TimeRef ref = TimeRef::kSample;
+  int c_ws = -1;                  ///< window_start_t_ns column
+  const CsvTable* cyc = nullptr;  ///< truth cycles
   std::vector<double> c_t0, c_t1, c_num;
-  if (cyc) {
-    const int a = cyc->column("t_start_s"), b = cyc->column("t_end_s"), n = cyc->column("cycle");
-    if (a < 0 || b < 0) {
-      error = cyc->path + ": needs t_start_s and t_end_s columns";
-      return false;
-    }
-    c_t0 = cyc->col(a);
-    c_t1 = cyc->col(b);
-    c_num = n >= 0 ? cyc->col(n) : std::vector<double>{};
-  }
-  auto cycle_of = [&](std::size_t i) -> long {
+  const CsvTable* tooth = nullptr;  ///< truth teeth
+  std::vector<double> tt, tang;     ///< truth tooth time and unwrapped angle
+
+  explicit Joined(const CsvTable& e) : est(e) {}
+
+  /// Truth cycle of estimate row i (-1 if none), with the row's time taken as the time reference says.
+  [[nodiscard]] long cycle_of(std::size_t i) const {
     if (!cyc) return -1;
     double tq = t[i];
     if (ref == TimeRef::kMid) {
@@ -113,139 +69,217 @@ bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpe
       tq -= 0.5 * (c_t1[std::size_t(c)] - c_t0[std::size_t(c)]);
     }
     return find_cycle(c_t0, c_t1, tq, false);
-  };
-  // Truth teeth: time and unwrapped angle.
-  const CsvTable* tooth = truth.tooth ? &*truth.tooth : nullptr;
-  std::vector<double> tt, tang;
-  if (tooth) {
-    const int c = tooth->column("t_s");
+  }
+};
+
+bool join_times(Joined& j, const EvalOptions& opt, std::string& error) {
+  const CsvTable& est = j.est;
+  const int c_tns = est.column("t_ns"), c_ts = est.column("t_s");
+  if (c_tns < 0 && c_ts < 0) {
+    error = est.path + ": no t_ns (or t_s) column; columns are the header of the estimate CSV";
+    return false;
+  }
+  j.t.resize(est.rows());
+  for (std::size_t i = 0; i < est.rows(); ++i)
+    j.t[i] = c_tns >= 0 ? est.col(c_tns)[i] * 1e-9 : est.col(c_ts)[i];
+  j.c_ws = est.column("window_start_t_ns");
+  j.ref = opt.time_ref;
+  if (j.ref == TimeRef::kAuto) j.ref = j.c_ws >= 0 ? TimeRef::kMid : TimeRef::kSample;
+  if (j.ref == TimeRef::kMid && j.c_ws < 0) {
+    error = est.path + ": --time-ref mid needs a window_start_t_ns column";
+    return false;
+  }
+  std::vector<std::pair<int, double>> where;
+  for (const auto& [name, value] : opt.where) {
+    const int c = est.column(name);
     if (c < 0) {
-      error = tooth->path + ": needs a t_s column";
+      error = est.path + ": --where column '" + name + "' not found; its columns are: " + join_names(est);
       return false;
     }
-    tt = tooth->col(c);
-    const int ca = tooth->column("angle720_deg");
-    if (ca >= 0) {
-      tang = tooth->col(ca);
-      double offset = 0.0;
-      for (std::size_t k = 1; k < tang.size(); ++k) {
-        if (tooth->col(ca)[k] + offset < tang[k - 1] - 360.0) offset += 720.0;
-        tang[k] = tooth->col(ca)[k] + offset;
-      }
-    }
+    where.emplace_back(c, value);
   }
-
-  for (const auto& p : pairs) {
-    PairResult r;
-    r.spec = p;
-    const int ce = est.column(p.est_col);
-    if (ce < 0) {
-      error =
-          est.path + ": estimate column '" + p.est_col + "' not found; its columns are: " + join_names(est);
-      return false;
-    }
-    const int cc = cyc ? cyc->column(p.truth_col) : -1;
-    const int ct = tooth ? tooth->column(p.truth_col) : -1;
-    if (cc < 0 && ct < 0) {
-      error = "truth column '" + p.truth_col + "' is in neither " + (cyc ? cyc->path : "(no --truth)") +
-              " nor " + (tooth ? tooth->path : "(no --truth-tooth)");
-      if (cyc) error += "\n  " + cyc->path + " columns: " + join_names(*cyc);
-      if (tooth) error += "\n  " + tooth->path + " columns: " + join_names(*tooth);
-      return false;
-    }
-    r.per_cycle = cc >= 0;
-    std::map<long, std::pair<double, double>> est_sum, truth_sum;  // cycle → (sum, count) in time order
-    std::vector<double> est_angle;
-    for (std::size_t i : rows) {
-      const double e = est.col(ce)[i];
-      const long c = cycle_of(i);
-      const double y = r.per_cycle ? (c >= 0 ? cyc->col(cc)[std::size_t(c)] : std::nan(""))
-                                   : interpolate(tt, tooth->col(ct), t[i]);
-      if (!std::isfinite(e) || !std::isfinite(y)) continue;
-      r.t_s.push_back(t[i]);
-      r.est.push_back(e);
-      r.truth.push_back(y);
-      if (!tang.empty()) est_angle.push_back(interpolate(tt, tang, t[i]));
-      if (c >= 0) {
-        est_sum[c].first += e;
-        est_sum[c].second += 1;
-        truth_sum[c].first += y;
-        truth_sum[c].second += 1;
-      }
-    }
-    r.stats = error_stats(r.t_s, r.est, r.truth);
-    std::vector<double> em, tm, cerr;
-    std::vector<long> cid;
-    for (const auto& [c, s] : est_sum) {
-      em.push_back(s.first / s.second);
-      tm.push_back(truth_sum[c].first / truth_sum[c].second);
-      cerr.push_back(em.back() - tm.back());
-      cid.push_back(c);
-    }
-    r.cycles = em.size();
-    r.cycle_pct = cycle_mean_pct_error(em, tm);
-    if (!cerr.empty()) {
-      const std::size_t k = convergence_index(cerr, opt.tolerance);
-      if (k < cerr.size()) {
-        const auto c = static_cast<std::size_t>(cid[k]);
-        r.converged_cycle = c_num.empty() ? c : static_cast<std::size_t>(c_num[c]);
-        r.converged_t_s = c_t0[c];
-      }
-    } else if (!r.est.empty()) {  // no cycle truth: convergence per sample
-      std::vector<double> err(r.est.size());
-      for (std::size_t i = 0; i < err.size(); ++i) err[i] = r.est[i] - r.truth[i];
-      const std::size_t k = convergence_index(err, opt.tolerance);
-      if (k < err.size()) r.converged_t_s = r.t_s[k];
-    }
-    if (!r.per_cycle && !tang.empty()) {
-      // In-cycle phase lag: truth on its angle grid vs estimate at the angles of its samples.
-      std::vector<double> ea, ev;
-      for (std::size_t i = 0; i < est_angle.size(); ++i)
-        if (std::isfinite(est_angle[i])) {
-          ea.push_back(est_angle[i]);
-          ev.push_back(r.est[i]);
-        }
-      r.lag = phase_lag(ea, ev, tang, tooth->col(ct), opt.max_lag_deg);
-    }
-    report.pairs.push_back(std::move(r));
-  }
-
-  if (!opt.misfire_col.empty()) {
-    const int cm = est.column(opt.misfire_col);
-    if (cm < 0) {
-      error = est.path + ": misfire column '" + opt.misfire_col +
-              "' not found; its columns are: " + join_names(est);
-      return false;
-    }
-    if (!cyc) {
-      error = "--misfire needs --truth (truth_cycle.csv with misfire1..N)";
-      return false;
-    }
-    std::vector<int> truth_cols;
-    for (int k = 1; k <= 8; ++k) {
-      const int c = cyc->column("misfire" + std::to_string(k));
-      if (c < 0) break;
-      truth_cols.push_back(c);
-    }
-    if (truth_cols.empty()) {
-      error = cyc->path + ": no misfire1.. columns";
-      return false;
-    }
-    std::map<long, std::uint32_t> masks;  // OR of the masks of the rows in each truth cycle
-    for (std::size_t i : rows) {
-      const long c = cycle_of(i);
-      const double m = est.col(cm)[i];
-      if (c >= 0 && std::isfinite(m)) masks[c] |= static_cast<std::uint32_t>(m);
-    }
-    MisfireStats s;
-    for (const auto& [c, mask] : masks) {
-      std::vector<bool> flags;
-      for (int col : truth_cols) flags.push_back(cyc->col(col)[std::size_t(c)] > 0.5);
-      count_misfires(flags, mask, s);
-    }
-    report.misfire = s;
+  for (std::size_t i = 0; i < est.rows(); ++i) {
+    if (!std::isfinite(j.t[i]) || j.t[i] < opt.from_s || j.t[i] > opt.to_s) continue;
+    bool keep = true;
+    for (const auto& [c, v] : where) keep = keep && est.col(c)[i] == v;
+    if (keep) j.rows.push_back(i);
   }
   return true;
+}
+
+bool join_truth(Joined& j, const Truth& truth, std::string& error) {
+  j.cyc = truth.cycle ? &*truth.cycle : nullptr;
+  if (j.cyc) {
+    const int a = j.cyc->column("t_start_s"), b = j.cyc->column("t_end_s"), n = j.cyc->column("cycle");
+    if (a < 0 || b < 0) {
+      error = j.cyc->path + ": needs t_start_s and t_end_s columns";
+      return false;
+    }
+    j.c_t0 = j.cyc->col(a);
+    j.c_t1 = j.cyc->col(b);
+    j.c_num = n >= 0 ? j.cyc->col(n) : std::vector<double>{};
+  }
+  j.tooth = truth.tooth ? &*truth.tooth : nullptr;
+  if (!j.tooth) return true;
+  const int c = j.tooth->column("t_s");
+  if (c < 0) {
+    error = j.tooth->path + ": needs a t_s column";
+    return false;
+  }
+  j.tt = j.tooth->col(c);
+  const int ca = j.tooth->column("angle720_deg");
+  if (ca >= 0) {  // unwrap the 720° angle
+    const auto& raw = j.tooth->col(ca);
+    j.tang = raw;
+    double offset = 0.0;
+    for (std::size_t k = 1; k < j.tang.size(); ++k) {
+      if (raw[k] + offset < j.tang[k - 1] - 360.0) offset += 720.0;
+      j.tang[k] = raw[k] + offset;
+    }
+  }
+  return true;
+}
+
+/// Per-cycle means and the convergence of their error (or per sample without cycle truth).
+void cycle_means(const Joined& j, const EvalOptions& opt,
+                 const std::map<long, std::pair<double, double>>& est_sum,
+                 std::map<long, std::pair<double, double>>& truth_sum, PairResult& r) {
+  std::vector<double> em, tm, cerr;
+  std::vector<long> cid;
+  for (const auto& [c, s] : est_sum) {
+    em.push_back(s.first / s.second);
+    tm.push_back(truth_sum[c].first / truth_sum[c].second);
+    cerr.push_back(em.back() - tm.back());
+    cid.push_back(c);
+  }
+  r.cycles = em.size();
+  r.cycle_pct = cycle_mean_pct_error(em, tm);
+  if (!cerr.empty()) {
+    const std::size_t k = convergence_index(cerr, opt.tolerance);
+    if (k < cerr.size()) {
+      const auto c = static_cast<std::size_t>(cid[k]);
+      r.converged_cycle = j.c_num.empty() ? c : static_cast<std::size_t>(j.c_num[c]);
+      r.converged_t_s = j.c_t0[c];
+    }
+  } else if (!r.est.empty()) {  // no cycle truth: convergence per sample
+    std::vector<double> err(r.est.size());
+    for (std::size_t i = 0; i < err.size(); ++i) err[i] = r.est[i] - r.truth[i];
+    const std::size_t k = convergence_index(err, opt.tolerance);
+    if (k < err.size()) r.converged_t_s = r.t_s[k];
+  }
+}
+
+bool evaluate_pair(const Joined& j, const PairSpec& p, const EvalOptions& opt, PairResult& r,
+                   std::string& error) {
+  r.spec = p;
+  const CsvTable& est = j.est;
+  const int ce = est.column(p.est_col);
+  if (ce < 0) {
+    error = est.path + ": estimate column '" + p.est_col + "' not found; its columns are: " + join_names(est);
+    return false;
+  }
+  const int cc = j.cyc ? j.cyc->column(p.truth_col) : -1;
+  const int ct = j.tooth ? j.tooth->column(p.truth_col) : -1;
+  if (cc < 0 && ct < 0) {
+    error = "truth column '" + p.truth_col + "' is in neither " + (j.cyc ? j.cyc->path : "(no --truth)") +
+            " nor " + (j.tooth ? j.tooth->path : "(no --truth-tooth)");
+    if (j.cyc) error += "\n  " + j.cyc->path + " columns: " + join_names(*j.cyc);
+    if (j.tooth) error += "\n  " + j.tooth->path + " columns: " + join_names(*j.tooth);
+    return false;
+  }
+  r.per_cycle = cc >= 0;
+  std::map<long, std::pair<double, double>> est_sum, truth_sum;  // cycle → (sum, count) in time order
+  std::vector<double> est_angle;
+  for (std::size_t i : j.rows) {
+    const double e = est.col(ce)[i];
+    const long c = j.cycle_of(i);
+    const double y = r.per_cycle ? (c >= 0 ? j.cyc->col(cc)[std::size_t(c)] : std::nan(""))
+                                 : interpolate(j.tt, j.tooth->col(ct), j.t[i]);
+    if (!std::isfinite(e) || !std::isfinite(y)) continue;
+    r.t_s.push_back(j.t[i]);
+    r.est.push_back(e);
+    r.truth.push_back(y);
+    if (!j.tang.empty()) est_angle.push_back(interpolate(j.tt, j.tang, j.t[i]));
+    if (c >= 0) {
+      est_sum[c].first += e;
+      est_sum[c].second += 1;
+      truth_sum[c].first += y;
+      truth_sum[c].second += 1;
+    }
+  }
+  r.stats = error_stats(r.t_s, r.est, r.truth);
+  cycle_means(j, opt, est_sum, truth_sum, r);
+  if (!r.per_cycle && !j.tang.empty()) {
+    // In-cycle phase lag: truth on its angle grid vs estimate at the angles of its samples.
+    std::vector<double> ea, ev;
+    for (std::size_t i = 0; i < est_angle.size(); ++i)
+      if (std::isfinite(est_angle[i])) {
+        ea.push_back(est_angle[i]);
+        ev.push_back(r.est[i]);
+      }
+    r.lag = phase_lag(ea, ev, j.tang, j.tooth->col(ct), opt.max_lag_deg);
+  }
+  return true;
+}
+
+bool evaluate_misfire(const Joined& j, const std::string& col, EvalReport& report, std::string& error) {
+  const int cm = j.est.column(col);
+  if (cm < 0) {
+    error = j.est.path + ": misfire column '" + col + "' not found; its columns are: " + join_names(j.est);
+    return false;
+  }
+  if (!j.cyc) {
+    error = "--misfire needs --truth (truth_cycle.csv with misfire1..N)";
+    return false;
+  }
+  std::vector<int> truth_cols;
+  for (int k = 1; k <= 8; ++k) {
+    const int c = j.cyc->column("misfire" + std::to_string(k));
+    if (c < 0) break;
+    truth_cols.push_back(c);
+  }
+  if (truth_cols.empty()) {
+    error = j.cyc->path + ": no misfire1.. columns";
+    return false;
+  }
+  std::map<long, std::uint32_t> masks;  // OR of the masks of the rows in each truth cycle
+  for (std::size_t i : j.rows) {
+    const long c = j.cycle_of(i);
+    const double m = j.est.col(cm)[i];
+    if (c >= 0 && std::isfinite(m)) masks[c] |= static_cast<std::uint32_t>(m);
+  }
+  MisfireStats s;
+  for (const auto& [c, mask] : masks) {
+    std::vector<bool> flags;
+    for (int col_k : truth_cols) flags.push_back(j.cyc->col(col_k)[std::size_t(c)] > 0.5);
+    count_misfires(flags, mask, s);
+  }
+  report.misfire = s;
+  return true;
+}
+
+}  // namespace
+
+std::optional<PairSpec> parse_pair(const std::string& s) {
+  const auto eq = s.find('=');
+  if (eq == std::string::npos || eq == 0 || eq + 1 == s.size()) return std::nullopt;
+  return PairSpec{s.substr(0, eq), s.substr(eq + 1)};
+}
+
+bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpec>& pairs,
+              const EvalOptions& opt, EvalReport& report, std::string& error) {
+  report = EvalReport{};
+  report.est_rows = est.rows();
+  Joined j(est);
+  if (!join_times(j, opt, error)) return false;
+  report.rows_used = j.rows.size();
+  if (!join_truth(j, truth, error)) return false;
+  for (const auto& p : pairs) {
+    PairResult r;
+    if (!evaluate_pair(j, p, opt, r, error)) return false;
+    report.pairs.push_back(std::move(r));
+  }
+  return opt.misfire_col.empty() || evaluate_misfire(j, opt.misfire_col, report, error);
 }
 
 std::string format_report(const EvalReport& r, double tolerance) {
