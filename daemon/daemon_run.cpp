@@ -18,23 +18,22 @@
 #include "config_loader.hpp"
 #include "dds_publisher.hpp"
 #include "fast_replay.hpp"
-#include "supervisor.hpp"
-#include "replay_inputs.hpp"
 #include "logging.hpp"
 #include "metrics.hpp"
 #include "output_fanout.hpp"
+#include "replay_inputs.hpp"
 #include "rt_setup.hpp"
 #include "runtime.hpp"
 #include "sample_recorder.hpp"
 #include "stage_settings.hpp"
 #include "state_store.hpp"
+#include "supervisor.hpp"
 
 namespace torqued {
 namespace {
 
 volatile bool g_fast_stop = false;
 void on_fast_signal(int) { g_fast_stop = true; }
-
 
 void wait_for_subscribers(DdsPublisher& pub, const RunOptions& opt) {
   if (opt.wait_subscribers <= 0) return;
@@ -73,9 +72,10 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
   RestoreResult rs;
   if (!spath.empty()) rs = restore_for_run(spath, sctx, opt);
   LearnedState st = rs.state ? *rs.state : LearnedState{};
-  const ReplayResult r =
-      run_fast_replay(s, edges, can, can_time_offset_ns(cfg), dbc, out, &g_fast_stop, spath.empty() ? nullptr : &st);
+  const ReplayResult r = run_fast_replay(s, edges, can, can_time_offset_ns(cfg), dbc, out, &g_fast_stop,
+                                         spath.empty() ? nullptr : &st);
   if (!r.error.empty()) spdlog::error("replay: {}", r.error);
+  for (const auto& p : r.input_problems) spdlog::warn("{}", p);
   for (const auto& b : r.bad_frames) spdlog::warn("can: {}", b);
   for (const DecoderEvent& e : r.transitions.events) log_transition(e);
   if (r.transitions.not_kept > 0)

@@ -3,6 +3,7 @@
 #include <chrono>
 
 #include "angle_stage.hpp"
+#include "replay_inputs.hpp"
 #include "replay_merger.hpp"
 #include "time_stage.hpp"
 
@@ -67,17 +68,23 @@ RuntimeCounters replay_counters(const AngleChain& chain, const ReplayMerger& mer
 
 }  // namespace
 
-ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSource* can, std::int64_t can_offset_ns,
-                             const DbcDatabase* dbc, SampleSink& out, const volatile bool* stop,
-                             LearnedState* state, AngleChainSink* tap) {
+ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSource* can,
+                             std::int64_t can_offset_ns, const DbcDatabase* dbc, SampleSink& out,
+                             const volatile bool* stop, LearnedState* state, AngleChainSink* tap) {
   ReplayResult r;
   r.transitions.events.reserve(ReplayResult::Transitions::kMaxKept);
   CountingSink sink(out);
   TimeStage time(s, dbc, sink);
   TimeFeed feed(time);
   AngleStage angle(s, dbc, sink, &feed, tap);
-  if (!angle.ok()) { r.error = angle.error(); return r; }
-  if (!time.ok()) { r.error = time.error(); return r; }
+  if (!angle.ok()) {
+    r.error = angle.error();
+    return r;
+  }
+  if (!time.ok()) {
+    r.error = time.error();
+    return r;
+  }
   if (state) r.imported = angle.import_state(*state);
 
   ReplayMerger merger(edges, can, can_offset_ns);
@@ -93,8 +100,10 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
     const SourceStatus st = merger.next(item);
     if (st == SourceStatus::kEnd) break;
     if (st == SourceStatus::kError) {
-      if (r.error.empty()) r.error = (edges && !edges->last_error().empty()) ? edges->last_error()
-                                     : can ? can->last_error() : "source error";
+      if (r.error.empty())
+        r.error = (edges && !edges->last_error().empty()) ? edges->last_error()
+                  : can                                   ? can->last_error()
+                                                          : "source error";
       continue;
     }
     if (st != SourceStatus::kOk) continue;
@@ -133,6 +142,7 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
   r.counters = c;
   if (state) r.learned = angle.chain().learned_state(*state);
   r.bad_frames = angle.chain().describe_bad_frames();
+  r.input_problems = input_problems(edges, can);
   r.samples = sink.n_;
   sink.flush();  // the recording's last buffers are written inside the timed loop
   r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -19,13 +19,15 @@ namespace torqued {
 
 struct ReplayResult {
   RuntimeCounters counters;
-  std::uint64_t samples = 0;       ///< samples emitted
+  std::uint64_t samples = 0;  ///< samples emitted
   std::int64_t first_t_ns = 0, last_t_ns = 0;
-  double wall_s = 0.0;             ///< wall time of the loop (s), up to the sink flushed (recording written)
-  std::string error;               ///< a source failed (the replay kept going with the other)
-  std::string imported;            ///< what of the initial learned state was applied ("" = nothing)
-  bool learned = false;            ///< `state` holds what the chain learned (or was given) by the end
+  double wall_s = 0.0;   ///< wall time of the loop (s), up to the sink flushed (recording written)
+  std::string error;     ///< a source failed (the replay kept going with the other)
+  std::string imported;  ///< what of the initial learned state was applied ("" = nothing)
+  bool learned = false;  ///< `state` holds what the chain learned (or was given) by the end
   std::vector<std::string> bad_frames;  ///< CAN frames too short for their signals (one line per signal)
+  std::vector<std::string>
+      input_problems;  ///< bad lines (file:line), inputs with no record (input_problems())
   struct Transitions {
     static constexpr std::size_t kMaxKept = 1000;
     std::vector<DecoderEvent> events;  ///< the decoder's sync-state transitions, in order (first kMaxKept)
@@ -38,11 +40,12 @@ struct ReplayResult {
 
 /// Runs the replay to the end of both sources. `out` receives every sample (in emission order).
 /// stop (optional): checked every 4096 records; set it from a signal handler to end early.
-/// state (optional): in: learned state imported before the first edge (as the service does at start); out: the
-/// state at the end (ReplayResult::learned says whether there is one), for the caller to save.
-/// tap (optional): receives the angle chain's records too (torque-accuracy reads the full CycleOutput there).
-ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSource* can, std::int64_t can_offset_ns,
-                             const DbcDatabase* dbc, SampleSink& out, const volatile bool* stop = nullptr,
-                             LearnedState* state = nullptr, AngleChainSink* tap = nullptr);
+/// state (optional): in: learned state imported before the first edge (as the service does at start); out:
+/// the state at the end (ReplayResult::learned says whether there is one), for the caller to save. tap
+/// (optional): receives the angle chain's records too (torque-accuracy reads the full CycleOutput there).
+ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSource* can,
+                             std::int64_t can_offset_ns, const DbcDatabase* dbc, SampleSink& out,
+                             const volatile bool* stop = nullptr, LearnedState* state = nullptr,
+                             AngleChainSink* tap = nullptr);
 
 }  // namespace torqued

@@ -28,4 +28,21 @@ RunInputs open_inputs(const Config& cfg) {
   return in;
 }
 
+namespace {
+template <class Source>
+void add_problems(const Source* s, const char* kind, const char* records, std::vector<std::string>& out) {
+  if (s == nullptr) return;
+  std::vector<std::string> m = s->input_messages();
+  if (m.empty() && s->stats().records == 0) m.push_back(s->describe() + ": no " + records + " in the input");
+  for (auto& line : m) out.push_back(std::string(kind) + ": " + line);
+}
+}  // namespace
+
+std::vector<std::string> input_problems(const EdgeSource* edges, const CanSource* can) {
+  std::vector<std::string> out;
+  add_problems(edges, "edges", "edge", out);
+  add_problems(can, "can", "frame", out);
+  return out;
+}
+
 }  // namespace torqued

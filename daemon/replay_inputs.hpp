@@ -30,4 +30,8 @@ struct RunInputs {
 
 [[nodiscard]] RunInputs open_inputs(const Config& cfg);
 
+/// What the sources say about their input once they have ended (file:line of bad lines, an input with no
+/// record at all), one log line each. Either source may be null. Call once the sources have ended.
+[[nodiscard]] std::vector<std::string> input_problems(const EdgeSource* edges, const CanSource* can);
+
 }  // namespace torqued

@@ -11,6 +11,7 @@
 
 #include "angle_stage.hpp"
 #include "clocks.hpp"
+#include "replay_inputs.hpp"
 #include "replay_merger.hpp"
 #include "time_stage.hpp"
 
@@ -222,7 +223,8 @@ void Runtime::angle_loop() {
       angle_tunables_.full.store(0, std::memory_order_release);
     }
     TorqueEstimate te{};
-    if (time_estimate_.load_new(te)) angle_->chain().set_time_estimate(te, /*uses_can=*/true);  // time → fusion
+    if (time_estimate_.load_new(te))
+      angle_->chain().set_time_estimate(te, /*uses_can=*/true);  // time → fusion
     const DueItem next = angle_process_due();
     angle_check_edge_timeout();
     angle_publish_counters();
@@ -246,8 +248,9 @@ void Runtime::angle_loop() {
 }
 
 // Edges in order; CAN frames up to each edge's time first, so the stage sees the replay's order. Read-ahead
-// replay items (ingest_ns == 0) are processed at their due time: returns the first item not yet due (0: none),
-// and whether it is a crank tooth edge (it may produce samples). Once the sources stop, drains without waiting.
+// replay items (ingest_ns == 0) are processed at their due time: returns the first item not yet due (0:
+// none), and whether it is a crank tooth edge (it may produce samples). Once the sources stop, drains without
+// waiting.
 Runtime::DueItem Runtime::angle_process_due() noexcept {
   DueItem next;
   while (const EdgeIn* e = edge_ring_.front()) {
@@ -258,7 +261,8 @@ Runtime::DueItem Runtime::angle_process_due() noexcept {
         next = next_wakeup(e->e, due);
         break;
       }
-      ingest = realtime_ns() + (due - mono_ns());  // the edge "happens" at its due time (includes our wake-up)
+      ingest =
+          realtime_ns() + (due - mono_ns());  // the edge "happens" at its due time (includes our wake-up)
     }
     while (const FrameIn* f = can_angle_ring_.front()) {
       if (f->f.t_ns > e->e.t_ns) break;
@@ -322,8 +326,8 @@ Runtime::DueItem Runtime::next_wakeup(const EdgeEvent& first, std::int64_t first
 void Runtime::angle_check_edge_timeout() noexcept {
   if (!clock_.anchored()) return;
   const std::int64_t now_edge = clock_.rec_at(mono_ns());
-  const bool timed_out =
-      now_edge - last_t_ns_.load(std::memory_order_relaxed) > edge_timeout_ns_.load(std::memory_order_relaxed);
+  const bool timed_out = now_edge - last_t_ns_.load(std::memory_order_relaxed) >
+                         edge_timeout_ns_.load(std::memory_order_relaxed);
   if (timed_out) angle_->poll(now_edge);
   edge_timeout_.store(timed_out, std::memory_order_relaxed);
 }
@@ -476,6 +480,8 @@ bool Runtime::request_tunables(const RuntimeTunables& t, std::int64_t timeout_ns
 void Runtime::push_status(const dds::AnySample& s) noexcept {
   if (out_status_ring_.try_push(s)) pub_wake_.notify();
 }
+
+std::vector<std::string> Runtime::input_problems() const { return torqued::input_problems(edges_, can_); }
 
 bool Runtime::input_done() const noexcept {
   return sources_running_.load() == 0 && edge_ring_.empty() && can_angle_ring_.empty();

@@ -39,13 +39,14 @@ struct RuntimeOptions {
   bool replay = true;  ///< file sources paced by their timestamps (false: live sources)
   bool lock_memory = true;
   bool lock_on_fault = false;  ///< mlockall(... | MCL_ONFAULT): lock pages when first touched
-  bool require_rt = false;  ///< start() fails when SCHED_FIFO/mlockall are not permitted
+  bool require_rt = false;     ///< start() fails when SCHED_FIFO/mlockall are not permitted
   ThreadRt angle{true, 80, {}, "torqued-angle"};
   ThreadRt time{true, 70, {}, "torqued-time"};
   ThreadRt source{true, 85, {}, "torqued-source"};
   ThreadRt publisher{true, 60, {}, "torqued-pub"};
-  /// Paced replay: the publisher sleeps until the next edge's due time (which the angle thread announces) and then
-  /// polls its rings for up to this long, so the samples of that edge find it awake (0 = always futex wake-ups).
+  /// Paced replay: the publisher sleeps until the next edge's due time (which the angle thread announces) and
+  /// then polls its rings for up to this long, so the samples of that edge find it awake (0 = always futex
+  /// wake-ups).
   std::int64_t publisher_spin_ns = 0;
   std::size_t edge_ring = 1 << 16, can_ring = 1 << 12, tooth_ring = 1 << 13, out_ring = 1 << 13;
   /// Test hook: called on each real-time thread right after its set-up and right before it exits.
@@ -83,6 +84,9 @@ class Runtime {
 
   /// All input consumed (replay reached the end of its files and the rings are empty).
   [[nodiscard]] bool input_done() const noexcept;
+  /// The sources' own messages about their input (input_problems()); only once input_done() or after
+  /// stop_and_drain() (the source threads have finished writing them).
+  [[nodiscard]] std::vector<std::string> input_problems() const;
   [[nodiscard]] RuntimeCounters counters() const noexcept;
   [[nodiscard]] Heartbeats heartbeats() const noexcept;
   /// Newest edge-clock time processed by the angle stage.
@@ -163,11 +167,12 @@ class Runtime {
   std::atomic<int> sources_running_{0};
   TunablesMailbox angle_tunables_, time_tunables_;
   std::atomic<std::int64_t> edge_timeout_ns_{0};
-  std::atomic<std::int64_t> next_due_mono_ns_{0};  ///< paced replay: due time of the edge the angle thread waits for
-  std::atomic<bool> next_due_tooth_{false};         ///< ... and whether it is a crank tooth edge
-  std::atomic<std::uint64_t> angle_wakeups_{0};     ///< times the angle thread went to sleep (timer or futex)
+  std::atomic<std::int64_t> next_due_mono_ns_{
+      0};  ///< paced replay: due time of the edge the angle thread waits for
+  std::atomic<bool> next_due_tooth_{false};      ///< ... and whether it is a crank tooth edge
+  std::atomic<std::uint64_t> angle_wakeups_{0};  ///< times the angle thread went to sleep (timer or futex)
   std::atomic<std::uint64_t> pub_polls_{0}, pub_poll_misses_{0};  ///< pre-wakes, and those that saw no sample
-  ReplayClock clock_;                    ///< recording time ↔ monotonic time (replay and live edge clock)
+  ReplayClock clock_;  ///< recording time ↔ monotonic time (replay and live edge clock)
   LatestValue<TorqueEstimate> time_estimate_;  ///< time thread → angle thread: UIO brake estimate (fusion)
   std::atomic<std::uint32_t> flags_{0};
 

@@ -158,6 +158,11 @@ class Supervisor {
   void ping_watchdog(std::int64_t now);
   void save();
   int shutdown();
+  void log_input_problems() {  // once: at the end of the input, else at stop (source threads joined)
+    if (input_problems_logged_) return;
+    input_problems_logged_ = true;
+    for (const auto& p : rt_.input_problems()) spdlog::warn("{}", p);
+  }
 
   Config& cfg_;
   const RunOptions& opt_;
@@ -169,7 +174,8 @@ class Supervisor {
   sigset_t sigs_{};
   StatusTracker status_;
   Heartbeats last_hb_{};
-  bool watchdog_ = false, done_reported_ = false, record_error_reported_ = false;
+  bool watchdog_ = false, done_reported_ = false, record_error_reported_ = false,
+       input_problems_logged_ = false;
   double stall_after_s_ = -1.0;
   std::int64_t t0_ = 0, next_status_ = 0, next_ping_ = 0, next_save_ = 0, ping_period_ = 0, save_period_ = 0;
 };
@@ -234,6 +240,7 @@ bool Supervisor::tick_once(std::int64_t now) {
     if (done && !done_reported_) {
       c.flags |= torque_STATUS_REPLAY_DONE;
       done_reported_ = true;
+      log_input_problems();
       spdlog::info("replay: end of the recording reached{}", opt_.exit_when_done
                                                                  ? "; stopping (--exit-when-done)"
                                                                  : "; still running (stop with SIGTERM)");
@@ -280,6 +287,7 @@ int Supervisor::shutdown() {
     spdlog::warn("drain did not finish within {} s", opt_.drain_timeout_s);
     exit_code = 1;
   }
+  log_input_problems();
   for (const auto& b : rt_.angle_stage().chain().describe_bad_frames()) spdlog::warn("can: {}", b);
   save();
   if (saver_ && !saver_->finish(opt_.drain_timeout_s))

@@ -29,6 +29,7 @@ class CandumpSource final : public CanSource {
   [[nodiscard]] const SourceStats& stats() const noexcept override { return stats_; }
   [[nodiscard]] std::string describe() const override;
   [[nodiscard]] std::string last_error() const override { return error_; }
+  [[nodiscard]] std::vector<std::string> input_messages() const override { return messages_; }
   [[nodiscard]] const std::vector<std::string>& bad_line_messages() const noexcept { return messages_; }
   /// Remote (RTR) frames seen; they carry no payload and are skipped.
   [[nodiscard]] std::uint64_t rtr_frames() const noexcept { return rtr_frames_; }

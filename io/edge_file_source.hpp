@@ -51,6 +51,7 @@ class EdgeCsvSource final : public EdgeSource {
   [[nodiscard]] const SourceStats& stats() const noexcept override { return stats_; }
   [[nodiscard]] std::string describe() const override;
   [[nodiscard]] std::string last_error() const override { return error_; }
+  [[nodiscard]] std::vector<std::string> input_messages() const override { return messages_; }
   /// Messages for the first bad lines (up to 20), "file:line: ..." each, then (once the file has ended) one
   /// line counting the rest, and a warning for a file without data rows. Not real-time.
   [[nodiscard]] const std::vector<std::string>& bad_line_messages() const noexcept { return messages_; }
@@ -101,6 +102,7 @@ class EdgeListSource final : public EdgeSource {
   [[nodiscard]] const SourceStats& stats() const noexcept override { return stats_; }
   [[nodiscard]] std::string describe() const override;
   [[nodiscard]] std::string last_error() const override { return error_; }
+  [[nodiscard]] std::vector<std::string> input_messages() const override { return messages_; }
   [[nodiscard]] const std::vector<std::string>& bad_line_messages() const noexcept { return messages_; }
 
  private:

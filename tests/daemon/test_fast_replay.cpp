@@ -1,8 +1,6 @@
 // tests/daemon/test_fast_replay.cpp: the single-threaded replay (daemon/fast_replay.cpp) on a synthetic 60-2
 // wheel with known speed: per-cycle speed matches the analytic truth, output is byte-identical across runs,
 // and the replay makes no heap allocation once the stages are built (allocation test over a full replay).
-#include "fast_replay.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -12,7 +10,9 @@
 #include <sstream>
 
 #include "alloc_counter.hpp"
+#include "candump_source.hpp"
 #include "edge_file_source.hpp"
+#include "fast_replay.hpp"
 #include "output_fanout.hpp"
 #include "synthetic_wheel.hpp"
 
@@ -94,7 +94,8 @@ TEST_F(FastReplayTest, TwoRunsAreByteIdentical) {
   for (const auto& e : fs::directory_iterator(dir_ / "a")) {
     const auto other = dir_ / "b" / e.path().filename();
     ASSERT_TRUE(fs::exists(other)) << other;
-    EXPECT_TRUE(slurp(e.path()) == slurp(other)) << e.path().filename() << " differs between runs";  // no multi-MB diff
+    EXPECT_TRUE(slurp(e.path()) == slurp(other))
+        << e.path().filename() << " differs between runs";  // no multi-MB diff
     ++files;
   }
   EXPECT_GE(files, 3);  // engine_cycle, crank_state, daemon_status
@@ -129,6 +130,33 @@ TEST_F(FastReplayTest, NoAllocationPerRecord) {
   };
   const auto a1 = count(1.0), a2 = count(2.0);
   EXPECT_EQ(a1, a2) << "allocations grow with the replay length";
+}
+
+// Issue 16: bad lines are named with file:line at the end of the run, and an input with no record says so.
+TEST_F(FastReplayTest, BadLinesAndAnEmptyInputAreNamed) {
+  {
+    std::ofstream f(edges_, std::ios::app);
+    f << "not,a,row\n";
+  }
+  const std::string can_path = (dir_ / "empty.log").string();
+  { std::ofstream f(can_path); }
+  StageSettings s;
+  EdgeCsvSource src(edges_, {});
+  CandumpSource can(can_path);
+  NullSink sink;
+  const ReplayResult r = run_fast_replay(s, &src, &can, 0, nullptr, sink);
+  ASSERT_EQ(r.input_problems.size(), 2u);
+  EXPECT_NE(r.input_problems[0].find("edges: " + edges_ + ":"), std::string::npos) << r.input_problems[0];
+  EXPECT_NE(r.input_problems[1].find("can: "), std::string::npos) << r.input_problems[1];
+  EXPECT_NE(r.input_problems[1].find("no frame"), std::string::npos) << r.input_problems[1];
+  EXPECT_EQ(r.counters.source_drops, 1u);
+}
+
+TEST_F(FastReplayTest, CleanInputsHaveNoProblems) {
+  StageSettings s;
+  EdgeCsvSource src(edges_, {});
+  NullSink sink;
+  EXPECT_TRUE(run_fast_replay(s, &src, nullptr, 0, nullptr, sink).input_problems.empty());
 }
 
 }  // namespace
