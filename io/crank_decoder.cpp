@@ -455,21 +455,27 @@ int CrankDecoder::match_gap(int need, double r) const noexcept {
 }
 
 void CrankDecoder::sync_at_gap(std::int64_t t_ns, std::int64_t period, int match, ToothEvent& out) noexcept {
+  int tooth = gap_tooth_[static_cast<std::size_t>(match)];
+  if (tooth == 0) rev_ ^= 1;  // keep rev_ meaning "revolution of tooth_"; phase from the cam anyway
+  enter_synced(t_ns, period, rev_ * teeth_ + tooth, kToothGap, out);
+}
+
+void CrankDecoder::enter_synced(std::int64_t t_ns, std::int64_t period, int idx, std::uint32_t flags,
+                                ToothEvent& out) noexcept {
   state_ = SyncState::kSynced;
   ++stats_.syncs;
   lost_this_rev_ = 0;
-  tooth_ = gap_tooth_[static_cast<std::size_t>(match)];
-  if (tooth_ == 0) rev_ ^= 1;  // keep rev_ meaning "revolution of tooth_"; phase from the cam anyway
-  note(DecoderEventKind::kSynced, t_ns, SyncState::kSyncing, SyncState::kSynced, SyncLossReason::kNone,
-       rev_ * teeth_ + tooth_);
+  tooth_ = idx % teeth_;
+  rev_ = idx / teeth_;
+  note(DecoderEventKind::kSynced, t_ns, SyncState::kSyncing, SyncState::kSynced, SyncLossReason::kNone, idx);
   period_ns_ = period;
   const double w = width_[static_cast<std::size_t>(tooth_)];
   last_width_rad_ = w;
   u1_ = static_cast<double>(period) / w;
   u2_ = 0.0;
   last_t_ns_ = t_ns;
-  pending_flags_ |= kToothGap | (stats_.syncs > 1 ? kToothResynced : 0u);
-  emit(t_ns, rev_ * teeth_ + tooth_, w, period, out);
+  pending_flags_ |= flags | (stats_.syncs > 1 ? kToothResynced : 0u);
+  emit(t_ns, idx, w, period, out);
 }
 
 void CrankDecoder::restart_reference(std::int64_t period) noexcept {

@@ -178,6 +178,8 @@ class CrankDecoder {
   bool syncing_gap(std::int64_t t_ns, std::int64_t period_ns, double r, ToothEvent& out) noexcept;
   [[nodiscard]] int match_gap(int need, double r) const noexcept;
   void sync_at_gap(std::int64_t t_ns, std::int64_t period_ns, int match, ToothEvent& out) noexcept;
+  void enter_synced(std::int64_t t_ns, std::int64_t period_ns, int idx, std::uint32_t flags,
+                    ToothEvent& out) noexcept;
   void restart_reference(std::int64_t period_ns) noexcept;
   void emit_unsynced(std::int64_t t_ns, SyncState s, ToothEvent& out) noexcept;
   void accept_tooth(std::int64_t t_ns, std::int64_t period_ns, int i, double w, int advance, bool gap_tooth,

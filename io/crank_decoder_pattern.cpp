@@ -202,23 +202,9 @@ bool CrankDecoder::pattern_syncing_step(std::int64_t t_ns, std::int64_t period, 
   const bool found = params_.cam_pattern.n > 0 ? cam_match(k) : width_match(k);
   if (found) {
     const int idx = params_.cam_pattern.n > 0 ? (k + count_ - 1) % (2 * teeth_) : rev_ * teeth_ + k;
-    state_ = SyncState::kSynced;
-    ++stats_.syncs;
-    note(DecoderEventKind::kSynced, t_ns, SyncState::kSyncing, SyncState::kSynced, SyncLossReason::kNone,
-         idx);
-    lost_this_rev_ = 0;
     pattern_misses_ = 0;
-    tooth_ = idx % teeth_;
-    rev_ = idx / teeth_;
     phase_known_ = params_.cam_pattern.n > 0;
-    period_ns_ = period;
-    const double w = width_[static_cast<std::size_t>(tooth_)];
-    last_width_rad_ = w;
-    u1_ = static_cast<double>(period) / w;
-    u2_ = 0.0;
-    last_t_ns_ = t_ns;
-    pending_flags_ |= stats_.syncs > 1 ? kToothResynced : 0u;
-    emit(t_ns, idx, w, period, out);
+    enter_synced(t_ns, period, idx, 0u, out);
     return true;
   }
   period_ns_ = period;
