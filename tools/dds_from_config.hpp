@@ -1,7 +1,7 @@
 #pragma once
-// A subscriber's DDS settings from the daemon's configuration file: the same domain, topic prefix, engine_id and
-// per-topic QoS the daemon offers (config dds.*), so that the reader's requests match the writer's offer (e.g.
-// deadline_ms 0 in a shared-memory configuration: a reader requesting 1 s would not match at all).
+// A subscriber's DDS settings from the daemon's configuration file: the same domain, topic prefix, engine_id
+// and per-topic QoS the daemon offers (config dds.*), so that the reader's requests match the writer's offer
+// (e.g. deadline_ms 0 in a shared-memory configuration: a reader requesting 1 s would not match at all).
 #include <stdexcept>
 #include <string>
 
@@ -20,8 +20,8 @@ inline dds::DdsSettings dds_settings_from(const Config& c) {
   s.domain_id = static_cast<std::uint32_t>(c.dds.domain_id);
   s.topic_prefix = c.dds.topic_prefix;
   s.engine_id = static_cast<std::uint16_t>(c.dds.engine_id);
-  s.qos = {to_dds_qos(c.dds.engine_torque), to_dds_qos(c.dds.estimator_torque), to_dds_qos(c.dds.cylinder_torque),
-           to_dds_qos(c.dds.crank_state), to_dds_qos(c.dds.status)};
+  s.qos = {to_dds_qos(c.dds.engine_torque), to_dds_qos(c.dds.estimator_torque),
+           to_dds_qos(c.dds.cylinder_torque), to_dds_qos(c.dds.crank_state), to_dds_qos(c.dds.status)};
   return s;
 }
 

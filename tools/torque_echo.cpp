@@ -3,7 +3,7 @@
 //   torque-echo --topic engine --record out/            live table of per-cycle/segment torque + CSV
 //   torque-echo --topic all --format json --count 100   first 100 samples of every topic as JSON lines
 //   torque-echo --until-done                            exit when the daemon reports the end of a replay
-//   torque-echo --config demo_shm.yaml --require-shm    the daemon's domain/prefix/QoS; fail unless on shared memory
+//   torque-echo --config demo_shm.yaml --require-shm    the daemon's domain/prefix/QoS; exit 4 unless on shm
 // It reports on stderr when a topic's writer (the daemon) appears, loses its liveliness (the daemon died or
 // hangs: no sign of it within the topic's lease) and when a topic misses its deadline (no sample within the
 // topic's deadline period); --exit-on-lost exits with status 3 when the daemon's writers are gone.
@@ -88,7 +88,7 @@ struct Options {
   std::vector<std::string> topics{"engine"};
   std::string config;  ///< the daemon's YAML: domain, prefix and per-topic QoS (command line overrides)
   bool domain_given = false, prefix_given = false;
-  int history = 1024;  ///< reader keep-last depth per instance (more than the writer's: no loss when descheduled)
+  int history = 1024;  ///< reader keep-last depth per key (more than the writer's: no loss when descheduled)
   bool no_deadline = false;
   bool require_shm = false;
   std::string format = "table";
@@ -195,7 +195,7 @@ class Echo {
     if (topic < 0)
       throw std::runtime_error("dds_create_topic " + settings_.topic_name(t) + ": " + dds_strretcode(topic));
     dds_qos_t* qos = dds::make_qos(settings_.qos[static_cast<std::size_t>(t)]);
-    dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, o_.history);  // a subscriber keeps more than the writer's depth
+    dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, o_.history);  // more than the writer's depth
     r.reader = dds_create_reader(participant_, topic, qos, nullptr);
     dds_delete_qos(qos);
     if (r.reader < 0)
@@ -217,10 +217,10 @@ class Echo {
     if (!o_.quiet && !shm_topics_.empty())
       std::fprintf(stderr, "torque-echo: shared memory (iceoryx) for:%s\n", shm_topics_.c_str());
     if (o_.require_shm && !net_topics_.empty())
-      throw RequireShmError(
-          "--require-shm: not on shared memory:" + net_topics_ +
-          " (needs SharedMemory in CYCLONEDDS_URI, RouDi running, and QoS iceoryx carries: keep-last, volatile, "
-          "no deadline: --config with the daemon's shared-memory QoS or --no-deadline)");
+      throw RequireShmError("--require-shm: not on shared memory:" + net_topics_ +
+                            " (needs SharedMemory in CYCLONEDDS_URI, RouDi running, and QoS iceoryx carries: "
+                            "keep-last, volatile, no deadline: --config with the daemon's shared-memory "
+                            "QoS or --no-deadline)");
   }
 
   /// Writer liveliness and deadline of one topic, reported on stderr (reading the statuses resets them).
@@ -353,8 +353,8 @@ int main(int argc, char** argv) {
                  "exit when no sample arrived for this many seconds (after the first)");
   app.add_flag("--quiet,-q", o.quiet, "no summary line on stderr");
   app.footer(
-      "Exit status: 0 done (signal, --count, --duration, --idle-exit or --until-done); 1 DDS error or invalid "
-      "--config; 2 command-line error (unknown option, bad value); 3 the daemon's writers are gone "
+      "Exit status: 0 done (signal, --count, --duration, --idle-exit or --until-done); 1 DDS error or "
+      "invalid --config; 2 command-line error (unknown option, bad value); 3 the daemon's writers are gone "
       "(--exit-on-lost); 4 --require-shm and a reader is not on shared memory.");
   TORQUED_CLI_PARSE(app, argc, argv);
   o.domain_given = domain->count() > 0;

@@ -9,9 +9,10 @@
 // figures.
 //   CYCLONEDDS_URI=file://$PWD/config/cyclonedds-loopback.xml torque-latency --torqued build/daemon/torqued
 //   --config config/demo.yaml --duration 15 --stress --cyclictest [--plot latency.png]
-// It says which path the samples took: shared memory (iceoryx: CYCLONEDDS_URI with SharedMemory, RouDi running,
-// QoS iceoryx carries) or the network path, for this subscriber's readers and the daemon's writers, and ends with
-// one `summary:` line per run; tools/scripts/latency_shm_vs_net.sh runs it both ways and prints them side by side.
+// It says which path the samples took: shared memory (iceoryx: CYCLONEDDS_URI with SharedMemory, RouDi
+// running, QoS iceoryx carries) or the network path, for this subscriber's readers and the daemon's writers,
+// and ends with one `summary:` line per run; tools/scripts/latency_shm_vs_net.sh runs it both ways and prints
+// them side by side.
 #include <sched.h>
 #include <signal.h>
 #include <sys/mman.h>
@@ -501,7 +502,8 @@ int main(int argc, char** argv) {
   row("tooth edge -> EngineTorque (subscr.)", engine_us);
   row("  edge -> dds_write (in the daemon)", rx.engine.in_daemon);
   row("  dds_write -> received (DDS)", rx.engine.dds);
-  std::printf("subscriber: %s, %s; its readers on %s\n", use_waitset ? "waitset" : "listener (receive thread)",
+  std::printf("subscriber: %s, %s; its readers on %s\n",
+              use_waitset ? "waitset" : "listener (receive thread)",
               sub_prio > 0 ? "SCHED_FIFO requested" : "SCHED_OTHER",
               sub_shm ? "shared memory (iceoryx)" : "the network path");
   double cyc_p50 = -1, cyc_p999 = -1, dds_one_way = -1;
@@ -551,7 +553,8 @@ int main(int argc, char** argv) {
   // One line to compare runs (shared memory against the network path): the path is "shm" only when both the
   // daemon's CrankState writer and this subscriber's readers are on shared memory.
   std::printf(
-      "summary: path %s edge->CrankState p50 %.1f p99.9 %.1f us, edge->dds_write p50 %.1f, dds_write->received "
+      "summary: path %s edge->CrankState p50 %.1f p99.9 %.1f us, edge->dds_write p50 %.1f, "
+      "dds_write->received "
       "p50 %.1f p99.9 %.1f us, cyclictest p50 %.1f p99.9 %.1f us, n %zu\n",
       sub_shm && daemon_shm ? "shm" : (sub_shm || daemon_shm ? "mixed" : "network"), crank_us.pct(50),
       crank_us.pct(99.9), rx.crank.in_daemon.pct(50), rx.crank.dds.pct(50), rx.crank.dds.pct(99.9), cyc_p50,

@@ -1,7 +1,7 @@
-// tests/idl/test_qos_defaults.cpp: the topic QoS defaults (idl/qos.hpp default_qos(), CONVENTIONS habit 8), the
-// configuration's defaults that must equal them (config/config.hpp DdsConfig), and the dds_qos_t make_qos builds.
-// EstimatorTorque keeps 1024 samples per key: at 64 a starved subscriber lost samples of the 1450 Hz in-cycle
-// methods (issue 18).
+// tests/idl/test_qos_defaults.cpp: the topic QoS defaults (idl/qos.hpp default_qos(), CONVENTIONS habit 8),
+// the configuration's defaults that must equal them (config/config.hpp DdsConfig), and the dds_qos_t make_qos
+// builds. EstimatorTorque keeps 1024 samples per key: at 64 a starved subscriber lost samples of the 1450 Hz
+// in-cycle methods (issue 18).
 #include <gtest/gtest.h>
 
 #include "config.hpp"
@@ -52,7 +52,8 @@ TEST(QosDefaults, ConfigurationDefaultsEqualTheTopicDefaults) {
 
 TEST(QosDefaults, MakeQosCarriesTheDepth) {
   // WHEN the EstimatorTorque writer QoS is built
-  dds_qos_t* qos = dds::make_qos(dds::DdsSettings::default_qos()[static_cast<std::size_t>(dds::Topic::kEstimatorTorque)]);
+  dds_qos_t* qos =
+      dds::make_qos(dds::DdsSettings::default_qos()[static_cast<std::size_t>(dds::Topic::kEstimatorTorque)]);
   // THEN it is keep-last 1024, reliable, volatile
   dds_history_kind_t kind{};
   std::int32_t depth = 0;
