@@ -119,7 +119,7 @@ struct DdsConfig {
   int engine_id = 1;                    ///< @key of every sample (uint16 on the wire)
   // Defaults equal idl/qos.hpp DdsSettings::default_qos().
   TopicQos engine_torque{Reliability::kReliable, 64, 1000, 1000};
-  TopicQos estimator_torque{Reliability::kReliable, 64, 1000, 1000};
+  TopicQos estimator_torque{Reliability::kReliable, 1024, 1000, 1000};  // per key (idl/qos.hpp: why 1024)
   TopicQos cylinder_torque{Reliability::kReliable, 16, 1000, 1000};
   TopicQos crank_state{Reliability::kBestEffort, 1, 1000, 1000};
   TopicQos status{Reliability::kReliable, 4, 3000, 1000};

@@ -28,12 +28,16 @@ struct DdsSettings {
   /// Defaults: reliable keep-last for per-cycle torque, per-cylinder and status; best-effort keep-last 1 for
   /// the decimated crank state; deadlines a few times the slowest expected period (idle 600 rpm: 200 ms per
   /// cycle); liveliness lease 1 s so a subscriber notices a dead daemon within a second.
+  /// EstimatorTorque keeps 1024 per key (per method): the in-cycle Kalman/Fourier publish 1450 Hz each at
+  /// 3000 rpm, so 64 unacknowledged samples were 44 ms of a descheduled subscriber, and a starved one lost
+  /// samples; 1024 are 0.7 s (at most 11 methods x 1024 x ~100 B held by the writer, while a reader lags).
+  static constexpr std::int32_t kEstimatorTorqueDepth = 1024;
   static constexpr std::array<TopicQos, kTopicCount> default_qos() {
-    return {TopicQos{true, 64, 1000, 1000},   // EngineTorque (segments + cycles)
-            TopicQos{true, 64, 1000, 1000},   // EstimatorTorque
-            TopicQos{true, 16, 1000, 1000},   // CylinderTorque
-            TopicQos{false, 1, 1000, 1000},   // CrankState
-            TopicQos{true, 4, 3000, 1000}};   // DaemonStatus (1 Hz)
+    return {TopicQos{true, 64, 1000, 1000},                     // EngineTorque (segments + cycles)
+            TopicQos{true, kEstimatorTorqueDepth, 1000, 1000},  // EstimatorTorque
+            TopicQos{true, 16, 1000, 1000},                     // CylinderTorque
+            TopicQos{false, 1, 1000, 1000},                     // CrankState
+            TopicQos{true, 4, 3000, 1000}};                     // DaemonStatus (1 Hz)
   }
   [[nodiscard]] std::string topic_name(Topic t) const {
     return topic_prefix.empty() ? std::string(kTopicNames[static_cast<int>(t)])

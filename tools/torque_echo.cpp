@@ -3,6 +3,7 @@
 //   torque-echo --topic engine --record out/            live table of per-cycle/segment torque + CSV
 //   torque-echo --topic all --format json --count 100   first 100 samples of every topic as JSON lines
 //   torque-echo --until-done                            exit when the daemon reports the end of a replay
+//   torque-echo --config demo_shm.yaml --require-shm    the daemon's domain/prefix/QoS; exit 4 unless on shm
 // It reports on stderr when a topic's writer (the daemon) appears, loses its liveliness (the daemon died or
 // hangs: no sign of it within the topic's lease) and when a topic misses its deadline (no sample within the
 // topic's deadline period); --exit-on-lost exits with status 3 when the daemon's writers are gone.
@@ -24,6 +25,8 @@
 
 #include "cli_exit.hpp"
 #include "dds/dds.h"
+#include "dds/ddsc/dds_loan_api.h"
+#include "dds_from_config.hpp"
 #include "qos.hpp"
 #include "sample.hpp"
 #include "sample_recorder.hpp"
@@ -31,6 +34,10 @@
 
 namespace {
 volatile sig_atomic_t g_stop = 0;
+/// --require-shm refused: exit status 4.
+struct RequireShmError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
 void on_signal(int) { g_stop = 1; }
 
 using namespace torqued;
@@ -79,6 +86,11 @@ constexpr const char* kEngineHeader =
 
 struct Options {
   std::vector<std::string> topics{"engine"};
+  std::string config;  ///< the daemon's YAML: domain, prefix and per-topic QoS (command line overrides)
+  bool domain_given = false, prefix_given = false;
+  int history = 1024;  ///< reader keep-last depth per key (more than the writer's: no loss when descheduled)
+  bool no_deadline = false;
+  bool require_shm = false;
   std::string format = "table";
   std::string record_dir;
   bool cycles_only = false;
@@ -104,13 +116,17 @@ struct Reader {
 class Echo {
  public:
   explicit Echo(const Options& o) : o_(o) {
-    settings_.domain_id = o.domain;
-    settings_.topic_prefix = o.prefix;
+    if (!o.config.empty()) settings_ = tools::dds_settings_from_file(o.config);
+    if (o.config.empty() || o.domain_given) settings_.domain_id = o.domain;
+    if (o.config.empty() || o.prefix_given) settings_.topic_prefix = o.prefix;
+    // No deadline requested: what iceoryx can carry, and what matches a writer offering none.
+    if (o.no_deadline)
+      for (auto& q : settings_.qos) q.deadline_ms = 0;
     if (!o.record_dir.empty()) {
       recorder_ = std::make_unique<dds::SampleRecorder>(o.record_dir);
       if (!recorder_->ok()) throw std::runtime_error(recorder_->error());
     }
-    participant_ = dds_create_participant(o.domain, nullptr, nullptr);
+    participant_ = dds_create_participant(settings_.domain_id, nullptr, nullptr);
     if (participant_ < 0)
       throw std::runtime_error(std::string("dds_create_participant: ") + dds_strretcode(participant_));
     waitset_ = dds_create_waitset(participant_);
@@ -127,6 +143,7 @@ class Echo {
       make(status_, dds::Topic::kDaemonStatus);
       print_status_ = false;
     }
+    report_transport();
   }
   ~Echo() {
     if (recorder_) recorder_->flush(true);
@@ -178,7 +195,7 @@ class Echo {
     if (topic < 0)
       throw std::runtime_error("dds_create_topic " + settings_.topic_name(t) + ": " + dds_strretcode(topic));
     dds_qos_t* qos = dds::make_qos(settings_.qos[static_cast<std::size_t>(t)]);
-    dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 1024);  // a subscriber keeps more than the writer's depth
+    dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, o_.history);  // more than the writer's depth
     r.reader = dds_create_reader(participant_, topic, qos, nullptr);
     dds_delete_qos(qos);
     if (r.reader < 0)
@@ -191,6 +208,19 @@ class Echo {
     // The reader itself as a status condition: writer liveliness changes and missed deadlines wake us too.
     dds_set_status_mask(r.reader, DDS_LIVELINESS_CHANGED_STATUS | DDS_REQUESTED_DEADLINE_MISSED_STATUS);
     dds_waitset_attach(waitset_, r.reader, r.reader);
+    (dds_is_shared_memory_available(r.reader) ? shm_topics_ : net_topics_) += " " + settings_.topic_name(t);
+  }
+
+  /// Which readers take their samples from shared memory (iceoryx) and which from the network path; with
+  /// --require-shm a reader on the network path is an error (exit status 4), before anything is received.
+  void report_transport() const {
+    if (!o_.quiet && !shm_topics_.empty())
+      std::fprintf(stderr, "torque-echo: shared memory (iceoryx) for:%s\n", shm_topics_.c_str());
+    if (o_.require_shm && !net_topics_.empty())
+      throw RequireShmError("--require-shm: not on shared memory:" + net_topics_ +
+                            " (needs SharedMemory in CYCLONEDDS_URI, RouDi running, and QoS iceoryx carries: "
+                            "keep-last, volatile, no deadline: --config with the daemon's shared-memory "
+                            "QoS or --no-deadline)");
   }
 
   /// Writer liveliness and deadline of one topic, reported on stderr (reading the statuses resets them).
@@ -283,6 +313,7 @@ class Echo {
   bool lost_ = false;
   std::uint64_t received_ = 0;
   std::string line_;
+  std::string shm_topics_, net_topics_;  ///< " name name ...": readers on shared memory / on the network path
 };
 
 }  // namespace
@@ -297,8 +328,21 @@ int main(int argc, char** argv) {
   app.add_option("--format,-f", o.format, "table|json|none")->check(CLI::IsMember({"table", "json", "none"}));
   app.add_option("--record,-r", o.record_dir, "write CSV files (engine_cycle.csv, ...) into this directory");
   app.add_flag("--cycles-only", o.cycles_only, "EngineTorque: only per-cycle samples (skip segments)");
-  app.add_option("--domain", o.domain, "DDS domain id");
-  app.add_option("--prefix", o.prefix, "topic prefix (config dds.topic_prefix)");
+  app.add_option("--config,-c", o.config,
+                 "the daemon's configuration: DDS domain, topic prefix and each topic's QoS (reliability, "
+                 "deadline, lease) from it, so the readers match its writers; --domain/--prefix override it")
+      ->check(CLI::ExistingFile);
+  auto* domain = app.add_option("--domain", o.domain, "DDS domain id (default 0, or the --config's)");
+  auto* prefix = app.add_option("--prefix", o.prefix, "topic prefix (config dds.topic_prefix)");
+  app.add_option("--history", o.history,
+                 "reader keep-last depth per key (samples); more than the writer's, so a descheduled "
+                 "subscriber loses nothing (iceoryx queues at most 256 of them)")
+      ->check(CLI::Range(1, 10000))
+      ->capture_default_str();
+  app.add_flag("--no-deadline", o.no_deadline,
+               "request no deadline (matches a writer offering none; needed for shared memory)");
+  app.add_flag("--require-shm", o.require_shm,
+               "exit with status 4 unless every reader receives through shared memory (iceoryx)");
   app.add_option("--duration", o.duration_s, "exit after this many seconds (0 = run until signalled)");
   app.add_option("--count", o.count, "exit after this many samples");
   app.add_flag("--until-done", o.until_done, "exit when the daemon's status reports the end of its replay");
@@ -309,9 +353,12 @@ int main(int argc, char** argv) {
                  "exit when no sample arrived for this many seconds (after the first)");
   app.add_flag("--quiet,-q", o.quiet, "no summary line on stderr");
   app.footer(
-      "Exit status: 0 done (signal, --count, --duration, --idle-exit or --until-done); 1 DDS error; 2 "
-      "command-line error (unknown option, bad value); 3 the daemon's writers are gone (--exit-on-lost).");
+      "Exit status: 0 done (signal, --count, --duration, --idle-exit or --until-done); 1 DDS error or "
+      "invalid --config; 2 command-line error (unknown option, bad value); 3 the daemon's writers are gone "
+      "(--exit-on-lost); 4 --require-shm and a reader is not on shared memory.");
   TORQUED_CLI_PARSE(app, argc, argv);
+  o.domain_given = domain->count() > 0;
+  o.prefix_given = prefix->count() > 0;
 
   struct sigaction sa {};
   sa.sa_handler = on_signal;
@@ -320,6 +367,9 @@ int main(int argc, char** argv) {
   try {
     Echo echo(o);
     return echo.run();
+  } catch (const RequireShmError& e) {
+    std::fprintf(stderr, "torque-echo: %s\n", e.what());
+    return 4;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "torque-echo: %s\n", e.what());
     return 1;

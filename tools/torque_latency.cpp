@@ -9,6 +9,10 @@
 // figures.
 //   CYCLONEDDS_URI=file://$PWD/config/cyclonedds-loopback.xml torque-latency --torqued build/daemon/torqued
 //   --config config/demo.yaml --duration 15 --stress --cyclictest [--plot latency.png]
+// It says which path the samples took: shared memory (iceoryx: CYCLONEDDS_URI with SharedMemory, RouDi
+// running, QoS iceoryx carries) or the network path, for this subscriber's readers and the daemon's writers,
+// and ends with one `summary:` line per run; tools/scripts/latency_shm_vs_net.sh runs it both ways and prints
+// them side by side.
 #include <sched.h>
 #include <signal.h>
 #include <sys/mman.h>
@@ -34,6 +38,8 @@
 
 #include "config_loader.hpp"
 #include "dds/dds.h"
+#include "dds/ddsc/dds_loan_api.h"
+#include "dds_from_config.hpp"
 #include "qos.hpp"
 #include "topics.hpp"
 
@@ -347,14 +353,8 @@ int main(int argc, char** argv) {
     for (const auto& e : cfg.errors) std::fprintf(stderr, "torque-latency: %s\n", e.c_str());
     return 2;
   }
-  dds::DdsSettings s;
-  s.domain_id = static_cast<std::uint32_t>(cfg.config->dds.domain_id);
-  s.topic_prefix = cfg.config->dds.topic_prefix;
-  s.engine_id = static_cast<std::uint16_t>(cfg.config->dds.engine_id);
-  auto reliable = [](const TopicQos& q) { return q.reliability == Reliability::kReliable; };
-  s.qos[static_cast<std::size_t>(dds::Topic::kCrankState)].reliable = reliable(cfg.config->dds.crank_state);
-  s.qos[static_cast<std::size_t>(dds::Topic::kEngineTorque)].reliable =
-      reliable(cfg.config->dds.engine_torque);
+  // Its QoS too: the readers below keep 256 and request no deadline (both what iceoryx carries).
+  const dds::DdsSettings s = tools::dds_settings_from(*cfg.config);
 
   // Private paths: logs of the daemon and the helpers, the daemon's state directory.
   char tmpl[] = "/tmp/torque-latency-XXXXXX";
@@ -416,6 +416,8 @@ int main(int argc, char** argv) {
   rx.crank.reader = reader(dds::Topic::kCrankState);
   rx.engine.reader = reader(dds::Topic::kEngineTorque);
   if (lis) dds_delete_listener(lis);
+  const bool sub_shm =
+      dds_is_shared_memory_available(rx.crank.reader) && dds_is_shared_memory_available(rx.engine.reader);
   const dds_entity_t ws = dds_create_waitset(pp);
   if (use_waitset) {
     dds_waitset_attach(ws, dds_create_readcondition(rx.crank.reader, DDS_ANY_STATE), 1);
@@ -500,9 +502,12 @@ int main(int argc, char** argv) {
   row("tooth edge -> EngineTorque (subscr.)", engine_us);
   row("  edge -> dds_write (in the daemon)", rx.engine.in_daemon);
   row("  dds_write -> received (DDS)", rx.engine.dds);
-  std::printf("subscriber: %s, %s\n", use_waitset ? "waitset" : "listener (receive thread)",
-              sub_prio > 0 ? "SCHED_FIFO requested" : "SCHED_OTHER");
+  std::printf("subscriber: %s, %s; its readers on %s\n",
+              use_waitset ? "waitset" : "listener (receive thread)",
+              sub_prio > 0 ? "SCHED_FIFO requested" : "SCHED_OTHER",
+              sub_shm ? "shared memory (iceoryx)" : "the network path");
   double cyc_p50 = -1, cyc_p999 = -1, dds_one_way = -1;
+  bool daemon_shm = false;  ///< the daemon logged CrankState among its shared-memory topics
   if (cyclic) {
     double p50 = 0, p99 = 0, p999 = 0, mx = 0;
     long late_1ms = 0;
@@ -534,14 +539,26 @@ int main(int argc, char** argv) {
   {  // the daemon's own counters (ring drops, time-thread overruns) from its final log line
     FILE* f = std::fopen(daemon_log.c_str(), "r");
     char line[1024];
-    std::string last;
-    while (f && std::fgets(line, sizeof line, f))
+    std::string last, shm_topics;
+    while (f && std::fgets(line, sizeof line, f)) {
       if (std::strstr(line, "stopped:")) last = line;
+      if (const char* t = std::strstr(line, "DDS shared memory (iceoryx) for:")) shm_topics = t;
+    }
+    daemon_shm = shm_topics.find("CrankState") != std::string::npos;
     if (f) std::fclose(f);
     if (last.empty()) keep_logs = true;
     std::printf("daemon: %s", last.empty() ? ("no final counters (see " + daemon_log + ")\n").c_str()
                                            : last.substr(last.find("stopped:")).c_str());
   }
+  // One line to compare runs (shared memory against the network path): the path is "shm" only when both the
+  // daemon's CrankState writer and this subscriber's readers are on shared memory.
+  std::printf(
+      "summary: path %s edge->CrankState p50 %.1f p99.9 %.1f us, edge->dds_write p50 %.1f, "
+      "dds_write->received "
+      "p50 %.1f p99.9 %.1f us, cyclictest p50 %.1f p99.9 %.1f us, n %zu\n",
+      sub_shm && daemon_shm ? "shm" : (sub_shm || daemon_shm ? "mixed" : "network"), crank_us.pct(50),
+      crank_us.pct(99.9), rx.crank.in_daemon.pct(50), rx.crank.dds.pct(50), rx.crank.dds.pct(99.9), cyc_p50,
+      cyc_p999, crank_us.us.size());
   histogram(crank_us, "tooth edge -> CrankState");
   if (!plot.empty()) {
     const std::string csv = plot + ".data.csv";
