@@ -38,6 +38,7 @@ ToothErrorLearner learn_on_warmup(const sim::Scenario& sc) {
   for (const ToothSample& s : sim::ideal_tooth_samples(out, w)) {
     const EngineSignals sig = sim::signals_at(out, static_cast<double>(s.t_ns) * 1e-9);
     learner.set_fuel_cutoff(sig.fuel_cutoff_valid && sig.fuel_cutoff);
+    learner.set_map(sig.map_pa, sig.map_valid);
     learner.update(s);
   }
   // Per order: learned vs true edge-error amplitude (diagnostic), true from the simulator's machining errors.

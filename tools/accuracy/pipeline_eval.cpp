@@ -89,6 +89,7 @@ std::vector<double> learned_width_ratios(const sim::Scenario& sc, const ToothLea
       // Fuel cut-off flag from CAN as the daemon does (AngleStage::on_tooth).
       const EngineSignals sig = sim::signals_at(out, static_cast<double>(samples[i].t_ns) * 1e-9);
       learner.set_fuel_cutoff(sig.fuel_cutoff_valid && sig.fuel_cutoff);
+      learner.set_map(sig.map_pa, sig.map_valid);
       learner.update(samples[i]);
     }
     LearnedTable t;
