@@ -257,6 +257,8 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
 
     // Misfire matching: cylinder at firing position m fired at boundary m + |offset| of this window.
     if (o.cylinders.health != Health::kInvalidInput && cycle_rows >= 2) {
+      ++r.detection_cycles;
+      if (o.cylinders.detection == MisfireDetection::kActive) ++r.detection_active;
       if (first_cycle < 0) first_cycle = j0 + 1;
       last_cycle = j0 + 1;
       for (int m = 0; m < n; ++m) {
