@@ -109,23 +109,7 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
   double fired_level_j = -1e300;
   for (int m = 0; m < n; ++m) fired_level_j = std::max(fired_level_j, median_of_others(work_, n, m));
   const bool low_load = fired_level_j / seg_rad <= params_.min_mean_nm;
-  // Noisy: a cylinder at the misfire threshold (a deficit of (1 − threshold) × the firing level) would lie
-  // within misfire_sigma·σ of the share noise: the decision would rest on the noise gate alone, which a
-  // heavy-tailed noise (jitter at high speed and light load) trips now and then.
-  // Latched with hysteresis, starting noisy (on the prior σ): the state is left only below kNoisyExitRatio of
-  // the limit, so that a noise estimate hovering at the limit (6000 rpm, 45 kPa on the simulator) does not
-  // switch detection on for single cycles.
-  constexpr double kNoisyExitRatio = 0.8;
-  const double limit_j = (1.0 - params_.misfire_threshold) * fired_level_j;
-  const double noise_gate_j = params_.misfire_sigma * sigma_j;
-  if (params_.misfire_sigma <= 0.0) {
-    noisy_ = false;  // no noise gate: the threshold alone decides
-  } else if (noise_gate_j >= limit_j) {
-    noisy_ = true;
-  } else if (noise_gate_j < kNoisyExitRatio * limit_j) {
-    noisy_ = false;
-  }
-  const bool noisy = noisy_;
+  const bool noisy = update_noisy(sigma_j, fired_level_j);
   o.detection = !all_fired        ? MisfireDetection::kOverrun
                 : low_load        ? MisfireDetection::kLowLoad
                 : !wheel_learned_ ? MisfireDetection::kWheelUnlearned
@@ -156,6 +140,26 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
   o.health = health_of(o.detection);
   out_ = o;
   return true;
+}
+
+// Noisy: a cylinder at the misfire threshold (a deficit of (1 − threshold) × the firing level) would lie
+// within misfire_sigma·σ of the share noise: the decision would rest on the noise gate alone, which a
+// heavy-tailed noise (jitter at high speed and light load) trips now and then.
+// Latched with hysteresis, starting noisy (on the prior σ): the state is left only below kNoisyExitRatio of
+// the limit, so that a noise estimate hovering at the limit (6000 rpm, 45 kPa on the simulator) does not
+// switch detection on for single cycles.
+bool CylinderTorque::update_noisy(double sigma_j, double fired_level_j) noexcept {
+  constexpr double kNoisyExitRatio = 0.8;
+  const double limit_j = (1.0 - params_.misfire_threshold) * fired_level_j;
+  const double noise_gate_j = params_.misfire_sigma * sigma_j;
+  if (params_.misfire_sigma <= 0.0) {
+    noisy_ = false;  // no noise gate: the threshold alone decides
+  } else if (noise_gate_j >= limit_j) {
+    noisy_ = true;
+  } else if (noise_gate_j < kNoisyExitRatio * limit_j) {
+    noisy_ = false;
+  }
+  return noisy_;
 }
 
 // Filtered imbalance over firing cycles without misfire where detection is active (or only the wheel

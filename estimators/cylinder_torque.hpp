@@ -75,6 +75,8 @@ class CylinderTorque {
 
  private:
   void update_filtered_imbalance(const CylinderCycle& o, int candidates) noexcept;
+  /// Noise state from the segment noise σ (J) and the cycle's firing level (J); real-time safe.
+  bool update_noisy(double sigma_j, double fired_level_j) noexcept;
   static Health health_of(MisfireDetection d) noexcept;
   EngineGeometry engine_;
   CylinderParams params_;

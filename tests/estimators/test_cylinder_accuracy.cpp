@@ -155,7 +155,7 @@ TEST(CylinderAccuracy, NoFalseAlarmWhereDetectionIsClaimedPossible) {
     EXPECT_EQ(r.misfires_false, 0) << rpm << " rpm " << map_kpa << " kPa";
     EXPECT_GT(r.detection_cycles, 20) << rpm;
     // AND detection is not simply switched off where the engine fires well above the noise
-    // (the first 5 cycles of 30 measure the share noise)
+    // (detection starts noisy on the prior share noise until the measured one is below the limit)
     if (rpm <= 2000.0) EXPECT_GE(active, 75.0) << rpm;
   }
 }
