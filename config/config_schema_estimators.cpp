@@ -176,6 +176,9 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("tooth_learn.speed_weight_exp", tooth_learn.params.speed_weight_exp, closed(0.0, 10.0), "", "residuals weighted by speed^p");
   TQ_BOOL("tooth_learn.learn_low_orders", tooth_learn.params.learn_low_orders, "also learn the per-revolution orders inside the per-cycle fit (from fuel cut-off and the spread of speeds); false: hold them at the imported table");
   TQ_INT("tooth_learn.min_overrun_cycles", tooth_learn.params.min_overrun_cycles, closed(1, 100000), "cycles", "clean fuel cut-off cycles before the overrun identifies a per-revolution order");
+  TQ_NUM("tooth_learn.load_slot_frac", tooth_learn.params.load_slot_frac, open_closed(0.0, 0.5), "", "firing cycles identify a per-revolution order only against cycles at the same load: MAP within +-this fraction of the load slot's MAP");
+  TQ_NUM("tooth_learn.min_speed_spread_frac", tooth_learn.params.min_speed_spread_frac, open_closed(0.0, 10.0), "", "a load slot identifies an order when the 1 sigma spread of 1/speed^2 over its cycles exceeds this fraction of its mean");
+  TQ_NUM("tooth_learn.max_low_order_se_frac", tooth_learn.params.max_low_order_se_frac, open_closed(0.0, 100.0), "", "an order from the speed law is identified only when its intercept's standard error is below this fraction of the RMS of the learned higher wheel orders");
 }
 
 }  // namespace torqued::schema_detail

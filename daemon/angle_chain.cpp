@@ -96,6 +96,7 @@ void AngleChain::on_tooth(const ToothEvent& te) noexcept {
   if (time_) time_->tooth(ts);  // time chain hand-off: mean speed
   if (learner_) {
     learner_->set_fuel_cutoff(sig.fuel_cutoff_valid && sig.fuel_cutoff);  // feedback (2)
+    learner_->set_map(sig.map_pa, sig.map_valid);  // the speed law compares cycles at the same load
     learner_->update(ts);
   }
   const std::uint8_t ready = pipeline_ ? pipeline_->on_tooth(ts, sig) : 0;

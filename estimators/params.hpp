@@ -179,6 +179,15 @@ struct ToothLearnParams {
                                     ///< and/or the spread of speeds (wheel part speed-independent, ripple ∝ 1/speed²)
   int min_overrun_cycles = 8;       ///< clean fuel cut-off cycles (whole cycle and the one before cut) needed before
                                     ///< the overrun identifies a per-revolution order (cycles)
+  double load_slot_frac = 0.02;     ///< the speed law compares firing cycles at the SAME load only: a load slot holds
+                                    ///< cycles whose MAP is within ±this fraction of the slot's MAP (the ripple scales
+                                    ///< with the load, so a load that changes with speed would fake an intercept) (-)
+  double min_speed_spread_frac = 0.10;  ///< a slot identifies an order when the 1σ spread of 1/speed² over its cycles
+                                        ///< exceeds this fraction of its mean (was a fixed 0.20; 0.10 chosen looking
+                                        ///< at the demo recording, whose load slots span less speed) (-)
+  double max_low_order_se_frac = 0.05;  ///< variance check: an order is identified only when the standard error of its
+                                        ///< intercept (from the scatter of the cycles about the 1/speed² law) is below
+                                        ///< this fraction of the RMS of the learned higher orders of the wheel (-)
 };
 
 }  // namespace torqued

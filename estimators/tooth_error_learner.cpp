@@ -78,9 +78,11 @@ ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGe
   z_.assign(ks, 0.0);
   resid_sum_.assign(ks, 0.0);
   coef_.assign(nbs, 0.0);
-  sb_.assign(nbs, 0.0);
-  sxb_.assign(nbs, 0.0);
-  sxxb_.assign(nbs, 0.0);
+  const std::size_t slot_cols = static_cast<std::size_t>(kLoadSlots) * nbs;
+  sb_.assign(slot_cols, 0.0);
+  sxb_.assign(slot_cols, 0.0);
+  sxxb_.assign(slot_cols, 0.0);
+  sbb_.assign(slot_cols, 0.0);
   cb_.assign(nbs, 0.0);
   cxb_.assign(nbs, 0.0);
   low_coef_.assign(nbs, 0.0);
@@ -94,10 +96,11 @@ ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGe
 
 void ToothErrorLearner::reset() noexcept {
   std::fill(resid_sum_.begin(), resid_sum_.end(), 0.0);
-  sx_ = sxx_ = sx3_ = sx4_ = 0.0;
+  slots_ = {};
   std::fill(sb_.begin(), sb_.end(), 0.0);
   std::fill(sxb_.begin(), sxb_.end(), 0.0);
   std::fill(sxxb_.begin(), sxxb_.end(), 0.0);
+  std::fill(sbb_.begin(), sbb_.end(), 0.0);
   std::fill(cb_.begin(), cb_.end(), 0.0);
   std::fill(cxb_.begin(), cxb_.end(), 0.0);
   std::fill(imp_coef_.begin(), imp_coef_.end(), 0.0);
@@ -113,7 +116,6 @@ void ToothErrorLearner::reset() noexcept {
   std::fill(ratio_.begin(), ratio_.end(), 1.0);
   import_weight_ = 0.0;
   n_ = 0.0;
-  nreg_ = 0.0;
   wsum_ = 0.0;
   next_tooth_ = -1;
   collected_ = 0;
@@ -142,6 +144,9 @@ void ToothErrorLearner::update(const ToothSample& s) noexcept {
     last_dt_s_ = 0.0;
     cycle_cutoff_ = cutoff_;
     cycle_all_cutoff_ = cutoff_;
+    cycle_map_valid_ = map_valid_;
+    cycle_map_sum_ = 0.0;
+    cycle_map_min_ = cycle_map_max_ = map_pa_;
     next_tooth_ = 0;
   }
   if (s.tooth != next_tooth_) {
@@ -161,6 +166,10 @@ void ToothErrorLearner::update(const ToothSample& s) noexcept {
   cycle_time_s_ += s.dt_s;
   cycle_cutoff_ = cycle_cutoff_ || cutoff_;
   cycle_all_cutoff_ = cycle_all_cutoff_ && cutoff_;
+  cycle_map_valid_ = cycle_map_valid_ && map_valid_;
+  cycle_map_sum_ += map_pa_;
+  cycle_map_min_ = std::min(cycle_map_min_, map_pa_);
+  cycle_map_max_ = std::max(cycle_map_max_, map_pa_);
   ++collected_;
   next_tooth_ = (s.tooth + 1) % kk;
 }
@@ -247,39 +256,120 @@ void ToothErrorLearner::fit_cycle() noexcept {
   }
 }
 
+// Load slot of the cycle just collected: MAP known and steady over the cycle (within ±load_slot_frac of its
+// mean), then the slot whose MAP is within ±load_slot_frac of it, else a free slot, else the least used one
+// (its sums restart: a load visited briefly gives way to a new one). −1: no slot (the cycle is not used).
+int ToothErrorLearner::load_slot() noexcept {
+  const double frac = params_.load_slot_frac;
+  const double map = cycle_map_sum_ / table_.samples;
+  const bool load_steady = cycle_map_valid_ && map > 0.0 && cycle_map_max_ <= map * (1.0 + frac) &&
+                           cycle_map_min_ >= map * (1.0 - frac);
+  if (!load_steady) return -1;
+  int least = 0;
+  for (int s = 0; s < kLoadSlots; ++s) {
+    const LoadSlot& sl = slots_[static_cast<std::size_t>(s)];
+    if (sl.map_pa > 0.0 && std::abs(map / sl.map_pa - 1.0) <= frac) return s;
+    if (sl.n < slots_[static_cast<std::size_t>(least)].n) least = s;
+  }
+  LoadSlot& sl = slots_[static_cast<std::size_t>(least)];
+  sl = LoadSlot{};
+  sl.map_pa = map;
+  const auto nbs = static_cast<std::size_t>(nb_);
+  const auto off = static_cast<std::size_t>(least) * nbs;
+  for (std::size_t j = off; j < off + nbs; ++j) sb_[j] = sxb_[j] = sxxb_[j] = sbb_[j] = 0.0;
+  return least;
+}
+
 void ToothErrorLearner::regress(double omega) noexcept {
-  // The speed ripple in each coefficient scales as ΔE/E ∝ 1/ω̄²; the tooth-error part does not.
+  // The speed ripple in each coefficient scales as ΔE/E ∝ load/ω̄²; the tooth-error part does not: per load.
+  const int s = load_slot();
+  if (s < 0) return;
+  LoadSlot& sl = slots_[static_cast<std::size_t>(s)];
   const double x = (kRefSpeed / omega) * (kRefSpeed / omega);
-  nreg_ += 1.0;
-  sx_ += x;
-  sxx_ += x * x;
-  sx3_ += x * x * x;
-  sx4_ += x * x * x * x;
+  sl.n += 1.0;
+  sl.sx += x;
+  sl.sxx += x * x;
+  sl.sx3 += x * x * x;
+  sl.sx4 += x * x * x * x;
+  const auto off = static_cast<std::size_t>(s) * static_cast<std::size_t>(nb_);
   for (std::size_t j = 0; j < static_cast<std::size_t>(nb_); ++j) {
-    sb_[j] += coef_[j];
-    sxb_[j] += x * coef_[j];
-    sxxb_[j] += x * x * coef_[j];
+    sb_[off + j] += coef_[j];
+    sxb_[off + j] += x * coef_[j];
+    sxxb_[off + j] += x * x * coef_[j];
+    sbb_[off + j] += coef_[j] * coef_[j];
   }
 }
 
-void ToothErrorLearner::identify_orders(double* low) noexcept {
-  // Firing-cycle regression β_j = β_j0 + γ_j x + η_j x² (normal equations, Cramer's rule on the 3×3 moment
-  // matrix shared by all columns); needs a real spread of speeds (1σ of x above 20 % of its mean).
-  const double vx = nreg_ * sxx_ - sx_ * sx_;
-  const double m00 = nreg_, m01 = sx_, m02 = sxx_, m11 = sxx_, m12 = sx3_, m22 = sx4_;
-  const double det =
-      m00 * (m11 * m22 - m12 * m12) - m01 * (m01 * m22 - m12 * m02) + m02 * (m01 * m12 - m11 * m02);
+// Per slot: β_j = β_j0 + γ_j x (non-firing: only an imbalance, small enough for the linear law) or + η_j x²
+// (firing: the full gas-torque ripple, ln(E0 + ΔE) is not linear in ΔE/E0 at low speed); normal equations,
+// Cramer's rule. Intercept variance s²·(M⁻¹)₀₀, s² = RSS/(n − p) pooled over the two columns. Needs
+// min_cycles_per_slot cycles and a spread of speeds: 1σ of x above min_speed_spread_frac of its mean.
+bool ToothErrorLearner::slot_intercept(std::size_t j0, bool firing, double* v, double* var,
+                                       double* cycles) const noexcept {
+  constexpr double kMinSlotCycles = 6.0;  // at least twice the 3 parameters of the quadratic law
+  const double spread = params_.min_speed_spread_frac;
+  double w_sum = 0.0, acc[2] = {0.0, 0.0}, n_sum = 0.0;
+  for (std::size_t s = 0; s < slots_.size(); ++s) {
+    const LoadSlot& sl = slots_[s];
+    const double m00 = sl.n, m01 = sl.sx, m02 = sl.sxx, m11 = sl.sxx, m12 = sl.sx3, m22 = sl.sx4;
+    const double vx = sl.n * sl.sxx - sl.sx * sl.sx;
+    const double det =
+        m00 * (m11 * m22 - m12 * m12) - m01 * (m01 * m22 - m12 * m02) + m02 * (m01 * m12 - m11 * m02);
+    const double params = firing ? 3.0 : 2.0;
+    const bool speeds_spread = vx > spread * spread * sl.sx * sl.sx;
+    const bool slot_usable = sl.n >= kMinSlotCycles && sl.n > params + 1.0 && speeds_spread &&
+                             (!firing || std::abs(det) > 1e-12 * sl.n);
+    if (!slot_usable) continue;
+    double a[2], rss = 0.0;
+    for (std::size_t c = 0; c < 2; ++c) {
+      const std::size_t j = s * static_cast<std::size_t>(nb_) + j0 + c;
+      const double r0 = sb_[j], r1 = sxb_[j], r2 = sxxb_[j];
+      if (firing) {
+        a[c] =
+            (r0 * (m11 * m22 - m12 * m12) - m01 * (r1 * m22 - m12 * r2) + m02 * (r1 * m12 - m11 * r2)) / det;
+        const double g =
+            (m00 * (r1 * m22 - m12 * r2) - r0 * (m01 * m22 - m12 * m02) + m02 * (m01 * r2 - r1 * m02)) / det;
+        const double e =
+            (m00 * (m11 * r2 - r1 * m12) - m01 * (m01 * r2 - r1 * m02) + r0 * (m01 * m12 - m11 * m02)) / det;
+        rss += sbb_[j] - a[c] * r0 - g * r1 - e * r2;
+      } else {
+        a[c] = (sl.sxx * r0 - sl.sx * r1) / vx;
+        const double g = (sl.n * r1 - sl.sx * r0) / vx;
+        rss += sbb_[j] - a[c] * r0 - g * r1;
+      }
+    }
+    const double s2 = std::max(rss, 0.0) / (2.0 * (sl.n - params));
+    const double m_inv00 = firing ? (m11 * m22 - m12 * m12) / det : sl.sxx / vx;
+    const double var_a = std::max(s2 * m_inv00, 1e-30);
+    w_sum += 1.0 / var_a;
+    acc[0] += a[0] / var_a;
+    acc[1] += a[1] / var_a;
+    n_sum += sl.n;
+  }
+  if (w_sum <= 0.0) return false;
+  v[0] = acc[0] / w_sum;
+  v[1] = acc[1] / w_sum;
+  *var = 1.0 / w_sum;
+  *cycles = n_sum;
+  return true;
+}
+
+void ToothErrorLearner::identify_orders(double* low, double hf_rms) noexcept {
   const bool learn = params_.learn_low_orders;
-  const bool speeds = learn && nreg_ >= 6.0 && vx > 0.04 * sx_ * sx_ && std::abs(det) > 1e-12 * nreg_;
   // Overrun: mean (non-firing orders) or linear regression on x (firing orders, needs a spread of speeds).
   const bool ov_mean = learn && nc_ >= params_.min_overrun_cycles;
   const double vcx = nc_ * cxx_ - cx_ * cx_;
-  const bool ov_speeds = ov_mean && vcx > 0.04 * cx_ * cx_;
+  const double spread = params_.min_speed_spread_frac;
+  const bool ov_speeds = ov_mean && vcx > spread * spread * cx_ * cx_;
   for (std::size_t q = 0; q < ids_.size(); ++q) {
     ToothOrderId& id = ids_[q];
     const auto j0 = static_cast<std::size_t>(2 * id.order * 2);  // harmonic h = 2·order → columns 2h, 2h + 1
     id.source = ToothOrderSource::kHeld;
     id.cycles = 0.0;
+    double sv[2] = {0.0, 0.0}, var = 0.0, cycles = 0.0;
+    // Variance check: the intercept's standard error (per column) small against the wheel's higher orders.
+    const bool speeds = learn && slot_intercept(j0, id.firing, sv, &var, &cycles) &&
+                        std::sqrt(var) <= params_.max_low_order_se_frac * hf_rms;
     if (!id.firing && ov_mean) {
       id.source = ToothOrderSource::kOverrun;
       id.cycles = nc_;
@@ -288,7 +378,7 @@ void ToothErrorLearner::identify_orders(double* low) noexcept {
       id.cycles = nc_;
     } else if (speeds) {
       id.source = ToothOrderSource::kSpeeds;
-      id.cycles = nreg_;
+      id.cycles = cycles;
     }
     for (std::size_t j = j0; j < j0 + 2; ++j) {
       double v = 0.0;
@@ -299,16 +389,9 @@ void ToothErrorLearner::identify_orders(double* low) noexcept {
         case ToothOrderSource::kOverrunSpeeds:
           v = (cxx_ * cb_[j] - cx_ * cxb_[j]) / vcx;
           break;
-        case ToothOrderSource::kSpeeds: {
-          // firing orders carry the full gas-torque ripple (x² term for the ln non-linearity); a non-firing
-          // order only an imbalance, small enough for the linear law (a less noisy intercept)
-          const double r0 = sb_[j], r1 = sxb_[j], r2 = sxxb_[j];
-          v = id.firing ? (r0 * (m11 * m22 - m12 * m12) - m01 * (r1 * m22 - m12 * r2) +
-                           m02 * (r1 * m12 - m11 * r2)) /
-                              det
-                        : (sxx_ * r0 - sx_ * r1) / vx;
+        case ToothOrderSource::kSpeeds:
+          v = sv[j - j0];
           break;
-        }
         case ToothOrderSource::kHeld:
           v = imp_coef_[j];
           break;
@@ -322,7 +405,11 @@ void ToothErrorLearner::recompute() noexcept {
   const int t = table_.teeth;
   const auto nbs = static_cast<std::size_t>(nb_);
   std::fill(low_coef_.begin(), low_coef_.end(), 0.0);
-  identify_orders(low_coef_.data());
+  const double wsum0 = wsum_ > 0.0 ? wsum_ : 1.0;
+  double hf_ms = 0.0;  // mean square of the learned higher orders per sample (the variance check's scale)
+  for (std::size_t k = 0; k < resid_sum_.size(); ++k)
+    hf_ms += (resid_sum_[k] / wsum0) * (resid_sum_[k] / wsum0);
+  identify_orders(low_coef_.data(), std::sqrt(hf_ms / static_cast<double>(resid_sum_.size())));
   // Plausibility of the 1/ω̄² regressions (firing or overrun): machining errors are independent per edge, so
   // the width error holds little at the low orders (a few % of its RMS). A larger part means the ripple did
   // not follow 1/ω̄² (mixed loads, a coast-down with falling MAP, transients): hold those orders instead.

@@ -23,10 +23,19 @@
 //    1/ω̄², the wheel's does not: the intercept (x → 0) of a regression on x = 1/ω̄² across cut-off cycles at
 //    several speeds ("overrun speeds"), or across firing cycles at several speeds with an x² term since ln(E0
 //    + ΔE) is not linear in ΔE/E0 at low speed ("speeds");
+//  - "speeds" compares firing cycles at the SAME load only (issue 15): the ripple scales with the load, so
+//    where the load changes with the speed (a vehicle, the demo) a regression across loads fakes an
+//    intercept, and an imbalance would be learned as wheel error. Each load slot (MAP within ±load_slot_frac
+//    of the slot's MAP, steady over the cycle) has its own regression; a slot counts when its speeds spread
+//    (min_speed_spread_frac); the slots' intercepts are combined by inverse variance (the variance from the
+//    cycles' scatter about the 1/ω̄² law) and the order is identified only when that standard error is small
+//    against the wheel's higher orders (max_low_order_se_frac): the variance check;
 //  - an order nothing identifies is held: the imported (persisted) table's value, or zero.
 // order_ids() reports per order how it was identified, from how many cycles, and its edge amplitude.
 // The table is absolute (nominal widths, measured times), so the decoder may apply it to its output without
 // disturbing learning. Real-time safe update(); the table is recomputed at each cycle end (O(teeth·H)).
+#include <array>
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -68,12 +77,19 @@ struct ToothLearnStats {
 class ToothErrorLearner {
  public:
   static constexpr int kMaxFitHarmonics = 48;
+  static constexpr int kLoadSlots = 8;  ///< load slots of the speed law (the least used one is recycled)
 
   ToothErrorLearner(const EngineGeometry& engine, const WheelGeometry& wheel, const ToothLearnParams& params);
 
   void reset() noexcept;
   /// Fuel cut-off flag of the current cycle (counted in stats; learning runs firing and in cut-off).
   void set_fuel_cutoff(bool cutoff) noexcept { cutoff_ = cutoff; }
+  /// Intake manifold pressure at the current tooth (Pa; `valid` false when unknown): firing cycles enter the
+  /// speed law only in the load slot of their MAP (no MAP: not at all).
+  void set_map(double map_pa, bool valid) noexcept {
+    map_pa_ = map_pa;
+    map_valid_ = valid && map_pa > 0.0 && std::isfinite(map_pa);
+  }
   /// Real-time safe. Uses s.tooth, s.dt_s, s.t_ns, s.synced; ignores s.width_rad (learns against nominal
   /// widths).
   void update(const ToothSample& s) noexcept;
@@ -103,8 +119,12 @@ class ToothErrorLearner {
   void finish_cycle() noexcept;
   void fit_cycle() noexcept;
   void regress(double omega) noexcept;
+  int load_slot() noexcept;
+  /// Inverse-variance combination over the load slots of the intercept of columns j0, j0 + 1 (speed law);
+  /// returns false when no slot identifies them. Writes the intercepts, the combined variance and cycles.
+  bool slot_intercept(std::size_t j0, bool firing, double* v, double* var, double* cycles) const noexcept;
   void recompute() noexcept;
-  void identify_orders(double* low_coef) noexcept;
+  void identify_orders(double* low_coef, double hf_rms) noexcept;
 
   ToothLearnParams params_;
   ToothAngleTable table_;
@@ -125,13 +145,21 @@ class ToothErrorLearner {
   bool cycle_all_cutoff_ = false;  ///< every tooth of the cycle in cut-off
   bool prev_all_cutoff_ = false;   ///< the previous complete cycle was all cut-off
   // accumulators
-  std::vector<double> resid_sum_;                        ///< Σ residual per 720° sample
-  std::vector<double> coef_;                             ///< scratch: coefficients of the last cycle
-  double sx_ = 0.0, sxx_ = 0.0, sx3_ = 0.0, sx4_ = 0.0;  ///< Σx, Σx², Σx³, Σx⁴ (x = (ω_ref/ω̄)²)
-  std::vector<double> sb_, sxb_, sxxb_;                  ///< per column: Σβ, Σxβ, Σx²β
+  std::vector<double> resid_sum_;  ///< Σ residual per 720° sample
+  std::vector<double> coef_;       ///< scratch: coefficients of the last cycle
+  /// Speed-law sums of one load slot (x = (ω_ref/ω̄)²); per column j at [j]: Σβ, Σxβ, Σx²β, Σβ².
+  struct LoadSlot {
+    double map_pa = 0.0;  ///< the slot's load (0: free)
+    double n = 0.0, sx = 0.0, sxx = 0.0, sx3 = 0.0, sx4 = 0.0;
+  };
+  std::array<LoadSlot, kLoadSlots> slots_{};
+  std::vector<double> sb_, sxb_, sxxb_, sbb_;  ///< [slot * nb_ + j]
+  double map_pa_ = 0.0;
+  bool map_valid_ = false;
+  double cycle_map_sum_ = 0.0, cycle_map_min_ = 0.0, cycle_map_max_ = 0.0;
+  bool cycle_map_valid_ = false;
   double n_ = 0.0;
   double wsum_ = 0.0;                       ///< Σ weights of the residuals
-  double nreg_ = 0.0;                       ///< firing cycles in the low-order regression
   double nc_ = 0.0, cx_ = 0.0, cxx_ = 0.0;  ///< clean overrun cycles, Σx, Σx²
   std::vector<double> cb_, cxb_;            ///< per column over overrun cycles: Σβ, Σxβ
   std::vector<double> low_coef_;   ///< identified wheel coefficient per column (scratch of recompute)

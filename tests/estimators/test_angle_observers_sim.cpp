@@ -31,7 +31,11 @@ TEST(AngleObserversOnSimulator, LearnedWheelAtOneToFourThousandRpm) {
     sc.seed = 42;  // one wheel (machining errors come from the seed)
     outs.push_back(sim::simulate(sc));
     scs.push_back(sc);
-    for (const auto& s : sim::ideal_tooth_samples(outs.back(), sc)) learner.update(s);
+    for (const auto& s : sim::ideal_tooth_samples(outs.back(), sc)) {
+      const EngineSignals sig = sim::signals_at(outs.back(), static_cast<double>(s.t_ns) * 1e-9);
+      learner.set_map(sig.map_pa, sig.map_valid);
+      learner.update(s);
+    }
   }
   ASSERT_TRUE(learner.ready());
   const auto& err = outs[0].tooth_error_rad;
@@ -100,6 +104,7 @@ ScenarioResult run_scenario(const char* name, int fourier_harmonics) {
     // overrun)
     const EngineSignals sig = sim::signals_at(out, static_cast<double>(s.t_ns) * 1e-9);
     learner.set_fuel_cutoff(sig.fuel_cutoff_valid && sig.fuel_cutoff);
+    learner.set_map(sig.map_pa, sig.map_valid);
     learner.update(s);
   }
   EXPECT_TRUE(learner.ready()) << name;

@@ -4,7 +4,9 @@
 
 #include <cmath>
 #include <cstdio>
+#include <initializer_list>
 #include <numbers>
+#include <utility>
 #include <vector>
 
 #include "alloc_counter.hpp"
@@ -34,6 +36,7 @@ ToothErrorLearner learn(std::vector<double>& edge_error_rad, std::size_t* alloca
       sp.noise_seed = static_cast<std::uint64_t>(rpm + bar);
       const auto run = test::make_synthetic(sp);
       edge_error_rad = run.edge_error_rad;
+      learner.set_map(1e3 * bar, true);  // a steady load per run (its MAP stands for the load slot)
       test::AllocationScope scope;
       for (const auto& s : run.samples) learner.update(s);
       if (allocations != nullptr) *allocations += scope.count();
@@ -194,6 +197,52 @@ TEST(ToothErrorLearner, ObserversSayWhenTheWheelIsUnlearned) {
   }
   EXPECT_EQ(kf.estimate().health, Health::kValid);
   EXPECT_EQ(fo.estimate().health, Health::kValid);
+}
+
+}  // namespace
+}  // namespace torqued
+
+namespace torqued {
+namespace {
+
+/// Steady synthetic runs of one wheel, each at (rpm, peak pressure) with its MAP given to the learner.
+void feed_runs(ToothErrorLearner& learner, std::initializer_list<std::pair<double, double>> runs) {
+  for (const auto& [rpm, bar] : runs) {
+    test::SyntheticSpec sp;
+    sp.rpm = rpm;
+    sp.peak_bar = bar;
+    sp.cycles = 10;
+    sp.noise_seed = static_cast<std::uint64_t>(rpm + 7.0 * bar);
+    learner.set_map(1e3 * bar, true);  // the MAP that goes with this load
+    for (const auto& s : test::make_synthetic(sp).samples) learner.update(s);
+  }
+}
+
+TEST(ToothErrorLearner, LowOrdersAreHeldWhenTheLoadChangesWithSpeed) {
+  // GIVEN a vehicle-like run: the load rises with the speed, so each load is seen at one speed only (a
+  // regression across these loads would read the load's ripple as a speed-independent wheel error)
+  ToothErrorLearner learner(EngineGeometry{}, WheelGeometry{}, ToothLearnParams{});
+  feed_runs(learner, {{1000.0, 20.0}, {2000.0, 30.0}, {3000.0, 40.0}, {4000.0, 50.0}});
+  // THEN the table is usable (higher orders) but no per-revolution order is identified: each is held at the
+  // imported table, here none (zero)
+  EXPECT_TRUE(learner.ready());
+  EXPECT_FALSE(learner.low_orders_learned());
+  ASSERT_FALSE(learner.order_ids().empty());
+  for (const ToothOrderId& id : learner.order_ids()) {
+    EXPECT_EQ(id.source, ToothOrderSource::kHeld) << id.order;
+    EXPECT_EQ(id.edge_amplitude_rad, 0.0) << id.order;
+  }
+  // WHEN one of those loads is then also run at other speeds
+  feed_runs(learner, {{1500.0, 50.0}, {2500.0, 50.0}, {3500.0, 50.0}});
+  // THEN that load slot identifies the orders from its speeds (the variance check passes: the synthetic
+  // ripple follows the 1/speed² law exactly)
+  for (const ToothOrderId& id : learner.order_ids()) {
+    std::printf("order %d %s: %s, %.0f cycles, %.4f deg\n", id.order, id.firing ? "firing" : "",
+                to_string(id.source), id.cycles, id.edge_amplitude_rad / kDeg);
+    EXPECT_EQ(id.source, ToothOrderSource::kSpeeds) << id.order;
+    EXPECT_LE(id.cycles, 40.0) << id.order;  // only the 50-bar slot's cycles
+  }
+  EXPECT_TRUE(learner.low_orders_learned());
 }
 
 }  // namespace

@@ -221,6 +221,8 @@ CylinderCaseResult evaluate_case(const CylinderCase& c, const EvalOptions& optio
   r.misfires_true = sr.misfires_true;
   r.misfires_found = sr.misfires_found;
   r.misfires_false = sr.misfires_false;
+  r.detection_active_pct =
+      sr.detection_cycles > 0 ? 100.0 * sr.detection_active / static_cast<double>(sr.detection_cycles) : 0.0;
   r.table_low_orders = sr.tooth_low_orders;
   r.tooth_edge_resid_deg = sr.tooth_edge_resid_deg;
   evaluate_incycle(c.scenario, out, options, r);
@@ -231,7 +233,7 @@ void print_cylinder_table(const std::vector<CylinderCaseResult>& rows, bool head
   if (header)
     std::printf("%-9s %-20s %2s %5s %4s | %-31s | %-31s | %5s | %-16s | %-16s | %s\n", "group", "case", "n",
                 "rpm", "kPa", "imbalance est % by cylinder", "error pp by cylinder", "max", "kalman %/deg",
-                "fourier %/deg", "misfire found/true/false");
+                "fourier %/deg", "misfire found/true/false, detection active %");
   for (const auto& r : rows) {
     char est[64] = "", err[64] = "";
     int pe = 0, pr = 0;
@@ -243,11 +245,11 @@ void print_cylinder_table(const std::vector<CylinderCaseResult>& rows, bool head
     }
     std::printf(
         "%-9s %-20s %2d %5.0f %4.0f | %-31s | %-31s | %5.2f | %5.1f %+5.1f %4.1f | %5.1f %+5.1f %4.1f | "
-        "%d/%d/%d%s\n",
+        "%d/%d/%d det %3.0f %%%s\n",
         r.group.c_str(), r.name.c_str(), r.cylinders, r.mean_rpm, r.map_kpa, est, err, r.imbalance_max_pp,
         r.kalman.rms_pct_p2p, r.kalman.bias_pct_p2p, r.kalman.lag_deg, r.fourier.rms_pct_p2p,
         r.fourier.bias_pct_p2p, r.fourier.lag_deg, r.misfires_found, r.misfires_true, r.misfires_false,
-        r.table_low_orders ? "" : "  (wheel orders held)");
+        r.detection_active_pct, r.table_low_orders ? "" : "  (wheel orders held)");
     std::fflush(stdout);
   }
 }

@@ -34,6 +34,7 @@ struct CylinderCaseResult {
   std::array<double, kMaxCylinders> imbalance_est{}, imbalance_true{};
   double imbalance_max_pp = 0.0;
   int misfires_true = 0, misfires_found = 0, misfires_false = 0;
+  double detection_active_pct = 0.0;  ///< share of the cycles where misfire detection was possible (%)
   InCycleStats kalman, fourier;
   bool table_low_orders = false;  ///< the learner identified every per-revolution order
   double tooth_edge_resid_deg = 0.0;

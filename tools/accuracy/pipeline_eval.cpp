@@ -89,6 +89,7 @@ std::vector<double> learned_width_ratios(const sim::Scenario& sc, const ToothLea
       // Fuel cut-off flag from CAN as the daemon does (AngleStage::on_tooth).
       const EngineSignals sig = sim::signals_at(out, static_cast<double>(samples[i].t_ns) * 1e-9);
       learner.set_fuel_cutoff(sig.fuel_cutoff_valid && sig.fuel_cutoff);
+      learner.set_map(sig.map_pa, sig.map_valid);
       learner.update(samples[i]);
     }
     LearnedTable t;
@@ -256,6 +257,8 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
 
     // Misfire matching: cylinder at firing position m fired at boundary m + |offset| of this window.
     if (o.cylinders.health != Health::kInvalidInput && cycle_rows >= 2) {
+      ++r.detection_cycles;
+      if (o.cylinders.detection == MisfireDetection::kActive) ++r.detection_active;
       if (first_cycle < 0) first_cycle = j0 + 1;
       last_cycle = j0 + 1;
       for (int m = 0; m < n; ++m) {

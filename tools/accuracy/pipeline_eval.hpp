@@ -78,6 +78,8 @@ struct ScenarioResult {
   double imbalance_max_pp = 0.0;  ///< |filtered imbalance − true imbalance| max over cylinders (pp)
   std::array<double, kMaxCylinders> imbalance_est{}, imbalance_true{};
   int misfires_true = 0, misfires_found = 0, misfires_false = 0;
+  int detection_cycles = 0;  ///< cycles with a per-cylinder record
+  int detection_active = 0;  ///< of which misfire detection was possible (MisfireDetection::kActive)
   std::array<double, 4> friction_coefficients{};
   double idle_correction_nm = 0.0, idle_rpm = 0.0;  ///< learned idle correction at the end of the run
   FuelTorqueState fuel_state{};                     ///< learned fuel-model state at the end of the run
