@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 
@@ -16,6 +17,7 @@ LineReader::~LineReader() {
 bool LineReader::open(const std::string& path, std::size_t buffer_bytes) {
   if (fd_ >= 0) ::close(fd_);
   fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  size_ = -1;
   if (fd_ < 0) {
     error_ = path + ": " + std::strerror(errno);
     return false;
@@ -26,8 +28,15 @@ bool LineReader::open(const std::string& path, std::size_t buffer_bytes) {
     // Sequential read-ahead: we stream large captures once.
     (void)::posix_fadvise(fd_, 0, 0, POSIX_FADV_SEQUENTIAL);
   }
-  cap_ = buffer_bytes < 4096 ? 4096 : buffer_bytes;
-  buf_ = std::make_unique<char[]>(cap_);
+  // A regular file no larger than the buffer gets a buffer of its size + 1 (at least 4 KiB): small files (and
+  // each fuzz input) do not allocate and clear 1 MiB, and the + 1 keeps a file that is one line without '\n',
+  // as long as the buffer, from being reported cut.
+  constexpr std::size_t kMinBuffer = 4096;
+  std::size_t cap = buffer_bytes < kMinBuffer ? kMinBuffer : buffer_bytes;
+  if (size_ >= 0 && static_cast<std::uint64_t>(size_) <= cap)
+    cap = std::max(kMinBuffer, static_cast<std::size_t>(size_) + 1);
+  cap_ = cap;
+  buf_ = std::make_unique_for_overwrite<char[]>(cap_);
   begin_ = end_ = 0;
   eof_ = truncated_ = skip_rest_ = false;
   line_no_ = bytes_ = 0;

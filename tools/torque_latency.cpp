@@ -52,9 +52,10 @@ std::int64_t now_realtime() {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
-pid_t spawn(const std::vector<std::string>& argv, const char* log) {
+pid_t spawn(const std::vector<std::string>& argv, const char* log, const std::vector<std::string>& env = {}) {
   const pid_t p = fork();
   if (p == 0) {
+    for (const auto& e : env) putenv(const_cast<char*>(e.c_str()));  // the child's copy: ours stays unchanged
     // Children (daemon, stress-ng, ...) pick their own scheduling and CPUs, not this subscriber's.
     sched_param sp{};
     sched_setscheduler(0, SCHED_OTHER, &sp);
@@ -304,6 +305,7 @@ void remove_dir(const std::string& dir, bool keep) {
 int main(int argc, char** argv) {
   std::string torqued = "torqued", config;
   bool keep_logs = false;
+  std::vector<std::string> daemon_env;
   std::string plot, plot_script = TORQUED_LATENCY_PLOT_SCRIPT, title;
   double duration_s = 15, speed = 1.0;
   bool stress = false, cyclic = false, ddsperf = false, use_waitset = false;
@@ -343,6 +345,10 @@ int main(int argc, char** argv) {
   app.add_option("--plot-script", plot_script, "plot script (run with /usr/bin/python3)")
       ->capture_default_str();
   app.add_option("--title", title, "plot title");
+  app.add_option("--daemon-env", daemon_env,
+                 "NAME=VALUE set in the daemon's environment only (repeatable); e.g. TORQUED_DDS_ROLE=daemon with "
+                 "config/security/cyclonedds-secure-loopback.xml, to measure DDS Security (docs/security.md)")
+      ->check([](const std::string& v) { return v.find('=') == std::string::npos ? "expected NAME=VALUE" : ""; });
   app.add_flag("--keep-logs", keep_logs, "keep the temporary directory with the daemon's and helpers' logs");
   app.footer("Exit status: 0 done; 1 no latency sample measured, the daemon could not be started or DDS failed; 2 command-line error (unknown option, bad value, file that does not exist).");
   TORQUED_CLI_PARSE(app, argc, argv);
@@ -459,7 +465,7 @@ int main(int argc, char** argv) {
   }
   const pid_t daemon = spawn({torqued, "--config", config, "--speed", std::to_string(speed),
                               "--wait-subscribers", "1", "--state-dir", state_dir},
-                             daemon_log.c_str());
+                             daemon_log.c_str(), daemon_env);
 
   const auto t_end = std::chrono::steady_clock::now() + std::chrono::duration<double>(duration_s + 1.5);
   while (std::chrono::steady_clock::now() < t_end) {

@@ -55,6 +55,26 @@ TEST(LineReaderLong, AnOverLongLastLineEndsTheFile) {
   fs::remove(p);
 }
 
+TEST(LineReaderSized, AFileThatIsOneLongLineIsNotCut) {
+  // GIVEN files that are a single line without '\n', up to exactly the default buffer size
+  // WHEN read with the default buffer (sized down to the file for small files)
+  // THEN the one line comes back whole, not flagged truncated, and the reader then ends.
+  const fs::path p = fs::temp_directory_path() / ("torqued_oneline_" + std::to_string(::getpid()));
+  for (const std::size_t n : {std::size_t{1}, std::size_t{4095}, std::size_t{4096}, std::size_t{4097},
+                              std::size_t{100'000}, LineReader::kDefaultBuffer}) {
+    std::ofstream(p, std::ios::binary | std::ios::trunc) << std::string(n, 'x');
+    LineReader r;
+    ASSERT_TRUE(r.open(p.string()));
+    std::string_view line;
+    ASSERT_TRUE(r.next(line)) << n;
+    EXPECT_EQ(line.size(), n);
+    EXPECT_FALSE(r.truncated()) << n;
+    EXPECT_FALSE(r.next(line)) << n;
+    EXPECT_EQ(r.bytes(), n);
+  }
+  fs::remove(p);
+}
+
 constexpr const char* kDbc = R"(VERSION ""
 BU_: ECU
 BO_ 256 ENGINE_1: 8 ECU

@@ -1,12 +1,29 @@
 #!/usr/bin/env bash
 # Runs every libFuzzer target of fuzz/ for SECONDS each (default 5) from its seed corpus (fuzz/corpus/<name>,
 # read-only: new inputs go to a scratch directory) and prints the executions of each and in total.
-# Usage: tools/scripts/fuzz.sh [SECONDS] [BUILD_DIR]   (BUILD_DIR default build-fuzz, configured here with clang)
+# Usage: tools/scripts/fuzz.sh [--seconds N] [--build-dir DIR] [SECONDS] [BUILD_DIR]
+#   (DIR default build-fuzz, configured here with clang). Long run, one core, low priority:
+#   nice -n 19 tools/scripts/fuzz.sh --seconds 200    (five targets: about 17 min)
 # A crash leaves its reproducer in BUILD_DIR/fuzz-artifacts/ and makes the exit status non-zero.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-secs=${1:-5}
-dir=${2:-build-fuzz}
+secs=5
+dir=build-fuzz
+positional=()
+while [[ $# -gt 0 ]]; do
+  case $1 in
+    --seconds) secs=${2:?--seconds needs a number}; shift 2 ;;
+    --seconds=*) secs=${1#*=}; shift ;;
+    --build-dir) dir=${2:?--build-dir needs a directory}; shift 2 ;;
+    --build-dir=*) dir=${1#*=}; shift ;;
+    -h|--help) sed -n '2,8p' "$0"; exit 0 ;;
+    -*) echo "fuzz.sh: unknown option $1" >&2; exit 2 ;;
+    *) positional+=("$1"); shift ;;
+  esac
+done
+[[ ${#positional[@]} -ge 1 ]] && secs=${positional[0]}
+[[ ${#positional[@]} -ge 2 ]] && dir=${positional[1]}
+[[ $secs =~ ^[1-9][0-9]*$ ]] || { echo "fuzz.sh: --seconds must be a positive integer (got '$secs')" >&2; exit 2; }
 if [[ ! -f "$dir/CMakeCache.txt" ]]; then
   CC=clang CXX=clang++ cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTORQUED_FUZZ=ON \
     -DTORQUED_BENCHMARKS=OFF >/dev/null
