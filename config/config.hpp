@@ -156,6 +156,7 @@ struct ReplayConfig {
   ReplayMode mode = ReplayMode::kFast;
   double speed = 1.0;       ///< paced replay speed factor (2 = twice real time)
   bool exit_when_done = false;  ///< paced replay: exit once the recording is consumed (= --exit-when-done)
+  bool loop = false;  ///< paced replay of files: start the recording again at its end (io/looping_source.hpp)
 };
 
 /// Prometheus exposition endpoint (daemon/metrics.hpp), served by its own threads, never the real-time ones.

@@ -275,6 +275,9 @@ void add_rest(std::vector<SchemaEntry>& t) {
   t.push_back(boolean("replay.exit_when_done", TQ_REF(bool, replay.exit_when_done),
                       "paced replay: exit (status 0) once the recording is consumed; else keep running and say so "
                       "(= --exit-when-done)"));
+  t.push_back(boolean("replay.loop", TQ_REF(bool, replay.loop),
+                      "paced replay of files: start the recording again at its end, times shifted by its length "
+                      "(never done; the decoder resyncs once per loop); ignored by fast replay and live inputs"));
   t.push_back(boolean("metrics.enabled", TQ_REF(bool, metrics.enabled),
                       "serve Prometheus metrics (text exposition format) on metrics.address at /metrics"));
   t.push_back(text("metrics.address", TQ_REF(std::string, metrics.address),

@@ -19,6 +19,7 @@
 #include "dds_publisher.hpp"
 #include "fast_replay.hpp"
 #include "logging.hpp"
+#include "looping_source.hpp"
 #include "metrics.hpp"
 #include "output_fanout.hpp"
 #include "replay_inputs.hpp"
@@ -103,6 +104,38 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
 
 }  // namespace
 
+namespace {
+// replay.loop (paced replay of files): the sources restart at their end, shifted by one common period.
+bool loop_inputs(const Config& cfg, RunInputs& in) {
+  const bool files = cfg.inputs.edges.backend == EdgeBackend::kFile &&
+                     (!in.can || cfg.inputs.can.backend == CanBackend::kFile);
+  if (!files) {
+    spdlog::warn("replay.loop: ignored (only file inputs can be looped)");
+    return true;
+  }
+  const std::int64_t period_ns = loop_period_ns(*in.edges, in.can.get(), in.can_offset_ns);
+  if (period_ns <= 0) {
+    spdlog::warn("replay.loop: ignored (fewer than two edges in {})", cfg.inputs.edges.path);
+    return true;
+  }
+  const auto open_edges = [cfg] {
+    std::string e;
+    return make_edge_source(cfg, &e);
+  };
+  in.edges = std::make_unique<LoopingEdgeSource>(open_edges, period_ns);
+  if (in.can) {
+    const auto open_can = [cfg] {
+      std::string e;
+      return make_can_source(cfg, &e);
+    };
+    in.can = std::make_unique<LoopingCanSource>(open_can, period_ns);
+  }
+  spdlog::info("replay.loop: the recording restarts every {:.3f} s of recording time",
+               static_cast<double>(period_ns) * 1e-9);
+  return true;
+}
+}  // namespace
+
 int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   Config cfg = cfg_in;
   // Before any thread exists (Cyclone's included): stacks of kThreadStackBytes, not 8 MiB each made resident
@@ -120,6 +153,7 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
     spdlog::critical("{}", in.error);
     return 1;
   }
+  if (!fast && cfg.replay.loop && !loop_inputs(cfg, in)) return 1;
   StageSettings& s = in.settings;
   std::unique_ptr<EdgeSource>& edges = in.edges;
   std::unique_ptr<CanSource>& can = in.can;

@@ -42,6 +42,10 @@ inside getent passwd torqued | grep -q nologin || fail "system user torqued not 
 [[ -L "$m/etc/systemd/system/multi-user.target.wants/torqued.service" ]] || fail "unit not enabled"
 grep -qx /etc/torqued/torqued.yaml <(inside dpkg-query -W -f='${Conffiles}\n' torqued | awk '{print $1}') ||
   fail "/etc/torqued/torqued.yaml is not a conffile"
+# torque-dash (the README names it) with its page; the packaged configuration loops the demo.
+[[ -x "$m/usr/bin/torque-dash" && -f "$m/usr/share/torqued/www/index.html" ]] || fail "torque-dash or its page missing"
+inside torque-dash --help >/dev/null || fail "torque-dash --help"
+grep -qE '^  loop: true' "$m/etc/torqued/torqued.yaml" || fail "packaged torqued.yaml does not set replay.loop"
 unit=$m/lib/systemd/system/torqued.service
 pre=$(sed -n 's/^ExecStartPre=//p' "$unit") start=$(sed -n 's/^ExecStart=//p' "$unit")
 env_uri=$(sed -n 's/^Environment=CYCLONEDDS_URI=//p' "$unit")
@@ -72,6 +76,7 @@ PY
 : >"$tmp/notify.txt"
 start_service /tmp/torqued.log
 echo "READY=1 received"
+grep -q 'replay.loop: the recording restarts' "$m/tmp/torqued.log" || fail "the service does not loop the demo"
 n=$(inside env CYCLONEDDS_URI="$env_uri" torque-echo --topic engine --format json --count 5 --duration 20 -q | wc -l)
 ((n >= 5)) || fail "torque-echo received $n EngineTorque samples, expected 5"
 echo "published: torque-echo received $n EngineTorque samples"
@@ -113,11 +118,11 @@ echo "upgrade kept the edited conffile"
 
 # --- purge --------------------------------------------------------------------------------------------------
 timeout 120 chroot "$m" env -i PATH=/usr/sbin:/usr/bin:/sbin:/bin dpkg --purge torqued </dev/null || fail "purge"
-for f in /usr/bin/torqued /etc/torqued/torqued.yaml /etc/torqued/cyclonedds.xml /lib/systemd/system/torqued.service \
+for f in /usr/bin/torqued /usr/bin/torque-dash /usr/share/torqued/www /etc/torqued/torqued.yaml /etc/torqued/cyclonedds.xml /lib/systemd/system/torqued.service \
          /etc/systemd/system/multi-user.target.wants/torqued.service; do
   [[ ! -e "$m$f" && ! -L "$m$f" ]] || fail "$f left after purge"
 done
 # Documented (docs/daemon.md): the learned state and the system user stay after purge.
 [[ -s "$m/var/lib/torqued/learned_state.txt" ]] || fail "purge removed the learned state (documented as kept)"
 inside getent passwd torqued >/dev/null || fail "purge removed the user (documented as kept)"
-echo "PASS: install, READY, publish, kill -9 restart with learned state, stop, upgrade keeping the conffile, purge"
+echo "PASS: install (torque-dash too), READY, replay loop on, publish, kill -9 restart with learned state, stop, upgrade keeping the conffile, purge"

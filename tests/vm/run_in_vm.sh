@@ -18,7 +18,8 @@
 #
 # Recipe (Debian 12): linux-image-6.1.0-*-rt-amd64-unsigned fetched with `apt-get download`, extracted with
 # dpkg-deb -x; a busybox-static initramfs insmods the virtio/9p/CAN modules (uncompressed .ko in that package),
-# mounts the host root, creates vcan0 and chroots. qemu -accel tcg (KVM is not usable here).
+# mounts the host root, creates vcan0 and chroots. qemu -accel tcg (KVM is not usable here), -nic none (no network
+# card: the guest has only lo and vcan0).
 set -euo pipefail
 
 SKIP=77
@@ -164,7 +165,9 @@ cat "$base" "$tmp/run.cpio" >"$tmp/initrd"
 # --- 4. boot ------------------------------------------------------------------------------------------------
 log="$tmp/console.log"
 set +e
-timeout --kill-after=10 "$timeout_s" "$qemu" -accel tcg -m 1024 -smp 2 -nographic -no-reboot \
+# -nic none: the guest gets no network card at all (qemu's default is a user-mode NIC routed to the host's
+# network); the tests need only lo and vcan0, and nothing a VM run does may leave the machine.
+timeout --kill-after=10 "$timeout_s" "$qemu" -accel tcg -m 1024 -smp 2 -nographic -no-reboot -nic none \
   -kernel "$vmlinuz" -initrd "$tmp/initrd" \
   -append "console=ttyS0 quiet loglevel=3 panic=-1 oops=panic" \
   -virtfs local,path=/,mount_tag=hostroot,security_model=none,readonly=on,multidevs=remap \

@@ -1,13 +1,16 @@
 #!/usr/bin/env bash
 # Builds the Debian package of torqued from this checkout, offline (only installed build dependencies:
 # tools/scripts/setup-deps.sh), then runs lintian on it.
-#   tools/scripts/build-deb.sh [OUT_DIR]     (default OUT_DIR: build/deb)
+#   tools/scripts/build-deb.sh [--no-lintian] [OUT_DIR]     (default OUT_DIR: build/deb)
+# --no-lintian: build only (ctest deb_build; ctest deb_lintian then runs tools/scripts/deb-lintian.sh).
 # The sources (tracked files plus new, not ignored ones) are copied to OUT_DIR/src and built there with
 # dpkg-buildpackage (debhelper, debian/), so the checkout stays clean. Result: OUT_DIR/torqued_<ver>_<arch>.deb,
 # OUT_DIR/lintian.txt. Exit 0 when built and lintian reports no error or warning (tags explained in
 # debian/torqued.lintian-overrides are accepted), 1 otherwise.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/../.." && pwd)
+lint=1
+if [[ "${1:-}" == "--no-lintian" ]]; then lint=0; shift; fi
 out=${1:-$repo/build/deb}
 mkdir -p "$out"
 out=$(cd "$out" && pwd)
@@ -23,12 +26,5 @@ mv "$out"/torqued_*.deb "$out"/torqued_*.buildinfo "$out"/torqued_*.changes "$ou
 mv "$out"/src/../torqued*_*.{deb,buildinfo,changes} "$out"/ 2>/dev/null || true
 deb=$(ls "$out"/torqued_*.deb | grep -v dbgsym | head -1)
 echo "build-deb: $deb"
-rc=0
-if command -v lintian >/dev/null; then
-  lintian --info --display-info --pedantic "$deb" >"$out/lintian.txt" 2>&1 || true
-  cat "$out/lintian.txt"
-  if grep -qE '^[EW]: ' "$out/lintian.txt"; then echo "build-deb: lintian errors/warnings above"; rc=1; fi
-else
-  echo "build-deb: lintian not installed (tools/scripts/setup-deps.sh installs it)"; rc=1
-fi
-exit $rc
+((lint)) || exit 0
+exec "$repo/tools/scripts/deb-lintian.sh" "$deb" "$out/lintian.txt"
