@@ -55,7 +55,7 @@ AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
       eso_(config.engine, config.energies),
       fuel_(config.engine, config.fuel),
       fuel_win_(config.engine.cylinders, firing_tdcs(config.engine), config.fuel.intake_btdc_deg,
-                config.fuel.work_centroid_atdc_deg),
+                config.fuel.work_centroid_atdc_deg, config.fuel.report_window_s),
       cyl_(config.engine, config.cylinder),
       fusion_(config.fusion),
       pre_(config.engine, config.wheel, config.preprocess),
@@ -179,7 +179,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   intake.map_pa = held_map_pa_;
   intake.fuel_cut = can_fresh && sig.fuel_cutoff_valid && sig.fuel_cutoff;
   intake.valid = can_fresh && sig.fuel_mass_valid && std::isfinite(sig.fuel_mass_kg) && have_map_;
-  fuel_win_.on_tooth(s.angle_rad - cfg_.engine.tdc_offset_rad, intake);
+  fuel_win_.on_tooth(s.t_ns, s.angle_rad - cfg_.engine.tdc_offset_rad, intake);
 
   wide_done_ = wide_.update(s);  // completes on the same tooth as boundary 0's per-cylinder window
   const std::uint64_t breaks_before = energy_.breaks();

@@ -16,9 +16,11 @@ double wrap4pi(double a) noexcept {
 }  // namespace
 
 FuelAngleWindow::FuelAngleWindow(int cylinders, const std::array<double, kMaxCylinders>& tdc_rad,
-                                 double intake_btdc_deg, double work_centroid_atdc_deg) noexcept
+                                 double intake_btdc_deg, double work_centroid_atdc_deg,
+                                 double report_window_s) noexcept
     : n_(std::clamp(cylinders, 1, kMaxCylinders)),
-      lead_rad_((intake_btdc_deg + work_centroid_atdc_deg) * kDeg) {
+      lead_rad_((intake_btdc_deg + work_centroid_atdc_deg) * kDeg),
+      report_window_ns_(static_cast<std::int64_t>(std::max(0.0, report_window_s) * 1e9)) {
   for (int m = 0; m < n_; ++m) {
     const auto i = static_cast<std::size_t>(m);
     intake_rel_[i] = wrap4pi(tdc_rad[i] - intake_btdc_deg * kDeg);
@@ -29,11 +31,25 @@ FuelAngleWindow::FuelAngleWindow(int cylinders, const std::array<double, kMaxCyl
 void FuelAngleWindow::reset() noexcept {
   for (auto& c : ev_) c.fill(Event{});
   unwrapped_ = prev_rel_ = last_fuel_kg_ = 0.0;
+  open_ = -1;
   have_prev_ = false;
 }
 
+// A report consistent with one injection decision: the cut-off flag set with no fuel, or clear with fuel.
+void FuelAngleWindow::revise(Event& e, const FuelIntakeInput& in) noexcept {
+  if (!e.in.valid) return;
+  if (in.fuel_cut && !(in.fuel_kg > 0.0)) {
+    e.in.fuel_cut = true;
+    e.fuel_pending = false;
+  } else if (!in.fuel_cut && in.fuel_kg > 0.0) {
+    e.in.fuel_cut = false;
+    e.in.fuel_kg = in.fuel_kg;
+    e.fuel_pending = false;
+  }
+}
+
 // Real-time safe.
-void FuelAngleWindow::on_tooth(double rel_rad, const FuelIntakeInput& in) noexcept {
+void FuelAngleWindow::on_tooth(std::int64_t t_ns, double rel_rad, const FuelIntakeInput& in) noexcept {
   if (!std::isfinite(rel_rad)) return;
   rel_rad = wrap4pi(rel_rad);
   if (!have_prev_) {
@@ -44,6 +60,9 @@ void FuelAngleWindow::on_tooth(double rel_rad, const FuelIntakeInput& in) noexce
   const double d = wrap4pi(rel_rad - prev_rel_);
   const bool fuel_report = in.valid && in.fuel_kg > 0.0;
   if (fuel_report) last_fuel_kg_ = in.fuel_kg;
+  if (open_ >= 0 && in.valid && t_ns <= open_until_ns_ && unwrapped_ + d <= open_until_rad_)
+    revise(ev_[static_cast<std::size_t>(open_)][0], in);
+  double newest_x = -1.0;
   for (int m = 0; m < n_; ++m) {
     const auto i = static_cast<std::size_t>(m);
     auto& c = ev_[i];
@@ -57,6 +76,12 @@ void FuelAngleWindow::on_tooth(double rel_rad, const FuelIntakeInput& in) noexce
     if (!(x > 0.0 && x <= d)) continue;
     for (std::size_t k = c.size() - 1; k > 0; --k) c[k] = c[k - 1];
     c[0] = Event{unwrapped_ + x + lead_rad_, in, true, in.valid && !in.fuel_cut && !fuel_report};
+    if (x > newest_x) {
+      newest_x = x;
+      open_ = m;
+      open_until_ns_ = t_ns + report_window_ns_;
+      open_until_rad_ = unwrapped_ + x + kFourPi / (2.0 * n_);
+    }
   }
   unwrapped_ += d;
   prev_rel_ = rel_rad;

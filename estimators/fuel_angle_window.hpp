@@ -11,6 +11,7 @@
 // still reads 0; its fuel is then the next positive report (pending until it arrives). Per tooth: one
 // comparison per cylinder. Real-time safe: fixed arrays, no allocation, no exceptions.
 #include <array>
+#include <cstdint>
 
 #include "engine_geometry.hpp"
 
@@ -42,12 +43,12 @@ class FuelAngleWindow {
  public:
   /// `tdc_rad[m]`: firing TDC of firing position m relative to cylinder 1's (rad, [0, 4π)).
   FuelAngleWindow(int cylinders, const std::array<double, kMaxCylinders>& tdc_rad, double intake_btdc_deg,
-                  double work_centroid_atdc_deg) noexcept;
+                  double work_centroid_atdc_deg, double report_window_s) noexcept;
   void reset() noexcept;
   /// A synced tooth at `rel_rad` (edge angle relative to cylinder 1's firing TDC, [0, 4π)) with the CAN
   /// values now. Records an intake event for every cylinder whose intake angle was passed since the previous
   /// tooth.
-  void on_tooth(double rel_rad, const FuelIntakeInput& in) noexcept;
+  void on_tooth(std::int64_t t_ns, double rel_rad, const FuelIntakeInput& in) noexcept;
   /// The sequence broke (no sync, missing teeth): events are forgotten.
   void break_sequence() noexcept { reset(); }
   /// The window ending at the last passage of `end_rel_rad` (relative to cylinder 1's TDC).
@@ -60,6 +61,7 @@ class FuelAngleWindow {
     bool set = false;
     bool fuel_pending = false;  ///< firing, but the ECU had not reported this injection yet (fuel read 0)
   };
+  static void revise(Event& e, const FuelIntakeInput& in) noexcept;
   static constexpr int kDepth = 2;  ///< events kept per cylinder: intake→centroid < 720° by the schema bounds
   int n_;
   std::array<double, kMaxCylinders> intake_rel_{};             ///< intake angle per position (rad, [0, 4π))
@@ -67,6 +69,11 @@ class FuelAngleWindow {
   std::array<std::array<Event, kDepth>, kMaxCylinders> ev_{};  ///< newest first
   double unwrapped_ = 0.0;                                     ///< angle since reset (rad)
   double last_fuel_kg_ = 0.0;  ///< newest positive fuel report (kg): fills pending events
+  int open_ = -1;              ///< position of the newest event: revised by reports until the next intake
+  std::int64_t open_until_ns_ = 0;  ///< ... or until this time (ns)
+  double open_until_rad_ = 0.0;  ///< ... or half a firing interval after its intake (unwrapped, rad): a later
+                                 ///< report may already be the next cylinder's decision
+  std::int64_t report_window_ns_;
   double prev_rel_ = 0.0;
   bool have_prev_ = false;
 };

@@ -39,6 +39,10 @@ struct FuelTorqueParams {
                                    ///< after BDC (Heywood 1988 §6.3)
   double work_centroid_atdc_deg = 160.0;  ///< centroid of a cylinder's work after its firing TDC (deg);
                                           ///< chosen on the unseen bed's TUNING engines only
+  double report_window_s =
+      0.010;  ///< an intake event's cut-off state is revised by consistent CAN reports for this
+              ///< long after it (s): one period of a 100 Hz ECU frame (the CAN frame seen at
+              ///< the intake can be that much older than the injection decision)
   double transient_sd_scale =
       0.25;  ///< claimed 1σ added per N m of model-torque spread across the window (-)
 };

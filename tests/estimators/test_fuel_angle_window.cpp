@@ -39,12 +39,12 @@ double intake_in_window(int m, double end_deg) {
 
 TEST(FuelAngleWindow, AveragesTheIntakeEventsWhoseWorkLiesInTheWindow) {
   // GIVEN a window fed with a fuel and MAP ramp, tooth by tooth over three cycles
-  FuelAngleWindow w(kCyl, tdcs(), kIntakeBtdc, kCentroidAtdc);
+  FuelAngleWindow w(kCyl, tdcs(), kIntakeBtdc, kCentroidAtdc, 0.0);
   double deg = 0.0;
   for (; deg <= 3 * 720.0 + 300.0; deg += kPitch) {
     FuelIntakeInput in{fuel_at(deg), map_at(deg), false, true};
     AllocationScope alloc;
-    w.on_tooth(deg * kDeg, in);
+    w.on_tooth(0, deg * kDeg, in);
     ASSERT_EQ(alloc.count(), 0u);
   }
   deg -= kPitch;  // the last tooth fed
@@ -73,10 +73,11 @@ TEST(FuelAngleWindow, AveragesTheIntakeEventsWhoseWorkLiesInTheWindow) {
 
 TEST(FuelAngleWindow, SplitsAWindowStraddlingAFuelCutOffEntry) {
   // GIVEN fuel cut-off from unwrapped angle 1450° on, read 20° after the window's end (as the pipeline does)
-  FuelAngleWindow w(kCyl, tdcs(), kIntakeBtdc, kCentroidAtdc);
+  FuelAngleWindow w(kCyl, tdcs(), kIntakeBtdc, kCentroidAtdc, 0.0);
   const double cut_from = 1450.0;
   double deg = 0.0;
-  for (; deg <= 2160.0; deg += kPitch) w.on_tooth(deg * kDeg, {fuel_at(deg), 60000.0, deg >= cut_from, true});
+  for (; deg <= 2160.0; deg += kPitch)
+    w.on_tooth(0, deg * kDeg, {fuel_at(deg), 60000.0, deg >= cut_from, true});
   deg -= kPitch;
   // WHEN the window ending at the last passage of 700° is read
   const double end = deg - std::fmod(deg - 700.0 + 720.0, 720.0);
@@ -102,13 +103,13 @@ TEST(FuelAngleWindow, SplitsAWindowStraddlingAFuelCutOffEntry) {
 
 TEST(FuelAngleWindow, AFiringEventReadingZeroFuelTakesTheNextReport) {
   // GIVEN a cut-off exit where the ECU's fuel mass still reads 0 for 60° after the flag cleared
-  FuelAngleWindow w(kCyl, tdcs(), kIntakeBtdc, kCentroidAtdc);
+  FuelAngleWindow w(kCyl, tdcs(), kIntakeBtdc, kCentroidAtdc, 0.0);
   const double exit_at = 1800.0;
   double deg = 0.0;
   for (; deg <= 3200.0; deg += kPitch) {
     const bool cut = deg < exit_at;
     const double fuel = deg < exit_at + 60.0 ? 0.0 : 25e-6;
-    w.on_tooth(deg * kDeg, {fuel, 60000.0, cut, true});
+    w.on_tooth(0, deg * kDeg, {fuel, 60000.0, cut, true});
   }
   // WHEN a window holding only events after the exit is read
   const FuelWindow fw = w.window(std::fmod(deg - kPitch, 720.0) * kDeg);
@@ -121,19 +122,20 @@ TEST(FuelAngleWindow, AFiringEventReadingZeroFuelTakesTheNextReport) {
 
 TEST(FuelAngleWindow, UnknownUntilEveryCylinderHasAnEventAndAfterABreak) {
   // GIVEN half a cycle of teeth: not every cylinder's work is in the window yet
-  FuelAngleWindow w(kCyl, tdcs(), kIntakeBtdc, kCentroidAtdc);
-  for (double deg = 0.0; deg <= 360.0; deg += kPitch) w.on_tooth(deg * kDeg, {20e-6, 60000.0, false, true});
+  FuelAngleWindow w(kCyl, tdcs(), kIntakeBtdc, kCentroidAtdc, 0.0);
+  for (double deg = 0.0; deg <= 360.0; deg += kPitch)
+    w.on_tooth(0, deg * kDeg, {20e-6, 60000.0, false, true});
   EXPECT_FALSE(w.window(0.0).valid);
   for (double deg = 366.0; deg <= 3000.0; deg += kPitch)
-    w.on_tooth(deg * kDeg, {20e-6, 60000.0, false, true});
+    w.on_tooth(0, deg * kDeg, {20e-6, 60000.0, false, true});
   EXPECT_TRUE(w.window(0.0).valid);
   // WHEN the sequence breaks THEN the window is unknown again
   w.break_sequence();
-  w.on_tooth(0.0, {20e-6, 60000.0, false, true});
+  w.on_tooth(0, 0.0, {20e-6, 60000.0, false, true});
   EXPECT_FALSE(w.window(0.0).valid);
   // and an event with invalid inputs makes its window unknown
-  FuelAngleWindow v(kCyl, tdcs(), kIntakeBtdc, kCentroidAtdc);
+  FuelAngleWindow v(kCyl, tdcs(), kIntakeBtdc, kCentroidAtdc, 0.0);
   for (double deg = 0.0; deg <= 3000.0; deg += kPitch)
-    v.on_tooth(deg * kDeg, {20e-6, 60000.0, false, deg < 2000.0});
+    v.on_tooth(0, deg * kDeg, {20e-6, 60000.0, false, deg < 2000.0});
   EXPECT_FALSE(v.window(std::fmod(3000.0, 720.0) * kDeg).valid);
 }
