@@ -25,6 +25,7 @@ std::array<double, kMaxCylinders> tdcs() {
   for (int m = 0; m < kCyl; ++m) t[static_cast<std::size_t>(m)] = 4.0 * std::numbers::pi * m / kCyl;
   return t;
 }
+std::int64_t t_of(double unwrapped_deg) { return static_cast<std::int64_t>(unwrapped_deg * 1e5); }  // 10°/ms
 double fuel_at(double unwrapped_deg) { return 20e-6 * (1.0 + unwrapped_deg / 720.0); }  // a fuel ramp (kg)
 double map_at(double unwrapped_deg) { return 50000.0 + 10.0 * unwrapped_deg; }          // a MAP ramp (Pa)
 
@@ -44,7 +45,7 @@ TEST(FuelAngleWindow, AveragesTheIntakeEventsWhoseWorkLiesInTheWindow) {
   for (; deg <= 3 * 720.0 + 300.0; deg += kPitch) {
     FuelIntakeInput in{fuel_at(deg), map_at(deg), false, true};
     AllocationScope alloc;
-    w.on_tooth(0, deg * kDeg, in);
+    w.on_tooth(t_of(deg), deg * kDeg, in);
     ASSERT_EQ(alloc.count(), 0u);
   }
   deg -= kPitch;  // the last tooth fed
@@ -77,7 +78,7 @@ TEST(FuelAngleWindow, SplitsAWindowStraddlingAFuelCutOffEntry) {
   const double cut_from = 1450.0;
   double deg = 0.0;
   for (; deg <= 2160.0; deg += kPitch)
-    w.on_tooth(0, deg * kDeg, {fuel_at(deg), 60000.0, deg >= cut_from, true});
+    w.on_tooth(t_of(deg), deg * kDeg, {fuel_at(deg), 60000.0, deg >= cut_from, true});
   deg -= kPitch;
   // WHEN the window ending at the last passage of 700° is read
   const double end = deg - std::fmod(deg - 700.0 + 720.0, 720.0);
@@ -109,7 +110,7 @@ TEST(FuelAngleWindow, AFiringEventReadingZeroFuelTakesTheNextReport) {
   for (; deg <= 3200.0; deg += kPitch) {
     const bool cut = deg < exit_at;
     const double fuel = deg < exit_at + 60.0 ? 0.0 : 25e-6;
-    w.on_tooth(0, deg * kDeg, {fuel, 60000.0, cut, true});
+    w.on_tooth(t_of(deg), deg * kDeg, {fuel, 60000.0, cut, true});
   }
   // WHEN a window holding only events after the exit is read
   const FuelWindow fw = w.window(std::fmod(deg - kPitch, 720.0) * kDeg);
@@ -124,10 +125,10 @@ TEST(FuelAngleWindow, UnknownUntilEveryCylinderHasAnEventAndAfterABreak) {
   // GIVEN half a cycle of teeth: not every cylinder's work is in the window yet
   FuelAngleWindow w(kCyl, tdcs(), kIntakeBtdc, kCentroidAtdc, 0.0);
   for (double deg = 0.0; deg <= 360.0; deg += kPitch)
-    w.on_tooth(0, deg * kDeg, {20e-6, 60000.0, false, true});
+    w.on_tooth(t_of(deg), deg * kDeg, {20e-6, 60000.0, false, true});
   EXPECT_FALSE(w.window(0.0).valid);
   for (double deg = 366.0; deg <= 3000.0; deg += kPitch)
-    w.on_tooth(0, deg * kDeg, {20e-6, 60000.0, false, true});
+    w.on_tooth(t_of(deg), deg * kDeg, {20e-6, 60000.0, false, true});
   EXPECT_TRUE(w.window(0.0).valid);
   // WHEN the sequence breaks THEN the window is unknown again
   w.break_sequence();
@@ -136,6 +137,32 @@ TEST(FuelAngleWindow, UnknownUntilEveryCylinderHasAnEventAndAfterABreak) {
   // and an event with invalid inputs makes its window unknown
   FuelAngleWindow v(kCyl, tdcs(), kIntakeBtdc, kCentroidAtdc, 0.0);
   for (double deg = 0.0; deg <= 3000.0; deg += kPitch)
-    v.on_tooth(0, deg * kDeg, {20e-6, 60000.0, false, deg < 2000.0});
+    v.on_tooth(t_of(deg), deg * kDeg, {20e-6, 60000.0, false, deg < 2000.0});
   EXPECT_FALSE(v.window(std::fmod(3000.0, 720.0) * kDeg).valid);
+}
+
+TEST(FuelAngleWindow, AConsistentReportAfterTheIntakeRevisesItsCutOffState) {
+  // GIVEN a report window of 3 ms (30° here) and a cut-off exit whose CAN frame arrives 2 ms (20°) after the
+  // intake of firing position 0 at unwrapped 1308° (flag still set and no fuel at the intake itself)
+  FuelAngleWindow w(kCyl, tdcs(), kIntakeBtdc, kCentroidAtdc, 0.003);
+  const double frame_at = 1308.0 + 20.0;
+  double deg = 0.0;
+  for (; deg <= 2160.0; deg += kPitch) {
+    const bool cut = deg < frame_at;
+    w.on_tooth(t_of(deg), deg * kDeg, {cut ? 0.0 : 25e-6, 60000.0, cut, true});
+  }
+  // WHEN the window holding that event (intakes 1128..1668°) is read
+  const FuelWindow fw = w.window(700.0 * kDeg);
+  // THEN the event at 1308° fired with the reported fuel; the one at 1128° stays cut
+  ASSERT_TRUE(fw.valid);
+  EXPECT_EQ(fw.cut, 1);
+  EXPECT_EQ(fw.fired, 3);
+  EXPECT_NEAR(fw.fuel_kg, 25e-6, 1e-15);
+  // and a report later than the window does not revise: the same exit 5 ms after the intake leaves it cut
+  FuelAngleWindow late(kCyl, tdcs(), kIntakeBtdc, kCentroidAtdc, 0.003);
+  for (deg = 0.0; deg <= 2160.0; deg += kPitch) {
+    const bool cut = deg < 1308.0 + 50.0;
+    late.on_tooth(t_of(deg), deg * kDeg, {cut ? 0.0 : 25e-6, 60000.0, cut, true});
+  }
+  EXPECT_EQ(late.window(700.0 * kDeg).cut, 2);
 }
