@@ -11,9 +11,6 @@ constexpr double kFourPi = 4.0 * std::numbers::pi;
 constexpr double kRadSToRpm = 30.0 / std::numbers::pi;
 /// Misfire decisions only after this many firing cycles (the CAN fuel flag leads the injections that resume).
 constexpr int kMisfireArmCycles = 2;
-/// Intake valve closing before firing TDC (deg): IVC is typically 40-60° after BDC (Heywood 1988 §6.3), i.e.
-/// ≈ 130° before TDC; the fuel of a cycle is decided there (port injection closes with the valve).
-constexpr double kIvcBeforeTdcDeg = 130.0;
 
 TorqueEstimate make(std::int64_t t, double v, double sd, Health h) noexcept {
   TorqueEstimate e;
@@ -40,6 +37,13 @@ AnglePipelineConfig resolve_prior(AnglePipelineConfig c) noexcept {
   }
   return c;
 }
+/// Firing TDC of each firing position relative to cylinder 1's (rad): 4π·m/n (ESTIMATORS.md §0).
+std::array<double, kMaxCylinders> firing_tdcs(const EngineGeometry& e) noexcept {
+  std::array<double, kMaxCylinders> t{};
+  for (int m = 0; m < e.cylinders && m < kMaxCylinders; ++m)
+    t[static_cast<std::size_t>(m)] = kFourPi * m / e.cylinders;
+  return t;
+}
 }  // namespace
 
 AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
@@ -50,6 +54,8 @@ AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
       friction_(cfg_.friction),
       eso_(config.engine, config.energies),
       fuel_(config.engine, config.fuel),
+      fuel_win_(config.engine.cylinders, firing_tdcs(config.engine), config.fuel.intake_btdc_deg,
+                config.fuel.work_centroid_atdc_deg, config.fuel.report_window_s),
       cyl_(config.engine, config.cylinder),
       fusion_(config.fusion),
       pre_(config.engine, config.wheel, config.preprocess),
@@ -67,8 +73,7 @@ void AnglePipeline::reset() noexcept {
   rls_.reset();
   eso_.reset();
   fuel_ind_ = TorqueEstimate{};
-  win_fill_ = win_pos_ = 0;
-  fired_hist_.fill(true);
+  fuel_win_.reset();
   cyl_.reset();
   fusion_.reset();
   pre_.reset();
@@ -106,6 +111,7 @@ std::uint8_t AnglePipeline::break_sequence(ToothSample s) noexcept {
   energy_.update(s, 0.0, false);
   wide_.update(s);
   rls_.update(s, 0.0, false, 0.0, cyl_work_j_, false);
+  fuel_win_.break_sequence();
   tooth_.valid = false;
   return 0;
 }
@@ -168,6 +174,12 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   if (can_fresh && sig.spark_valid && std::isfinite(sig.spark_advance_deg))
     held_spark_deg_ = sig.spark_advance_deg;
   rls_.update(s, held_map_pa_, have_map_, held_spark_deg_, cyl_work_j_, works_ok);
+  FuelIntakeInput intake;
+  intake.fuel_kg = sig.fuel_mass_kg;
+  intake.map_pa = held_map_pa_;
+  intake.fuel_cut = can_fresh && sig.fuel_cutoff_valid && sig.fuel_cutoff;
+  intake.valid = can_fresh && sig.fuel_mass_valid && std::isfinite(sig.fuel_mass_kg) && have_map_;
+  fuel_win_.on_tooth(s.t_ns, s.angle_rad - cfg_.engine.tdc_offset_rad, intake);
 
   wide_done_ = wide_.update(s);  // completes on the same tooth as boundary 0's per-cylinder window
   const std::uint64_t breaks_before = energy_.breaks();
@@ -197,29 +209,9 @@ void AnglePipeline::count_fuel_state(const EngineSignals& sig, bool can_fresh) n
   }
 }
 
-void AnglePipeline::push_fuel_window(bool fuel_in, double fuel_kg) noexcept {
-  if (!fuel_in || !std::isfinite(fuel_kg)) {
-    win_fill_ = 0;  // a gap in the fuel signal: the window restarts
-    return;
-  }
-  const int n = cfg_.engine.cylinders;
-  win_fuel_kg_[static_cast<std::size_t>(win_pos_)] = fuel_kg;
-  win_map_pa_[static_cast<std::size_t>(win_pos_)] = held_map_pa_;
-  win_pos_ = (win_pos_ + 1) % n;
-  win_fill_ = std::min(win_fill_ + 1, n);
-}
-
-bool AnglePipeline::fuel_window(double& fuel_kg, double& map_pa) const noexcept {
-  const int n = cfg_.engine.cylinders;
-  if (win_fill_ < n) return false;
-  fuel_kg = map_pa = 0.0;
-  for (int i = 0; i < n; ++i) {
-    fuel_kg += win_fuel_kg_[static_cast<std::size_t>(i)];
-    map_pa += win_map_pa_[static_cast<std::size_t>(i)];
-  }
-  fuel_kg /= n;
-  map_pa /= n;
-  return true;
+FuelWindow AnglePipeline::fuel_window(const SegmentEnergy& seg) const noexcept {
+  // The 720° window ends at this segment's boundary (the balance's window, relative to cylinder 1's TDC).
+  return fuel_win_.window(energy_.boundary_rad(seg.boundary));
 }
 
 void AnglePipeline::segment_work(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh,
@@ -295,15 +287,15 @@ void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals&
   const TorqueEstimate trk = rls_.tracked();
   o.indicated_crank = make(seg.t_ns, dke_nm + trk.torque_nm,
                            std::max(trk.uncertainty, std::sqrt(crank_err_var_)), trk.health);
-  // Fuel model (ECU fuel mass on CAN, efficiency learned against the energy balance).
-  double win_fuel = 0.0, win_map = 0.0;
-  fuel_ind_ = fuel_window(win_fuel, win_map) ? fuel_.estimate(seg.t_ns, win_fuel, win_map)
-                                             : make(seg.t_ns, 0.0, 0.0, Health::kStaleInput);
-  // In fuel cut-off for the whole window the indicated torque is the motored (pumping) torque, the model the
-  // friction law was learned against in cut-off (learn(): T_fric = T_motored − ΔKE − T_load): the model-based
-  // indicated torque is then T_motored, and brake = T_motored − friction is as good as the learned law.
-  if (cut_segments_ > cfg_.engine.cylinders && have_map_ && !friction_.is_prior())
-    fuel_ind_ = make(seg.t_ns, rls_.motored_torque_nm(held_map_pa_), cfg_.friction.learned_sd_nm, Health::kValid);
+  // Fuel model (ECU fuel mass on CAN at each intake event, efficiency learned against the energy balance).
+  // The window's events in fuel cut-off hold the motored (pumping) torque, the model the friction law was
+  // learned against in cut-off (learn(): T_fric = T_motored − ΔKE − T_load): in a window wholly in cut-off
+  // brake = T_motored − friction is as good as the learned law; a window straddling a cut-off edge is split.
+  const FuelWindow fw = fuel_window(seg);
+  const TorqueEstimate motored =
+      make(seg.t_ns, rls_.motored_torque_nm(fw.map_cut_pa), cfg_.friction.learned_sd_nm,
+           have_map_ && !friction_.is_prior() ? Health::kValid : Health::kNotConverged);
+  fuel_ind_ = fuel_.estimate_window(seg.t_ns, fw, motored);
   if (seg.cycle_load_valid) {
     o.load = make(seg.t_ns, seg.cycle_load_mean_nm, cfg_.fusion.can_load_sd_nm, Health::kValid);
     o.brake = o.brake_energy;
@@ -327,6 +319,7 @@ void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals&
   // it.
   load_star_nm_ = seg.cycle_load_valid ? seg.cycle_load_mean_nm + fric : o.load.torque_nm + fric;
   (void)sig;
+  (void)can_fresh;
 }
 
 bool AnglePipeline::motoring_observation_allowed(const SegmentEnergy& seg, const EngineSignals& sig,
@@ -382,8 +375,8 @@ void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bo
   // scored against (fuel-model efficiency; measured 1σ of the compression-window chain).
   if (fuel_reference_allowed(seg, sig, can_fresh, load_steady, o.cycle_end)) {
     const double t_ind_ref = o.brake_energy.torque_nm + o.friction.torque_nm;
-    double win_fuel = 0.0, win_map = 0.0;
-    if (fuel_window(win_fuel, win_map)) (void)fuel_.learn(win_fuel, win_map, t_ind_ref);
+    const FuelWindow fw = fuel_window(seg);
+    if (fw.valid && fw.cut == 0) (void)fuel_.learn(fw.fuel_kg, fw.map_fired_pa, t_ind_ref);
     if (o.indicated_crank.health == Health::kValid) {
       const double e = o.indicated_crank.torque_nm - t_ind_ref;
       crank_err_var_ += cfg_.fusion.brake_sd_ema * (e * e - crank_err_var_);
@@ -427,15 +420,6 @@ void AnglePipeline::fuse(const SegmentEnergy& seg, const EngineSignals& sig, Cyc
 void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh) noexcept {
   ++stats_.segments;
   count_fuel_state(sig, can_fresh);
-  // The CAN cut-off flag leads the work it changes: a cylinder's fuel is decided at its intake valve closing,
-  // ≈ kIvcBeforeTdcDeg before its firing TDC, and the work lands in the segment after that TDC. The window takes
-  // the flag of 1 + round(kIvcBeforeTdcDeg · n / 720°) segments earlier (2 for 2..8 cylinders).
-  for (std::size_t i = fired_hist_.size() - 1; i > 0; --i) fired_hist_[i] = fired_hist_[i - 1];
-  fired_hist_[0] = fired_;
-  const auto lag = static_cast<std::size_t>(
-      std::min<long>(static_cast<long>(fired_hist_.size()) - 1,
-                     1 + std::lround(kIvcBeforeTdcDeg * cfg_.engine.cylinders / 720.0)));
-  push_fuel_window(can_fresh && sig.fuel_mass_valid && have_map_, fired_hist_[lag] ? sig.fuel_mass_kg : 0.0);
   CycleOutput o;
   o.t_ns = seg.t_ns;
   o.seq = cycle_.seq + 1;

@@ -167,13 +167,10 @@ class AnglePipeline {
   IndicatedEso eso_;
   FuelTorque fuel_;
   TorqueEstimate fuel_ind_{};  ///< model-based indicated torque of the window: fuel model, motored in cut-off
-  /// Fuel per injection (0 in cut-off) and MAP seen at each of the last `cylinders` segment ends: the fuel model
-  /// is evaluated on their means, i.e. over the same 720° window as the energy balance it is scored against.
-  std::array<double, kMaxCylinders> win_fuel_kg_{}, win_map_pa_{};
-  int win_fill_ = 0, win_pos_ = 0;
-  std::array<bool, 4> fired_hist_{true, true, true, true};  ///< fired_ of the last segments (newest first)
-  void push_fuel_window(bool fuel_in, double fuel_kg) noexcept;
-  [[nodiscard]] bool fuel_window(double& fuel_kg, double& map_pa) const noexcept;
+  /// Fuel, MAP and cut-off flag at each cylinder's intake event: the fuel model of a window is evaluated on
+  /// the events whose work lies in it (FuelAngleWindow).
+  FuelAngleWindow fuel_win_;
+  [[nodiscard]] FuelWindow fuel_window(const SegmentEnergy& seg) const noexcept;
   double crank_err_var_ =
       0.0;             ///< measured variance of the compression-window chain vs the energy balance (N m²)
   bool fired_ = true;  ///< current segment fires (no fuel cut-off flag)

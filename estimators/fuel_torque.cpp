@@ -8,7 +8,10 @@ namespace torqued {
 
 namespace {
 constexpr double kFourPi = 4.0 * std::numbers::pi;
+Health worst_health(Health a, Health b) noexcept {
+  return static_cast<std::uint8_t>(a) > static_cast<std::uint8_t>(b) ? a : b;
 }
+}  // namespace
 
 FuelTorque::FuelTorque(const EngineGeometry& engine, const FuelTorqueParams& params) noexcept
     : params_(params),
@@ -42,6 +45,31 @@ TorqueEstimate FuelTorque::estimate(std::int64_t t_ns, double fuel_kg, double ma
   return e;
 }
 
+TorqueEstimate FuelTorque::estimate_window(std::int64_t t_ns, const FuelWindow& w,
+                                           const TorqueEstimate& motored) const noexcept {
+  const int n = w.fired + w.cut;
+  if (!w.valid || n <= 0) {
+    TorqueEstimate e;
+    e.t_ns = t_ns;
+    e.health = Health::kStaleInput;
+    return e;
+  }
+  const double frac = static_cast<double>(w.fired) / n;
+  const TorqueEstimate fired = estimate(t_ns, w.fired > 0 ? w.fuel_kg : 0.0, w.map_fired_pa);
+  const TorqueEstimate cut = motored.health == Health::kValid ? motored : estimate(t_ns, 0.0, w.map_cut_pa);
+  TorqueEstimate e = w.fired > 0 ? fired : cut;
+  e.torque_nm = frac * fired.torque_nm + (1.0 - frac) * cut.torque_nm;
+  const double sd = frac * fired.uncertainty + (1.0 - frac) * cut.uncertainty;
+  // Spread of one event's share (1/n of the window) of the model torque across the window: fuel and MAP
+  // changing, or a cut-off edge inside. Near the window's edges an event's work is partly its neighbour's.
+  const double per_kg = n_cyl_ * params_.fuel_lhv_j_kg / kFourPi * st_.theta[0];
+  double spread = per_kg * (w.fuel_max_kg - w.fuel_min_kg) + vd_4pi_ * (w.map_max_pa - w.map_min_pa);
+  if (w.fired > 0 && w.cut > 0) spread += std::fabs(fired.torque_nm - cut.torque_nm);
+  e.uncertainty = std::hypot(sd, params_.transient_sd_scale * spread / n);
+  if (w.fired > 0 && w.cut > 0) e.health = worst_health(fired.health, cut.health);
+  return e;
+}
+
 bool FuelTorque::learn(double fuel_kg, double map_pa, double t_ind_ref) noexcept {
   if (!std::isfinite(fuel_kg) || !std::isfinite(map_pa) || !std::isfinite(t_ind_ref) || !(fuel_kg > 0.0))
     return false;
@@ -66,9 +94,9 @@ bool FuelTorque::learn(double fuel_kg, double map_pa, double t_ind_ref) noexcept
   }
   pn[1] = pn[2] = 0.5 * (pn[1] + pn[2]);
   st_.p = pn;
-  // Residual variance from the a-priori errors (includes the reference's own noise: conservative). Once valid,
-  // a running mean over every reference since (weight 1/k, floored at sd_ema): the claimed 1σ then covers the
-  // whole range of operating points learned, not only the last plateau.
+  // Residual variance from the a-priori errors (includes the reference's own noise: conservative). Once
+  // valid, a running mean over every reference since (weight 1/k, floored at sd_ema): the claimed 1σ then
+  // covers the whole range of operating points learned, not only the last plateau.
   const bool was_valid = valid();
   ++st_.references;
   const double kn = static_cast<double>(st_.references) - params_.min_references;

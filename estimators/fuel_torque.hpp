@@ -10,13 +10,15 @@
 // / 4π) whenever a reference is present: T_ind,ref = energy-balance brake torque with the measured load +
 // learned friction. Priors: η_g = 0.38 (typical gross indicated fuel conversion efficiency of a warm SI
 // engine at λ = 1, Heywood fig. 13-9 order of magnitude), p_exh = 105 kPa (ambient + a few kPa of exhaust
-// back-pressure); both with wide priors. The claimed 1σ is the RMS of the reference residuals (running mean over
-// every reference once valid, then an EMA with a long memory), so that it is measured, not assumed. Real-time safe: no allocation, no exceptions.
+// back-pressure); both with wide priors. The claimed 1σ is the RMS of the reference residuals (running mean
+// over every reference once valid, then an EMA with a long memory), so that it is measured, not assumed.
+// Real-time safe: no allocation, no exceptions.
 #include <array>
 #include <cstdint>
 
 #include "engine_geometry.hpp"
 #include "estimate.hpp"
+#include "fuel_angle_window.hpp"
 
 namespace torqued {
 
@@ -29,8 +31,20 @@ struct FuelTorqueParams {
   double forgetting = 0.999;           ///< RLS forgetting per reference cycle (-)
   double residual_sd_nm = 2.0;         ///< measurement 1σ of one reference cycle (N m)
   int min_references = 30;             ///< reference cycles before the estimate is valid (-)
-  double sd_ema = 0.005;  ///< residual variance: EMA weight before valid, floor of the running-mean weight 1/k after (-)
-  double fuel_lhv_j_kg = 43e6;         ///< q_LHV (J/kg)
+  double sd_ema =
+      0.005;  ///< residual variance: EMA weight before valid, floor of the running-mean weight 1/k after (-)
+  double fuel_lhv_j_kg = 43e6;  ///< q_LHV (J/kg)
+  // The angle window (FuelAngleWindow): which intake events' fuel and MAP a 720° window's work comes from.
+  double intake_btdc_deg = 130.0;  ///< intake event (IVC, fuel decided) before firing TDC (deg): IVC 40-60°
+                                   ///< after BDC (Heywood 1988 §6.3)
+  double work_centroid_atdc_deg = 160.0;  ///< centroid of a cylinder's work after its firing TDC (deg);
+                                          ///< chosen on the unseen bed's TUNING engines only
+  double report_window_s =
+      0.010;  ///< an intake event's cut-off state is revised by consistent CAN reports for this
+              ///< long after it (s): one period of a 100 Hz ECU frame (the CAN frame seen at
+              ///< the intake can be that much older than the injection decision)
+  double transient_sd_scale =
+      0.25;  ///< claimed 1σ added per N m of model-torque spread across the window (-)
 };
 
 /// Learned state (persisted with the friction coefficients).
@@ -47,6 +61,13 @@ class FuelTorque {
   void reset() noexcept;
   /// Indicated torque (N m) from the fuel per injection per cylinder (kg) and the manifold pressure (Pa).
   [[nodiscard]] TorqueEstimate estimate(std::int64_t t_ns, double fuel_kg, double map_pa) const noexcept;
+  /// Indicated torque of a 720° window (FuelAngleWindow): its fired events by the fuel model, its cut-off
+  /// events by `motored` (no combustion; the fuel model at zero fuel when `motored` is not valid), weighted
+  /// by their count. The claimed 1σ grows with the spread of the model torque across the window's events
+  /// (transients, cut-off entry/exit: the work near the window's edges is attributed to one event or its
+  /// neighbour).
+  [[nodiscard]] TorqueEstimate estimate_window(std::int64_t t_ns, const FuelWindow& w,
+                                               const TorqueEstimate& motored) const noexcept;
   /// One reference cycle: true indicated torque `t_ind_ref` (N m) at that fuel and MAP. Rejects non-finite
   /// input and residuals beyond 5σ once valid (outliers). Returns true when learned from.
   bool learn(double fuel_kg, double map_pa, double t_ind_ref) noexcept;

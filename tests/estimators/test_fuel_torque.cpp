@@ -70,3 +70,43 @@ TEST(FuelTorque, RejectsOutliersAndBadInput) {
   EXPECT_FALSE(ft.learn(std::nan(""), 50000.0, 10.0));
   EXPECT_DOUBLE_EQ(ft.state().theta[0], eta);
 }
+
+TEST(FuelTorque, WindowSplitsFiredAndCutOffEventsAndWidensSigmaInTransients) {
+  // GIVEN a model learned on exact references and a motored torque for the cut-off events
+  EngineGeometry g;  // 4 cyl
+  FuelTorque ft(g, FuelTorqueParams{});
+  for (int k = 0; k < 200; ++k) {
+    const double fuel = 10e-6 + 30e-6 * (0.5 + 0.5 * std::sin(0.37 * k));
+    const double map = 30000.0 + 65000.0 * (0.5 + 0.5 * std::sin(0.23 * k + 1.0));
+    ft.learn(fuel, map, truth(g, fuel, map));
+  }
+  torqued::TorqueEstimate motored;
+  motored.torque_nm = -20.0;
+  motored.uncertainty = 2.0;
+  motored.health = Health::kValid;
+  torqued::FuelWindow steady;
+  steady.valid = true;
+  steady.fired = 4;
+  steady.fuel_kg = steady.fuel_min_kg = steady.fuel_max_kg = 20e-6;
+  steady.map_fired_pa = steady.map_min_pa = steady.map_max_pa = 60000.0;
+  const auto all_fired = ft.estimate_window(0, steady, motored);
+  const auto point = ft.estimate(0, 20e-6, 60000.0);
+  // WHEN every event fired and nothing changed THEN it is the model at the window's fuel and MAP
+  EXPECT_NEAR(all_fired.torque_nm, point.torque_nm, 1e-9);
+  EXPECT_NEAR(all_fired.uncertainty, point.uncertainty, 1e-9);
+  // WHEN one event of four is in cut-off THEN ¾ fuel model + ¼ motored, and the cut-off edge widens σ
+  torqued::FuelWindow split = steady;
+  split.fired = 3;
+  split.cut = 1;
+  split.map_cut_pa = 60000.0;
+  const auto s = ft.estimate_window(0, split, motored);
+  EXPECT_NEAR(s.torque_nm, 0.75 * point.torque_nm + 0.25 * motored.torque_nm, 1e-9);
+  EXPECT_GT(s.uncertainty, 0.75 * point.uncertainty + 0.25 * motored.uncertainty + 1.0);
+  // WHEN the fuel changes across the window THEN σ grows with the spread
+  torqued::FuelWindow ramp = steady;
+  ramp.fuel_min_kg = 15e-6;
+  ramp.fuel_max_kg = 25e-6;
+  EXPECT_GT(ft.estimate_window(0, ramp, motored).uncertainty, all_fired.uncertainty + 1.0);
+  // an unknown window is not an estimate
+  EXPECT_EQ(ft.estimate_window(0, torqued::FuelWindow{}, motored).health, Health::kStaleInput);
+}

@@ -56,5 +56,39 @@ TEST_P(DaemonBed, LearnedStateCarriesTheNoLoadBrakeTorqueToTheTargets) {
 
 INSTANTIATE_TEST_SUITE_P(ReportEngines, DaemonBed, ::testing::Values("rep_i4_36", "rep_i6_60"));
 
+// Issue 14, fuel model (FuelAngleWindow): the no-load brake torque of every report engine over the full
+// evaluated recording (steady, transients, fuel cut-off entry and exit), with honest claimed uncertainties.
+// Bounds: max < 12 N m, RMS < 3 N m, >= 90 % within the issue's tolerance; the claimed 1 sigma covers 40-92 %
+// and 2 sigma >= 65 % of the cycles (today 47-90 % and 72-100 %, see docs/angle_pipeline.md). Label slow
+// (about 4 s per engine).
+class DaemonBedFuelWindow : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(DaemonBedFuelWindow, NoLoadBrakeTorqueThroughCutOffAndTransientsWithHonestSigma) {
+  const sim::BedEngine* e = nullptr;
+  for (const auto& b : sim::unseen_engines())
+    if (b.name == GetParam()) e = &b;
+  ASSERT_NE(e, nullptr);
+  ASSERT_TRUE(e->report) << "only report engines are scored";
+  DaemonBedOptions opt;
+  opt.out_dir = (fs::temp_directory_path() / ("torqued_fuel_bed_" + std::to_string(::getpid()))).string();
+  opt.short_run = false;
+  DaemonBedResult r;
+  std::string err;
+  ASSERT_TRUE(evaluate_bed_engine_daemon(*e, opt, r, err)) << err;
+  const DaemonBedStats& b = r.without_load.brake;
+  ASSERT_GT(b.n, 100);
+  EXPECT_LT(b.max_abs_nm, 12.0);
+  EXPECT_LT(b.rms_nm, 3.0);
+  EXPECT_GE(b.pass, 90 * b.n / 100);
+  EXPECT_GE(b.covered, 40 * b.n / 100) << "claimed 1 sigma too small";
+  EXPECT_LE(b.covered, 92 * b.n / 100) << "claimed 1 sigma too large";
+  EXPECT_GE(b.covered2, 65 * b.n / 100) << "claimed 2 sigma";
+  fs::remove_all(opt.out_dir);
+}
+
+INSTANTIATE_TEST_SUITE_P(ReportEngines, DaemonBedFuelWindow,
+                         ::testing::Values("rep_i4_60", "rep_i4_36", "rep_i3_60", "rep_i3_36", "rep_i6_60",
+                                           "rep_i6_36"));
+
 }  // namespace
 }  // namespace torqued::eval

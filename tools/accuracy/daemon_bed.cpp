@@ -82,6 +82,7 @@ void add(DaemonBedStats& s, double est, double truth, double sd, bool transient)
   ++s.n;
   if (std::fabs(err) <= allowed) ++s.pass;
   if (std::fabs(err) <= sd) ++s.covered;
+  if (std::fabs(err) <= 2.0 * sd) ++s.covered2;
   s.rms_nm += err * err;
   s.bias_nm += err;
   s.max_abs_nm = std::max(s.max_abs_nm, std::fabs(err));
