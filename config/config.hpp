@@ -27,8 +27,10 @@ enum class LogLevel : std::uint8_t { kTrace, kDebug, kInfo, kWarn, kError, kCrit
 
 /// Number of CAN quantities of EngineSignals; `CanSignalsConfig::signals` is indexed by torqued::Quantity
 /// (io/signal_store.hpp: map, maf, intake_temp, oil_temp, throttle, lambda, spark_advance, fuel_mass,
-/// fuel_cutoff, load_torque — the YAML keys under can.signals, same order).
-inline constexpr std::size_t kCanQuantityCount = 10;
+/// fuel_cutoff, load_torque, em_torque — the YAML keys under can.signals, same order).
+inline constexpr std::size_t kCanQuantityCount = 11;
+/// Index of em_torque (the electric machine's torque, hybrid input) in `CanSignalsConfig::signals`.
+inline constexpr std::size_t kCanEmTorque = 10;
 /// YAML name of quantity index i under `can.signals` ("map", "maf", ...); "" when out of range.
 [[nodiscard]] std::string_view can_quantity_name(std::size_t i) noexcept;
 
@@ -75,9 +77,17 @@ struct SignalMapping {
   [[nodiscard]] bool mapped() const noexcept { return !message.empty(); }
 };
 
+/// Hybrid input (YAML can.e_machine): how can.signals.em_torque maps onto the crank (estimators/e_machine.hpp).
+struct EMachineConfig {
+  double ratio = 1.0;      ///< machine speed / crank speed: T_em,crank = sign · ratio · T_em (-)
+  int sign = 1;            ///< +1: em_torque positive when the machine drives the crank; −1: when it brakes it
+  bool sole_load = false;  ///< the machine is the only load on the crank (bench motoring, clutch open)
+};
+
 struct CanSignalsConfig {
   std::string dbc;  ///< DBC file, absolute after loading ("" = none)
   std::array<SignalMapping, kCanQuantityCount> signals{};  ///< indexed by static_cast<size_t>(Quantity)
+  EMachineConfig e_machine;
 };
 
 template <class Params>

@@ -523,6 +523,10 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
   if (c.inputs.can.backend == CanBackend::kSocketCan && c.inputs.can.interface.empty())
     out.push_back({"inputs.can.interface", "", "a SocketCAN interface name (backend socketcan)"});
   if (c.wheel.crank_channel.empty()) out.push_back({"wheel.crank_channel", "", "a channel name"});
+  if (c.can.e_machine.sign == 0) out.push_back({"can.e_machine.sign", "0", "+1 or -1"});
+  const bool em_mapped = c.can.signals[kCanEmTorque].mapped();
+  if (c.can.e_machine.sole_load && !em_mapped)
+    out.push_back({"can.e_machine.sole_load", "true", "can.signals.em_torque mapped (the machine's torque on CAN)"});
   return out;
 }
 

@@ -15,7 +15,7 @@ namespace torqued {
 std::string_view can_quantity_name(std::size_t i) noexcept {
   static constexpr std::array<std::string_view, kCanQuantityCount> kNames{
       "map", "maf", "intake_temp", "oil_temp", "throttle", "lambda", "spark_advance", "fuel_mass", "fuel_cutoff",
-      "load_torque"};
+      "load_torque", "em_torque"};
   return i < kNames.size() ? kNames[i] : std::string_view{};
 }
 
@@ -183,6 +183,13 @@ void add_can(std::vector<SchemaEntry>& t) {
     t.push_back(std::move(s));
     t.push_back(std::move(to));
   }
+  // Hybrid input (estimators/e_machine.hpp): used only when can.signals.em_torque is mapped.
+  t.push_back(number("can.e_machine.ratio", TQ_REF(double, can.e_machine.ratio), {0.0, 100.0, true, false}, "",
+                     "machine speed / crank speed: machine torque on the crank = sign x ratio x em_torque"));
+  t.push_back(integer("can.e_machine.sign", TQ_REF(int, can.e_machine.sign), closed(-1, 1), "",
+                      "+1: em_torque positive when the machine drives the crank (motoring/boost), -1: when it brakes it"));
+  t.push_back(boolean("can.e_machine.sole_load", TQ_REF(bool, can.e_machine.sole_load),
+                      "the machine is the only load on the crank (bench motoring, clutch open): no load_torque needed"));
 }
 
 void add_topic_qos(std::vector<SchemaEntry>& t, const std::string& name, Ref<TopicQos> ref) {

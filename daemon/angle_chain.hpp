@@ -13,7 +13,10 @@
 // Feedback loops, all in angle_chain.cpp: (1) learned tooth table → decoder edge corrections, applied at the
 // cycle boundary, and "wheel learned" → in-cycle observers and per-cylinder record (their health says when
 // not); (2) CAN fuel cut-off → tooth learner; (3) time pipeline's UIO brake estimate → fusion's external
-// source (fusion.time_estimate); (4) learned state import/export (friction law, tooth table).
+// source (fusion.time_estimate); (4) learned state import/export (friction law, tooth table); (5) hybrid input:
+// the electric machine's CAN torque (can.signals.em_torque × can.e_machine.ratio × sign) folded into the net load of
+// every balance (fold_e_machine, estimators/e_machine.hpp; the time stage folds the same), and motoring by the
+// machine → friction learner; a stale machine signal holds what rests on it with STALE_CAN, as the load signal.
 // on_edge/on_frame/poll/set_time_estimate are real-time safe: no allocation, no lock, no blocking.
 #include <array>
 #include <cstdint>

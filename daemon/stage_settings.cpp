@@ -21,6 +21,7 @@ StageSettings stage_settings_from(const Config& cfg) {
   s.decoder.crank_channel = 0;  // EdgeCsvSource/backends map the configured crank column to channel 0
   s.decoder.cam_channel = 1;
   static_assert(kSignalCount == static_cast<int>(kCanQuantityCount));
+  static_assert(kCanEmTorque == static_cast<std::size_t>(Quantity::kEmTorque));
   for (std::size_t i = 0; i < kCanQuantityCount; ++i) {
     const SignalMapping& m = cfg.can.signals[i];
     s.signals[i].message = m.message;
@@ -45,6 +46,11 @@ StageSettings stage_settings_from(const Config& cfg) {
   s.angle.fusion = cfg.estimators.fusion;
   s.angle.fuel = cfg.estimators.fuel;
   s.angle.default_oil_temp_c = cfg.estimators.default_oil_temp_c;
+  // Hybrid input (both chains fold it: the angle chain here, the time stage from s.angle.e_machine).
+  s.angle.e_machine.bound = cfg.can.signals[static_cast<std::size_t>(Quantity::kEmTorque)].mapped();
+  s.angle.e_machine.ratio = cfg.can.e_machine.ratio;
+  s.angle.e_machine.sign = static_cast<double>(cfg.can.e_machine.sign);
+  s.angle.e_machine.sole_load = cfg.can.e_machine.sole_load;
   s.angle_enabled = cfg.estimators.energies.enabled;
   s.angle.preprocess = cfg.estimators.preprocess;
   s.angle.kalman = cfg.estimators.kalman.params;

@@ -18,7 +18,7 @@ namespace torqued {
 struct Config;
 
 inline constexpr int kSignalCount =
-    10;  ///< EngineSignals quantities: map, maf, ..., load_torque (this order)
+    11;  ///< EngineSignals quantities: map, maf, ..., load_torque, em_torque (this order)
 
 struct SignalSpec {
   std::string message;  ///< DBC message ("" = not mapped)
@@ -37,7 +37,7 @@ struct StageSettings {
   SlidingModeParams sliding_mode;
   DirtyDiffParams dirty_diff;
   AdaptiveParams adaptive;
-  AnglePipelineConfig angle;  ///< energies chain, friction, cylinders, fusion (engine/wheel filled too)
+  AnglePipelineConfig angle;  ///< energies chain, friction, cylinders, fusion, e_machine (engine/wheel filled too)
   bool angle_enabled = true;  ///< run the angle pipeline (estimators.energies.enabled)
   ToothLearnParams tooth_learn;
   bool tooth_learn_enabled = true;  ///< learn tooth corrections and feed them to the decoder

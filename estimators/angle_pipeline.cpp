@@ -160,7 +160,12 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
 
   if (sig.oil_temp_valid && std::isfinite(sig.oil_temp_c)) oil_c_ = sig.oil_temp_c;
   const bool can_fresh = static_cast<double>(s.t_ns - sig.t_ns) * 1e-9 <= cfg_.fusion.max_can_age_s;
-  const bool load_ok = can_fresh && sig.load_torque_valid && std::isfinite(sig.load_torque_nm);
+  // Hybrid input: the machine's torque is a known part of the load (e_machine.hpp); not bound, this is the load
+  // signal alone. A stale machine value makes the net load unknown, as a stale load signal does.
+  const NetLoad net = fold_e_machine(cfg_.e_machine, sig);
+  const bool load_ok = can_fresh && net.known;
+  machine_motoring_ = can_fresh && net.em_valid && net.em_crank_nm > 0.0 && sig.fuel_mass_valid &&
+                      !(sig.fuel_mass_kg > 0.0);
 
   bool works_ok = true;
   for (int m = 0; m < cfg_.engine.cylinders; ++m)
@@ -183,7 +188,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
 
   wide_done_ = wide_.update(s);  // completes on the same tooth as boundary 0's per-cylinder window
   const std::uint64_t breaks_before = energy_.breaks();
-  if (energy_.update(s, sig.load_torque_nm, load_ok)) {
+  if (energy_.update(s, net.torque_nm, load_ok)) {
     on_segment(energy_.segment(), sig, can_fresh);
     ready = static_cast<std::uint8_t>(ready | kSegmentReady);
     if (cycle_.cycle_end) ready = static_cast<std::uint8_t>(ready | kCycleReady);
@@ -197,7 +202,9 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
 
 void AnglePipeline::count_fuel_state(const EngineSignals& sig, bool can_fresh) noexcept {
   const bool cut_known = can_fresh && sig.fuel_cutoff_valid;
-  fired_ = !(cut_known && sig.fuel_cutoff);
+  // Motoring by the electric machine (no fuel, the machine drives the crank) is a cut-off segment too, whatever the
+  // ECU's cut-off flag says (a bench motoring the engine may not send one): a friction reference (learn()).
+  fired_ = !(cut_known && sig.fuel_cutoff) && !machine_motoring_;
   if (fired_) {
     ++fired_segments_;
     ++since_cut_segments_;

@@ -13,8 +13,10 @@
 //   load       = CAN load (or RLS extended load − friction when CAN is lost)
 //   fused      = TorqueFusion of {energy+CAN, crank-only, ESO, external}
 // Per cycle:   per-cylinder indicated torque, imbalance, misfire (CylinderTorque).
-// Learning:    friction C1..C3 from fuel cut-off cycles (energy balance + measured load + modelled pumping
-// loop),
+// Load:        everywhere above, "load" is the net load on the crank, T_load − T_em,crank when an electric
+//              machine's torque is on CAN (fold_e_machine, e_machine.hpp): a known input of every balance.
+// Learning:    friction C1..C3 from fuel cut-off cycles and from motoring by the electric machine (energy balance
+//              + measured net load + modelled pumping loop),
 //              C4 at idle from the RLS extended load (= friction when the load is zero).
 #include <array>
 #include <cmath>
@@ -25,6 +27,7 @@
 #include "cycle_energy.hpp"
 #include "cycle_ke_window.hpp"
 #include "cylinder_torque.hpp"
+#include "e_machine.hpp"
 #include "engine_geometry.hpp"
 #include "estimate.hpp"
 #include "fourier_observer.hpp"
@@ -50,6 +53,7 @@ struct AnglePipelineConfig {
   KalmanParams kalman{};
   FourierParams fourier{};
   FuelTorqueParams fuel{};
+  EMachineParams e_machine{};  ///< hybrid input: machine torque folded into the net load (e_machine.hpp)
   bool run_kalman = true;   ///< Chauvin TV-Kalman in-cycle indicated torque per tooth
   bool run_fourier = true;  ///< Chauvin Fourier observer per tooth (disabled if its gains fail CF-14)
   double default_oil_temp_c = 90.0;  ///< used until an oil temperature arrives on CAN (°C)
@@ -173,7 +177,8 @@ class AnglePipeline {
   [[nodiscard]] FuelWindow fuel_window(const SegmentEnergy& seg) const noexcept;
   double crank_err_var_ =
       0.0;             ///< measured variance of the compression-window chain vs the energy balance (N m²)
-  bool fired_ = true;  ///< current segment fires (no fuel cut-off flag)
+  bool fired_ = true;  ///< current segment fires (no fuel cut-off flag, not motored by the machine)
+  bool machine_motoring_ = false;  ///< at the last tooth: the machine drives the crank with no fuel injected
   CylinderTorque cyl_;
   TorqueFusion fusion_;
   ToothPreprocessor pre_;

@@ -41,7 +41,8 @@ struct EngineSignals {
   double spark_advance_deg = 0.0;  bool spark_valid = false;
   double fuel_mass_kg = 0.0;       bool fuel_mass_valid = false;  ///< fuel per injection per cylinder
   bool fuel_cutoff = false;        bool fuel_cutoff_valid = false;
-  double load_torque_nm = 0.0;     bool load_torque_valid = false;///< dyno / e-machine torque
+  double load_torque_nm = 0.0;     bool load_torque_valid = false;///< dyno / driveline load torque
+  double em_torque_nm = 0.0;       bool em_torque_valid = false;  ///< electric machine torque as on CAN (e_machine.hpp)
 };
 
 }  // namespace torqued

@@ -63,8 +63,10 @@ const TimePipelineOutput& TimePipeline::step(std::int64_t t_ns, const EngineSign
   }
   // The signal store already turned time-outs into valid == false; we cannot tell stale from rejected here,
   // so a missing CAN signal is reported as stale (the common cause: CAN lost).
-  s.load_torque_nm = signals.load_torque_nm;
-  s.load = signals.load_torque_valid ? InputStatus::kOk : InputStatus::kStale;
+  // Hybrid input: the net load T_load − T_em,crank (e_machine.hpp); a stale machine value makes it stale.
+  const NetLoad net = fold_e_machine(e_machine_, signals);
+  s.load_torque_nm = net.torque_nm;
+  s.load = net.known ? InputStatus::kOk : InputStatus::kStale;
   s.maf_kg_s = signals.maf_kg_s;
   s.maf = signals.maf_valid ? InputStatus::kOk : InputStatus::kStale;
   return step(s);

@@ -8,6 +8,7 @@
 
 #include "adaptive_tv.hpp"
 #include "dirty_diff.hpp"
+#include "e_machine.hpp"
 #include "engine_geometry.hpp"
 #include "estimate.hpp"
 #include "mean_speed_tracker.hpp"
@@ -39,6 +40,9 @@ class TimePipeline {
   [[nodiscard]] double inertia_kgm2() const noexcept { return inertia_kgm2_; }
 
   void reset() noexcept;
+  /// Hybrid input: how the machine's CAN torque folds into the load step() hands the estimators (before the
+  /// first step; default: not bound, the load signal alone).
+  void set_e_machine(const EMachineParams& p) noexcept { e_machine_ = p; }
   /// Feeds one decoded tooth to the mean-speed tracker. Real-time safe.
   void on_tooth(const ToothSample& tooth) noexcept;
   /// One timer tick at t_ns with the current signal-store snapshot. Real-time safe.
@@ -51,6 +55,7 @@ class TimePipeline {
 
  private:
   TimePipelineParams params_;
+  EMachineParams e_machine_{};
   double inertia_kgm2_;
   MeanSpeedTracker tracker_;
   Uio uio_;

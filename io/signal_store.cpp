@@ -11,7 +11,7 @@ namespace {
 
 constexpr const char* kNames[kQuantityCount] = {"map",         "maf",        "intake_temp",   "oil_temp",
                                                 "throttle",    "lambda",     "spark_advance", "fuel_mass",
-                                                "fuel_cutoff", "load_torque"};
+                                                "fuel_cutoff", "load_torque", "em_torque"};
 
 std::string norm_unit(std::string_view u) {
   std::string s;
@@ -80,6 +80,7 @@ bool conversion(Quantity q, const std::string& u, double& scale, double& shift) 
     case Quantity::kFuelCutoff:
       return find(kFlag);
     case Quantity::kLoadTorque:
+    case Quantity::kEmTorque:
       return find(kTorque);
     case Quantity::kCount:
       break;
@@ -232,6 +233,7 @@ EngineSignals SignalStore::signals_at(std::int64_t now_ns) const noexcept {
   get(Quantity::kFuelCutoff, cut, s.fuel_cutoff_valid);
   s.fuel_cutoff = cut > 0.5;
   get(Quantity::kLoadTorque, s.load_torque_nm, s.load_torque_valid);
+  get(Quantity::kEmTorque, s.em_torque_nm, s.em_torque_valid);
   s.t_ns = newest;
   cache_ = s;
   cache_from_ns_ = now_ns;

@@ -27,12 +27,13 @@ enum class Quantity : std::uint8_t {
   kFuelMass,
   kFuelCutoff,
   kLoadTorque,
+  kEmTorque,  ///< electric machine torque (hybrid input, estimators/e_machine.hpp)
   kCount
 };
 inline constexpr int kQuantityCount = static_cast<int>(Quantity::kCount);
 
 /// "map", "maf", "intake_temp", "oil_temp", "throttle", "lambda", "spark_advance", "fuel_mass",
-/// "fuel_cutoff", "load_torque" (the config keys under can.signals).
+/// "fuel_cutoff", "load_torque", "em_torque" (the config keys under can.signals).
 [[nodiscard]] const char* quantity_name(Quantity q) noexcept;
 [[nodiscard]] bool quantity_from_name(std::string_view name, Quantity& out) noexcept;
 

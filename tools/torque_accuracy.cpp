@@ -65,6 +65,48 @@ int run_bed(bool all, bool short_run, const torqued::eval::EvalOptions& base) {
   }
   return 0;
 }
+
+/// Issue 14 item 3: the bed with an electric machine of `ratio` as the load (no dynamometer signal).
+int run_bed_e_machine(bool all, bool short_run, const torqued::eval::EvalOptions& base, double ratio) {
+  std::printf(
+      "unseen-engines bed with an electric machine (ratio %.3g) as the load, no dynamometer signal; learned with the\n"
+      "machine as the known sole load. Cells: RMS and max |error| (N m), pass/cov as the bed table.\n",
+      ratio);
+  std::printf("%-11s %4s | %-25s | %-13s | %-25s | %-13s\n", "engine", "cyc", "MACHINE brake rms max pass/cov",
+              "indicated", "CONTROL (unbound) brake", "friction");
+  for (const auto& e : torqued::sim::unseen_engines()) {
+    if (!all && !e.report) continue;
+    const auto b = torqued::eval::evaluate_bed_e_machine(e, base, short_run, ratio);
+    const auto& m = b.with_machine;
+    const auto& c = b.control;
+    std::printf("%-11s %4d | %-13s %-11s | %-13s | %-13s %-11s | %-13s\n", b.engine.c_str(), m.cycles,
+                rm(m.brake).c_str(), pass_cov(m.brake).c_str(), rm(m.indicated).c_str(), rm(c.brake).c_str(),
+                pass_cov(c.brake).c_str(), rm(m.friction).c_str());
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
+/// Issue 14 item 3: friction learned from motoring by the machine vs the generic prior.
+int run_bed_motoring(bool all, bool short_run, const torqued::eval::EvalOptions& base, double ratio) {
+  std::printf(
+      "friction learned from motoring by the electric machine (ratio %.3g; fuel cut-off, 1000-4000 rpm plateaus),\n"
+      "scored on the evaluated recording. Cells: RMS and max |error| (N m), %% cycles within 10 %% or 2 N m.\n",
+      ratio);
+  std::printf("%-11s | %-13s %-5s | %-13s %-5s | %s\n", "engine", "PRIOR rms max", "pass", "LEARNED rms max", "pass",
+              "motoring observations");
+  for (const auto& e : torqued::sim::unseen_engines()) {
+    if (!all && !e.report) continue;
+    const auto b = torqued::eval::evaluate_bed_motoring(e, base, short_run, ratio);
+    const auto pct = [](const ErrorStats& s) { return s.n > 0 ? 100 * s.pass / s.n : 0; };
+    std::printf("%-11s | %-13s %4d%% | %-13s %4d%% | %llu\n", b.engine.c_str(), rm(b.prior.friction).c_str(),
+                pct(b.prior.friction), rm(b.learned.friction).c_str(), pct(b.learned.friction),
+                static_cast<unsigned long long>(b.motoring.friction_observations));
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
 std::string ds(const torqued::eval::DaemonBedStats& s) {
   if (s.n == 0) return "     -      -";
   char buf[64];
@@ -168,6 +210,15 @@ int main(int argc, char** argv) {
                  "--bed unseen-daemon: directory for the recordings, configs and state files");
   app.add_flag("--bed-all", bed_all, "with --bed: also the tuning engines");
   app.add_flag("--bed-short", bed_short, "with --bed: the short evaluated recordings (the ctest subset)");
+  double bed_machine = 0.0;
+  bool bed_motoring = false;
+  app.add_option("--bed-e-machine", bed_machine,
+                 "with --bed unseen: an electric machine of this ratio (machine/crank speed) is the load; brake "
+                 "with the machine torque bound (sole load) and a control run with it unbound")
+      ->check(CLI::PositiveNumber);
+  app.add_flag("--bed-motoring", bed_motoring,
+               "with --bed unseen: friction learned from motoring by the machine (ratio --bed-e-machine, default 1) "
+               "vs the generic prior");
   app.add_flag(
       "--cylinders", cylinders,
       "per-cylinder table instead (issue 15): imbalance error per cylinder and speed, in-cycle RMS and lag, "
@@ -210,6 +261,8 @@ int main(int argc, char** argv) {
   if (!bed.empty()) {
     torqued::eval::EvalOptions bo;
     bo.skip_cycles = skip;
+    if (bed_motoring) return run_bed_motoring(bed_all, bed_short, bo, bed_machine > 0.0 ? bed_machine : 1.0);
+    if (bed_machine > 0.0) return run_bed_e_machine(bed_all, bed_short, bo, bed_machine);
     return run_bed(bed_all, bed_short, bo);
   }
   if (names.empty() && !cylinders) names = torqued::sim::scenario_names();

@@ -9,6 +9,7 @@
 #include <numbers>
 #include <set>
 
+#include "can_codec.hpp"
 #include "crank_kinematics.hpp"
 #include "engine_model.hpp"
 #include "sim_fixture.hpp"
@@ -317,6 +318,25 @@ TEST(EngineSim, SignalsAtMatchTruth) {
   const EngineSignals stale = signals_at(r.out, c.t_end_s + 1.0);
   EXPECT_FALSE(stale.map_valid);
   EXPECT_FALSE(stale.load_torque_valid);
+}
+
+TEST(EngineSim, EMachineFrameCarriesTheLoadThroughItsRatioOnlyWhenPresent) {
+  // GIVEN a scenario whose load is an electric machine through a 2:1 gear WHEN simulated THEN EM_1 (0x210) carries
+  // the machine's shaft torque, −T_load / 2 (driving positive), within the sensor noise; the demo set has no EM_1.
+  Scenario sc = scenario_by_name("steady_2000_mid");
+  sc.duration_s = 0.5;
+  sc.e_machine.present = true;
+  sc.e_machine.ratio = 2.0;
+  const SimOutput out = simulate(sc);
+  const auto& c = out.cycles.back();
+  const EngineSignals sig = signals_at(out, c.t_end_s);
+  ASSERT_TRUE(sig.em_torque_valid && sig.load_torque_valid);
+  EXPECT_GT(c.t_load_mean_nm, 10.0);  // the machine absorbs (generates)
+  EXPECT_NEAR(sig.em_torque_nm, -c.t_load_mean_nm / 2.0, 2.0);
+  EXPECT_TRUE(std::any_of(out.can.begin(), out.can.end(), [](const CanFrame& f) { return f.id == kEm1Id; }));
+  const auto& plain = run("steady_2000_mid", 0.5);
+  EXPECT_FALSE(std::any_of(plain.out.can.begin(), plain.out.can.end(), [](const CanFrame& f) { return f.id == kEm1Id; }));
+  EXPECT_FALSE(signals_at(plain.out, c.t_end_s).em_torque_valid);
 }
 
 TEST(EngineSim, RejectsInconsistentScenarios) {

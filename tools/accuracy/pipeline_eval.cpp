@@ -114,6 +114,7 @@ AnglePipelineConfig pipeline_config(const sim::Scenario& sc, const EvalOptions& 
   cfg.wheel = sc.wheel;
   cfg.friction.prior_from_geometry = !opt.friction_prior;
   if (opt.friction_prior) cfg.friction.c = *opt.friction_prior;
+  cfg.e_machine = opt.e_machine;
   return cfg;
 }
 
@@ -397,6 +398,73 @@ BedResult evaluate_bed_engine(const sim::BedEngine& e, const EvalOptions& option
   b.with_load = evaluate(sc, out, o);
   o.load_lost_after_s = 0.0;
   b.without_load = evaluate(sc, out, o);
+  return b;
+}
+
+namespace {
+EvalOptions bed_options(const sim::BedEngine& e, const EvalOptions& options) {
+  EvalOptions o = options;
+  o.spec_engine = e.spec;
+  o.friction_prior.reset();  // generic correlation from the spec-sheet displacement
+  o.friction.reset();
+  o.idle_correction.reset();
+  o.score_all_cycles = true;
+  o.can_lost_after_s = -1.0;
+  o.load_lost_after_s = -1.0;
+  return o;
+}
+EMachineParams sole_machine(double ratio) {
+  EMachineParams p;
+  p.bound = true;
+  p.ratio = ratio;
+  p.sole_load = true;
+  return p;
+}
+sim::Scenario with_machine(sim::Scenario s, double ratio) {
+  s.e_machine.present = true;
+  s.e_machine.ratio = ratio;
+  return s;
+}
+}  // namespace
+
+BedMachineResult evaluate_bed_e_machine(const sim::BedEngine& e, const EvalOptions& options, bool short_run,
+                                        double ratio) {
+  BedMachineResult b;
+  b.engine = e.name;
+  EvalOptions o = bed_options(e, options);
+  o.load_lost_after_s = 0.0;  // no dynamometer: the machine is the known load
+  o.e_machine = sole_machine(ratio);
+  b.learn = evaluate(with_machine(sim::bed_learning_run(e), ratio), o);
+  if (b.learn.friction_observations > 0) o.friction = b.learn.friction_coefficients;
+  if (b.learn.idle_rpm > 0.0)
+    o.idle_correction = std::array<double, 2>{b.learn.idle_correction_nm, b.learn.idle_rpm};
+  o.fuel_state = b.learn.fuel_state;
+  o.crank_err_var = b.learn.crank_err_var;
+  const sim::Scenario sc = with_machine(sim::bed_eval_run(e, short_run), ratio);
+  const sim::SimOutput out = sim::simulate(sc);
+  b.with_machine = evaluate(sc, out, o);
+  o.e_machine = EMachineParams{};  // control: the machine's torque is on CAN but not bound
+  b.control = evaluate(sc, out, o);
+  return b;
+}
+
+BedMotoringResult evaluate_bed_motoring(const sim::BedEngine& e, const EvalOptions& options, bool short_run,
+                                        double ratio) {
+  BedMotoringResult b;
+  b.engine = e.name;
+  EvalOptions o = bed_options(e, options);
+  o.load_lost_after_s = 0.0;
+  o.steady_pct = o.transient_pct = 10.0;  // friction target: 10 % or 2 N m
+  o.steady_nm = o.transient_nm = 2.0;
+  o.e_machine = sole_machine(ratio);
+  b.motoring = evaluate(with_machine(sim::bed_motoring_run(e), ratio), o);
+  // Scored on the evaluated recording with neither load signal nor machine bound: nothing is learned there.
+  o.e_machine = EMachineParams{};
+  const sim::Scenario sc = sim::bed_eval_run(e, short_run);
+  const sim::SimOutput out = sim::simulate(sc);
+  b.prior = evaluate(sc, out, o);
+  if (b.motoring.friction_observations > 0) o.friction = b.motoring.friction_coefficients;
+  b.learned = evaluate(sc, out, o);
   return b;
 }
 

@@ -41,6 +41,7 @@ struct EvalOptions {
   double steady_pct = 3.0, steady_nm = 2.0;  ///< issue 5 tolerances
   double transient_pct = 5.0, transient_nm = 3.0;
   AnglePipelineConfig base{};  ///< tuning (engine/wheel are taken from the scenario)
+  EMachineParams e_machine{};  ///< hybrid input: bound = the EM_1 machine torque is used (scenario with a machine)
 };
 
 /// One compared cycle (the pipeline's rolling 720° window ending at boundary 0).
@@ -122,6 +123,26 @@ struct BedResult {
   ScenarioResult learn, with_load, without_load;
 };
 BedResult evaluate_bed_engine(const sim::BedEngine& engine, const EvalOptions& options, bool short_run);
+
+/// Hybrid input on the bed (issue 14 item 3): the engine's recordings with an electric machine of `ratio` as the
+/// load. learn: the learning recording with the machine as the known sole load (no dynamometer signal);
+/// with_machine: the evaluated recording without load signal, machine bound (sole load); control: the same recording,
+/// machine torque present on CAN but not bound (crank-only).
+struct BedMachineResult {
+  std::string engine;
+  ScenarioResult learn, with_machine, control;
+};
+BedMachineResult evaluate_bed_e_machine(const sim::BedEngine& engine, const EvalOptions& options, bool short_run,
+                                        double ratio);
+/// Motoring by the machine as the friction reference: friction of the evaluated recording (no load signal, nothing
+/// learned during it) from the generic prior (`prior`) and after learning on bed_motoring_run() (`learned`).
+/// Friction scored within 10 % or 2 N m.
+struct BedMotoringResult {
+  std::string engine;
+  ScenarioResult motoring, prior, learned;
+};
+BedMotoringResult evaluate_bed_motoring(const sim::BedEngine& engine, const EvalOptions& options, bool short_run,
+                                        double ratio);
 
 /// Learn friction on the "fuel_cut" coast-down, then on "demo", starting at the prior; returns the
 /// coefficients.

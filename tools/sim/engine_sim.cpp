@@ -58,6 +58,7 @@ void validate(const Scenario& sc) {
   const double spc = 720.0 / sc.step_deg;
   if (sc.step_deg <= 0 || std::abs(spc - std::round(spc)) > 1e-9) fail("step_deg must divide 720");
   if (!(sc.duration_s > 0)) fail("duration must be > 0");
+  if (sc.e_machine.present && !(sc.e_machine.ratio > 0.0)) fail("e-machine ratio must be > 0");
   if (sc.sensors.cam_rise_deg < 0 || sc.sensors.cam_fall_deg <= sc.sensors.cam_rise_deg || sc.sensors.cam_fall_deg >= 720)
     fail("cam window must satisfy 0 <= rise < fall < 720");
   for (const auto& m : sc.misfires)
@@ -204,7 +205,8 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
   }
 
   // --- CAN ---------------------------------------------------------------------------------------------------
-  const auto msgs = demo_messages();
+  // EM_1 (last of the set) only with a machine: without one the frames and their random draws are unchanged.
+  const auto msgs = sc.e_machine.present ? demo_messages() : demo_messages().first(demo_messages().size() - 1);
   const double can_offsets[] = {0.0, 0.0025, 0.005, 0.0075};
   std::vector<std::int64_t> can_k(msgs.size(), 0);
   std::vector<double> can_next(msgs.size());
@@ -442,6 +444,10 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
             case kDyno1Id:
               put("LoadTorque", load_s + rng_noise.gaussian(sc.sensors.load_noise_nm));
               put("DynoSpeed", rpm + rng_noise.gaussian(sc.sensors.speed_noise_rpm));
+              break;
+            case kEm1Id:
+              put("EmTorque", -load_s / sc.e_machine.ratio + rng_noise.gaussian(sc.e_machine.noise_nm));
+              put("EmSpeed", rpm * sc.e_machine.ratio);
               break;
             default: break;
           }

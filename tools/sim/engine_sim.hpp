@@ -119,6 +119,15 @@ struct FrictionModel {
   double oil_ref_c = 90.0;         ///< (°C)
 };
 
+/// Electric machine on the crankshaft (hybrid; docs/simulator.md §4). When present it is the load: the torque the
+/// load model computes (speed-holding or scheduled) is applied by the machine, through a gear of `ratio`, and EM_1
+/// reports its shaft torque T_em = −T_load / ratio (positive when it drives the crank, i.e. motoring).
+struct EMachineSim {
+  bool present = false;   ///< false: no machine, no EM_1 frame (the demo and built-in scenarios)
+  double ratio = 1.0;     ///< machine speed / crank speed (-)
+  double noise_nm = 0.3;  ///< EM_1 EmTorque noise 1σ at the machine shaft (N m)
+};
+
 /// Mean-value (Crossley & Cook) mode exists separately (mean_value_engine.hpp, helper "time").
 struct Scenario {
   std::string name;
@@ -148,6 +157,7 @@ struct Scenario {
   AirPathParams air{};
   DynoParams dyno{};
   SensorParams sensors{};
+  EMachineSim e_machine{};
   int trace_every_steps = 0;             ///< >0: record a FineSample every n integration steps (tests)
 };
 

@@ -40,7 +40,7 @@ EngineSignals signals_at(const SimOutput& out, double t_s, double max_age_s) {
   // First frame after t: walk back until the newest frame of every message was seen (or we are too old).
   auto it = std::upper_bound(out.can.begin(), out.can.end(), t_ns,
                              [](std::int64_t v, const CanFrame& f) { return v < f.t_ns; });
-  bool seen1 = false, seen2 = false, seen3 = false, seen4 = false;
+  bool seen1 = false, seen2 = false, seen3 = false, seen4 = false, seen5 = false;
   while (it != out.can.begin()) {
     --it;
     const CanFrame& f = *it;
@@ -77,8 +77,12 @@ EngineSignals signals_at(const SimOutput& out, double t_s, double max_age_s) {
       seen4 = true;
       sig.load_torque_nm = get("LoadTorque");
       sig.load_torque_valid = true;
+    } else if (f.id == kEm1Id && !seen5) {
+      seen5 = true;
+      sig.em_torque_nm = get("EmTorque");
+      sig.em_torque_valid = true;
     }
-    if (seen1 && seen2 && seen3 && seen4) break;
+    if (seen1 && seen2 && seen3 && seen4 && seen5) break;
   }
   return sig;
 }

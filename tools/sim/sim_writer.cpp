@@ -170,6 +170,13 @@ std::string torqued_config_yaml(const EngineGeometry& engine, const Scenario& sc
        "    fuel_cutoff:   {message: ENGINE_2, signal: FuelCutoff, timeout_ms: 100}\n"
        "    oil_temp:      {message: ENGINE_3, signal: OilTemp, timeout_ms: 500}\n";
   if (load_signal) s += "    load_torque:   {message: DYNO_1, signal: LoadTorque, timeout_ms: 100}\n";
+  // A scenario with a machine: it is the load the simulator applies, so without the dynamometer signal the
+  // machine's torque (EM_1) is the known sole load (hybrid input); with it, the machine is left unbound (the
+  // dynamometer already measures the same torque).
+  if (sc.e_machine.present && !load_signal) {
+    s += "    em_torque:     {message: EM_1, signal: EmTorque, timeout_ms: 100}\n";
+    appendf(s, "  e_machine: {ratio: %.6g, sign: 1, sole_load: true}\n", sc.e_machine.ratio);
+  }
   s += "output:\n  record_dir: \"\"\n  state_dir: \"\"\n";
   return s;
 }

@@ -112,6 +112,19 @@ Scenario bed_learning_run(const BedEngine& e) {
   return s;
 }
 
+Scenario bed_motoring_run(const BedEngine& e) {
+  Scenario s = e.truth;
+  s.name = e.name + "_motoring";
+  s.duration_s = 10.0;
+  s.warmup_s = 1.0;
+  s.speed_rpm = {{0.0, 1000.0}, {1.0, 1000.0}, {1.5, 1500.0}, {2.5, 1500.0}, {3.0, 2000.0}, {4.0, 2000.0},
+                 {4.5, 2500.0}, {5.5, 2500.0}, {6.0, 3000.0}, {7.0, 3000.0}, {7.5, 3500.0}, {8.5, 3500.0},
+                 {9.0, 4000.0}};
+  s.map_target_kpa = {{0.0, 35.0}};
+  s.fuel_cuts = {{-10.0, 100.0, 0.0}};  // never resumes: motored throughout
+  return s;
+}
+
 Scenario bed_eval_run(const BedEngine& e, bool short_run) {
   Scenario s = e.truth;
   s.name = e.name + (short_run ? "_eval_short" : "_eval");

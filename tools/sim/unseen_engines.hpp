@@ -28,6 +28,9 @@ struct BedEngine {
 /// fuel cut-off coast-down; the load signal is on CAN. The estimator state learned here is carried into the
 /// evaluated recording, as a daemon in service does.
 [[nodiscard]] Scenario bed_learning_run(const BedEngine& e);
+/// Motoring recording (hybrid input): fuel cut-off throughout, closed throttle, the load (an electric machine when
+/// the scenario has one) holds 1000, 1500, ... 4000 rpm plateaus: the machine motors the engine.
+[[nodiscard]] Scenario bed_motoring_run(const BedEngine& e);
 /// Evaluated recording: steady plateaus at several speeds and loads, throttle and load transients, a fuel
 /// cut-off. `short_run`: a 4 s subset (ctest).
 [[nodiscard]] Scenario bed_eval_run(const BedEngine& e, bool short_run = false);
