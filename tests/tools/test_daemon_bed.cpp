@@ -17,20 +17,32 @@ namespace torqued::eval {
 namespace {
 namespace fs = std::filesystem;
 
+// Runs one report engine of the bed through the daemon's chain (learn, then evaluate with and without the
+// load signal) in a private directory that is removed afterwards.
+bool run_report_engine(const std::string& name, bool short_run, DaemonBedResult& r, std::string& err) {
+  const sim::BedEngine* e = nullptr;
+  for (const auto& b : sim::unseen_engines())
+    if (b.name == name) e = &b;
+  if (e == nullptr || !e->report) {
+    err = name + ": not a report engine of the bed (only report engines are scored)";
+    return false;
+  }
+  DaemonBedOptions opt;
+  opt.out_dir =
+      (fs::temp_directory_path() / ("torqued_daemon_bed_" + name + "_" + std::to_string(::getpid())))
+          .string();
+  opt.short_run = short_run;
+  const bool ok = evaluate_bed_engine_daemon(*e, opt, r, err);
+  fs::remove_all(opt.out_dir);
+  return ok;
+}
+
 class DaemonBed : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(DaemonBed, LearnedStateCarriesTheNoLoadBrakeTorqueToTheTargets) {
-  const sim::BedEngine* e = nullptr;
-  for (const auto& b : sim::unseen_engines())
-    if (b.name == GetParam()) e = &b;
-  ASSERT_NE(e, nullptr);
-  ASSERT_TRUE(e->report) << "only report engines are scored";
-  DaemonBedOptions opt;
-  opt.out_dir = (fs::temp_directory_path() / ("torqued_daemon_bed_" + std::to_string(::getpid()))).string();
-  opt.short_run = true;
   DaemonBedResult r;
   std::string err;
-  ASSERT_TRUE(evaluate_bed_engine_daemon(*e, opt, r, err)) << err;
+  ASSERT_TRUE(run_report_engine(GetParam(), true, r, err)) << err;
   // The evaluated runs started from the learn run's state file: friction, tooth table and the fuel model.
   EXPECT_NE(r.learned.find("friction law"), std::string::npos) << r.learned;
   EXPECT_NE(r.learned.find("fuel model"), std::string::npos) << r.learned;
@@ -51,7 +63,6 @@ TEST_P(DaemonBed, LearnedStateCarriesTheNoLoadBrakeTorqueToTheTargets) {
   // see docs/angle_pipeline.md, the fuel model's residual is measured at the learn run's operating points
   // only).
   EXPECT_GE(n.brake.covered, 25 * n.brake.n / 100);
-  fs::remove_all(opt.out_dir);
 }
 
 INSTANTIATE_TEST_SUITE_P(ReportEngines, DaemonBed, ::testing::Values("rep_i4_36", "rep_i6_60"));
@@ -64,17 +75,9 @@ INSTANTIATE_TEST_SUITE_P(ReportEngines, DaemonBed, ::testing::Values("rep_i4_36"
 class DaemonBedFuelWindow : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(DaemonBedFuelWindow, NoLoadBrakeTorqueThroughCutOffAndTransientsWithHonestSigma) {
-  const sim::BedEngine* e = nullptr;
-  for (const auto& b : sim::unseen_engines())
-    if (b.name == GetParam()) e = &b;
-  ASSERT_NE(e, nullptr);
-  ASSERT_TRUE(e->report) << "only report engines are scored";
-  DaemonBedOptions opt;
-  opt.out_dir = (fs::temp_directory_path() / ("torqued_fuel_bed_" + std::to_string(::getpid()))).string();
-  opt.short_run = false;
   DaemonBedResult r;
   std::string err;
-  ASSERT_TRUE(evaluate_bed_engine_daemon(*e, opt, r, err)) << err;
+  ASSERT_TRUE(run_report_engine(GetParam(), false, r, err)) << err;
   const DaemonBedStats& b = r.without_load.brake;
   ASSERT_GT(b.n, 100);
   EXPECT_LT(b.max_abs_nm, 12.0);
@@ -83,7 +86,6 @@ TEST_P(DaemonBedFuelWindow, NoLoadBrakeTorqueThroughCutOffAndTransientsWithHones
   EXPECT_GE(b.covered, 40 * b.n / 100) << "claimed 1 sigma too small";
   EXPECT_LE(b.covered, 92 * b.n / 100) << "claimed 1 sigma too large";
   EXPECT_GE(b.covered2, 65 * b.n / 100) << "claimed 2 sigma";
-  fs::remove_all(opt.out_dir);
 }
 
 INSTANTIATE_TEST_SUITE_P(ReportEngines, DaemonBedFuelWindow,

@@ -374,10 +374,8 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
   return r;
 }
 
-BedResult evaluate_bed_engine(const sim::BedEngine& e, const EvalOptions& options, bool short_run) {
-  BedResult b;
-  b.engine = e.name;
-  b.report = e.report;
+namespace {
+EvalOptions bed_options(const sim::BedEngine& e, const EvalOptions& options) {
   EvalOptions o = options;
   o.spec_engine = e.spec;
   o.friction_prior.reset();  // generic correlation from the spec-sheet displacement
@@ -386,6 +384,15 @@ BedResult evaluate_bed_engine(const sim::BedEngine& e, const EvalOptions& option
   o.score_all_cycles = true;
   o.can_lost_after_s = -1.0;
   o.load_lost_after_s = -1.0;
+  return o;
+}
+}  // namespace
+
+BedResult evaluate_bed_engine(const sim::BedEngine& e, const EvalOptions& options, bool short_run) {
+  BedResult b;
+  b.engine = e.name;
+  b.report = e.report;
+  EvalOptions o = bed_options(e, options);
   b.learn = evaluate(sim::bed_learning_run(e), o);
   // Carry the learned state into the evaluated recording (as the daemon's --state-dir does).
   if (b.learn.friction_observations > 0) o.friction = b.learn.friction_coefficients;
@@ -402,17 +409,6 @@ BedResult evaluate_bed_engine(const sim::BedEngine& e, const EvalOptions& option
 }
 
 namespace {
-EvalOptions bed_options(const sim::BedEngine& e, const EvalOptions& options) {
-  EvalOptions o = options;
-  o.spec_engine = e.spec;
-  o.friction_prior.reset();  // generic correlation from the spec-sheet displacement
-  o.friction.reset();
-  o.idle_correction.reset();
-  o.score_all_cycles = true;
-  o.can_lost_after_s = -1.0;
-  o.load_lost_after_s = -1.0;
-  return o;
-}
 EMachineParams sole_machine(double ratio) {
   EMachineParams p;
   p.bound = true;
