@@ -78,6 +78,13 @@ TEST_F(EndToEnd, ReplayThroughDdsToSubscriberMatchesTruth) {
   const Csv got = read_csv(echo_dir + "/engine_cycle.csv");
   const Csv mine = read_csv(daemon_dir + "/engine_cycle.csv");
   ASSERT_GT(mine.rows.size(), 300u) << "demo is ~20 s: expected ~350 cycles";
+  // Issue 16: DaemonStatus counts the CAN frames in paced mode too (it was always 0 outside fast replay).
+  const Csv status = read_csv(daemon_dir + "/daemon_status.csv");
+  const int frames = status.col("can_frames");
+  ASSERT_GE(frames, 0);
+  ASSERT_FALSE(status.rows.empty());
+  EXPECT_GT(std::stoll(status.rows.back()[static_cast<std::size_t>(frames)]), 5000)
+      << "the demo holds ~8000 frames";
   // Everything the daemon recorded crossed DDS unchanged (same seq, same fused value text).
   ASSERT_EQ(got.rows.size(), mine.rows.size()) << test::slurp((dir_ / "echo.log").string());
   const int seq = got.col("seq"), fused = got.col("fused_nm");
