@@ -167,7 +167,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("fuel.sd_ema", fuel.sd_ema, open_closed(0.0, 1.0), "", "weight of the measured residual variance per reference cycle: EMA weight until valid, then the floor of a running mean (1/k)");
   TQ_NUM("fuel.fuel_lhv_j_kg", fuel.fuel_lhv_j_kg, open_closed(1e6, 2e8), "J/kg", "lower heating value of the fuel (gasoline 43 MJ/kg, Heywood app. D)");
   TQ_NUM("fuel.intake_btdc_deg", fuel.intake_btdc_deg, closed(0.0, 300.0), "deg", "intake event (IVC: fuel and charge decided) before firing TDC; a window's fuel and MAP are read there (IVC 40-60 deg after BDC, Heywood 6.3)");
-  TQ_NUM("fuel.work_centroid_atdc_deg", fuel.work_centroid_atdc_deg, closed(0.0, 360.0), "deg", "centroid of a cylinder's work after its firing TDC: places each cylinder's combustion in a 720 deg window (160 chosen on the unseen bed's tuning engines only)");
+  TQ_NUM("fuel.work_centroid_atdc_deg", fuel.work_centroid_atdc_deg, closed(0.0, 360.0), "deg", "centroid of a cylinder's work after its firing TDC: places each cylinder's combustion in a 720 deg window (160, tried on the unseen bed's tuning engines only: 130 gives the same result, 190 is worse)");
   TQ_NUM("fuel.report_window_s", fuel.report_window_s, closed(0.0, 0.1), "s", "an intake event's fuel cut-off state is revised by a consistent CAN report (flag set with no fuel, or clear with fuel) this long after it: one period of a 100 Hz ECU frame");
   TQ_NUM("fuel.transient_sd_scale", fuel.transient_sd_scale, closed(0.0, 10.0), "", "claimed 1 sigma added (in quadrature) per N m of fuel-model torque spread across a window's intake events (transients, cut-off edges)");
   TQ_BOOL("tooth_learn.enabled", tooth_learn.enabled, "apply the per-tooth angle correction table");
