@@ -9,7 +9,7 @@
 # Host A's processes run in a mount namespace of their own with private /tmp and /dev/shm (RouDi's socket, lock
 # file and segments): this RouDi can neither meet nor disturb another one on the machine (test_dds_shm's, a
 # developer's, another worktree's), so the test needs no lock on iceoryx. Its files are in the test's working
-# directory, outside /tmp, so that both sides see them.
+# directory; where that is under /tmp (a checkout in /tmp), host A re-exposes it inside its private /tmp.
 # Needs root (CAP_NET_ADMIN, CAP_SYS_ADMIN) and iox-roudi; skipped (exit 77) otherwise.
 #   netns_two_hosts_shm.sh TORQUED TORQUE_ECHO SOURCE_DIR
 set -euo pipefail
@@ -19,7 +19,13 @@ roudi=$(command -v iox-roudi) || { echo "SKIP: iox-roudi not installed (Debian p
 id=$$
 a=tqsa_$id b=tqsb_$id va=tqsva$id vb=tqsvb$id
 tmp=$(mktemp -d "$PWD/netns_shm.XXXXXX")
-cleanup() { ip netns del "$a" 2>/dev/null || true; ip netns del "$b" 2>/dev/null || true; rm -rf "$tmp"; }
+# Host A's private /tmp hides whatever lives under the real /tmp (a CI checkout in /tmp/..., the build, $tmp):
+# host_a.sh binds the real /tmp to $stage first and re-exposes the top directories it needs.
+stage=/run/torqued-netns-shm.$id
+mkdir -p "$stage"
+cleanup() {
+  ip netns del "$a" 2>/dev/null || true; ip netns del "$b" 2>/dev/null || true; rm -rf "$tmp"; rmdir "$stage" 2>/dev/null || true
+}
 trap cleanup EXIT
 ip netns add "$a"
 ip netns add "$b"
@@ -74,7 +80,14 @@ net_pid=$!
 # SIGTERM to the processes registered with it when it stops).
 cat > "$tmp/host_a.sh" <<EOF
 set -u
+mount --bind /tmp "$stage" || { echo "no private mounts"; exit 77; }
 mount -t tmpfs tmpfs /tmp && mount -t tmpfs tmpfs /dev/shm || { echo "no private /tmp, /dev/shm"; exit 77; }
+for p in "$tmp" "$src" "$torqued" "$echo_exe"; do
+  case "\$p" in
+    /tmp/*) top=\${p#/tmp/}; top=\${top%%/*}; mkdir -p "/tmp/\$top"
+            mountpoint -q "/tmp/\$top" || mount --bind "$stage/\$top" "/tmp/\$top" || exit 1 ;;
+  esac
+done
 export CYCLONEDDS_URI=file://$tmp/a.xml
 "$roudi" -c "$src/config/roudi_config.toml" > "$tmp/roudi.log" 2>&1 &
 roudi_pid=\$!
