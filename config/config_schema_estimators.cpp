@@ -120,6 +120,15 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_INT("energies.rls_window_shifts", energies.params.rls_window_shifts, closed(1, 64), "", "each RLS window also shifted 1..n-1 teeth earlier");
   TQ_NUM("energies.burn_centroid_atdc_deg", energies.params.burn_centroid_atdc_deg, closed(-90.0, 180.0), "deg", "heat release lumped here when the spark advance is unknown");
   TQ_NUM("energies.burn_delay_deg", energies.params.burn_delay_deg, closed(0.0, 180.0), "deg", "spark to equivalent burn centroid: centroid = delay - advance");
+  TQ_BOOL("energies.inertia.learn", energies.params.inertia.learn, "learn J = k x engine.j_rot_kgm2 from consecutive cycles while a load signal is present (estimators/inertia_learner.hpp)");
+  TQ_NUM("energies.inertia.prior_rel_sd", energies.params.inertia.prior_rel_sd, open_closed(0.0, 1.0), "", "1 sigma of the spec-sheet inertia, fraction (catalogue vs fitted flywheel, clutch, damper)");
+  TQ_NUM("energies.inertia.min_step_nm", energies.params.inertia.min_step_nm, open_closed(0.0, 1e4), "N m", "a pair of consecutive cycles counts only when J_spec x accel changes by more than this between them");
+  TQ_NUM("energies.inertia.obs_sd_nm", energies.params.inertia.obs_sd_nm, open_closed(0.0, 1e4), "N m", "1 sigma of one pair's torque residual (CAN load lag, fuelling steps)");
+  TQ_NUM("energies.inertia.gate_sigma", energies.params.inertia.gate_sigma, open_closed(0.0, 1e3), "", "pairs farther than this many sigma from the current fit are rejected");
+  TQ_NUM("energies.inertia.max_fuel_change", energies.params.inertia.max_fuel_change, closed(0.0, 1.0), "", "firing pairs: fuel per injection within this fraction of each other");
+  TQ_NUM("energies.inertia.max_map_change_pa", energies.params.inertia.max_map_change_pa, closed(0.0, 1e6), "Pa", "firing pairs: MAP within this of each other");
+  TQ_NUM("energies.inertia.min_scale", energies.params.inertia.min_scale, open_closed(0.0, 1.0), "", "lower bound of the learned scale k");
+  TQ_NUM("energies.inertia.max_scale", energies.params.inertia.max_scale, closed(1.0, 10.0), "", "upper bound of the learned scale k");
   TQ_NUM("default_oil_temp_c", default_oil_temp_c, closed(-40.0, 200.0), "degC", "oil temperature the friction law assumes until OilTemp arrives on CAN");
   TQ_BOOL("friction.enabled", friction.enabled, "estimate friction torque (EN-24)");
   t.push_back(fixed_list<4>("estimators.friction.c", TQ_REF(Arr4, estimators.friction.params.c), closed(-1e6, 1e6), "",

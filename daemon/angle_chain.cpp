@@ -172,8 +172,11 @@ bool AngleChain::snapshot(LearnedSnapshot& snap) const noexcept {
     if (snap.fuel_valid) snap.fuel = f;
     snap.crank_var = pipeline_->crank_error_var();
     snap.crank_var_valid = crank_var_imported_ || snap.crank_var > 0.0;
+    const InertiaLearner& in = pipeline_->inertia();
+    snap.inertia_valid = inertia_imported_ || !in.is_prior();
+    snap.inertia = {in.scale(), in.information(), s_.engine.j_rot_kgm2};
   }
-  return snap.friction_valid || snap.n_teeth > 0 || snap.fuel_valid || snap.crank_var_valid;
+  return snap.friction_valid || snap.n_teeth > 0 || snap.fuel_valid || snap.crank_var_valid || snap.inertia_valid;
 }
 
 bool AngleChain::learned_state(LearnedState& st) const {
@@ -185,6 +188,7 @@ bool AngleChain::learned_state(LearnedState& st) const {
   st.tooth_corrections_rad.assign(snap.teeth.begin(), snap.teeth.begin() + snap.n_teeth);
   if (snap.fuel_valid) st.fuel = snap.fuel;
   if (snap.crank_var_valid) st.crank_error_var = snap.crank_var;
+  if (snap.inertia_valid) st.inertia = snap.inertia;
   return true;
 }
 
@@ -220,6 +224,19 @@ std::string AngleChain::import_state(const LearnedState& st) {
     pipeline_->import_crank_error_var(*st.crank_error_var);
     crank_var_imported_ = true;
     what += (what.empty() ? "" : ", ") + std::string("crank-only error variance");
+  }
+  if (st.inertia && pipeline_) {
+    // Learned against another spec J: the same absolute J is k·J_old/J_new of this configuration's.
+    const auto& v = *st.inertia;
+    const double j_now = s_.engine.j_rot_kgm2;
+    const double r = j_now > 0.0 ? v[2] / j_now : 1.0;
+    if (pipeline_->inertia().import_state(v[0] * r, v[1] / (r * r))) {
+      inertia_imported_ = true;
+      what += (what.empty() ? "" : ", ") + std::string("inertia scale ") + std::to_string(v[0] * r);
+    } else {
+      what += std::string(what.empty() ? "" : ", ") + "inertia scale REJECTED (" + std::to_string(v[0] * r) +
+              " x engine.j_rot_kgm2 outside the configured bounds)";
+    }
   }
   state_changed_ = !what.empty();
   return what;

@@ -75,6 +75,8 @@ struct LearnedSnapshot {
   FuelTorqueState fuel{};
   bool crank_var_valid = false;  ///< crank-only error variance measured, or imported
   double crank_var = 0.0;        ///< (N m^2)
+  bool inertia_valid = false;     ///< inertia scale learned or imported
+  std::array<double, 3> inertia{};  ///< k, information, J_spec (LearnedState::inertia)
 };
 
 /// Receives the chain's records, on the chain's thread, in order. Implementations must be real-time safe.
@@ -164,6 +166,7 @@ class AngleChain {
   bool friction_imported_ = false;
   bool fuel_imported_ = false;
   bool crank_var_imported_ = false;
+  bool inertia_imported_ = false;
   bool state_changed_ = false;
 };
 

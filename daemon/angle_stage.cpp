@@ -178,6 +178,8 @@ void AngleStage::publish_snapshot() noexcept {
   snap_fuel_valid_.store(scratch_.fuel_valid, std::memory_order_relaxed);
   snap_crank_var_.store(scratch_.crank_var, std::memory_order_relaxed);
   snap_crank_var_valid_.store(scratch_.crank_var_valid, std::memory_order_relaxed);
+  for (std::size_t i = 0; i < 3; ++i) snap_inertia_[i].store(scratch_.inertia[i], std::memory_order_relaxed);
+  snap_inertia_valid_.store(scratch_.inertia_valid, std::memory_order_relaxed);
   snap_seq_.fetch_add(1, std::memory_order_release);  // even: consistent
 }
 
@@ -212,6 +214,10 @@ bool AngleStage::export_state(LearnedState& st) const {
     }
     if (snap_crank_var_valid_.load(std::memory_order_relaxed))
       tmp.crank_error_var = snap_crank_var_.load(std::memory_order_relaxed);
+    if (snap_inertia_valid_.load(std::memory_order_relaxed))
+      tmp.inertia = std::array<double, 3>{snap_inertia_[0].load(std::memory_order_relaxed),
+                                          snap_inertia_[1].load(std::memory_order_relaxed),
+                                          snap_inertia_[2].load(std::memory_order_relaxed)};
     std::atomic_thread_fence(std::memory_order_acquire);
     if (snap_seq_.load(std::memory_order_relaxed) == s0) {
       st = std::move(tmp);

@@ -74,6 +74,8 @@ class AngleStage final : public AngleChainSink {
   std::atomic<bool> snap_fuel_valid_{false};
   std::atomic<double> snap_crank_var_{0.0};
   std::atomic<bool> snap_crank_var_valid_{false};
+  std::array<std::atomic<double>, 3> snap_inertia_{};  ///< InertiaLearner k, information, J_spec
+  std::atomic<bool> snap_inertia_valid_{false};
 };
 
 }  // namespace torqued

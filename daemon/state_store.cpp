@@ -118,6 +118,8 @@ StateContext state_context_from(const Config& cfg) {
                                  2.0 * max_abs_friction(ctx.friction, ctx.friction.c));
   ctx.max_eta = e.compression_ratio > 1.0 ? 1.0 - std::pow(e.compression_ratio, 1.0 - 1.4) : 1.0;
   ctx.max_torque_sd_nm = kMaxFrictionMepPa * vd / (4.0 * std::numbers::pi);
+  ctx.min_inertia_scale = cfg.estimators.energies.params.inertia.min_scale;
+  ctx.max_inertia_scale = cfg.estimators.energies.params.inertia.max_scale;
   return ctx;
 }
 
@@ -143,6 +145,11 @@ std::string serialize_state(const LearnedState& s, const std::string& identity) 
     text += fmt(" %.17g", f.resid_var) + " " + std::to_string(f.references) + "\n";
   }
   if (s.crank_error_var) text += "crank_error_var" + fmt(" %.17g", *s.crank_error_var) + "\n";
+  if (s.inertia) {
+    text += "inertia";
+    for (double v : *s.inertia) text += fmt(" %.17g", v);
+    text += '\n';
+  }
   text += "saved_at_t_ns " + std::to_string(s.saved_at_t_ns) + "\n";
   char sum[32];
   std::snprintf(sum, sizeof sum, "checksum crc32 %08x\n", crc32(text.data(), text.size()));
@@ -187,6 +194,11 @@ bool parse_line(const std::string& key, std::istringstream& ls, LearnedState& s,
     double v = 0.0;
     if (!(ls >> v) || !std::isfinite(v)) return *what = "expected a finite variance (N m^2)", false;
     s.crank_error_var = v;
+  } else if (key == "inertia") {
+    std::array<double, 3> v{};
+    if (!(ls >> v[0] >> v[1] >> v[2]) || !std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2]))
+      return *what = "expected an inertia scale, its information (1/sigma^2) and the spec J (kg m^2)", false;
+    s.inertia = v;
   } else if (key == "saved_at_t_ns") {
     if (!(ls >> s.saved_at_t_ns)) return *what = "expected an integer time", false;
   } else if (key == "identity" && s.version >= 2) {
@@ -319,6 +331,13 @@ bool check_state(const LearnedState& s, const StateContext& ctx, const std::stri
     if (!(v >= 0.0 && std::sqrt(v) <= ctx.max_torque_sd_nm))
       return fail("crank-only error variance " + fmt("%g", v) + " N m^2 not in [0, (" +
                   fmt("%g", ctx.max_torque_sd_nm) + " N m)^2]");
+  }
+  if (s.inertia) {
+    const auto& v = *s.inertia;
+    if (!(v[0] >= ctx.min_inertia_scale && v[0] <= ctx.max_inertia_scale && v[1] > 0.0 && v[2] > 0.0))
+      return fail("inertia scale " + fmt("%g", v[0]) + " not in [" + fmt("%g", ctx.min_inertia_scale) + ", " +
+                  fmt("%g", ctx.max_inertia_scale) + "], or information " + fmt("%g", v[1]) + " or spec J " +
+                  fmt("%g", v[2]) + " kg m^2 not positive");
   }
   return true;
 }

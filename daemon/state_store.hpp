@@ -9,9 +9,12 @@
 //   tooth_corrections <n> <rad_0> ... <rad_n-1>      (optional)
 //   fuel_model <eta> <p_exh V_d/4pi N m> <P00> <P01> <P10> <P11> <resid var N m^2> <references>  (optional)
 //   crank_error_var <N m^2>                          (optional: measured variance of the crank-only chain)
+//   inertia <k> <information 1/k^2> <J_spec kg m^2>  (optional: J = k x J_spec, InertiaLearner; J_spec is the
+//                                                    engine.j_rot_kgm2 it was learned against)
 //   saved_at_t_ns <edge-clock time>
 //   checksum crc32 <8 hex digits of CRC-32 (IEEE) over every byte before this line>
-// fuel_model and crank_error_var were added to version 2 (issue 14); version 2 files without them still load.
+// fuel_model, crank_error_var and inertia were added to version 2 (issue 14); version 2 files without them still
+// load.
 // Version 1 files (no identity, no checksum) are still read and checked against the bounds; the next save
 // rewrites them as version 2.
 //
@@ -48,6 +51,7 @@ struct LearnedState {
   std::vector<double> tooth_corrections_rad;           ///< ToothErrorLearner table (empty = none)
   std::optional<FuelTorqueState> fuel;    ///< FuelTorque learned efficiency / pumping / covariance
   std::optional<double> crank_error_var;  ///< measured crank-only indicated error variance (N m^2)
+  std::optional<std::array<double, 3>> inertia;  ///< InertiaLearner k, its information (1/sigma^2), J_spec (kg m^2)
   std::int64_t saved_at_t_ns = 0;
   std::string identity;  ///< read from the file (version 2); written from StateContext on save
   int version = 2;       ///< read from the file
@@ -64,6 +68,8 @@ struct StateContext {
   /// ratio, 1 - r^(1-gamma) with gamma = 1.4 (Heywood 1988 eq. 5.31); no real cycle converts more.
   double max_eta = 1.0;
   double max_torque_sd_nm = 0;  ///< bound of a learned 1 sigma (N m): the torque of kMaxFrictionMepPa
+  double min_inertia_scale = 0;  ///< bounds of the learned inertia scale (estimators.energies.inertia)
+  double max_inertia_scale = 0;
 };
 
 /// Friction mean effective pressure no engine reaches (Pa): 50 bar. Motored friction is 1-3 bar fmep at rated

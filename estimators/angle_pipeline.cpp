@@ -52,6 +52,7 @@ AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
       wide_(energy_, config.energies.cycle_ke_window_deg, 0.5 * config.energies.energy_window_deg),
       rls_(config.engine, config.wheel, config.energies),
       friction_(cfg_.friction),
+      inertia_(config.energies.inertia),
       eso_(config.engine, config.energies),
       fuel_(config.engine, config.fuel),
       fuel_win_(config.engine.cylinders, firing_tdcs(config.engine), config.fuel.intake_btdc_deg,
@@ -80,7 +81,8 @@ void AnglePipeline::reset() noexcept {
   kalman_.reset();
   fourier_.reset();
   load_star_nm_ = 0.0;
-  // The friction learner keeps what it learned (persisted state); call friction().reset() to forget.
+  // The friction and inertia learners keep what they learned (persisted state); call their reset() to forget.
+  prev_inertia_ = InertiaPoint{};
   tooth_ = ToothOutput{};
   cycle_ = CycleOutput{};
   stats_ = AnglePipelineStats{};
@@ -391,6 +393,37 @@ void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bo
   }
 }
 
+void AnglePipeline::learn_inertia(const SegmentEnergy& seg, bool can_fresh, double dke_spec_nm,
+                                  const CycleOutput& o) noexcept {
+  if (!o.cycle_end) return;  // consecutive, non-overlapping 720° windows
+  const int n = cfg_.engine.cylinders;
+  const FuelWindow fw = fuel_window(seg);
+  InertiaPoint p;
+  p.ok = seg.cycle_load_valid && can_fresh && fw.valid && have_map_;
+  p.fired = fw.fired == n && fw.cut == 0;
+  p.cut = fw.fired == 0 && fw.cut == n;
+  p.dke_spec_nm = dke_spec_nm;
+  p.load_nm = seg.cycle_load_mean_nm;
+  p.rpm = o.speed_mean_rad_s * kRadSToRpm;
+  p.fuel_kg = fw.fuel_kg;
+  p.map_pa = p.fired ? fw.map_fired_pa : fw.map_cut_pa;
+  const InertiaPoint& q = prev_inertia_;
+  const InertiaParams& ip = cfg_.energies.inertia;
+  const bool same_firing = p.fired && q.fired &&
+                           std::fabs(p.fuel_kg - q.fuel_kg) <= ip.max_fuel_change * std::max(p.fuel_kg, q.fuel_kg) &&
+                           std::fabs(p.map_pa - q.map_pa) <= ip.max_map_change_pa;
+  const bool both_cut = p.cut && q.cut;
+  if (p.ok && q.ok && (same_firing || both_cut)) {
+    // k·Δ(ΔKE_spec/4π) = −ΔT_load − ΔT_fric + ΔT_ind (inertia_learner.hpp); ΔT_ind = 0 at the same fuelling, the
+    // modelled motored torque's change in cut-off.
+    const double d_ind = both_cut ? rls_.motored_torque_nm(p.map_pa) - rls_.motored_torque_nm(q.map_pa) : 0.0;
+    const double y = -(p.load_nm - q.load_nm) - (friction_.friction_nm(p.rpm, oil_c_) -
+                                                 friction_.friction_nm(q.rpm, oil_c_)) + d_ind;
+    if (inertia_.observe(p.dke_spec_nm - q.dke_spec_nm, y)) ++stats_.inertia_observations;
+  }
+  prev_inertia_ = p;
+}
+
 void AnglePipeline::fuse(const SegmentEnergy& seg, const EngineSignals& sig, CycleOutput& o) noexcept {
   const double fric = o.friction.torque_nm;
   const double fric_sd = o.friction.uncertainty;
@@ -440,14 +473,18 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
         make(seg.t_ns, 0.0, 0.0, Health::kNotConverged);
     o.fused = fusion_.estimate();
     cycle_ = o;
+    prev_inertia_.ok = false;
     return;
   }
   o.speed_mean_rad_s = kFourPi / seg.cycle_dt_s;
-  // Δ(½Jθ̇²)/4π; at boundary 0 from the wide window when it completed here (jitter noise / ≈ 4, CycleKeWindow)
+  // Δ(½Jθ̇²)/4π; at boundary 0 from the wide window when it completed here (jitter noise / ≈ 4, CycleKeWindow).
+  // Computed with the spec sheet's J, scaled by the learned k (J = k·J_spec, InertiaLearner).
   const bool wide = o.cycle_end && wide_done_ && wide_.cycle_valid();
-  const double dke_nm = (wide ? wide_.d_ke_cycle_j() : seg.d_ke_cycle_j) / kFourPi;
+  const double dke_spec_nm = (wide ? wide_.d_ke_cycle_j() : seg.d_ke_cycle_j) / kFourPi;
+  const double dke_nm = inertia_.scale() * dke_spec_nm;
   cycle_balance(seg, sig, can_fresh, dke_nm, o);
   learn(seg, sig, can_fresh, dke_nm, o);
+  learn_inertia(seg, can_fresh, dke_spec_nm, o);
   fuse(seg, sig, o);
   cycle_ = o;
 }

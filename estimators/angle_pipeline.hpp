@@ -33,6 +33,7 @@
 #include "fourier_observer.hpp"
 #include "friction_learner.hpp"
 #include "fuel_torque.hpp"
+#include "inertia_learner.hpp"
 #include "indicated_eso.hpp"
 #include "load_rls.hpp"
 #include "params.hpp"
@@ -100,6 +101,7 @@ struct AnglePipelineStats {
   std::uint64_t segments = 0;
   std::uint64_t cycles = 0;
   std::uint64_t friction_observations = 0;
+  std::uint64_t inertia_observations = 0;  ///< cycle pairs the inertia learner learned from
   std::uint64_t misfires = 0;
 };
 
@@ -134,6 +136,9 @@ class AnglePipeline {
   [[nodiscard]] const FrictionLearner& friction() const noexcept { return friction_; }
   [[nodiscard]] const LoadRls& load_rls() const noexcept { return rls_; }
   /// Fuel-based indicated torque (learned efficiency; persisted with friction, see FuelTorqueState).
+  /// J = scale · J_spec, learned from a known load (InertiaLearner); persisted like the friction law.
+  [[nodiscard]] InertiaLearner& inertia() noexcept { return inertia_; }
+  [[nodiscard]] const InertiaLearner& inertia() const noexcept { return inertia_; }
   [[nodiscard]] FuelTorque& fuel_model() noexcept { return fuel_; }
   [[nodiscard]] const FuelTorque& fuel_model() const noexcept { return fuel_; }
   /// Measured variance of the compression-window chain's indicated torque vs the energy balance (N m²).
@@ -155,6 +160,7 @@ class AnglePipeline {
   void learn(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,
              const CycleOutput& o) noexcept;
   void fuse(const SegmentEnergy& seg, const EngineSignals& sig, CycleOutput& o) noexcept;
+  void learn_inertia(const SegmentEnergy& seg, bool can_fresh, double dke_spec_nm, const CycleOutput& o) noexcept;
   [[nodiscard]] bool motoring_observation_allowed(const SegmentEnergy& seg, const EngineSignals& sig,
                                                   bool load_steady) const noexcept;
   [[nodiscard]] bool idle_observation_allowed(const SegmentEnergy& seg, const TorqueEstimate& rls, double rpm,
@@ -168,6 +174,13 @@ class AnglePipeline {
   CycleKeWindow wide_;  ///< wide KE window for the 720° balance (energies.cycle_ke_window_deg)
   LoadRls rls_;
   FrictionLearner friction_;
+  InertiaLearner inertia_;
+  /// The previous cycle end, for the inertia learner's pairs of consecutive cycles.
+  struct InertiaPoint {
+    bool ok = false, fired = false, cut = false;
+    double dke_spec_nm = 0.0, load_nm = 0.0, rpm = 0.0, fuel_kg = 0.0, map_pa = 0.0;
+  };
+  InertiaPoint prev_inertia_{};
   IndicatedEso eso_;
   FuelTorque fuel_;
   TorqueEstimate fuel_ind_{};  ///< model-based indicated torque of the window: fuel model, motored in cut-off

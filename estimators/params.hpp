@@ -72,6 +72,22 @@ struct FourierParams {
 };
 
 /// Energies 2019 chain (ESTIMATORS.md §3).
+/// Learning the crankshaft inertia from a known load (estimators/inertia_learner.hpp, issue 14). The spec sheet's
+/// J (engine.j_rot_kgm2) is a drawing or catalogue figure: the flywheel, clutch or damper fitted can differ by
+/// ±10 % or more, and the cycle balance's J·θ̈ term carries that error straight into the friction learned in a
+/// decelerating fuel cut-off and into the brake torque of every transient.
+struct InertiaParams {
+  bool learn = true;                  ///< learn a scale k (J = k·J_spec) while a load signal is present (-)
+  double prior_rel_sd = 0.15;         ///< 1σ of the spec-sheet J, fraction (catalogue vs fitted flywheel) (-)
+  double min_step_nm = 3.0;           ///< a cycle pair counts only when Δ(J_spec θ̈) between them exceeds this (N m)
+  double obs_sd_nm = 1.5;             ///< 1σ of one pair's torque residual (CAN load lag, fuel-model steps) (N m)
+  double gate_sigma = 4.0;            ///< pairs farther than this many σ from the current fit are rejected (-)
+  double max_fuel_change = 0.02;      ///< firing pairs: fuel per injection within this fraction (-)
+  double max_map_change_pa = 2000.0;  ///< and MAP within this (Pa)
+  double min_scale = 0.6;             ///< bounds of k (-)
+  double max_scale = 1.6;
+};
+
 struct EnergiesParams {
   double window_start_btdc_deg = 50.0;  ///< RLS window start before TDC (deg)
   double window_end_btdc_deg = 20.0;    ///< RLS window end before TDC (deg)
@@ -105,6 +121,7 @@ struct EnergiesParams {
                                         ///< above this re-seeds the RLS at the cycle mean (0: RLS alone) (-)
   double rls_step_min_sd_nm = 1.0;      ///< floor of the innovations' 1σ (N m)
   double rls_change_max_sd_nm = 6.0;    ///< no load-change tracking while the cycle mean's steady 1σ exceeds this (N m)
+  InertiaParams inertia{};             ///< inertia learned from a known load (inertia_learner.hpp)
   double can_load_latency_s = 0.010;    ///< the CAN load torque lags the flange by this (sensor lag + half the frame
                                         ///< period); the energy balance takes each tooth's load this much later (s)
 };

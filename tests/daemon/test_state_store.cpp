@@ -51,6 +51,7 @@ class StateStore : public ::testing::Test {
     s.friction_idle = std::array<double, 2>{1.4999999999999998, 812.25};
     s.tooth_corrections_rad.assign(58, 0.0);
     s.tooth_corrections_rad[3] = 7.123456789012345e-4 * scale;
+    s.inertia = std::array<double, 3>{1.0873456789012345, 4321.5, 0.146722};
     s.saved_at_t_ns = 12'345'678'901;
     s.identity = ctx_.identity;
     return s;
@@ -74,6 +75,7 @@ TEST_F(StateStore, RoundTripIsExactForEveryFieldAndPassesTheChecks) {
   EXPECT_EQ(r->friction, s.friction);
   EXPECT_EQ(r->friction_idle, s.friction_idle);
   EXPECT_EQ(r->tooth_corrections_rad, s.tooth_corrections_rad);
+  EXPECT_EQ(r->inertia, s.inertia);
   EXPECT_EQ(r->saved_at_t_ns, s.saved_at_t_ns);
   EXPECT_EQ(r->identity, ctx_.identity);
   EXPECT_TRUE(check_state(*r, ctx_, path_, &err)) << err;
@@ -87,6 +89,7 @@ TEST_F(StateStore, MalformedLinesAreRefusedNamingFileAndLine) {
       {"torqued-state 1\nfriction 1 2 3 4 5\n", "unexpected '5'"},
       {"torqued-state 3\n", "'torqued-state 2' header"},
       {"torqued-state 1\nwhat 1\n", "unknown key 'what'"},
+      {"torqued-state 1\ninertia 1.1 400\n", "inertia scale, its information"},
       {"torqued-state 2\nidentity x\n", "no checksum line"},
       {"torqued-state 1\nfriction 1 2 3 4", "truncated"},
       {"", "empty file"},
@@ -136,6 +139,12 @@ TEST_F(StateStore, ValuesOutsidePhysicalBoundsAreRejectedEvenWithAValidChecksum)
   s = good();
   s.tooth_corrections_rad.resize(30);  // the 30 corrections for a 58-tooth wheel
   rejects(s, "30 tooth corrections, but the wheel has 58 teeth");
+  s = good();
+  (*s.inertia)[0] = 3.0;  // J three times the spec sheet's
+  rejects(s, "inertia scale 3");
+  s = good();
+  (*s.inertia)[2] = 0.0;
+  rejects(s, "spec J 0");
   // The configured prior itself and a learned law 50 % away from it pass.
   std::string err;
   EXPECT_TRUE(check_state(good(1.5), ctx_, "f", &err)) << err;

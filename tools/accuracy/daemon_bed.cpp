@@ -75,8 +75,9 @@ WindowTruth window_truth(const sim::SimOutput& out, double t0, double t1) {
   return w;
 }
 
-void add(DaemonBedStats& s, double est, double truth, double sd, bool transient) {
+void add(DaemonBedStats& s, double est, double truth, double sd, bool transient, double tight_rel = 0.03) {
   const double err = est - truth;
+  if (std::fabs(err) <= std::max(tight_rel * std::fabs(truth), 2.0)) ++s.tight;
   const double allowed =
       transient ? std::max(0.08 * std::fabs(truth), 5.0) : std::max(0.05 * std::fabs(truth), 3.0);
   ++s.n;
@@ -117,7 +118,7 @@ DaemonBedRun score(const std::vector<Row>& rows, const sim::SimOutput& out, int 
     ++r.cycles;
     add(r.brake, x.brake.torque_nm, w.brake, x.brake.uncertainty, transient);
     add(r.indicated, x.indicated.torque_nm, w.ind, x.indicated.uncertainty, transient);
-    add(r.friction, x.friction.torque_nm, w.fric, x.friction.uncertainty, transient);
+    add(r.friction, x.friction.torque_nm, w.fric, x.friction.uncertainty, transient, 0.10);
     if (x.fused_valid) add(r.fused, x.fused, w.brake, x.fused_sd, transient);
     char line[320];
     std::snprintf(line, sizeof line, "%.6f,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f\n", x.t1_s,
@@ -186,6 +187,8 @@ bool evaluate_bed_engine_daemon(const sim::BedEngine& e, const DaemonBedOptions&
     LearnedState st;
     Tap learn_tap;
     if (!replay(dir / "learn" / "torqued.yaml", nullptr, &st, learn_tap, nullptr, error)) return false;
+    if (st.inertia) r.inertia_scale = (*st.inertia)[0];
+    r.inertia_true_scale = e.truth.engine.j_rot_kgm2 / e.spec.j_rot_kgm2;
     const sim::Scenario ev = sim::bed_eval_run(e, opt.short_run);
     const sim::SimOutput ev_out = sim::simulate(ev);
     sim::write_recording(ev_out, ev, e.spec, dir / "eval");
