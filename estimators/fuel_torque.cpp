@@ -76,8 +76,11 @@ bool FuelTorque::learn(double fuel_kg, double map_pa, double t_ind_ref) noexcept
   const double phi[2] = {n_cyl_ * fuel_kg * params_.fuel_lhv_j_kg / kFourPi, -1.0};
   const double y = t_ind_ref - map_pa * vd_4pi_;
   const double err = y - (phi[0] * st_.theta[0] + phi[1] * st_.theta[1]);
-  if (valid() && err * err > 25.0 * st_.resid_var) return false;  // 5σ outlier
+  // 5σ outlier gate. Its σ never falls below one reference's own noise (residual_sd_nm): a variance measured
+  // on a few plateaus must not reject every new operating point, which would then never enter the model or
+  // its claimed 1σ (the claimed σ shrank to 0.3 N m on an engine whose other points were 2-4 N m off).
   const double r = params_.residual_sd_nm * params_.residual_sd_nm;
+  if (valid() && err * err > 25.0 * std::max(st_.resid_var, r)) return false;
   const double pphi[2] = {st_.p[0] * phi[0] + st_.p[1] * phi[1], st_.p[2] * phi[0] + st_.p[3] * phi[1]};
   const double lam = params_.forgetting;
   const double denom = lam * r + phi[0] * pphi[0] + phi[1] * pphi[1];

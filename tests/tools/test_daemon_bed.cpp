@@ -72,7 +72,7 @@ INSTANTIATE_TEST_SUITE_P(ReportEngines, DaemonBed, ::testing::Values("rep_i4_36"
 // >= 90 % within the tolerance, claimed 1 sigma covers >= 40 % and 2 sigma >= 65 %; with the load signal
 // friction within 10 % or 2 N m on >= 95 % of the cycles and indicated within 3 % or 2 N m on >= 75 %; the
 // learned inertia within 4 % of the hidden truth. Pooled over the six engines the claimed 1 sigma covers 55-90 %
-// (today 48-100 % per engine, 79 % pooled: see docs/angle_pipeline.md). Label slow (about 25 s).
+// (today 78-100 % per engine, 85 % pooled: see docs/angle_pipeline.md). Label slow (about 25 s).
 TEST(DaemonBedFuelWindow, ReportEnginesNoLoadBrakeFrictionInertiaAndPooledCoverage) {
   int n = 0, covered = 0;
   for (const char* name : {"rep_i4_60", "rep_i4_36", "rep_i3_60", "rep_i3_36", "rep_i6_60", "rep_i6_36"}) {
