@@ -140,6 +140,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_INT("friction.min_observations", friction.params.min_observations, closed(1, 1000000), "cycles", "motoring cycles before the learned law is valid");
   TQ_NUM("friction.min_rpm", friction.params.min_rpm, closed(0.0, 20000.0), "rpm", "observations accepted above this speed");
   TQ_NUM("friction.max_rpm", friction.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "and below this speed");
+  TQ_NUM("friction.motoring_gate_sigma", friction.params.motoring_gate_sigma, closed(0.0, 1e3), "", "once learned, a motoring observation farther than this many sigma from the law (learned_sd_nm with the law's own spread there) is rejected (0: no gate)");
+  TQ_INT("friction.motoring_gate_reaccept", friction.params.motoring_gate_reaccept, closed(1, 1000000), "cycles", "so many gated observations in a row on the same side are learned from: a real change of friction");
   TQ_NUM("friction.max_load_change_nm", friction.params.max_load_change_nm, open_closed(0.0, 1e4), "N m", "skip observations while the measured load moves more than this per segment");
   TQ_BOOL("friction.learn_at_idle", friction.params.learn_at_idle, "learn a local idle correction of the law from the steady-idle friction (off: only C4 learns at idle)");
   TQ_INT("friction.idle_steady_cycles", friction.params.idle_steady_cycles, closed(1, 100000), "cycles", "idle observations only after this many cycles of steady idle");

@@ -41,6 +41,24 @@ void FrictionLearner::reset() noexcept {
   idle_rpm_ = 0.0;
   idle_prior_n_ = 0;
   n_motoring_ = n_idle_ = n_rejected_ = 0;
+  gated_run_ = 0;
+  gated_sign_ = 0.0;
+}
+
+bool FrictionLearner::gate_rejects(double err, double law_var) noexcept {
+  if (n_motoring_ < static_cast<std::uint64_t>(params_.min_observations) || !(params_.motoring_gate_sigma > 0.0))
+    return false;
+  const double var = params_.learned_sd_nm * params_.learned_sd_nm + std::max(0.0, law_var);
+  const double g = params_.motoring_gate_sigma;
+  if (err * err <= g * g * var) {
+    gated_run_ = 0;
+    return false;
+  }
+  const double side = err > 0.0 ? 1.0 : -1.0;
+  gated_run_ = side == gated_sign_ ? gated_run_ + 1 : 1;
+  gated_sign_ = side;
+  if (gated_run_ >= params_.motoring_gate_reaccept) return false;  // consistent: the friction really moved
+  return true;
 }
 
 bool FrictionLearner::observe_motoring(double speed_rpm, double oil_temp_c, double friction_nm) noexcept {
@@ -64,6 +82,10 @@ bool FrictionLearner::observe_motoring(double speed_rpm, double oil_temp_c, doub
   }
   const double y_hat = phi[0] * theta_[0] + phi[1] * theta_[1] + phi[2] * theta_[2];
   const double err = friction_nm - y_hat;
+  if (gate_rejects(err, phi[0] * pphi[0] + phi[1] * pphi[1] + phi[2] * pphi[2])) {
+    ++n_rejected_;
+    return false;
+  }
   std::array<double, 9> pn{};
   for (int i = 0; i < 3; ++i) {
     const double k = pphi[i] / denom;

@@ -43,7 +43,10 @@ class FrictionLearner {
   void reset() noexcept;
 
   /// Motoring observation (fuel cut-off): friction torque `friction_nm` measured at `speed_rpm`, `oil_temp_c`.
-  /// Returns false (and counts) when rejected (non-finite, outside the speed range). Real-time safe.
+  /// Returns false (and counts) when rejected: non-finite, outside the speed range, or (once learned) farther
+  /// than motoring_gate_sigma σ from the law's prediction, σ² = learned_sd_nm² + φᵀPφ (the law's own spread there,
+  /// large where it was never learned), so one bad cycle cannot move the law; motoring_gate_reaccept such
+  /// rejections in a row on the same side are taken as a real change and learned from. Real-time safe.
   bool observe_motoring(double speed_rpm, double oil_temp_c, double friction_nm) noexcept;
 
   /// Idle observation: friction torque equals the indicated torque (no load). Learns C4 from oil-temperature
@@ -79,6 +82,8 @@ class FrictionLearner {
   [[nodiscard]] Health health() const noexcept;
 
  private:
+  /// Innovation gate of observe_motoring (see there); counts the run of same-side rejections.
+  bool gate_rejects(double err, double law_var) noexcept;
   FrictionParams params_;
   std::array<double, 4> base_{};   ///< reset point: configured or imported coefficients
   std::array<double, 3> theta_{};  ///< scaled [C1, C2·1000, C3·1e6]
@@ -93,6 +98,8 @@ class FrictionLearner {
   std::uint64_t idle_prior_n_ = 0; ///< weight (observations) of an imported idle correction
   bool imported_ = false;
   std::uint64_t n_motoring_ = 0, n_idle_ = 0, n_rejected_ = 0;
+  int gated_run_ = 0;        ///< consecutive motoring observations rejected by the gate, all on one side
+  double gated_sign_ = 0.0;  ///< side (sign of the error) of that run
 };
 
 }  // namespace torqued

@@ -157,6 +157,9 @@ struct FrictionParams {
                                         ///< zero load) below the motoring range (off: idle only learns C4)
   int idle_steady_cycles = 10;          ///< idle observations only after this many cycles of steady idle (-)
   double idle_fade_rpm = 1500.0;        ///< the idle correction fades linearly from the idle speed to 0 here (rpm)
+  double motoring_gate_sigma = 4.0;     ///< once learned, a motoring observation farther than this many σ of its
+                                        ///< prediction (learned_sd_nm ⊕ the law's own spread there) is rejected (-)
+  int motoring_gate_reaccept = 10;      ///< .. unless this many in a row disagree the same way: a real change (-)
   double max_load_change_nm = 1.0;      ///< skip observations while the measured load moves more than this per
                                         ///< segment (the CAN load lags the flange; dyno transients) (N m)
 };
