@@ -127,6 +127,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("energies.inertia.gate_sigma", energies.params.inertia.gate_sigma, open_closed(0.0, 1e3), "", "pairs farther than this many sigma from the current fit are rejected");
   TQ_NUM("energies.inertia.max_fuel_change", energies.params.inertia.max_fuel_change, closed(0.0, 1.0), "", "firing pairs: fuel per injection within this fraction of each other");
   TQ_NUM("energies.inertia.max_map_change_pa", energies.params.inertia.max_map_change_pa, closed(0.0, 1e6), "Pa", "firing pairs: MAP within this of each other");
+  TQ_NUM("energies.inertia.apply_max_sd", energies.params.inertia.apply_max_sd, open_closed(0.0, 1.0), "", "the learned scale replaces the spec sheet's J only once its 1 sigma is below this");
   TQ_NUM("energies.inertia.min_scale", energies.params.inertia.min_scale, open_closed(0.0, 1.0), "", "lower bound of the learned scale k");
   TQ_NUM("energies.inertia.max_scale", energies.params.inertia.max_scale, closed(1.0, 10.0), "", "upper bound of the learned scale k");
   TQ_NUM("default_oil_temp_c", default_oil_temp_c, closed(-40.0, 200.0), "degC", "oil temperature the friction law assumes until OilTemp arrives on CAN");

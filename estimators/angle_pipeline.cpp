@@ -481,7 +481,7 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
   // Computed with the spec sheet's J, scaled by the learned k (J = k·J_spec, InertiaLearner).
   const bool wide = o.cycle_end && wide_done_ && wide_.cycle_valid();
   const double dke_spec_nm = (wide ? wide_.d_ke_cycle_j() : seg.d_ke_cycle_j) / kFourPi;
-  const double dke_nm = inertia_.scale() * dke_spec_nm;
+  const double dke_nm = inertia_.applied_scale() * dke_spec_nm;
   cycle_balance(seg, sig, can_fresh, dke_nm, o);
   learn(seg, sig, can_fresh, dke_nm, o);
   learn_inertia(seg, can_fresh, dke_spec_nm, o);

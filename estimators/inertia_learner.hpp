@@ -36,6 +36,8 @@ class InertiaLearner {
 
   /// k (J = k·J_spec) and its 1σ.
   [[nodiscard]] double scale() const noexcept { return k_; }
+  /// The k the balances use: the learned one once its 1σ ≤ apply_max_sd, the spec sheet's (1) before.
+  [[nodiscard]] double applied_scale() const noexcept { return scale_sd() <= params_.apply_max_sd ? k_ : 1.0; }
   [[nodiscard]] double scale_sd() const noexcept;
   /// Information of the estimate (1/σ²) for persistence; import_state() takes it back.
   [[nodiscard]] double information() const noexcept { return info_; }

@@ -84,6 +84,8 @@ struct InertiaParams {
   double gate_sigma = 4.0;            ///< pairs farther than this many σ from the current fit are rejected (-)
   double max_fuel_change = 0.02;      ///< firing pairs: fuel per injection within this fraction (-)
   double max_map_change_pa = 2000.0;  ///< and MAP within this (Pa)
+  double apply_max_sd = 0.03;         ///< k replaces the spec sheet's J only once its 1σ is below this; before,
+                                      ///< a few pairs could swing it by ±8 % and every transient with it (-)
   double min_scale = 0.6;             ///< bounds of k (-)
   double max_scale = 1.6;
 };

@@ -77,6 +77,18 @@ TEST(InertiaLearner, BoundedAndPersistedExactly) {
   EXPECT_TRUE(r.is_prior());
 }
 
+TEST(InertiaLearner, TheSpecSheetHoldsUntilTheEstimateIsTight) {
+  InertiaParams p;
+  InertiaLearner l(p);
+  EXPECT_TRUE(l.observe(20.0, 22.0));  // one pair says +10 %
+  EXPECT_GT(l.scale(), 1.05);
+  EXPECT_GT(l.scale_sd(), p.apply_max_sd);
+  EXPECT_EQ(l.applied_scale(), 1.0);  // not yet used by the balances
+  feed(l, 1.1, 1.5, 30, 9);
+  EXPECT_LE(l.scale_sd(), p.apply_max_sd);
+  EXPECT_EQ(l.applied_scale(), l.scale());
+}
+
 TEST(InertiaLearner, LearningOffHoldsTheSpecSheet) {
   InertiaParams p;
   p.learn = false;
