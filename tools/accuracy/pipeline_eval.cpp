@@ -242,6 +242,7 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
       last_sig = sig;
     }
     if (opt.load_lost_after_s >= 0.0 && t_s >= opt.load_lost_after_s) sig.load_torque_valid = false;
+    if (opt.no_fuel_cutoff_flag) sig.fuel_cutoff_valid = false;
     const std::uint8_t ready = pipe.on_tooth(s, sig);
     if (!(ready & AnglePipeline::kCycleReady)) continue;
     const CycleOutput& o = pipe.cycle_output();

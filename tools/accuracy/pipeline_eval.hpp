@@ -42,6 +42,7 @@ struct EvalOptions {
   double transient_pct = 5.0, transient_nm = 3.0;
   AnglePipelineConfig base{};  ///< tuning (engine/wheel are taken from the scenario)
   EMachineParams e_machine{};  ///< hybrid input: bound = the EM_1 machine torque is used (scenario with a machine)
+  bool no_fuel_cutoff_flag = false;  ///< the ECU sends no cut-off flag: fuel mass 0 is all there is
 };
 
 /// One compared cycle (the pipeline's rolling 720° window ending at boundary 0).
