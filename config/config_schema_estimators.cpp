@@ -75,7 +75,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("kalman.torque_sd_nm", kalman.params.torque_sd_nm, open_closed(0.0, 1e5), "N m", "stationary 1 sigma of the net torque; sets Q");
   TQ_NUM("kalman.edge_noise_deg", kalman.params.edge_noise_deg, open_closed(0.0, 10.0), "deg", "edge-angle error used for R");
   TQ_NUM("kalman.jitter_s", kalman.params.jitter_s, closed(0.0, 1e-2), "s", "timestamp jitter used for R");
-  TQ_INT("kalman.smoother_lag", kalman.params.smoother_lag, closed(0, 6), "teeth", "fixed-lag smoother output (0 = paper's predictor)");
+  TQ_INT("kalman.smoother_lag", kalman.params.smoother_lag, closed(0, 12), "teeth", "fixed-lag smoother output (0 = paper's predictor)");
   TQ_BOOL("kalman.periodic_gains", kalman.params.periodic_gains, "precomputed periodic gains (APS) instead of exact Riccati");
   TQ_NUM("kalman.min_rpm", kalman.params.min_rpm, open_closed(0.0, 20000.0), "rpm", "lowest speed of the APS gain schedule");
   TQ_NUM("kalman.max_rpm", kalman.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "highest speed of the APS gain schedule");

@@ -10,11 +10,12 @@
 // which is (CK-3) [1 − 2Δα f̄/J ≈ J_k/J_{k+1}] without its first-order truncation and with exact unequal steps
 // across the gap. Coloured noise (CK-18): x2(k+1) = 2a x2(k) − a² x2(k−1) + (1−a)² u(k), a = e^{−δΔ_k}.
 // The extra lags (beyond the paper's q = 2) make a fixed-lag smoother: the filtered estimate of x2(k−d)
-// uses d more teeth of speed and removes most of the predictor's phase lag (d = smoother_lag, latency d
-// teeth). Measurement y_k = θ̇²(k) = (w_k/dt_k)², R_k from the edge-angle error and jitter (relative, so R ∝
-// θ̇⁴). Because R depends on speed, the asymptotic periodic gains (APS, CK §VI and Bittanti Theorem 3) are
-// computed at start-up for a log-spaced set of speeds and interpolated; the exact-Riccati variant (11)-(13)
-// runs P on line.
+// uses d more teeth of speed and removes most of the predictor's phase lag (d = smoother_lag ≤ kMaxLag = 12,
+// latency d teeth; at 6000 rpm the filter's memory outgrows 6 teeth, issue 15). Measurement
+// y_k = θ̇²(k) = (w_k/dt_k)², R_k from the edge-angle error and jitter (relative, so R ∝ θ̇⁴). Because R
+// depends on speed, the asymptotic periodic gains (APS, CK §VI and Bittanti Theorem 3) are computed at
+// start-up for a log-spaced set of speeds and interpolated; the exact-Riccati variant (11)-(13) runs P on
+// line.
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
@@ -38,7 +39,7 @@ struct KalmanStats {
 
 class ChauvinKalman {
  public:
-  static constexpr int kMaxLag = 6;
+  static constexpr int kMaxLag = 12;
   static constexpr int kStates = 2 + kMaxLag;
   using Vec = Eigen::Matrix<double, kStates, 1>;
   using Mat = Eigen::Matrix<double, kStates, kStates>;

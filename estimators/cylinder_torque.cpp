@@ -27,7 +27,7 @@ const char* to_string(MisfireDetection d) noexcept {
 namespace {
 constexpr double kFourPi = 4.0 * std::numbers::pi;
 
-/// Median of work[0..n) without element m (≤ 7 values, insertion sort).
+/// Median of work[0..n) without element m (≤ 7 values, insertion sort; m < 0: of all n).
 double median_of_others(const std::array<double, kMaxCylinders>& work, int n, int m) noexcept {
   std::array<double, kMaxCylinders> others{};
   int k = 0;
@@ -63,7 +63,12 @@ void CylinderTorque::reset() noexcept {
   valid_.fill(false);
   fired_.fill(false);
   ema_.fill(0.0);
+  comb_.fill(0.0);
   ema_init_ = false;
+  motored_j_ = 0.0;
+  motored_known_ = false;
+  cut_cycles_ = 0;
+  after_cut_ = prev_combusting_ = false;
   noisy_ = true;
   share_var_ = params_.share_noise_prior * params_.share_noise_prior;
   cycles_ = 0;
@@ -86,18 +91,22 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
   o.t_ns = t_ns;
   o.cycle = ++cycles_;
   o.cylinders = n;
-  bool all_valid = true, all_fired = true;
+  bool all_valid = true, all_fired = true, any_fired = false;
   double sum = 0.0;
   for (int m = 0; m < n; ++m) {
-    all_valid = all_valid && valid_[static_cast<std::size_t>(m)];
-    all_fired = all_fired && fired_[static_cast<std::size_t>(m)];
-    sum += work_[static_cast<std::size_t>(m)];
+    const auto mi = static_cast<std::size_t>(m);
+    all_valid = all_valid && valid_[mi];
+    all_fired = all_fired && fired_[mi];
+    any_fired = any_fired || fired_[mi];
+    sum += work_[mi];
+    comb_[mi] = work_[mi] - motored_j_;  // combustion work: above the motored level (0 until a cut-off)
   }
   if (!all_valid) {
     o.health = Health::kInvalidInput;
     o.detection = MisfireDetection::kInvalid;
     o.imbalance_filtered_pct = out_.imbalance_filtered_pct;
     out_ = o;
+    prev_combusting_ = false;
     return true;
   }
   const double mean_w = sum / n;
@@ -105,12 +114,18 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
   o.mean_nm = sum / kFourPi;
   const double seg_rad = kFourPi / n;
   const double sigma_j = std::sqrt(share_var_) * scale;  // running cycle-to-cycle noise of a segment's work
-  // Firing level of the cycle: the largest median of the others (robust to two misfires in one cycle).
+  // Firing level of the cycle: the largest median of the others (robust to two misfires in one cycle), in
+  // combustion work: at idle after a cut-off the pumping loss makes a firing segment's net work ≈ 0 while its
+  // combustion (and what a misfire removes) is the whole step up from the motored level.
   double fired_level_j = -1e300;
-  for (int m = 0; m < n; ++m) fired_level_j = std::max(fired_level_j, median_of_others(work_, n, m));
+  for (int m = 0; m < n; ++m) fired_level_j = std::max(fired_level_j, median_of_others(comb_, n, m));
   const bool low_load = fired_level_j / seg_rad <= params_.min_mean_nm;
   const bool noisy = update_noisy(sigma_j, fired_level_j);
-  o.detection = !all_fired        ? MisfireDetection::kOverrun
+  // Resume after a cut-off: the caller's fired flags come back only some cycles after the injections (they arm
+  // late so that a flag leading the injections is no false alarm), but once a whole cycle combusted the fuel
+  // is back on every cylinder (the resume runs in firing order), so a segment at the motored level is a misfire.
+  const bool resumed = !all_fired && after_cut_ && prev_combusting_;
+  o.detection = !(all_fired || resumed) ? MisfireDetection::kOverrun
                 : low_load        ? MisfireDetection::kLowLoad
                 : !wheel_learned_ ? MisfireDetection::kWheelUnlearned
                 : noisy           ? MisfireDetection::kNoisy
@@ -123,13 +138,14 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
     o.torque_nm[ci] = work_[mi] / kFourPi;
     o.imbalance_pct[ci] = (work_[mi] - mean_w) / scale * 100.0;
     // Misfire: compare with the median of the other cylinders (robust to a second misfire in the same cycle).
-    const double med = median_of_others(work_, n, m);
+    const double med = median_of_others(comb_, n, m);
     // and, once the cycle-to-cycle noise of the shares is known, a deficit beyond misfire_sigma·σ (high
     // speed: jitter makes single segments swing; a missing combustion is a deficit of ~100 % of the mean)
-    const bool beyond_noise = med - work_[mi] > params_.misfire_sigma * sigma_j;
-    if (fired_[mi] && work_[mi] < params_.misfire_threshold * med) ++candidates;
-    if (decide && fired_[mi] && med / seg_rad > params_.min_mean_nm &&
-        work_[mi] < params_.misfire_threshold * med && beyond_noise) {
+    const bool beyond_noise = med - comb_[mi] > params_.misfire_sigma * sigma_j;
+    const bool fired = fired_[mi] || resumed;
+    const bool below = comb_[mi] < params_.misfire_threshold * med;
+    if (fired && below) ++candidates;
+    if (decide && fired && med / seg_rad > params_.min_mean_nm && below && beyond_noise) {
       o.misfire[ci] = true;
       ++o.misfire_count;
       ++misfires_;
@@ -139,7 +155,42 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
   o.imbalance_filtered_pct = ema_;
   o.health = health_of(o.detection);
   out_ = o;
+  prev_combusting_ = all_combusting(n, seg_rad);
+  track_overrun(any_fired, median_of_others(work_, n, -1));
   return true;
+}
+
+// Every segment combusted: each one's combustion work is at least misfire_threshold × the firing level and
+// that level is above min_mean_nm (a cycle at the motored level, or with a segment there, is not).
+bool CylinderTorque::all_combusting(int n, double seg_rad) const noexcept {
+  if (!after_cut_) return false;  // the motored level is not known: nothing to compare with
+  double level = -1e300;
+  for (int m = 0; m < n; ++m) level = std::max(level, median_of_others(comb_, n, m));
+  if (!(level / seg_rad > params_.min_mean_nm)) return false;
+  for (int m = 0; m < n; ++m) {
+    if (!(comb_[static_cast<std::size_t>(m)] >= params_.misfire_threshold * level)) return false;
+  }
+  return true;
+}
+
+// Motored level W_mot: the median segment work of cycles flagged in cut-off, from the third one running (the
+// injections already under way when the flag rises still burn in the first ones), filtered over cycles. It
+// is the pumping and compression loss of a cylinder that does not burn, ≤ 0 (a positive value is a biased
+// load or friction term, not a motored cylinder). A cycle flagged fired throughout ends the after-cut state.
+void CylinderTorque::track_overrun(bool any_fired, double median_work_j) noexcept {
+  constexpr int kSteadyCutCycles = 3;
+  constexpr double kMotoredFilter = 0.2;  // EMA weight per cut-off cycle (≈ 5-cycle memory)
+  if (any_fired) {
+    cut_cycles_ = 0;
+  } else if (++cut_cycles_ >= kSteadyCutCycles && std::isfinite(median_work_j)) {
+    const double w = std::min(median_work_j, 0.0);
+    motored_j_ = motored_known_ ? motored_j_ + kMotoredFilter * (w - motored_j_) : w;
+    motored_known_ = true;
+    after_cut_ = true;
+  }
+  bool all_fired = true;
+  for (int m = 0; m < engine_.cylinders; ++m) all_fired = all_fired && fired_[static_cast<std::size_t>(m)];
+  if (all_fired) after_cut_ = false;
 }
 
 // Noisy: a cylinder at the misfire threshold (a deficit of (1 − threshold) × the firing level) would lie

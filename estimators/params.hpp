@@ -55,7 +55,9 @@ struct KalmanParams {
   double torque_sd_nm = 300.0; ///< stationary 1σ of the net torque x2 under h(z); sets Q (N m)
   double edge_noise_deg = 0.005; ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.005 learned)
   double jitter_s = 0.3e-6;    ///< timestamp jitter used for R (s)
-  int smoother_lag = 6;        ///< output x2(n-lag | n), 0..6 teeth (fixed-lag smoother; 0 = paper's predictor)
+  int smoother_lag = 10;       ///< output x2(n-lag | n), 0..12 teeth (fixed-lag smoother; 0 = paper's predictor). 10, not
+                               ///< 6: at 4000-6000 rpm jitter makes R large, the filter's memory outgrows 6 teeth and
+                               ///< the phase lag returned (7° at 6000 rpm; 2-3° with 10, issue 15)
   bool periodic_gains = true;  ///< use precomputed asymptotic periodic gains (APS) instead of exact Riccati
   double min_rpm = 500.0;      ///< lowest speed of the APS gain schedule (rpm)
   double max_rpm = 8000.0;     ///< highest speed of the APS gain schedule (rpm)

@@ -88,7 +88,18 @@ TEST(ChauvinKalman, ApsAndExactRiccatiAgreeAfterConvergence) {
     max_diff = max_diff.cwiseMax((ga - ge).cwiseAbs());
     max_est_diff = std::max(max_est_diff, std::abs(f_aps.estimate().torque_nm - f_exact.estimate().torque_nm));
   }
-  const double max_gain_rel = (max_diff.array() / max_gain.array()).maxCoeff();
+  // Relative per state where the state's gain matters (≥ 1 % of the net-torque state's): the deep smoother
+  // lags of a 12-tooth smoother have gains of 0.1 % at 2000 rpm, whose interpolation between speed bins is
+  // a few % of almost nothing; those are held to an absolute 0.2 % of the net-torque gain instead.
+  double max_gain_rel = 0.0, max_small_abs = 0.0;
+  for (int i = 0; i < ChauvinKalman::kStates; ++i) {
+    if (max_gain(i) >= 0.01 * max_gain(1)) {
+      max_gain_rel = std::max(max_gain_rel, max_diff(i) / max_gain(i));
+    } else {
+      max_small_abs = std::max(max_small_abs, max_diff(i) / max_gain(1));
+    }
+  }
+  EXPECT_LT(max_small_abs, 0.002);
   std::printf("APS vs exact: max relative gain difference %.3g, max estimate difference %.3g N m\n", max_gain_rel,
               max_est_diff);
   // THEN gains agree within 2 % (the APS gain is for the speed bins' interpolated R, the exact filter uses the

@@ -197,3 +197,50 @@ TEST(CylinderTorque, SaysDetectionIsNotPossibleWhereTheSharesAreTooNoisy) {
   EXPECT_TRUE(ct.cycle().misfire[3]);
   EXPECT_EQ(ct.cycle().health, torqued::Health::kValid);
 }
+
+TEST(CylinderTorque, MisfireRightAfterAFuelCutOffIsFoundAgainstTheMotoredLevel) {
+  // GIVEN a firing engine, then a fuel cut-off (segments at the motored level −45 J: pumping at a closed
+  // throttle), then the fuel back at idle, where a firing segment's net work is only ≈ +5 J (the pumping loss
+  // eats the combustion) and the caller's fired flags still lag the injections (armed late)
+  EngineGeometry g;
+  CylinderTorque ct(g, CylinderParams{});
+  for (int i = 0; i < 25; ++i) ASSERT_TRUE(feed(ct, {300.0, 300.0, 300.0, 300.0}));
+  // cut-off begins: the injections already under way still burn, no misfire is claimed
+  ASSERT_TRUE(feed(ct, {300.0, -45.0, -45.0, -45.0}, false));
+  EXPECT_EQ(ct.cycle().detection, torqued::MisfireDetection::kOverrun);
+  EXPECT_EQ(ct.cycle().misfire_count, 0);
+  for (int i = 0; i < 6; ++i) ASSERT_TRUE(feed(ct, {-45.0, -45.0, -45.0, -45.0}, false));
+  EXPECT_EQ(ct.cycle().detection, torqued::MisfireDetection::kOverrun);
+  // WHEN the fuel resumes in firing order (first cylinders still motored: a late resume, not a misfire)
+  ASSERT_TRUE(feed(ct, {-45.0, -45.0, 5.0, 5.0}, false));
+  EXPECT_EQ(ct.cycle().misfire_count, 0);
+  EXPECT_EQ(ct.cycle().detection, torqued::MisfireDetection::kOverrun);
+  ASSERT_TRUE(feed(ct, {4.0, 6.0, 5.0, 5.0}, false));  // every cylinder burns again
+  EXPECT_EQ(ct.cycle().misfire_count, 0);
+  // AND cylinder 1 then misfires (back at the motored level) while the flags still say cut-off
+  ASSERT_TRUE(feed(ct, {-43.0, 6.0, 7.0, 8.0}, false));
+  // THEN the misfire is found: the deficit is the whole step above the motored level, not 50 % of ≈ 5 J
+  EXPECT_EQ(ct.cycle().detection, torqued::MisfireDetection::kActive);
+  EXPECT_TRUE(ct.cycle().misfire[0]);
+  EXPECT_EQ(ct.cycle().misfire_count, 1);
+  // AND the firing cylinders at ≈ +5 J are no misfires once the flags say fired
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(feed(ct, {5.0, 4.0, 6.0, 5.0}));
+  EXPECT_EQ(ct.cycle().misfire_count, 0);
+  EXPECT_EQ(ct.misfires(), 1u);
+}
+
+TEST(CylinderTorque, NoDecisionAfterACutOffUntilAWholeCycleBurnt) {
+  // GIVEN a cut-off, then flags that say cut-off while the injections resume late (first cycle half motored)
+  EngineGeometry g;
+  CylinderTorque ct(g, CylinderParams{});
+  for (int i = 0; i < 25; ++i) ASSERT_TRUE(feed(ct, {300.0, 300.0, 300.0, 300.0}));
+  for (int i = 0; i < 6; ++i) ASSERT_TRUE(feed(ct, {-45.0, -45.0, -45.0, -45.0}, false));
+  // WHEN the first cylinder to burn is the last in the cycle, and in the next cycle the first one still does
+  // not (it may be a misfire or a late resume: not told apart)
+  ASSERT_TRUE(feed(ct, {-45.0, -45.0, -45.0, 5.0}, false));
+  ASSERT_TRUE(feed(ct, {-45.0, 5.0, 5.0, 5.0}, false));
+  // THEN nothing is flagged and the record says there is nothing to decide yet
+  EXPECT_EQ(ct.cycle().misfire_count, 0);
+  EXPECT_EQ(ct.cycle().detection, torqued::MisfireDetection::kOverrun);
+  EXPECT_EQ(ct.cycle().health, torqued::Health::kNotExcited);
+}

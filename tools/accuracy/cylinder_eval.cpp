@@ -76,9 +76,18 @@ void evaluate_incycle(const sim::Scenario& sc, const sim::SimOutput& out, const 
   if (opt.friction) pipe.friction().import_coefficients(*opt.friction);
   std::vector<ToothSample> samples = sim::ideal_tooth_samples(out, sc);
   const int teeth = sc.wheel.teeth();
-  const std::vector<double> ratio = learned_width_ratios(sc, opt.tooth_learn);
-  if (static_cast<int>(ratio.size()) == teeth) {
-    for (ToothSample& s : samples) s.width_rad *= ratio[static_cast<std::size_t>(s.tooth % teeth)];
+  // The tooth table of the options, as evaluate() uses it (--true-tooth-errors / --raw-teeth apply here too).
+  if (opt.tooth_table == ToothTable::kTrue && static_cast<int>(out.tooth_error_rad.size()) == teeth) {
+    for (ToothSample& s : samples) {
+      const int p = s.tooth % teeth;
+      s.width_rad += out.tooth_error_rad[static_cast<std::size_t>(p)] -
+                     out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
+    }
+  } else if (opt.tooth_table == ToothTable::kLearned) {
+    const std::vector<double> ratio = learned_width_ratios(sc, opt.tooth_learn);
+    if (static_cast<int>(ratio.size()) == teeth) {
+      for (ToothSample& s : samples) s.width_rad *= ratio[static_cast<std::size_t>(s.tooth % teeth)];
+    }
   }
   std::unordered_map<std::int64_t, std::size_t> index;
   for (std::size_t i = 0; i < samples.size(); ++i) index[samples[i].t_ns] = i;
