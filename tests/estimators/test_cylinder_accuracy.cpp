@@ -123,27 +123,26 @@ TEST(CylinderAccuracy, ReloadedTableGivesTheSamePerCylinderOutput) {
   EXPECT_FALSE(reloaded.low_orders_learned());
 }
 
-TEST(CylinderAccuracy, MisfireAtIdleIsFoundWithoutFalseAlarms) {
-  // GIVEN idle (declutched, idle controller) with three single misfires and cylinder 2 misfiring six cycles
-  // running
-  const auto r = eval::evaluate(eval::idle_misfire(902), options());
-  std::printf("idle misfire: found %d of %d, false %d\n", r.misfires_found, r.misfires_true,
-              r.misfires_false);
-  EXPECT_GE(r.misfires_true, 8);
+// Every injected misfire of `sc` found (at least `min_true` of them), no false alarm.
+void expect_every_misfire_found(const char* what, const sim::Scenario& sc, int min_true) {
+  const auto r = eval::evaluate(sc, options());
+  std::printf("%s: found %d of %d, false %d\n", what, r.misfires_found, r.misfires_true, r.misfires_false);
+  EXPECT_GE(r.misfires_true, min_true);
   EXPECT_EQ(r.misfires_found, r.misfires_true);
   EXPECT_EQ(r.misfires_false, 0);
+}
+
+TEST(CylinderAccuracy, MisfireAtIdleIsFoundWithoutFalseAlarms) {
+  // GIVEN idle (declutched, idle controller) with three single misfires and cylinder 2 misfiring six cycles
+  // running THEN every one is found, no false alarm
+  expect_every_misfire_found("idle misfire", eval::idle_misfire(902), 8);
 }
 
 TEST(CylinderAccuracy, MisfireRightAfterAFuelCutOffIsFoundWithoutFalseAlarms) {
   // GIVEN the fuel cut-off coast-down back to idle with misfires after the fuel resumes, the first in the
   // very first cycle that burns again (the fired flags still arming) and two in consecutive cycles
-  const auto r = eval::evaluate(eval::idle_after_cut_misfire(904), options());
-  std::printf("idle after cut-off misfire: found %d of %d, false %d\n", r.misfires_found, r.misfires_true,
-              r.misfires_false);
   // THEN every one is found, with no false alarm (was 5 of 6: the first read as overrun)
-  EXPECT_GE(r.misfires_true, 6);
-  EXPECT_EQ(r.misfires_found, r.misfires_true);
-  EXPECT_EQ(r.misfires_false, 0);
+  expect_every_misfire_found("idle after cut-off misfire", eval::idle_after_cut_misfire(904), 6);
 }
 
 TEST(CylinderAccuracy, NoFalseAlarmWhereDetectionIsClaimedPossible) {
