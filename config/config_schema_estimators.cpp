@@ -75,7 +75,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("kalman.torque_sd_nm", kalman.params.torque_sd_nm, open_closed(0.0, 1e5), "N m", "stationary 1 sigma of the net torque; sets Q");
   TQ_NUM("kalman.edge_noise_deg", kalman.params.edge_noise_deg, open_closed(0.0, 10.0), "deg", "edge-angle error used for R");
   TQ_NUM("kalman.jitter_s", kalman.params.jitter_s, closed(0.0, 1e-2), "s", "timestamp jitter used for R");
-  TQ_INT("kalman.smoother_lag", kalman.params.smoother_lag, closed(0, 12), "teeth", "fixed-lag smoother output (0 = paper's predictor)");
+  TQ_INT("kalman.smoother_lag", kalman.params.smoother_lag, closed(0, 12), "teeth",
+         "fixed-lag smoother output (0 = paper's predictor)");
   TQ_BOOL("kalman.periodic_gains", kalman.params.periodic_gains, "precomputed periodic gains (APS) instead of exact Riccati");
   TQ_NUM("kalman.min_rpm", kalman.params.min_rpm, open_closed(0.0, 20000.0), "rpm", "lowest speed of the APS gain schedule");
   TQ_NUM("kalman.max_rpm", kalman.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "highest speed of the APS gain schedule");
@@ -120,16 +121,28 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_INT("energies.rls_window_shifts", energies.params.rls_window_shifts, closed(1, 64), "", "each RLS window also shifted 1..n-1 teeth earlier");
   TQ_NUM("energies.burn_centroid_atdc_deg", energies.params.burn_centroid_atdc_deg, closed(-90.0, 180.0), "deg", "heat release lumped here when the spark advance is unknown");
   TQ_NUM("energies.burn_delay_deg", energies.params.burn_delay_deg, closed(0.0, 180.0), "deg", "spark to equivalent burn centroid: centroid = delay - advance");
-  TQ_BOOL("energies.inertia.learn", energies.params.inertia.learn, "learn J = k x engine.j_rot_kgm2 from consecutive cycles while a load signal is present (estimators/inertia_learner.hpp)");
-  TQ_NUM("energies.inertia.prior_rel_sd", energies.params.inertia.prior_rel_sd, open_closed(0.0, 1.0), "", "1 sigma of the spec-sheet inertia, fraction (catalogue vs fitted flywheel, clutch, damper)");
-  TQ_NUM("energies.inertia.min_step_nm", energies.params.inertia.min_step_nm, open_closed(0.0, 1e4), "N m", "a pair of consecutive cycles counts only when J_spec x accel changes by more than this between them");
-  TQ_NUM("energies.inertia.obs_sd_nm", energies.params.inertia.obs_sd_nm, open_closed(0.0, 1e4), "N m", "1 sigma of one pair's torque residual (CAN load lag, fuelling steps)");
-  TQ_NUM("energies.inertia.gate_sigma", energies.params.inertia.gate_sigma, open_closed(0.0, 1e3), "", "pairs farther than this many sigma from the current fit are rejected");
-  TQ_NUM("energies.inertia.max_fuel_change", energies.params.inertia.max_fuel_change, closed(0.0, 1.0), "", "firing pairs: fuel per injection within this fraction of each other");
-  TQ_NUM("energies.inertia.max_map_change_pa", energies.params.inertia.max_map_change_pa, closed(0.0, 1e6), "Pa", "firing pairs: MAP within this of each other");
-  TQ_NUM("energies.inertia.apply_max_sd", energies.params.inertia.apply_max_sd, open_closed(0.0, 1.0), "", "the learned scale replaces the spec sheet's J only once its 1 sigma is below this");
-  TQ_NUM("energies.inertia.min_scale", energies.params.inertia.min_scale, open_closed(0.0, 1.0), "", "lower bound of the learned scale k");
-  TQ_NUM("energies.inertia.max_scale", energies.params.inertia.max_scale, closed(1.0, 10.0), "", "upper bound of the learned scale k");
+  TQ_BOOL("energies.inertia.learn", energies.params.inertia.learn,
+          "learn J = k x engine.j_rot_kgm2 from consecutive cycles while a load signal is present "
+          "(estimators/inertia_learner.hpp)");
+  TQ_NUM("energies.inertia.prior_rel_sd", energies.params.inertia.prior_rel_sd, open_closed(0.0, 1.0), "",
+         "1 sigma of the spec-sheet inertia, fraction (catalogue vs fitted flywheel, clutch, damper)");
+  TQ_NUM(
+      "energies.inertia.min_step_nm", energies.params.inertia.min_step_nm, open_closed(0.0, 1e4), "N m",
+      "a pair of consecutive cycles counts only when J_spec x accel changes by more than this between them");
+  TQ_NUM("energies.inertia.obs_sd_nm", energies.params.inertia.obs_sd_nm, open_closed(0.0, 1e4), "N m",
+         "1 sigma of one pair's torque residual (CAN load lag, fuelling steps)");
+  TQ_NUM("energies.inertia.gate_sigma", energies.params.inertia.gate_sigma, open_closed(0.0, 1e3), "",
+         "pairs farther than this many sigma from the current fit are rejected");
+  TQ_NUM("energies.inertia.max_fuel_change", energies.params.inertia.max_fuel_change, closed(0.0, 1.0), "",
+         "firing pairs: fuel per injection within this fraction of each other");
+  TQ_NUM("energies.inertia.max_map_change_pa", energies.params.inertia.max_map_change_pa, closed(0.0, 1e6),
+         "Pa", "firing pairs: MAP within this of each other");
+  TQ_NUM("energies.inertia.apply_max_sd", energies.params.inertia.apply_max_sd, open_closed(0.0, 1.0), "",
+         "the learned scale replaces the spec sheet's J only once its 1 sigma is below this");
+  TQ_NUM("energies.inertia.min_scale", energies.params.inertia.min_scale, open_closed(0.0, 1.0), "",
+         "lower bound of the learned scale k");
+  TQ_NUM("energies.inertia.max_scale", energies.params.inertia.max_scale, closed(1.0, 10.0), "",
+         "upper bound of the learned scale k");
   TQ_NUM("default_oil_temp_c", default_oil_temp_c, closed(-40.0, 200.0), "degC", "oil temperature the friction law assumes until OilTemp arrives on CAN");
   TQ_BOOL("friction.enabled", friction.enabled, "estimate friction torque (EN-24)");
   t.push_back(fixed_list<4>("estimators.friction.c", TQ_REF(Arr4, estimators.friction.params.c), closed(-1e6, 1e6), "",
@@ -141,8 +154,12 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_INT("friction.min_observations", friction.params.min_observations, closed(1, 1000000), "cycles", "motoring cycles before the learned law is valid");
   TQ_NUM("friction.min_rpm", friction.params.min_rpm, closed(0.0, 20000.0), "rpm", "observations accepted above this speed");
   TQ_NUM("friction.max_rpm", friction.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "and below this speed");
-  TQ_NUM("friction.motoring_gate_sigma", friction.params.motoring_gate_sigma, closed(0.0, 1e3), "", "once learned, a motoring observation farther than this many sigma from the law (learned_sd_nm with the law's own spread there) is rejected (0: no gate)");
-  TQ_INT("friction.motoring_gate_reaccept", friction.params.motoring_gate_reaccept, closed(1, 1000000), "cycles", "so many gated observations in a row on the same side are learned from: a real change of friction");
+  TQ_NUM("friction.motoring_gate_sigma", friction.params.motoring_gate_sigma, closed(0.0, 1e3), "",
+         "once learned, a motoring observation farther than this many sigma from the law (learned_sd_nm with "
+         "the law's own spread there) is rejected (0: no gate)");
+  TQ_INT("friction.motoring_gate_reaccept", friction.params.motoring_gate_reaccept, closed(1, 1000000),
+         "cycles",
+         "so many gated observations in a row on the same side are learned from: a real change of friction");
   TQ_NUM("friction.max_load_change_nm", friction.params.max_load_change_nm, open_closed(0.0, 1e4), "N m", "skip observations while the measured load moves more than this per segment");
   TQ_BOOL("friction.learn_at_idle", friction.params.learn_at_idle, "learn a local idle correction of the law from the steady-idle friction (off: only C4 learns at idle)");
   TQ_INT("friction.idle_steady_cycles", friction.params.idle_steady_cycles, closed(1, 100000), "cycles", "idle observations only after this many cycles of steady idle");

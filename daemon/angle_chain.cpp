@@ -176,7 +176,8 @@ bool AngleChain::snapshot(LearnedSnapshot& snap) const noexcept {
     snap.inertia_valid = inertia_imported_ || !in.is_prior();
     snap.inertia = {in.scale(), in.information(), s_.engine.j_rot_kgm2};
   }
-  return snap.friction_valid || snap.n_teeth > 0 || snap.fuel_valid || snap.crank_var_valid || snap.inertia_valid;
+  return snap.friction_valid || snap.n_teeth > 0 || snap.fuel_valid || snap.crank_var_valid ||
+         snap.inertia_valid;
 }
 
 bool AngleChain::learned_state(LearnedState& st) const {

@@ -75,7 +75,7 @@ struct LearnedSnapshot {
   FuelTorqueState fuel{};
   bool crank_var_valid = false;  ///< crank-only error variance measured, or imported
   double crank_var = 0.0;        ///< (N m^2)
-  bool inertia_valid = false;     ///< inertia scale learned or imported
+  bool inertia_valid = false;    ///< inertia scale learned or imported
   std::array<double, 3> inertia{};  ///< k, information, J_spec (LearnedState::inertia)
 };
 

@@ -13,10 +13,9 @@
 //                                                    engine.j_rot_kgm2 it was learned against)
 //   saved_at_t_ns <edge-clock time>
 //   checksum crc32 <8 hex digits of CRC-32 (IEEE) over every byte before this line>
-// fuel_model, crank_error_var and inertia were added to version 2 (issue 14); version 2 files without them still
-// load.
-// Version 1 files (no identity, no checksum) are still read and checked against the bounds; the next save
-// rewrites them as version 2.
+// fuel_model, crank_error_var and inertia were added to version 2 (issue 14); version 2 files without them
+// still load. Version 1 files (no identity, no checksum) are still read and checked against the bounds; the
+// next save rewrites them as version 2.
 //
 // Writes are atomic: <file>.tmp is written and fsync()ed, the current file (always a checked one) is
 // hard-linked to <file>.bak, then <file>.tmp is renamed over <file> and the directory fsync()ed. A crash or
@@ -51,7 +50,8 @@ struct LearnedState {
   std::vector<double> tooth_corrections_rad;           ///< ToothErrorLearner table (empty = none)
   std::optional<FuelTorqueState> fuel;    ///< FuelTorque learned efficiency / pumping / covariance
   std::optional<double> crank_error_var;  ///< measured crank-only indicated error variance (N m^2)
-  std::optional<std::array<double, 3>> inertia;  ///< InertiaLearner k, its information (1/sigma^2), J_spec (kg m^2)
+  std::optional<std::array<double, 3>>
+      inertia;  ///< InertiaLearner k, its information (1/sigma^2), J_spec (kg m^2)
   std::int64_t saved_at_t_ns = 0;
   std::string identity;  ///< read from the file (version 2); written from StateContext on save
   int version = 2;       ///< read from the file

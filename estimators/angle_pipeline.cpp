@@ -409,16 +409,17 @@ void AnglePipeline::learn_inertia(const SegmentEnergy& seg, bool can_fresh, doub
   p.map_pa = p.fired ? fw.map_fired_pa : fw.map_cut_pa;
   const InertiaPoint& q = prev_inertia_;
   const InertiaParams& ip = cfg_.energies.inertia;
-  const bool same_firing = p.fired && q.fired &&
-                           std::fabs(p.fuel_kg - q.fuel_kg) <= ip.max_fuel_change * std::max(p.fuel_kg, q.fuel_kg) &&
-                           std::fabs(p.map_pa - q.map_pa) <= ip.max_map_change_pa;
+  const bool same_firing =
+      p.fired && q.fired &&
+      std::fabs(p.fuel_kg - q.fuel_kg) <= ip.max_fuel_change * std::max(p.fuel_kg, q.fuel_kg) &&
+      std::fabs(p.map_pa - q.map_pa) <= ip.max_map_change_pa;
   const bool both_cut = p.cut && q.cut;
   if (p.ok && q.ok && (same_firing || both_cut)) {
-    // k·Δ(ΔKE_spec/4π) = −ΔT_load − ΔT_fric + ΔT_ind (inertia_learner.hpp); ΔT_ind = 0 at the same fuelling, the
-    // modelled motored torque's change in cut-off.
+    // k·Δ(ΔKE_spec/4π) = −ΔT_load − ΔT_fric + ΔT_ind (inertia_learner.hpp); ΔT_ind = 0 at the same fuelling,
+    // the modelled motored torque's change in cut-off.
     const double d_ind = both_cut ? rls_.motored_torque_nm(p.map_pa) - rls_.motored_torque_nm(q.map_pa) : 0.0;
-    const double y = -(p.load_nm - q.load_nm) - (friction_.friction_nm(p.rpm, oil_c_) -
-                                                 friction_.friction_nm(q.rpm, oil_c_)) + d_ind;
+    const double y = -(p.load_nm - q.load_nm) -
+                     (friction_.friction_nm(p.rpm, oil_c_) - friction_.friction_nm(q.rpm, oil_c_)) + d_ind;
     if (inertia_.observe(p.dke_spec_nm - q.dke_spec_nm, y)) ++stats_.inertia_observations;
   }
   prev_inertia_ = p;
@@ -477,8 +478,8 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
     return;
   }
   o.speed_mean_rad_s = kFourPi / seg.cycle_dt_s;
-  // Δ(½Jθ̇²)/4π; at boundary 0 from the wide window when it completed here (jitter noise / ≈ 4, CycleKeWindow).
-  // Computed with the spec sheet's J, scaled by the learned k (J = k·J_spec, InertiaLearner).
+  // Δ(½Jθ̇²)/4π; at boundary 0 from the wide window when it completed here (jitter noise / ≈ 4,
+  // CycleKeWindow). Computed with the spec sheet's J, scaled by the learned k (J = k·J_spec, InertiaLearner).
   const bool wide = o.cycle_end && wide_done_ && wide_.cycle_valid();
   const double dke_spec_nm = (wide ? wide_.d_ke_cycle_j() : seg.d_ke_cycle_j) / kFourPi;
   const double dke_nm = inertia_.applied_scale() * dke_spec_nm;

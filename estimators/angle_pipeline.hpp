@@ -33,8 +33,8 @@
 #include "fourier_observer.hpp"
 #include "friction_learner.hpp"
 #include "fuel_torque.hpp"
-#include "inertia_learner.hpp"
 #include "indicated_eso.hpp"
+#include "inertia_learner.hpp"
 #include "load_rls.hpp"
 #include "params.hpp"
 #include "samples.hpp"
@@ -160,7 +160,8 @@ class AnglePipeline {
   void learn(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,
              const CycleOutput& o) noexcept;
   void fuse(const SegmentEnergy& seg, const EngineSignals& sig, CycleOutput& o) noexcept;
-  void learn_inertia(const SegmentEnergy& seg, bool can_fresh, double dke_spec_nm, const CycleOutput& o) noexcept;
+  void learn_inertia(const SegmentEnergy& seg, bool can_fresh, double dke_spec_nm,
+                     const CycleOutput& o) noexcept;
   [[nodiscard]] bool motoring_observation_allowed(const SegmentEnergy& seg, const EngineSignals& sig,
                                                   bool load_steady) const noexcept;
   [[nodiscard]] bool idle_observation_allowed(const SegmentEnergy& seg, const TorqueEstimate& rls, double rpm,

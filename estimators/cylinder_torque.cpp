@@ -121,15 +121,16 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
   for (int m = 0; m < n; ++m) fired_level_j = std::max(fired_level_j, median_of_others(comb_, n, m));
   const bool low_load = fired_level_j / seg_rad <= params_.min_mean_nm;
   const bool noisy = update_noisy(sigma_j, fired_level_j);
-  // Resume after a cut-off: the caller's fired flags come back only some cycles after the injections (they arm
-  // late so that a flag leading the injections is no false alarm), but once a whole cycle combusted the fuel
-  // is back on every cylinder (the resume runs in firing order), so a segment at the motored level is a misfire.
+  // Resume after a cut-off: the caller's fired flags come back only some cycles after the injections (they
+  // arm late so that a flag leading the injections is no false alarm), but once a whole cycle combusted the
+  // fuel is back on every cylinder (the resume runs in firing order), so a segment at the motored level is a
+  // misfire.
   const bool resumed = !all_fired && after_cut_ && prev_combusting_;
   o.detection = !(all_fired || resumed) ? MisfireDetection::kOverrun
-                : low_load        ? MisfireDetection::kLowLoad
-                : !wheel_learned_ ? MisfireDetection::kWheelUnlearned
-                : noisy           ? MisfireDetection::kNoisy
-                                  : MisfireDetection::kActive;
+                : low_load              ? MisfireDetection::kLowLoad
+                : !wheel_learned_       ? MisfireDetection::kWheelUnlearned
+                : noisy                 ? MisfireDetection::kNoisy
+                                        : MisfireDetection::kActive;
   const bool decide = o.detection == MisfireDetection::kActive;
   int candidates = 0;  // segments below the threshold, decided or not: kept out of the noise estimate
   for (int m = 0; m < n; ++m) {

@@ -12,16 +12,17 @@
 //                 net IMEP), bounded where the mean is small or negative (overrun, idle after a fuel cut-off;
 //                 issue 15 item 3)
 //   misfire_m   = C_m < threshold · median_{j≠m} C_j with the combustion work C = W − W_mot, decided only
-//                 while the engine fires (no fuel cut-off) and the reference exceeds min_mean_nm (segment-mean
-//                 torque), and the deficit med − C_m exceeds misfire_sigma × the running cycle-to-cycle noise
-//                 of the shares (× the share scale)
+//                 while the engine fires (no fuel cut-off) and the reference exceeds min_mean_nm
+//                 (segment-mean torque), and the deficit med − C_m exceeds misfire_sigma × the running
+//                 cycle-to-cycle noise of the shares (× the share scale)
 //   W_mot       = the motored level, a segment's work without combustion (pumping + compression loss, ≤ 0):
-//                 the median segment work of steady fuel cut-off cycles, filtered; 0 until a cut-off was seen.
-//                 At idle after a cut-off (closed throttle) the pumping loss makes a firing segment's net work
-//                 W ≈ 0, so W < threshold·med cannot tell a misfire; C still carries the whole combustion.
-//                 After a cut-off the caller's fired flags arm late (a flag leading the injections must not
-//                 be a false alarm); a cycle in which every segment combusted shows the fuel is back, and from
-//                 the next cycle on the misfire decision runs although the flags still say cut-off (issue 15)
+//                 the median segment work of steady fuel cut-off cycles, filtered; 0 until a cut-off was
+//                 seen. At idle after a cut-off (closed throttle) the pumping loss makes a firing segment's
+//                 net work W ≈ 0, so W < threshold·med cannot tell a misfire; C still carries the whole
+//                 combustion. After a cut-off the caller's fired flags arm late (a flag leading the
+//                 injections must not be a false alarm); a cycle in which every segment combusted shows the
+//                 fuel is back, and from the next cycle on the misfire decision runs although the flags still
+//                 say cut-off (issue 15)
 // Where a misfire cannot be decided the record says why (`detection`), no misfire is flagged there (issue 15
 // item 4: a decision where detection is not possible is a false alarm waiting to happen) and its health is
 // not kValid: kNotExcited in overrun (no combustion to miss), below min_mean_nm and where the shares are too
@@ -101,10 +102,10 @@ class CylinderTorque {
       0.0;             ///< EMA of the squared cycle-to-cycle share noise (fraction², pooled over cylinders)
   bool noisy_ = true;  ///< the shares too noisy to decide (latched, see on_segment)
   bool wheel_learned_ = true;
-  double motored_j_ = 0.0;    ///< W_mot: segment work without combustion (J, ≤ 0), from steady cut-off cycles
+  double motored_j_ = 0.0;  ///< W_mot: segment work without combustion (J, ≤ 0), from steady cut-off cycles
   bool motored_known_ = false;  ///< W_mot measured (else 0)
-  int cut_cycles_ = 0;        ///< consecutive cycles with no segment flagged fired
-  bool after_cut_ = false;    ///< a steady cut-off was seen and no cycle since was flagged fired throughout
+  int cut_cycles_ = 0;          ///< consecutive cycles with no segment flagged fired
+  bool after_cut_ = false;      ///< a steady cut-off was seen and no cycle since was flagged fired throughout
   bool prev_combusting_ = false;  ///< the previous cycle combusted in every segment (all_combusting)
   double w_floor_j_ = 0.0;  ///< share floor (J)
   std::uint32_t cycles_ = 0;

@@ -46,7 +46,8 @@ void FrictionLearner::reset() noexcept {
 }
 
 bool FrictionLearner::gate_rejects(double err, double law_var) noexcept {
-  if (n_motoring_ < static_cast<std::uint64_t>(params_.min_observations) || !(params_.motoring_gate_sigma > 0.0))
+  if (n_motoring_ < static_cast<std::uint64_t>(params_.min_observations) ||
+      !(params_.motoring_gate_sigma > 0.0))
     return false;
   const double var = params_.learned_sd_nm * params_.learned_sd_nm + std::max(0.0, law_var);
   const double g = params_.motoring_gate_sigma;

@@ -42,11 +42,12 @@ class FrictionLearner {
   /// Back to the configured (or last imported) coefficients, forgetting the learning history.
   void reset() noexcept;
 
-  /// Motoring observation (fuel cut-off): friction torque `friction_nm` measured at `speed_rpm`, `oil_temp_c`.
-  /// Returns false (and counts) when rejected: non-finite, outside the speed range, or (once learned) farther
-  /// than motoring_gate_sigma σ from the law's prediction, σ² = learned_sd_nm² + φᵀPφ (the law's own spread there,
-  /// large where it was never learned), so one bad cycle cannot move the law; motoring_gate_reaccept such
-  /// rejections in a row on the same side are taken as a real change and learned from. Real-time safe.
+  /// Motoring observation (fuel cut-off): friction torque `friction_nm` measured at `speed_rpm`,
+  /// `oil_temp_c`. Returns false (and counts) when rejected: non-finite, outside the speed range, or (once
+  /// learned) farther than motoring_gate_sigma σ from the law's prediction, σ² = learned_sd_nm² + φᵀPφ (the
+  /// law's own spread there, large where it was never learned), so one bad cycle cannot move the law;
+  /// motoring_gate_reaccept such rejections in a row on the same side are taken as a real change and learned
+  /// from. Real-time safe.
   bool observe_motoring(double speed_rpm, double oil_temp_c, double friction_nm) noexcept;
 
   /// Idle observation: friction torque equals the indicated torque (no load). Learns C4 from oil-temperature

@@ -55,9 +55,9 @@ struct KalmanParams {
   double torque_sd_nm = 300.0; ///< stationary 1σ of the net torque x2 under h(z); sets Q (N m)
   double edge_noise_deg = 0.005; ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.005 learned)
   double jitter_s = 0.3e-6;    ///< timestamp jitter used for R (s)
-  int smoother_lag = 10;       ///< output x2(n-lag | n), 0..12 teeth (fixed-lag smoother; 0 = paper's predictor). 10, not
-                               ///< 6: at 4000-6000 rpm jitter makes R large, the filter's memory outgrows 6 teeth and
-                               ///< the phase lag returned (7° at 6000 rpm; 2-3° with 10, issue 15)
+  int smoother_lag = 10;  ///< output x2(n-lag | n), 0..12 teeth (fixed-lag smoother; 0 = paper's predictor).
+                          ///< 10, not 6: at 4000-6000 rpm jitter makes R large, the filter's memory outgrows
+                          ///< 6 teeth and the phase lag returned (7° at 6000 rpm; 2-3° with 10, issue 15)
   bool periodic_gains = true;  ///< use precomputed asymptotic periodic gains (APS) instead of exact Riccati
   double min_rpm = 500.0;      ///< lowest speed of the APS gain schedule (rpm)
   double max_rpm = 8000.0;     ///< highest speed of the APS gain schedule (rpm)
@@ -74,21 +74,21 @@ struct FourierParams {
 };
 
 /// Energies 2019 chain (ESTIMATORS.md §3).
-/// Learning the crankshaft inertia from a known load (estimators/inertia_learner.hpp, issue 14). The spec sheet's
-/// J (engine.j_rot_kgm2) is a drawing or catalogue figure: the flywheel, clutch or damper fitted can differ by
-/// ±10 % or more, and the cycle balance's J·θ̈ term carries that error straight into the friction learned in a
-/// decelerating fuel cut-off and into the brake torque of every transient.
+/// Learning the crankshaft inertia from a known load (estimators/inertia_learner.hpp, issue 14). The spec
+/// sheet's J (engine.j_rot_kgm2) is a drawing or catalogue figure: the flywheel, clutch or damper fitted can
+/// differ by ±10 % or more, and the cycle balance's J·θ̈ term carries that error straight into the friction
+/// learned in a decelerating fuel cut-off and into the brake torque of every transient.
 struct InertiaParams {
-  bool learn = true;                  ///< learn a scale k (J = k·J_spec) while a load signal is present (-)
-  double prior_rel_sd = 0.15;         ///< 1σ of the spec-sheet J, fraction (catalogue vs fitted flywheel) (-)
-  double min_step_nm = 3.0;           ///< a cycle pair counts only when Δ(J_spec θ̈) between them exceeds this (N m)
-  double obs_sd_nm = 1.5;             ///< 1σ of one pair's torque residual (CAN load lag, fuel-model steps) (N m)
-  double gate_sigma = 4.0;            ///< pairs farther than this many σ from the current fit are rejected (-)
+  bool learn = true;           ///< learn a scale k (J = k·J_spec) while a load signal is present (-)
+  double prior_rel_sd = 0.15;  ///< 1σ of the spec-sheet J, fraction (catalogue vs fitted flywheel) (-)
+  double min_step_nm = 3.0;  ///< a cycle pair counts only when Δ(J_spec θ̈) between them exceeds this (N m)
+  double obs_sd_nm = 1.5;    ///< 1σ of one pair's torque residual (CAN load lag, fuel-model steps) (N m)
+  double gate_sigma = 4.0;   ///< pairs farther than this many σ from the current fit are rejected (-)
   double max_fuel_change = 0.02;      ///< firing pairs: fuel per injection within this fraction (-)
   double max_map_change_pa = 2000.0;  ///< and MAP within this (Pa)
-  double apply_max_sd = 0.03;         ///< k replaces the spec sheet's J only once its 1σ is below this; before,
-                                      ///< a few pairs could swing it by ±8 % and every transient with it (-)
-  double min_scale = 0.6;             ///< bounds of k (-)
+  double apply_max_sd = 0.03;  ///< k replaces the spec sheet's J only once its 1σ is below this; before,
+                               ///< a few pairs could swing it by ±8 % and every transient with it (-)
+  double min_scale = 0.6;      ///< bounds of k (-)
   double max_scale = 1.6;
 };
 
@@ -125,7 +125,7 @@ struct EnergiesParams {
                                         ///< above this re-seeds the RLS at the cycle mean (0: RLS alone) (-)
   double rls_step_min_sd_nm = 1.0;      ///< floor of the innovations' 1σ (N m)
   double rls_change_max_sd_nm = 6.0;    ///< no load-change tracking while the cycle mean's steady 1σ exceeds this (N m)
-  InertiaParams inertia{};             ///< inertia learned from a known load (inertia_learner.hpp)
+  InertiaParams inertia{};              ///< inertia learned from a known load (inertia_learner.hpp)
   double can_load_latency_s = 0.010;    ///< the CAN load torque lags the flange by this (sensor lag + half the frame
                                         ///< period); the energy balance takes each tooth's load this much later (s)
 };
@@ -161,9 +161,10 @@ struct FrictionParams {
                                         ///< zero load) below the motoring range (off: idle only learns C4)
   int idle_steady_cycles = 10;          ///< idle observations only after this many cycles of steady idle (-)
   double idle_fade_rpm = 1500.0;        ///< the idle correction fades linearly from the idle speed to 0 here (rpm)
-  double motoring_gate_sigma = 4.0;     ///< once learned, a motoring observation farther than this many σ of its
-                                        ///< prediction (learned_sd_nm ⊕ the law's own spread there) is rejected (-)
-  int motoring_gate_reaccept = 10;      ///< .. unless this many in a row disagree the same way: a real change (-)
+  double motoring_gate_sigma =
+      4.0;  ///< once learned, a motoring observation farther than this many σ of its
+            ///< prediction (learned_sd_nm ⊕ the law's own spread there) is rejected (-)
+  int motoring_gate_reaccept = 10;  ///< .. unless this many in a row disagree the same way: a real change (-)
   double max_load_change_nm = 1.0;      ///< skip observations while the measured load moves more than this per
                                         ///< segment (the CAN load lags the flange; dyno transients) (N m)
 };

@@ -133,13 +133,17 @@ int run_bed_daemon(bool all, const torqued::eval::DaemonBedOptions& opt) {
       "record\n"
       "after %d; pass = %% within 5 %% or 3 N m steady, 8 %% or 5 N m transient; cov = %% with |error| <= "
       "claimed "
-      "1 sigma; 2cov: no-load brake within 2 sigma; tgt = %% of cycles within the tighter targets (indicated\n"
-      "with the load signal 3 %% or 2 N m, friction 10 %% or 2 N m); J k/true: learned and true inertia / spec "
+      "1 sigma; 2cov: no-load brake within 2 sigma; tgt = %% of cycles within the tighter targets "
+      "(indicated\n"
+      "with the load signal 3 %% or 2 N m, friction 10 %% or 2 N m); J k/true: learned and true inertia / "
+      "spec "
       "sheet.\n",
       opt.short_run ? "short" : "full", opt.out_dir.c_str(), opt.skip_cycles);
-  std::printf("%-10s %4s | %-13s %-9s | %-13s %4s | %-13s %4s | %-13s %-9s | %-13s %-9s | %-13s | %-13s %4s | %4s | %s\n",
-              "engine", "cyc", "LOAD brake", "pass/cov", "indicated", "tgt", "friction", "tgt", "NO LOAD brake",
-              "pass/cov", "indicated", "pass/cov", "fused", "friction", "tgt", "2cov", "J k/true");
+  std::printf(
+      "%-10s %4s | %-13s %-9s | %-13s %4s | %-13s %4s | %-13s %-9s | %-13s %-9s | %-13s | %-13s %4s | %4s | "
+      "%s\n",
+      "engine", "cyc", "LOAD brake", "pass/cov", "indicated", "tgt", "friction", "tgt", "NO LOAD brake",
+      "pass/cov", "indicated", "pass/cov", "fused", "friction", "tgt", "2cov", "J k/true");
   int rc = 0;
   for (const auto& e : torqued::sim::unseen_engines()) {
     if (!all && !e.report) continue;
@@ -154,7 +158,8 @@ int run_bed_daemon(bool all, const torqued::eval::DaemonBedOptions& opt) {
     const auto& n = b.without_load;
     const auto pct = [](int k, int m) { return m > 0 ? 100 * k / m : 0; };
     std::printf(
-        "%-10s %4d | %-13s %-9s | %-13s %3d%% | %-13s %3d%% | %-13s %-9s | %-13s %-9s | %-13s | %-13s %3d%% | %3d%% | "
+        "%-10s %4d | %-13s %-9s | %-13s %3d%% | %-13s %3d%% | %-13s %-9s | %-13s %-9s | %-13s | %-13s %3d%% "
+        "| %3d%% | "
         "%.3f/%.3f\n",
         b.engine.c_str(), w.cycles, ds(w.brake).c_str(), dpc(w.brake).c_str(), ds(w.indicated).c_str(),
         pct(w.indicated.tight, w.indicated.n), ds(w.friction).c_str(), pct(w.friction.tight, w.friction.n),

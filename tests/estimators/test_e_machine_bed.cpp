@@ -27,8 +27,8 @@ eval::EvalOptions options() {
 TEST(EMachineBed, BoundMachineGivesTheNoLoadBrakeBackAndTheControlDoesNot) {
   // GIVEN rep_i4_60 with a 2:1 machine as its only load WHEN evaluated without load signal THEN with the
   // machine bound the brake torque is within 1.5 N m RMS and most cycles pass, and better than the control
-  // (machine not bound: the fuel model, 1.0 N m RMS since the inertia is learned; it was 2-3 N m, so this test
-  // used to ask for a factor of 2).
+  // (machine not bound: the fuel model, 1.0 N m RMS since the inertia is learned; it was 2-3 N m, so this
+  // test used to ask for a factor of 2).
   const auto b = eval::evaluate_bed_e_machine(engine("rep_i4_60"), options(), true, 2.0);
   ASSERT_GT(b.with_machine.brake.n, 20);
   ASSERT_GT(b.control.brake.n, 20);
@@ -49,9 +49,9 @@ TEST(EMachineBed, MotoringByTheMachineLearnsFrictionBetterThanThePrior) {
 }
 
 TEST(EMachineBed, MotoringWithoutACutOffFlagIsRecognisedFromZeroFuelAndTheMachineDriving) {
-  // GIVEN the same motoring recording but an ECU that sends no fuel cut-off flag (fuel mass 0 only) WHEN friction
-  // is learned THEN the machine driving a crank with no fuel counts as cut-off (AnglePipeline::machine_motoring_):
-  // as many friction observations, and friction as good as with the flag.
+  // GIVEN the same motoring recording but an ECU that sends no fuel cut-off flag (fuel mass 0 only) WHEN
+  // friction is learned THEN the machine driving a crank with no fuel counts as cut-off
+  // (AnglePipeline::machine_motoring_): as many friction observations, and friction as good as with the flag.
   eval::EvalOptions o = options();
   const auto with_flag = eval::evaluate_bed_motoring(engine("rep_i6_60"), o, true, 2.0);
   o.no_fuel_cutoff_flag = true;

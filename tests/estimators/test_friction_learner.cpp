@@ -173,9 +173,9 @@ TEST(FrictionLearner, IdleCorrectionIsBounded) {
   EXPECT_LE(fl.friction_nm(800.0, 90.0), (1.0 + p.idle_max_correction_frac) * law + 1e-9);
 }
 
-// Issue 14: "never collapsing on one bad input". After a coast-down has taught the law, a cycle whose balance is
-// off by 25 N m (a CAN load frame one cycle late, a gear shift) is rejected and leaves the law where it was; a
-// real change (the same 6 N m shift on motoring_gate_reaccept cycles in a row) is learned.
+// Issue 14: "never collapsing on one bad input". After a coast-down has taught the law, a cycle whose balance
+// is off by 25 N m (a CAN load frame one cycle late, a gear shift) is rejected and leaves the law where it
+// was; a real change (the same 6 N m shift on motoring_gate_reaccept cycles in a row) is learned.
 TEST(FrictionLearner, OneBadMotoringCycleIsRejectedButAConsistentChangeIsLearned) {
   FrictionParams p;
   p.c = {0.0, 0.0, 0.0, -4.67e-3};
@@ -188,7 +188,8 @@ TEST(FrictionLearner, OneBadMotoringCycleIsRejectedButAConsistentChangeIsLearned
   EXPECT_FALSE(fl.observe_motoring(2000.0, 90.0, true_friction(2000.0, 90.0) - 25.0));
   EXPECT_EQ(fl.rejected(), rejected + 1);
   EXPECT_EQ(fl.friction_nm(2000.0, 90.0), before);
-  // A shift of +10 N m at every speed, cycle after cycle: rejected until the run is long enough, then learned.
+  // A shift of +10 N m at every speed, cycle after cycle: rejected until the run is long enough, then
+  // learned.
   int accepted = 0;
   for (int i = 0; i < 200; ++i) {
     const double rpm = 1500.0 + 10.0 * (i % 100);

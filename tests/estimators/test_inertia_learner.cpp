@@ -1,12 +1,12 @@
 // InertiaLearner (estimators/inertia_learner.hpp, issue 14): J = k·J_spec from pairs of consecutive cycles,
-// k·x = y with x = Δ(J_spec θ̈) and y the torque change that balances it. Truth: pairs generated from a known k
-// with noise of the stated σ; tolerances from the learner's own 1σ.
-#include "inertia_learner.hpp"
-
+// k·x = y with x = Δ(J_spec θ̈) and y the torque change that balances it. Truth: pairs generated from a known
+// k with noise of the stated σ; tolerances from the learner's own 1σ.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
+
+#include "inertia_learner.hpp"
 
 namespace torqued {
 namespace {

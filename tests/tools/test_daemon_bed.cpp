@@ -68,11 +68,12 @@ TEST_P(DaemonBed, LearnedStateCarriesTheNoLoadBrakeTorqueToTheTargets) {
 INSTANTIATE_TEST_SUITE_P(ReportEngines, DaemonBed, ::testing::Values("rep_i4_36", "rep_i6_60"));
 
 // Issue 14, fuel model (FuelAngleWindow) and learned inertia: every report engine over the full evaluated
-// recording (steady, transients, fuel cut-off entry and exit). Per engine: no-load brake max < 12 N m, RMS < 3 N m,
-// >= 90 % within the issue's tolerance, claimed 1 sigma covers >= 40 % and 2 sigma >= 65 %; with the load signal
-// friction within 10 % or 2 N m on >= 95 % of the cycles and indicated within 3 % or 2 N m on >= 75 %; the
-// learned inertia within 4 % of the hidden truth. Pooled over the six engines the claimed 1 sigma covers 55-90 %
-// (today 78-100 % per engine, 85 % pooled: see docs/angle_pipeline.md). Label slow (about 25 s).
+// recording (steady, transients, fuel cut-off entry and exit). Per engine: no-load brake max < 12 N m, RMS <
+// 3 N m,
+// >= 90 % within the issue's tolerance, claimed 1 sigma covers >= 40 % and 2 sigma >= 65 %; with the load
+// signal friction within 10 % or 2 N m on >= 95 % of the cycles and indicated within 3 % or 2 N m on >= 75 %;
+// the learned inertia within 4 % of the hidden truth. Pooled over the six engines the claimed 1 sigma covers
+// 55-90 % (today 78-100 % per engine, 85 % pooled: see docs/angle_pipeline.md). Label slow (about 25 s).
 TEST(DaemonBedFuelWindow, ReportEnginesNoLoadBrakeFrictionInertiaAndPooledCoverage) {
   int n = 0, covered = 0;
   for (const char* name : {"rep_i4_60", "rep_i4_36", "rep_i3_60", "rep_i3_36", "rep_i6_60", "rep_i6_36"}) {
