@@ -66,8 +66,10 @@ TEST(LearnedStateChain, FileRoundTripGivesIdenticalOutputsOnTheSecondReplay) {
   const ReplayRun learn = replay(kDir + "demo.yaml", nullptr);
   ASSERT_TRUE(learn.r.learned);
   const LearnedState& st = learn.out;
-  ASSERT_TRUE(st.friction && st.fuel && st.crank_error_var);
+  ASSERT_TRUE(st.friction && st.fuel && st.crank_error_var && st.inertia);
   EXPECT_EQ(st.tooth_corrections_rad.size(), 58u);
+  // The demo's spec J is the simulator's own: the learned scale must find 1 (its 1σ is what it claims).
+  EXPECT_NEAR((*st.inertia)[0], 1.0, 3.0 / std::sqrt((*st.inertia)[1])) << "inertia scale";
   EXPECT_GT(st.fuel->references, 30u) << "the fuel model learned from reference cycles";
   EXPECT_GT(*st.crank_error_var, 0.0);
   // WHEN it is written as a state file and read back (format, checksum, identity, physical bounds)
@@ -79,7 +81,8 @@ TEST(LearnedStateChain, FileRoundTripGivesIdenticalOutputsOnTheSecondReplay) {
   const auto parsed = parse_state(text, "round-trip", &err);
   ASSERT_TRUE(parsed) << err;
   ASSERT_TRUE(check_state(*parsed, ctx, "round-trip", &err)) << err;
-  ASSERT_TRUE(parsed->fuel && parsed->crank_error_var);
+  ASSERT_TRUE(parsed->fuel && parsed->crank_error_var && parsed->inertia);
+  EXPECT_EQ(*parsed->inertia, *st.inertia);
   EXPECT_EQ(std::memcmp(&*parsed->fuel, &*st.fuel, sizeof(FuelTorqueState)), 0) << "exact round trip (%.17g)";
   EXPECT_EQ(*parsed->crank_error_var, *st.crank_error_var);
   // THEN a vehicle run (no load signal) from the parsed file equals one from the state in memory, exactly,
@@ -87,6 +90,7 @@ TEST(LearnedStateChain, FileRoundTripGivesIdenticalOutputsOnTheSecondReplay) {
   const ReplayRun file = replay(kDir + "demo_vehicle.yaml", &*parsed);
   EXPECT_NE(mem.r.imported.find("fuel model"), std::string::npos) << mem.r.imported;
   EXPECT_NE(mem.r.imported.find("crank-only error variance"), std::string::npos) << mem.r.imported;
+  EXPECT_NE(mem.r.imported.find("inertia scale"), std::string::npos) << mem.r.imported;
   ASSERT_GT(mem.values.size(), 1000u);
   ASSERT_EQ(mem.values.size(), file.values.size());
   EXPECT_EQ(std::memcmp(mem.values.data(), file.values.data(), mem.values.size() * sizeof(double)), 0);
