@@ -19,6 +19,19 @@ struct Capture final : SampleSink {
   void emit(const dds::AnySample& s) noexcept override { v.push_back(s); }
 };
 
+// Synced 6° teeth at constant speed `w` (rad/s) up to `now`; `tooth_t` is the last tooth's time (ns).
+void feed_teeth_until(TimeStage& t, std::int64_t now, double w, std::int64_t& tooth_t) {
+  while (tooth_t < now) {
+    ToothSample ts;
+    ts.width_rad = 6.0 * std::numbers::pi / 180.0;
+    ts.dt_s = ts.width_rad / w;
+    tooth_t += static_cast<std::int64_t>(ts.dt_s * 1e9);
+    ts.t_ns = tooth_t;
+    ts.synced = true;
+    t.on_tooth(ts);
+  }
+}
+
 TEST(Validity, EveryHealthHasOneMeaning) {
   EXPECT_EQ(validity_of(Health::kValid), 0u);
   EXPECT_EQ(validity_of(Health::kNotConverged), static_cast<std::uint32_t>(torque_VALIDITY_NOT_CONVERGED));
@@ -48,15 +61,7 @@ TEST(TimeStage, EmitsEveryNthStepWithTheSharedValidity) {
   std::int64_t tooth_t = 0;
   for (int k = 1; k <= 1000; ++k) {
     const std::int64_t now = k * 1'000'000LL;
-    while (tooth_t < now) {
-      ToothSample ts;
-      ts.width_rad = 6.0 * std::numbers::pi / 180.0;
-      ts.dt_s = ts.width_rad / w;
-      tooth_t += static_cast<std::int64_t>(ts.dt_s * 1e9);
-      ts.t_ns = tooth_t;
-      ts.synced = true;
-      t.on_tooth(ts);
-    }
+    feed_teeth_until(t, now, w, tooth_t);
     t.step(now, 0);
   }
   EXPECT_EQ(t.steps(), 1000u);
@@ -106,15 +111,7 @@ TEST(TimeStage, ElectricMachineSignalGoesStaleThenItsEstimatesSayStaleCan) {
   std::size_t early_stale = 0, late_fresh = 0, early = 0, late = 0;
   for (int k = 1; k <= 1000; ++k) {
     const std::int64_t now = k * 1'000'000LL;
-    while (tooth_t < now) {
-      ToothSample ts;
-      ts.width_rad = 6.0 * std::numbers::pi / 180.0;
-      ts.dt_s = ts.width_rad / w;
-      tooth_t += static_cast<std::int64_t>(ts.dt_s * 1e9);
-      ts.t_ns = tooth_t;
-      ts.synced = true;
-      t.on_tooth(ts);
-    }
+    feed_teeth_until(t, now, w, tooth_t);
     if (k % 10 == 0 && k <= 500) {
       CanFrame f;
       f.t_ns = now;

@@ -13,9 +13,9 @@ namespace sim = torqued::sim;
 
 namespace {
 const sim::BedEngine& engine(const std::string& name) {
-  for (const auto& e : sim::unseen_engines())
-    if (e.name == name) return e;
-  throw std::invalid_argument(name);
+  const sim::BedEngine* e = sim::unseen_engine(name);
+  if (e == nullptr) throw std::invalid_argument(name);
+  return *e;
 }
 eval::EvalOptions options() {
   eval::EvalOptions o;

@@ -9,13 +9,14 @@
 namespace torqued {
 namespace {
 
-// A recording in memory: fixed edge times (ns), then kEnd.
-class VectorEdgeSource final : public EdgeSource {
+// A recording in memory: fixed record times (ns), then kEnd. Base: EdgeSource or CanSource, Event its record.
+template <class Base, class Event>
+class VectorSource final : public Base {
  public:
-  explicit VectorEdgeSource(std::vector<std::int64_t> t) : t_(std::move(t)) {}
-  SourceStatus next(EdgeEvent& out) noexcept override {
+  explicit VectorSource(std::vector<std::int64_t> t) : t_(std::move(t)) {}
+  SourceStatus next(Event& out) noexcept override {
     if (i_ >= t_.size()) return SourceStatus::kEnd;
-    out = EdgeEvent{};
+    out = Event{};
     out.t_ns = t_[i_++];
     ++stats_.records;
     return SourceStatus::kOk;
@@ -28,25 +29,8 @@ class VectorEdgeSource final : public EdgeSource {
   std::size_t i_ = 0;
   SourceStats stats_{};
 };
-
-class VectorCanSource final : public CanSource {
- public:
-  explicit VectorCanSource(std::vector<std::int64_t> t) : t_(std::move(t)) {}
-  SourceStatus next(CanFrame& out) noexcept override {
-    if (i_ >= t_.size()) return SourceStatus::kEnd;
-    out = CanFrame{};
-    out.t_ns = t_[i_++];
-    ++stats_.records;
-    return SourceStatus::kOk;
-  }
-  const SourceStats& stats() const noexcept override { return stats_; }
-  std::string describe() const override { return "vector"; }
-
- private:
-  std::vector<std::int64_t> t_;
-  std::size_t i_ = 0;
-  SourceStats stats_{};
-};
+using VectorEdgeSource = VectorSource<EdgeSource, EdgeEvent>;
+using VectorCanSource = VectorSource<CanSource, CanFrame>;
 
 const std::vector<std::int64_t> kEdges{1000, 1100, 1200, 1400};  // last gap 200 ns
 const std::vector<std::int64_t> kCan{50, 1500};                  // + offset 0: spans 50 .. 1500

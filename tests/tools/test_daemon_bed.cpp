@@ -20,9 +20,7 @@ namespace fs = std::filesystem;
 // Runs one report engine of the bed through the daemon's chain (learn, then evaluate with and without the
 // load signal) in a private directory that is removed afterwards.
 bool run_report_engine(const std::string& name, bool short_run, DaemonBedResult& r, std::string& err) {
-  const sim::BedEngine* e = nullptr;
-  for (const auto& b : sim::unseen_engines())
-    if (b.name == name) e = &b;
+  const sim::BedEngine* e = sim::unseen_engine(name);
   if (e == nullptr || !e->report) {
     err = name + ": not a report engine of the bed (only report engines are scored)";
     return false;

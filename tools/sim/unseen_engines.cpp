@@ -145,4 +145,10 @@ Scenario bed_eval_run(const BedEngine& e, bool short_run) {
   return s;
 }
 
+const BedEngine* unseen_engine(const std::string& name) {
+  for (const auto& e : unseen_engines())
+    if (e.name == name) return &e;
+  return nullptr;
+}
+
 }  // namespace torqued::sim

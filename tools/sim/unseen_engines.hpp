@@ -23,6 +23,8 @@ struct BedEngine {
 
 /// The fixed list (deterministic: drawn from fixed seeds).
 [[nodiscard]] const std::vector<BedEngine>& unseen_engines();
+/// The engine of the fixed list named `name`, or nullptr.
+[[nodiscard]] const BedEngine* unseen_engine(const std::string& name);
 
 /// Learning recording: plateaus, idle, an overrun (fuel cut-off with the dyno holding speed) and a free
 /// fuel cut-off coast-down; the load signal is on CAN. The estimator state learned here is carried into the
