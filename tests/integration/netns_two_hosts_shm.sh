@@ -56,15 +56,7 @@ cyclone "$vb" 169.254.78.2 169.254.78.1 "" > "$tmp/b.xml"
 
 # The demo with the QoS of docs/daemon.md "Shared memory": keep-last 16 (writer), no deadline, CrankState
 # reliable. lock_on_fault: iceoryx's 66 MB management segment stays out of the locked RSS.
-sed -e "s|\.\./data/demo/|$src/data/demo/|g" -e "s|dbc: demo.dbc|dbc: $src/config/demo.dbc|" \
-    -e "s|^  lock_memory: true|  lock_memory: true\n  lock_on_fault: true|" \
-    -e "s|^  domain_id: 0|  domain_id: 0\n  qos:\n\
-    engine_torque: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n\
-    estimator_torque: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n\
-    cylinder_torque: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n\
-    crank_state: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n\
-    status: {reliability: reliable, history_depth: 4, deadline_ms: 0}|" \
-    "$src/config/demo.yaml" > "$tmp/demo_shm.yaml"
+"$src/tools/scripts/demo-shm-config.sh" "$src" "$tmp/demo_shm.yaml"
 grep -q "crank_state: {reliability: reliable" "$tmp/demo_shm.yaml" || { echo "FAILED: QoS not set in the demo copy"; exit 1; }
 
 # Both subscribers take the QoS from the daemon's file (--config: no deadline) and exit 3 s after the last sample.

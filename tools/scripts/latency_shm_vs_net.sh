@@ -12,15 +12,7 @@ src=$(cd "$(dirname "$0")/../.." && pwd)
 roudi=$(command -v iox-roudi) || { echo "iox-roudi not installed (Debian package iceoryx)"; exit 1; }
 tmp=$(mktemp -d "$build/latency_shm.XXXXXX")
 trap 'rm -rf "$tmp"' EXIT
-sed -e "s|\.\./data/demo/|$src/data/demo/|g" -e "s|dbc: demo.dbc|dbc: $src/config/demo.dbc|" \
-    -e "s|^  lock_memory: true|  lock_memory: true\n  lock_on_fault: true|" \
-    -e "s|^  domain_id: 0|  domain_id: 0\n  qos:\n\
-    engine_torque: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n\
-    estimator_torque: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n\
-    cylinder_torque: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n\
-    crank_state: {reliability: reliable, history_depth: 16, deadline_ms: 0}\n\
-    status: {reliability: reliable, history_depth: 4, deadline_ms: 0}|" \
-    "$src/config/demo.yaml" > "$tmp/demo_shm.yaml"
+"$src/tools/scripts/demo-shm-config.sh" "$src" "$tmp/demo_shm.yaml"
 latency=("$build/tools/torque-latency" --torqued "$build/daemon/torqued" --config "$tmp/demo_shm.yaml"
          --duration "$duration" --cyclictest "$@")
 
