@@ -10,16 +10,9 @@ a=tqa_$id b=tqb_$id va=tqva$id vb=tqvb$id
 tmp=$(mktemp -d)
 cleanup() { ip netns del "$a" 2>/dev/null || true; ip netns del "$b" 2>/dev/null || true; rm -rf "$tmp"; }
 trap cleanup EXIT
-ip netns add "$a"
-ip netns add "$b"
-ip link add "$va" type veth peer name "$vb"
-ip link set "$va" netns "$a"
-ip link set "$vb" netns "$b"
-ip -n "$a" addr add 169.254.77.1/24 dev "$va"
-ip -n "$b" addr add 169.254.77.2/24 dev "$vb"
-for n in "$a" "$b"; do ip -n "$n" link set lo up; done
-ip -n "$a" link set "$va" up
-ip -n "$b" link set "$vb" up
+# shellcheck source=netns_pair.sh
+. "$(dirname "$0")/netns_pair.sh"
+netns_pair "$a" "$b" "$va" "$vb" 169.254.77
 cyclone() {  # interface, peer
   cat <<XML
 <CycloneDDS xmlns="https://cdds.io/config"><Domain Id="any">
