@@ -271,7 +271,7 @@ double AnglePipeline::friction_sd_nm(double fric) const noexcept {
 }
 
 void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh,
-                                  double dke_nm, CycleOutput& o) noexcept {
+                                  double dke_nm, const FuelWindow& fw, CycleOutput& o) noexcept {
   const double rpm = o.speed_mean_rad_s * kRadSToRpm;
   const double fric = friction_.friction_nm(rpm, oil_c_);
   const Health fric_h = friction_.health();
@@ -300,7 +300,6 @@ void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals&
   // The window's events in fuel cut-off hold the motored (pumping) torque, the model the friction law was
   // learned against in cut-off (learn(): T_fric = T_motored − ΔKE − T_load): in a window wholly in cut-off
   // brake = T_motored − friction is as good as the learned law; a window straddling a cut-off edge is split.
-  const FuelWindow fw = fuel_window(seg);
   const TorqueEstimate motored =
       make(seg.t_ns, rls_.motored_torque_nm(fw.map_cut_pa), cfg_.friction.learned_sd_nm,
            have_map_ && !friction_.is_prior() ? Health::kValid : Health::kNotConverged);
@@ -356,7 +355,7 @@ bool AnglePipeline::fuel_reference_allowed(const SegmentEnergy& seg, const Engin
 }
 
 void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,
-                          const CycleOutput& o) noexcept {
+                          const FuelWindow& fw, const CycleOutput& o) noexcept {
   const double rpm = o.speed_mean_rad_s * kRadSToRpm;
   const bool load_steady =
       have_prev_load_ && std::fabs(seg.cycle_load_mean_nm - prev_load_) <= cfg_.friction.max_load_change_nm;
@@ -384,7 +383,6 @@ void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bo
   // scored against (fuel-model efficiency; measured 1σ of the compression-window chain).
   if (fuel_reference_allowed(seg, sig, can_fresh, load_steady, o.cycle_end)) {
     const double t_ind_ref = o.brake_energy.torque_nm + o.friction.torque_nm;
-    const FuelWindow fw = fuel_window(seg);
     if (fw.valid && fw.cut == 0) (void)fuel_.learn(fw.fuel_kg, fw.map_fired_pa, t_ind_ref);
     if (o.indicated_crank.health == Health::kValid) {
       const double e = o.indicated_crank.torque_nm - t_ind_ref;
@@ -393,11 +391,10 @@ void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bo
   }
 }
 
-void AnglePipeline::learn_inertia(const SegmentEnergy& seg, bool can_fresh, double dke_spec_nm,
+void AnglePipeline::learn_inertia(const SegmentEnergy& seg, bool can_fresh, double dke_spec_nm, const FuelWindow& fw,
                                   const CycleOutput& o) noexcept {
   if (!o.cycle_end) return;  // consecutive, non-overlapping 720° windows
   const int n = cfg_.engine.cylinders;
-  const FuelWindow fw = fuel_window(seg);
   InertiaPoint p;
   p.ok = seg.cycle_load_valid && can_fresh && fw.valid && have_map_;
   p.fired = fw.fired == n && fw.cut == 0;
@@ -483,9 +480,11 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
   const bool wide = o.cycle_end && wide_done_ && wide_.cycle_valid();
   const double dke_spec_nm = (wide ? wide_.d_ke_cycle_j() : seg.d_ke_cycle_j) / kFourPi;
   const double dke_nm = inertia_.applied_scale() * dke_spec_nm;
-  cycle_balance(seg, sig, can_fresh, dke_nm, o);
-  learn(seg, sig, can_fresh, dke_nm, o);
-  learn_inertia(seg, can_fresh, dke_spec_nm, o);
+  // The fuel window of this segment's 720° (FuelAngleWindow), read once for the balance and the learners.
+  const FuelWindow fw = fuel_window(seg);
+  cycle_balance(seg, sig, can_fresh, dke_nm, fw, o);
+  learn(seg, sig, can_fresh, dke_nm, fw, o);
+  learn_inertia(seg, can_fresh, dke_spec_nm, fw, o);
   fuse(seg, sig, o);
   cycle_ = o;
 }

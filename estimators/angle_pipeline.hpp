@@ -156,11 +156,11 @@ class AnglePipeline {
   void segment_work(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh,
                     CycleOutput& o) noexcept;
   void cycle_balance(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,
-                     CycleOutput& o) noexcept;
-  void learn(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,
+                     const FuelWindow& fw, CycleOutput& o) noexcept;
+  void learn(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm, const FuelWindow& fw,
              const CycleOutput& o) noexcept;
   void fuse(const SegmentEnergy& seg, const EngineSignals& sig, CycleOutput& o) noexcept;
-  void learn_inertia(const SegmentEnergy& seg, bool can_fresh, double dke_spec_nm,
+  void learn_inertia(const SegmentEnergy& seg, bool can_fresh, double dke_spec_nm, const FuelWindow& fw,
                      const CycleOutput& o) noexcept;
   [[nodiscard]] bool motoring_observation_allowed(const SegmentEnergy& seg, const EngineSignals& sig,
                                                   bool load_steady) const noexcept;
