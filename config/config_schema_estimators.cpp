@@ -172,6 +172,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("friction.idle_speed_tolerance", friction.params.idle_speed_tolerance, open_closed(0.0, 1.0), "", "steady idle: cycle-to-cycle speed change below this fraction");
   TQ_NUM("friction.prior_rel_sd", friction.params.prior_rel_sd, open_closed(0.0, 10.0), "", "1 sigma of the friction prior, fraction of the friction (until learned)");
   TQ_NUM("friction.learned_sd_nm", friction.params.learned_sd_nm, open_closed(0.0, 1e4), "N m", "1 sigma claimed for the learned friction law");
+  TQ_NUM("friction.residual_gain_min", friction.params.residual_gain_min, open_closed(0.0, 1.0), "", "step floor of the running 68th percentile of the motoring residuals (the claimed 1 sigma of a window in fuel cut-off): memory of about its inverse in motoring cycles");
+  TQ_NUM("friction.residual_sd_floor_nm", friction.params.residual_sd_floor_nm, open_closed(0.0, 1e3), "N m", "the motoring residual scale never claims less than this");
   TQ_BOOL("cylinder.enabled", cylinder.enabled, "per-cylinder torque, imbalance and misfire");
   TQ_NUM("cylinder.misfire_threshold", cylinder.params.misfire_threshold, open_open(0.0, 1.0), "", "misfire when cylinder torque < threshold x cycle mean");
   TQ_NUM("cylinder.imbalance_filter", cylinder.params.imbalance_filter, open_closed(0.0, 1.0), "", "EMA weight per cycle of the imbalance (1 = none)");
@@ -199,6 +201,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("fuel.work_centroid_atdc_deg", fuel.work_centroid_atdc_deg, closed(0.0, 360.0), "deg", "centroid of a cylinder's work after its firing TDC: places each cylinder's combustion in a 720 deg window (160, tried on the unseen bed's tuning engines only: 130 gives the same result, 190 is worse)");
   TQ_NUM("fuel.report_window_s", fuel.report_window_s, closed(0.0, 0.1), "s", "an intake event's fuel cut-off state is revised by a consistent CAN report (flag set with no fuel, or clear with fuel) this long after it: one period of a 100 Hz ECU frame");
   TQ_NUM("fuel.transient_sd_scale", fuel.transient_sd_scale, closed(0.0, 10.0), "", "claimed 1 sigma added (in quadrature) per N m of fuel-model torque spread across a window's intake events (transients, cut-off edges)");
+  TQ_NUM("fuel.sd_floor_nm", fuel.sd_floor_nm, open_closed(0.0, 1e3), "N m", "the fuel model's claimed residual scale (68th percentile of |reference residual|) never claims less than this");
   TQ_BOOL("tooth_learn.enabled", tooth_learn.enabled, "apply the per-tooth angle correction table");
   TQ_BOOL("tooth_learn.learn", tooth_learn.params.learn, "learn per-tooth corrections while running");
   TQ_INT("tooth_learn.min_cycles", tooth_learn.params.min_cycles, closed(1, 100000), "cycles", "cycles averaged before the table is used");

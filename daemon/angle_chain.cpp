@@ -163,6 +163,9 @@ bool AngleChain::snapshot(LearnedSnapshot& snap) const noexcept {
       snap.idle_valid = true;
       snap.idle = {pipeline_->friction().idle_correction_nm(), pipeline_->friction().idle_speed_rpm()};
     }
+    const CoverageScale& r = pipeline_->friction().motoring_residual_scale();
+    snap.fric_res_valid = r.sd > 0.0;
+    snap.fric_res = {r.sd, static_cast<double>(r.n)};
   }
   snap.n_teeth = corr_n_;
   std::copy_n(corr_.begin(), corr_n_, snap.teeth.begin());
@@ -186,6 +189,7 @@ bool AngleChain::learned_state(LearnedState& st) const {
   st = LearnedState{};
   if (snap.friction_valid) st.friction = snap.friction;
   if (snap.idle_valid) st.friction_idle = snap.idle;
+  if (snap.fric_res_valid) st.friction_residual = snap.fric_res;
   st.tooth_corrections_rad.assign(snap.teeth.begin(), snap.teeth.begin() + snap.n_teeth);
   if (snap.fuel_valid) st.fuel = snap.fuel;
   if (snap.crank_var_valid) st.crank_error_var = snap.crank_var;
@@ -201,6 +205,10 @@ std::string AngleChain::import_state(const LearnedState& st) {
     if (st.friction_idle &&
         pipeline_->friction().import_idle_correction((*st.friction_idle)[0], (*st.friction_idle)[1]))
       what += " with idle correction";
+    if (st.friction_residual &&
+        pipeline_->friction().import_motoring_residual_scale(
+            (*st.friction_residual)[0], static_cast<std::uint32_t>((*st.friction_residual)[1])))
+      what += " and motoring residual scale " + std::to_string((*st.friction_residual)[0]) + " N m";
   }
   const auto n = st.tooth_corrections_rad.size();
   if (n > 0 && n <= corr_.size()) {

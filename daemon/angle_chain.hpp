@@ -69,6 +69,8 @@ struct LearnedSnapshot {
   std::array<double, 4> friction{};  ///< C1..C4 of the friction law
   bool idle_valid = false;
   std::array<double, 2> idle{};  ///< idle correction (N m), idle speed (rpm)
+  bool fric_res_valid = false;
+  std::array<double, 2> fric_res{};  ///< motoring residual scale (N m), its count
   int n_teeth = 0;               ///< tooth corrections applied to the decoder (0: none)
   std::array<double, 2 * kMaxTeeth> teeth{};
   bool fuel_valid = false;  ///< fuel model learned from references, or imported

@@ -165,14 +165,21 @@ void AngleStage::publish_snapshot() noexcept {
   if (scratch_.idle_valid)
     for (std::size_t i = 0; i < 2; ++i) snap_idle_[i].store(scratch_.idle[i], std::memory_order_relaxed);
   snap_idle_valid_.store(scratch_.idle_valid, std::memory_order_relaxed);
+  if (scratch_.fric_res_valid)
+    for (std::size_t i = 0; i < 2; ++i)
+      snap_fric_res_[i].store(scratch_.fric_res[i], std::memory_order_relaxed);
+  snap_fric_res_valid_.store(scratch_.fric_res_valid, std::memory_order_relaxed);
   for (int i = 0; i < scratch_.n_teeth; ++i)
     snap_teeth_[static_cast<std::size_t>(i)].store(scratch_.teeth[static_cast<std::size_t>(i)],
                                                    std::memory_order_relaxed);
   snap_n_teeth_.store(scratch_.n_teeth, std::memory_order_relaxed);
   if (scratch_.fuel_valid) {
     const FuelTorqueState& f = scratch_.fuel;
-    const std::array<double, 8> v{f.theta[0], f.theta[1], f.p[0],      f.p[1],
-                                  f.p[2],     f.p[3],     f.resid_var, static_cast<double>(f.references)};
+    const std::array<double, 10> v{f.theta[0],  f.theta[1],
+                                   f.p[0],      f.p[1],
+                                   f.p[2],      f.p[3],
+                                   f.resid_var, static_cast<double>(f.references),
+                                   f.cover.sd,  static_cast<double>(f.cover.n)};
     for (std::size_t i = 0; i < v.size(); ++i) snap_fuel_[i].store(v[i], std::memory_order_relaxed);
   }
   snap_fuel_valid_.store(scratch_.fuel_valid, std::memory_order_relaxed);
@@ -197,19 +204,24 @@ bool AngleStage::export_state(LearnedState& st) const {
     if (snap_idle_valid_.load(std::memory_order_relaxed))
       tmp.friction_idle = std::array<double, 2>{snap_idle_[0].load(std::memory_order_relaxed),
                                                 snap_idle_[1].load(std::memory_order_relaxed)};
+    if (snap_fric_res_valid_.load(std::memory_order_relaxed))
+      tmp.friction_residual = std::array<double, 2>{snap_fric_res_[0].load(std::memory_order_relaxed),
+                                                    snap_fric_res_[1].load(std::memory_order_relaxed)};
     const int n = snap_n_teeth_.load(std::memory_order_relaxed);
     tmp.tooth_corrections_rad.resize(static_cast<std::size_t>(n));
     for (int i = 0; i < n; ++i)
       tmp.tooth_corrections_rad[static_cast<std::size_t>(i)] =
           snap_teeth_[static_cast<std::size_t>(i)].load(std::memory_order_relaxed);
     if (snap_fuel_valid_.load(std::memory_order_relaxed)) {
-      std::array<double, 8> v{};
+      std::array<double, 10> v{};
       for (std::size_t i = 0; i < v.size(); ++i) v[i] = snap_fuel_[i].load(std::memory_order_relaxed);
       FuelTorqueState f;
       f.theta = {v[0], v[1]};
       f.p = {v[2], v[3], v[4], v[5]};
       f.resid_var = v[6];
       f.references = static_cast<std::uint32_t>(v[7]);
+      f.cover.sd = v[8];
+      f.cover.n = static_cast<std::uint32_t>(v[9]);
       tmp.fuel = f;
     }
     if (snap_crank_var_valid_.load(std::memory_order_relaxed))

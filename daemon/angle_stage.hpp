@@ -69,8 +69,10 @@ class AngleStage final : public AngleChainSink {
   std::atomic<bool> snap_friction_valid_{false};
   std::array<std::atomic<double>, 2> snap_idle_{};  ///< friction idle correction (N m), idle speed (rpm)
   std::atomic<bool> snap_idle_valid_{false};
-  std::array<std::atomic<double>, 8>
-      snap_fuel_{};  ///< FuelTorqueState: theta[2], p[4], resid_var, references
+  std::array<std::atomic<double>, 2> snap_fric_res_{};  ///< motoring residual scale (N m), its count
+  std::atomic<bool> snap_fric_res_valid_{false};
+  std::array<std::atomic<double>, 10>
+      snap_fuel_{};  ///< FuelTorqueState: theta[2], p[4], resid_var, references, cover.sd, cover.n
   std::atomic<bool> snap_fuel_valid_{false};
   std::atomic<double> snap_crank_var_{0.0};
   std::atomic<bool> snap_crank_var_valid_{false};

@@ -133,6 +133,9 @@ std::string serialize_state(const LearnedState& s, const std::string& identity) 
   if (s.friction_idle)
     text +=
         "friction_idle" + fmt(" %.17g", (*s.friction_idle)[0]) + fmt(" %.17g", (*s.friction_idle)[1]) + "\n";
+  if (s.friction_residual)
+    text += "friction_residual" + fmt(" %.17g", (*s.friction_residual)[0]) +
+            fmt(" %.0f", (*s.friction_residual)[1]) + "\n";
   if (!s.tooth_corrections_rad.empty()) {
     text += "tooth_corrections " + std::to_string(s.tooth_corrections_rad.size());
     for (double c : s.tooth_corrections_rad) text += fmt(" %.17g", c);
@@ -142,7 +145,8 @@ std::string serialize_state(const LearnedState& s, const std::string& identity) 
     const FuelTorqueState& f = *s.fuel;
     text += "fuel_model" + fmt(" %.17g", f.theta[0]) + fmt(" %.17g", f.theta[1]);
     for (double v : f.p) text += fmt(" %.17g", v);
-    text += fmt(" %.17g", f.resid_var) + " " + std::to_string(f.references) + "\n";
+    text += fmt(" %.17g", f.resid_var) + " " + std::to_string(f.references);
+    text += fmt(" %.17g", f.cover.sd) + " " + std::to_string(f.cover.n) + "\n";
   }
   if (s.crank_error_var) text += "crank_error_var" + fmt(" %.17g", *s.crank_error_var) + "\n";
   if (s.inertia) {
@@ -169,6 +173,12 @@ bool parse_line(const std::string& key, std::istringstream& ls, LearnedState& s,
     if (!(ls >> v[0] >> v[1]) || !std::isfinite(v[0]) || !std::isfinite(v[1]) || !(v[1] > 0.0))
       return *what = "expected an idle friction correction (N m) and a positive idle speed (rpm)", false;
     s.friction_idle = v;
+  } else if (key == "friction_residual") {
+    std::array<double, 2> v{};
+    if (!(ls >> v[0] >> v[1]) || !std::isfinite(v[0]) || !(v[0] > 0.0) ||
+        !(v[1] >= 0.0 && v[1] <= 4294967295.0))
+      return *what = "expected a positive motoring residual scale (N m) and a count", false;
+    s.friction_residual = v;
   } else if (key == "tooth_corrections") {
     std::size_t n = 0;
     if (!(ls >> n) || n > 2 * static_cast<std::size_t>(kMaxTeeth))
@@ -183,12 +193,18 @@ bool parse_line(const std::string& key, std::istringstream& ls, LearnedState& s,
     bool ok = static_cast<bool>(ls >> f.theta[0] >> f.theta[1]);
     for (double& v : f.p) ok = ok && static_cast<bool>(ls >> v);
     ok = ok && (ls >> f.resid_var >> refs) && refs >= 0 && refs <= 0xFFFFFFFFll;
-    for (double v : {f.theta[0], f.theta[1], f.p[0], f.p[1], f.p[2], f.p[3], f.resid_var}) ok = ok && std::isfinite(v);
+    std::int64_t cover_n = 0;
+    if (ok && !(ls >> std::ws).eof())  // the residual scale and its count (absent in older files)
+      ok = (ls >> f.cover.sd >> cover_n) && cover_n >= 0 && cover_n <= 0xFFFFFFFFll && f.cover.sd >= 0.0;
+    for (double v : {f.theta[0], f.theta[1], f.p[0], f.p[1], f.p[2], f.p[3], f.resid_var, f.cover.sd})
+      ok = ok && std::isfinite(v);
     if (!ok)
-      return *what = "expected efficiency, pumping term (N m), 4 covariance entries, residual variance (N m^2) "
-                     "and a reference count",
+      return *what =
+                 "expected efficiency, pumping term (N m), 4 covariance entries, residual variance (N m^2), "
+                 "a reference count and optionally the residual scale (N m) and its count",
              false;
     f.references = static_cast<std::uint32_t>(refs);
+    f.cover.n = static_cast<std::uint32_t>(cover_n);
     s.fuel = f;
   } else if (key == "crank_error_var") {
     double v = 0.0;
@@ -277,6 +293,11 @@ bool check_fuel(const FuelTorqueState& f, const StateContext& ctx, std::string* 
     *what = "fuel model residual variance " + fmt("%g", f.resid_var) + " N m^2 out of range";
     return false;
   }
+  if (!(f.cover.sd >= 0.0 && f.cover.sd <= ctx.max_torque_sd_nm)) {
+    *what = "fuel model residual scale " + fmt("%g", f.cover.sd) + " N m not in [0, " +
+            fmt("%g", ctx.max_torque_sd_nm) + "]";
+    return false;
+  }
   const double tol = 1e-9 * (std::abs(f.p[1]) + std::abs(f.p[2])) + 1e-300;
   if (!(f.p[0] >= 0.0 && f.p[3] >= 0.0 && std::abs(f.p[1] - f.p[2]) <= tol &&
         f.p[1] * f.p[2] <= f.p[0] * f.p[3] * (1.0 + 1e-9))) {
@@ -324,6 +345,13 @@ bool check_state(const LearnedState& s, const StateContext& ctx, const std::stri
       return fail("idle speed " + fmt("%g", v[1]) + " rpm not in (0, " + fmt("%g", ctx.friction.max_rpm) +
                   "]");
     if (!s.friction) return fail("an idle friction correction without friction coefficients");
+  }
+  if (s.friction_residual) {
+    const double v = (*s.friction_residual)[0];
+    if (!(v > 0.0 && v <= ctx.max_torque_sd_nm))
+      return fail("motoring residual scale " + fmt("%g", v) + " N m not in (0, " +
+                  fmt("%g", ctx.max_torque_sd_nm) + "]");
+    if (!s.friction) return fail("a motoring residual scale without friction coefficients");
   }
   if (s.fuel && !check_fuel(*s.fuel, ctx, &fuel_err)) return fail(fuel_err);
   if (s.crank_error_var) {

@@ -6,16 +6,20 @@
 //   identity engine_id=1 cylinders=4 bore_m=0.0825 stroke_m=0.086 wheel=60-2 teeth=58
 //   friction <c1> <c2> <c3> <c4>                    (optional)
 //   friction_idle <correction N m> <idle speed rpm>  (optional: FrictionLearner's local idle correction)
+//   friction_residual <N m> <count>                  (optional: 68th percentile of |motoring residual|, the
+//                                                    claimed 1 sigma of a window in fuel cut-off)
 //   tooth_corrections <n> <rad_0> ... <rad_n-1>      (optional)
-//   fuel_model <eta> <p_exh V_d/4pi N m> <P00> <P01> <P10> <P11> <resid var N m^2> <references>  (optional)
+//   fuel_model <eta> <p_exh V_d/4pi N m> <P00> <P01> <P10> <P11> <resid var N m^2> <references>
+//              [<68th percentile of |residual| N m> <its count>]  (optional; the last two added later: 0 0
+//              or absent = not measured yet)
 //   crank_error_var <N m^2>                          (optional: measured variance of the crank-only chain)
 //   inertia <k> <information 1/k^2> <J_spec kg m^2>  (optional: J = k x J_spec, InertiaLearner; J_spec is the
 //                                                    engine.j_rot_kgm2 it was learned against)
 //   saved_at_t_ns <edge-clock time>
 //   checksum crc32 <8 hex digits of CRC-32 (IEEE) over every byte before this line>
-// fuel_model, crank_error_var and inertia were added to version 2 (issue 14); version 2 files without them
-// still load. Version 1 files (no identity, no checksum) are still read and checked against the bounds; the
-// next save rewrites them as version 2.
+// fuel_model, crank_error_var, inertia and friction_residual were added to version 2 (issue 14); version 2
+// files without them still load. Version 1 files (no identity, no checksum) are still read and checked
+// against the bounds; the next save rewrites them as version 2.
 //
 // Writes are atomic: <file>.tmp is written and fsync()ed, the current file (always a checked one) is
 // hard-linked to <file>.bak, then <file>.tmp is renamed over <file> and the directory fsync()ed. A crash or
@@ -47,6 +51,7 @@ struct Config;
 struct LearnedState {
   std::optional<std::array<double, 4>> friction;       ///< FrictionLearner coefficients [C1..C4]
   std::optional<std::array<double, 2>> friction_idle;  ///< idle correction (N m) and its idle speed (rpm)
+  std::optional<std::array<double, 2>> friction_residual;  ///< motoring residual scale (N m), its count
   std::vector<double> tooth_corrections_rad;           ///< ToothErrorLearner table (empty = none)
   std::optional<FuelTorqueState> fuel;    ///< FuelTorque learned efficiency / pumping / covariance
   std::optional<double> crank_error_var;  ///< measured crank-only indicated error variance (N m^2)

@@ -299,9 +299,10 @@ void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals&
   // Fuel model (ECU fuel mass on CAN at each intake event, efficiency learned against the energy balance).
   // The window's events in fuel cut-off hold the motored (pumping) torque, the model the friction law was
   // learned against in cut-off (learn(): T_fric = T_motored − ΔKE − T_load): in a window wholly in cut-off
-  // brake = T_motored − friction is as good as the learned law; a window straddling a cut-off edge is split.
+  // brake = T_motored − friction is as good as the learned law fits its motoring balances (claimed 1σ: their
+  // residuals' 68th percentile); a window straddling a cut-off edge is split.
   const TorqueEstimate motored =
-      make(seg.t_ns, rls_.motored_torque_nm(fw.map_cut_pa), cfg_.friction.learned_sd_nm,
+      make(seg.t_ns, rls_.motored_torque_nm(fw.map_cut_pa), friction_.motoring_sd_nm(),
            have_map_ && !friction_.is_prior() ? Health::kValid : Health::kNotConverged);
   fuel_ind_ = fuel_.estimate_window(seg.t_ns, fw, motored);
   if (seg.cycle_load_valid) {

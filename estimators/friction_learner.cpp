@@ -43,6 +43,7 @@ void FrictionLearner::reset() noexcept {
   n_motoring_ = n_idle_ = n_rejected_ = 0;
   gated_run_ = 0;
   gated_sign_ = 0.0;
+  cover_ = CoverageScale{};
 }
 
 bool FrictionLearner::gate_rejects(double err, double law_var) noexcept {
@@ -86,6 +87,10 @@ bool FrictionLearner::observe_motoring(double speed_rpm, double oil_temp_c, doub
   if (gate_rejects(err, phi[0] * pphi[0] + phi[1] * pphi[1] + phi[2] * pphi[2])) {
     ++n_rejected_;
     return false;
+  }
+  if (n_motoring_ >= static_cast<std::uint64_t>(params_.min_observations)) {
+    if (!(cover_.sd > 0.0)) cover_.start(params_.learned_sd_nm);
+    cover_.observe(err, params_.residual_gain_min, params_.residual_sd_floor_nm);
   }
   std::array<double, 9> pn{};
   for (int i = 0; i < 3; ++i) {
@@ -196,6 +201,13 @@ bool FrictionLearner::import_idle_correction(double correction_nm, double idle_r
   idle_corr_nm_ = correction_nm;
   idle_rpm_ = idle_rpm;
   idle_prior_n_ = kIdlePriorObservations;
+  return true;
+}
+
+bool FrictionLearner::import_motoring_residual_scale(double sd_nm, std::uint32_t n) noexcept {
+  if (!std::isfinite(sd_nm) || !(sd_nm > 0.0)) return false;
+  cover_.sd = std::max(sd_nm, params_.residual_sd_floor_nm);
+  cover_.n = n;
   return true;
 }
 

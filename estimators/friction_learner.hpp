@@ -20,6 +20,7 @@
 #include <array>
 #include <cstdint>
 
+#include "coverage_scale.hpp"
 #include "estimate.hpp"
 #include "params.hpp"
 
@@ -73,6 +74,15 @@ class FrictionLearner {
   /// Local idle correction δ (N m) and the idle speed it was learned at (rpm); 0 / 0 before any idle observation.
   [[nodiscard]] double idle_correction_nm() const noexcept { return idle_corr_nm_; }
   [[nodiscard]] double idle_speed_rpm() const noexcept { return idle_rpm_; }
+  /// Claimed 1σ of a motoring (fuel cut-off) balance against the law: the 68th percentile of the a-priori
+  /// motoring residuals once the law is learned (CoverageScale), learned_sd_nm before. Real-time safe.
+  [[nodiscard]] double motoring_sd_nm() const noexcept {
+    return cover_.sd > 0.0 ? cover_.sd : params_.learned_sd_nm;
+  }
+  [[nodiscard]] const CoverageScale& motoring_residual_scale() const noexcept { return cover_; }
+  /// Load a persisted residual scale (after import_coefficients, which clears it). Rejects non-finite or
+  /// non-positive scales (returns false).
+  bool import_motoring_residual_scale(double sd_nm, std::uint32_t n) noexcept;
   [[nodiscard]] std::uint64_t motoring_observations() const noexcept { return n_motoring_; }
   [[nodiscard]] std::uint64_t idle_observations() const noexcept { return n_idle_; }
   [[nodiscard]] std::uint64_t rejected() const noexcept { return n_rejected_; }
@@ -98,6 +108,7 @@ class FrictionLearner {
   double idle_rpm_ = 0.0;          ///< speed of the idle observations (rpm), 0: none yet
   std::uint64_t idle_prior_n_ = 0; ///< weight (observations) of an imported idle correction
   bool imported_ = false;
+  CoverageScale cover_;  ///< motoring residual scale (sd 0: none measured)
   std::uint64_t n_motoring_ = 0, n_idle_ = 0, n_rejected_ = 0;
   int gated_run_ = 0;        ///< consecutive motoring observations rejected by the gate, all on one side
   double gated_sign_ = 0.0;  ///< side (sign of the error) of that run

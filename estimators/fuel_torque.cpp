@@ -38,9 +38,10 @@ TorqueEstimate FuelTorque::estimate(std::int64_t t_ns, double fuel_kg, double ma
   }
   const double f = n_cyl_ * fuel_kg * params_.fuel_lhv_j_kg / kFourPi;
   e.torque_nm = st_.theta[0] * f + map_pa * vd_4pi_ - st_.theta[1];
-  // 1σ: measured residual RMS plus the parameter uncertainty at this operating point.
+  // 1σ: measured residual scale (68th percentile once valid, RMS before) plus the parameter uncertainty here.
   const double v_par = f * f * st_.p[0] - 2.0 * f * st_.p[1] + st_.p[3];
-  e.uncertainty = std::sqrt(st_.resid_var + std::max(0.0, v_par));
+  const double r = st_.cover.sd > 0.0 ? st_.cover.sd * st_.cover.sd : st_.resid_var;
+  e.uncertainty = std::sqrt(r + std::max(0.0, v_par));
   e.health = valid() ? Health::kValid : Health::kNotConverged;
   return e;
 }
@@ -97,15 +98,22 @@ bool FuelTorque::learn(double fuel_kg, double map_pa, double t_ind_ref) noexcept
   }
   pn[1] = pn[2] = 0.5 * (pn[1] + pn[2]);
   st_.p = pn;
-  // Residual variance from the a-priori errors (includes the reference's own noise: conservative). Once
-  // valid, a running mean over every reference since (weight 1/k, floored at sd_ema): the claimed 1σ then
-  // covers the whole range of operating points learned, not only the last plateau.
+  // Residual variance from the a-priori errors (includes the reference's own noise: conservative), the
+  // gate's scale. Once valid, a running mean over every reference since (weight 1/k, floored at sd_ema), and
+  // the claimed scale (CoverageScale, same weights): both cover the whole range of operating points learned,
+  // not only the last plateau.
   const bool was_valid = valid();
   ++st_.references;
   const double kn = static_cast<double>(st_.references) - params_.min_references;
   const double w = was_valid && kn >= 1.0 ? std::max(1.0 / kn, params_.sd_ema) : params_.sd_ema;
   st_.resid_var += w * (err * err - st_.resid_var);
+  if (was_valid) observe_coverage(err);
   return true;
+}
+
+void FuelTorque::observe_coverage(double err) noexcept {
+  if (!(st_.cover.sd > 0.0)) st_.cover.start(std::sqrt(st_.resid_var));
+  st_.cover.observe(err, params_.sd_ema, params_.sd_floor_nm);
 }
 
 bool FuelTorque::import_state(const FuelTorqueState& s) noexcept {
@@ -116,6 +124,7 @@ bool FuelTorque::import_state(const FuelTorqueState& s) noexcept {
     if (!std::isfinite(v)) return false;
   }
   if (!std::isfinite(s.resid_var) || s.resid_var < 0.0) return false;
+  if (!std::isfinite(s.cover.sd) || s.cover.sd < 0.0) return false;
   st_ = s;
   return true;
 }

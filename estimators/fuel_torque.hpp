@@ -10,12 +10,14 @@
 // / 4π) whenever a reference is present: T_ind,ref = energy-balance brake torque with the measured load +
 // learned friction. Priors: η_g = 0.38 (typical gross indicated fuel conversion efficiency of a warm SI
 // engine at λ = 1, Heywood fig. 13-9 order of magnitude), p_exh = 105 kPa (ambient + a few kPa of exhaust
-// back-pressure); both with wide priors. The claimed 1σ is the RMS of the reference residuals (running mean
-// over every reference once valid, then an EMA with a long memory), so that it is measured, not assumed.
+// back-pressure); both with wide priors. The claimed 1σ is measured, not assumed: the 68th percentile of
+// |reference residual| once valid (CoverageScale: the residuals are heavy-tailed across operating points, so
+// their RMS was covered 80-100 % of the time), with the parameter uncertainty at the operating point.
 // Real-time safe: no allocation, no exceptions.
 #include <array>
 #include <cstdint>
 
+#include "coverage_scale.hpp"
 #include "engine_geometry.hpp"
 #include "estimate.hpp"
 #include "fuel_angle_window.hpp"
@@ -45,14 +47,16 @@ struct FuelTorqueParams {
               ///< the intake can be that much older than the injection decision)
   double transient_sd_scale =
       0.25;  ///< claimed 1σ added per N m of model-torque spread across the window (-)
+  double sd_floor_nm = 0.1;  ///< the coverage-calibrated residual scale never claims less (N m)
 };
 
 /// Learned state (persisted with the friction coefficients).
 struct FuelTorqueState {
   std::array<double, 2> theta{};  ///< [η_g, p_exh V_d/4π (N m)]
   std::array<double, 4> p{};      ///< RLS covariance (row-major 2x2)
-  double resid_var = 0.0;         ///< residual variance (N m²)
+  double resid_var = 0.0;         ///< residual variance (N m²): the outlier gate's scale
   std::uint32_t references = 0;
+  CoverageScale cover;  ///< 68th percentile of |residual| once valid (N m), sd 0: not yet
 };
 
 class FuelTorque {
@@ -78,6 +82,7 @@ class FuelTorque {
   }
 
  private:
+  void observe_coverage(double err) noexcept;
   FuelTorqueParams params_;
   int n_cyl_;
   double vd_4pi_;  ///< V_d / 4π (m³/rad)

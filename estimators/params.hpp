@@ -150,6 +150,10 @@ struct FrictionParams {
   double idle_speed_tolerance = 0.03;   ///< steady idle: cycle-to-cycle speed change below this fraction (-)
   double prior_rel_sd = 0.4;            ///< 1σ of the generic prior, fraction of the friction (issue 14: ±40 %) (-)
   double learned_sd_nm = 2.0;           ///< 1σ claimed for the learned friction law (N m)
+  double residual_gain_min =
+      0.02;  ///< once learned, the motoring residuals' 68th percentile (the claimed 1σ of
+             ///< a window in fuel cut-off) is a running estimate with this step floor (-)
+  double residual_sd_floor_nm = 0.1;    ///< that scale never claims less (N m)
   bool learn = true;                    ///< self-learn at idle and in fuel cut-off (EN-34)
   double sign = -1.0;                   ///< T_fric = sign·(...): the paper's polynomial is negative (-)
   double forgetting = 0.998;            ///< RLS forgetting factor per observation (-)

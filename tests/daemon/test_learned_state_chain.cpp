@@ -131,6 +131,23 @@ TEST(LearnedStateChain, OutOfBoundsFuelModelIsRejected) {
   EXPECT_FALSE(check_state(s, ctx, "psd", &err));
   EXPECT_NE(err.find("positive semi-definite"), std::string::npos) << err;
   s.fuel = f;
+  s.fuel->cover.sd = 1e5;  // the residual scale beyond any torque of this engine
+  EXPECT_FALSE(check_state(s, ctx, "cover", &err));
+  EXPECT_NE(err.find("residual scale 100000"), std::string::npos) << err;
+  // The residual scale round-trips exactly; a fuel_model line without it (older files) loads with none.
+  s.fuel = f;
+  s.fuel->cover.sd = 0.73456789012345678;
+  s.fuel->cover.n = 321;
+  const auto rt = parse_state(serialize_state(s, ctx.identity), "rt", &err);
+  ASSERT_TRUE(rt && rt->fuel) << err;
+  EXPECT_EQ(rt->fuel->cover.sd, s.fuel->cover.sd);
+  EXPECT_EQ(rt->fuel->cover.n, 321u);
+  const std::string old_fuel = "torqued-state 1\nfuel_model 0.4 10 1e-4 0 0 1 4 100\n";
+  const auto of = parse_state(old_fuel, "old_fuel", &err);
+  ASSERT_TRUE(of && of->fuel) << err;
+  EXPECT_EQ(of->fuel->cover.sd, 0.0);
+  EXPECT_EQ(of->fuel->references, 100u);
+  s.fuel = f;
   s.crank_error_var = -1.0;
   EXPECT_FALSE(check_state(s, ctx, "var", &err));
   // An older version 2 text (no fuel_model, no crank_error_var) parses.

@@ -39,6 +39,39 @@ TEST(FrictionLearner, LearnsTheLawFromMotoringObservationsStartingAtZero) {
   }
 }
 
+TEST(FrictionLearner, ClaimedSigmaOfAMotoringBalanceIsItsResidualScaleOnceLearnedAndSurvivesRestart) {
+  // GIVEN a learner with the configured 1σ of 2 N m
+  FrictionParams p;
+  p.c = {0.0, 0.0, 0.0, -4.67e-3};
+  FrictionLearner fl(p);
+  EXPECT_EQ(fl.motoring_sd_nm(), p.learned_sd_nm);
+  // WHEN coast-downs with 0.4 N m (1σ) residuals feed it
+  unsigned s = 9;
+  auto gauss = [&s] {
+    double acc = 0.0;
+    for (int i = 0; i < 12; ++i) {
+      s = s * 1664525u + 1013904223u;
+      acc += static_cast<double>(s >> 8) / 16777216.0;
+    }
+    return acc - 6.0;
+  };
+  for (int run = 0; run < 4; ++run)
+    for (double rpm = 3000.0; rpm > 1100.0; rpm -= 15.0)
+      (void)fl.observe_motoring(rpm, 90.0, true_friction(rpm, 90.0) + 0.4 * gauss());
+  // THEN the claimed 1σ of a balance in cut-off is the residuals' scale (0.4 N m within 25 %), not 2 N m
+  EXPECT_NEAR(fl.motoring_sd_nm(), 0.4, 0.1);
+  const torqued::CoverageScale r = fl.motoring_residual_scale();
+  EXPECT_GT(r.n, 400u);
+  // AND it survives a restart (coefficients first, which clear it, then the scale)
+  FrictionLearner back(p);
+  ASSERT_TRUE(back.import_coefficients(fl.coefficients()));
+  EXPECT_EQ(back.motoring_sd_nm(), p.learned_sd_nm);
+  ASSERT_TRUE(back.import_motoring_residual_scale(r.sd, r.n));
+  EXPECT_EQ(back.motoring_sd_nm(), fl.motoring_sd_nm());
+  EXPECT_FALSE(back.import_motoring_residual_scale(std::nan(""), 1));
+  EXPECT_FALSE(back.import_motoring_residual_scale(0.0, 1));
+}
+
 TEST(FrictionLearner, LearnsC4FromIdleAtTwoOilTemperatures) {
   FrictionParams p;
   p.c[3] = 0.0;  // wrong oil dependence

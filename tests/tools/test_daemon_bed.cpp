@@ -71,9 +71,11 @@ INSTANTIATE_TEST_SUITE_P(ReportEngines, DaemonBed, ::testing::Values("rep_i4_36"
 // >= 90 % within the tolerance, claimed 1 sigma covers >= 40 % and 2 sigma >= 65 %; with the load
 // signal friction within 10 % or 2 N m on >= 95 % of the cycles and indicated within 3 % or 2 N m on >= 75 %;
 // the learned inertia within 4 % of the hidden truth. Pooled over the six engines the claimed 1 sigma covers
-// 55-90 % (today 78-100 % per engine, 85 % pooled: see docs/angle_pipeline.md). Label slow (about 25 s).
+// 62-78 % and 2 sigma at least 88 % (today 52-82 % per engine, 73 % pooled, 2 sigma 95 %: see
+// docs/angle_pipeline.md; 85 % pooled before the claimed sigmas were coverage-calibrated). Label slow (about
+// 25 s).
 TEST(DaemonBedFuelWindow, ReportEnginesNoLoadBrakeFrictionInertiaAndPooledCoverage) {
-  int n = 0, covered = 0;
+  int n = 0, covered = 0, covered2 = 0;
   for (const char* name : {"rep_i4_60", "rep_i4_36", "rep_i3_60", "rep_i3_36", "rep_i6_60", "rep_i6_36"}) {
     SCOPED_TRACE(name);
     DaemonBedResult r;
@@ -92,9 +94,11 @@ TEST(DaemonBedFuelWindow, ReportEnginesNoLoadBrakeFrictionInertiaAndPooledCovera
     EXPECT_NEAR(r.inertia_scale, r.inertia_true_scale, 0.04 * r.inertia_true_scale) << "learned J / spec J";
     n += b.n;
     covered += b.covered;
+    covered2 += b.covered2;
   }
-  EXPECT_GE(covered, 55 * n / 100) << "pooled claimed 1 sigma too small";
-  EXPECT_LE(covered, 90 * n / 100) << "pooled claimed 1 sigma too large";
+  EXPECT_GE(covered, 62 * n / 100) << "pooled claimed 1 sigma too small";
+  EXPECT_LE(covered, 78 * n / 100) << "pooled claimed 1 sigma too large";
+  EXPECT_GE(covered2, 88 * n / 100) << "pooled claimed 2 sigma too small";
 }
 
 }  // namespace
