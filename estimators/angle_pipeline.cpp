@@ -413,9 +413,12 @@ void AnglePipeline::learn_inertia(const SegmentEnergy& seg, bool can_fresh, doub
       std::fabs(p.map_pa - q.map_pa) <= ip.max_map_change_pa;
   const bool both_cut = p.cut && q.cut;
   if (p.ok && q.ok && (same_firing || both_cut)) {
-    // k·Δ(ΔKE_spec/4π) = −ΔT_load − ΔT_fric + ΔT_ind (inertia_learner.hpp); ΔT_ind = 0 at the same fuelling,
-    // the modelled motored torque's change in cut-off.
-    const double d_ind = both_cut ? rls_.motored_torque_nm(p.map_pa) - rls_.motored_torque_nm(q.map_pa) : 0.0;
+    // k·Δ(ΔKE_spec/4π) = −ΔT_load − ΔT_fric + ΔT_ind (inertia_learner.hpp): ΔT_ind is the modelled motored
+    // torque's change in cut-off, the fuel model's (Willans line, learned or its prior) between two cycles of
+    // nearly the same fuelling.
+    const double d_ind = both_cut ? rls_.motored_torque_nm(p.map_pa) - rls_.motored_torque_nm(q.map_pa)
+                                  : fuel_.estimate(seg.t_ns, p.fuel_kg, p.map_pa).torque_nm -
+                                        fuel_.estimate(seg.t_ns, q.fuel_kg, q.map_pa).torque_nm;
     const double y = -(p.load_nm - q.load_nm) -
                      (friction_.friction_nm(p.rpm, oil_c_) - friction_.friction_nm(q.rpm, oil_c_)) + d_ind;
     if (inertia_.observe(p.dke_spec_nm - q.dke_spec_nm, y)) ++stats_.inertia_observations;

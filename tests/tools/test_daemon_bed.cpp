@@ -70,10 +70,10 @@ INSTANTIATE_TEST_SUITE_P(ReportEngines, DaemonBed, ::testing::Values("rep_i4_36"
 // 3 N m,
 // >= 90 % within the tolerance, claimed 1 sigma covers >= 40 % and 2 sigma >= 65 %; with the load
 // signal friction within 10 % or 2 N m on >= 95 % of the cycles and indicated within 3 % or 2 N m on >= 75 %;
-// the learned inertia within 4 % of the hidden truth. Pooled over the six engines the claimed 1 sigma covers
-// 62-78 % and 2 sigma at least 88 % (today 52-82 % per engine, 73 % pooled, 2 sigma 95 %: see
-// docs/angle_pipeline.md; 85 % pooled before the claimed sigmas were coverage-calibrated). Label slow (about
-// 25 s).
+// the learned inertia within 2.5 % of the hidden truth (3.2 % off on rep_i6_36 before the fuel model's change
+// entered the firing pairs). Pooled over the six engines the claimed 1 sigma covers 62-78 % and 2 sigma at
+// least 88 % (today 53-86 % per engine, 72 % pooled, 2 sigma 94 %; 85 % pooled before the claimed sigmas were
+// coverage-calibrated: see docs/angle_pipeline.md). Label slow (about 25 s).
 TEST(DaemonBedFuelWindow, ReportEnginesNoLoadBrakeFrictionInertiaAndPooledCoverage) {
   int n = 0, covered = 0, covered2 = 0;
   for (const char* name : {"rep_i4_60", "rep_i4_36", "rep_i3_60", "rep_i3_36", "rep_i6_60", "rep_i6_36"}) {
@@ -91,7 +91,7 @@ TEST(DaemonBedFuelWindow, ReportEnginesNoLoadBrakeFrictionInertiaAndPooledCovera
     const DaemonBedRun& w = r.with_load;
     EXPECT_GE(w.friction.tight, 95 * w.friction.n / 100) << "friction within 10 % or 2 N m";
     EXPECT_GE(w.indicated.tight, 75 * w.indicated.n / 100) << "indicated within 3 % or 2 N m";
-    EXPECT_NEAR(r.inertia_scale, r.inertia_true_scale, 0.04 * r.inertia_true_scale) << "learned J / spec J";
+    EXPECT_NEAR(r.inertia_scale, r.inertia_true_scale, 0.025 * r.inertia_true_scale) << "learned J / spec J";
     n += b.n;
     covered += b.covered;
     covered2 += b.covered2;
