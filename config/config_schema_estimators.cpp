@@ -111,6 +111,10 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_INT("energies.rls_min_windows", energies.params.rls_min_windows, closed(1, 100000), "", "windows before the RLS load counts as converged");
   TQ_NUM("energies.energy_window_deg", energies.params.energy_window_deg, open_closed(0.0, 180.0), "deg", "kinetic-energy averaging window");
   TQ_NUM("energies.cycle_ke_window_deg", energies.params.cycle_ke_window_deg, closed(0.0, 300.0), "deg", "720° balance (brake/indicated): kinetic energy averaged over this window ending energy_window/2 after boundary 0 (0: per-cylinder window)");
+  TQ_NUM("energies.cylinder_window_deg", energies.params.cylinder_window_deg, closed(0.0, 180.0), "deg",
+         "per-cylinder segment work only (shares, imbalance, misfire): kinetic energy averaged over this "
+         "window ending energy_window/2 after each boundary; jitter noise ~ 1/window; below 720/cylinders "
+         "(0: energy_window)");
   TQ_NUM("energies.segment_offset_deg", energies.params.segment_offset_deg, closed(-180.0, 180.0), "deg", "segment boundary relative to firing TDC");
   TQ_NUM("energies.idle_max_rpm", energies.params.idle_max_rpm, open_closed(0.0, 20000.0), "rpm", "idle (friction C4 learning) below this speed");
   TQ_NUM("energies.idle_max_load_nm", energies.params.idle_max_load_nm, closed(0.0, 1e4), "N m", "and |load| below this");

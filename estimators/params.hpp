@@ -121,6 +121,9 @@ struct EnergiesParams {
   double idle_max_load_nm = 3.0;        ///< and with |load| below this (N m)
   double cycle_ke_window_deg = 120.0;   ///< 720° balance (brake/indicated): KE averaged over this window ending
                                         ///< energy_window/2 after boundary 0; jitter noise ∝ 1/window; 0: off (deg)
+  double cylinder_window_deg = 60.0;    ///< per-cylinder segment work (shares, imbalance, misfire) only: KE averaged
+                                        ///< over this window ending energy_window/2 after each boundary; jitter and
+                                        ///< tooth-table noise ∝ 1/window; < 720°/cylinders; 0: energy_window (deg)
   double rls_change_threshold = 4.0;    ///< crank-only load change: CUSUM of the per-firing load innovations (in σ)
                                         ///< above this re-seeds the RLS at the cycle mean (0: RLS alone) (-)
   double rls_step_min_sd_nm = 1.0;      ///< floor of the innovations' 1σ (N m)
