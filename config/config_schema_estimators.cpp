@@ -179,6 +179,9 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_BOOL("cylinder.enabled", cylinder.enabled, "per-cylinder torque, imbalance and misfire");
   TQ_NUM("cylinder.misfire_threshold", cylinder.params.misfire_threshold, open_open(0.0, 1.0), "", "misfire when cylinder torque < threshold x cycle mean");
   TQ_NUM("cylinder.imbalance_filter", cylinder.params.imbalance_filter, open_closed(0.0, 1.0), "", "EMA weight per cycle of the imbalance (1 = none)");
+  TQ_NUM("cylinder.imbalance_tau_s", cylinder.params.imbalance_tau_s, closed(0.0, 60.0), "s",
+         "time constant of the imbalance EMA: its weight per cycle is at most 1 - exp(-cycle duration / "
+         "tau), the same averaging time at every speed (0: imbalance_filter alone)");
   TQ_NUM("cylinder.min_mean_nm", cylinder.params.min_mean_nm, closed(0.0, 1e4), "N m", "no misfire decision below this mean torque");
   TQ_NUM("cylinder.misfire_sigma", cylinder.params.misfire_sigma, closed(0.0, 100.0), "", "a misfire's deficit must also exceed this many sigma of the running cycle-to-cycle share noise (0: off)");
   TQ_NUM("cylinder.share_noise_prior", cylinder.params.share_noise_prior, closed(0.0, 10.0), "", "share noise sigma (fraction of the mean) assumed until measured");

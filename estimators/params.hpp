@@ -174,6 +174,9 @@ struct FrictionParams {
 struct CylinderParams {
   double misfire_threshold = 0.5;   ///< misfire when a cylinder's torque < threshold × cycle mean (-)
   double imbalance_filter = 0.2;    ///< EMA weight per cycle of the published imbalance (1 = no filter) (-)
+  double imbalance_tau_s = 0.5;     ///< and at most 1 − exp(−T_cycle/τ): the same time constant at every speed
+                                    ///< (0.2 per cycle is 0.6 s at 1000 rpm, 0.1 s at 6000 rpm, where the jitter
+                                    ///< noise of a share grows as ω²); 0: the per-cycle weight alone (s)
   double min_mean_nm = 5.0;         ///< no misfire decision while the median segment-mean torque is below this (N m)
   double misfire_sigma = 4.0;       ///< a misfire's deficit must also exceed this many σ of the running share noise
                                     ///< (0: off) (-)
