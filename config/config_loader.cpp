@@ -499,6 +499,12 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
   if (!(en.window_end_btdc_deg < en.window_start_btdc_deg))
     out.push_back({"estimators.energies.window_end_btdc_deg", fmt(en.window_end_btdc_deg),
                    "less than window_start_btdc_deg = " + fmt(en.window_start_btdc_deg) + " deg"});
+  // Per-cylinder KE windows end energy_window/2 after each boundary; neighbouring ones must not overlap.
+  const double seg_deg = 720.0 / std::max(1, c.engine.cylinders);
+  if (!(en.cylinder_window_deg < seg_deg))
+    out.push_back({"estimators.energies.cylinder_window_deg", fmt(en.cylinder_window_deg),
+                   "less than 720 deg / cylinders = " + fmt(seg_deg) +
+                       " deg (windows of neighbouring boundaries must not overlap)"});
   // The estimator's own check (CF-14 at every tooth + spectral radius of the cycle map) when the Fourier
   // observer runs; check_fourier_stability() above is the paper's bound alone.
   if (c.estimators.fourier.enabled && geometry_ok)

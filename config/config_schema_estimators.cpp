@@ -111,6 +111,10 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_INT("energies.rls_min_windows", energies.params.rls_min_windows, closed(1, 100000), "", "windows before the RLS load counts as converged");
   TQ_NUM("energies.energy_window_deg", energies.params.energy_window_deg, open_closed(0.0, 180.0), "deg", "kinetic-energy averaging window");
   TQ_NUM("energies.cycle_ke_window_deg", energies.params.cycle_ke_window_deg, closed(0.0, 300.0), "deg", "720° balance (brake/indicated): kinetic energy averaged over this window ending energy_window/2 after boundary 0 (0: per-cylinder window)");
+  TQ_NUM("energies.cylinder_window_deg", energies.params.cylinder_window_deg, closed(0.0, 180.0), "deg",
+         "per-cylinder segment work only (shares, imbalance, misfire): kinetic energy averaged over this "
+         "window ending energy_window/2 after each boundary; jitter noise ~ 1/window; below 720/cylinders "
+         "(0: energy_window)");
   TQ_NUM("energies.segment_offset_deg", energies.params.segment_offset_deg, closed(-180.0, 180.0), "deg", "segment boundary relative to firing TDC");
   TQ_NUM("energies.idle_max_rpm", energies.params.idle_max_rpm, open_closed(0.0, 20000.0), "rpm", "idle (friction C4 learning) below this speed");
   TQ_NUM("energies.idle_max_load_nm", energies.params.idle_max_load_nm, closed(0.0, 1e4), "N m", "and |load| below this");
@@ -177,6 +181,9 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_BOOL("cylinder.enabled", cylinder.enabled, "per-cylinder torque, imbalance and misfire");
   TQ_NUM("cylinder.misfire_threshold", cylinder.params.misfire_threshold, open_open(0.0, 1.0), "", "misfire when cylinder torque < threshold x cycle mean");
   TQ_NUM("cylinder.imbalance_filter", cylinder.params.imbalance_filter, open_closed(0.0, 1.0), "", "EMA weight per cycle of the imbalance (1 = none)");
+  TQ_NUM("cylinder.imbalance_tau_s", cylinder.params.imbalance_tau_s, closed(0.0, 60.0), "s",
+         "time constant of the imbalance EMA: its weight per cycle is at most 1 - exp(-cycle duration / "
+         "tau), the same averaging time at every speed (0: imbalance_filter alone)");
   TQ_NUM("cylinder.min_mean_nm", cylinder.params.min_mean_nm, closed(0.0, 1e4), "N m", "no misfire decision below this mean torque");
   TQ_NUM("cylinder.misfire_sigma", cylinder.params.misfire_sigma, closed(0.0, 100.0), "", "a misfire's deficit must also exceed this many sigma of the running cycle-to-cycle share noise (0: off)");
   TQ_NUM("cylinder.share_noise_prior", cylinder.params.share_noise_prior, closed(0.0, 10.0), "", "share noise sigma (fraction of the mean) assumed until measured");

@@ -50,6 +50,10 @@ AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
     : cfg_(resolve_prior(config)),
       energy_(config.engine, config.wheel, config.energies),
       wide_(energy_, config.energies.cycle_ke_window_deg, 0.5 * config.energies.energy_window_deg),
+      cyl_energy_(config.engine, config.wheel, config.energies,
+                  config.energies.cylinder_window_deg > 0.0 ? config.energies.cylinder_window_deg
+                                                            : config.energies.energy_window_deg,
+                  0.5 * config.energies.energy_window_deg),
       rls_(config.engine, config.wheel, config.energies),
       friction_(cfg_.friction),
       inertia_(config.energies.inertia),
@@ -71,6 +75,7 @@ AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
 void AnglePipeline::reset() noexcept {
   energy_.reset();
   wide_.reset();
+  cyl_energy_.reset();
   rls_.reset();
   eso_.reset();
   fuel_ind_ = TorqueEstimate{};
@@ -111,6 +116,7 @@ std::uint8_t AnglePipeline::break_sequence(ToothSample s) noexcept {
   if (cfg_.run_kalman) kalman_.update(s);
   if (fourier_ok_) fourier_.update(s);
   energy_.update(s, 0.0, false);
+  cyl_energy_.update(s, 0.0, false);
   wide_.update(s);
   rls_.update(s, 0.0, false, 0.0, cyl_work_j_, false);
   fuel_win_.break_sequence();
@@ -190,11 +196,18 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
 
   wide_done_ = wide_.update(s);  // completes on the same tooth as boundary 0's per-cylinder window
   const std::uint64_t breaks_before = energy_.breaks();
+  // The per-cylinder work with the friction law and RLS load as they are before this segment's learning;
+  // handed to CylinderTorque after on_segment, which decides the segment's fuel state (count_fuel_state).
+  // Both windows end on the same tooth: a cycle record completed here goes out with boundary 0's segment.
+  const bool cyl_done = cyl_energy_.update(s, net.torque_nm, load_ok);
+  double cyl_work_j = 0.0;
+  const bool cyl_ok = cyl_done && cylinder_work(cyl_energy_.segment(), cyl_work_j);
   if (energy_.update(s, net.torque_nm, load_ok)) {
     on_segment(energy_.segment(), sig, can_fresh);
     ready = static_cast<std::uint8_t>(ready | kSegmentReady);
     if (cycle_.cycle_end) ready = static_cast<std::uint8_t>(ready | kCycleReady);
   }
+  if (cyl_done) cylinder_segment(cyl_energy_.segment(), cyl_work_j, cyl_ok);
   stats_.sequence_breaks += energy_.breaks() - breaks_before;
   return ready;
 }
@@ -223,34 +236,29 @@ FuelWindow AnglePipeline::fuel_window(const SegmentEnergy& seg) const noexcept {
   return fuel_win_.window(energy_.boundary_rad(seg.boundary));
 }
 
+bool AnglePipeline::segment_load_star(const SegmentEnergy& seg, const TorqueEstimate& rls,
+                                      double& load_star_nm) const noexcept {
+  const double fric_seg = friction_.friction_nm(seg.speed_rad_s * kRadSToRpm, oil_c_);
+  if (seg.load_valid) {
+    load_star_nm = seg.load_mean_nm + fric_seg;
+    return true;
+  }
+  load_star_nm = rls.health == Health::kValid ? rls.torque_nm : 0.0;
+  return rls.health == Health::kValid;
+}
+
 void AnglePipeline::segment_work(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh,
                                  CycleOutput& o) noexcept {
-  const int n = cfg_.engine.cylinders;
   const TorqueEstimate& rls = o.load_rls;
   const bool rls_ok = rls.health == Health::kValid;
   const double fric_seg = friction_.friction_nm(seg.speed_rad_s * kRadSToRpm, oil_c_);
   double seg_load_star = 0.0;
-  bool seg_ok = seg.segment_valid;
-  if (seg.load_valid) {
-    seg_load_star = seg.load_mean_nm + fric_seg;
-  } else if (rls_ok) {
-    seg_load_star = rls.torque_nm;
-  } else {
-    seg_ok = false;
-  }
+  const bool seg_ok = segment_load_star(seg, rls, seg_load_star) && seg.segment_valid;
   const double work = seg.d_ke_segment_j + seg_load_star * seg.segment_rad;
   const auto pos = static_cast<std::size_t>(seg.ended_position);
   cyl_work_j_[pos] =
-      seg_ok ? work : cyl_work_j_[pos];  // the segment holds this cylinder's whole-cycle net work
+      seg_ok ? work : cyl_work_j_[pos];  // the segment holds this cylinder's whole-cycle net work (RLS input)
   cyl_work_ok_[pos] = seg_ok;
-  // Misfire decisions only after kMisfireArmCycles firing cycles: the CAN flag leads the injections that
-  // resume.
-  if (cyl_.on_segment(seg.t_ns, seg.ended_position, work, seg_ok,
-                      fired_ && fired_segments_ > kMisfireArmCycles * n)) {
-    o.cylinders = cyl_.cycle();
-    stats_.misfires = cyl_.misfires();
-    ++stats_.cycles;
-  }
   EsoInput ein;
   ein.t_ns = seg.t_ns;
   ein.ke_j = seg.ke_j;
@@ -263,6 +271,28 @@ void AnglePipeline::segment_work(const SegmentEnergy& seg, const EngineSignals& 
   ein.valid = seg.segment_valid && can_fresh && sig.fuel_mass_valid && (seg.load_valid || rls_ok);
   eso_.update(ein);
   o.indicated_eso = eso_.estimate();
+}
+
+// Per-cylinder work W_m = ΔKE_segment + (T_load + T_fric)·segment angle (CylinderTorque, ESTIMATORS.md §4)
+// from the wider KE window: the edge jitter and the tooth-table residual at the two outer edges enter ΔKE
+// divided by the window (CycleEnergy), while the 720° balance, the ESO and the RLS keep energy_'s window.
+bool AnglePipeline::cylinder_work(const SegmentEnergy& seg, double& work_j) const noexcept {
+  double load_star = 0.0;
+  const bool ok = segment_load_star(seg, rls_.estimate(), load_star) && seg.segment_valid;
+  work_j = seg.d_ke_segment_j + load_star * seg.segment_rad;
+  return ok;
+}
+
+void AnglePipeline::cylinder_segment(const SegmentEnergy& seg, double work, bool ok) noexcept {
+  const int n = cfg_.engine.cylinders;
+  // Misfire decisions only after kMisfireArmCycles firing cycles: the CAN flag leads the injections that
+  // resume.
+  if (cyl_.on_segment(seg.t_ns, seg.ended_position, work, ok,
+                      fired_ && fired_segments_ > kMisfireArmCycles * n)) {
+    cycle_.cylinders = cyl_.cycle();
+    stats_.misfires = cyl_.misfires();
+    ++stats_.cycles;
+  }
 }
 
 double AnglePipeline::friction_sd_nm(double fric) const noexcept {

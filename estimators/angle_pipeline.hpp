@@ -155,6 +155,14 @@ class AnglePipeline {
   void count_fuel_state(const EngineSignals& sig, bool can_fresh) noexcept;
   void segment_work(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh,
                     CycleOutput& o) noexcept;
+  /// Extended load T_load + T_fric of a segment (N m): measured load + friction, else the RLS; false if
+  /// neither.
+  [[nodiscard]] bool segment_load_star(const SegmentEnergy& seg, const TorqueEstimate& rls,
+                                       double& load_star_nm) const noexcept;
+  /// Indicated work of a cyl_energy_ segment (J); false if the segment or its load is not usable.
+  [[nodiscard]] bool cylinder_work(const SegmentEnergy& seg, double& work_j) const noexcept;
+  /// A cyl_energy_ segment ended: its work to CylinderTorque; a completed cycle goes into cycle_.cylinders.
+  void cylinder_segment(const SegmentEnergy& seg, double work_j, bool ok) noexcept;
   void cycle_balance(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,
                      const FuelWindow& fw, CycleOutput& o) noexcept;
   void learn(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm, const FuelWindow& fw,
@@ -173,6 +181,9 @@ class AnglePipeline {
   AnglePipelineConfig cfg_;
   CycleEnergy energy_;
   CycleKeWindow wide_;  ///< wide KE window for the 720° balance (energies.cycle_ke_window_deg)
+  /// Per-cylinder segment work only (CylinderTorque): KE windows of energies.cylinder_window_deg ending where
+  /// energy_'s end, so they complete on the same tooth; energy_ keeps driving everything else.
+  CycleEnergy cyl_energy_;
   LoadRls rls_;
   FrictionLearner friction_;
   InertiaLearner inertia_;

@@ -46,7 +46,11 @@ void nominal_wheel_edges(const WheelGeometry& wheel, std::vector<double>& edge, 
 }
 
 CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& wheel,
-                         const EnergiesParams& params) {
+                         const EnergiesParams& params)
+    : CycleEnergy(engine, wheel, params, params.energy_window_deg, 0.5 * params.energy_window_deg) {}
+
+CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& wheel,
+                         const EnergiesParams& params, double window_deg, double window_end_deg) {
   const CrankKinematics kin(engine);
   ncyl_ = engine.cylinders;
   std::vector<double> e1, w1;
@@ -69,17 +73,19 @@ CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& whee
     j_center_[i] = kin.inertia(center_[i]);
   }
   const double seg = kFourPi / ncyl_;
-  const double half_w = 0.5 * params.energy_window_deg * kDeg;
+  // Window [end − w, end) around each boundary; the centred ±w/2 gives exactly −hi (×2 is exact in binary).
+  const double hi = window_end_deg * kDeg;
+  const double lo = hi - window_deg * kDeg;
   for (int b = 0; b < ncyl_; ++b)
     boundary_[static_cast<std::size_t>(b)] = wrap4pi(b * seg + params.segment_offset_deg * kDeg);
   for (int k = 0; k < samples_; ++k) {
     const auto i = static_cast<std::size_t>(k);
     for (int b = 0; b < ncyl_; ++b) {
-      // Half-open windows [−w/2, +w/2) with a tolerance: a centre exactly on a window edge (36-1 wheel: 10°
+      // Half-open windows [end − w, end) with a tolerance: a centre exactly on a window edge (36-1 wheel: 10°
       // pitch, ±15° window) must fall on the same side at every boundary despite rounding.
       constexpr double kEps = 1e-9;
       const double d = diff720(center_[i] + kEps, boundary_[static_cast<std::size_t>(b)]);
-      if (d >= -half_w && d < half_w) window_of_[i] = b;
+      if (d >= lo && d < hi) window_of_[i] = b;
       // Segment b spans [boundary_b, boundary_b + seg).
       const double ds = wrap4pi(center_[i] + kEps - boundary_[static_cast<std::size_t>(b)]);
       if (ds < seg) segment_of_[i] = b;

@@ -61,7 +61,13 @@ struct SegmentEnergy {
 
 class CycleEnergy {
  public:
+  /// KE windows of params.energy_window_deg centred on each boundary (±w/2).
   CycleEnergy(const EngineGeometry& engine, const WheelGeometry& wheel, const EnergiesParams& params);
+  /// KE windows of `window_deg` ending `window_end_deg` after each boundary: [end − window, end) (the
+  /// per-cylinder segment work's wider window, AnglePipeline). Windows of neighbouring boundaries must not
+  /// overlap: window_deg < 720°/cylinders (checked by the config loader).
+  CycleEnergy(const EngineGeometry& engine, const WheelGeometry& wheel, const EnergiesParams& params,
+              double window_deg, double window_end_deg);
 
   void reset() noexcept;
   /// Real-time safe. `load_nm` is the load torque at this tooth (dyno / e-machine), `load_valid` whether

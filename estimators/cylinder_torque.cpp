@@ -72,6 +72,7 @@ void CylinderTorque::reset() noexcept {
   noisy_ = true;
   share_var_ = params_.share_noise_prior * params_.share_noise_prior;
   cycles_ = 0;
+  prev_cycle_t_ns_ = 0;
   out_ = CylinderCycle{};
   out_.cylinders = engine_.cylinders;
 }
@@ -87,6 +88,11 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
   if (position != n - 1) return false;
 
   // Cycle complete: positions 0..n−1 hold this cycle's segments.
+  // A cycle longer than this is a gap in the record, not a cycle: the per-cycle weight applies.
+  constexpr double kMaxCycleDtS = 1.0;
+  double cycle_dt_s = prev_cycle_t_ns_ != 0 ? static_cast<double>(t_ns - prev_cycle_t_ns_) * 1e-9 : 0.0;
+  if (!(cycle_dt_s > 0.0 && cycle_dt_s < kMaxCycleDtS)) cycle_dt_s = 0.0;
+  prev_cycle_t_ns_ = t_ns;
   CylinderCycle o;
   o.t_ns = t_ns;
   o.cycle = ++cycles_;
@@ -152,7 +158,7 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
       ++misfires_;
     }
   }
-  update_filtered_imbalance(o, candidates);
+  update_filtered_imbalance(o, candidates, cycle_dt_s);
   o.imbalance_filtered_pct = ema_;
   o.health = health_of(o.detection);
   out_ = o;
@@ -216,7 +222,8 @@ bool CylinderTorque::update_noisy(double sigma_j, double fired_level_j) noexcept
 
 // Filtered imbalance over firing cycles without misfire where detection is active (or only the wheel
 // unlearned, or the shares noisy), and the running share noise that gates the misfire decision.
-void CylinderTorque::update_filtered_imbalance(const CylinderCycle& o, int candidates) noexcept {
+void CylinderTorque::update_filtered_imbalance(const CylinderCycle& o, int candidates,
+                                               double cycle_dt_s) noexcept {
   // kNoisy too: the noise estimate must keep following the shares, or a noisy state would never end
   const bool usable = o.detection == MisfireDetection::kActive ||
                       o.detection == MisfireDetection::kWheelUnlearned ||
@@ -224,7 +231,12 @@ void CylinderTorque::update_filtered_imbalance(const CylinderCycle& o, int candi
   // a misfire not decided (kNoisy) must not raise the noise that keeps it undecided
   if (!usable || o.misfire_count != 0 || candidates != 0 || !(o.mean_nm > params_.min_mean_nm)) return;
   const int n = engine_.cylinders;
-  const double a = ema_init_ ? params_.imbalance_filter : 1.0;
+  // Weight per cycle: imbalance_filter, at most 1 − exp(−T_cycle/τ) (a fixed averaging time: at high speed
+  // the jitter noise of the shares grows as ω² while the cycles get shorter, issue 15 item 3).
+  double a = params_.imbalance_filter;
+  if (params_.imbalance_tau_s > 0.0 && cycle_dt_s > 0.0)
+    a = std::min(a, 1.0 - std::exp(-cycle_dt_s / params_.imbalance_tau_s));
+  if (!ema_init_) a = 1.0;
   double var = 0.0;
   for (int c = 0; c < n; ++c) {
     const auto ci = static_cast<std::size_t>(c);

@@ -11,6 +11,9 @@
 //                 volume of one cylinder: the usual (W_m/W̄ − 1) wherever the engine fires (idle is 1-2 bar
 //                 net IMEP), bounded where the mean is small or negative (overrun, idle after a fuel cut-off;
 //                 issue 15 item 3)
+//   filtered    = EMA of imbalance_m over usable cycles, weight min(imbalance_filter, 1 − exp(−T_cycle/τ)):
+//   the
+//                 same averaging time (imbalance_tau_s) at every speed
 //   misfire_m   = C_m < threshold · median_{j≠m} C_j with the combustion work C = W − W_mot, decided only
 //                 while the engine fires (no fuel cut-off) and the reference exceeds min_mean_nm
 //                 (segment-mean torque), and the deficit med − C_m exceeds misfire_sigma × the running
@@ -86,7 +89,8 @@ class CylinderTorque {
   void track_overrun(bool all_fired, double median_work_j) noexcept;
   /// Every segment of this cycle carried a combustion (the whole cycle is above the motored level).
   [[nodiscard]] bool all_combusting(int n, double seg_rad) const noexcept;
-  void update_filtered_imbalance(const CylinderCycle& o, int candidates) noexcept;
+  /// `cycle_dt_s`: duration of this cycle (s), 0 if unknown (the per-cycle weight alone).
+  void update_filtered_imbalance(const CylinderCycle& o, int candidates, double cycle_dt_s) noexcept;
   /// Noise state from the segment noise σ (J) and the cycle's firing level (J); real-time safe.
   bool update_noisy(double sigma_j, double fired_level_j) noexcept;
   static Health health_of(MisfireDetection d) noexcept;
@@ -109,6 +113,7 @@ class CylinderTorque {
   bool prev_combusting_ = false;  ///< the previous cycle combusted in every segment (all_combusting)
   double w_floor_j_ = 0.0;  ///< share floor (J)
   std::uint32_t cycles_ = 0;
+  std::int64_t prev_cycle_t_ns_ = 0;  ///< time of the previous cycle's end (ns), 0 before the first
   std::uint64_t misfires_ = 0;
   CylinderCycle out_;
 };

@@ -121,6 +121,9 @@ struct EnergiesParams {
   double idle_max_load_nm = 3.0;        ///< and with |load| below this (N m)
   double cycle_ke_window_deg = 120.0;   ///< 720° balance (brake/indicated): KE averaged over this window ending
                                         ///< energy_window/2 after boundary 0; jitter noise ∝ 1/window; 0: off (deg)
+  double cylinder_window_deg = 60.0;    ///< per-cylinder segment work (shares, imbalance, misfire) only: KE averaged
+                                        ///< over this window ending energy_window/2 after each boundary; jitter and
+                                        ///< tooth-table noise ∝ 1/window; < 720°/cylinders; 0: energy_window (deg)
   double rls_change_threshold = 4.0;    ///< crank-only load change: CUSUM of the per-firing load innovations (in σ)
                                         ///< above this re-seeds the RLS at the cycle mean (0: RLS alone) (-)
   double rls_step_min_sd_nm = 1.0;      ///< floor of the innovations' 1σ (N m)
@@ -175,6 +178,9 @@ struct FrictionParams {
 struct CylinderParams {
   double misfire_threshold = 0.5;   ///< misfire when a cylinder's torque < threshold × cycle mean (-)
   double imbalance_filter = 0.2;    ///< EMA weight per cycle of the published imbalance (1 = no filter) (-)
+  double imbalance_tau_s = 0.5;     ///< and at most 1 − exp(−T_cycle/τ): the same time constant at every speed
+                                    ///< (0.2 per cycle is 0.6 s at 1000 rpm, 0.1 s at 6000 rpm, where the jitter
+                                    ///< noise of a share grows as ω²); 0: the per-cycle weight alone (s)
   double min_mean_nm = 5.0;         ///< no misfire decision while the median segment-mean torque is below this (N m)
   double misfire_sigma = 4.0;       ///< a misfire's deficit must also exceed this many σ of the running share noise
                                     ///< (0: off) (-)

@@ -236,6 +236,12 @@ int main(int argc, char** argv) {
       "misfires, on the simulator's scenarios and randomised engines");
   app.add_option("--random-engines", random_engines, "--cylinders: number of randomised engines");
   app.add_option("--random-seed", random_seed, "--cylinders: seed of the randomised engines");
+  int cylinder_seeds = 1;
+  app.add_option(
+         "--cylinder-seeds", cylinder_seeds,
+         "--cylinders: balanced rows at >= 2000 rpm also run on this many simulator seeds in all (RMS and "
+         "worst of the max imbalance error; 1: the single run only)")
+      ->check(CLI::Range(1, 100));
   torqued::ToothLearnParams learn;
   app.add_option("--fit-harmonics", learn.fit_harmonics, "tooth learner: harmonics of the per-cycle fit");
   app.add_option("--speed-weight-exp", learn.speed_weight_exp,
@@ -300,8 +306,8 @@ int main(int argc, char** argv) {
     std::vector<torqued::eval::CylinderCaseResult> rows;
     for (const auto& c : torqued::eval::cylinder_cases(random_engines, random_seed)) {
       if (!names.empty() && std::find(names.begin(), names.end(), c.scenario.name) == names.end()) continue;
-      rows.push_back(torqued::eval::evaluate_case(c, opt));
-      torqued::eval::print_cylinder_table({rows.back()}, rows.size() == 1);
+      rows.push_back(torqued::eval::evaluate_case(c, opt, cylinder_seeds));
+      torqued::eval::print_cylinder_table({rows.back()}, rows.size() == 1, cylinder_seeds > 1);
     }
     return 0;
   }

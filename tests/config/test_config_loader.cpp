@@ -63,6 +63,7 @@ const BadCase kBad[] = {
     {"e_machine_ratio_zero", "e_machine_ratio_zero.yaml:5:12: key 'can.e_machine.ratio': found '0', expected a finite number (range (0, 100])", 1},
     {"e_machine_sign_zero", "e_machine_sign_zero.yaml:5:11: key 'can.e_machine.sign': found '0', expected +1 or -1", 1},
     {"e_machine_sole_load_unmapped", "e_machine_sole_load_unmapped.yaml:5:16: key 'can.e_machine.sole_load': found 'true', expected can.signals.em_torque mapped", 1},
+    {"cylinder_window_overlaps", "cylinder_window_overlaps.yaml:8:26: key 'estimators.energies.cylinder_window_deg': found '150', expected less than 720 deg / cylinders = 120 deg", 1},
     {"many_errors", "many_errors.yaml:12:10: key 'logging.level': found 'verbose', expected one of trace|debug|info|warn|error|critical|off", 6},
 };
 

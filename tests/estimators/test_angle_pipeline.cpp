@@ -87,6 +87,64 @@ TEST_F(AnglePipelineSim, FourThousandRpmLowLoadBrakeWithinTwoNmWithTheWideKineti
   EXPECT_LT(r.brake.rms_nm, 0.5 * n.brake.rms_nm);
 }
 
+namespace {
+bool same(const TorqueEstimate& a, const TorqueEstimate& b) {
+  return a.t_ns == b.t_ns && a.torque_nm == b.torque_nm && a.uncertainty == b.uncertainty &&
+         a.health == b.health;
+}
+}  // namespace
+
+TEST_F(AnglePipelineSim, CylinderWindowLeavesTheCycleBalanceAndItsLearnersUnchanged) {
+  // GIVEN one recording at 4000 rpm light load (the jitter's worst case) through two pipelines that differ
+  // only in energies.cylinder_window_deg: 0 (the per-cylinder work from the 30° energy window, as before) and
+  // 60°
+  sim::Scenario sc = sim::scenario_by_name("steady_4000_low");
+  sc.duration_s = 1.0;
+  const auto out = sim::simulate(sc);
+  AnglePipelineConfig narrow = eval::pipeline_config(sc, options());
+  narrow.energies.cylinder_window_deg = 0.0;
+  AnglePipelineConfig wide = narrow;
+  wide.energies.cylinder_window_deg = 60.0;
+  AnglePipeline a(narrow), b(wide);
+  a.friction().import_coefficients(friction_);
+  b.friction().import_coefficients(friction_);
+  int segments = 0, cycles = 0, cylinders_differ = 0;
+  for (const ToothSample& s : sim::ideal_tooth_samples(out, sc)) {
+    const EngineSignals sig = sim::signals_at(out, static_cast<double>(s.t_ns) * 1e-9);
+    const std::uint8_t ra = a.on_tooth(s, sig), rb = b.on_tooth(s, sig);
+    // WHEN a segment completes THEN it completes on the same tooth in both
+    ASSERT_EQ(ra, rb) << s.t_ns;
+    if (!(ra & AnglePipeline::kSegmentReady)) continue;
+    ++segments;
+    // AND every cycle-balance output (720° energy balance, RLS, ESO, friction, fusion) is bit for bit the
+    // same
+    const CycleOutput& x = a.cycle_output();
+    const CycleOutput& y = b.cycle_output();
+    EXPECT_EQ(x.t_ns, y.t_ns);
+    EXPECT_EQ(x.boundary, y.boundary);
+    EXPECT_EQ(x.speed_mean_rad_s, y.speed_mean_rad_s);
+    for (auto m : {&CycleOutput::brake, &CycleOutput::indicated, &CycleOutput::friction, &CycleOutput::load,
+                   &CycleOutput::brake_energy, &CycleOutput::indicated_crank, &CycleOutput::load_rls,
+                   &CycleOutput::indicated_eso})
+      EXPECT_TRUE(same(x.*m, y.*m)) << "segment " << segments;
+    EXPECT_EQ(x.fused.brake_nm, y.fused.brake_nm);
+    EXPECT_EQ(x.fused.sd_nm, y.fused.sd_nm);
+    EXPECT_EQ(x.fused.health, y.fused.health);
+    EXPECT_EQ(a.crank_error_var(), b.crank_error_var());
+    EXPECT_EQ(a.friction().coefficients(), b.friction().coefficients());
+    EXPECT_EQ(a.inertia().applied_scale(), b.inertia().applied_scale());
+    if (!(ra & AnglePipeline::kCycleReady)) continue;
+    ++cycles;
+    // AND only the per-cylinder record, which the new window feeds, differs
+    if (x.cylinders.torque_nm != y.cylinders.torque_nm) ++cylinders_differ;
+    EXPECT_EQ(x.cylinders.cycle, y.cylinders.cycle);
+  }
+  EXPECT_GT(segments, 100);
+  EXPECT_GT(cycles, 25);
+  EXPECT_GT(cylinders_differ, cycles / 2);
+  EXPECT_EQ(a.stats().cycles, b.stats().cycles);
+}
+
 TEST_F(AnglePipelineSim, IdleIndicatedTorqueWithinTwoNmWithTheLocalIdleCorrection) {
   // Motoring (fuel cut-off) never reaches idle: the friction law is extrapolated below ≈ 1100 rpm. Steady idle
   // (zero load) teaches the learner a local correction (FrictionLearner, EN-30: T_fric = T_ind at idle).

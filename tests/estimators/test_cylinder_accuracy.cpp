@@ -99,6 +99,49 @@ TEST(CylinderAccuracy, BalancedEnginesShowNoPattern) {
   }
 }
 
+TEST(CylinderAccuracy, BalancedEngineAt3000And4000RpmReadsWithinToleranceWithTheWideCylinderWindow) {
+  // GIVEN balanced I4s at 3000 rpm 65 kPa and 4000 rpm 45 kPa with the simulator's edge jitter (0.3 µs) and
+  // tooth errors, a wheel learned on each one's warm-up recording, and 4 seeds each (seeds not used to choose
+  // the window): each 2 s run is one random draw of the jitter and of the wheel
+  const eval::EvalOptions& opt = options();
+  eval::EvalOptions before = opt;
+  before.base.energies.cylinder_window_deg = 0.0;  // per-cylinder work from the 30° energy window ..
+  before.base.cylinder.imbalance_tau_s = 0.0;      // .. and 0.2 per cycle at every speed (before)
+  struct Case {
+    double rpm, map_kpa, tolerance_pp;
+  };
+  // 1 pp at 3000 rpm; 2 pp at 4000 rpm light load, where one seed in four still reads 2.8 pp (the learned
+  // wheel's residual at the window edges, not averaged away: 1.0 s instead of 0.5 s changes nothing)
+  for (const auto& [rpm, map_kpa, tolerance_pp] : {Case{3000.0, 65.0, 1.0}, Case{4000.0, 45.0, 2.0}}) {
+    double ss_new = 0.0, ss_old = 0.0;
+    constexpr int kSeeds = 4;
+    for (int k = 0; k < kSeeds; ++k) {
+      sim::Scenario s;
+      s.name = "balanced_" + std::to_string(static_cast<int>(rpm));
+      s.seed = 920 + static_cast<std::uint64_t>(k);
+      s.duration_s = 2.0;
+      s.speed_rpm = {{0.0, rpm}};
+      s.map_target_kpa = {{0.0, map_kpa}};
+      const sim::SimOutput out = sim::simulate(s);
+      const double e_new = eval::evaluate(s, out, opt).imbalance_max_pp;
+      const double e_old = eval::evaluate(s, out, before).imbalance_max_pp;
+      std::printf("  seed %llu: %.2f pp vs %.2f pp\n", static_cast<unsigned long long>(s.seed), e_new, e_old);
+      ss_new += e_new * e_new;
+      ss_old += e_old * e_old;
+    }
+    const double rms_new = std::sqrt(ss_new / kSeeds), rms_old = std::sqrt(ss_old / kSeeds);
+    std::printf(
+        "%4.0f rpm %2.0f kPa: RMS over %d seeds of the max imbalance error %.2f pp (60 deg window, 0.5 s) vs "
+        "%.2f pp (30 deg, 0.2 per cycle)\n",
+        rpm, map_kpa, kSeeds, rms_new, rms_old);
+    // WHEN the per-cylinder work comes from the 60° window and the imbalance is averaged over 0.5 s
+    // (defaults) THEN the pattern of a balanced engine reads within the tolerance (RMS over the seeds;
+    // before: 0.93 and 4.67 pp) and at most 0.7 of the error before
+    EXPECT_LE(rms_new, tolerance_pp) << rpm << " rpm";
+    EXPECT_LT(rms_new, 0.7 * rms_old) << rpm << " rpm";
+  }
+}
+
 TEST(CylinderAccuracy, ReloadedTableGivesTheSamePerCylinderOutput) {
   // GIVEN a table learned live and the same table exported and imported into a fresh learner
   const sim::Scenario sc = eval::once_per_rev_imbalance(2000, 901);

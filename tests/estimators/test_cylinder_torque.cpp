@@ -244,3 +244,35 @@ TEST(CylinderTorque, NoDecisionAfterACutOffUntilAWholeCycleBurnt) {
   EXPECT_EQ(ct.cycle().detection, torqued::MisfireDetection::kOverrun);
   EXPECT_EQ(ct.cycle().health, torqued::Health::kNotExcited);
 }
+
+namespace {
+// One cycle ending at t_ns (works by firing position); returns the filtered imbalance of cylinder 1 (%).
+double feed_at(CylinderTorque& ct, const std::array<double, 4>& w, std::int64_t t_ns) {
+  for (int m = 0; m < 4; ++m) ct.on_segment(t_ns, m, w[static_cast<std::size_t>(m)], true, true);
+  return ct.cycle().imbalance_filtered_pct[0];
+}
+// The filtered imbalance of cylinder 1 `after_s` after it steps from 0 to its final value, cycles `cycle_s`
+// long.
+double step_response(double cycle_s, double after_s) {
+  CylinderTorque ct(EngineGeometry{}, CylinderParams{});
+  const auto period = static_cast<std::int64_t>(cycle_s * 1e9);
+  std::int64_t t = period;
+  for (int i = 0; i < 60; ++i, t += period) feed_at(ct, {300.0, 300.0, 300.0, 300.0}, t);
+  double f = 0.0;
+  for (int i = 0; i < static_cast<int>(std::lround(after_s / cycle_s)); ++i, t += period)
+    f = feed_at(ct, {330.0, 300.0, 300.0, 300.0}, t);
+  return f / ((330.0 / 307.5 - 1.0) * 100.0);  // fraction of the step reached
+}
+}  // namespace
+
+TEST(CylinderTorque, ImbalanceFilterKeepsItsAveragingTimeAtHighSpeed) {
+  // GIVEN the default filter (0.2 per cycle, time constant imbalance_tau_s = 0.5 s) and a step of cylinder
+  // 1's share from 0 to +7.3 %
+  const CylinderParams p;
+  ASSERT_DOUBLE_EQ(p.imbalance_tau_s, 0.5);
+  // WHEN the engine runs at 6000 rpm (20 ms cycles) THEN after 0.5 s the filter has reached 1 − 1/e of the
+  // step (0.2 per cycle would have reached 1 − 0.8^25 = 99.6 %: a 0.1 s average of the jitter-noisy shares)
+  EXPECT_NEAR(step_response(0.020, 0.5), 1.0 - std::exp(-1.0), 0.01);
+  // AND at 1000 rpm (120 ms cycles) the per-cycle weight 0.2 still applies (1 − exp(−0.24) = 0.21 > 0.2)
+  EXPECT_NEAR(step_response(0.120, 0.6), 1.0 - std::pow(0.8, 5), 1e-9);
+}

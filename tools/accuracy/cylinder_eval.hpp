@@ -33,6 +33,12 @@ struct CylinderCaseResult {
   double map_kpa = 0.0;
   std::array<double, kMaxCylinders> imbalance_est{}, imbalance_true{};
   double imbalance_max_pp = 0.0;
+  /// Balanced rows at ≥ 2000 rpm (balanced_seed_row()): the same case with `seeds` simulator seeds (this
+  /// row's and seeds − 1 more: edge jitter, tooth errors and the learned table are new draws); RMS and worst
+  /// over the seeds of the max |error| over the cylinders (pp). seeds = 1: the single run above only.
+  int seeds = 1;
+  double imbalance_max_rms_pp = 0.0;
+  double imbalance_max_worst_pp = 0.0;
   int misfires_true = 0, misfires_found = 0, misfires_false = 0;
   double detection_active_pct = 0.0;  ///< share of the cycles where misfire detection was possible (%)
   InCycleStats kalman, fourier;
@@ -55,7 +61,13 @@ struct CylinderCaseResult {
 [[nodiscard]] sim::Scenario idle_after_cut_misfire(std::uint64_t seed);
 
 /// Evaluate one case (tooth table learned on the warm-up recording of the same wheel, friction `friction`).
-[[nodiscard]] CylinderCaseResult evaluate_case(const CylinderCase& c, const EvalOptions& options);
+/// `seeds` > 1: a balanced row at ≥ 2000 rpm is also run on seeds − 1 more simulator seeds (imbalance only).
+[[nodiscard]] CylinderCaseResult evaluate_case(const CylinderCase& c, const EvalOptions& options,
+                                               int seeds = 1);
+
+/// Rows scored over several seeds: balanced engines ("balanced", "incycle") at ≥ 2000 rpm, where one 2 s run
+/// is one random draw of the jitter and the wheel.
+[[nodiscard]] bool balanced_seed_row(const CylinderCase& c);
 
 /// Filtered per-cylinder imbalance (%) at the end of `out` with the tooth widths corrected by `width_ratio`
 /// (true/nominal per physical tooth).
@@ -64,7 +76,9 @@ struct CylinderCaseResult {
                                                                        const std::vector<double>& width_ratio,
                                                                        const EvalOptions& options);
 
-/// Print the table (one row per case), with the column header when `header`.
-void print_cylinder_table(const std::vector<CylinderCaseResult>& rows, bool header = true);
+/// Print the table (one row per case), with the column header when `header`; `seeds_column`: the multi-seed
+/// column (RMS / worst / N of the max imbalance error) after "max".
+void print_cylinder_table(const std::vector<CylinderCaseResult>& rows, bool header = true,
+                          bool seeds_column = false);
 
 }  // namespace torqued::eval
