@@ -53,12 +53,15 @@ struct PreprocessParams {
 struct KalmanParams {
   double delta = 3.0;          ///< coloured-noise pole δ (1/rad) of h(z) (CK-18)
   double torque_sd_nm = 300.0; ///< stationary 1σ of the net torque x2 under h(z); sets Q (N m)
-  double edge_noise_deg = 0.005; ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.005 learned)
+  double edge_noise_deg = 0.01;  ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.01 learned:
+                                 ///< tuned on incycle_*_65 + fuel_cut, 0.005/0.01/0.02 tried)
   double jitter_s = 0.3e-6;    ///< timestamp jitter used for R (s)
   int smoother_lag = 10;  ///< output x2(n-lag | n), 0..12 teeth (fixed-lag smoother; 0 = paper's predictor).
                           ///< 10, not 6: at 4000-6000 rpm jitter makes R large, the filter's memory outgrows
                           ///< 6 teeth and the phase lag returned (7° at 6000 rpm; 2-3° with 10, issue 15)
   bool periodic_gains = true;  ///< use precomputed asymptotic periodic gains (APS) instead of exact Riccati
+  bool differenced_edge_noise = true;  ///< edge errors enter a period as the difference of its two edges
+                                       ///< (MA(1) noise, two states); false = white R as in the paper
   double min_rpm = 500.0;      ///< lowest speed of the APS gain schedule (rpm)
   double max_rpm = 8000.0;     ///< highest speed of the APS gain schedule (rpm)
   int speed_bins = 32;         ///< APS gain sets, log-spaced in speed, interpolated (R depends on speed)
