@@ -197,7 +197,9 @@ struct ToothLearnParams {
   bool learn = true;                ///< learn per-tooth angle corrections
   int min_cycles = 20;              ///< cycles averaged before the table is used (demo: 20 instead of 50 brings the
                                     ///< in-cycle Kalman at 800-1500 rpm from 60-130 % to ≈ 10 % of p2p 3 s earlier)
-  int fit_harmonics = 8;            ///< per-cycle smooth fit of the speed waveform: harmonics of the 720° cycle (-)
+  int fit_harmonics = 12;  ///< per-cycle smooth fit of the speed waveform: harmonics of the 720° cycle (-).
+                           ///< 12, not 8: the firing order 6/rev (I4) was left to the per-tooth residual,
+                           ///< which then held the engine ripple of that order (issue 15 item 2)
   double max_accel_frac = 0.05;     ///< skip cycles whose speed changes by more than this fraction (-)
   double min_rpm = 600.0;           ///< learn only above this speed (rpm)
   double max_rpm = 7000.0;          ///< and below this one (rpm)
