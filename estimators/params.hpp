@@ -72,8 +72,11 @@ struct FourierParams {
   double l_a0 = 0.3;         ///< L_a0 (1/rad^2)
   double l_ref = 0.07;       ///< L_ref: l_{a_i} = l_{b_i} = i L_ref (1/rad^2)
   int output_lag = 0;        ///< report T̂ at tooth k−lag from the coefficients after tooth k (0..6; latency, less noise)
-  double gain_ref_rpm = 1500.0; ///< >0: coefficient gains × min(1, (gain_ref_rpm/rpm)²), keeping the noise of the energy
-                             ///< innovation (∝ θ̇²) constant above that speed; 0 = fixed gains as in the paper
+  double gain_ref_rpm =
+      3000.0;  ///< >0: coefficient gains × min(1, (gain_ref_rpm/rpm)²), keeping the noise of the energy
+               ///< innovation (∝ θ̇²) constant above that speed; 0 = fixed gains as in the paper.
+               ///< 3000, not 1500: the coefficients followed too slowly at 3000-6000 rpm and in a
+               ///< coast-down (tuned on incycle_*_65 + fuel_cut: 1500/2500/3000/3500/4500/0 tried)
 };
 
 /// Energies 2019 chain (ESTIMATORS.md §3).
