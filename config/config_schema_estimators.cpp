@@ -78,6 +78,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_INT("kalman.smoother_lag", kalman.params.smoother_lag, closed(0, 12), "teeth",
          "fixed-lag smoother output (0 = paper's predictor)");
   TQ_BOOL("kalman.periodic_gains", kalman.params.periodic_gains, "precomputed periodic gains (APS) instead of exact Riccati");
+  TQ_BOOL("kalman.differenced_edge_noise", kalman.params.differenced_edge_noise,
+          "model edge-angle error and jitter as the difference of a period's two edges (MA(1)), not white R");
   TQ_NUM("kalman.min_rpm", kalman.params.min_rpm, open_closed(0.0, 20000.0), "rpm", "lowest speed of the APS gain schedule");
   TQ_NUM("kalman.max_rpm", kalman.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "highest speed of the APS gain schedule");
   TQ_INT("kalman.speed_bins", kalman.params.speed_bins, closed(1, 256), "", "APS gain sets, log-spaced in speed");

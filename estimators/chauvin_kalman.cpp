@@ -9,6 +9,10 @@ namespace torqued {
 namespace {
 constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr double kRpm = std::numbers::pi / 30.0;
+/// With differenced edge noise, the white part of R as a fraction of the full edge-noise variance: what the
+/// MA(1) model leaves out (timestamp quantisation, a non-white part of the tooth-table residual), and it
+/// keeps the innovation variance away from zero.
+constexpr double kWhiteFloorFrac = 1e-2;
 }  // namespace
 
 ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& wheel,
@@ -46,8 +50,7 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
     aps_gain_.assign(static_cast<std::size_t>(bins * kk), Vec::Zero());
     for (int b = 0; b < bins; ++b) {
       const double w = std::exp(bin_log_speed_[static_cast<std::size_t>(b)]);
-      Mat p = Mat::Identity() * s2;
-      p(0, 0) = measurement_var(0, w);
+      Mat p = initial_covariance(0, w);
       Vec g;
       double change = 1.0;
       for (int cycle = 0; cycle < 500 && change > 1e-12; ++cycle) {
@@ -69,7 +72,36 @@ double ChauvinKalman::measurement_var(int k, double speed_rad_s) const noexcept 
   const double rel = ToothPreprocessor::speed_sq_rel_sd(table_.width_rad[static_cast<std::size_t>(k)],
                                                         speed_rad_s, edge_sd_rad_, params_.jitter_s);
   const double sd = rel * speed_rad_s * speed_rad_s;
-  return sd * sd + 1e-9;
+  const double frac = params_.differenced_edge_noise ? kWhiteFloorFrac : 1.0;
+  return frac * sd * sd + 1e-9;
+}
+
+double ChauvinKalman::edge_coupling(int k) const noexcept {
+  if (!params_.differenced_edge_noise) return 0.0;
+  return 1.0 / table_.width_rad[static_cast<std::size_t>(k)];
+}
+
+double ChauvinKalman::edge_state_var(double speed_rad_s) const noexcept {
+  if (!params_.differenced_edge_noise) return 0.0;
+  // y = (w/dt)² with an edge error e (angle, or ω × time): ∂y/∂e = 2θ̇²/w per edge; σ_e² = σ_a² + ω²σ_t², the
+  // same edge variance measurement_var() counts twice for the two edges of a period.
+  const double w2 = speed_rad_s * speed_rad_s;
+  return 4.0 * w2 * w2 * (edge_sd_rad_ * edge_sd_rad_ + w2 * params_.jitter_s * params_.jitter_s);
+}
+
+ChauvinKalman::Mat ChauvinKalman::initial_covariance(int k, double speed_rad_s) const noexcept {
+  Mat p = Mat::Identity() * params_.torque_sd_nm * params_.torque_sd_nm;
+  const double v = edge_state_var(speed_rad_s);
+  const double h = edge_coupling(k);
+  p(0, 0) = measurement_var(k, speed_rad_s) + 2.0 * h * h * v;
+  p(kNoiseNow, kNoiseNow) = v;
+  p(kNoisePrev, kNoisePrev) = v;
+  return p;
+}
+
+void ChauvinKalman::add_process_noise(int k, double speed_rad_s, Mat& p) const noexcept {
+  p(1, 1) += std::pow(1.0 - acol_[static_cast<std::size_t>(k)], 4) * qu_;
+  p(kNoiseNow, kNoiseNow) += edge_state_var(speed_rad_s);  // the next edge's error, fresh
 }
 
 ChauvinKalman::Mat ChauvinKalman::transition(int k) const noexcept {
@@ -80,7 +112,8 @@ ChauvinKalman::Mat ChauvinKalman::transition(int k) const noexcept {
   m(0, 1) = b12_[i];
   m(1, 1) = 2.0 * a;
   m(1, 2) = -a * a;
-  for (int i = 2; i < kStates; ++i) m(i, i - 1) = 1.0;  // shift register of past x2
+  for (int i = 2; i < kNoiseNow; ++i) m(i, i - 1) = 1.0;  // shift register of past x2
+  m(kNoisePrev, kNoiseNow) = 1.0;                         // v_k becomes v_{k−1}; v_{k+1} is fresh noise
   return m;
 }
 
@@ -93,24 +126,29 @@ ChauvinKalman::Mat ChauvinKalman::propagate(int k, const Mat& p) const noexcept 
   Mat m;  // m = A P
   m.row(0) = r00 * p.row(0) + r01 * p.row(1);
   m.row(1) = r11 * p.row(1) + r12 * p.row(2);
-  for (int r = 2; r < kStates; ++r) m.row(r) = p.row(r - 1);
+  for (int r = 2; r < kNoiseNow; ++r) m.row(r) = p.row(r - 1);
+  m.row(kNoiseNow).setZero();
+  m.row(kNoisePrev) = p.row(kNoiseNow);
   Mat out;  // out = m Aᵀ: column j of out = m · (row j of A)ᵀ
   out.col(0) = r00 * m.col(0) + r01 * m.col(1);
   out.col(1) = r11 * m.col(1) + r12 * m.col(2);
-  for (int c = 2; c < kStates; ++c) out.col(c) = m.col(c - 1);
+  for (int c = 2; c < kNoiseNow; ++c) out.col(c) = m.col(c - 1);
+  out.col(kNoiseNow).setZero();
+  out.col(kNoisePrev) = m.col(kNoiseNow);
   return out;
 }
 
 void ChauvinKalman::riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) const noexcept {
-  // (CK-12): filter gain K = P Cᵀ (C P Cᵀ + R)⁻¹ with C = [1 0 0 0 0]; the predictor gain is L = A K.
-  const double r = measurement_var(k, speed_rad_s);
-  const double s = p(0, 0) + r;
-  gain = p.col(0) / s;
+  // (CK-12): filter gain K = P Cᵀ (C P Cᵀ + R)⁻¹ with C = [1 0 … 0 −h h] (C = [1 0 … 0] in the paper, h = 0
+  // without differenced edge noise); the predictor gain is L = A K.
+  const double h = edge_coupling(k);
+  const Vec pc = p.col(0) + h * (p.col(kNoisePrev) - p.col(kNoiseNow));
+  const double s = pc(0) + h * (pc(kNoisePrev) - pc(kNoiseNow)) + measurement_var(k, speed_rad_s);
+  gain = pc / s;
   // (CK-13): P_{k+1} = A (P − K S Kᵀ) Aᵀ + B Q Bᵀ.
   const Mat post = p - gain * gain.transpose() * s;
   p = propagate(k, post);
-  const double bq = std::pow(1.0 - acol_[static_cast<std::size_t>(k)], 2);
-  p(1, 1) += bq * bq * qu_;
+  add_process_noise(k, speed_rad_s, p);
   p = 0.5 * (p + p.transpose()).eval();  // keep symmetric (CONVENTIONS habit 12)
 }
 
@@ -146,7 +184,9 @@ void ChauvinKalman::predict(int k) noexcept {
   // x ← A_k x with the sparse A_k of the header comment.
   const double x1 = a11_[i] * x_(0) + b12_[i] * x_(1);
   const double x2 = 2.0 * a * x_(1) - a * a * x_(2);
-  for (int j = kStates - 1; j >= 2; --j) x_(j) = x_(j - 1);
+  x_(kNoisePrev) = x_(kNoiseNow);
+  x_(kNoiseNow) = 0.0;  // the next edge's error: zero mean
+  for (int j = kNoiseNow - 1; j >= 2; --j) x_(j) = x_(j - 1);
   x_(1) = x2;
   x_(0) = x1;
 }
@@ -172,7 +212,7 @@ void ChauvinKalman::bridge_lost_teeth(int k) noexcept {
     predict(km);
     if (!params_.periodic_gains) {  // no measurement at a lost tooth: propagate P only
       p_ = propagate(km, p_);
-      p_(1, 1) += std::pow(1.0 - acol_[static_cast<std::size_t>(km)], 4) * qu_;
+      add_process_noise(km, mean_speed_, p_);
     }
     push_edge_time(0);  // unknown time of the lost edge
   }
@@ -195,8 +235,7 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
     x_.setZero();
     x_(0) = y;
     mean_speed_ = omega;
-    p_ = Mat::Identity() * params_.torque_sd_nm * params_.torque_sd_nm;
-    p_(0, 0) = measurement_var(k, omega);
+    p_ = initial_covariance(k, omega);
     p_finite_ = p_.allFinite();
     teeth_seen_ = 0;
   }
@@ -204,18 +243,18 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
   Vec gain;
   double out_var = 0.0;
   const int o = 1 + params_.smoother_lag;
+  const double h = edge_coupling(k);
   if (params_.periodic_gains) {
     gain = periodic_gain(k, mean_speed_);
   } else {
-    const double r = measurement_var(k, mean_speed_);
-    const double sres = p_(0, 0) + r;
     Mat pn = p_;
     riccati_step(k, mean_speed_, pn, gain);
-    out_var = p_(o, o) - gain(o) * gain(o) * sres;
+    const double pc_o = p_(o, 0) + h * (p_(o, kNoisePrev) - p_(o, kNoiseNow));  // (P Cᵀ)_o = K_o S
+    out_var = p_(o, o) - gain(o) * pc_o;
     p_ = pn;
   }
   // (CK-11) split into measurement update and prediction: x̂_{k|k} = x̂_{k|k−1} + K (y − C x̂_{k|k−1}).
-  x_ += gain * (y - x_(0));
+  x_ += gain * (y - x_(0) - h * (x_(kNoisePrev) - x_(kNoiseNow)));
   last_gain_ = gain;
   push_edge_time(s.t_ns);
   ++teeth_seen_;

@@ -16,6 +16,14 @@
 // depends on speed, the asymptotic periodic gains (APS, CK §VI and Bittanti Theorem 3) are computed at
 // start-up for a log-spaced set of speeds and interpolated; the exact-Riccati variant (11)-(13) runs P on
 // line.
+// Measurement noise (beyond the paper): an edge-angle error or timestamp error e_k (equivalent angle, rad) of
+// edge k shortens period k and lengthens period k+1, so y_k = θ̇²(c_k) + (2θ̇²/w_k)(e_{k−1} − e_k):
+// moving-average noise whose power at the low orders that carry the torque is a small fraction of the white R
+// the paper assumes (for order o of a K-sample cycle, 2(1 − cos 2πo/K) instead of 2). With
+// differenced_edge_noise the two edge errors are states, v = 2θ̇²e ((rad/s)² rad, fresh each tooth with
+// variance 4θ̇⁴σ_e², and its copy), y_k = x1 + (v_{k−1} − v_k)/w_k, and R keeps only a small floor (Bryson &
+// Henrikson's state augmentation for coloured measurement noise). In these units the gains of the edge states
+// scale with speed like those of x1, so the APS interpolation between speed bins stays as accurate.
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
@@ -40,7 +48,9 @@ struct KalmanStats {
 class ChauvinKalman {
  public:
   static constexpr int kMaxLag = 12;
-  static constexpr int kStates = 2 + kMaxLag;
+  static constexpr int kNoiseNow = 2 + kMaxLag;   ///< state index of v_k = 2θ̇²e_k (edge k's error)
+  static constexpr int kNoisePrev = 3 + kMaxLag;  ///< state index of v_{k−1}
+  static constexpr int kStates = 4 + kMaxLag;
   using Vec = Eigen::Matrix<double, kStates, 1>;
   using Mat = Eigen::Matrix<double, kStates, kStates>;
 
@@ -72,13 +82,23 @@ class ChauvinKalman {
   /// One exact Riccati step (CK-12/13) for tooth k at speed ω: returns the filter gain and advances P in
   /// place.
   void riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) const noexcept;
-  /// Measurement noise variance R_k at speed ω ((rad/s)^4).
+  /// White measurement noise variance R_k at speed ω ((rad/s)^4): the whole edge noise, or (differenced) its
+  /// floor.
   [[nodiscard]] double measurement_var(int k, double speed_rad_s) const noexcept;
+  /// Coupling 1/w_k of the edge-error states into y_k (1/rad); 0 when not differenced.
+  [[nodiscard]] double edge_coupling(int k) const noexcept;
+  /// Variance of a fresh edge-error state at speed ω, 4θ̇⁴σ_e² (((rad/s)² rad)²); 0 when not differenced.
+  [[nodiscard]] double edge_state_var(double speed_rad_s) const noexcept;
 
  private:
   void push_edge_time(std::int64_t t_ns) noexcept;
   void bridge_lost_teeth(int k) noexcept;
   void predict(int k) noexcept;  // x ← A_k x (and P in exact mode)
+  /// P0 of a (re)start at tooth k: torque states σ², x1 its measurement noise, edge-error states their
+  /// variance.
+  [[nodiscard]] Mat initial_covariance(int k, double speed_rad_s) const noexcept;
+  /// P + B Q Bᵀ after the propagation of tooth k (torque noise u and a fresh edge error at speed ω).
+  void add_process_noise(int k, double speed_rad_s, Mat& p) const noexcept;
   [[nodiscard]] Mat transition(int k) const noexcept;
   /// A_k P A_kᵀ using the sparsity of A_k (per-tooth covariance propagation, CK-13).
   [[nodiscard]] Mat propagate(int k, const Mat& p) const noexcept;

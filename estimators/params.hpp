@@ -53,12 +53,15 @@ struct PreprocessParams {
 struct KalmanParams {
   double delta = 3.0;          ///< coloured-noise pole δ (1/rad) of h(z) (CK-18)
   double torque_sd_nm = 300.0; ///< stationary 1σ of the net torque x2 under h(z); sets Q (N m)
-  double edge_noise_deg = 0.005; ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.005 learned)
+  double edge_noise_deg = 0.01;  ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.01 learned:
+                                 ///< tuned on incycle_*_65 + fuel_cut, 0.005/0.01/0.02 tried)
   double jitter_s = 0.3e-6;    ///< timestamp jitter used for R (s)
   int smoother_lag = 10;  ///< output x2(n-lag | n), 0..12 teeth (fixed-lag smoother; 0 = paper's predictor).
                           ///< 10, not 6: at 4000-6000 rpm jitter makes R large, the filter's memory outgrows
                           ///< 6 teeth and the phase lag returned (7° at 6000 rpm; 2-3° with 10, issue 15)
   bool periodic_gains = true;  ///< use precomputed asymptotic periodic gains (APS) instead of exact Riccati
+  bool differenced_edge_noise = true;  ///< edge errors enter a period as the difference of its two edges
+                                       ///< (MA(1) noise, two states); false = white R as in the paper
   double min_rpm = 500.0;      ///< lowest speed of the APS gain schedule (rpm)
   double max_rpm = 8000.0;     ///< highest speed of the APS gain schedule (rpm)
   int speed_bins = 32;         ///< APS gain sets, log-spaced in speed, interpolated (R depends on speed)
@@ -69,8 +72,11 @@ struct FourierParams {
   double l_a0 = 0.3;         ///< L_a0 (1/rad^2)
   double l_ref = 0.07;       ///< L_ref: l_{a_i} = l_{b_i} = i L_ref (1/rad^2)
   int output_lag = 0;        ///< report T̂ at tooth k−lag from the coefficients after tooth k (0..6; latency, less noise)
-  double gain_ref_rpm = 1500.0; ///< >0: coefficient gains × min(1, (gain_ref_rpm/rpm)²), keeping the noise of the energy
-                             ///< innovation (∝ θ̇²) constant above that speed; 0 = fixed gains as in the paper
+  double gain_ref_rpm =
+      3000.0;  ///< >0: coefficient gains × min(1, (gain_ref_rpm/rpm)²), keeping the noise of the energy
+               ///< innovation (∝ θ̇²) constant above that speed; 0 = fixed gains as in the paper.
+               ///< 3000, not 1500: the coefficients followed too slowly at 3000-6000 rpm and in a
+               ///< coast-down (tuned on incycle_*_65 + fuel_cut: 1500/2500/3000/3500/4500/0 tried)
 };
 
 /// Energies 2019 chain (ESTIMATORS.md §3).
@@ -204,7 +210,9 @@ struct ToothLearnParams {
   bool learn = true;                ///< learn per-tooth angle corrections
   int min_cycles = 20;              ///< cycles averaged before the table is used (demo: 20 instead of 50 brings the
                                     ///< in-cycle Kalman at 800-1500 rpm from 60-130 % to ≈ 10 % of p2p 3 s earlier)
-  int fit_harmonics = 8;            ///< per-cycle smooth fit of the speed waveform: harmonics of the 720° cycle (-)
+  int fit_harmonics = 12;  ///< per-cycle smooth fit of the speed waveform: harmonics of the 720° cycle (-).
+                           ///< 12, not 8: the firing order 6/rev (I4) was left to the per-tooth residual,
+                           ///< which then held the engine ripple of that order (issue 15 item 2)
   double max_accel_frac = 0.05;     ///< skip cycles whose speed changes by more than this fraction (-)
   double min_rpm = 600.0;           ///< learn only above this speed (rpm)
   double max_rpm = 7000.0;          ///< and below this one (rpm)

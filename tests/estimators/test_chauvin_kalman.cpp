@@ -88,12 +88,13 @@ TEST(ChauvinKalman, ApsAndExactRiccatiAgreeAfterConvergence) {
     max_diff = max_diff.cwiseMax((ga - ge).cwiseAbs());
     max_est_diff = std::max(max_est_diff, std::abs(f_aps.estimate().torque_nm - f_exact.estimate().torque_nm));
   }
-  // Relative per state where the state's gain matters (≥ 1 % of the net-torque state's): the deep smoother
-  // lags of a 12-tooth smoother have gains of 0.1 % at 2000 rpm, whose interpolation between speed bins is
-  // a few % of almost nothing; those are held to an absolute 0.2 % of the net-torque gain instead.
+  // Relative per state where the state's gain matters (≥ 5 % of the net-torque state's): the deep smoother
+  // lags of a 12-tooth smoother have gains of 0.4-2 % at 2000 rpm (with the differenced edge-noise states,
+  // which let the filter use more teeth), whose interpolation between speed bins is a few % of almost
+  // nothing; those are held to an absolute 0.2 % of the net-torque gain instead.
   double max_gain_rel = 0.0, max_small_abs = 0.0;
   for (int i = 0; i < ChauvinKalman::kStates; ++i) {
-    if (max_gain(i) >= 0.01 * max_gain(1)) {
+    if (max_gain(i) >= 0.05 * max_gain(1)) {
       max_gain_rel = std::max(max_gain_rel, max_diff(i) / max_gain(i));
     } else {
       max_small_abs = std::max(max_small_abs, max_diff(i) / max_gain(1));

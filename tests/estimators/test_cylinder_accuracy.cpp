@@ -5,6 +5,7 @@
 // imbalance are drawn or set here), and no threshold comes from the simulator's engine.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <complex>
 #include <cstdio>
@@ -213,6 +214,38 @@ TEST(CylinderAccuracy, NoFalseAlarmWhereDetectionIsClaimedPossible) {
     if (rpm <= 2000.0) {
       EXPECT_GE(active, 75.0) << rpm;
     }
+  }
+}
+
+TEST(CylinderAccuracy, InCycleIndicatedTorqueOnRowsNotTunedOn) {
+  // GIVEN in-cycle rows of the --cylinders table that no in-cycle default was tuned on (the Kalman's edge
+  // noise and the learner's fit harmonics were chosen on the incycle_*_65 rows and fuel_cut), each with its
+  // own wheel learned on its warm-up recording
+  const eval::EvalOptions& opt = options();
+  struct Row {
+    const char* name;
+    double max_kalman_pct, max_fourier_pct;
+  };
+  // Kalman bounds: the figures measured when the differenced edge noise and fit_harmonics = 12 came in
+  // (4.7 / 3.8 / 6.2 %) plus ≈ 1 pp, below what the white-R filter and an 8-harmonic table gave (6.1 / 4.7 /
+  // 7.9 %). Fourier: the issue's targets (8 % to 3000 rpm, 12 % above).
+  const Row rows[] = {
+      {"incycle_2000_35", 6.0, 8.0}, {"incycle_3000_95", 4.5, 8.0}, {"incycle_4000_95", 7.5, 12.0}};
+  const auto cases = eval::cylinder_cases(0, 15);
+  for (const Row& row : rows) {
+    const auto it = std::find_if(cases.begin(), cases.end(),
+                                 [&](const eval::CylinderCase& c) { return c.scenario.name == row.name; });
+    ASSERT_NE(it, cases.end()) << row.name;
+    // WHEN the angle pipeline runs on it
+    const eval::CylinderCaseResult r = eval::evaluate_case(*it, opt);
+    std::printf("%s: kalman %.1f %% of p2p, lag %.1f deg; fourier %.1f %%, lag %.1f deg\n", row.name,
+                r.kalman.rms_pct_p2p, r.kalman.lag_deg, r.fourier.rms_pct_p2p, r.fourier.lag_deg);
+    // THEN the per-tooth indicated torque follows the simulator's truth within the stated RMS (% of the mean
+    // per-cycle peak-to-peak) and the Kalman lags by at most 3° (issue 15 item 2)
+    EXPECT_LE(r.kalman.rms_pct_p2p, row.max_kalman_pct) << row.name;
+    EXPECT_LE(std::abs(r.kalman.lag_deg), 3.0) << row.name;
+    EXPECT_LE(r.fourier.rms_pct_p2p, row.max_fourier_pct) << row.name;
+    EXPECT_GT(r.kalman.n, 1000) << row.name;
   }
 }
 
