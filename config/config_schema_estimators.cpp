@@ -80,6 +80,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_BOOL("kalman.periodic_gains", kalman.params.periodic_gains, "precomputed periodic gains (APS) instead of exact Riccati");
   TQ_BOOL("kalman.differenced_edge_noise", kalman.params.differenced_edge_noise,
           "model edge-angle error and jitter as the difference of a period's two edges (MA(1)), not white R");
+  TQ_BOOL("kalman.gas_model", kalman.params.gas_model,
+          "feed the cylinder-pressure model's gas torque ripple (MAP, measured cylinder works) as a known input");
   TQ_NUM("kalman.min_rpm", kalman.params.min_rpm, open_closed(0.0, 20000.0), "rpm", "lowest speed of the APS gain schedule");
   TQ_NUM("kalman.max_rpm", kalman.params.max_rpm, open_closed(0.0, 20000.0), "rpm", "highest speed of the APS gain schedule");
   TQ_INT("kalman.speed_bins", kalman.params.speed_bins, closed(1, 256), "", "APS gain sets, log-spaced in speed");
@@ -90,6 +92,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("fourier.l_ref", fourier.params.l_ref, closed(0.0, 1e6), "1/rad^2", "L_ref: l_ai = l_bi = i L_ref");
   TQ_NUM("fourier.gain_ref_rpm", fourier.params.gain_ref_rpm, closed(0.0, 20000.0), "rpm",
          ">0: coefficient gains x min(1, (gain_ref_rpm/rpm)^2); 0 = fixed gains as in the paper");
+  TQ_BOOL("fourier.gas_model", fourier.params.gas_model,
+          "feed the cylinder-pressure model's gas torque ripple (MAP, measured cylinder works) as a known input");
   TQ_INT("fourier.output_lag", fourier.params.output_lag, closed(0, 6), "teeth", "report the torque at tooth k-lag from the coefficients after tooth k");
 
   // Energies 2019 chain and beyond (ESTIMATORS.md §3-4).
@@ -125,6 +129,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("energies.rls_change_max_sd_nm", energies.params.rls_change_max_sd_nm, open_closed(0.0, 1e3), "N m", "no crank-only load-change tracking while the cycle-mean load's steady sigma exceeds this");
   TQ_NUM("energies.can_load_latency_s", energies.params.can_load_latency_s, closed(0.0, 0.1), "s", "CAN load torque lag behind the flange (sensor lag + half the frame period); the energy balance is aligned to it");
   TQ_INT("energies.rls_window_shifts", energies.params.rls_window_shifts, closed(1, 64), "", "each RLS window also shifted 1..n-1 teeth earlier");
+  TQ_NUM("energies.burn_duration_deg", energies.params.burn_duration_deg, closed(0.0, 120.0), "deg",
+         "in-cycle gas torque model (Kalman known input): heat release spread over this angle around the burn centroid; 0 = lumped");
   TQ_NUM("energies.burn_centroid_atdc_deg", energies.params.burn_centroid_atdc_deg, closed(-90.0, 180.0), "deg", "heat release lumped here when the spark advance is unknown");
   TQ_NUM("energies.burn_delay_deg", energies.params.burn_delay_deg, closed(0.0, 180.0), "deg", "spark to equivalent burn centroid: centroid = delay - advance");
   TQ_BOOL("energies.inertia.learn", energies.params.inertia.learn,

@@ -124,6 +124,19 @@ std::uint8_t AnglePipeline::break_sequence(ToothSample s) noexcept {
   return 0;
 }
 
+// The cylinder-pressure model's gas torque ripple over the step after tooth k (issue 15): the MAP held from
+// CAN and the last measured works per firing position (motored until every position has one). 0 without a
+// MAP.
+double AnglePipeline::gas_ripple_nm(int k) const noexcept {
+  if (!have_map_) return 0.0;
+  bool works_ok = true;
+  for (int m = 0; m < cfg_.engine.cylinders; ++m)
+    works_ok = works_ok && cyl_work_ok_[static_cast<std::size_t>(m)];
+  std::array<double, kMaxCylinders> p3{};
+  rls_.ripple_p3(held_map_pa_, cyl_work_j_, works_ok, p3);
+  return rls_.gas_ripple_nm(k, held_map_pa_, p3);
+}
+
 std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& sig) noexcept {
   ++stats_.teeth;
   if (!s.synced) {
@@ -148,8 +161,10 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   tooth_.speed_lp_rad_s = kin.valid ? kin.speed_lp_rad_s : speed;
   tooth_.valid = have_prev_;
   // In-cycle observers (Chauvin): they estimate the net torque; the extended load turns it into T_ind.
+  const double ripple = cfg_.kalman.gas_model || cfg_.fourier.gas_model ? gas_ripple_nm(s.tooth) : 0.0;
   if (cfg_.run_kalman) {
     kalman_.set_extended_load(load_star_nm_);
+    kalman_.set_model_torque(cfg_.kalman.gas_model ? ripple : 0.0);
     kalman_.update(s);
     copy_estimate(tooth_.kalman_ind, kalman_.estimate());
   } else {
@@ -157,6 +172,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   }
   if (fourier_ok_) {
     fourier_.set_extended_load(load_star_nm_);
+    fourier_.set_model_torque(cfg_.fourier.gas_model ? ripple : 0.0);
     fourier_.update(s);
     copy_estimate(tooth_.fourier_ind, fourier_.estimate());
   } else {

@@ -176,13 +176,14 @@ void ChauvinKalman::reset() noexcept {
   expected_tooth_ = -1;
   teeth_seen_ = 0;
   edge_t_ns_.fill(0);
+  model_.fill(0.0);
 }
 
 void ChauvinKalman::predict(int k) noexcept {
   const auto i = static_cast<std::size_t>(k);
   const double a = acol_[i];
   // x ← A_k x with the sparse A_k of the header comment.
-  const double x1 = a11_[i] * x_(0) + b12_[i] * x_(1);
+  const double x1 = a11_[i] * x_(0) + b12_[i] * (x_(1) + model_[0]);
   const double x2 = 2.0 * a * x_(1) - a * a * x_(2);
   x_(kNoisePrev) = x_(kNoiseNow);
   x_(kNoiseNow) = 0.0;  // the next edge's error: zero mean
@@ -197,6 +198,12 @@ void ChauvinKalman::push_edge_time(std::int64_t t_ns) noexcept {
   edge_t_ns_[0] = t_ns;
 }
 
+void ChauvinKalman::push_model(double ripple_nm) noexcept {
+  for (int i = kMaxLag; i > 0; --i)
+    model_[static_cast<std::size_t>(i)] = model_[static_cast<std::size_t>(i - 1)];
+  model_[0] = std::isfinite(ripple_nm) ? ripple_nm : 0.0;
+}
+
 // Teeth lost before tooth k: predicted through (no measurement), or a restart when more than 1/8 of the cycle
 // is missing.
 void ChauvinKalman::bridge_lost_teeth(int k) noexcept {
@@ -209,6 +216,7 @@ void ChauvinKalman::bridge_lost_teeth(int k) noexcept {
   }
   for (int m = 0; m < missing; ++m) {
     const int km = (expected_tooth_ + m) % kk;
+    push_model(0.0);  // the model's value at a lost tooth is not known here: the prior mean
     predict(km);
     if (!params_.periodic_gains) {  // no measurement at a lost tooth: propagate P only
       p_ = propagate(km, p_);
@@ -240,6 +248,7 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
     teeth_seen_ = 0;
   }
   mean_speed_ += (omega - mean_speed_) / kk;
+  push_model(model_next_);
   Vec gain;
   double out_var = 0.0;
   const int o = 1 + params_.smoother_lag;
@@ -268,7 +277,7 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
     est_.health = Health::kNumerical;
     return false;
   }
-  est_.torque_nm = x_(o) + load_star_nm_;
+  est_.torque_nm = x_(o) + model_[static_cast<std::size_t>(params_.smoother_lag)] + load_star_nm_;
   est_.t_ns = edge_t_ns_[static_cast<std::size_t>(params_.smoother_lag)];
   est_.uncertainty = std::sqrt(std::max(0.0, out_var));
   est_tooth_ = (k - params_.smoother_lag + kk) % kk;

@@ -5,25 +5,26 @@
 //
 // State (one sample per tooth period, index k in the 720° cycle, see ToothAngleTable):
 //   x = [θ̇²(k), x2(k), x2(k−1), …, x2(k−kMaxLag)],  x2 = T_ind − T*_load (net torque, N m).
-// Model, from the energy balance d(½Jθ̇²)/dθ = x2 (CF-2) integrated over Δ_k (midpoint e_k):
-//   x1(k+1) = J(c_k)/J(c_{k+1}) · x1(k) + 2Δ_k/J(c_{k+1}) · x2(k)
+// Model, from the energy balance d(½Jθ̇²)/dθ = x2 + m_k (CF-2) integrated over Δ_k (midpoint e_k):
+//   x1(k+1) = J(c_k)/J(c_{k+1}) · x1(k) + 2Δ_k/J(c_{k+1}) · (x2(k) + m_k)
 // which is (CK-3) [1 − 2Δα f̄/J ≈ J_k/J_{k+1}] without its first-order truncation and with exact unequal steps
-// across the gap. Coloured noise (CK-18): x2(k+1) = 2a x2(k) − a² x2(k−1) + (1−a)² u(k), a = e^{−δΔ_k}.
-// The extra lags (beyond the paper's q = 2) make a fixed-lag smoother: the filtered estimate of x2(k−d)
-// uses d more teeth of speed and removes most of the predictor's phase lag (d = smoother_lag ≤ kMaxLag = 12,
-// latency d teeth; at 6000 rpm the filter's memory outgrows 6 teeth, issue 15). Measurement
-// y_k = θ̇²(k) = (w_k/dt_k)², R_k from the edge-angle error and jitter (relative, so R ∝ θ̇⁴). Because R
-// depends on speed, the asymptotic periodic gains (APS, CK §VI and Bittanti Theorem 3) are computed at
-// start-up for a log-spaced set of speeds and interpolated; the exact-Riccati variant (11)-(13) runs P on
-// line.
-// Measurement noise (beyond the paper): an edge-angle error or timestamp error e_k (equivalent angle, rad) of
-// edge k shortens period k and lengthens period k+1, so y_k = θ̇²(c_k) + (2θ̇²/w_k)(e_{k−1} − e_k):
-// moving-average noise whose power at the low orders that carry the torque is a small fraction of the white R
-// the paper assumes (for order o of a K-sample cycle, 2(1 − cos 2πo/K) instead of 2). With
-// differenced_edge_noise the two edge errors are states, v = 2θ̇²e ((rad/s)² rad, fresh each tooth with
-// variance 4θ̇⁴σ_e², and its copy), y_k = x1 + (v_{k−1} − v_k)/w_k, and R keeps only a small floor (Bryson &
-// Henrikson's state augmentation for coloured measurement noise). In these units the gains of the edge states
-// scale with speed like those of x1, so the APS interpolation between speed bins stays as accurate.
+// across the gap. m_k is a known input (beyond the paper, issue 15): the zero-mean gas torque ripple of a
+// cylinder-pressure model over the step (set_model_torque; 0 without one), so x2 = T_ind − T*_load − m and
+// T̂_ind = x2 + m + T*_load. Coloured noise (CK-18): x2(k+1) = 2a x2(k) − a² x2(k−1) + (1−a)² u(k), a =
+// e^{−δΔ_k}. The extra lags (beyond the paper's q = 2) make a fixed-lag smoother: the filtered estimate of
+// x2(k−d) uses d more teeth of speed and removes most of the predictor's phase lag (d = smoother_lag ≤
+// kMaxLag = 12, latency d teeth; at 6000 rpm the filter's memory outgrows 6 teeth, issue 15). Measurement y_k
+// = θ̇²(k) = (w_k/dt_k)², R_k from the edge-angle error and jitter (relative, so R ∝ θ̇⁴). Because R depends on
+// speed, the asymptotic periodic gains (APS, CK §VI and Bittanti Theorem 3) are computed at start-up for a
+// log-spaced set of speeds and interpolated; the exact-Riccati variant (11)-(13) runs P on line. Measurement
+// noise (beyond the paper): an edge-angle error or timestamp error e_k (equivalent angle, rad) of edge k
+// shortens period k and lengthens period k+1, so y_k = θ̇²(c_k) + (2θ̇²/w_k)(e_{k−1} − e_k): moving-average
+// noise whose power at the low orders that carry the torque is a small fraction of the white R the paper
+// assumes (for order o of a K-sample cycle, 2(1 − cos 2πo/K) instead of 2). With differenced_edge_noise the
+// two edge errors are states, v = 2θ̇²e ((rad/s)² rad, fresh each tooth with variance 4θ̇⁴σ_e², and its copy),
+// y_k = x1 + (v_{k−1} − v_k)/w_k, and R keeps only a small floor (Bryson & Henrikson's state augmentation for
+// coloured measurement noise). In these units the gains of the edge states scale with speed like those of x1,
+// so the APS interpolation between speed bins stays as accurate.
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
@@ -60,6 +61,13 @@ class ChauvinKalman {
   void reset() noexcept;
   /// Extended load T*_load = T_load + T_fric (N m), added to x̂2 to give T̂_ind (CK eq. (1)). Default 0.
   void set_extended_load(double torque_nm) noexcept { load_star_nm_ = torque_nm; }
+  /// Known part of the net torque over the coming step [c_k, c_{k+1}] of the next update()'s tooth k (N m,
+  /// zero 720° mean): the gas torque ripple of a cylinder-pressure model (LoadRls::gas_ripple_nm, issue 15).
+  /// The state x2 then carries only what the model misses, which the coloured-noise prior (CK-18) fits far
+  /// better than the sharp compression/expansion waveform itself: the smoothing that R forces at high speed
+  /// (jitter ∝ θ̇³) acts on the model's error instead of on the torque. Default 0 (the paper's zero-mean
+  /// prior).
+  void set_model_torque(double ripple_nm) noexcept { model_next_ = ripple_nm; }
   /// Whether the tooth widths it is given are corrected by a learned table (issue 15 item 2). While false the
   /// estimate runs but its health is kNotConverged: an unlearned wheel puts the tooth errors into the
   /// in-cycle torque (tens of % of peak-to-peak). Default true (a caller without a learner decides).
@@ -92,6 +100,7 @@ class ChauvinKalman {
 
  private:
   void push_edge_time(std::int64_t t_ns) noexcept;
+  void push_model(double ripple_nm) noexcept;
   void bridge_lost_teeth(int k) noexcept;
   void predict(int k) noexcept;  // x ← A_k x (and P in exact mode)
   /// P0 of a (re)start at tooth k: torque states σ², x1 its measurement noise, edge-error states their
@@ -123,6 +132,8 @@ class ChauvinKalman {
   int expected_tooth_ = -1;
   int teeth_seen_ = 0;
   std::array<std::int64_t, kMaxLag + 1> edge_t_ns_{};  ///< edge times of the last teeth, [0] = newest
+  double model_next_ = 0.0;                            ///< set_model_torque() for the next tooth
+  std::array<double, kMaxLag + 1> model_{};            ///< model ripple of the last steps, [0] = newest
   KalmanStats stats_;
 };
 

@@ -123,6 +123,7 @@ void FourierObserver::reset() noexcept {
   expected_tooth_ = -1;
   teeth_seen_ = 0;
   edge_t_ns_.fill(0);
+  model_.fill(0.0);
 }
 
 double FourierObserver::net_torque_at(int k) const noexcept {
@@ -151,7 +152,10 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
     } else {
       for (int m = 0; m < missing; ++m) {  // lost teeth: integrate the model open loop (CF-7)
         const int km = (expected_tooth_ + m) % kk;
-        phi_ += table_.step_rad[static_cast<std::size_t>(km)] * net_torque_at(km);
+        phi_ += table_.step_rad[static_cast<std::size_t>(km)] * net_torque_at(km);  // model ripple unknown: 0
+        for (int i = kMaxLag; i > 0; --i)
+          model_[static_cast<std::size_t>(i)] = model_[static_cast<std::size_t>(i - 1)];
+        model_[0] = 0.0;
       }
     }
   }
@@ -186,7 +190,10 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
     c_[i] = c;
     t_net += c * fo[j];
   }
-  phi_ += table_.step_rad[static_cast<std::size_t>(k)] * (t_model - params_.l_ke * err);
+  for (int i = kMaxLag; i > 0; --i)
+    model_[static_cast<std::size_t>(i)] = model_[static_cast<std::size_t>(i - 1)];
+  model_[0] = std::isfinite(model_next_) ? model_next_ : 0.0;
+  phi_ += table_.step_rad[static_cast<std::size_t>(k)] * (t_model + model_[0] - params_.l_ke * err);
   ++stats_.updates;
   ++teeth_seen_;
   for (int i = kMaxLag; i > 0; --i)
@@ -199,7 +206,7 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
     return false;
   }
   est_.t_ns = edge_t_ns_[static_cast<std::size_t>(lag_)];
-  est_.torque_nm = t_net + load_star_nm_;
+  est_.torque_nm = t_net + model_[static_cast<std::size_t>(lag_)] + load_star_nm_;
   est_.uncertainty = 0.0;
   est_tooth_ = k_out;
   est_.health = (teeth_seen_ >= 2 * kk && wheel_learned_) ? Health::kValid : Health::kNotConverged;

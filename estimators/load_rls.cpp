@@ -75,6 +75,20 @@ Weights model_weights(const AngleTerms& t, const EnergiesParams& prm, double bur
   }
   return w;
 }
+/// The in-cycle gas torque model's weights (issue 15): model_weights() with the heat release spread over
+/// `dur` around the centroid by a raised-cosine burned fraction x_b, p = (1 − x_b)·compression +
+/// x_b·expansion polytrope. The lumped burn's pressure step is harmless in a window integral but is a torque
+/// step in the in-cycle shape, which the Kalman's smooth coloured-noise prior cannot correct.
+Weights ripple_weights(const AngleTerms& t, const EnergiesParams& prm, double burn, double dur) noexcept {
+  const double s = t.phi > kTwoPi ? t.phi - kFourPi : t.phi;  // end of compression: negative
+  const double a0 = burn - 0.5 * dur;
+  if (dur <= 0.0 || s <= a0 || s >= a0 + dur) return model_weights(t, prm, burn);
+  const double xb = 0.5 * (1.0 - std::cos(kPi * (s - a0) / dur));
+  Weights w;
+  w.map = (1.0 - xb) * prm.ivc_pressure_factor * t.ivc_poly;
+  w.p3 = xb * t.c_poly;
+  return w;
+}
 }  // namespace
 
 LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const EnergiesParams& params)
@@ -171,10 +185,89 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
       }
     }
   }
+  build_ripple(center);
   open_.assign(windows_tab_.size(), 0);
   ke_first_.assign(windows_tab_.size(), 0.0);
   w2_first_.assign(windows_tab_.size(), 0.0);
   reset();
+}
+
+// Per-sample gas-torque ripple tables (issue 15): the pressure model's work over [c_k, c_{k+1}] per unit of
+// each input, divided by the step, minus the 720° mean (the mean indicated torque is the cycle balance's, not
+// this).
+void LoadRls::build_ripple(const std::vector<double>& center) {
+  const CrankKinematics kin(engine_);
+  const int n = engine_.cylinders;
+  const auto ks = static_cast<std::size_t>(samples_);
+  rip_map_.assign(ks, 0.0);
+  rip_const_.assign(ks, 0.0);
+  rip_p3_.assign(ks * kMaxCylinders, 0.0);
+  const double burn = params_.burn_centroid_atdc_deg * kDeg;
+  const double dur = params_.burn_duration_deg * kDeg;
+  // Full-cycle closure of the same model for one cylinder (ripple_p3): ∮p dV per Pa of MAP and of p3, and the
+  // p_exh part (J).
+  rip_cm_ = rip_cp_ = rip_ce_ = 0.0;
+  for (double phi = 0.125 * kDeg; phi < kFourPi; phi += 0.25 * kDeg) {
+    const AngleTerms at = angle_terms(phi, kin, params_, v_ivc_, v_c_);
+    const Weights w = ripple_weights(at, params_, burn, dur);
+    const double dv = at.dvol * 0.25 * kDeg;
+    rip_cm_ += w.map * dv;
+    rip_cp_ += w.p3 * dv;
+    rip_ce_ += w.exh * params_.exhaust_pressure_pa * dv;
+  }
+  double wm = 0.0, wc = 0.0;
+  std::array<double, kMaxCylinders> wp{};
+  for (int k = 0; k < samples_; ++k) {
+    const double c0 = center[static_cast<std::size_t>(k)];
+    const double span = wrap4pi(center[static_cast<std::size_t>((k + 1) % samples_)] - c0);
+    const int steps = std::max(4, static_cast<int>(std::ceil(span / (0.25 * kDeg))));
+    const double h = span / steps;
+    double tm = 0.0, tc = 0.0;
+    std::array<double, kMaxCylinders> tp{};
+    for (int q = 0; q < n; ++q) {
+      for (int i = 0; i < steps; ++i) {
+        const double phi = wrap4pi(c0 + (i + 0.5) * h - kFourPi * q / n);
+        const AngleTerms at = angle_terms(phi, kin, params_, v_ivc_, v_c_);
+        const Weights w = ripple_weights(at, params_, burn, dur);
+        const double dv = at.dvol * h;
+        tm += w.map * dv;
+        tc += (w.exh * params_.exhaust_pressure_pa - engine_.crankcase_pressure_pa) * dv;
+        tp[static_cast<std::size_t>(q)] += w.p3 * dv;
+      }
+    }
+    const auto kk = static_cast<std::size_t>(k);
+    rip_map_[kk] = tm / span;
+    rip_const_[kk] = tc / span;
+    for (int q = 0; q < n; ++q)
+      rip_p3_[kk * kMaxCylinders + static_cast<std::size_t>(q)] = tp[static_cast<std::size_t>(q)] / span;
+    wm += tm;
+    wc += tc;
+    for (int q = 0; q < n; ++q) wp[static_cast<std::size_t>(q)] += tp[static_cast<std::size_t>(q)];
+  }
+  for (std::size_t k = 0; k < ks; ++k) {
+    rip_map_[k] -= wm / kFourPi;
+    rip_const_[k] -= wc / kFourPi;
+    for (int q = 0; q < n; ++q)
+      rip_p3_[k * kMaxCylinders + static_cast<std::size_t>(q)] -= wp[static_cast<std::size_t>(q)] / kFourPi;
+  }
+}
+
+void LoadRls::ripple_p3(double map_pa, const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid,
+                        std::array<double, kMaxCylinders>& p3_pa) const noexcept {
+  for (int q = 0; q < engine_.cylinders; ++q) {
+    const auto qi = static_cast<std::size_t>(q);
+    p3_pa[qi] = works_valid ? (cyl_work_j[qi] - rip_cm_ * map_pa - rip_ce_) / rip_cp_ : motored_p3(map_pa);
+  }
+}
+
+double LoadRls::gas_ripple_nm(int k, double map_pa,
+                              const std::array<double, kMaxCylinders>& p3_pa) const noexcept {
+  if (k < 0 || k >= samples_) return 0.0;
+  const auto kk = static_cast<std::size_t>(k);
+  double t = rip_map_[kk] * map_pa + rip_const_[kk];
+  for (int q = 0; q < engine_.cylinders; ++q)
+    t += rip_p3_[kk * kMaxCylinders + static_cast<std::size_t>(q)] * p3_pa[static_cast<std::size_t>(q)];
+  return t;
 }
 
 void LoadRls::reset() noexcept {

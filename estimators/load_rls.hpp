@@ -93,6 +93,16 @@ class LoadRls {
                                       double spark_advance_deg) const noexcept;
   /// p3 of a motored cylinder (no combustion) at this MAP.
   [[nodiscard]] double motored_p3(double map_pa) const noexcept;
+  /// The model's p3 per firing position for the in-cycle gas torque ripple: closes the ripple model's ∮p dV
+  /// on the measured works (fixed burn centroid and energies.burn_duration_deg) when `works_valid`, else
+  /// motored.
+  void ripple_p3(double map_pa, const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid,
+                 std::array<double, kMaxCylinders>& p3_pa) const noexcept;
+  /// Gas torque of the pressure model over sample k's step [c_k, c_{k+1}] (the step ChauvinKalman integrates
+  /// across edge k) minus its 720° mean (N m): the known shape of the in-cycle torque (issue 15). Real-time
+  /// safe.
+  [[nodiscard]] double gas_ripple_nm(int k, double map_pa,
+                                     const std::array<double, kMaxCylinders>& p3_pa) const noexcept;
   /// Cycle-mean indicated torque of the whole engine when motored (fuel cut-off) at this MAP: the pumping loop and
   /// the expansion lost at EVO (N m, negative). Used to turn a fuel cut-off energy balance into friction.
   [[nodiscard]] double motored_torque_nm(double map_pa) const noexcept;
@@ -107,6 +117,7 @@ class LoadRls {
     int position = 0;                                ///< firing position whose compression it covers
     bool closes_group = false;                       ///< last window of that firing to close (smallest shift)
   };
+  void build_ripple(const std::vector<double>& center);
   double rls_step(double y, double phi_a) noexcept;
   void publish(std::int64_t t_ns, double err, const Window& win) noexcept;
   void track(double obs, const Window& win) noexcept;
@@ -119,6 +130,10 @@ class LoadRls {
   static constexpr int kCentroids = 61;  ///< closure tables for burn centroids 0..60° ATDC
   std::array<double, kCentroids> cyc_map_{}, cyc_p3_{};  ///< full-cycle ∮p dV coefficients of one cylinder (m³)
   double cyc_exh_ = 0.0;
+  /// gas_ripple_nm() per sample: torque per Pa of MAP, of p3 per position ([k * kMaxCylinders + q]), the
+  /// constant p_exh / p_cc part (N m), each minus its 720° mean.
+  std::vector<double> rip_map_, rip_p3_, rip_const_;
+  double rip_cm_ = 0.0, rip_cp_ = 1.0, rip_ce_ = 0.0;  ///< the ripple model's full-cycle closure (m³, m³, J)
   double v_ivc_ = 0.0, v_c_ = 0.0;
   double kappa_ = 1.3;
 

@@ -62,6 +62,8 @@ struct KalmanParams {
   bool periodic_gains = true;  ///< use precomputed asymptotic periodic gains (APS) instead of exact Riccati
   bool differenced_edge_noise = true;  ///< edge errors enter a period as the difference of its two edges
                                        ///< (MA(1) noise, two states); false = white R as in the paper
+  bool gas_model = true;  ///< the pipeline feeds a cylinder-pressure model's gas torque ripple as a known
+                          ///< input (set_model_torque, issue 15); false = the paper's zero-mean prior
   double min_rpm = 500.0;      ///< lowest speed of the APS gain schedule (rpm)
   double max_rpm = 8000.0;     ///< highest speed of the APS gain schedule (rpm)
   int speed_bins = 32;         ///< APS gain sets, log-spaced in speed, interpolated (R depends on speed)
@@ -71,6 +73,7 @@ struct FourierParams {
   double l_ke = 6.0;         ///< L_ke (1/rad)
   double l_a0 = 0.3;         ///< L_a0 (1/rad^2)
   double l_ref = 0.07;       ///< L_ref: l_{a_i} = l_{b_i} = i L_ref (1/rad^2)
+  bool gas_model = true;  ///< the pipeline feeds the cylinder-pressure model's gas torque ripple (issue 15)
   int output_lag = 0;        ///< report T̂ at tooth k−lag from the coefficients after tooth k (0..6; latency, less noise)
   double gain_ref_rpm =
       3000.0;  ///< >0: coefficient gains × min(1, (gain_ref_rpm/rpm)²), keeping the noise of the energy
@@ -121,6 +124,9 @@ struct EnergiesParams {
   double burn_centroid_atdc_deg = 10.0; ///< heat release lumped here in the expansion-pressure closure when the
                                         ///< spark advance is unknown (deg after TDC)
   double burn_delay_deg = 29.0;         ///< spark to equivalent burn centroid (deg): centroid = delay − advance
+  double burn_duration_deg = 40.0;  ///< in-cycle gas torque model only (Kalman known input, issue 15): the
+                                    ///< heat release spread over this angle around burn_centroid_atdc_deg by
+                                    ///< a raised cosine (the RLS closure keeps the lumped burn); 0 = lumped
   double energy_window_deg = 30.0;      ///< kinetic energy averaged over this window around each boundary (deg)
   double segment_offset_deg = -20.0;    ///< segment boundary relative to each firing TDC (deg, <0: before TDC)
   double idle_max_rpm = 1100.0;         ///< idle (friction C4 learning) below this mean speed (rpm)

@@ -254,6 +254,10 @@ int main(int argc, char** argv) {
   app.add_option("--kalman-delta", kalman.delta, "Kalman coloured-noise pole (1/rad)");
   app.add_option("--kalman-edge-noise", kalman.edge_noise_deg, "Kalman R: edge-angle error (deg)");
   app.add_option("--kalman-jitter", kalman.jitter_s, "Kalman R: timestamp jitter (s)");
+  bool no_gas_model = false;
+  app.add_flag("--no-gas-model", no_gas_model,
+               "Kalman and Fourier observer without the cylinder-pressure model's gas torque ripple as known "
+               "input (as in the papers)");
   app.add_option("--fourier-lref", fourier.l_ref, "Fourier observer L_ref");
   app.add_option("--fourier-lke", fourier.l_ke, "Fourier observer L_ke");
   app.add_option("--fourier-harmonics", fourier.harmonics, "Fourier observer n_h");
@@ -289,6 +293,8 @@ int main(int argc, char** argv) {
   opt.tooth_table = raw_teeth ? ToothTable::kNone : true_teeth ? ToothTable::kTrue : ToothTable::kLearned;
   opt.skip_cycles = skip;
   opt.tooth_learn = learn;
+  kalman.gas_model = !no_gas_model;
+  fourier.gas_model = !no_gas_model;
   opt.base.kalman = kalman;
   opt.base.fourier = fourier;
   opt.can_lost_after_s = can_lost;
