@@ -52,7 +52,10 @@ struct PreprocessParams {
 /// Chauvin angle-domain estimators (ESTIMATORS.md §2).
 struct KalmanParams {
   double delta = 3.0;          ///< coloured-noise pole δ (1/rad) of h(z) (CK-18)
-  double torque_sd_nm = 300.0; ///< stationary 1σ of the net torque x2 under h(z); sets Q (N m)
+  double torque_sd_nm = 75.0;  ///< stationary 1σ of x2 under h(z); sets Q (N m). 75, not the 300 the
+                               ///< whole net torque needs: with gas_model x2 is only what the pressure model
+                               ///< misses (tuned on incycle_*_65 + fuel_cut: 300/150/75/35 tried; 35 leans
+                               ///< harder on the model, worse at 1000 rpm 95 kPa)
   double edge_noise_deg = 0.01;  ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.01 learned:
                                  ///< tuned on incycle_*_65 + fuel_cut, 0.005/0.01/0.02 tried)
   double jitter_s = 0.3e-6;    ///< timestamp jitter used for R (s)
