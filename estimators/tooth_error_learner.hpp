@@ -166,10 +166,10 @@ class ToothErrorLearner {
   std::vector<double> imp_coef_;   ///< imported table projected on the per-rev columns
   std::vector<ToothOrderId> ids_;  ///< per order (index order − 1)
   // result
-  std::vector<double> eps_;         ///< ln(true/nominal width) per physical tooth (learned)
-  std::vector<double> eps_import_;  ///< imported prior
+  std::vector<double> eps_;  ///< wheel part of z per physical tooth, ½(1 − ρ⁻²) for the width ratio ρ
+  std::vector<double> eps_import_;  ///< imported prior, in the same (z) domain
   double import_weight_ = 0.0;
-  std::vector<double> ratio_;  ///< exp(ε) normalised so that Σ ratio·w = 2π
+  std::vector<double> ratio_;  ///< (1 − 2·eps)^−½ normalised so that Σ ratio·w = 2π
   bool low_orders_ok_ = false;
   ToothLearnStats stats_;
 };
