@@ -7,7 +7,8 @@
 //  - the torque part (gas and load) is a smooth function of the 720° angle whose relative size falls as 1/ω²
 //    (ΔE/E with E = ½Jω²); in fuel cut-off it is only the compression/expansion of the motored cylinders.
 // Per complete, steady cycle we form z_k = −½(E_k/Ē − 1), E_k = ½J(c_k)(w_k/dt_k)² with nominal w_k (the
-// inertia part cancels, the torque part W(θ) enters linearly, the tooth error as −2ε_p), remove the linear
+// inertia part cancels, the torque part W(θ) enters linearly, a width ratio ρ_p = w_true/w as ½(1 − ρ_p⁻²),
+// inverted exactly when the table is formed, not taken for ln ρ_p), remove the linear
 // speed trend measured by the two revolution times, and fit the smooth basis [1, step between the two
 // revolutions, cos/sin(hα/2) for every cycle harmonic h ≤ H]. The residual, averaged per physical tooth
 // (weighted by speed⁴: the ripple falls as 1/ω̄²), is the tooth error above order H/2 per revolution. The
