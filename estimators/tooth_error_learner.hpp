@@ -7,7 +7,8 @@
 //  - the torque part (gas and load) is a smooth function of the 720° angle whose relative size falls as 1/ω²
 //    (ΔE/E with E = ½Jω²); in fuel cut-off it is only the compression/expansion of the motored cylinders.
 // Per complete, steady cycle we form z_k = −½(E_k/Ē − 1), E_k = ½J(c_k)(w_k/dt_k)² with nominal w_k (the
-// inertia part cancels, the torque part W(θ) enters linearly, the tooth error as −2ε_p), remove the linear
+// inertia part cancels, the torque part W(θ) enters linearly, a width ratio ρ_p = w_true/w as ½(1 − ρ_p⁻²),
+// inverted exactly when the table is formed, not taken for ln ρ_p), remove the linear
 // speed trend measured by the two revolution times, and fit the smooth basis [1, step between the two
 // revolutions, cos/sin(hα/2) for every cycle harmonic h ≤ H]. The residual, averaged per physical tooth
 // (weighted by speed⁴: the ripple falls as 1/ω̄²), is the tooth error above order H/2 per revolution. The
@@ -21,8 +22,12 @@
 //    no overrun exists;
 //  - a firing order carries the gas torque always (motored compression in cut-off). Its ripple share falls as
 //    1/ω̄², the wheel's does not: the intercept (x → 0) of a regression on x = 1/ω̄² across cut-off cycles at
-//    several speeds ("overrun speeds"), or across firing cycles at several speeds with an x² term since ln(E0
-//    + ΔE) is not linear in ΔE/E0 at low speed ("speeds");
+//    several speeds ("overrun speeds"), or across firing cycles at several speeds ("speeds") with a third
+//    column x·ln x: the ripple is x·A(ω), and A (the order's gas-torque ripple at that load) drifts with the
+//    speed (volumetric efficiency, combustion phasing in crank degrees). An x² column let A vary only at low
+//    speed; the drift is largest at the top of the range, where the intercept is read: the x² law left
+//    (−1.0, +1.3)e-4 at order 2 of the I4 (the quadrature part: 3° of in-cycle lag at 6000 rpm), x·ln x
+//    (−1.1, −0.0)e-4, and x·ln x → 0 with x for any A growing slower than a power of ω (issue 15);
 //  - "speeds" compares firing cycles at the SAME load only (issue 15): the ripple scales with the load, so
 //    where the load changes with the speed (a vehicle, the demo) a regression across loads fakes an
 //    intercept, and an imbalance would be learned as wheel error. Each load slot (MAP within ±load_slot_frac
@@ -53,7 +58,7 @@ enum class ToothOrderSource : std::uint8_t {
   kOverrun = 1,  ///< non-firing order: mean over fuel cut-off cycles (no combustion, no imbalance)
   kOverrunSpeeds =
       2,        ///< firing order: intercept of the 1/ω̄² regression over cut-off cycles at several speeds
-  kSpeeds = 3,  ///< intercept of the 1/ω̄² (+ x²) regression over firing cycles at several speeds
+  kSpeeds = 3,  ///< intercept of the 1/ω̄² (+ x·ln x) regression over firing cycles at several speeds
 };
 [[nodiscard]] const char* to_string(ToothOrderSource s) noexcept;
 
@@ -147,13 +152,13 @@ class ToothErrorLearner {
   // accumulators
   std::vector<double> resid_sum_;  ///< Σ residual per 720° sample
   std::vector<double> coef_;       ///< scratch: coefficients of the last cycle
-  /// Speed-law sums of one load slot (x = (ω_ref/ω̄)²); per column j at [j]: Σβ, Σxβ, Σx²β, Σβ².
+  /// Speed-law sums of one load slot (x = (ω_ref/ω̄)², f = x·ln x); per column j at [j]: Σβ, Σxβ, Σfβ, Σβ².
   struct LoadSlot {
     double map_pa = 0.0;  ///< the slot's load (0: free)
-    double n = 0.0, sx = 0.0, sxx = 0.0, sx3 = 0.0, sx4 = 0.0;
+    double n = 0.0, sx = 0.0, sxx = 0.0, sf = 0.0, sxf = 0.0, sff = 0.0;  ///< f = x·ln x
   };
   std::array<LoadSlot, kLoadSlots> slots_{};
-  std::vector<double> sb_, sxb_, sxxb_, sbb_;  ///< [slot * nb_ + j]
+  std::vector<double> sb_, sxb_, sfb_, sbb_;  ///< [slot * nb_ + j]
   double map_pa_ = 0.0;
   bool map_valid_ = false;
   double cycle_map_sum_ = 0.0, cycle_map_min_ = 0.0, cycle_map_max_ = 0.0;
@@ -166,10 +171,10 @@ class ToothErrorLearner {
   std::vector<double> imp_coef_;   ///< imported table projected on the per-rev columns
   std::vector<ToothOrderId> ids_;  ///< per order (index order − 1)
   // result
-  std::vector<double> eps_;         ///< ln(true/nominal width) per physical tooth (learned)
-  std::vector<double> eps_import_;  ///< imported prior
+  std::vector<double> eps_;  ///< wheel part of z per physical tooth, ½(1 − ρ⁻²) for the width ratio ρ
+  std::vector<double> eps_import_;  ///< imported prior, in the same (z) domain
   double import_weight_ = 0.0;
-  std::vector<double> ratio_;  ///< exp(ε) normalised so that Σ ratio·w = 2π
+  std::vector<double> ratio_;  ///< (1 − 2·eps)^−½ normalised so that Σ ratio·w = 2π
   bool low_orders_ok_ = false;
   ToothLearnStats stats_;
 };

@@ -34,7 +34,8 @@ const eval::EvalOptions& options() {
 }
 
 /// Learns a table on the warm-up recording of `sc`'s wheel, as learned_width_ratios() does.
-ToothErrorLearner learn_on_warmup(const sim::Scenario& sc) {
+/// `firing_error_deg` (optional) receives the largest edge-error amplitude left at a firing order (deg).
+ToothErrorLearner learn_on_warmup(const sim::Scenario& sc, double* firing_error_deg = nullptr) {
   const sim::Scenario w = eval::warmup_scenario(sc);
   const sim::SimOutput out = sim::simulate(w);
   ToothErrorLearner learner(w.engine, w.wheel, ToothLearnParams{});
@@ -61,6 +62,8 @@ ToothErrorLearner learn_on_warmup(const sim::Scenario& sc) {
                 id.order, id.firing ? "firing" : "", to_string(id.source), id.cycles,
                 2.0 * std::abs(l) / t / kDeg, 2.0 * std::abs(tr) / t / kDeg,
                 2.0 * std::abs(l - tr) / t / kDeg);
+    if (firing_error_deg != nullptr && id.firing)
+      *firing_error_deg = std::max(*firing_error_deg, 2.0 * std::abs(l - tr) / t / kDeg);
   }
   return learner;
 }
@@ -215,6 +218,29 @@ TEST(CylinderAccuracy, NoFalseAlarmWhereDetectionIsClaimedPossible) {
       EXPECT_GE(active, 75.0) << rpm;
     }
   }
+}
+
+TEST(CylinderAccuracy, FiringOrdersOfTheWheelAreLearnedForSpeedsAboveTheWarmUp) {
+  // GIVEN I4 and I3 wheels (seeds not used for tuning the learner) learned on the warm-up: firing cycles at
+  // 1000-4000 rpm and 65 kPa, then a fuel cut-off at 4000 rpm. The firing orders (I4: 2, 4, 6 per rev; I3: 3,
+  // 6) come from the intercept of each coefficient's speed law across the firing cycles, whose engine ripple
+  // x·A(ω) (x = 1/ω̄², A drifting a few % with the speed) is ≈ 7x the wheel's share at 4000 rpm. An error left
+  // there is an in-cycle torque error ∝ θ̇², twice as large at 6000 rpm as at 4000 (issue 15 item 2)
+  double worst = 0.0;
+  for (int cyl : {4, 3}) {
+    for (std::uint64_t seed : {1234u, 4321u, 2718u}) {
+      sim::Scenario sc = cyl == 3 ? sim::scenario_by_name("three_cyl") : sim::Scenario{};
+      sc.seed = seed;
+      double err = 0.0;
+      learn_on_warmup(sc, &err);
+      std::printf("I%d seed %llu: largest firing-order edge error %.2f mdeg\n", cyl,
+                  static_cast<unsigned long long>(seed), 1e3 * err);
+      worst = std::max(worst, err);
+    }
+  }
+  // THEN every firing order of the wheel's edge angles is learned within 0.003° (the machining error is
+  // 0.05° RMS per edge; the x² law of the intercept left 0.0027-0.0047° at order 2 of the I4, x·ln x 0.0022°)
+  EXPECT_LT(worst, 0.003);
 }
 
 TEST(CylinderAccuracy, InCycleIndicatedTorqueOnRowsNotTunedOn) {

@@ -53,7 +53,7 @@ TEST(ToothErrorLearner, LearnsWidthErrorsFromSeveralSpeedsWithoutAllocating) {
   EXPECT_TRUE(learner.ready());
   EXPECT_TRUE(learner.low_orders_learned());
   EXPECT_GE(learner.stats().cycles_used, 60u);
-  // THEN the residual width error is below 0.01° RMS (from 0.076° unlearned)
+  // THEN the residual width error is below 0.0018° RMS (from 0.076° unlearned)
   const double w = 6.0 * kDeg;
   double se = 0.0, st = 0.0;
   for (int p = 1; p < learner.teeth(); ++p) {
@@ -64,7 +64,8 @@ TEST(ToothErrorLearner, LearnsWidthErrorsFromSeveralSpeedsWithoutAllocating) {
   }
   const double rms_true = std::sqrt(st / 57) / kDeg, rms_resid = std::sqrt(se / 57) / kDeg;
   std::printf("tooth widths: error %.4f deg RMS before, %.4f deg after learning\n", rms_true, rms_resid);
-  EXPECT_LT(rms_resid, 0.01);
+  // (0.0020° when z = −½(E/Ē − 1) was taken for ln ρ: the square of the machining error stayed in the table)
+  EXPECT_LT(rms_resid, 0.0018);
   EXPECT_GT(rms_true, 0.05);
   // AND the edge angles (cumulative widths: what a kinetic-energy window over several teeth sees) are learned
   // too. Their odd orders per revolution (the part that differs between edges 180° apart) decide the
@@ -84,7 +85,7 @@ TEST(ToothErrorLearner, LearnsWidthErrorsFromSeveralSpeedsWithoutAllocating) {
   const double odd_resid = std::sqrt(s_resid / half) / kDeg, odd_true = std::sqrt(s_true / half) / kDeg;
   std::printf("edge angles, odd orders per rev: error %.4f deg RMS before, %.4f deg after learning\n",
               odd_true, odd_resid);
-  EXPECT_LT(odd_resid, 0.2 * odd_true);
+  EXPECT_LT(odd_resid, 0.05 * odd_true);  // 0.0029° (6.7 %) with z taken for ln ρ, 0.0010° exact
 }
 
 TEST(ToothErrorLearner, ObserversMeetTheInCycleTargetsWithLearnedWidths) {
