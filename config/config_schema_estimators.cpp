@@ -72,7 +72,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("preprocess.jitter_s", preprocess.jitter_s, closed(0.0, 1e-2), "s", "edge timestamp jitter, 1 sigma");
   TQ_BOOL("kalman.enabled", kalman.enabled, "run the time-varying Kalman filter (CK)");
   TQ_NUM("kalman.delta", kalman.params.delta, open_closed(0.0, 1e3), "1/rad", "coloured-noise pole of h(z) (CK-18)");
-  TQ_NUM("kalman.torque_sd_nm", kalman.params.torque_sd_nm, open_closed(0.0, 1e5), "N m", "stationary 1 sigma of the net torque; sets Q");
+  TQ_NUM("kalman.torque_sd_nm", kalman.params.torque_sd_nm, open_closed(0.0, 1e5), "N m", "stationary 1 sigma of the net torque; sets Q without the gas torque model");
+  TQ_NUM("kalman.model_torque_sd_nm", kalman.params.model_torque_sd_nm, open_closed(0.0, 1e5), "N m", "stationary 1 sigma of what the gas torque model misses; sets Q while the model is valid");
   TQ_NUM("kalman.edge_noise_deg", kalman.params.edge_noise_deg, open_closed(0.0, 10.0), "deg", "edge-angle error used for R");
   TQ_NUM("kalman.jitter_s", kalman.params.jitter_s, closed(0.0, 1e-2), "s", "timestamp jitter used for R");
   TQ_INT("kalman.smoother_lag", kalman.params.smoother_lag, closed(0, 12), "teeth",
@@ -90,6 +91,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("fourier.l_ke", fourier.params.l_ke, open_closed(0.0, 1e6), "1/rad", "L_ke, must satisfy CF-14");
   TQ_NUM("fourier.l_a0", fourier.params.l_a0, closed(0.0, 1e6), "1/rad^2", "L_a0");
   TQ_NUM("fourier.l_ref", fourier.params.l_ref, closed(0.0, 1e6), "1/rad^2", "L_ref: l_ai = l_bi = i L_ref");
+  TQ_NUM("fourier.model_l_ref", fourier.params.model_l_ref, closed(0.0, 1e6), "1/rad^2", "L_ref while the gas torque model is valid");
   TQ_NUM("fourier.gain_ref_rpm", fourier.params.gain_ref_rpm, closed(0.0, 20000.0), "rpm",
          ">0: coefficient gains x min(1, (gain_ref_rpm/rpm)^2); 0 = fixed gains as in the paper");
   TQ_BOOL("fourier.gas_model", fourier.params.gas_model,

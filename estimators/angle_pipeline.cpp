@@ -164,7 +164,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   const double ripple = cfg_.kalman.gas_model || cfg_.fourier.gas_model ? gas_ripple_nm(s.tooth) : 0.0;
   if (cfg_.run_kalman) {
     kalman_.set_extended_load(load_star_nm_);
-    kalman_.set_model_torque(cfg_.kalman.gas_model ? ripple : 0.0);
+    kalman_.set_model_torque(cfg_.kalman.gas_model ? ripple : 0.0, have_map_);
     kalman_.update(s);
     copy_estimate(tooth_.kalman_ind, kalman_.estimate());
   } else {
@@ -172,7 +172,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   }
   if (fourier_ok_) {
     fourier_.set_extended_load(load_star_nm_);
-    fourier_.set_model_torque(cfg_.fourier.gas_model ? ripple : 0.0);
+    fourier_.set_model_torque(cfg_.fourier.gas_model ? ripple : 0.0, have_map_);
     fourier_.update(s);
     copy_estimate(tooth_.fourier_ind, fourier_.estimate());
   } else {

@@ -33,12 +33,16 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
     acol_[i] = std::exp(-params_.delta * table_.step_rad[i]);  // pole of h(z) (CK-18)
   }
   // Q from the stationary variance of x2 under h(z) at the nominal step: for x(n+1) = 2a x(n) − a² x(n−1) +
-  // (1−a)² u, var x = (1−a)⁴ q (1+a²)/(1−a²)³  →  q = σ² (1−a²)³ / ((1−a)⁴ (1+a²)).
+  // (1−a)² u, var x = (1−a)⁴ q (1+a²)/(1−a²)³  →  q = σ² (1−a²)³ / ((1−a)⁴ (1+a²)). Two σ: the whole net
+  // torque (no model) and, with gas_model, what the pressure model misses.
   std::vector<double> steps(table_.step_rad);
   std::nth_element(steps.begin(), steps.begin() + kk / 2, steps.end());
   const double a = std::exp(-params_.delta * steps[static_cast<std::size_t>(kk / 2)]);
-  const double s2 = params_.torque_sd_nm * params_.torque_sd_nm;
-  qu_ = s2 * std::pow(1.0 - a * a, 3) / (std::pow(1.0 - a, 4) * (1.0 + a * a));
+  const double qf = std::pow(1.0 - a * a, 3) / (std::pow(1.0 - a, 4) * (1.0 + a * a));
+  qu_[0] = params_.torque_sd_nm * params_.torque_sd_nm * qf;
+  qu_[1] = params_.model_torque_sd_nm * params_.model_torque_sd_nm * qf;
+  sd_[0] = params_.torque_sd_nm;
+  sd_[1] = params_.model_torque_sd_nm;
 
   // APS (CK §VI): iterate the periodic Riccati equation to its periodic solution for each speed bin.
   const int bins = std::max(2, params_.speed_bins);
@@ -47,23 +51,13 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
   for (int b = 0; b < bins; ++b)
     bin_log_speed_[static_cast<std::size_t>(b)] = l0 + (l1 - l0) * b / (bins - 1);
   if (params_.periodic_gains) {
-    aps_gain_.assign(static_cast<std::size_t>(bins * kk), Vec::Zero());
-    for (int b = 0; b < bins; ++b) {
-      const double w = std::exp(bin_log_speed_[static_cast<std::size_t>(b)]);
-      Mat p = initial_covariance(0, w);
-      Vec g;
-      double change = 1.0;
-      for (int cycle = 0; cycle < 500 && change > 1e-12; ++cycle) {
-        change = 0.0;
-        for (int k = 0; k < kk; ++k) {
-          riccati_step(k, w, p, g);
-          Vec& slot = aps_gain_[static_cast<std::size_t>(b * kk + k)];
-          const double scale = std::max(1e-300, g.cwiseAbs().maxCoeff());
-          change = std::max(change, (g - slot).cwiseAbs().maxCoeff() / scale);
-          slot = g;
-        }
-      }
+    const int sets = params_.gas_model ? 2 : 1;
+    aps_gain_.assign(static_cast<std::size_t>(sets * bins * kk), Vec::Zero());
+    for (int set = 0; set < sets; ++set) {
+      mode_ = set;
+      build_aps_set(set, bins);
     }
+    mode_ = 0;
   }
   reset();
 }
@@ -89,8 +83,30 @@ double ChauvinKalman::edge_state_var(double speed_rad_s) const noexcept {
   return 4.0 * w2 * w2 * (edge_sd_rad_ * edge_sd_rad_ + w2 * params_.jitter_s * params_.jitter_s);
 }
 
+// One APS gain set (mode_ = set selects its Q): per speed bin, the periodic Riccati solution's gains.
+void ChauvinKalman::build_aps_set(int set, int bins) {
+  const int kk = table_.samples;
+  for (int b = 0; b < bins; ++b) {
+    const double w = std::exp(bin_log_speed_[static_cast<std::size_t>(b)]);
+    Mat p = initial_covariance(0, w);
+    Vec g;
+    double change = 1.0;
+    for (int cycle = 0; cycle < 500 && change > 1e-12; ++cycle) {
+      change = 0.0;
+      for (int k = 0; k < kk; ++k) {
+        riccati_step(k, w, p, g);
+        Vec& slot = aps_gain_[static_cast<std::size_t>((set * bins + b) * kk + k)];
+        const double scale = std::max(1e-300, g.cwiseAbs().maxCoeff());
+        change = std::max(change, (g - slot).cwiseAbs().maxCoeff() / scale);
+        slot = g;
+      }
+    }
+  }
+}
+
 ChauvinKalman::Mat ChauvinKalman::initial_covariance(int k, double speed_rad_s) const noexcept {
-  Mat p = Mat::Identity() * params_.torque_sd_nm * params_.torque_sd_nm;
+  const double sd = sd_[static_cast<std::size_t>(mode_)];
+  Mat p = Mat::Identity() * sd * sd;
   const double v = edge_state_var(speed_rad_s);
   const double h = edge_coupling(k);
   p(0, 0) = measurement_var(k, speed_rad_s) + 2.0 * h * h * v;
@@ -100,7 +116,7 @@ ChauvinKalman::Mat ChauvinKalman::initial_covariance(int k, double speed_rad_s) 
 }
 
 void ChauvinKalman::add_process_noise(int k, double speed_rad_s, Mat& p) const noexcept {
-  p(1, 1) += std::pow(1.0 - acol_[static_cast<std::size_t>(k)], 4) * qu_;
+  p(1, 1) += std::pow(1.0 - acol_[static_cast<std::size_t>(k)], 4) * qu_[static_cast<std::size_t>(mode_)];
   p(kNoiseNow, kNoiseNow) += edge_state_var(speed_rad_s);  // the next edge's error, fresh
 }
 
@@ -160,8 +176,9 @@ ChauvinKalman::Vec ChauvinKalman::periodic_gain(int k, double speed_rad_s) const
   pos = std::clamp(pos, 0.0, static_cast<double>(bins - 1) - 1e-12);
   const int b = static_cast<int>(pos);
   const double t = pos - b;
-  return (1.0 - t) * aps_gain_[static_cast<std::size_t>(b * kk + k)] +
-         t * aps_gain_[static_cast<std::size_t>((b + 1) * kk + k)];
+  const int base = mode_ * bins;
+  return (1.0 - t) * aps_gain_[static_cast<std::size_t>((base + b) * kk + k)] +
+         t * aps_gain_[static_cast<std::size_t>((base + b + 1) * kk + k)];
 }
 
 void ChauvinKalman::reset() noexcept {
@@ -248,7 +265,8 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
     teeth_seen_ = 0;
   }
   mean_speed_ += (omega - mean_speed_) / kk;
-  push_model(model_next_);
+  mode_ = params_.gas_model && model_next_valid_ ? 1 : 0;
+  push_model(model_next_valid_ ? model_next_ : 0.0);
   Vec gain;
   double out_var = 0.0;
   const int o = 1 + params_.smoother_lag;

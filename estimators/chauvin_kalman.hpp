@@ -67,7 +67,14 @@ class ChauvinKalman {
   /// better than the sharp compression/expansion waveform itself: the smoothing that R forces at high speed
   /// (jitter ∝ θ̇³) acts on the model's error instead of on the torque. Default 0 (the paper's zero-mean
   /// prior).
-  void set_model_torque(double ripple_nm) noexcept { model_next_ = ripple_nm; }
+  /// `valid` false (no model: no MAP yet) ignores the value and runs the filter with the whole net torque's σ
+  /// (torque_sd_nm) instead of the model miss's (model_torque_sd_nm): two APS gain sets, chosen per tooth.
+  void set_model_torque(double ripple_nm, bool valid = true) noexcept {
+    model_next_ = ripple_nm;
+    model_next_valid_ = valid;
+  }
+  /// Whether the last update ran with the gas model (model_torque_sd_nm) (diagnostics, tests).
+  [[nodiscard]] bool model_active() const noexcept { return mode_ == 1; }
   /// Whether the tooth widths it is given are corrected by a learned table (issue 15 item 2). While false the
   /// estimate runs but its health is kNotConverged: an unlearned wheel puts the tooth errors into the
   /// in-cycle torque (tens of % of peak-to-peak). Default true (a caller without a learner decides).
@@ -101,6 +108,7 @@ class ChauvinKalman {
  private:
   void push_edge_time(std::int64_t t_ns) noexcept;
   void push_model(double ripple_nm) noexcept;
+  void build_aps_set(int set, int bins);
   void bridge_lost_teeth(int k) noexcept;
   void predict(int k) noexcept;  // x ← A_k x (and P in exact mode)
   /// P0 of a (re)start at tooth k: torque states σ², x1 its measurement noise, edge-error states their
@@ -115,9 +123,11 @@ class ChauvinKalman {
   KalmanParams params_;
   ToothAngleTable table_;
   std::vector<double> a11_, b12_, acol_;  ///< per tooth: J_k/J_{k+1}, 2Δ_k/J_{k+1}, a = e^{−δΔ_k}
-  double qu_ = 0.0;                       ///< variance of u (N m)²
+  std::array<double, 2> qu_{};  ///< variance of u (N m)²: [0] whole net torque, [1] the gas model's miss
+  std::array<double, 2> sd_{};  ///< the matching stationary 1σ of x2 (P0)
+  int mode_ = 0;                ///< which of the two the current tooth uses (1: gas model valid)
   std::vector<double> bin_log_speed_;     ///< ln ω of each APS speed bin
-  std::vector<Vec> aps_gain_;             ///< [bin * K + k]
+  std::vector<Vec> aps_gain_;             ///< [(set * bins + bin) * K + k]
   double edge_sd_rad_ = 0.0;
 
   Vec x_ = Vec::Zero();
@@ -133,6 +143,7 @@ class ChauvinKalman {
   int teeth_seen_ = 0;
   std::array<std::int64_t, kMaxLag + 1> edge_t_ns_{};  ///< edge times of the last teeth, [0] = newest
   double model_next_ = 0.0;                            ///< set_model_torque() for the next tooth
+  bool model_next_valid_ = false;
   std::array<double, kMaxLag + 1> model_{};            ///< model ripple of the last steps, [0] = newest
   KalmanStats stats_;
 };

@@ -37,7 +37,12 @@ FourierObserver::FourierObserver(const EngineGeometry& engine, const WheelGeomet
     const double alpha = table_.edge_rad[static_cast<std::size_t>(k)] - engine.tdc_offset_rad;
     for (int j = 0; j < nc_; ++j) basis_[static_cast<std::size_t>(k * nc_ + j)] = basis_of(j, alpha);
   }
-  for (int j = 0; j < nc_; ++j) l_[static_cast<std::size_t>(j)] = gain_of(params_, j);
+  FourierParams model_gains = params_;
+  model_gains.l_ref = params_.model_l_ref;
+  for (int j = 0; j < nc_; ++j) {
+    l_[static_cast<std::size_t>(j)] = gain_of(params_, j);
+    lm_[static_cast<std::size_t>(j)] = gain_of(model_gains, j);
+  }
   ref_speed_ = params_.gain_ref_rpm * std::numbers::pi / 30.0;
   lag_ = std::clamp(params_.output_lag, 0, kMaxLag);
   reset();
@@ -110,6 +115,12 @@ std::optional<std::string> FourierObserver::check_stability(const FourierParams&
         << rho << " >= 1 (lower fourier.harmonics or l_ref; keep l_ke * dalpha well below 2)";
     return why.str();
   }
+  if (params.gas_model) {  // the observer also runs with model_l_ref while the gas model is valid
+    FourierParams m = params;
+    m.l_ref = params.model_l_ref;
+    m.gas_model = false;
+    if (auto w = check_stability(m, engine, wheel)) return "with the gas model (l_ref = model_l_ref): " + *w;
+  }
   return std::nullopt;
 }
 
@@ -180,19 +191,21 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
   // order as net_torque_at(k), the update loop, net_torque_at(k_out) one after the other (identical bits),
   // but the two sums are independent chains of additions that now overlap (per tooth, the sums' latency
   // dominated).
+  model_active_ = params_.gas_model && model_next_valid_;
+  const std::array<double, kMaxCoeffs>& gains = model_active_ ? lm_ : l_;  // model valid: model_l_ref
   const double* f = &basis_[static_cast<std::size_t>(k * nc_)];
   const double* fo = &basis_[static_cast<std::size_t>(k_out * nc_)];
   double t_model = 0.0, t_net = 0.0;
   for (int j = 0; j < nc_; ++j) {
     const auto i = static_cast<std::size_t>(j);
     t_model += c_[i] * f[j];
-    const double c = c_[i] - d * l_[i] * f[j] * err;
+    const double c = c_[i] - d * gains[i] * f[j] * err;
     c_[i] = c;
     t_net += c * fo[j];
   }
   for (int i = kMaxLag; i > 0; --i)
     model_[static_cast<std::size_t>(i)] = model_[static_cast<std::size_t>(i - 1)];
-  model_[0] = std::isfinite(model_next_) ? model_next_ : 0.0;
+  model_[0] = model_next_valid_ && std::isfinite(model_next_) ? model_next_ : 0.0;
   phi_ += table_.step_rad[static_cast<std::size_t>(k)] * (t_model + model_[0] - params_.l_ke * err);
   ++stats_.updates;
   ++teeth_seen_;

@@ -58,7 +58,13 @@ class FourierObserver {
   /// Known part of the net torque over the next update()'s step (N m, zero 720° mean): the cylinder-pressure
   /// model's gas torque ripple (LoadRls::gas_ripple_nm, issue 15; beyond the paper). The Fourier series then
   /// carries only what the model misses. Default 0 (the paper's observer).
-  void set_model_torque(double ripple_nm) noexcept { model_next_ = ripple_nm; }
+  /// `valid` false (no MAP yet): the value is ignored and the paper's gains (l_ref) run; valid: model_l_ref.
+  void set_model_torque(double ripple_nm, bool valid = true) noexcept {
+    model_next_ = ripple_nm;
+    model_next_valid_ = valid;
+  }
+  /// Whether the last update ran with the gas model's gains (diagnostics, tests).
+  [[nodiscard]] bool model_active() const noexcept { return model_active_; }
   /// Whether the tooth widths it is given are corrected by a learned table (issue 15 item 2). While false the
   /// estimate runs but its health is kNotConverged: an unlearned wheel puts the tooth errors into the
   /// in-cycle torque (tens of % of peak-to-peak). Default true (a caller without a learner decides).
@@ -82,6 +88,7 @@ class FourierObserver {
   int nc_ = 0;                 ///< 2 n_h + 1
   std::vector<double> basis_;  ///< f_j(e_k) at [k * nc_ + j]
   std::array<double, kMaxCoeffs> l_{};
+  std::array<double, kMaxCoeffs> lm_{};  ///< the gains with model_l_ref (gas model valid)
   std::array<double, kMaxCoeffs> c_{};
   double phi_ = 0.0;
   double mean_speed_ = 0.0;  ///< running mean speed over ≈ one cycle (rad/s), for gain_ref_rpm
@@ -95,6 +102,8 @@ class FourierObserver {
   int lag_ = 0;
   std::array<std::int64_t, kMaxLag + 1> edge_t_ns_{};  ///< edge times of the last teeth, [0] = newest
   double model_next_ = 0.0;                            ///< set_model_torque() for the next tooth
+  bool model_next_valid_ = false;
+  bool model_active_ = false;
   std::array<double, kMaxLag + 1> model_{};            ///< model ripple of the last steps, [0] = newest
   FourierStats stats_;
 };

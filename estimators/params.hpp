@@ -52,10 +52,12 @@ struct PreprocessParams {
 /// Chauvin angle-domain estimators (ESTIMATORS.md §2).
 struct KalmanParams {
   double delta = 3.0;          ///< coloured-noise pole δ (1/rad) of h(z) (CK-18)
-  double torque_sd_nm = 75.0;  ///< stationary 1σ of x2 under h(z); sets Q (N m). 75, not the 300 the
-                               ///< whole net torque needs: with gas_model x2 is only what the pressure model
-                               ///< misses (tuned on incycle_*_65 + fuel_cut: 300/150/75/35 tried; 35 leans
-                               ///< harder on the model, worse at 1000 rpm 95 kPa)
+  double torque_sd_nm = 300.0;  ///< stationary 1σ of the net torque x2 under h(z); sets Q (N m), used
+                                ///< while the gas model is not valid (no MAP yet) or gas_model is false
+  double model_torque_sd_nm =
+      75.0;                      ///< the same with the gas model valid, where x2 is only what the pressure
+                                 ///< model misses (tuned on incycle_*_65 + fuel_cut: 300/150/75/35 tried;
+                                 ///< 35 leans harder on the model, worse at 1000 rpm 95 kPa)
   double edge_noise_deg = 0.01;  ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.01 learned:
                                  ///< tuned on incycle_*_65 + fuel_cut, 0.005/0.01/0.02 tried)
   double jitter_s = 0.3e-6;    ///< timestamp jitter used for R (s)
@@ -75,7 +77,10 @@ struct FourierParams {
   int harmonics = 12;        ///< n_h (CF §V.B); 4-cyl fires at i = 4: keep 4, 8, 12 and the imbalance sub-harmonics
   double l_ke = 6.0;         ///< L_ke (1/rad)
   double l_a0 = 0.3;         ///< L_a0 (1/rad^2)
-  double l_ref = 0.07;       ///< L_ref: l_{a_i} = l_{b_i} = i L_ref (1/rad^2)
+  double l_ref = 0.07;  ///< L_ref: l_{a_i} = l_{b_i} = i L_ref (1/rad^2), while the gas model is not valid
+  double model_l_ref = 0.0175;  ///< L_ref with the gas model valid: the coefficients carry only the model's
+                                ///< miss (tuned on incycle_*_65 + fuel_cut: 0.07/0.035/0.0175 and
+                                ///< gain_ref_rpm 1500 tried)
   bool gas_model = true;  ///< the pipeline feeds the cylinder-pressure model's gas torque ripple (issue 15)
   int output_lag = 0;        ///< report T̂ at tooth k−lag from the coefficients after tooth k (0..6; latency, less noise)
   double gain_ref_rpm =
