@@ -250,8 +250,10 @@ int main(int argc, char** argv) {
   torqued::FourierParams fourier;
   app.add_option("--kalman-lag", kalman.smoother_lag, "Kalman fixed-lag smoother (teeth)");
   app.add_option("--kalman-torque-sd", kalman.torque_sd_nm,
-                 "Kalman process noise: 1 sigma of the net torque (N m)");
+                 "Kalman process noise without the gas model: 1 sigma of the net torque (N m)");
   app.add_option("--kalman-delta", kalman.delta, "Kalman coloured-noise pole (1/rad)");
+  app.add_option("--kalman-model-torque-sd", kalman.model_torque_sd_nm,
+                 "Kalman process noise with the gas model valid: 1 sigma of what the model misses (N m)");
   app.add_option("--kalman-edge-noise", kalman.edge_noise_deg, "Kalman R: edge-angle error (deg)");
   app.add_option("--kalman-jitter", kalman.jitter_s, "Kalman R: timestamp jitter (s)");
   bool no_gas_model = false;
@@ -260,6 +262,8 @@ int main(int argc, char** argv) {
                "input (as in the papers)");
   app.add_option("--fourier-lref", fourier.l_ref, "Fourier observer L_ref");
   app.add_option("--fourier-lke", fourier.l_ke, "Fourier observer L_ke");
+  app.add_option("--fourier-model-lref", fourier.model_l_ref,
+                 "Fourier observer L_ref with the gas model valid");
   app.add_option("--fourier-harmonics", fourier.harmonics, "Fourier observer n_h");
   app.add_option("--fourier-gain-ref-rpm", fourier.gain_ref_rpm,
                  "Fourier observer gain reference speed (rpm)");
