@@ -26,6 +26,12 @@ struct CoverageScale {
     sd = prior_sd > 0.0 && std::isfinite(prior_sd) ? prior_sd : 0.0;
     n = 0;
   }
+  /// observe(), starting from `prior_sd` when no scale is held yet (a learner's claimed σ before it
+  /// measured).
+  void observe_from(double prior_sd, double err, double gain_min, double floor) noexcept {
+    if (!(sd > 0.0)) start(prior_sd);
+    observe(err, gain_min, floor);
+  }
   /// One residual `err`; `gain_min` floors the step 1/n (a long but finite memory); the scale stays ≥
   /// `floor`.
   void observe(double err, double gain_min, double floor) noexcept {

@@ -89,8 +89,7 @@ bool FrictionLearner::observe_motoring(double speed_rpm, double oil_temp_c, doub
     return false;
   }
   if (n_motoring_ >= static_cast<std::uint64_t>(params_.min_observations)) {
-    if (!(cover_.sd > 0.0)) cover_.start(params_.learned_sd_nm);
-    cover_.observe(err, params_.residual_gain_min, params_.residual_sd_floor_nm);
+    cover_.observe_from(params_.learned_sd_nm, err, params_.residual_gain_min, params_.residual_sd_floor_nm);
   }
   std::array<double, 9> pn{};
   for (int i = 0; i < 3; ++i) {

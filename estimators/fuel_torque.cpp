@@ -112,8 +112,7 @@ bool FuelTorque::learn(double fuel_kg, double map_pa, double t_ind_ref) noexcept
 }
 
 void FuelTorque::observe_coverage(double err) noexcept {
-  if (!(st_.cover.sd > 0.0)) st_.cover.start(std::sqrt(st_.resid_var));
-  st_.cover.observe(err, params_.sd_ema, params_.sd_floor_nm);
+  st_.cover.observe_from(std::sqrt(st_.resid_var), err, params_.sd_ema, params_.sd_floor_nm);
 }
 
 bool FuelTorque::import_state(const FuelTorqueState& s) noexcept {

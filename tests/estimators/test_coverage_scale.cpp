@@ -24,6 +24,21 @@ std::vector<double> heavy_tailed(std::mt19937& rng, int n) {
   for (int i = 0; i < n; ++i) v.push_back((u(rng) < 0.85 ? 0.3 : 4.0) * z(rng));
   return v;
 }
+TEST(CoverageScale, ObserveFromStartsAtThePriorOnlyWhenNoScaleIsHeld) {
+  // GIVEN no scale yet, then a held one
+  CoverageScale c;
+  // WHEN a residual above the prior arrives with a prior of 2
+  c.observe_from(2.0, 3.0, 0.05, 0.1);
+  // THEN the step starts from the prior (up by exp(K·0.68)), not from the residual
+  EXPECT_NEAR(c.sd, 2.0 * std::exp(CoverageScale::kGain * CoverageScale::kCoverage), 1e-12);
+  EXPECT_EQ(c.n, 1u);
+  // AND a later prior does not reset what is held
+  const double held = c.sd;
+  c.observe_from(50.0, held * 0.5, 0.05, 0.1);
+  EXPECT_LT(c.sd, held);
+  EXPECT_EQ(c.n, 2u);
+}
+
 }  // namespace
 
 TEST(CoverageScale, GaussianResidualsGiveTheirSigma) {
