@@ -207,10 +207,12 @@ void LoadRls::build_ripple(const std::vector<double>& center) {
   // Full-cycle closure of the same model for one cylinder (ripple_p3): ∮p dV per Pa of MAP and of p3, and the
   // p_exh part (J).
   rip_cm_ = rip_cp_ = rip_ce_ = 0.0;
-  for (double phi = 0.125 * kDeg; phi < kFourPi; phi += 0.25 * kDeg) {
+  constexpr int kClosureSteps = 720 * 4;  // 0.25° steps over the cycle
+  for (int i = 0; i < kClosureSteps; ++i) {
+    const double phi = (i + 0.5) * kFourPi / kClosureSteps;
     const AngleTerms at = angle_terms(phi, kin, params_, v_ivc_, v_c_);
     const Weights w = ripple_weights(at, params_, burn, dur);
-    const double dv = at.dvol * 0.25 * kDeg;
+    const double dv = at.dvol * kFourPi / kClosureSteps;
     rip_cm_ += w.map * dv;
     rip_cp_ += w.p3 * dv;
     rip_ce_ += w.exh * params_.exhaust_pressure_pa * dv;
