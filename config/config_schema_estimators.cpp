@@ -123,6 +123,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          "per-cylinder segment work only (shares, imbalance, misfire): kinetic energy averaged over this "
          "window ending energy_window/2 after each boundary; jitter noise ~ 1/window; below 720/cylinders "
          "(0: energy_window)");
+  TQ_NUM("energies.cylinder_window_taper", energies.params.cylinder_window_taper, closed(0.0, 1.0), "", "per-cylinder window's taper: tooth weights 1 - taper*(2x-1)^2, x the position in the window (0: rectangle, 1: parabola: less jitter noise at high speed)");
   TQ_NUM("energies.segment_offset_deg", energies.params.segment_offset_deg, closed(-180.0, 180.0), "deg", "segment boundary relative to firing TDC");
   TQ_NUM("energies.idle_max_rpm", energies.params.idle_max_rpm, open_closed(0.0, 20000.0), "rpm", "idle (friction C4 learning) below this speed");
   TQ_NUM("energies.idle_max_load_nm", energies.params.idle_max_load_nm, closed(0.0, 1e4), "N m", "and |load| below this");

@@ -53,7 +53,7 @@ AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
       cyl_energy_(config.engine, config.wheel, config.energies,
                   config.energies.cylinder_window_deg > 0.0 ? config.energies.cylinder_window_deg
                                                             : config.energies.energy_window_deg,
-                  0.5 * config.energies.energy_window_deg),
+                  0.5 * config.energies.energy_window_deg, config.energies.cylinder_window_taper),
       rls_(config.engine, config.wheel, config.energies),
       friction_(cfg_.friction),
       inertia_(config.energies.inertia),

@@ -50,7 +50,8 @@ CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& whee
     : CycleEnergy(engine, wheel, params, params.energy_window_deg, 0.5 * params.energy_window_deg) {}
 
 CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& wheel,
-                         const EnergiesParams& params, double window_deg, double window_end_deg) {
+                         const EnergiesParams& params, double window_deg, double window_end_deg,
+                         double taper) {
   const CrankKinematics kin(engine);
   ncyl_ = engine.cylinders;
   std::vector<double> e1, w1;
@@ -61,6 +62,7 @@ CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& whee
   center_.resize(n);
   width_.resize(n);
   j_center_.resize(n);
+  kern_w_.resize(n);
   window_of_.assign(n, -1);
   window_first_.assign(n, 0);
   window_last_.assign(n, 0);
@@ -71,6 +73,7 @@ CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& whee
     width_[i] = w1[static_cast<std::size_t>(k % t)];
     center_[i] = wrap4pi(e - 0.5 * width_[i] - engine.tdc_offset_rad);
     j_center_[i] = kin.inertia(center_[i]);
+    kern_w_[i] = width_[i];  // rectangle (taper 0): the tooth's width, bit for bit
   }
   const double seg = kFourPi / ncyl_;
   // Window [end − w, end) around each boundary; the centred ±w/2 gives exactly −hi (×2 is exact in binary).
@@ -86,6 +89,11 @@ CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& whee
       constexpr double kEps = 1e-9;
       const double d = diff720(center_[i] + kEps, boundary_[static_cast<std::size_t>(b)]);
       if (d >= lo && d < hi) window_of_[i] = b;
+      if (d >= lo && d < hi && taper > 0.0) {
+        // −1 … 1 across the angle the window's periods cover, [lo − w/2, hi − w/2) (centres in [lo, hi))
+        const double x = (d - 0.5 * (lo + hi - width_[i])) / (0.5 * (hi - lo));
+        kern_w_[i] = width_[i] * (1.0 - std::min(taper, 1.0) * x * x);
+      }
       // Segment b spans [boundary_b, boundary_b + seg).
       const double ds = wrap4pi(center_[i] + kEps - boundary_[static_cast<std::size_t>(b)]);
       if (ds < seg) segment_of_[i] = b;
@@ -282,7 +290,7 @@ bool CycleEnergy::update(const ToothSample& s, double load_nm, bool load_valid) 
   }
   if (!win_open_) return false;
   const double speed = s.width_rad / s.dt_s;
-  const double w = width_[i];
+  const double w = kern_w_[i];
   win_ke_w_ += 0.5 * j_center_[i] * speed * speed * w;
   win_speed_w_ += speed * w;
   win_w_ += w;

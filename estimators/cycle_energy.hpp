@@ -66,8 +66,11 @@ class CycleEnergy {
   /// KE windows of `window_deg` ending `window_end_deg` after each boundary: [end − window, end) (the
   /// per-cylinder segment work's wider window, AnglePipeline). Windows of neighbouring boundaries must not
   /// overlap: window_deg < 720°/cylinders (checked by the config loader).
+  /// `taper` in [0, 1] weights each tooth period by 1 − taper·(2x − 1)², x its centre's position in the
+  /// window (0 = rectangle; 1 = parabola: the edge jitter enters through every edge with a small weight
+  /// instead of through the two outer edges with weight 1/n, see EnergiesParams::cylinder_window_taper).
   CycleEnergy(const EngineGeometry& engine, const WheelGeometry& wheel, const EnergiesParams& params,
-              double window_deg, double window_end_deg);
+              double window_deg, double window_end_deg, double taper = 0.0);
 
   void reset() noexcept;
   /// Real-time safe. `load_nm` is the load torque at this tooth (dyno / e-machine), `load_valid` whether
@@ -96,6 +99,7 @@ class CycleEnergy {
   void finish_window(const ToothSample& s, int b) noexcept;
   int samples_ = 0, ncyl_ = 0;
   std::vector<double> center_, width_, j_center_;
+  std::vector<double> kern_w_;     ///< KE window weight of tooth k: its width × the window taper (rad)
   std::vector<int> window_of_;     ///< boundary whose KE window holds tooth k, −1 if none
   std::vector<int> window_first_;  ///< 1 if tooth k opens its window
   std::vector<int> window_last_;   ///< 1 if tooth k closes its window

@@ -65,6 +65,8 @@ void CylinderTorque::reset() noexcept {
   ema_.fill(0.0);
   comb_.fill(0.0);
   ema_init_ = false;
+  ema_cycles_ = 0;
+  ema_var_ = 0.0;
   motored_j_ = 0.0;
   motored_known_ = false;
   cut_cycles_ = 0;
@@ -111,6 +113,7 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
     o.health = Health::kInvalidInput;
     o.detection = MisfireDetection::kInvalid;
     o.imbalance_filtered_pct = out_.imbalance_filtered_pct;
+    o.imbalance_sd_pct = out_.imbalance_sd_pct;
     out_ = o;
     prev_combusting_ = false;
     return true;
@@ -160,6 +163,7 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
   }
   update_filtered_imbalance(o, candidates, cycle_dt_s);
   o.imbalance_filtered_pct = ema_;
+  o.imbalance_sd_pct = ema_cycles_ > 0 ? 100.0 * std::sqrt(ema_var_) : 0.0;
   o.health = health_of(o.detection);
   out_ = o;
   prev_combusting_ = all_combusting(n, seg_rad);
@@ -236,7 +240,9 @@ void CylinderTorque::update_filtered_imbalance(const CylinderCycle& o, int candi
   double a = params_.imbalance_filter;
   if (params_.imbalance_tau_s > 0.0 && cycle_dt_s > 0.0)
     a = std::min(a, 1.0 - std::exp(-cycle_dt_s / params_.imbalance_tau_s));
-  if (!ema_init_) a = 1.0;
+  // The mean of the cycles so far while it weighs each more than the EMA would (1 at the first).
+  ++ema_cycles_;
+  a = std::max(a, 1.0 / ema_cycles_);
   double var = 0.0;
   for (int c = 0; c < n; ++c) {
     const auto ci = static_cast<std::size_t>(c);
@@ -246,6 +252,8 @@ void CylinderTorque::update_filtered_imbalance(const CylinderCycle& o, int candi
   }
   if (ema_init_) share_var_ += params_.imbalance_filter * (var - share_var_);
   ema_init_ = true;
+  // Each cycle's share noise (share_var_, white from cycle to cycle: jitter) enters ema_ with weight a.
+  ema_var_ = (1.0 - a) * (1.0 - a) * ema_var_ + a * a * share_var_;
 }
 
 Health CylinderTorque::health_of(MisfireDetection d) noexcept {

@@ -13,7 +13,9 @@
 //                 issue 15 item 3)
 //   filtered    = EMA of imbalance_m over usable cycles, weight min(imbalance_filter, 1 − exp(−T_cycle/τ)):
 //   the
-//                 same averaging time (imbalance_tau_s) at every speed
+//                 same averaging time (imbalance_tau_s) at every speed; the mean of the k usable cycles so
+//                 far while 1/k is larger (a start from one cycle kept that cycle's noise: 70 % of it after
+//                 10 cycles at 6000 rpm); imbalance_sd_pct its 1σ from the running share noise
 //   misfire_m   = C_m < threshold · median_{j≠m} C_j with the combustion work C = W − W_mot, decided only
 //                 while the engine fires (no fuel cut-off) and the reference exceeds min_mean_nm
 //                 (segment-mean torque), and the deficit med − C_m exceeds misfire_sigma × the running
@@ -63,6 +65,10 @@ struct CylinderCycle {
   std::array<double, kMaxCylinders> torque_nm{};               ///< W_m / 4π by cylinder number − 1 (N m)
   std::array<double, kMaxCylinders> imbalance_pct{};           ///< this cycle (%)
   std::array<double, kMaxCylinders> imbalance_filtered_pct{};  ///< EMA over firing cycles without misfire (%)
+  /// 1σ of imbalance_filtered_pct from the shares' cycle-to-cycle noise and the cycles averaged (pp, each
+  /// cylinder; 0 before the first usable cycle). At 6000 rpm and light load the shares swing ≈ ±12 % per
+  /// cycle (edge jitter over a small speed ripple): what the filtered pattern rests on (issue 15 item 3).
+  double imbalance_sd_pct = 0.0;
   std::array<bool, kMaxCylinders> misfire{};
   int misfire_count = 0;
   double mean_nm = 0.0;  ///< Σ torque_nm = cycle-mean indicated torque (N m)
@@ -102,6 +108,8 @@ class CylinderTorque {
   std::array<double, kMaxCylinders> comb_{};  ///< this cycle's combustion work W_m − W_mot (J)
   std::array<double, kMaxCylinders> ema_{};
   bool ema_init_ = false;
+  int ema_cycles_ = 0;    ///< usable cycles averaged so far (the mean of all of them until the EMA's weight)
+  double ema_var_ = 0.0;  ///< variance of ema_ from the share noise (fraction²)
   double share_var_ =
       0.0;             ///< EMA of the squared cycle-to-cycle share noise (fraction², pooled over cylinders)
   bool noisy_ = true;  ///< the shares too noisy to decide (latched, see on_segment)

@@ -144,6 +144,9 @@ struct EnergiesParams {
   double cylinder_window_deg = 60.0;    ///< per-cylinder segment work (shares, imbalance, misfire) only: KE averaged
                                         ///< over this window ending energy_window/2 after each boundary; jitter and
                                         ///< tooth-table noise ∝ 1/window; < 720°/cylinders; 0: energy_window (deg)
+  double cylinder_window_taper = 1.0;  ///< that window's tooth weights 1 − taper·(2x − 1)², x the place in
+                                       ///< it (0: rectangle; 1: parabola, the edge jitter spread over all
+                                       ///< edges: 6000 rpm balanced pattern 2.2/1.7/1.2 → 1.5/1.5/0.9 pp) (-)
   double rls_change_threshold = 4.0;    ///< crank-only load change: CUSUM of the per-firing load innovations (in σ)
                                         ///< above this re-seeds the RLS at the cycle mean (0: RLS alone) (-)
   double rls_step_min_sd_nm = 1.0;      ///< floor of the innovations' 1σ (N m)

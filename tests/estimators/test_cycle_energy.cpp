@@ -333,3 +333,50 @@ TEST(CycleEnergy, BrakeWithinIssueTolerancesThroughSimulatorTransients) {
                 comp.brake.max_abs_nm, comp.brake.max_rel_pct, raw.brake.max_abs_nm);
   }
 }
+
+TEST(CycleEnergy, TaperedPerCylinderWindowLowersTheJitterNoiseWithoutBias) {
+  // GIVEN a 4-cylinder 60-2 engine at 6000 rpm (net torque 5 N m mean, ±150 N m firing ripple) whose edge
+  // timestamps carry 0.3 µs RMS jitter, and the per-cylinder 60° window ending 15° after each boundary as a
+  // rectangle (taper 0) and as a parabola (taper 1)
+  EngineGeometry eng;
+  WheelGeometry wheel;
+  const EnergiesParams p;
+  CycleEnergy rect(eng, wheel, p, 60.0, 15.0, 0.0), par(eng, wheel, p, 60.0, 15.0, 1.0);
+  auto samples = analytic_samples(eng, wheel, 6000.0, 5.0, 150.0, 60);
+  std::mt19937_64 rng(91);
+  std::normal_distribution<double> jitter(0.0, 0.3e-6);
+  double t_true = 0.0, prev_t = 0.0;
+  for (std::size_t i = 1; i < samples.size(); ++i) {
+    t_true += samples[i].dt_s;
+    const double t = t_true + jitter(rng);
+    samples[i].dt_s = t - prev_t;
+    samples[i].t_ns = std::llround(t * 1e9);
+    prev_t = t;
+  }
+  double ss_r = 0.0, ss_p = 0.0, mean_p = 0.0;
+  int n = 0;
+  for (const auto& s : samples) {
+    const bool rr = rect.update(s, 0.0, true), rp = par.update(s, 0.0, true);
+    // WHEN a boundary's windows complete THEN on the same tooth (the record's timing does not change)
+    ASSERT_EQ(rr, rp);
+    if (!rr || !rect.segment().segment_valid) continue;
+    ASSERT_TRUE(par.segment().segment_valid);
+    const double er = rect.segment().d_ke_segment_j / rect.segment().segment_rad - 5.0;
+    const double ep = par.segment().d_ke_segment_j / par.segment().segment_rad - 5.0;
+    ss_r += er * er;
+    ss_p += ep * ep;
+    mean_p += ep;
+    ++n;
+  }
+  ASSERT_GT(n, 150);
+  const double rms_r = std::sqrt(ss_r / n), rms_p = std::sqrt(ss_p / n);
+  std::printf(
+      "segment-mean torque error RMS at 6000 rpm, 0.3 us jitter: %.2f N m (rectangle) vs %.2f N m "
+      "(parabola)\n",
+      rms_r, rms_p);
+  // AND the parabola's noise is lower (each edge enters with the weight step of its neighbours, instead of
+  // the two outer edges with 1/n each: Σ(Δc)² ≈ 12/n³ against 2/n², n = 10 teeth) and it stays unbiased
+  EXPECT_LT(rms_p, 0.85 * rms_r);
+  EXPECT_GT(rms_p, 0.5 * rms_r);
+  EXPECT_NEAR(mean_p / n, 0.0, 3.0 * rms_p / std::sqrt(n) + 0.3);
+}
