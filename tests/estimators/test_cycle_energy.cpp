@@ -63,6 +63,51 @@ std::vector<ToothSample> analytic_samples(const EngineGeometry& eng, const Wheel
 }
 }  // namespace
 
+/// Adds Gaussian timestamp jitter (σ in s) to every edge of `samples` (dt and t_ns follow the jittered
+/// times).
+void add_timestamp_jitter(std::vector<ToothSample>& samples, double sd_s, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> jitter(0.0, sd_s);
+  double t_true = 0.0, prev_t = 0.0;
+  for (std::size_t i = 1; i < samples.size(); ++i) {
+    t_true += samples[i].dt_s;
+    const double t = t_true + jitter(rng);
+    samples[i].dt_s = t - prev_t;
+    samples[i].t_ns = std::llround(t * 1e9);
+    prev_t = t;
+  }
+}
+
+/// Segment-mean torque error of two CycleEnergy windows run side by side on the same samples (true torque
+/// `torque_nm`): RMS of each, the summed error of the second, segments compared. Both must complete on the
+/// same teeth.
+struct WindowNoise {
+  double rms_a = 0.0, rms_b = 0.0, sum_b = 0.0;  ///< sum_b: Σ error of b (its mean is sum_b / n)
+  int n = 0;
+};
+WindowNoise compare_windows(CycleEnergy& a, CycleEnergy& b, const std::vector<ToothSample>& samples,
+                            double torque_nm) {
+  WindowNoise w;
+  double ss_a = 0.0, ss_b = 0.0, sum_b = 0.0;
+  for (const auto& s : samples) {
+    const bool ra = a.update(s, 0.0, true), rb = b.update(s, 0.0, true);
+    EXPECT_EQ(ra, rb);
+    if (!ra || !rb || !a.segment().segment_valid || !b.segment().segment_valid) continue;
+    const double ea = a.segment().d_ke_segment_j / a.segment().segment_rad - torque_nm;
+    const double eb = b.segment().d_ke_segment_j / b.segment().segment_rad - torque_nm;
+    ss_a += ea * ea;
+    ss_b += eb * eb;
+    sum_b += eb;
+    ++w.n;
+  }
+  if (w.n > 0) {
+    w.rms_a = std::sqrt(ss_a / w.n);
+    w.rms_b = std::sqrt(ss_b / w.n);
+    w.sum_b = sum_b;
+  }
+  return w;
+}
+
 TEST(CycleEnergy, SegmentAndCycleBalanceMatchAnalyticMotion) {
   // GIVEN a 4-cylinder engine on a 60-2 wheel, net torque 6 N m mean with ±200 N m firing ripple
   EngineGeometry eng;
@@ -163,33 +208,13 @@ TEST(CycleEnergy, WiderWindowEndingOnTheSameToothHalvesTheEdgeJitterNoise) {
   const EnergiesParams p;
   CycleEnergy narrow(eng, wheel, p), wide(eng, wheel, p, 60.0, 15.0);
   auto samples = analytic_samples(eng, wheel, 4000.0, 5.0, 150.0, 40);
-  std::mt19937_64 rng(22);
-  std::normal_distribution<double> jitter(0.0, 0.3e-6);
-  double t_true = 0.0, prev_t = 0.0;
-  for (std::size_t i = 1; i < samples.size(); ++i) {
-    t_true += samples[i].dt_s;
-    const double t = t_true + jitter(rng);
-    samples[i].dt_s = t - prev_t;
-    samples[i].t_ns = std::llround(t * 1e9);
-    prev_t = t;
-  }
-  double ss_n = 0.0, ss_w = 0.0, mean_w = 0.0;
-  int n = 0;
-  for (const auto& s : samples) {
-    const bool rn = narrow.update(s, 0.0, true), rw = wide.update(s, 0.0, true);
-    // WHEN a boundary's windows complete THEN they complete on the same tooth (the wider one starts earlier)
-    ASSERT_EQ(rn, rw);
-    if (!rn || !narrow.segment().segment_valid) continue;
-    ASSERT_TRUE(wide.segment().segment_valid);
-    const double en = narrow.segment().d_ke_segment_j / narrow.segment().segment_rad - 5.0;
-    const double ew = wide.segment().d_ke_segment_j / wide.segment().segment_rad - 5.0;
-    ss_n += en * en;
-    ss_w += ew * ew;
-    mean_w += ew;
-    ++n;
-  }
+  add_timestamp_jitter(samples, 0.3e-6, 22);
+  // WHEN a boundary's windows complete THEN they complete on the same tooth (the wider one starts earlier)
+  const WindowNoise c = compare_windows(narrow, wide, samples, 5.0);
+  const int n = c.n;
+  const double mean_w = c.sum_b;
   ASSERT_GT(n, 100);
-  const double rms_n = std::sqrt(ss_n / n), rms_w = std::sqrt(ss_w / n);
+  const double rms_n = c.rms_a, rms_w = c.rms_b;
   std::printf(
       "segment-mean torque error RMS at 4000 rpm, 0.3 us jitter: %.2f N m (30 deg) vs %.2f N m (60 deg)\n",
       rms_n, rms_w);
@@ -343,33 +368,13 @@ TEST(CycleEnergy, TaperedPerCylinderWindowLowersTheJitterNoiseWithoutBias) {
   const EnergiesParams p;
   CycleEnergy rect(eng, wheel, p, 60.0, 15.0, 0.0), par(eng, wheel, p, 60.0, 15.0, 1.0);
   auto samples = analytic_samples(eng, wheel, 6000.0, 5.0, 150.0, 60);
-  std::mt19937_64 rng(91);
-  std::normal_distribution<double> jitter(0.0, 0.3e-6);
-  double t_true = 0.0, prev_t = 0.0;
-  for (std::size_t i = 1; i < samples.size(); ++i) {
-    t_true += samples[i].dt_s;
-    const double t = t_true + jitter(rng);
-    samples[i].dt_s = t - prev_t;
-    samples[i].t_ns = std::llround(t * 1e9);
-    prev_t = t;
-  }
-  double ss_r = 0.0, ss_p = 0.0, mean_p = 0.0;
-  int n = 0;
-  for (const auto& s : samples) {
-    const bool rr = rect.update(s, 0.0, true), rp = par.update(s, 0.0, true);
-    // WHEN a boundary's windows complete THEN on the same tooth (the record's timing does not change)
-    ASSERT_EQ(rr, rp);
-    if (!rr || !rect.segment().segment_valid) continue;
-    ASSERT_TRUE(par.segment().segment_valid);
-    const double er = rect.segment().d_ke_segment_j / rect.segment().segment_rad - 5.0;
-    const double ep = par.segment().d_ke_segment_j / par.segment().segment_rad - 5.0;
-    ss_r += er * er;
-    ss_p += ep * ep;
-    mean_p += ep;
-    ++n;
-  }
+  add_timestamp_jitter(samples, 0.3e-6, 91);
+  // WHEN a boundary's windows complete THEN on the same tooth (the record's timing does not change)
+  const WindowNoise c = compare_windows(rect, par, samples, 5.0);
+  const int n = c.n;
+  const double mean_p = c.sum_b;
   ASSERT_GT(n, 150);
-  const double rms_r = std::sqrt(ss_r / n), rms_p = std::sqrt(ss_p / n);
+  const double rms_r = c.rms_a, rms_p = c.rms_b;
   std::printf(
       "segment-mean torque error RMS at 6000 rpm, 0.3 us jitter: %.2f N m (rectangle) vs %.2f N m "
       "(parabola)\n",
