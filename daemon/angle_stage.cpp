@@ -148,8 +148,10 @@ void AngleStage::emit_cylinders(const ChainSegment& s) noexcept {
     const bool used = i < cc.cylinders;
     c.indicated_nm[i] = used ? cc.torque_nm[ii] : 0.0;
     c.imbalance_pct[i] = used ? cc.imbalance_pct[ii] : 0.0;
+    c.imbalance_filtered_pct[i] = used ? cc.imbalance_filtered_pct[ii] : 0.0;
     if (used && cc.misfire[ii]) c.misfire_mask = static_cast<std::uint8_t>(c.misfire_mask | (1u << i));
   }
+  c.imbalance_sd_pct = cc.imbalance_sd_pct;
   c.health = static_cast<std::uint8_t>(cc.health);
   c.validity = validity_of(s.status) | validity_of(cc.health, cc.mean_nm);
   out_.emit(b);

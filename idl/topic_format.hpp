@@ -30,7 +30,11 @@ template <class F> constexpr void visit_fields(const torque_EstimatorTorque& s, 
 template <class F> constexpr void visit_fields(const torque_CylinderTorque& s, F&& f) {
   f("engine_id", s.engine_id); f("seq", s.seq); f("source_t_ns", s.source_t_ns); f("ingest_t_ns", s.ingest_t_ns);
   f("publish_t_ns", s.publish_t_ns); f("validity", s.validity); f("cycle", s.cycle); f("cylinders", s.cylinders);
-  f("indicated_nm", s.indicated_nm, 8); f("imbalance_pct", s.imbalance_pct, 8); f("misfire_mask", s.misfire_mask);
+  f("indicated_nm", s.indicated_nm, 8);
+  f("imbalance_pct", s.imbalance_pct, 8);
+  f("imbalance_filtered_pct", s.imbalance_filtered_pct, 8);
+  f("imbalance_sd_pct", s.imbalance_sd_pct);
+  f("misfire_mask", s.misfire_mask);
   f("health", s.health);
 }
 template <class F> constexpr void visit_fields(const torque_CrankState& s, F&& f) {
