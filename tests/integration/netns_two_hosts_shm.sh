@@ -78,7 +78,10 @@ export CYCLONEDDS_URI=file://$tmp/a.xml
 roudi_pid=\$!
 for i in \$(seq 100); do grep -q "RouDi is ready" "$tmp/roudi.log" && break; sleep 0.1; done
 grep -q "RouDi is ready" "$tmp/roudi.log" || { echo "RouDi did not start"; cat "$tmp/roudi.log"; exit 1; }
-"$echo_exe" ${echo_args[*]} --require-shm --record "$tmp/rec_shm" > "$tmp/echo_shm.log" 2>&1 &
+# The shared-memory subscriber runs SCHED_FIFO (below the daemon's threads): iceoryx queues at most 256 samples
+# per reader, 13 ms of EstimatorTorque at 4x, and a subscriber descheduled longer by other load on a 2-core CI
+# machine lost a few (one CI run: 374 of 50472); the network path's socket buffer hides the same stall.
+chrt -f 20 "$echo_exe" ${echo_args[*]} --require-shm --record "$tmp/rec_shm" > "$tmp/echo_shm.log" 2>&1 &
 shm_pid=\$!
 "$torqued" --config "$tmp/demo_shm.yaml" --speed 4 --exit-when-done --wait-subscribers 2 \
   --state-dir "$tmp/state" > "$tmp/daemon.log" 2>&1
