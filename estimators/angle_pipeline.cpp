@@ -127,11 +127,8 @@ std::uint8_t AnglePipeline::break_sequence(ToothSample s) noexcept {
 // The cylinder-pressure model's gas torque ripple over the step after tooth k (issue 15): the MAP held from
 // CAN and the last measured works per firing position (motored until every position has one). 0 without a
 // MAP.
-double AnglePipeline::gas_ripple_nm(int k) const noexcept {
+double AnglePipeline::gas_ripple_nm(int k, bool works_ok) const noexcept {
   if (!have_map_) return 0.0;
-  bool works_ok = true;
-  for (int m = 0; m < cfg_.engine.cylinders; ++m)
-    works_ok = works_ok && cyl_work_ok_[static_cast<std::size_t>(m)];
   std::array<double, kMaxCylinders> p3{};
   rls_.ripple_p3(held_map_pa_, cyl_work_j_, works_ok, p3);
   return rls_.gas_ripple_nm(k, held_map_pa_, p3);
@@ -161,7 +158,12 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   tooth_.speed_lp_rad_s = kin.valid ? kin.speed_lp_rad_s : speed;
   tooth_.valid = have_prev_;
   // In-cycle observers (Chauvin): they estimate the net torque; the extended load turns it into T_ind.
-  const double ripple = cfg_.kalman.gas_model || cfg_.fourier.gas_model ? gas_ripple_nm(s.tooth) : 0.0;
+  // Every firing position has a measured work (the gas ripple and the RLS window model use them).
+  bool works_ok = true;
+  for (int m = 0; m < cfg_.engine.cylinders; ++m)
+    works_ok = works_ok && cyl_work_ok_[static_cast<std::size_t>(m)];
+  const double ripple =
+      cfg_.kalman.gas_model || cfg_.fourier.gas_model ? gas_ripple_nm(s.tooth, works_ok) : 0.0;
   if (cfg_.run_kalman) {
     kalman_.set_extended_load(load_star_nm_);
     kalman_.set_model_torque(cfg_.kalman.gas_model ? ripple : 0.0, have_map_);
@@ -191,9 +193,6 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   machine_motoring_ = can_fresh && net.em_valid && net.em_crank_nm > 0.0 && sig.fuel_mass_valid &&
                       !(sig.fuel_mass_kg > 0.0);
 
-  bool works_ok = true;
-  for (int m = 0; m < cfg_.engine.cylinders; ++m)
-    works_ok = works_ok && cyl_work_ok_[static_cast<std::size_t>(m)];
   // CAN lost: the RLS keeps running on the last MAP / spark advance it saw (they move slowly at a steady
   // operating point); the fusion marks the result crank-only with can_lost set.
   if (can_fresh && sig.map_valid && std::isfinite(sig.map_pa)) {

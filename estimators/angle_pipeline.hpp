@@ -149,7 +149,7 @@ class AnglePipeline {
   [[nodiscard]] const AnglePipelineConfig& config() const noexcept { return cfg_; }
 
  private:
-  [[nodiscard]] double gas_ripple_nm(int k) const noexcept;
+  [[nodiscard]] double gas_ripple_nm(int k, bool works_ok) const noexcept;
   std::uint8_t break_sequence(ToothSample s) noexcept;
   void on_segment(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh) noexcept;
   // on_segment's steps, in order, and its gates (each gate is one named condition of the learning rules).

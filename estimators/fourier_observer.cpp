@@ -137,6 +137,12 @@ void FourierObserver::reset() noexcept {
   model_.fill(0.0);
 }
 
+void FourierObserver::push_model(double ripple_nm) noexcept {
+  for (int i = kMaxLag; i > 0; --i)
+    model_[static_cast<std::size_t>(i)] = model_[static_cast<std::size_t>(i - 1)];
+  model_[0] = std::isfinite(ripple_nm) ? ripple_nm : 0.0;
+}
+
 double FourierObserver::net_torque_at(int k) const noexcept {
   const double* f = &basis_[static_cast<std::size_t>(k * nc_)];
   double t = 0.0;
@@ -164,9 +170,7 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
       for (int m = 0; m < missing; ++m) {  // lost teeth: integrate the model open loop (CF-7)
         const int km = (expected_tooth_ + m) % kk;
         phi_ += table_.step_rad[static_cast<std::size_t>(km)] * net_torque_at(km);  // model ripple unknown: 0
-        for (int i = kMaxLag; i > 0; --i)
-          model_[static_cast<std::size_t>(i)] = model_[static_cast<std::size_t>(i - 1)];
-        model_[0] = 0.0;
+        push_model(0.0);
       }
     }
   }
@@ -203,9 +207,7 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
     c_[i] = c;
     t_net += c * fo[j];
   }
-  for (int i = kMaxLag; i > 0; --i)
-    model_[static_cast<std::size_t>(i)] = model_[static_cast<std::size_t>(i - 1)];
-  model_[0] = model_next_valid_ && std::isfinite(model_next_) ? model_next_ : 0.0;
+  push_model(model_next_valid_ ? model_next_ : 0.0);
   phi_ += table_.step_rad[static_cast<std::size_t>(k)] * (t_model + model_[0] - params_.l_ke * err);
   ++stats_.updates;
   ++teeth_seen_;

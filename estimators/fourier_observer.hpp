@@ -77,6 +77,7 @@ class FourierObserver {
   [[nodiscard]] int estimate_tooth() const noexcept { return est_tooth_; }
   /// T̂_mass (= net torque) at any tooth k from the current coefficients (reconstructs the whole cycle).
   [[nodiscard]] double net_torque_at(int k) const noexcept;
+  void push_model(double ripple_nm) noexcept;  ///< shift the model ripple history, newest first
   [[nodiscard]] int coefficients() const noexcept { return nc_; }
   [[nodiscard]] double coefficient(int j) const noexcept { return c_[static_cast<std::size_t>(j)]; }
   [[nodiscard]] double kinetic_energy_j() const noexcept { return phi_; }
