@@ -77,7 +77,7 @@ struct SignalMapping {
   [[nodiscard]] bool mapped() const noexcept { return !message.empty(); }
 };
 
-/// Hybrid input (YAML can.e_machine): how can.signals.em_torque maps onto the crank (estimators/e_machine.hpp).
+/// Hybrid input (YAML can.e_machine): how can.signals.em_torque maps onto the crank (estimators/core/e_machine.hpp).
 struct EMachineConfig {
   double ratio = 1.0;      ///< machine speed / crank speed: T_em,crank = sign · ratio · T_em (-)
   int sign = 1;            ///< +1: em_torque positive when the machine drives the crank; −1: when it brakes it
@@ -169,7 +169,7 @@ struct ReplayConfig {
   bool loop = false;  ///< paced replay of files: start the recording again at its end (io/looping_source.hpp)
 };
 
-/// Prometheus exposition endpoint (daemon/metrics.hpp), served by its own threads, never the real-time ones.
+/// Prometheus exposition endpoint (service/metrics.hpp), served by its own threads, never the real-time ones.
 struct MetricsConfig {
   bool enabled = false;
   std::string address = "127.0.0.1:9464";  ///< HOST:PORT to listen on (loopback unless you mean otherwise)

@@ -183,7 +183,7 @@ void add_can(std::vector<SchemaEntry>& t) {
     t.push_back(std::move(s));
     t.push_back(std::move(to));
   }
-  // Hybrid input (estimators/e_machine.hpp): used only when can.signals.em_torque is mapped.
+  // Hybrid input (estimators/core/e_machine.hpp): used only when can.signals.em_torque is mapped.
   t.push_back(number("can.e_machine.ratio", TQ_REF(double, can.e_machine.ratio), {0.0, 100.0, true, false}, "",
                      "machine speed / crank speed: machine torque on the crank = sign x ratio x em_torque"));
   t.push_back(integer("can.e_machine.sign", TQ_REF(int, can.e_machine.sign), closed(-1, 1), "",

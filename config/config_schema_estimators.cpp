@@ -1,4 +1,4 @@
-// Estimator keys of the configuration table (estimators/params.hpp). One line per key: when a field is added to
+// Estimator keys of the configuration table (estimators/core/params.hpp). One line per key: when a field is added to
 // params.hpp, add it here with its bounds, unit and description (the example-YAML test then demands its docs).
 #include "schema_builders.hpp"
 
@@ -138,7 +138,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("energies.burn_delay_deg", energies.params.burn_delay_deg, closed(0.0, 180.0), "deg", "spark to equivalent burn centroid: centroid = delay - advance");
   TQ_BOOL("energies.inertia.learn", energies.params.inertia.learn,
           "learn J = k x engine.j_rot_kgm2 from consecutive cycles while a load signal is present "
-          "(estimators/inertia_learner.hpp)");
+          "(estimators/learners/inertia_learner.hpp)");
   TQ_NUM("energies.inertia.prior_rel_sd", energies.params.inertia.prior_rel_sd, open_closed(0.0, 1.0), "",
          "1 sigma of the spec-sheet inertia, fraction (catalogue vs fitted flywheel, clutch, damper)");
   TQ_NUM(
@@ -205,7 +205,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_BOOL("fusion.time_estimate", fusion.time_estimate, "use the time chain's UIO brake estimate (Na et al.) as the fusion's lowest-priority source");
   TQ_NUM("fusion.can_load_sd_nm", fusion.can_load_sd_nm, open_closed(0.0, 1e4), "N m", "1 sigma of the measured load torque (torque flange / e-machine)");
   TQ_NUM("fusion.brake_sd_ema", fusion.brake_sd_ema, open_closed(0.0, 1.0), "", "EMA weight per segment of the measured error variances");
-  // Fuel-based indicated torque (estimators/fuel_torque.hpp): efficiency learned while a load reference exists.
+  // Fuel-based indicated torque (estimators/energy/fuel_torque.hpp): efficiency learned while a load reference exists.
   TQ_NUM("fuel.eta_prior", fuel.eta_prior, open_open(0.0, 1.0), "", "prior gross indicated fuel conversion efficiency (Heywood fig. 13-9 order of magnitude)");
   TQ_NUM("fuel.eta_prior_sd", fuel.eta_prior_sd, open_closed(0.0, 1.0), "", "1 sigma of the efficiency prior");
   TQ_NUM("fuel.p_exh_prior_pa", fuel.p_exh_prior_pa, closed(0.0, 1e6), "Pa", "prior exhaust pressure of the pumping loop (ambient + back-pressure)");

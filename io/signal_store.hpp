@@ -15,7 +15,7 @@
 
 namespace torqued {
 
-/// Quantities of EngineSignals (estimators/samples.hpp). Config names in quantity_name().
+/// Quantities of EngineSignals (estimators/core/samples.hpp). Config names in quantity_name().
 enum class Quantity : std::uint8_t {
   kMap = 0,
   kMaf,
@@ -27,7 +27,7 @@ enum class Quantity : std::uint8_t {
   kFuelMass,
   kFuelCutoff,
   kLoadTorque,
-  kEmTorque,  ///< electric machine torque (hybrid input, estimators/e_machine.hpp)
+  kEmTorque,  ///< electric machine torque (hybrid input, estimators/core/e_machine.hpp)
   kCount
 };
 inline constexpr int kQuantityCount = static_cast<int>(Quantity::kCount);

@@ -7,7 +7,7 @@
 // its engine_id; its logs and the daemon's state directory are in a private temporary directory (mkdtemp,
 // removed at the end unless --keep-logs), so two runs or another daemon on the machine do not mix their
 // figures.
-//   CYCLONEDDS_URI=file://$PWD/config/cyclonedds-loopback.xml torque-latency --torqued build/daemon/torqued
+//   CYCLONEDDS_URI=file://$PWD/config/cyclonedds-loopback.xml torque-latency --torqued build/service/torqued
 //   --config config/demo.yaml --duration 15 --stress --cyclictest [--plot latency.png]
 // It says which path the samples took: shared memory (iceoryx: CYCLONEDDS_URI with SharedMemory, RouDi
 // running, QoS iceoryx carries) or the network path, for this subscriber's readers and the daemon's writers,

@@ -143,7 +143,7 @@ TEST(ConfigLoader, EmptyDocumentGivesDefaults) {
 }
 
 TEST(ConfigLoader, EveryDefaultIsInsideItsBounds) {
-  // Catches a default changed in estimators/params.hpp without updating the schema table.
+  // Catches a default changed in estimators/core/params.hpp without updating the schema table.
   const Config defaults;
   for (const auto& e : config_schema()) {
     if (!e.bounded) continue;

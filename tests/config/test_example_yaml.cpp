@@ -14,7 +14,7 @@ namespace torqued {
 namespace {
 
 const std::string kExample = std::string(TORQUED_SOURCE_DIR) + "/config/torqued.example.yaml";
-constexpr const char* kRegenerate = "regenerate: build/daemon/torqued --print-schema > config/torqued.example.yaml";
+constexpr const char* kRegenerate = "regenerate: build/service/torqued --print-schema > config/torqued.example.yaml";
 
 void collect(const YAML::Node& n, const std::string& prefix, std::set<std::string>& keys) {
   for (auto it = n.begin(); it != n.end(); ++it) {

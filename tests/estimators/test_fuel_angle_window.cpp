@@ -1,4 +1,4 @@
-// FuelAngleWindow (estimators/fuel_angle_window.hpp): the fuel and MAP of a 720° window come from the intake
+// FuelAngleWindow (estimators/energy/fuel_angle_window.hpp): the fuel and MAP of a 720° window come from the intake
 // events of the cylinders whose work lies in it; cut-off events are counted apart (issue 14, fuel model).
 #include <gtest/gtest.h>
 

@@ -1,5 +1,5 @@
 // tests/estimators/test_mean_speed_tracker.cpp: the mean crank speed of the time chain
-// (estimators/mean_speed_tracker.cpp): the 720° mean removes the firing ripple exactly, the window fills
+// (estimators/time/mean_speed_tracker.cpp): the 720° mean removes the firing ripple exactly, the window fills
 // before it is valid, a lost sync clears it, and a 180° window follows a speed change four times sooner.
 #include <gtest/gtest.h>
 

@@ -11,7 +11,7 @@ build=$1 src=$2
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
-for b in daemon/torqued tools/torque-sim tools/torque-echo tools/torque-eval tools/torque-decode \
+for b in service/torqued tools/torque-sim tools/torque-echo tools/torque-eval tools/torque-decode \
          tools/torque-canreplay tools/torque-latency tools/torque-accuracy; do
   [[ -x "$build/$b" ]] || continue
   "$build/$b" --help >"$tmp/help" 2>&1 || fail "$b --help exit $?"
@@ -19,9 +19,9 @@ for b in daemon/torqued tools/torque-sim tools/torque-echo tools/torque-eval too
   "$build/$b" --no-such-option >/dev/null 2>&1; rc=$?
   ((rc == 2)) || fail "$b --no-such-option: exit $rc, expected 2"
 done
-"$build/daemon/torqued" >/dev/null 2>"$tmp/err"; rc=$?
+"$build/service/torqued" >/dev/null 2>"$tmp/err"; rc=$?
 ((rc == 2)) && grep -q "nothing to do: give --config" "$tmp/err" || fail "torqued without arguments: exit $rc, $(head -2 "$tmp/err")"
-"$build/daemon/torqued" --config "$tmp/missing.yaml" >/dev/null 2>"$tmp/err"; rc=$?
+"$build/service/torqued" --config "$tmp/missing.yaml" >/dev/null 2>"$tmp/err"; rc=$?
 ((rc == 2)) && grep -q "does not exist" "$tmp/err" || fail "torqued --config missing: exit $rc, $(cat "$tmp/err")"
 
 ev=$build/tools/torque-eval
@@ -54,7 +54,7 @@ PY
 # Paced replay: reports its end; exits (0) with replay.exit_when_done.
 sed -e "s#\.\./data/demo#$src/data/demo#" -e "s#dbc: demo.dbc#dbc: $src/config/demo.dbc#" \
     -e "s#speed: 1.0#speed: 20.0\n  exit_when_done: true#" "$src/config/demo.yaml" >"$tmp/paced.yaml"
-timeout 30 "$build/daemon/torqued" --config "$tmp/paced.yaml" --no-dds --fresh-state >"$tmp/paced.log" 2>&1; rc=$?
+timeout 30 "$build/service/torqued" --config "$tmp/paced.yaml" --no-dds --fresh-state >"$tmp/paced.log" 2>&1; rc=$?
 ((rc == 0)) && grep -q "end of the recording reached; stopping" "$tmp/paced.log" ||
   fail "paced replay with replay.exit_when_done: exit $rc, $(tail -3 "$tmp/paced.log")"
 echo "PASS"

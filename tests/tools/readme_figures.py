@@ -73,7 +73,7 @@ def check_demo(readme, build, src, tmp):
     block = text.split("```")[1] if text else ""
     want = eval_rows(block)
     rec = os.path.join(tmp, "demo")
-    run([f"{build}/daemon/torqued", "--config", "config/demo.yaml", "--replay", "fast", "--no-dds", "--fresh-state",
+    run([f"{build}/service/torqued", "--config", "config/demo.yaml", "--replay", "fast", "--no-dds", "--fresh-state",
          "--record", rec], src)
     cols = [c for pair in want for c in ("--column", pair.replace(" = ", "="))]
     got = eval_rows(run([f"{build}/tools/torque-eval", "--estimate", f"{rec}/engine_cycle.csv", "--truth",
@@ -91,7 +91,7 @@ def check_demo(readme, build, src, tmp):
         return
     state = os.path.join(tmp, "second-run-state")
     for i in (1, 2):
-        run([f"{build}/daemon/torqued", "--config", "config/demo.yaml", "--replay", "fast", "--no-dds",
+        run([f"{build}/service/torqued", "--config", "config/demo.yaml", "--replay", "fast", "--no-dds",
              "--state-dir", state, "--record", f"{rec}{i}"], src)
     got = eval_rows(run([f"{build}/tools/torque-eval", "--estimate", f"{rec}2/engine_cycle.csv", "--truth",
                          "data/demo/truth_cycle.csv", "--column", "indicated_nm=t_ind_mean_nm", "--where",

@@ -17,7 +17,7 @@ sed -e "s|\.\./data/demo/|$tmp/sim/|" -e "s|dbc: demo.dbc|dbc: $src/config/demo.
   --record-mcap "$tmp/run.mcap" 2> "$tmp/dash.log" &
 dash_pid=$!
 while [ ! -s "$tmp/port" ]; do sleep 0.1; done
-"$build/daemon/torqued" --config "$tmp/cfg.yaml" --speed 1.5 --exit-when-done --wait-subscribers 1 \
+"$build/service/torqued" --config "$tmp/cfg.yaml" --speed 1.5 --exit-when-done --wait-subscribers 1 \
   --state-dir "$tmp/state" > "$tmp/daemon.log" 2>&1 &
 daemon_pid=$!
 node "$src/tests/integration/dash/page_check.cjs" "http://127.0.0.1:$(cat "$tmp/port")/" "$tmp/rate.png" \

@@ -23,7 +23,7 @@ echo "== learned state: starts empty each run ($out/state, removed above), so ev
 build/tools/torque-echo --topic engine --cycles-only --until-done --record "$out/echo" --duration 300 &
 echo_pid=$!
 trap 'kill "$echo_pid" "${daemon_pid:-}" 2>/dev/null || true' EXIT
-build/daemon/torqued --config config/demo.yaml --speed "$speed" --exit-when-done --wait-subscribers 1 \
+build/service/torqued --config config/demo.yaml --speed "$speed" --exit-when-done --wait-subscribers 1 \
   --state-dir "$out/state" --record "$out/daemon" 2>"$out/torqued.log" &
 daemon_pid=$!
 wait "$daemon_pid" || { echo "torqued failed, see $out/torqued.log" >&2; tail -20 "$out/torqued.log" >&2; exit 1; }

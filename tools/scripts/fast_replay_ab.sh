@@ -4,7 +4,7 @@
 # time" it prints (4 significant digits; the seconds are printed with 3 decimals only).
 #   tools/scripts/fast_replay_ab.sh CONFIG N BIN_A BIN_B [--record]
 # e.g. torque-sim -s steady_3000_mid --duration 20 -o /tmp/s3000, a config pointing at it (docs/daemon.md),
-#   tools/scripts/fast_replay_ab.sh /tmp/s3000.yaml 30 /tmp/torqued.before build/daemon/torqued --record
+#   tools/scripts/fast_replay_ab.sh /tmp/s3000.yaml 30 /tmp/torqued.before build/service/torqued --record
 # Prints best, first quartile and median loop time per build. Use the best of many runs on a shared VM.
 set -euo pipefail
 if [ $# -lt 4 ]; then sed -n '2,9p' "$0"; exit 2; fi

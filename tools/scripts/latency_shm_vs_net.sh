@@ -13,7 +13,7 @@ roudi=$(command -v iox-roudi) || { echo "iox-roudi not installed (Debian package
 tmp=$(mktemp -d "$build/latency_shm.XXXXXX")
 trap 'rm -rf "$tmp"' EXIT
 "$src/tools/scripts/demo-shm-config.sh" "$src" "$tmp/demo_shm.yaml"
-latency=("$build/tools/torque-latency" --torqued "$build/daemon/torqued" --config "$tmp/demo_shm.yaml"
+latency=("$build/tools/torque-latency" --torqued "$build/service/torqued" --config "$tmp/demo_shm.yaml"
          --duration "$duration" --cyclictest "$@")
 
 echo "=== network path (config/cyclonedds-loopback.xml)"

@@ -1,0 +1,217 @@
+#include "daemon_run.hpp"
+
+#include <signal.h>
+#include <spdlog/spdlog.h>
+#include <systemd/sd-daemon.h>
+#include <time.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cinttypes>
+#include <memory>
+#include <thread>
+
+#include "angle_stage.hpp"
+#include "backend_factory.hpp"
+#include "clocks.hpp"
+#include "config.hpp"
+#include "config_loader.hpp"
+#include "dds_publisher.hpp"
+#include "fast_replay.hpp"
+#include "logging.hpp"
+#include "looping_source.hpp"
+#include "metrics.hpp"
+#include "output_fanout.hpp"
+#include "replay_inputs.hpp"
+#include "rt_setup.hpp"
+#include "runtime.hpp"
+#include "sample_recorder.hpp"
+#include "stage_settings.hpp"
+#include "state_store.hpp"
+#include "supervisor.hpp"
+
+namespace torqued {
+namespace {
+
+volatile bool g_fast_stop = false;
+void on_fast_signal(int) { g_fast_stop = true; }
+
+void wait_for_subscribers(DdsPublisher& pub, const RunOptions& opt) {
+  if (opt.wait_subscribers <= 0) return;
+  const auto until =
+      std::chrono::steady_clock::now() + std::chrono::duration<double>(opt.wait_subscribers_timeout_s);
+  while (pub.matched_readers(dds::Topic::kEngineTorque) < opt.wait_subscribers &&
+         std::chrono::steady_clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const int n = pub.matched_readers(dds::Topic::kEngineTorque);
+  if (n < opt.wait_subscribers)
+    spdlog::warn("only {} of {} subscribers matched after {} s; starting anyway", n, opt.wait_subscribers,
+                 opt.wait_subscribers_timeout_s);
+  else
+    spdlog::info("{} subscriber(s) matched", n);
+  // Readers matched on one topic; give discovery a moment to finish matching the others.
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+}
+
+/// Logs a failed recording (once per call site) and returns whether it failed.
+bool recording_failed(const dds::SampleRecorder* rec) {
+  if (!rec || !rec->write_failed()) return false;
+  spdlog::error("recording: {}; {} rows not recorded", rec->error(), rec->rows_dropped());
+  return true;
+}
+
+int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, EdgeSource* edges,
+             CanSource* can, const DbcDatabase* dbc, SampleSink& out) {
+  struct sigaction sa {};
+  sa.sa_handler = on_fast_signal;
+  sigaction(SIGTERM, &sa, nullptr);
+  sigaction(SIGINT, &sa, nullptr);
+  sd_notify(0, "READY=1\nSTATUS=fast replay running");
+  // Learned state as in the service: loaded at start, saved at the end (--state-dir / output.state_dir).
+  const std::string spath = state_path(cfg, opt);
+  const StateContext sctx = state_context_from(cfg);
+  RestoreResult rs;
+  if (!spath.empty()) rs = restore_for_run(spath, sctx, opt);
+  LearnedState st = rs.state ? *rs.state : LearnedState{};
+  const ReplayResult r = run_fast_replay(s, edges, can, can_time_offset_ns(cfg), dbc, out, &g_fast_stop,
+                                         spath.empty() ? nullptr : &st);
+  if (!r.error.empty()) spdlog::error("replay: {}", r.error);
+  for (const auto& p : r.input_problems) spdlog::warn("{}", p);
+  for (const auto& b : r.bad_frames) spdlog::warn("can: {}", b);
+  for (const DecoderEvent& e : r.transitions.events) log_transition(e);
+  if (r.transitions.not_kept > 0)
+    spdlog::debug("decoder: {} more transitions not logged", r.transitions.not_kept);
+  if (!spath.empty()) {
+    spdlog::info("learned state applied at start: {}", r.imported.empty() ? "nothing" : r.imported);
+    std::string serr;
+    st.saved_at_t_ns = r.last_t_ns;
+    st.identity = sctx.identity;  // the chain's state is this configuration's engine and wheel
+    if (r.learned && rs.may_save) {
+      if (check_state(st, sctx, spath, &serr) && save_state_atomic(spath, st, sctx.identity, &serr))
+        spdlog::info("learned state saved to {}", spath);
+      else
+        spdlog::warn("learned state not saved: {}", serr);
+    }
+  }
+  const double rec_s = static_cast<double>(r.last_t_ns - r.first_t_ns) * 1e-9;
+  spdlog::info(
+      "fast replay: {:.3f} s of recording in {:.3f} s ({:.0f}x real time), {} edges, {} teeth, {} cycles, "
+      "{} CAN frames, {} samples, {} sync losses, {} source drops",
+      rec_s, r.wall_s, r.speedup(), r.counters.edges, r.counters.teeth, r.counters.cycles,
+      r.counters.can_frames, r.samples, r.counters.sync_losses, r.counters.source_drops);
+  return r.error.empty() ? 0 : 1;
+}
+
+}  // namespace
+
+namespace {
+// replay.loop (paced replay of files): the sources restart at their end, shifted by one common period.
+bool loop_inputs(const Config& cfg, RunInputs& in) {
+  const bool files = cfg.inputs.edges.backend == EdgeBackend::kFile &&
+                     (!in.can || cfg.inputs.can.backend == CanBackend::kFile);
+  if (!files) {
+    spdlog::warn("replay.loop: ignored (only file inputs can be looped)");
+    return true;
+  }
+  const std::int64_t period_ns = loop_period_ns(*in.edges, in.can.get(), in.can_offset_ns);
+  if (period_ns <= 0) {
+    spdlog::warn("replay.loop: ignored (fewer than two edges in {})", cfg.inputs.edges.path);
+    return true;
+  }
+  const auto open_edges = [cfg] {
+    std::string e;
+    return make_edge_source(cfg, &e);
+  };
+  in.edges = std::make_unique<LoopingEdgeSource>(open_edges, period_ns);
+  if (in.can) {
+    const auto open_can = [cfg] {
+      std::string e;
+      return make_can_source(cfg, &e);
+    };
+    in.can = std::make_unique<LoopingCanSource>(open_can, period_ns);
+  }
+  spdlog::info("replay.loop: the recording restarts every {:.3f} s of recording time",
+               static_cast<double>(period_ns) * 1e-9);
+  return true;
+}
+}  // namespace
+
+int run_daemon(const Config& cfg_in, const RunOptions& opt) {
+  Config cfg = cfg_in;
+  // Before any thread exists (Cyclone's included): stacks of kThreadStackBytes, not 8 MiB each made resident
+  // by mlockall.
+  if (const RtOutcome st = set_default_thread_stack(); !st.ok) spdlog::warn("thread stacks: {}", st.message);
+  if (opt.record_dir) cfg.output.record_dir = *opt.record_dir;
+  const bool fast = opt.mode ? *opt.mode == "fast" : cfg.replay.mode == ReplayMode::kFast;
+  RunInputs in = open_inputs(cfg);
+  constexpr std::size_t kMaxDbcWarnings = 20;  // then counted
+  for (std::size_t i = 0; i < in.dbc_warnings.size() && i < kMaxDbcWarnings; ++i)
+    spdlog::warn("{}", in.dbc_warnings[i]);
+  if (in.dbc_warnings.size() > kMaxDbcWarnings)
+    spdlog::warn("can.dbc: {} more warnings not shown", in.dbc_warnings.size() - kMaxDbcWarnings);
+  if (!in.ok()) {
+    spdlog::critical("{}", in.error);
+    return 1;
+  }
+  if (!fast && cfg.replay.loop && !loop_inputs(cfg, in)) return 1;
+  StageSettings& s = in.settings;
+  std::unique_ptr<EdgeSource>& edges = in.edges;
+  std::unique_ptr<CanSource>& can = in.can;
+  std::optional<DbcDatabase>& dbc = in.dbc;
+  spdlog::info("edges: {}", edges->describe());
+  if (can) spdlog::info("can: {}", can->describe());
+
+  std::unique_ptr<dds::SampleRecorder> recorder;
+  if (!cfg.output.record_dir.empty()) {
+    recorder = std::make_unique<dds::SampleRecorder>(cfg.output.record_dir);
+    if (!recorder->ok()) {
+      spdlog::critical("output.record_dir: {}", recorder->error());
+      return 1;
+    }
+    spdlog::info("recording CSV to {}", cfg.output.record_dir);
+  }
+  std::unique_ptr<DdsPublisher> publisher;
+  if (!opt.no_dds) {
+    {
+      // Cyclone's threads inherit the publisher thread's scheduling (see ScopedThreadRt); refused: as before.
+      const ScopedThreadRt as_publisher(fast ? ThreadRt{} : thread_rt(cfg.realtime.publisher, ""));
+      publisher = std::make_unique<DdsPublisher>(s.dds, /*stamp_times=*/!fast);
+    }
+    if (!publisher->ok()) {
+      spdlog::critical("dds: {}", publisher->error());
+      return 1;
+    }
+    spdlog::info("DDS domain {} topics {}/* engine_id {}", s.dds.domain_id, s.dds.topic_prefix,
+                 s.dds.engine_id);
+    if (const std::string shm = publisher->shared_memory_topics(); !shm.empty())
+      spdlog::info("DDS shared memory (iceoryx) for: {}", shm);
+    wait_for_subscribers(*publisher, opt);
+  }
+  OutputFanout fanout(recorder.get(), publisher.get(), s.dds.engine_id);
+  // Metrics (metrics.enabled, service/metrics.hpp): a tap in front of the output, served by its own threads.
+  std::unique_ptr<metrics::MetricsServer> metrics;
+  if (cfg.metrics.enabled) {
+    std::string merr;
+    metrics = metrics::MetricsServer::start(cfg.metrics, fanout, state_path(cfg, opt), &merr);
+    if (!metrics) {
+      spdlog::critical("{}", merr);
+      return 1;
+    }
+    spdlog::info("metrics: http://{}/metrics", cfg.metrics.address);
+  }
+  SampleSink& out = metrics ? metrics->sink() : static_cast<SampleSink&>(fanout);
+
+  if (fast) {
+    const int rc = run_fast(s, cfg, opt, edges.get(), can.get(), dbc ? &*dbc : nullptr, out);
+    if (recorder) recorder->flush(true);
+    return recording_failed(recorder.get()) ? std::max(rc, 3) : rc;
+  }
+
+  const int rc = run_supervised(cfg, opt, in, recorder.get(), out);
+  if (publisher)
+    spdlog::info("dds: {} samples written ({} through shared-memory loans), {} write errors",
+                 publisher->written(), publisher->loaned_writes(), publisher->write_errors());
+  return rc;
+}
+
+}  // namespace torqued
