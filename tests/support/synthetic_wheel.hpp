@@ -1,5 +1,7 @@
 #pragma once
-// Synthetic crank/cam edge streams with known truth, for decoder tests (no simulator needed).
+// The tests' shared crank/cam sensor simulator: edge streams with known truth (no engine simulator needed). The
+// decoder tests use the edges directly, the chain and service tests write them as an edge CSV
+// (synthetic_edge_csv.hpp); the engine simulator in tools/sim is for whole-engine truth.
 // The wheel turns with ω(t, θ) = ω_lin(t)·(1 + ripple·sin(order·θ)), integrated with a fine step; tooth edges
 // are found by linear interpolation of θ(t). Wheel angle θ is measured like the simulator's: from tooth 0 of
 // the revolution in which the cam rises; cycle = 720°.
@@ -74,6 +76,10 @@ inline SynthOutput synthesize(const SynthOptions& o) {
   long cycle = 0;
   std::size_t k = 0;
   while (k < evs.size() && evs[k].deg <= theta_deg) ++k;
+  if (k == evs.size()) {  // the start lies after the cycle's last event: the next one is the first of the next
+    k = 0;
+    ++cycle;
+  }
   auto target = [&](std::size_t kk, long cyc) { return evs[kk].deg + 720.0 * static_cast<double>(cyc); };
   while (t_s < o.duration_s) {
     const double rpm = o.rpm0 + (o.rpm1 - o.rpm0) * t_s / o.duration_s;
