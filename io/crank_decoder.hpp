@@ -209,8 +209,8 @@ class CrankDecoder {
   // Configuration and tables (built once; corrections set by the caller).
   DecoderParams params_;
   bool rising_edge_ = true;  ///< teeth are marked by rising crank edges
-  bool pattern_wheel_ =
-      false;  ///< sync on the cam pattern / width code (PatternSync), else on gaps (GapSync)
+  /// Sync on the cam pattern or the width code (PatternSync), else on the gaps (GapSync).
+  bool pattern_wheel_ = false;
   std::string error_;
   WheelTables wheel_;
   std::array<double, 2 * kMaxTeeth> corr_{};  ///< angle correction per tooth of 720° (rad)
