@@ -34,7 +34,7 @@ bool cam_edge_fits(double angle_deg, bool rising, double tol, const CamPattern& 
 
 bool PatternSync::used(const DecoderParams& p) noexcept { return p.cam_pattern.n > 0 || p.width_coded; }
 
-std::string PatternSync::init(const WheelTables& w, const DecoderParams& p) noexcept {
+std::string PatternSync::init(const WheelTables& w, const DecoderParams& p) {
   const CamPattern& cp = p.cam_pattern;
   if (cp.n > 0) {
     if (cp.n > CamPattern::kMaxEdges) return "cam pattern: more than 8 edges";

@@ -29,7 +29,7 @@ class PatternSync {
   /// True when the decoder syncs on the cam pattern or the width code (not on gaps).
   [[nodiscard]] static bool used(const DecoderParams& p) noexcept;
   /// Validates the pattern and finds the width code's identifying window. Error text, empty if ok.
-  [[nodiscard]] std::string init(const WheelTables& w, const DecoderParams& p) noexcept;
+  [[nodiscard]] std::string init(const WheelTables& w, const DecoderParams& p);
 
   /// Opposite (non-tooth) crank edge: its time gives the width bit of the period it falls in.
   void on_opposite_edge(std::int64_t t_ns) noexcept { last_opp_t_ns_ = t_ns; }
