@@ -21,8 +21,13 @@
 #include <span>
 #include <string>
 
+#include "cam_phase.hpp"
 #include "decoder_events.hpp"
+#include "decoder_wheel.hpp"
+#include "edge_debounce.hpp"
 #include "engine_geometry.hpp"
+#include "gap_sync.hpp"
+#include "pattern_sync.hpp"
 #include "records.hpp"
 
 namespace torqued {
@@ -127,9 +132,13 @@ struct DecoderStats {
   std::int64_t last_loss_t_ns = 0;
 };
 
+/// Crank decoder: composes the four state machines, each in its own class (io/): EdgeDebounce (glitch
+/// pulses), GapSync (sync on missing teeth), PatternSync (sync on a cam pattern or a pulse-width code) and
+/// CamPhase (720° phase from the cam); the synced tooth tracking (expected period, lost-tooth recovery) is
+/// here. Every sync loss and stall goes through reset_sync().
 class CrankDecoder {
  public:
-  static constexpr int kMaxGaps = 16;
+  static constexpr int kMaxGaps = GapSync::kMaxGaps;
 
   /// Builds the tooth tables. Check valid()/error(): an invalid wheel (no gap, symmetric gaps that cannot
   /// identify the position, angles not increasing) yields a decoder that produces nothing.
@@ -147,13 +156,13 @@ class CrankDecoder {
   bool poll(std::int64_t now_ns) noexcept;
 
   [[nodiscard]] SyncState state() const noexcept { return state_; }
-  [[nodiscard]] bool phase_known() const noexcept { return phase_known_; }
+  [[nodiscard]] bool phase_known() const noexcept { return cam_.known(); }
   [[nodiscard]] const DecoderStats& stats() const noexcept { return stats_; }
-  [[nodiscard]] int teeth_per_rev() const noexcept { return teeth_; }
+  [[nodiscard]] int teeth_per_rev() const noexcept { return wheel_.teeth; }
   /// Teeth per 720° cycle (indices of ToothEvent::tooth are 0 .. 2*teeth_per_rev()-1).
-  [[nodiscard]] int teeth_per_cycle() const noexcept { return 2 * teeth_; }
+  [[nodiscard]] int teeth_per_cycle() const noexcept { return 2 * wheel_.teeth; }
   /// Nominal angle (rad, 0..2π) of tooth i within one revolution.
-  [[nodiscard]] double nominal_angle_rad(int i) const noexcept { return angle_[static_cast<std::size_t>(i)]; }
+  [[nodiscard]] double nominal_angle_rad(int i) const noexcept { return wheel_.angle_of(i); }
 
   /// Per-tooth angle corrections (rad, true edge angle − nominal), either one per tooth of a revolution
   /// (size T) or one per tooth of the 720° cycle (size 2T). Returns false (table unchanged) on a wrong size
@@ -161,7 +170,9 @@ class CrankDecoder {
   bool set_tooth_corrections(std::span<const double> rad) noexcept;
   void clear_tooth_corrections() noexcept;
 
-  /// Back to kNoSignal; keeps counters and corrections.
+  /// Back to the state of a freshly constructed decoder: kNoSignal, every part reset (debounce, gap and
+  /// pattern search, learned cam window), counters zeroed. Keeps what the caller set: the tooth corrections
+  /// and the event log. After reset() the same edges give the same tooth events as a new decoder.
   void reset() noexcept;
 
   /// Sync-state transitions go to `log` (nullptr = none, the default), one DecoderEvent each with its edge
@@ -171,122 +182,56 @@ class CrankDecoder {
 
  private:
   bool on_crank(std::int64_t t_ns, ToothEvent& out) noexcept;
-  bool debounce(std::int64_t t_ns, bool active, ToothEvent& out) noexcept;
+  bool on_debounced(std::int64_t t_ns, bool active, ToothEvent& out) noexcept;
+  bool on_cam_pattern_edge(const EdgeEvent& edge) noexcept;
   void on_cam(std::int64_t t_ns) noexcept;
-  bool syncing_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
+  bool restart_after_stall(std::int64_t t_ns, ToothEvent& out) noexcept;
+  bool gap_syncing_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
+  bool pattern_syncing_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
   bool synced_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
-  bool syncing_gap(std::int64_t t_ns, std::int64_t period_ns, double r, ToothEvent& out) noexcept;
-  [[nodiscard]] int match_gap(int need, double r) const noexcept;
-  void sync_at_gap(std::int64_t t_ns, std::int64_t period_ns, int match, ToothEvent& out) noexcept;
   void enter_synced(std::int64_t t_ns, std::int64_t period_ns, int idx, std::uint32_t flags,
                     ToothEvent& out) noexcept;
-  void restart_reference(std::int64_t period_ns) noexcept;
-  void emit_unsynced(std::int64_t t_ns, SyncState s, ToothEvent& out) noexcept;
   void accept_tooth(std::int64_t t_ns, std::int64_t period_ns, int i, double w, int advance, bool gap_tooth,
                     ToothEvent& out) noexcept;
-  std::string init_angles();
-  std::string init_gaps();
-  std::string init_gap_identification();
-  [[nodiscard]] int gap_history_needed() const noexcept;
+  void reject_noise() noexcept;
   void lose_sync(SyncLossReason reason, std::int64_t t_ns) noexcept;
+  void reset_sync(SyncState to) noexcept;
+  void emit_unsynced(std::int64_t t_ns, SyncState s, ToothEvent& out) noexcept;
+  void emit_syncing(std::int64_t t_ns, std::int64_t period_ns, bool tooth_period, ToothEvent& out) noexcept;
+  void emit(std::int64_t t_ns, int tooth, double width_rad, std::int64_t period_ns, ToothEvent& out) noexcept;
   void note(DecoderEventKind kind, std::int64_t t_ns, SyncState from, SyncState to, SyncLossReason reason,
             int tooth) noexcept {
     if (events_ != nullptr)
       events_->push(DecoderEvent{t_ns, kind, from, to, static_cast<std::uint8_t>(reason),
                                  static_cast<std::int16_t>(tooth)});
   }
-  // Pattern sync (cam-synced and pulse-width-coded wheels), crank_decoder_pattern.cpp.
-  [[nodiscard]] bool pattern_sync() const noexcept {
-    return params_.cam_pattern.n > 0 || params_.width_coded;
-  }
-  [[nodiscard]] std::string check_pattern() noexcept;
-  bool pattern_syncing_step(std::int64_t t_ns, std::int64_t period_ns, ToothEvent& out) noexcept;
-  void pattern_collect(std::int64_t t_ns) noexcept;
-  [[nodiscard]] int width_bit(std::int64_t t_ns) const noexcept;
-  [[nodiscard]] bool cam_match(int& k) const noexcept;
-  [[nodiscard]] bool width_match(int& k) const noexcept;
-  void pattern_check_synced(std::int64_t t_ns, int prev_idx, int idx, int advance) noexcept;
-  [[nodiscard]] double cycle_angle_deg(int idx) const noexcept;
-  [[nodiscard]] bool cam_edge_fits(double angle_deg, bool rising, double tol) const noexcept;
-  void emit(std::int64_t t_ns, int tooth, double width_rad, std::int64_t period_ns, ToothEvent& out) noexcept;
-  [[nodiscard]] int next_tooth(int i) const noexcept { return i + 1 == teeth_ ? 0 : i + 1; }
-  [[nodiscard]] double clamp_trend(double x) const noexcept {
-    return x > params_.max_trend ? params_.max_trend
-                                 : (x * params_.max_trend < 1.0 ? 1.0 / params_.max_trend : x);
-  }
 
-  // Wheel tables (built once).
-  WheelGeometry wheel_;
+  // Configuration and tables (built once; corrections set by the caller).
   DecoderParams params_;
+  bool rising_edge_ = true;  ///< teeth are marked by rising crank edges
+  /// Sync on the cam pattern or the width code (PatternSync), else on the gaps (GapSync).
+  bool pattern_wheel_ = false;
   std::string error_;
-  int teeth_ = 0;
-  double pitch_rad_ = 0.0;                    ///< smallest tooth spacing (rad)
-  std::array<double, kMaxTeeth> angle_{};     ///< nominal tooth angle within a revolution (rad)
-  std::array<double, kMaxTeeth> width_{};     ///< nominal width of the period ending at tooth i (rad)
+  WheelTables wheel_;
   std::array<double, 2 * kMaxTeeth> corr_{};  ///< angle correction per tooth of 720° (rad)
-  int num_gaps_ = 0;
-  std::array<int, kMaxGaps> gap_tooth_{};  ///< tooth index closing gap j
-  std::array<int, kMaxGaps> gap_count_{};  ///< teeth from the previous gap's tooth to this one
-  double min_gap_ratio_ = 0.0;             ///< smallest gap width / pitch
-  double gap_threshold_ = 0.0;             ///< syncing: P/P_pred at or above this is a gap candidate
-  int history_needed_ = 1;                 ///< gap counts needed to identify the position
-
-  // Run state.
+  // The four state machines.
+  EdgeDebounce debounce_;
+  GapSync gap_;
+  PatternSync pattern_;
+  CamPhase cam_;
+  // Decoder state and synced tooth tracking.
   SyncState state_ = SyncState::kNoSignal;
-  bool phase_known_ = false;
-  int rev_ = 0;                     ///< 0 or 1: which revolution of the 720° cycle
-  int tooth_ = 0;                   ///< index (within revolution) of the last accepted tooth, when synced
-  std::int64_t last_t_ns_ = 0;      ///< time of the last accepted crank edge
-  std::int64_t period_ns_ = 0;      ///< last accepted period
-  double last_width_rad_ = 0.0;     ///< nominal width of the last accepted period (synced)
-  std::int64_t ref_period_ns_ = 0;  ///< syncing: last period classified normal
-  bool ref_provisional_ = false;    ///< syncing: ref is the first period after a (re)start (may be a gap)
-  std::int64_t ref_prev_ns_ = 0;    ///< syncing: normal period before ref (0: not consecutive)
-  double u1_ = 0.0, u2_ = 0.0;  ///< synced: last two periods per radian of true width (ns/rad); 0 = unknown
   bool have_edge_ = false;
-  bool has_pending_ = false;  ///< debounce: a tooth edge waiting for the opposite edge
-  std::int64_t pending_t_ns_ = 0;
-  bool have_inactive_ = false;  ///< debounce: an opposite (non-tooth) crank edge was seen
-  std::int64_t last_inactive_t_ns_ = 0;
-  std::int64_t min_pulse_ns_ = 0;
-  int since_gap_ = -1;                ///< syncing: teeth since the last gap candidate (-1: no gap seen yet)
-  std::array<int, kMaxGaps> hist_{};  ///< syncing: teeth counts between recent gap candidates (newest last)
-  int hist_len_ = 0;
-  int normal_run_ = 0;   ///< syncing: consecutive normal periods
-  int gap_run_ = 0;      ///< syncing: consecutive gap candidates
-  int max_gap_run_ = 1;  ///< most consecutive gap periods on the wheel
-  int lost_this_rev_ = 0;
-  std::uint32_t pending_flags_ = 0;
-  // Pattern sync state.
-  struct CamObs {
-    double pos;  ///< tooth counter of the interval's first tooth + fraction of the interval
-    bool rising;
-  };
-  struct CamPending {
-    std::int64_t t_ns;
-    bool rising;
-  };
-  static constexpr int kCamRing = 16;
-  bool pattern_fresh_ = true;  ///< next tooth restarts the pattern search (previous tooth = counter 0)
-  int count_ = 0;              ///< teeth since the restart (counter of the current tooth + 1)
-  int span_start_ = 0;         ///< first tooth counter covered by the observations
-  std::array<CamObs, kCamRing> cam_obs_{};
-  int cam_obs_n_ = 0;
-  std::array<CamPending, 8>
-      cam_pend_{};  ///< cam edges since the last tooth (placed when the next tooth comes)
-  int cam_pend_n_ = 0;
-  std::uint64_t bits_ = 0;  ///< width bits, newest in bit 0
-  int nbits_ = 0;
-  int code_window_ = 0;              ///< bits needed to identify the position on a width-coded wheel
-  std::int64_t last_opp_t_ns_ = -1;  ///< time of the last opposite (non-tooth) crank edge
-  int pattern_misses_ = 0;           ///< consecutive pattern contradictions while synced
+  int rev_ = 0;                  ///< 0 or 1: which revolution of the 720° cycle
+  int tooth_ = 0;                ///< index (within revolution) of the last accepted tooth, when synced
+  std::int64_t last_t_ns_ = 0;   ///< time of the last accepted crank edge
+  std::int64_t period_ns_ = 0;   ///< last accepted period
+  double last_width_rad_ = 0.0;  ///< nominal width of the last accepted period (synced)
+  double u1_ = 0.0, u2_ = 0.0;   ///< synced: last two periods per radian of true width (ns/rad); 0 = unknown
+  int lost_this_rev_ = 0;        ///< synced: teeth interpolated in this revolution
+  std::uint32_t pending_flags_ = 0;  ///< ToothEvent::events for the next tooth event
   DecoderStats stats_;
   DecoderEventLog* events_ = nullptr;
-  double cam_win_start_ = 0.0, cam_win_end_ = 360.0;  ///< cam window in use (configured or learned)
-  bool cam_learned_ = false;
-  int cam_learn_n_ = 0;
-  double cam_learn_first_ = 0.0, cam_learn_sum_ = 0.0;
-  bool cam_learn_step(double a_deg) noexcept;
 };
 
 }  // namespace torqued

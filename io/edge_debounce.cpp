@@ -1,0 +1,28 @@
+// Crank decoder glitch-pulse debounce. See edge_debounce.hpp.
+#include "edge_debounce.hpp"
+
+namespace torqued {
+
+EdgeDebounce::Result EdgeDebounce::on_edge(std::int64_t t_ns, bool active,
+                                           std::int64_t& tooth_t_ns) noexcept {
+  if (active) {
+    if (have_inactive_ && t_ns - last_inactive_t_ns_ < min_pulse_ns_) return Result::kGlitch;  // narrow gap
+    Result r = Result::kNone;
+    if (has_pending_) {  // two tooth edges in a row (opposite edge missing): the older one stands
+      tooth_t_ns = pending_t_ns_;
+      r = Result::kTooth;
+    }
+    has_pending_ = true;
+    pending_t_ns_ = t_ns;
+    return r;
+  }
+  have_inactive_ = true;
+  last_inactive_t_ns_ = t_ns;
+  if (!has_pending_) return Result::kNone;
+  has_pending_ = false;
+  if (t_ns - pending_t_ns_ < min_pulse_ns_) return Result::kGlitch;
+  tooth_t_ns = pending_t_ns_;
+  return Result::kTooth;
+}
+
+}  // namespace torqued

@@ -1,0 +1,73 @@
+#pragma once
+// Crank decoder part 2 of 4: sync on the wheel's gaps (missing teeth), before the position is known. Each
+// period is compared with the predicted tooth period (the last normal one times the trend of the last two);
+// a gap candidate's tooth count since the previous one goes into a history, and sync is declared when the
+// recent history matches exactly one gap of the wheel (crank_decoder.hpp has the model). Real-time safe:
+// plain members, no allocation.
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "decoder_wheel.hpp"
+
+namespace torqued {
+
+struct DecoderParams;
+struct DecoderStats;
+
+class GapSync {
+ public:
+  static constexpr int kMaxGaps = 16;
+
+  enum class Step : std::uint8_t {
+    kNoise,       ///< runt period: reject the edge
+    kNormal,      ///< a normal tooth period (syncing)
+    kOther,       ///< a period that is no tooth period (gap candidate, first period, restart)
+    kIdentified,  ///< this period closed the gap identified_tooth(): the position is known
+  };
+
+  /// Finds the gaps (periods > 1.5 pitch). Error if the wheel has more than kMaxGaps.
+  [[nodiscard]] std::string find_gaps(const WheelTables& w);
+  /// Gap-synced wheels: tooth counts between gaps, gap threshold, identifying history. Error text if the
+  /// wheel has no gap or cannot be identified by them.
+  [[nodiscard]] std::string init_identification(const WheelTables& w, const DecoderParams& p);
+  [[nodiscard]] int num_gaps() const noexcept { return num_gaps_; }
+
+  /// One period (ns) while syncing. Counts gaps in `stats`.
+  Step on_period(std::int64_t period_ns, const WheelTables& w, const DecoderParams& p,
+                 DecoderStats& stats) noexcept;
+  /// After kIdentified: the tooth (within a revolution) that closed the identified gap.
+  [[nodiscard]] int identified_tooth() const noexcept { return gap_tooth_[static_cast<std::size_t>(match_)]; }
+
+  /// Forgets the reference period and the gap history: the next period starts a new search.
+  void reset() noexcept;
+
+ private:
+  Step on_gap_candidate(std::int64_t period_ns, double r, const WheelTables& w, const DecoderParams& p,
+                        DecoderStats& stats) noexcept;
+  [[nodiscard]] int match_gap(int need, double r, const WheelTables& w,
+                              const DecoderParams& p) const noexcept;
+  void restart_reference(std::int64_t period_ns) noexcept;
+
+  // Wheel tables (built once).
+  int num_gaps_ = 0;
+  std::array<int, kMaxGaps> gap_tooth_{};  ///< tooth index closing gap j
+  std::array<int, kMaxGaps> gap_count_{};  ///< teeth from the previous gap's tooth to this one
+  int max_count_ = 0;                      ///< largest gap_count_
+  double min_gap_ratio_ = 0.0;             ///< smallest gap width / pitch
+  double gap_threshold_ = 0.0;             ///< P/P_pred at or above this is a gap candidate
+  int history_needed_ = 1;                 ///< gap counts needed to identify the position
+  int max_gap_run_ = 1;                    ///< most consecutive gap periods on the wheel
+  // Run state.
+  std::int64_t ref_period_ns_ = 0;    ///< last period classified normal (0: none yet)
+  std::int64_t ref_prev_ns_ = 0;      ///< normal period before ref (0: not consecutive)
+  bool ref_provisional_ = false;      ///< ref is the first period after a (re)start (may be a gap)
+  int since_gap_ = -1;                ///< teeth since the last gap candidate (-1: no gap seen yet)
+  std::array<int, kMaxGaps> hist_{};  ///< teeth counts between recent gap candidates (newest last)
+  int hist_len_ = 0;
+  int normal_run_ = 0;  ///< consecutive normal periods
+  int gap_run_ = 0;     ///< consecutive gap candidates
+  int match_ = 0;       ///< gap identified by the last kIdentified
+};
+
+}  // namespace torqued
