@@ -1,6 +1,6 @@
 #pragma once
-// Test helper: writes a logic-analyzer edge CSV (common.md format) of a 60-2 wheel with a cam edge per 720°,
-// at a constant or linearly ramping speed. The analytic truth (speed) is known exactly.
+// Test helper: writes a logic-analyzer edge CSV (docs/io.md "Sources" format) of a 60-2 wheel with a cam edge
+// per 720°, at a constant or linearly ramping speed. The analytic truth (speed) is known exactly.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
