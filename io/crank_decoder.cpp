@@ -402,7 +402,7 @@ bool CrankDecoder::syncing_gap(std::int64_t t_ns, std::int64_t period, double r,
   }
   if (++gap_run_ > max_gap_run_) {
     // More gaps in a row than the wheel has: the reference is no tooth period (the rest of a glitch's
-    // period after a sync loss, issue 13); rebuild it from this period.
+    // period after a sync loss); rebuild it from this period.
     gap_run_ = 0;
     restart_reference(period);
     return false;
@@ -421,7 +421,7 @@ bool CrankDecoder::syncing_gap(std::int64_t t_ns, std::int64_t period, double r,
   since_gap_ = 0;
   // Plausibility: the recent gap-to-gap tooth counts must match exactly one position of the wheel, and this
   // gap's size must fit that gap's nominal ratio. A single-gap wheel is identified by its gap alone: sync at
-  // the first one (issue 13); multi-gap wheels need the tooth counts between their last gaps. Without a
+  // the first one; multi-gap wheels need the tooth counts between their last gaps. Without a
   // previous gap the teeth counted before this one must fit (half a revolution at least, no more than a
   // revolution), else noise would sync on any long period.
   const bool single_ok =
@@ -545,7 +545,7 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   }
   if (state_ != SyncState::kSynced) {
     // Report the failing edge; the decoder restarts syncing from here. The failing period (a glitch, a gap
-    // where none was expected) is no reference: the next period starts a new one (issue 13).
+    // where none was expected) is no reference: the next period starts a new one.
     ref_period_ns_ = 0;
     ref_prev_ns_ = 0;
     ref_provisional_ = false;

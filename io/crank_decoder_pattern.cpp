@@ -1,4 +1,4 @@
-// Pattern sync of CrankDecoder (issue 13): wheels whose crank teeth alone cannot identify the position.
+// Pattern sync of CrankDecoder: wheels whose crank teeth alone cannot identify the position.
 //  - Cam-synced (4G63: 2 crank teeth, Nissan CAS: 12, Miata NB2: 4 at 70°/110°): each cam edge is placed at
 //    the crank tooth that follows it, as a fraction of that tooth interval (exact, whatever the speed
 //    ripple); the position is the one offset k of the 720° cycle at which every observed cam edge lies on a
