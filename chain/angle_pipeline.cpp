@@ -37,7 +37,7 @@ AnglePipelineConfig resolve_prior(AnglePipelineConfig c) noexcept {
   }
   return c;
 }
-/// Firing TDC of each firing position relative to cylinder 1's (rad): 4π·m/n (ESTIMATORS.md §0).
+/// Firing TDC of each firing position relative to cylinder 1's (rad): 4π·m/n (docs/equations.md §0).
 std::array<double, kMaxCylinders> firing_tdcs(const EngineGeometry& e) noexcept {
   std::array<double, kMaxCylinders> t{};
   for (int m = 0; m < e.cylinders && m < kMaxCylinders; ++m)
@@ -124,9 +124,9 @@ std::uint8_t AnglePipeline::break_sequence(ToothSample s) noexcept {
   return 0;
 }
 
-// The cylinder-pressure model's gas torque ripple over the step after tooth k (issue 15): the MAP held from
-// CAN and the last measured works per firing position (motored until every position has one). 0 without a
-// MAP.
+// The cylinder-pressure model's gas torque ripple over the step after tooth k (known input of the in-cycle
+// observers): the MAP held from CAN and the last measured works per firing position (motored until every
+// position has one). 0 without a MAP.
 double AnglePipeline::gas_ripple_nm(int k, bool works_ok) const noexcept {
   if (!have_map_) return 0.0;
   std::array<double, kMaxCylinders> p3{};
@@ -228,7 +228,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
 }
 
 // ---------------------------------------------------------------------------------------------------------------------
-// Per segment (issue 12 item 2: named steps and named gates).
+// Per segment (named steps and named gates, docs/conventions.md habit 13).
 
 void AnglePipeline::count_fuel_state(const EngineSignals& sig, bool can_fresh) noexcept {
   const bool cut_known = can_fresh && sig.fuel_cutoff_valid;
@@ -288,8 +288,8 @@ void AnglePipeline::segment_work(const SegmentEnergy& seg, const EngineSignals& 
   o.indicated_eso = eso_.estimate();
 }
 
-// Per-cylinder work W_m = ΔKE_segment + (T_load + T_fric)·segment angle (CylinderTorque, ESTIMATORS.md §4)
-// from the wider KE window: the edge jitter and the tooth-table residual at the two outer edges enter ΔKE
+// Per-cylinder work W_m = ΔKE_segment + (T_load + T_fric)·segment angle (CylinderTorque, docs/equations.md
+// §4) from the wider KE window: the edge jitter and the tooth-table residual at the two outer edges enter ΔKE
 // divided by the window (CycleEnergy), while the 720° balance, the ESO and the RLS keep energy_'s window.
 bool AnglePipeline::cylinder_work(const SegmentEnergy& seg, double& work_j) const noexcept {
   double load_star = 0.0;
@@ -311,7 +311,7 @@ void AnglePipeline::cylinder_segment(const SegmentEnergy& seg, double work, bool
 }
 
 double AnglePipeline::friction_sd_nm(double fric) const noexcept {
-  // Until learned the law is the generic correlation, whose spread across engines is ≈ ±40 % (issue 14).
+  // Until learned the law is the generic correlation, whose spread across engines is ≈ ±40 %.
   return friction_.is_prior() ? cfg_.friction.prior_rel_sd * std::fabs(fric) : cfg_.friction.learned_sd_nm;
 }
 

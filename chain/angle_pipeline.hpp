@@ -1,5 +1,5 @@
 #pragma once
-// The angle pipeline: every angle-domain method, run per crank tooth (DESIGN.md data flow; issue 5).
+// The angle pipeline: every angle-domain method, run per crank tooth (docs/architecture.md data flow).
 // Constructed from the engine/wheel geometry and the tuning structs, sized at construction; on_tooth() is
 // real-time safe (no allocation, no locks, no exceptions, no I/O).
 //
@@ -122,7 +122,7 @@ class AnglePipeline {
   void set_external(const FusionSource& src) noexcept { external_ = src; }
 
   /// Whether the wheel's tooth table is learned (or imported): until it is, the in-cycle observers and the
-  /// per-cylinder record say so in their health (issue 15). Default: learned (no learner in use).
+  /// per-cylinder record say so in their health. Default: learned (no learner in use).
   void set_wheel_learned(bool learned) noexcept {
     cyl_.set_wheel_learned(learned);
     kalman_.set_wheel_learned(learned);

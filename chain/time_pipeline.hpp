@@ -1,7 +1,7 @@
 #pragma once
-// Time-triggered pipeline (DESIGN.md data flow: "time pipeline (timer, e.g. 1 kHz)"): mean crank speed from
-// the decoder's teeth (MeanSpeedTracker), load torque and air mass flow from the CAN signal store, and the
-// four Na et al. estimators (UIO, sliding mode, dirty differentiation, adaptive), each selectable.
+// Time-triggered pipeline (docs/architecture.md data flow: "time_pipeline (timer, 1 kHz)"): mean crank speed
+// from the decoder's teeth (MeanSpeedTracker), load torque and air mass flow from the CAN signal store, and
+// the four Na et al. estimators (UIO, sliding mode, dirty differentiation, adaptive), each selectable.
 // Everything is sized at construction; on_tooth() and step() are real-time safe (no allocation, noexcept).
 #include <cstdint>
 #include <optional>

@@ -1,5 +1,5 @@
 #pragma once
-// The validated, immutable description of one installation (issue 2 "Configuration", CONVENTIONS habit 7).
+// The validated, immutable description of one installation (docs/conventions.md habit 7).
 // Filled only by config_loader.cpp from YAML, every key declared once in config_schema.cpp (type, default,
 // bounds, unit, description). Defaults here are the schema's defaults. Paths are absolute after loading
 // (relative paths in the YAML resolve against the YAML file's directory). Not used on the real-time path:

@@ -442,7 +442,7 @@ std::optional<std::string> check_fourier_stability(const FourierParams& p, const
 std::vector<ConfigProblem> check_config_physics(const Config& c) {
   std::vector<ConfigProblem> out;
   const auto& e = c.engine;
-  // Firing order: a permutation of 1..n (ESTIMATORS.md §0: phases come from the firing order).
+  // Firing order: a permutation of 1..n (docs/equations.md §0: phases come from the firing order).
   {
     std::vector<int> count(kMaxCylinders + 1, 0);
     std::string listed = "[";

@@ -1,7 +1,7 @@
 #pragma once
 // The ONE table of configuration keys: YAML key, type, default (taken from Config{}), bounds, unit and a one-line
-// description (CONVENTIONS habit 7). The loader parses against it, `torqued --print-schema` prints it, and
-// config/torqued.example.yaml is checked against it by tests/config.
+// description (docs/conventions.md habit 7). The loader parses against it, `torqued --print-schema` prints
+// it, and config/torqued.example.yaml is checked against it by tests/config.
 #include <cstdint>
 #include <functional>
 #include <string>

@@ -22,7 +22,7 @@ Bounds open_open(double lo, double hi) { return {lo, hi, true, true}; }
 void add_estimators(std::vector<SchemaEntry>& t) {
   using Arr2 = std::array<double, 2>;
   using Arr4 = std::array<double, 4>;
-  // Time-triggered pipeline (ESTIMATORS.md §1).
+  // Time-triggered pipeline (docs/equations.md §1).
   TQ_NUM("time_pipeline.step_s", time_pipeline.step_s, closed(1e-5, 0.1), "s", "time pipeline step T_s (1 ms = 1 kHz)");
   TQ_BOOL("time_pipeline.cycle_averaged_speed", time_pipeline.cycle_averaged_speed,
           "mean speed over 720 deg (true) or over the last combustion segment (false)");
@@ -64,7 +64,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("adaptive.k0_floor", adaptive.params.k0_floor, closed(0.0, 1.0), "", "K^-1 never decays below k0_floor K0");
   TQ_ARR2("adaptive.theta0", adaptive.params.theta0, closed(-1e9, 1e9), "N m", "initial parameters (normalised units)");
 
-  // Angle-triggered (ESTIMATORS.md §2).
+  // Angle-triggered (docs/equations.md §2).
   TQ_NUM("preprocess.lowpass_hz", preprocess.lowpass_hz, open_closed(0.0, 1e5), "Hz", "low-pass cut-off on tooth speed (EN §2.1)");
   TQ_NUM("preprocess.accel_jerk_sd", preprocess.accel_jerk_sd, open_closed(0.0, 1e12), "rad/s^3/sqrt(s)",
          "white-jerk intensity of the speed/acceleration Kalman filter");
@@ -98,7 +98,7 @@ void add_estimators(std::vector<SchemaEntry>& t) {
           "feed the cylinder-pressure model's gas torque ripple (MAP, measured cylinder works) as a known input");
   TQ_INT("fourier.output_lag", fourier.params.output_lag, closed(0, 6), "teeth", "report the torque at tooth k-lag from the coefficients after tooth k");
 
-  // Energies 2019 chain and beyond (ESTIMATORS.md §3-4).
+  // Energies 2019 chain and beyond (docs/equations.md §3-4).
   TQ_BOOL("energies.enabled", energies.enabled, "run the load RLS + ESO chain (EN)");
   TQ_NUM("energies.window_start_btdc_deg", energies.params.window_start_btdc_deg, open_closed(0.0, 180.0), "deg", "RLS window start before TDC (EN-10)");
   TQ_NUM("energies.window_end_btdc_deg", energies.params.window_end_btdc_deg, closed_open(0.0, 180.0), "deg", "RLS window end before TDC, < start");

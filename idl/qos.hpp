@@ -1,8 +1,8 @@
 #pragma once
-// DDS QoS of every torque topic, in ONE place (CONVENTIONS.md habit 8). The daemon fills DdsSettings from the
-// validated Config (dds.*); subscribers (torque-echo, torque-latency, tests) use the same defaults so that
-// reader and writer QoS always match (a reliable reader never matches a best-effort writer; a reader deadline
-// shorter than the writer's does not match either).
+// DDS QoS of every torque topic, in ONE place (docs/conventions.md habit 8). The daemon fills DdsSettings
+// from the validated Config (dds.*); subscribers (torque-echo, torque-latency, tests) use the same defaults
+// so that reader and writer QoS always match (a reliable reader never matches a best-effort writer; a reader
+// deadline shorter than the writer's does not match either).
 #include <array>
 #include <cstdint>
 #include <string>

@@ -1,7 +1,7 @@
 #pragma once
-// Crank decoder: crank/cam edge timestamps -> crank angle within 720°, per tooth (issue 3 "Crank decoder").
-// Real-time safe: on_edge()/poll() never allocate, lock, block or throw; every noise edge, lost tooth, sync
-// loss and stall is counted in DecoderStats. One instance per engine, driven by one thread.
+// Crank decoder: crank/cam edge timestamps -> crank angle within 720°, per tooth (docs/io.md "Crank
+// decoder"). Real-time safe: on_edge()/poll() never allocate, lock, block or throw; every noise edge, lost
+// tooth, sync loss and stall is counted in DecoderStats. One instance per engine, driven by one thread.
 //
 // Wheel model: T real teeth at angles a[0..T-1] in [0, 2π) (tooth 0 = first tooth after the (first) gap),
 // from an N-M WheelGeometry or an explicit tooth-angle list. w[i] = a[i] - a[i-1] (mod 2π) is the true
@@ -39,7 +39,7 @@ struct CamEdgeSpec {
   bool rising = true;
 };
 
-/// Cam pattern of a cam-synced wheel (issue 13): crank wheels without a gap (4G63: 2 teeth, Nissan CAS: 12)
+/// Cam pattern of a cam-synced wheel: crank wheels without a gap (4G63: 2 teeth, Nissan CAS: 12)
 /// or with a symmetric one (Miata NB2: 4 teeth, 70°/110°) take their position from the cam edges. n = 0: no
 /// pattern (the crank gap syncs, the cam window below gives the phase).
 struct CamPattern {

@@ -1,5 +1,5 @@
 #pragma once
-// Sync-state transitions of the crank decoder, for a debug log (issue 13): the decoder (real-time thread)
+// Sync-state transitions of the crank decoder, for a debug log: the decoder (real-time thread)
 // pushes one DecoderEvent per transition into a fixed single-producer/single-consumer ring; another thread
 // (the daemon's supervisor, torque-decode) pops them and logs them at debug level. Pushing never allocates,
 // locks or blocks: a full ring drops the newest event and counts it (dropped()).

@@ -1,5 +1,5 @@
 #pragma once
-// File backends for crank/cam edges (DESIGN.md "Input formats"):
+// File backends for crank/cam edges (docs/io.md "Sources"):
 //  - EdgeCsvSource: logic-analyzer CSV export (Saleae Logic / sigrok / rusEFI logs): an optional header row
 //    naming the columns (first column = time in seconds, plain or exponent notation "8e-05"), one level
 //    column per channel. Without a header (first line is a data row) columns are chosen by number (time = 0,

@@ -1,5 +1,5 @@
 #pragma once
-// The one backend interface of io/ (CONVENTIONS habit 6): pull-based sources of fixed-size records.
+// The one backend interface of io/ (docs/conventions.md habit 6): pull-based sources of fixed-size records.
 // Fast replay calls next() in one thread; the daemon's source threads call next() and try_push into rings.
 // Sources only read. Live sources return kWouldBlock when their wait times out (so threads can check stop
 // flags).

@@ -42,7 +42,7 @@ constexpr NamedWheel kCatalogue[] = {
      {17, 1, 16, 2},
      4,
      "Mitsubishi 4B11: 17 teeth, 1 missing, 16 teeth, 2 missing. Published as 36-2-1; the "
-     "rotation order was inverted ({17,2,16,1}) in rusEFI too before its fix (issue 13)."},
+     "rotation order was inverted ({17,2,16,1}) in rusEFI too before its fix."},
     {"36-2-2",
      36,
      {16, 2, 16, 2},

@@ -20,7 +20,7 @@ struct NamedWheel {
   int runs[8];    ///< teeth, missing, teeth, missing, ... (rotation order, starting after a gap)
   int n_runs;
   const char* description;  ///< what it is, and where the pattern is published
-  // Wheels whose crank cannot identify the position (issue 13): the cam pattern or the pulse-width code does.
+  // Wheels whose crank cannot identify the position: the cam pattern or the pulse-width code does.
   bool falling =
       false;      ///< pattern wheels: the crank edge the angles below refer to (set by trigger_from_name)
   int n_cam = 0;  ///< cam-synced: cam edges per 720° cycle (angles from tooth 0 of the first revolution)

@@ -17,9 +17,9 @@
 //                                                    engine.j_rot_kgm2 it was learned against)
 //   saved_at_t_ns <edge-clock time>
 //   checksum crc32 <8 hex digits of CRC-32 (IEEE) over every byte before this line>
-// fuel_model, crank_error_var, inertia and friction_residual were added to version 2 (issue 14); version 2
-// files without them still load. Version 1 files (no identity, no checksum) are still read and checked
-// against the bounds; the next save rewrites them as version 2.
+// fuel_model, crank_error_var, inertia and friction_residual were added to version 2 (learning without a load
+// signal); version 2 files without them still load. Version 1 files (no identity, no checksum) are still read
+// and checked against the bounds; the next save rewrites them as version 2.
 //
 // Writes are atomic: <file>.tmp is written and fsync()ed, the current file (always a checked one) is
 // hard-linked to <file>.bak, then <file>.tmp is renamed over <file> and the directory fsync()ed. A crash or

@@ -1,7 +1,7 @@
 #pragma once
-// The only code of the daemon that calls DDS (DESIGN.md: the real-time threads never wait for DDS). Owns the
-// participant, the five topics and their writers, QoS from dds::DdsSettings (idl/qos.hpp, filled from the
-// Config). Used by the publisher thread (paced/live) or inline by the fast replay.
+// The only code of the daemon that calls DDS (docs/architecture.md: the real-time threads never wait for
+// DDS). Owns the participant, the five topics and their writers, QoS from dds::DdsSettings (idl/qos.hpp,
+// filled from the Config). Used by the publisher thread (paced/live) or inline by the fast replay.
 #include <array>
 #include <cstdint>
 #include <string>

@@ -1,8 +1,8 @@
 #pragma once
-// Real-time start-up steps, in the fixed order of ros2_control/realtime_tools (CONVENTIONS.md): lock memory
-// (mlockall), then per thread: CPU affinity, scheduling policy/priority, prefault the stack. Each failure is
-// reported with errno; "not permitted" (EPERM) is separated so the daemon can start anyway with a warning
-// and a status flag unless the config requires real-time.
+// Real-time start-up steps, in the fixed order of ros2_control/realtime_tools (docs/conventions.md): lock
+// memory (mlockall), then per thread: CPU affinity, scheduling policy/priority, prefault the stack. Each
+// failure is reported with errno; "not permitted" (EPERM) is separated so the daemon can start anyway with a
+// warning and a status flag unless the config requires real-time.
 #include <sched.h>
 
 #include <cstddef>

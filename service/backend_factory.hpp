@@ -1,5 +1,5 @@
 #pragma once
-// The ONE place that maps configuration names to io/ backends (CONVENTIONS habit 6):
+// The ONE place that maps configuration names to io/ backends (docs/conventions.md habit 6):
 //   inputs.edges.backend: file (format csv | list) | gpio | can_encoder
 //   inputs.can.backend:   file (candump -l) | socketcan
 // Sources deliver their own clock's timestamps; the CAN time offset (inputs.can.time_offset_s) is NOT applied

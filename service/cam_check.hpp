@@ -1,5 +1,5 @@
 #pragma once
-// `torqued --check-config` with a recording (issue 13): measure where the recording's cam edge falls in the
+// `torqued --check-config` with a recording: measure where the recording's cam edge falls in the
 // 720° cycle and warn when the configured cam window does not fit it. Not real-time (reads the file).
 #include <cstdint>
 #include <string>

@@ -1,5 +1,5 @@
 #pragma once
-// Paced replay / live runtime: the threads of DESIGN.md.
+// Paced replay / live runtime: the threads of docs/architecture.md.
 //   source thread(s)  replay: merger + pacer (one thread keeps edge/CAN order); live: one per source.
 //                     -> edge ring -> angle thread;  CAN -> one ring per consumer (angle, time)
 //   angle thread      SCHED_FIFO: AngleStage per edge; tooth samples -> tooth ring -> time thread

@@ -1,7 +1,7 @@
 // torque-accuracy: runs simulator scenarios through the angle pipeline and prints the accuracy table vs truth
-// (issue 5 targets). Friction is learned first on the "fuel_cut" coast-down from a zero prior (the pipeline
-// is not told the simulator's friction law), then imported into every scenario, as the daemon would persist
-// it.
+// (cycle-mean accuracy targets). Friction is learned first on the "fuel_cut" coast-down from a zero prior
+// (the pipeline is not told the simulator's friction law), then imported into every scenario, as the daemon
+// would persist it.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
@@ -38,7 +38,7 @@ std::string pass_cov(const ErrorStats& s) {
   return buf;
 }
 
-/// Issue 14: the accuracy table of the unseen-engines bed.
+/// The accuracy table of the unseen-engines bed.
 int run_bed(bool all, bool short_run, const torqued::eval::EvalOptions& base) {
   std::printf(
       "unseen-engines bed (%s runs): estimators configured from the spec sheet only; friction starts from "
@@ -66,7 +66,7 @@ int run_bed(bool all, bool short_run, const torqued::eval::EvalOptions& base) {
   return 0;
 }
 
-/// Issue 14 item 3: the bed with an electric machine of `ratio` as the load (no dynamometer signal).
+/// Hybrid input: the bed with an electric machine of `ratio` as the load (no dynamometer signal).
 int run_bed_e_machine(bool all, bool short_run, const torqued::eval::EvalOptions& base, double ratio) {
   std::printf(
       "unseen-engines bed with an electric machine (ratio %.3g) as the load, no dynamometer signal; learned with the\n"
@@ -87,7 +87,7 @@ int run_bed_e_machine(bool all, bool short_run, const torqued::eval::EvalOptions
   return 0;
 }
 
-/// Issue 14 item 3: friction learned from motoring by the machine vs the generic prior.
+/// Hybrid input: friction learned from motoring by the machine vs the generic prior.
 int run_bed_motoring(bool all, bool short_run, const torqued::eval::EvalOptions& base, double ratio) {
   std::printf(
       "friction learned from motoring by the electric machine (ratio %.3g; fuel cut-off, 1000-4000 rpm plateaus),\n"
@@ -120,7 +120,8 @@ std::string dpc(const torqued::eval::DaemonBedStats& s) {
   return buf;
 }
 
-/// Issue 14 through the daemon's chain: the unseen-engines bed as recordings replayed by run_fast_replay.
+/// Without a load signal, through the daemon's chain: the unseen-engines bed as recordings replayed by
+/// run_fast_replay.
 int run_bed_daemon(bool all, const torqued::eval::DaemonBedOptions& opt) {
   std::printf(
       "unseen-engines bed THROUGH THE DAEMON'S CHAIN (%s runs): each engine's recordings written as "
@@ -212,7 +213,7 @@ int main(int argc, char** argv) {
                  "--recording: seconds after the first edge left out of the evaluation");
   app.add_option(
          "--bed", bed,
-         "run a test bed instead of the scenarios: 'unseen' (issue 14, report engines, ideal teeth into a "
+         "run a test bed instead of the scenarios: 'unseen' (report engines, ideal teeth into a "
          "copy of "
          "the pipeline) or 'unseen-daemon' (the same engines as recordings through the daemon's chain)")
       ->check(CLI::IsMember({"unseen", "unseen-daemon"}));
@@ -232,7 +233,7 @@ int main(int argc, char** argv) {
                "vs the generic prior");
   app.add_flag(
       "--cylinders", cylinders,
-      "per-cylinder table instead (issue 15): imbalance error per cylinder and speed, in-cycle RMS and lag, "
+      "per-cylinder table instead: imbalance error per cylinder and speed, in-cycle RMS and lag, "
       "misfires, on the simulator's scenarios and randomised engines");
   app.add_option("--random-engines", random_engines, "--cylinders: number of randomised engines");
   app.add_option("--random-seed", random_seed, "--cylinders: seed of the randomised engines");

@@ -1,5 +1,5 @@
 // torque-decode: decode an edge capture and/or a candump log to CSV for people to inspect their recordings
-// (issue 3 "Inspecting recordings"). Streams; progress on a terminal; one-line summary at the end.
+// (inspecting recordings, docs/io.md). Streams; progress on a terminal; one-line summary at the end.
 //   torque-decode --edges edges.csv [--can can.log --dbc demo.dbc] [--wheel 60-2] [--config torqued.yaml]
 //                 --out-teeth teeth.csv --out-can can.csv
 #include <unistd.h>
@@ -51,7 +51,7 @@ std::string shell_quote(const std::string& s) {
 }
 
 /// Per-revolution speed (time from one synced tooth 0 to the next, no sync loss between) and the summary of
-/// sync transitions, drained from the decoder's event log after every edge (issue 13).
+/// sync transitions, drained from the decoder's event log after every edge.
 struct RevTracker {
   std::int64_t last_t0 = -1;
   std::vector<std::pair<std::int64_t, double>> revs;  ///< (time of the closing tooth 0, rpm)

@@ -39,10 +39,10 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
   std::nth_element(steps.begin(), steps.begin() + kk / 2, steps.end());
   const double a = std::exp(-params_.delta * steps[static_cast<std::size_t>(kk / 2)]);
   const double qf = std::pow(1.0 - a * a, 3) / (std::pow(1.0 - a, 4) * (1.0 + a * a));
-  qu_[0] = params_.torque_sd_nm * params_.torque_sd_nm * qf;
-  qu_[1] = params_.model_torque_sd_nm * params_.model_torque_sd_nm * qf;
-  sd_[0] = params_.torque_sd_nm;
-  sd_[1] = params_.model_torque_sd_nm;
+  qu_[kWholeTorqueSet] = params_.torque_sd_nm * params_.torque_sd_nm * qf;
+  qu_[kModelMissSet] = params_.model_torque_sd_nm * params_.model_torque_sd_nm * qf;
+  sd_[kWholeTorqueSet] = params_.torque_sd_nm;
+  sd_[kModelMissSet] = params_.model_torque_sd_nm;
 
   // APS (CK §VI): iterate the periodic Riccati equation to its periodic solution for each speed bin.
   const int bins = std::max(2, params_.speed_bins);
@@ -51,13 +51,13 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
   for (int b = 0; b < bins; ++b)
     bin_log_speed_[static_cast<std::size_t>(b)] = l0 + (l1 - l0) * b / (bins - 1);
   if (params_.periodic_gains) {
-    const int sets = params_.gas_model ? 2 : 1;
+    const int sets = params_.gas_model ? kModelMissSet + 1 : kWholeTorqueSet + 1;
     aps_gain_.assign(static_cast<std::size_t>(sets * bins * kk), Vec::Zero());
     for (int set = 0; set < sets; ++set) {
       mode_ = set;
       build_aps_set(set, bins);
     }
-    mode_ = 0;
+    mode_ = kWholeTorqueSet;
   }
   reset();
 }
@@ -109,14 +109,15 @@ ChauvinKalman::Mat ChauvinKalman::initial_covariance(int k, double speed_rad_s) 
   Mat p = Mat::Identity() * sd * sd;
   const double v = edge_state_var(speed_rad_s);
   const double h = edge_coupling(k);
-  p(0, 0) = measurement_var(k, speed_rad_s) + 2.0 * h * h * v;
+  p(kSpeedSqState, kSpeedSqState) = measurement_var(k, speed_rad_s) + 2.0 * h * h * v;
   p(kNoiseNow, kNoiseNow) = v;
   p(kNoisePrev, kNoisePrev) = v;
   return p;
 }
 
 void ChauvinKalman::add_process_noise(int k, double speed_rad_s, Mat& p) const noexcept {
-  p(1, 1) += std::pow(1.0 - acol_[static_cast<std::size_t>(k)], 4) * qu_[static_cast<std::size_t>(mode_)];
+  p(kTorqueState, kTorqueState) +=
+      std::pow(1.0 - acol_[static_cast<std::size_t>(k)], 4) * qu_[static_cast<std::size_t>(mode_)];
   p(kNoiseNow, kNoiseNow) += edge_state_var(speed_rad_s);  // the next edge's error, fresh
 }
 
@@ -124,31 +125,31 @@ ChauvinKalman::Mat ChauvinKalman::transition(int k) const noexcept {
   const auto i = static_cast<std::size_t>(k);
   const double a = acol_[i];
   Mat m = Mat::Zero();
-  m(0, 0) = a11_[i];
-  m(0, 1) = b12_[i];
-  m(1, 1) = 2.0 * a;
-  m(1, 2) = -a * a;
-  for (int i = 2; i < kNoiseNow; ++i) m(i, i - 1) = 1.0;  // shift register of past x2
-  m(kNoisePrev, kNoiseNow) = 1.0;                         // v_k becomes v_{k−1}; v_{k+1} is fresh noise
+  m(kSpeedSqState, kSpeedSqState) = a11_[i];
+  m(kSpeedSqState, kTorqueState) = b12_[i];
+  m(kTorqueState, kTorqueState) = 2.0 * a;
+  m(kTorqueState, kTorquePrevState) = -a * a;
+  for (int j = kTorquePrevState; j <= kTorqueLastState; ++j) m(j, j - 1) = 1.0;  // shift register of past x2
+  m(kNoisePrev, kNoiseNow) = 1.0;  // v_k becomes v_{k−1}; v_{k+1} is fresh noise
   return m;
 }
 
 ChauvinKalman::Mat ChauvinKalman::propagate(int k, const Mat& p) const noexcept {
-  // A P Aᵀ with the sparse A_k of transition(): rows 0 and 1 have two entries, the rest is a shift register.
-  // Same products as the dense form, without the 2·8³ multiplications by zero (per tooth).
+  // A P Aᵀ with the sparse A_k of transition(): the rows of θ̇² and x2(k) have two entries, the rest is a
+  // shift register. Same products as the dense form, without the 2·8³ multiplications by zero (per tooth).
   const auto i = static_cast<std::size_t>(k);
   const double a = acol_[i];
   const double r00 = a11_[i], r01 = b12_[i], r11 = 2.0 * a, r12 = -a * a;
   Mat m;  // m = A P
-  m.row(0) = r00 * p.row(0) + r01 * p.row(1);
-  m.row(1) = r11 * p.row(1) + r12 * p.row(2);
-  for (int r = 2; r < kNoiseNow; ++r) m.row(r) = p.row(r - 1);
+  m.row(kSpeedSqState) = r00 * p.row(kSpeedSqState) + r01 * p.row(kTorqueState);
+  m.row(kTorqueState) = r11 * p.row(kTorqueState) + r12 * p.row(kTorquePrevState);
+  for (int r = kTorquePrevState; r <= kTorqueLastState; ++r) m.row(r) = p.row(r - 1);
   m.row(kNoiseNow).setZero();
   m.row(kNoisePrev) = p.row(kNoiseNow);
   Mat out;  // out = m Aᵀ: column j of out = m · (row j of A)ᵀ
-  out.col(0) = r00 * m.col(0) + r01 * m.col(1);
-  out.col(1) = r11 * m.col(1) + r12 * m.col(2);
-  for (int c = 2; c < kNoiseNow; ++c) out.col(c) = m.col(c - 1);
+  out.col(kSpeedSqState) = r00 * m.col(kSpeedSqState) + r01 * m.col(kTorqueState);
+  out.col(kTorqueState) = r11 * m.col(kTorqueState) + r12 * m.col(kTorquePrevState);
+  for (int c = kTorquePrevState; c <= kTorqueLastState; ++c) out.col(c) = m.col(c - 1);
   out.col(kNoiseNow).setZero();
   out.col(kNoisePrev) = m.col(kNoiseNow);
   return out;
@@ -158,14 +159,14 @@ void ChauvinKalman::riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) c
   // (CK-12): filter gain K = P Cᵀ (C P Cᵀ + R)⁻¹ with C = [1 0 … 0 −h h] (C = [1 0 … 0] in the paper, h = 0
   // without differenced edge noise); the predictor gain is L = A K.
   const double h = edge_coupling(k);
-  const Vec pc = p.col(0) + h * (p.col(kNoisePrev) - p.col(kNoiseNow));
-  const double s = pc(0) + h * (pc(kNoisePrev) - pc(kNoiseNow)) + measurement_var(k, speed_rad_s);
+  const Vec pc = p.col(kSpeedSqState) + h * (p.col(kNoisePrev) - p.col(kNoiseNow));
+  const double s = pc(kSpeedSqState) + h * (pc(kNoisePrev) - pc(kNoiseNow)) + measurement_var(k, speed_rad_s);
   gain = pc / s;
   // (CK-13): P_{k+1} = A (P − K S Kᵀ) Aᵀ + B Q Bᵀ.
   const Mat post = p - gain * gain.transpose() * s;
   p = propagate(k, post);
   add_process_noise(k, speed_rad_s, p);
-  p = 0.5 * (p + p.transpose()).eval();  // keep symmetric (CONVENTIONS habit 12)
+  p = 0.5 * (p + p.transpose()).eval();  // keep symmetric (docs/conventions.md habit 12)
 }
 
 ChauvinKalman::Vec ChauvinKalman::periodic_gain(int k, double speed_rad_s) const noexcept {
@@ -200,13 +201,13 @@ void ChauvinKalman::predict(int k) noexcept {
   const auto i = static_cast<std::size_t>(k);
   const double a = acol_[i];
   // x ← A_k x with the sparse A_k of the header comment.
-  const double x1 = a11_[i] * x_(0) + b12_[i] * (x_(1) + model_[0]);
-  const double x2 = 2.0 * a * x_(1) - a * a * x_(2);
+  const double x1 = a11_[i] * x_(kSpeedSqState) + b12_[i] * (x_(kTorqueState) + model_[0]);
+  const double x2 = 2.0 * a * x_(kTorqueState) - a * a * x_(kTorquePrevState);
   x_(kNoisePrev) = x_(kNoiseNow);
   x_(kNoiseNow) = 0.0;  // the next edge's error: zero mean
-  for (int j = kNoiseNow - 1; j >= 2; --j) x_(j) = x_(j - 1);
-  x_(1) = x2;
-  x_(0) = x1;
+  for (int j = kTorqueLastState; j >= kTorquePrevState; --j) x_(j) = x_(j - 1);
+  x_(kTorqueState) = x2;
+  x_(kSpeedSqState) = x1;
 }
 
 void ChauvinKalman::push_edge_time(std::int64_t t_ns) noexcept {
@@ -258,30 +259,31 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
   if (expected_tooth_ < 0) {
     // (Re)start: x̂ = [y, 0, ...], P0 = diag(R, σ², ...) (CK (11) initial condition m0).
     x_.setZero();
-    x_(0) = y;
+    x_(kSpeedSqState) = y;
     mean_speed_ = omega;
     p_ = initial_covariance(k, omega);
     p_finite_ = p_.allFinite();
     teeth_seen_ = 0;
   }
   mean_speed_ += (omega - mean_speed_) / kk;
-  mode_ = params_.gas_model && model_next_valid_ ? 1 : 0;
+  mode_ = params_.gas_model && model_next_valid_ ? kModelMissSet : kWholeTorqueSet;
   push_model(model_next_valid_ ? model_next_ : 0.0);
   Vec gain;
   double out_var = 0.0;
-  const int o = 1 + params_.smoother_lag;
+  const int o = kTorqueState + params_.smoother_lag;  // x2(k−d): the smoothed output state
   const double h = edge_coupling(k);
   if (params_.periodic_gains) {
     gain = periodic_gain(k, mean_speed_);
   } else {
     Mat pn = p_;
     riccati_step(k, mean_speed_, pn, gain);
-    const double pc_o = p_(o, 0) + h * (p_(o, kNoisePrev) - p_(o, kNoiseNow));  // (P Cᵀ)_o = K_o S
+    const double pc_o =
+        p_(o, kSpeedSqState) + h * (p_(o, kNoisePrev) - p_(o, kNoiseNow));  // (P Cᵀ)_o = K_o S
     out_var = p_(o, o) - gain(o) * pc_o;
     p_ = pn;
   }
   // (CK-11) split into measurement update and prediction: x̂_{k|k} = x̂_{k|k−1} + K (y − C x̂_{k|k−1}).
-  x_ += gain * (y - x_(0) - h * (x_(kNoisePrev) - x_(kNoiseNow)));
+  x_ += gain * (y - x_(kSpeedSqState) - h * (x_(kNoisePrev) - x_(kNoiseNow)));
   last_gain_ = gain;
   push_edge_time(s.t_ns);
   ++teeth_seen_;

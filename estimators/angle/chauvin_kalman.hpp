@@ -1,19 +1,19 @@
 #pragma once
 // Chauvin's time-varying Kalman filter for the combustion (indicated) torque in the angle domain
 // (Chauvin et al., "Real-time combustion torque estimation ... using time-varying Kalman filtering", eqs.
-// (3)-(13), coloured-noise model (18)); ESTIMATORS.md §2.1.
+// (3)-(13), coloured-noise model (18)); docs/equations.md §2.1.
 //
 // State (one sample per tooth period, index k in the 720° cycle, see ToothAngleTable):
 //   x = [θ̇²(k), x2(k), x2(k−1), …, x2(k−kMaxLag)],  x2 = T_ind − T*_load (net torque, N m).
 // Model, from the energy balance d(½Jθ̇²)/dθ = x2 + m_k (CF-2) integrated over Δ_k (midpoint e_k):
 //   x1(k+1) = J(c_k)/J(c_{k+1}) · x1(k) + 2Δ_k/J(c_{k+1}) · (x2(k) + m_k)
 // which is (CK-3) [1 − 2Δα f̄/J ≈ J_k/J_{k+1}] without its first-order truncation and with exact unequal steps
-// across the gap. m_k is a known input (beyond the paper, issue 15): the zero-mean gas torque ripple of a
+// across the gap. m_k is a known input (beyond the paper): the zero-mean gas torque ripple of a
 // cylinder-pressure model over the step (set_model_torque; 0 without one), so x2 = T_ind − T*_load − m and
 // T̂_ind = x2 + m + T*_load. Coloured noise (CK-18): x2(k+1) = 2a x2(k) − a² x2(k−1) + (1−a)² u(k), a =
 // e^{−δΔ_k}. The extra lags (beyond the paper's q = 2) make a fixed-lag smoother: the filtered estimate of
 // x2(k−d) uses d more teeth of speed and removes most of the predictor's phase lag (d = smoother_lag ≤
-// kMaxLag = 12, latency d teeth; at 6000 rpm the filter's memory outgrows 6 teeth, issue 15). Measurement y_k
+// kMaxLag = 12, latency d teeth; at 6000 rpm the filter's memory outgrows 6 teeth). Measurement y_k
 // = θ̇²(k) = (w_k/dt_k)², R_k from the edge-angle error and jitter (relative, so R ∝ θ̇⁴). Because R depends on
 // speed, the asymptotic periodic gains (APS, CK §VI and Bittanti Theorem 3) are computed at start-up for a
 // log-spaced set of speeds and interpolated; the exact-Riccati variant (11)-(13) runs P on line. Measurement
@@ -49,9 +49,19 @@ struct KalmanStats {
 class ChauvinKalman {
  public:
   static constexpr int kMaxLag = 12;
-  static constexpr int kNoiseNow = 2 + kMaxLag;   ///< state index of v_k = 2θ̇²e_k (edge k's error)
-  static constexpr int kNoisePrev = 3 + kMaxLag;  ///< state index of v_{k−1}
-  static constexpr int kStates = 4 + kMaxLag;
+  // Named state indices (typed indices as in PX4 EKF2's state layout), x = [θ̇², x2(k), x2(k−1), …,
+  // x2(k−kMaxLag), v_k, v_{k−1}]; the covariance P uses the same indices.
+  static constexpr int kSpeedSqState = 0;                 ///< θ̇²(k) ((rad/s)²), the measured state
+  static constexpr int kTorqueState = 1;                  ///< x2(k) = net torque (N m), newest
+  static constexpr int kTorquePrevState = 2;              ///< x2(k−1) (N m), start of the lag register
+  static constexpr int kTorqueLastState = 1 + kMaxLag;    ///< x2(k−kMaxLag) (N m), end of the lag register
+  static constexpr int kNoiseNow = kTorqueLastState + 1;  ///< state index of v_k = 2θ̇²e_k (edge k's error)
+  static constexpr int kNoisePrev = kTorqueLastState + 2;  ///< state index of v_{k−1}
+  static constexpr int kStates = kTorqueLastState + 3;
+  static_assert(kNoiseNow == 2 + kMaxLag && kNoisePrev == 3 + kMaxLag && kStates == 4 + kMaxLag);
+  /// Noise sets (index of qu_, sd_ and the APS gain sets): the whole net torque, or the gas model's miss.
+  static constexpr int kWholeTorqueSet = 0;
+  static constexpr int kModelMissSet = 1;
   using Vec = Eigen::Matrix<double, kStates, 1>;
   using Mat = Eigen::Matrix<double, kStates, kStates>;
 
@@ -62,7 +72,7 @@ class ChauvinKalman {
   /// Extended load T*_load = T_load + T_fric (N m), added to x̂2 to give T̂_ind (CK eq. (1)). Default 0.
   void set_extended_load(double torque_nm) noexcept { load_star_nm_ = torque_nm; }
   /// Known part of the net torque over the coming step [c_k, c_{k+1}] of the next update()'s tooth k (N m,
-  /// zero 720° mean): the gas torque ripple of a cylinder-pressure model (LoadRls::gas_ripple_nm, issue 15).
+  /// zero 720° mean): the gas torque ripple of a cylinder-pressure model (LoadRls::gas_ripple_nm).
   /// The state x2 then carries only what the model misses, which the coloured-noise prior (CK-18) fits far
   /// better than the sharp compression/expansion waveform itself: the smoothing that R forces at high speed
   /// (jitter ∝ θ̇³) acts on the model's error instead of on the torque. Default 0 (the paper's zero-mean
@@ -74,8 +84,8 @@ class ChauvinKalman {
     model_next_valid_ = valid;
   }
   /// Whether the last update ran with the gas model (model_torque_sd_nm) (diagnostics, tests).
-  [[nodiscard]] bool model_active() const noexcept { return mode_ == 1; }
-  /// Whether the tooth widths it is given are corrected by a learned table (issue 15 item 2). While false the
+  [[nodiscard]] bool model_active() const noexcept { return mode_ == kModelMissSet; }
+  /// Whether the tooth widths it is given are corrected by a learned table. While false the
   /// estimate runs but its health is kNotConverged: an unlearned wheel puts the tooth errors into the
   /// in-cycle torque (tens of % of peak-to-peak). Default true (a caller without a learner decides).
   void set_wheel_learned(bool learned) noexcept { wheel_learned_ = learned; }
@@ -125,9 +135,9 @@ class ChauvinKalman {
   std::vector<double> a11_, b12_, acol_;  ///< per tooth: J_k/J_{k+1}, 2Δ_k/J_{k+1}, a = e^{−δΔ_k}
   std::array<double, 2> qu_{};  ///< variance of u (N m)²: [0] whole net torque, [1] the gas model's miss
   std::array<double, 2> sd_{};  ///< the matching stationary 1σ of x2 (P0)
-  int mode_ = 0;                ///< which of the two the current tooth uses (1: gas model valid)
-  std::vector<double> bin_log_speed_;     ///< ln ω of each APS speed bin
-  std::vector<Vec> aps_gain_;             ///< [(set * bins + bin) * K + k]
+  int mode_ = kWholeTorqueSet;  ///< which of the two the current tooth uses (kModelMissSet: gas model valid)
+  std::vector<double> bin_log_speed_;  ///< ln ω of each APS speed bin
+  std::vector<Vec> aps_gain_;          ///< [(set * bins + bin) * K + k]
   double edge_sd_rad_ = 0.0;
 
   Vec x_ = Vec::Zero();
@@ -144,7 +154,7 @@ class ChauvinKalman {
   std::array<std::int64_t, kMaxLag + 1> edge_t_ns_{};  ///< edge times of the last teeth, [0] = newest
   double model_next_ = 0.0;                            ///< set_model_torque() for the next tooth
   bool model_next_valid_ = false;
-  std::array<double, kMaxLag + 1> model_{};            ///< model ripple of the last steps, [0] = newest
+  std::array<double, kMaxLag + 1> model_{};  ///< model ripple of the last steps, [0] = newest
   KalmanStats stats_;
 };
 

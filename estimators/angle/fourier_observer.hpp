@@ -1,9 +1,9 @@
 #pragma once
 // Chauvin's adaptive Fourier-basis observer of the mass torque (Chauvin et al., "Periodic input estimation
 // for linear periodic systems: automotive engine applications" / Fourier observer paper, eqs. (2)-(14));
-// ESTIMATORS.md §2.2.
+// docs/equations.md §2.2.
 //   φ = ½ J(α) α̇²,  dφ/dα = T_ind − T*_load ≈ a0 + Σ_{i=1..n_h} a_i cos(iα/2) + b_i sin(iα/2)   (CF-2, CF-3)
-//   (+ m(α), a known gas torque ripple from a cylinder-pressure model when set: set_model_torque, issue 15)
+//   (+ m(α), a known gas torque ripple from a cylinder-pressure model when set: set_model_torque)
 // Discrete observer (CF-8/10) per tooth sample k (step Δ_k between period centres, basis at the edge e_k):
 //   e_k = φ̂_k − ½ J(c_k) y_k                              (L_n (ŷ_n − y_n) = Δα [L_ke, l_j f_j]ᵀ e_k)
 //   φ̂_{k+1} = φ̂_k + Δ_k m(e_k)·ĉ − Δ_k L_ke e_k
@@ -56,7 +56,7 @@ class FourierObserver {
   /// Extended load T*_load = T_load + T_fric (N m), added to give T̂_ind (CF eq. (1)). Default 0.
   void set_extended_load(double torque_nm) noexcept { load_star_nm_ = torque_nm; }
   /// Known part of the net torque over the next update()'s step (N m, zero 720° mean): the cylinder-pressure
-  /// model's gas torque ripple (LoadRls::gas_ripple_nm, issue 15; beyond the paper). The Fourier series then
+  /// model's gas torque ripple (LoadRls::gas_ripple_nm; beyond the paper). The Fourier series then
   /// carries only what the model misses. Default 0 (the paper's observer).
   /// `valid` false (no MAP yet): the value is ignored and the paper's gains (l_ref) run; valid: model_l_ref.
   void set_model_torque(double ripple_nm, bool valid = true) noexcept {
@@ -65,7 +65,7 @@ class FourierObserver {
   }
   /// Whether the last update ran with the gas model's gains (diagnostics, tests).
   [[nodiscard]] bool model_active() const noexcept { return model_active_; }
-  /// Whether the tooth widths it is given are corrected by a learned table (issue 15 item 2). While false the
+  /// Whether the tooth widths it is given are corrected by a learned table. While false the
   /// estimate runs but its health is kNotConverged: an unlearned wheel puts the tooth errors into the
   /// in-cycle torque (tens of % of peak-to-peak). Default true (a caller without a learner decides).
   void set_wheel_learned(bool learned) noexcept { wheel_learned_ = learned; }

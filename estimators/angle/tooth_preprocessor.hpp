@@ -1,5 +1,5 @@
 #pragma once
-// Per-tooth pre-processing for the angle-domain estimators (issue 5 item 2; Energies 2019 §2.1):
+// Per-tooth pre-processing for the angle-domain estimators (Energies 2019 §2.1):
 // speed from the TRUE angular width of each tooth period, θ̇², a first-order low-pass of the speed and a small
 // Kalman filter [θ̇, θ̈] for the acceleration. Also holds `ToothAngleTable`, the per-sample angles and kinematics
 // of one 720° cycle for the configured wheel and engine, shared by ChauvinKalman, FourierObserver and the

@@ -1,5 +1,5 @@
 #pragma once
-// A claimed 1σ calibrated on coverage (issue 14: "a claimed 1σ covers the error about 68 % of the time").
+// A claimed 1σ calibrated on coverage ("a claimed 1σ covers the error about 68 % of the time").
 // The residuals a learner sees are not Gaussian: a model that fits most operating points to a fraction of a
 // N m and a few by several N m has an RMS that is covered 80-100 % of the time. The scale reported here is
 // instead the running 68.27th percentile of |residual|, so |error| ≤ sd on 68 % of the residuals whatever

@@ -15,7 +15,7 @@ CrankKinematics::CrankKinematics(const EngineGeometry& geometry) noexcept
       lambda_(r_ / geometry.rod_m),
       area_(std::numbers::pi * geometry.bore_m * geometry.bore_m / 4.0),
       vc_(area_ * 2.0 * r_ / (geometry.compression_ratio - 1.0)) {
-  // 4-stroke: the cylinder at firing-order position m fires 4π·m/n after cylinder 1 (ESTIMATORS.md §0).
+  // 4-stroke: the cylinder at firing-order position m fires 4π·m/n after cylinder 1 (docs/equations.md §0).
   for (int m = 0; m < geometry.cylinders; ++m) {
     const int cyl = geometry.firing_order[static_cast<std::size_t>(m)];
     phase_[static_cast<std::size_t>(cyl - 1)] = kFourPi * m / geometry.cylinders;

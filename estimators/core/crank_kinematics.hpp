@@ -1,5 +1,5 @@
 #pragma once
-// Slider-crank kinematics (ESTIMATORS.md §0; Energies 2019 eq. (EN-5)..(EN-9), Chauvin TV-KF eq. (CK-1)).
+// Slider-crank kinematics (docs/equations.md §0; Energies 2019 eq. (EN-5)..(EN-9), Chauvin TV-KF eq. (CK-1)).
 // Scalar functions are real-time safe (no allocation, noexcept). `KinematicsTable` precomputes per-angle values
 // for a wheel at construction so that the per-tooth path never calls trigonometry.
 #include <cstddef>
@@ -17,7 +17,7 @@ class CrankKinematics {
   [[nodiscard]] double travel(double theta) const noexcept;
   /// f(θ) = (ds/dθ)/R (-).
   [[nodiscard]] double f(double theta) const noexcept;
-  /// g(θ) = f'(θ) (-). ESTIMATORS.md §0 gives the corrected form of (EN-5).
+  /// g(θ) = f'(θ) (-). docs/equations.md §0 gives the corrected form of (EN-5).
   [[nodiscard]] double g(double theta) const noexcept;
   /// Cylinder volume V(θ) = V_c + A s(θ) (m^3) (EN-8).
   [[nodiscard]] double volume(double theta) const noexcept;

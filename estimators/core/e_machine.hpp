@@ -1,5 +1,5 @@
 #pragma once
-// Hybrid input (issue 14 item 3): the electric machine's torque on the crankshaft, from CAN, folded into the
+// Hybrid input: the electric machine's torque on the crankshaft, from CAN, folded into the
 // net load every balance sees. Newton on the crank with the machine on it:
 //   J θ̈ = T_ind − T_fric − T_load + T_em,crank,   T_em,crank = sign · ratio · T_em,CAN
 // so the angle chain, the time chain and the friction learner keep their one-load form J θ̈ = T_ind − T_fric −

@@ -9,7 +9,7 @@ namespace torqued {
 inline constexpr int kMaxCylinders = 8;
 inline constexpr int kMaxTeeth = 360;  ///< upper bound on physical tooth positions of a wheel
 
-/// Slider-crank engine description (ESTIMATORS.md §0). SI units throughout.
+/// Slider-crank engine description (docs/equations.md §0). SI units throughout.
 struct EngineGeometry {
   int cylinders = 4;                                  ///< number of cylinders (4-stroke)
   std::array<int, kMaxCylinders> firing_order{1, 3, 4, 2};  ///< 1-based cylinder numbers, first `cylinders` used

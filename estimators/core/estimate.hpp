@@ -1,7 +1,7 @@
 #pragma once
-// The small surface every estimator shares (CONVENTIONS.md habit 2): reset(), update(const Sample&) noexcept,
-// estimate() const with a health field. Each estimator defines its own Sample type; this header holds the
-// shared output record and health codes.
+// The small surface every estimator shares (docs/conventions.md habit 2): reset(), update(const Sample&)
+// noexcept, estimate() const with a health field. Each estimator defines its own Sample type; this header
+// holds the shared output record and health codes.
 #include <cstdint>
 
 namespace torqued {

@@ -6,7 +6,7 @@
 
 namespace torqued {
 
-/// Na et al. time-triggered estimators (ESTIMATORS.md §1).
+/// Na et al. time-triggered estimators (docs/equations.md §1).
 struct UioParams {
   double k_s = 0.01;  ///< filter constant k (s) (Na-9, Na-14)
 };
@@ -49,7 +49,7 @@ struct PreprocessParams {
   double edge_noise_deg = 0.005;    ///< residual edge-angle error after tooth-error learning, 1σ (deg)
   double jitter_s = 0.3e-6;         ///< edge timestamp jitter, 1σ (s)
 };
-/// Chauvin angle-domain estimators (ESTIMATORS.md §2).
+/// Chauvin angle-domain estimators (docs/equations.md §2).
 struct KalmanParams {
   double delta = 3.0;          ///< coloured-noise pole δ (1/rad) of h(z) (CK-18)
   double torque_sd_nm = 300.0;  ///< stationary 1σ of the net torque x2 under h(z); sets Q (N m), used
@@ -63,12 +63,12 @@ struct KalmanParams {
   double jitter_s = 0.3e-6;    ///< timestamp jitter used for R (s)
   int smoother_lag = 10;  ///< output x2(n-lag | n), 0..12 teeth (fixed-lag smoother; 0 = paper's predictor).
                           ///< 10, not 6: at 4000-6000 rpm jitter makes R large, the filter's memory outgrows
-                          ///< 6 teeth and the phase lag returned (7° at 6000 rpm; 2-3° with 10, issue 15)
+                          ///< 6 teeth and the phase lag returned (7° at 6000 rpm; 2-3° with 10)
   bool periodic_gains = true;  ///< use precomputed asymptotic periodic gains (APS) instead of exact Riccati
   bool differenced_edge_noise = true;  ///< edge errors enter a period as the difference of its two edges
                                        ///< (MA(1) noise, two states); false = white R as in the paper
   bool gas_model = true;  ///< the pipeline feeds a cylinder-pressure model's gas torque ripple as a known
-                          ///< input (set_model_torque, issue 15); false = the paper's zero-mean prior
+                          ///< input (set_model_torque); false = the paper's zero-mean prior
   double min_rpm = 500.0;      ///< lowest speed of the APS gain schedule (rpm)
   double max_rpm = 8000.0;     ///< highest speed of the APS gain schedule (rpm)
   int speed_bins = 32;         ///< APS gain sets, log-spaced in speed, interpolated (R depends on speed)
@@ -81,7 +81,7 @@ struct FourierParams {
   double model_l_ref = 0.0175;  ///< L_ref with the gas model valid: the coefficients carry only the model's
                                 ///< miss (tuned on incycle_*_65 + fuel_cut: 0.07/0.035/0.0175 and
                                 ///< gain_ref_rpm 1500 tried)
-  bool gas_model = true;  ///< the pipeline feeds the cylinder-pressure model's gas torque ripple (issue 15)
+  bool gas_model = true;  ///< the pipeline feeds the cylinder-pressure model's gas torque ripple
   int output_lag = 0;        ///< report T̂ at tooth k−lag from the coefficients after tooth k (0..6; latency, less noise)
   double gain_ref_rpm =
       3000.0;  ///< >0: coefficient gains × min(1, (gain_ref_rpm/rpm)²), keeping the noise of the energy
@@ -90,8 +90,8 @@ struct FourierParams {
                ///< coast-down (tuned on incycle_*_65 + fuel_cut: 1500/2500/3000/3500/4500/0 tried)
 };
 
-/// Energies 2019 chain (ESTIMATORS.md §3).
-/// Learning the crankshaft inertia from a known load (estimators/learners/inertia_learner.hpp, issue 14). The spec
+/// Energies 2019 chain (docs/equations.md §3).
+/// Learning the crankshaft inertia from a known load (estimators/learners/inertia_learner.hpp). The spec
 /// sheet's J (engine.j_rot_kgm2) is a drawing or catalogue figure: the flywheel, clutch or damper fitted can
 /// differ by ±10 % or more, and the cycle balance's J·θ̈ term carries that error straight into the friction
 /// learned in a decelerating fuel cut-off and into the brake torque of every transient.
@@ -132,7 +132,7 @@ struct EnergiesParams {
   double burn_centroid_atdc_deg = 10.0; ///< heat release lumped here in the expansion-pressure closure when the
                                         ///< spark advance is unknown (deg after TDC)
   double burn_delay_deg = 29.0;         ///< spark to equivalent burn centroid (deg): centroid = delay − advance
-  double burn_duration_deg = 40.0;  ///< in-cycle gas torque model only (Kalman known input, issue 15): the
+  double burn_duration_deg = 40.0;  ///< in-cycle gas torque model only (Kalman known input): the
                                     ///< heat release spread over this angle around burn_centroid_atdc_deg by
                                     ///< a raised cosine (the RLS closure keeps the lumped burn); 0 = lumped
   double energy_window_deg = 30.0;      ///< kinetic energy averaged over this window around each boundary (deg)
@@ -174,7 +174,7 @@ struct FrictionParams {
                                         ///< that the RLS memory holds no coasting windows (cycles)
   double idle_max_rls_sd_nm = 1.5;      ///< and only with an RLS load 1σ below this (tight, settled) (N m)
   double idle_speed_tolerance = 0.03;   ///< steady idle: cycle-to-cycle speed change below this fraction (-)
-  double prior_rel_sd = 0.4;            ///< 1σ of the generic prior, fraction of the friction (issue 14: ±40 %) (-)
+  double prior_rel_sd = 0.4;            ///< 1σ of the generic prior, fraction of the friction (±40 %) (-)
   double learned_sd_nm = 2.0;           ///< 1σ claimed for the learned friction law (N m)
   double residual_gain_min =
       0.02;  ///< once learned, the motoring residuals' 68th percentile (the claimed 1σ of
@@ -214,7 +214,7 @@ struct CylinderParams {
                                       ///< volume per cylinder): below any firing idle (1-2 bar net IMEP), so a small
                                       ///< or negative mean (overrun, idle after cut-off) cannot blow the shares up (bar)
 };
-/// Fused brake torque for the torque-split controller (ESTIMATORS.md §4; rule in torque_fusion.hpp).
+/// Fused brake torque for the torque-split controller (docs/equations.md §4; rule in torque_fusion.hpp).
 struct FusionParams {
   double max_can_age_s = 0.1;       ///< CAN inputs older than this count as lost (s)
   bool blend = false;               ///< blend agreeing valid sources by inverse variance (false: pick the best)
@@ -229,7 +229,7 @@ struct ToothLearnParams {
                                     ///< in-cycle Kalman at 800-1500 rpm from 60-130 % to ≈ 10 % of p2p 3 s earlier)
   int fit_harmonics = 12;  ///< per-cycle smooth fit of the speed waveform: harmonics of the 720° cycle (-).
                            ///< 12, not 8: the firing order 6/rev (I4) was left to the per-tooth residual,
-                           ///< which then held the engine ripple of that order (issue 15 item 2)
+                           ///< which then held the engine ripple of that order
   double max_accel_frac = 0.05;     ///< skip cycles whose speed changes by more than this fraction (-)
   double min_rpm = 600.0;           ///< learn only above this speed (rpm)
   double max_rpm = 7000.0;          ///< and below this one (rpm)

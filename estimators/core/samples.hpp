@@ -8,7 +8,7 @@
 
 namespace torqued {
 
-/// One crank tooth, as the angle pipeline sees it (ESTIMATORS.md §2: sampled every Δα).
+/// One crank tooth, as the angle pipeline sees it (docs/equations.md §2: sampled every Δα).
 struct ToothSample {
   std::int64_t t_ns = 0;      ///< edge time (ns)
   std::int32_t tooth = 0;     ///< index within the 720° cycle, 0 .. samples_per_cycle-1 (0 = first tooth after gap, cam phase 0)

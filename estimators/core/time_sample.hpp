@@ -1,5 +1,5 @@
 #pragma once
-// Input of the time-triggered estimators of Na et al. (ESTIMATORS.md §1): one pipeline step, SI units,
+// Input of the time-triggered estimators of Na et al. (docs/equations.md §1): one pipeline step, SI units,
 // each input with a status so an estimator can say why it holds (stale vs invalid).
 #include <cmath>
 #include <cstdint>

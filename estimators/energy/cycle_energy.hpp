@@ -1,8 +1,8 @@
 #pragma once
-// Kinetic-energy balance per combustion segment and per 720° cycle (ESTIMATORS.md §0 energy form, CF-2):
+// Kinetic-energy balance per combustion segment and per 720° cycle (docs/equations.md §0 energy form, CF-2):
 //   ½J(θ_b)θ̇_b² − ½J(θ_a)θ̇_a² = ∫_a^b (T_ind − T_fric − T_load) dθ
 // so the angle-mean indicated torque over [a, b] is ΔKE/(b − a) + mean(T_load + T_fric). Unlike a Kalman
-// filter whose torque model is zero-mean coloured noise, this has no bias during speed ramps (issue 5).
+// filter whose torque model is zero-mean coloured noise, this has no bias during speed ramps.
 //
 // Boundaries: one per firing cylinder, at each firing TDC + `segment_offset_deg` (default 20° before TDC so
 // that a cylinder's whole combustion lies inside "its" segment; compression work, equal for all cylinders,

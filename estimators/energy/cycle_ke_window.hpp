@@ -1,13 +1,14 @@
 #pragma once
-// Wide kinetic-energy window for the 720° balance (brake / indicated cycle means), issue 5 at 4000 rpm.
-// The 720° balance ΔKE/4π differences the window-mean ½J(c_k)(w_k/dt_k)² at the same boundary one cycle apart.
-// Inside a window the edge jitter telescopes (each interior edge lengthens one period and shortens the next), only
-// the two outer edges remain, divided by the number of periods: the noise of the balance falls as 1/window. With
-// the per-cylinder window (±15°, 5 periods) the 0.3 µs edge jitter gives ≈ 1.4 N m RMS at 4000 rpm (KE ∝ ω², its
-// relative error ∝ ω·jitter), 84 % of cycles within 2 N m. A window of W = 120° ending where the per-cylinder
-// window ends (no extra latency) divides it by ≈ 4. The result is still an exact balance: the mean over boundary
-// shifts in [−W + w/2, w/2) of the 720° balance, i.e. a 720° cycle mean with W-wide ramps (ESTIMATORS.md §0, CF-2).
-// Real-time safe update(); tables built at construction (they come from CycleEnergy's geometry).
+// Wide kinetic-energy window for the 720° balance (brake / indicated cycle means), for the cycle-mean
+// accuracy at 4000 rpm. The 720° balance ΔKE/4π differences the window-mean ½J(c_k)(w_k/dt_k)² at the same
+// boundary one cycle apart. Inside a window the edge jitter telescopes (each interior edge lengthens one
+// period and shortens the next), only the two outer edges remain, divided by the number of periods: the noise
+// of the balance falls as 1/window. With the per-cylinder window (±15°, 5 periods) the 0.3 µs edge jitter
+// gives ≈ 1.4 N m RMS at 4000 rpm (KE ∝ ω², its relative error ∝ ω·jitter), 84 % of cycles within 2 N m. A
+// window of W = 120° ending where the per-cylinder window ends (no extra latency) divides it by ≈ 4. The
+// result is still an exact balance: the mean over boundary shifts in [−W + w/2, w/2) of the 720° balance,
+// i.e. a 720° cycle mean with W-wide ramps (docs/equations.md §0, CF-2). Real-time safe update(); tables
+// built at construction (they come from CycleEnergy's geometry).
 #include <cstdint>
 #include <vector>
 

@@ -236,7 +236,7 @@ void CylinderTorque::update_filtered_imbalance(const CylinderCycle& o, int candi
   if (!usable || o.misfire_count != 0 || candidates != 0 || !(o.mean_nm > params_.min_mean_nm)) return;
   const int n = engine_.cylinders;
   // Weight per cycle: imbalance_filter, at most 1 − exp(−T_cycle/τ) (a fixed averaging time: at high speed
-  // the jitter noise of the shares grows as ω² while the cycles get shorter, issue 15 item 3).
+  // the jitter noise of the shares grows as ω² while the cycles get shorter).
   double a = params_.imbalance_filter;
   if (params_.imbalance_tau_s > 0.0 && cycle_dt_s > 0.0)
     a = std::min(a, 1.0 - std::exp(-cycle_dt_s / params_.imbalance_tau_s));

@@ -1,5 +1,5 @@
 #pragma once
-// Per-cylinder indicated torque, imbalance and misfire per cycle (ESTIMATORS.md §4, beyond the papers).
+// Per-cylinder indicated torque, imbalance and misfire per cycle (docs/equations.md §4, beyond the papers).
 // Measure: the indicated work of each firing segment, W_m = Δ(½Jθ̇²)_segment + ∫(T_load + T_fric) dθ (energy
 // balance, CycleEnergy). The segment of firing position m starts 20° before its TDC, so it holds cylinder m's
 // whole combustion and expansion; the compression work it also holds belongs to the next cylinder and is the
@@ -9,8 +9,7 @@
 // of looking at a speed minimum.
 //   imbalance_m = (W_m − W̄) / max(W̄, W_floor) · 100 %, W̄ = mean_j W_j, W_floor = share_floor_imep_bar × swept
 //                 volume of one cylinder: the usual (W_m/W̄ − 1) wherever the engine fires (idle is 1-2 bar
-//                 net IMEP), bounded where the mean is small or negative (overrun, idle after a fuel cut-off;
-//                 issue 15 item 3)
+//                 net IMEP), bounded where the mean is small or negative (overrun, idle after a fuel cut-off)
 //   filtered    = EMA of imbalance_m over usable cycles, weight min(imbalance_filter, 1 − exp(−T_cycle/τ)):
 //   the
 //                 same averaging time (imbalance_tau_s) at every speed; the mean of the k usable cycles so
@@ -27,9 +26,9 @@
 //                 combustion. After a cut-off the caller's fired flags arm late (a flag leading the
 //                 injections must not be a false alarm); a cycle in which every segment combusted shows the
 //                 fuel is back, and from the next cycle on the misfire decision runs although the flags still
-//                 say cut-off (issue 15)
-// Where a misfire cannot be decided the record says why (`detection`), no misfire is flagged there (issue 15
-// item 4: a decision where detection is not possible is a false alarm waiting to happen) and its health is
+//                 say cut-off
+// Where a misfire cannot be decided the record says why (`detection`), no misfire is flagged there (a
+// decision where detection is not possible is a false alarm waiting to happen) and its health is
 // not kValid: kNotExcited in overrun (no combustion to miss), below min_mean_nm and where the shares are too
 // noisy (kNoisy: misfire_sigma·σ·scale ≥ (1 − misfire_threshold) × the firing level, so that a cylinder at
 // the threshold would sit inside the noise and the decision would rest on the noise gate alone, which
@@ -67,7 +66,7 @@ struct CylinderCycle {
   std::array<double, kMaxCylinders> imbalance_filtered_pct{};  ///< EMA over firing cycles without misfire (%)
   /// 1σ of imbalance_filtered_pct from the shares' cycle-to-cycle noise and the cycles averaged (pp, each
   /// cylinder; 0 before the first usable cycle). At 6000 rpm and light load the shares swing ≈ ±12 % per
-  /// cycle (edge jitter over a small speed ripple): what the filtered pattern rests on (issue 15 item 3).
+  /// cycle (edge jitter over a small speed ripple): what the filtered pattern rests on.
   double imbalance_sd_pct = 0.0;
   std::array<bool, kMaxCylinders> misfire{};
   int misfire_count = 0;

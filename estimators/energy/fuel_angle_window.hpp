@@ -1,5 +1,5 @@
 #pragma once
-// The fuel and MAP behind the work of one 720° energy-balance window (issue 14, fuel model). A cylinder's
+// The fuel and MAP behind the work of one 720° energy-balance window (fuel model). A cylinder's
 // fuel (and its trapped charge, ≈ MAP) is decided at its intake event, ≈ `intake_btdc_deg` before its firing
 // TDC (IVC 40-60° after BDC, Heywood 1988 §6.3), and its work lands around `work_centroid_atdc_deg` after
 // that TDC. The window [θ_end − 4π, θ_end] therefore holds, per cylinder, the work of the one combustion

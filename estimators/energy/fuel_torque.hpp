@@ -1,8 +1,8 @@
 #pragma once
-// Fuel-based indicated torque with a learned efficiency (ESTIMATORS.md §5, issue 14 item 2): the vehicle has
-// no load-torque signal, but the ECU reports the injected fuel mass on CAN. Willans-line reasoning (Heywood
-// 1988, ch. 13; EN-16 without the efficiency map): the net indicated torque of a 4-stroke SI engine per cycle
-// is
+// Fuel-based indicated torque with a learned efficiency (docs/equations.md §5, the fuel model): the vehicle
+// has no load-torque signal, but the ECU reports the injected fuel mass on CAN. Willans-line reasoning
+// (Heywood 1988, ch. 13; EN-16 without the efficiency map): the net indicated torque of a 4-stroke SI engine
+// per cycle is
 //   T_ind = η_g · n_cyl m_f q_LHV / 4π  −  (p_exh − p_man) V_d / 4π
 //           [gross indicated work]          [pumping loop, ≈ (exhaust − intake pressure) × swept volume]
 // with η_g (gross indicated efficiency) and p_exh unknown on an unseen engine. Both are learned by a

@@ -75,7 +75,7 @@ Weights model_weights(const AngleTerms& t, const EnergiesParams& prm, double bur
   }
   return w;
 }
-/// The in-cycle gas torque model's weights (issue 15): model_weights() with the heat release spread over
+/// The in-cycle gas torque model's weights: model_weights() with the heat release spread over
 /// `dur` around the centroid by a raised-cosine burned fraction x_b, p = (1 − x_b)·compression +
 /// x_b·expansion polytrope. The lumped burn's pressure step is harmless in a window integral but is a torque
 /// step in the in-cycle shape, which the Kalman's smooth coloured-noise prior cannot correct.
@@ -192,7 +192,7 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
   reset();
 }
 
-// Per-sample gas-torque ripple tables (issue 15): the pressure model's work over [c_k, c_{k+1}] per unit of
+// Per-sample gas-torque ripple tables: the pressure model's work over [c_k, c_{k+1}] per unit of
 // each input, divided by the step, minus the 720° mean (the mean indicated torque is the cycle balance's, not
 // this).
 void LoadRls::build_ripple(const std::vector<double>& center) {

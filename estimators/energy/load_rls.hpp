@@ -24,7 +24,7 @@
 //     50 %-burned angle = spark + burn_delay_deg, with the spark advance from CAN) rather than at TDC, which would
 //     understate the late expansion pressure for a given work. Checked against the simulator's single-zone
 //     Wiebe pressure trace in test_load_rls.
-//  4. Transients (issue 5: a filter with a zero-mean torque model under-reads sustained changes). The RLS average
+//  4. Transients (a filter with a zero-mean torque model under-reads sustained changes). The RLS average
 //     over ~10 cycles is the low-noise value in steady state but lags a load step or a dyno ramp by 10-30 cycles.
 //     The observations of one 720° window (every firing's compression window, all shifts) are themselves an
 //     unbiased measure of the mean load over that window (±2 N m at 2000 rpm: the shifted windows telescope), so a
@@ -99,7 +99,7 @@ class LoadRls {
   void ripple_p3(double map_pa, const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid,
                  std::array<double, kMaxCylinders>& p3_pa) const noexcept;
   /// Gas torque of the pressure model over sample k's step [c_k, c_{k+1}] (the step ChauvinKalman integrates
-  /// across edge k) minus its 720° mean (N m): the known shape of the in-cycle torque (issue 15). Real-time
+  /// across edge k) minus its 720° mean (N m): the known shape of the in-cycle torque. Real-time
   /// safe.
   [[nodiscard]] double gas_ripple_nm(int k, double map_pa,
                                      const std::array<double, kMaxCylinders>& p3_pa) const noexcept;

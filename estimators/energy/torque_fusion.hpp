@@ -1,5 +1,5 @@
 #pragma once
-// Fused brake torque for the torque-split controller (ESTIMATORS.md §4; issue 5 item 7).
+// Fused brake torque for the torque-split controller (docs/equations.md §4).
 //
 // Rule (documented in docs/angle_pipeline.md):
 //  1. A source is usable when its health is kValid and, if it needs CAN, the CAN data is fresh (age <= max_can_age_s).

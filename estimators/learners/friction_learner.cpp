@@ -126,7 +126,7 @@ bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double f
     ++n_rejected_;
     return false;
   }
-  // Outlier rejection (issue 14: one bad input must not collapse the idle friction): once an idle level is
+  // Outlier rejection (one bad input must not collapse the idle friction): once an idle level is
   // established (learned or imported), an observation farther than idle_outlier_frac from it is rejected.
   const double current = this->friction_nm(speed_rpm, oil_temp_c);
   const bool established = n_idle_ + idle_prior_n_ >= static_cast<std::uint64_t>(kIdlePriorObservations / 2);

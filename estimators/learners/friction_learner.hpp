@@ -26,7 +26,7 @@
 
 namespace torqued {
 
-/// Generic prior of the EN-24 coefficients from the swept volume (issue 14): the Barnes-Moss correlation of total
+/// Generic prior of the EN-24 coefficients from the swept volume: the Barnes-Moss correlation of total
 /// friction mean effective pressure of warm 4-stroke SI engines (845-2000 cm³), as given in J. B. Heywood,
 /// "Internal Combustion Engine Fundamentals", McGraw-Hill 1988, §13.5:
 ///   fmep [bar] = 0.97 + 0.15 (N/1000) + 0.05 (N/1000)²,  N in rpm,

@@ -1,7 +1,7 @@
 #pragma once
-// Crankshaft inertia learned from a known load (issue 14): J = k · J_spec.
+// Crankshaft inertia learned from a known load: J = k · J_spec.
 //
-// The cycle balance of the Energies 2019 paper (EN-6, energy form CF-2 of ESTIMATORS.md §0) over one 720°
+// The cycle balance of the Energies 2019 paper (EN-6, energy form CF-2 of docs/equations.md §0) over one 720°
 // cycle,
 //   k · ΔKE_spec / 4π = T_ind − T_fric(ω) − T_load,
 // holds the spec sheet's J in ΔKE_spec = Δ(½ J_spec(θ) θ̇²). A wrong J biases everything learned from a

@@ -28,7 +28,7 @@ constexpr double kTwoPi = 2.0 * std::numbers::pi;
 // measured with the nominal width, E ∝ (w/dt)² = ρ⁻²·E_true. It is ln ρ − (ln ρ)² + …, not ln ρ: taking z for
 // ln ρ left the square of the machining error (0.012 RMS per width on a 0.05° wheel, i.e. 1.4e-4 per tooth,
 // as large as the firing-order coefficients) in the table, mostly at the higher orders and at the orders
-// learned from the overrun mean (issue 15: balanced I4 at 6000 rpm 2.6 -> 1.0 pp). Exact in both directions.
+// learned from the overrun mean (balanced I4 at 6000 rpm 2.6 -> 1.0 pp). Exact in both directions.
 double width_ratio_of(double z) noexcept { return 1.0 / std::sqrt(std::max(1.0 - 2.0 * z, 1e-6)); }
 double z_of_width_ratio(double ratio) noexcept { return 0.5 * (1.0 - 1.0 / (ratio * ratio)); }
 constexpr double kRpm = std::numbers::pi / 30.0;

@@ -1,5 +1,5 @@
 #pragma once
-// Crank-wheel tooth-error learning (issue 5 item 6, ESTIMATORS.md §4). A per-tooth machining error changes
+// Crank-wheel tooth-error learning (docs/equations.md §4). A per-tooth machining error changes
 // the true width of a tooth period by a FIXED FRACTION, so it appears in the measured speed as the same
 // relative pattern at every speed and load, repeating every revolution. The engine's own speed ripple does
 // not:
@@ -13,7 +13,7 @@
 // revolutions, cos/sin(hα/2) for every cycle harmonic h ≤ H]. The residual, averaged per physical tooth
 // (weighted by speed⁴: the ripple falls as 1/ω̄²), is the tooth error above order H/2 per revolution. The
 // per-revolution orders r = h/2 ≤ H/2 (even h) sit in the fitted coefficients together with the engine's
-// ripple at the same order, and each is identified by what separates the two (issue 15 item 1):
+// ripple at the same order, and each is identified by what separates the two:
 //  - an order that is not a firing order (h not a multiple of n_cyl; on an I4 the once-per-revolution order,
 //  i.e.
 //    cylinders 1+4 against 2+3) carries engine ripple only through a cylinder imbalance. In fuel cut-off all
@@ -27,8 +27,8 @@
 //    speed (volumetric efficiency, combustion phasing in crank degrees). An x² column let A vary only at low
 //    speed; the drift is largest at the top of the range, where the intercept is read: the x² law left
 //    (−1.0, +1.3)e-4 at order 2 of the I4 (the quadrature part: 3° of in-cycle lag at 6000 rpm), x·ln x
-//    (−1.1, −0.0)e-4, and x·ln x → 0 with x for any A growing slower than a power of ω (issue 15);
-//  - "speeds" compares firing cycles at the SAME load only (issue 15): the ripple scales with the load, so
+//    (−1.1, −0.0)e-4, and x·ln x → 0 with x for any A growing slower than a power of ω;
+//  - "speeds" compares firing cycles at the SAME load only: the ripple scales with the load, so
 //    where the load changes with the speed (a vehicle, the demo) a regression across loads fakes an
 //    intercept, and an imbalance would be learned as wheel error. Each load slot (MAP within ±load_slot_frac
 //    of the slot's MAP, steady over the cycle) has its own regression; a slot counts when its speeds spread

@@ -100,7 +100,7 @@ void AdaptiveTv::update(const TimeSample& s) noexcept {
   const Vec py = phi_f * y_f_;
   p_ = decay_ * p_ + beta_ * ppt;
   q_ = decay_ * q_ + beta_ * py;
-  // Symmetrise against round-off (CONVENTIONS habit 12).
+  // Symmetrise against round-off (docs/conventions.md habit 12).
   p_(0, 1) = p_(1, 0) = 0.5 * (p_(0, 1) + p_(1, 0));
 
   const double dt = s.dt_s;

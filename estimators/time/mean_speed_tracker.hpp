@@ -1,5 +1,5 @@
 #pragma once
-// Mean crank speed for the time-triggered estimators (ESTIMATORS.md §1: "ω mean crank speed, cycle- or
+// Mean crank speed for the time-triggered estimators (docs/equations.md §1: "ω mean crank speed, cycle- or
 // segment-averaged"): Σ width / Σ dt over the most recent teeth that cover the window (720° or 720°/n_cyl).
 // Averaging over whole cycles (or firing segments) removes the in-cycle firing ripple that Na's mean-value
 // model (Na-8) does not describe. Fixed-size ring, real-time safe: no allocation, O(1) per tooth

@@ -1,7 +1,7 @@
 // tests/chain/test_learned_state_chain.cpp: the learned state (friction law, tooth table, fuel model,
 // measured crank-only error variance) survives the trip chain → LearnedState → state file text → parse →
 // bounds check → a fresh chain, so that a second replay from the file gives exactly the outputs of a replay
-// from the state in memory (issue 14: a vehicle run starts from what a bench run learned). Uses the bundled
+// from the state in memory (a vehicle run starts from what a bench run learned). Uses the bundled
 // demo recording: a learn run with the load signal (config/demo.yaml), then the vehicle configuration
 // (config/demo_vehicle.yaml).
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// Google Benchmark: the whole AnglePipeline per tooth with all methods enabled (target ≤ 2 µs median, issue 5),
+// Google Benchmark: the whole AnglePipeline per tooth with all methods enabled (target ≤ 2 µs median),
 // and its parts. Input: a simulated 3000 rpm steady run with CAN signals precomputed per tooth.
 // Run: build-*/tests/estimators/bench_angle_pipeline --benchmark_repetitions=5 --benchmark_report_aggregates_only
 #include <benchmark/benchmark.h>

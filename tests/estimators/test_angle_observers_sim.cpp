@@ -1,6 +1,6 @@
 // Chauvin Kalman and Fourier observers on the physics simulator (helper "sim") with the 0.05° wheel, tooth
 // errors learned by ToothErrorLearner (defaults) from steady 1000..4000 rpm scenarios of the same wheel.
-// Label slow. The target (RMS <= 15 % of p2p, |lag| <= 6°) is asserted for both observers at every
+// Label slow. The in-cycle target (RMS <= 15 % of p2p, |lag| <= 6°) is asserted for both observers at every
 // speed.
 #include <gtest/gtest.h>
 
@@ -19,7 +19,7 @@ namespace {
 
 TEST(AngleObserversOnSimulator, LearnedWheelAtOneToFourThousandRpm) {
   const char* names[] = {"steady_1000_mid", "steady_2000_mid", "steady_3000_mid", "steady_4000_mid"};
-  const double max_kalman_pct[] = {15.0, 15.0, 15.0, 15.0};  // the target
+  const double max_kalman_pct[] = {15.0, 15.0, 15.0, 15.0};  // the in-cycle target
   const double max_fourier_pct[] = {15.0, 15.0, 15.0, 15.0};
   ToothLearnParams lp;
   lp.min_cycles = 20;

@@ -1,4 +1,4 @@
-// AnglePipeline on the simulator's short scenarios: the issue-5 accuracy targets for the cycle-mean torques,
+// AnglePipeline on the simulator's short scenarios: the accuracy targets for the cycle-mean torques,
 // per-cylinder imbalance and misfire, crank-only fallback, no allocation per tooth, determinism.
 // Tooth widths: the ToothErrorLearner table learned on a warm-up recording of the same wheel (eval::warmup_scenario,
 // as the daemon learns and persists it) for friction learning, imbalance, misfire, 3-cyl/36-1; the steady-target

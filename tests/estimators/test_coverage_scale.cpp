@@ -1,4 +1,4 @@
-// CoverageScale: a claimed 1σ that covers 68 % of the residuals whatever their shape (issue 14).
+// CoverageScale: a claimed 1σ that covers 68 % of the residuals whatever their shape.
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -23,7 +23,7 @@ TEST(CrankKinematics, FIsDerivativeOfTravelOverR) {
 }
 
 TEST(CrankKinematics, GIsDerivativeOfF) {
-  // The (EN-5) typo: g must be f' (ESTIMATORS.md §0), checked numerically.
+  // The (EN-5) typo: g must be f' (docs/equations.md §0), checked numerically.
   const CrankKinematics kin(EngineGeometry{});
   for (double th = -kPi; th < kPi; th += 0.037) {
     const double h = 1e-6;

@@ -1,4 +1,5 @@
-// CycleEnergy: Δ(½Jθ̇²) per segment and per 720° against an analytic crank motion (ESTIMATORS.md §0 energy form).
+// CycleEnergy: Δ(½Jθ̇²) per segment and per 720° against an analytic crank motion (docs/equations.md §0
+// energy form).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -335,7 +336,7 @@ TEST(CycleEnergy, LatencyDelayLineDoesNotAllocate) {
   EXPECT_EQ(ce.latency_overflows(), 0u);
 }
 
-TEST(CycleEnergy, BrakeWithinIssueTolerancesThroughSimulatorTransients) {
+TEST(CycleEnergy, BrakeWithinTargetTolerancesThroughSimulatorTransients) {
   // GIVEN the simulator's throttle step (dyno holds 2000 rpm: its torque rises by ~90 N m within two cycles) and the
   // e-machine load step (+15 N m), CAN at 100 Hz with 5 ms flange lag
   for (const char* name : {"throttle_step", "load_step"}) {
@@ -350,7 +351,7 @@ TEST(CycleEnergy, BrakeWithinIssueTolerancesThroughSimulatorTransients) {
     for (const auto& row : comp.rows) transient += row.transient ? 1 : 0;
     EXPECT_GT(transient, 3) << name;
     // THEN every cycle is within 3 % / 2 N m (steady, incl. within 30 cycles of the step) or 5 % / 3 N m (cycles
-    // where the true torque or speed moves): the issue-5 targets
+    // where the true torque or speed moves): the cycle-mean accuracy targets
     EXPECT_EQ(comp.brake.pass, comp.brake.n) << name << " max err " << comp.brake.max_abs_nm;
     EXPECT_EQ(comp.fused.pass, comp.fused.n) << name << " max err " << comp.fused.max_abs_nm;
     EXPECT_LE(comp.brake.max_abs_nm, raw.brake.max_abs_nm + 0.2) << name;

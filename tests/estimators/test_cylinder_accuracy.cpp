@@ -1,4 +1,4 @@
-// Per-cylinder truth on the simulator (issue 15): a tooth table learned on the warm-up recording keeps an
+// Per-cylinder truth on the simulator: a tooth table learned on the warm-up recording keeps an
 // imbalance with a once-per-revolution component (I4 cylinders 1+4 against 2+3), balanced engines show no
 // pattern, a table reloaded with import_table() gives the same per-cylinder output, misfire at idle is found.
 // The engines here are not the ones the learner's defaults were chosen on (their geometry, tooth errors and
@@ -75,8 +75,8 @@ struct InCycleRow {
   double max_kalman_pct, max_fourier_pct;
 };
 /// Runs each row's case through the angle pipeline (its wheel learned on its warm-up recording) and expects
-/// the per-tooth Kalman and Fourier indicated torque within the row's RMS bounds, the Kalman lag ≤ 3° (issue
-/// 15 item 2), and at least `min_teeth` compared teeth.
+/// the per-tooth Kalman and Fourier indicated torque within the row's RMS bounds, the Kalman lag ≤ 3°, and
+/// at least `min_teeth` compared teeth.
 void expect_incycle_rows(const std::vector<eval::CylinderCase>& cases, std::span<const InCycleRow> rows,
                          int min_teeth) {
   for (const InCycleRow& row : rows) {
@@ -250,7 +250,7 @@ TEST(CylinderAccuracy, FiringOrdersOfTheWheelAreLearnedForSpeedsAboveTheWarmUp) 
   // 1000-4000 rpm and 65 kPa, then a fuel cut-off at 4000 rpm. The firing orders (I4: 2, 4, 6 per rev; I3: 3,
   // 6) come from the intercept of each coefficient's speed law across the firing cycles, whose engine ripple
   // x·A(ω) (x = 1/ω̄², A drifting a few % with the speed) is ≈ 7x the wheel's share at 4000 rpm. An error left
-  // there is an in-cycle torque error ∝ θ̇², twice as large at 6000 rpm as at 4000 (issue 15 item 2)
+  // there is an in-cycle torque error ∝ θ̇², twice as large at 6000 rpm as at 4000
   double worst = 0.0;
   for (int cyl : {4, 3}) {
     for (std::uint64_t seed : {1234u, 4321u, 2718u}) {
@@ -274,7 +274,7 @@ TEST(CylinderAccuracy, InCycleIndicatedTorqueOnRowsNotTunedOn) {
   // own wheel learned on its warm-up recording
   // Kalman bounds: the figures measured when the differenced edge noise and fit_harmonics = 12 came in
   // (4.7 / 3.8 / 6.2 %) plus ≈ 1 pp, below what the white-R filter and an 8-harmonic table gave (6.1 / 4.7 /
-  // 7.9 %). Fourier: the issue's targets (8 % to 3000 rpm, 12 % above).
+  // 7.9 %). Fourier: the in-cycle targets (8 % to 3000 rpm, 12 % above).
   const InCycleRow rows[] = {
       {"incycle_2000_35", 6.0, 8.0}, {"incycle_3000_95", 4.5, 8.0}, {"incycle_4000_95", 7.5, 12.0}};
   // WHEN the angle pipeline runs on each THEN (expect_incycle_rows) within the stated RMS, lag ≤ 3°
@@ -343,7 +343,7 @@ TEST(CylinderAccuracy, TaperedCylinderWindowAt6000RpmNoWorseAndFullLoadWithinOne
       runs, rms_new, rms_old, rms95_new, rms95_old);
   // WHEN the per-cylinder KE window is the parabola (default) THEN the balanced pattern, edge-jitter noise at
   // this speed, is no worse over all runs (on these seeds 1.57 vs 1.54 pp: 45 kPa 2.1 vs 1.9, one seed at
-  // 4 pp; on the 12 tuning seeds 0.70 of it) and at full load within the issue's 1 pp (rectangle: 1.08 pp)
+  // 4 pp; on the 12 tuning seeds 0.70 of it) and at full load within the 1 pp target (rectangle: 1.08 pp)
   EXPECT_LT(rms_new, 1.1 * rms_old);
   EXPECT_LE(rms95_new, 1.0);
 }

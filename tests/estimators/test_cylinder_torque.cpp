@@ -1,5 +1,5 @@
-// CylinderTorque: per-cylinder share of the cycle-mean indicated torque, imbalance, misfire (ESTIMATORS.md
-// §4).
+// CylinderTorque: per-cylinder share of the cycle-mean indicated torque, imbalance, misfire
+// (docs/equations.md §4).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -157,8 +157,8 @@ TEST(CylinderTorque, NoisySharesNeedADeficitBeyondTheirNoise) {
   // THEN it is not a misfire
   EXPECT_EQ(ct.cycle().misfire_count, 0);
   // AND since a cylinder at the misfire threshold (50 %) would sit inside 4σ of this noise, the record says
-  // detection is not possible there (kNoisy) and decides nothing, not even on a missing combustion (issue 15:
-  // heavy-tailed jitter at 6000 rpm and light load tripped the noise gate alone)
+  // detection is not possible there (kNoisy) and decides nothing, not even on a missing combustion (seen
+  // before: heavy-tailed jitter at 6000 rpm and light load tripped the noise gate alone)
   EXPECT_EQ(ct.cycle().detection, torqued::MisfireDetection::kNoisy);
   ASSERT_TRUE(feed(ct, {300.0, 300.0, -60.0, 300.0}));
   EXPECT_FALSE(ct.cycle().misfire[3]);

@@ -1,5 +1,6 @@
-// estimators/core/e_machine.hpp: the electric machine's CAN torque folded into the net load (issue 14 item 3), and
-// the time pipeline fed the folded load. Analytic truth: T_net = T_load − sign · ratio · T_em (exact, 1e-12).
+// estimators/core/e_machine.hpp: the electric machine's CAN torque folded into the net load (the hybrid
+// input), and the time pipeline fed the folded load. Analytic truth: T_net = T_load − sign · ratio · T_em
+// (exact, 1e-12).
 #include <gtest/gtest.h>
 
 #include "e_machine.hpp"

@@ -1,4 +1,4 @@
-// Issue 14 item 3 on the unseen-engines bed (short evaluated runs): an electric machine of ratio 2 is the
+// The hybrid input on the unseen-engines bed (short evaluated runs): an electric machine of ratio 2 is the
 // load, no dynamometer signal. Bound as the known sole load it gives the energy balance back (brake close to
 // the with-load figures); present on CAN but not bound it leaves the crank-only chain (the control). Motoring
 // by the machine teaches friction better than the generic prior. Full tables: torque-accuracy --bed unseen

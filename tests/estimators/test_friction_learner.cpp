@@ -183,7 +183,7 @@ TEST(FrictionLearner, GenericPriorIsBarnesMossByDisplacement) {
 }
 
 TEST(FrictionLearner, IdleFrictionDoesNotCollapseOnBadIdleObservationsAfterFuelCutOff) {
-  // Regression (issue 14): after a fuel cut-off a biased load estimate fed the idle correction 0.9 N m against a
+  // Regression: after a fuel cut-off a biased load estimate fed the idle correction 0.9 N m against a
   // true (and already learned) 16.4 N m, and idle friction collapsed to 0.9 N m.
   FrictionParams p;
   p.c = torqued::generic_friction_prior(1.6e-3, p.sign);
@@ -206,7 +206,7 @@ TEST(FrictionLearner, IdleCorrectionIsBounded) {
   EXPECT_LE(fl.friction_nm(800.0, 90.0), (1.0 + p.idle_max_correction_frac) * law + 1e-9);
 }
 
-// Issue 14: "never collapsing on one bad input". After a coast-down has taught the law, a cycle whose balance
+// "Never collapsing on one bad input". After a coast-down has taught the law, a cycle whose balance
 // is off by 25 N m (a CAN load frame one cycle late, a gear shift) is rejected and leaves the law where it
 // was; a real change (the same 6 N m shift on motoring_gate_reaccept cycles in a row) is learned.
 TEST(FrictionLearner, OneBadMotoringCycleIsRejectedButAConsistentChangeIsLearned) {

@@ -1,5 +1,5 @@
-// FuelTorque: fuel-based indicated torque with learned gross efficiency and exhaust pressure (issue 14 item
-// 2).
+// FuelTorque: fuel-based indicated torque with learned gross efficiency and exhaust pressure (fuel
+// model).
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,4 +1,4 @@
-// InertiaLearner (estimators/learners/inertia_learner.hpp, issue 14): J = k·J_spec from pairs of consecutive cycles,
+// InertiaLearner (estimators/learners/inertia_learner.hpp): J = k·J_spec from pairs of consecutive cycles,
 // k·x = y with x = Δ(J_spec θ̈) and y the torque change that balances it. Truth: pairs generated from a known
 // k with noise of the stated σ; tolerances from the learner's own 1σ.
 #include <gtest/gtest.h>

@@ -62,7 +62,7 @@ double rls_error(bool model_expansion, double* load_star_true = nullptr) {
   const sim::SimOutput out = sim::simulate(sc);
   auto samples = sim::ideal_tooth_samples(out, sc);
   const int teeth = sc.wheel.teeth();
-  for (auto& s : samples) {  // tooth errors "learned" (the issue: learning is not optional)
+  for (auto& s : samples) {  // tooth errors "learned" (learning is not optional)
     const int p = s.tooth % teeth;
     s.width_rad += out.tooth_error_rad[static_cast<std::size_t>(p)] -
                    out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
@@ -96,7 +96,7 @@ TEST(LoadRls, ConvergesToTheExtendedLoadWithinThreeNm) {
 }
 
 TEST(LoadRls, PaperSimplificationIsBiasedByTheExpansionCylinder) {
-  // The issue's fact: the cylinder 130°-160° after its TDC biases the load by 10-20 N m when ignored.
+  // The fact this checks: the cylinder 130°-160° after its TDC biases the load by 10-20 N m when ignored.
   EXPECT_GT(std::fabs(rls_error(false)), 5.0);
 }
 

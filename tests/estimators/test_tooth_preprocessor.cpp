@@ -92,7 +92,7 @@ TEST(ToothPreprocessor, RejectsAndCountsBadSamples) {
 }
 
 TEST(ToothPreprocessor, RelativeNoiseOfSpeedSquared) {
-  // 0.05° edges on a 6° tooth: 2·sqrt(2)·0.05/6 ≈ 2.4 % on θ̇² (the figure)
+  // 0.05° edges on a 6° tooth: 2·sqrt(2)·0.05/6 ≈ 2.4 % on θ̇² (the expected figure)
   const double rel = ToothPreprocessor::speed_sq_rel_sd(6.0 * kPi / 180.0, 200.0, 0.05 * kPi / 180.0, 0.0);
   EXPECT_NEAR(rel, 0.0236, 0.0005);
 }

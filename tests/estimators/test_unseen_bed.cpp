@@ -1,5 +1,5 @@
-// Issue 14 targets on a short subset of the unseen-engines bed (report engines only, short evaluated runs).
-// Full table: build/tools/torque-accuracy --bed unseen
+// Accuracy targets without a load signal on a short subset of the unseen-engines bed (report engines only,
+// short evaluated runs). Full table: build/tools/torque-accuracy --bed unseen
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -56,7 +56,7 @@ TEST_P(UnseenBed, MeetsTheTargetsWithAndWithoutTheLoadSignal) {
   // With the load signal: brake ≤ 1 N m RMS; friction (learned from the generic prior) within 10 % or 2 N m.
   EXPECT_LE(w.brake.rms_nm, 1.0);
   EXPECT_LE(w.friction.rms_nm, 2.0);
-  // With the load signal, indicated: issue target 3 % or 2 N m; asserted on RMS (measured 1.1-3.2 N m RMS on
+  // With the load signal, indicated: target 3 % or 2 N m; asserted on RMS (measured 1.1-3.2 N m RMS on
   // the report engines: the 36-1 I4 misses it, see docs/angle_pipeline.md).
   EXPECT_LE(w.indicated.rms_nm, 3.5);
   // Without the load signal: brake within 5 % / 3 N m steady, 8 % / 5 N m transient on ≥ 85 % of the cycles.

@@ -1,7 +1,7 @@
-// tests/idl/test_qos_defaults.cpp: the topic QoS defaults (idl/qos.hpp default_qos(), CONVENTIONS habit 8),
-// the configuration's defaults that must equal them (config/config.hpp DdsConfig), and the dds_qos_t make_qos
-// builds. EstimatorTorque keeps 1024 samples per key: at 64 a starved subscriber lost samples of the 1450 Hz
-// in-cycle methods (issue 18).
+// tests/idl/test_qos_defaults.cpp: the topic QoS defaults (idl/qos.hpp default_qos(), docs/conventions.md
+// habit 8), the configuration's defaults that must equal them (config/config.hpp DdsConfig), and the
+// dds_qos_t make_qos builds. EstimatorTorque keeps 1024 samples per key: at 64 a starved subscriber lost
+// samples of the 1450 Hz in-cycle methods.
 #include <gtest/gtest.h>
 
 #include "config.hpp"

@@ -1,4 +1,4 @@
-// CSV recorder (idl/sample_recorder) against a full disk (issue 16): the error is kept and flagged at once,
+// CSV recorder (idl/sample_recorder) against a full disk: the error is kept and flagged at once,
 // every file is cut back to complete rows, the rows not recorded are counted exactly, and recording never
 // resumes after the error (a recording is a prefix of complete rows).
 #include <gtest/gtest.h>

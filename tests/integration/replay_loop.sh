@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# ctest replay_loop (issue 17): replay.loop keeps a paced replay of the demo going past its end, as the packaged
+# ctest replay_loop: replay.loop keeps a paced replay of the demo going past its end, as the packaged
 # service does. The demo (20 s) at 20x for 6 s with replay.loop: true must
 #   - announce the loop and never report the end of the recording,
 #   - publish (here: record) engine cycles past the second seam (recording time > 45 s), with valid estimates

@@ -78,7 +78,7 @@ TEST_F(EndToEnd, ReplayThroughDdsToSubscriberMatchesTruth) {
   const Csv got = read_csv(echo_dir + "/engine_cycle.csv");
   const Csv mine = read_csv(daemon_dir + "/engine_cycle.csv");
   ASSERT_GT(mine.rows.size(), 300u) << "demo is ~20 s: expected ~350 cycles";
-  // Issue 16: DaemonStatus counts the CAN frames in paced mode too (it was always 0 outside fast replay).
+  // DaemonStatus counts the CAN frames in paced mode too (it was always 0 outside fast replay).
   const Csv status = read_csv(daemon_dir + "/daemon_status.csv");
   const int frames = status.col("can_frames");
   ASSERT_GE(frames, 0);
@@ -124,16 +124,17 @@ TEST_F(EndToEnd, ReplayThroughDdsToSubscriberMatchesTruth) {
   const double frac = static_cast<double>(within) / static_cast<double>(abs_err.size());
   std::printf("end-to-end: %zu valid cycles, median |error| %.2f N m, %.0f %% within 5 %% or 3 N m\n",
               abs_err.size(), median, 100 * frac);
-  // Tolerance (issue 5 transient target: 5 % or 3 N m) on 80 % of the cycles of a demo full of steps, ramps,
-  // misfires and a fuel cut; the window is 90° off the truth's TDC-aligned cycles, which costs in transients.
+  // Tolerance (the transient accuracy target: 5 % or 3 N m) on 80 % of the cycles of a demo full of steps,
+  // ramps, misfires and a fuel cut; the window is 90° off the truth's TDC-aligned cycles, which costs in
+  // transients.
   EXPECT_LT(median, 1.5);
   EXPECT_GE(frac, 0.80);
 
   // In-cycle indicated torque per tooth (Chauvin Kalman, method 4, stamped at the edge it refers to; Fourier,
   // method 5) from the daemon's recording vs data/demo/truth_tooth.csv interpolated at each sample's t_ns.
-  // Issue 5's steady-state target is RMS <= 15 % of peak-to-peak; the demo also holds cranking, idle, ramps,
-  // misfires and a fuel cut, and starts with an unlearned wheel: 25 % and correlation >= 0.5 after the first
-  // 2 s.
+  // The steady-state in-cycle target is RMS <= 15 % of peak-to-peak; the demo also holds cranking, idle,
+  // ramps, misfires and a fuel cut, and starts with an unlearned wheel: 25 % and correlation >= 0.5 after the
+  // first 2 s.
   const Csv tooth = read_csv(std::string(TORQUED_SOURCE_DIR) + "/data/demo/truth_tooth.csv");
   const int tt = tooth.col("t_s"), ti = tooth.col("t_ind_nm");
   ASSERT_TRUE(tt >= 0 && ti >= 0);

@@ -1,4 +1,4 @@
-// tests/integration/test_faults.cpp (issue 16): the real torqued binary against faults of its files.
+// tests/integration/test_faults.cpp: the real torqued binary against faults of its files.
 //   - kill -9 during a paced --record run: every recording has its rows up to at most ~1 s before the kill
 //     (timed flush), complete rows only (but the very last, which the kill may cut inside one write(2));
 //   - a full disk (/dev/full behind each recording file): the error is logged, the estimation still runs to
@@ -93,7 +93,7 @@ TEST_F(Faults, ACorruptLearnedStateIsSetAsideAndReplaced) {
   const fs::path sdir = dir_ / "state";
   fs::create_directories(sdir);
   const std::string path = (sdir / "learned_state.txt").string();
-  // A version-1 file with the issue's typo (C3 e-06 -> e+06): no checksum to catch it, the bounds do.
+  // A version-1 file with a typo (C3 e-06 -> e+06): no checksum to catch it, the bounds do.
   const std::string bad = "torqued-state 1\nfriction -23.86 0.00245 -5.2e+06 -0.00467\nsaved_at_t_ns 5\n";
   std::ofstream(path) << bad;
   {

@@ -1,6 +1,6 @@
 // Crank decoder on synthetic wheels with known truth (tests/io/synthetic_wheel.hpp): every condition of
-// issue 3 "Crank decoder". GIVEN a wheel and a speed profile, WHEN the edges are decoded, THEN tooth index
-// and angle match the truth once synced, and every disturbance is counted.
+// the crank decoder (docs/io.md). GIVEN a wheel and a speed profile, WHEN the edges are decoded, THEN tooth
+// index and angle match the truth once synced, and every disturbance is counted.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -288,7 +288,7 @@ TEST(CrankDecoder, CamGivesPhaseAndWithoutCamPhaseStaysUnknown) {
   EXPECT_EQ(off_by_rev, checked);
 }
 
-// Issue 13, cam phase: a cam edge outside a fixed window is a counted cam phase error (never a silent phase);
+// Cam phase: a cam edge outside a fixed window is a counted cam phase error (never a silent phase);
 // cam_window: auto learns the cam edge's angle and reports it; a cam edge that then comes elsewhere is an
 // error.
 TEST(CrankDecoder, CamOutsideItsWindowIsCountedAndAutoWindowLearnsTheAngle) {
@@ -467,7 +467,7 @@ TEST(CrankDecoder, FirstCombustionSqueezesTheGapWithoutLosingSync) {
 namespace torqued {
 namespace {
 
-// Issue 13: "36-2-1" was the mirror image of the Mitsubishi 4B11 wheel. In rotation order it is 17 teeth, one
+// "36-2-1" was once the mirror image of the Mitsubishi 4B11 wheel. In rotation order it is 17 teeth, one
 // missing, 16 teeth, two missing: after tooth 0 (first tooth after the two-tooth gap) come 16 one-pitch
 // periods, then a two-pitch period (the single gap), 15 more, then the three-pitch gap closing the
 // revolution.

@@ -1,7 +1,8 @@
-// Regression tests for the decoder failures of issue 13, one per failure, each failing on the decoder before
-// issue 13 (commit ea708b6; checked by building this file against that commit's torqued_io, see docs/io.md).
-// Edge streams are built by hand so each test shows exactly the signal that failed: constant speed, and only
-// the disturbance under test. The wheel is given as a tooth list so the old wheel names play no part.
+// Regression tests for the decoder failures found on real captures, one per failure, each failing on the
+// decoder before their fixes (commit ea708b6; checked by building this file against that commit's torqued_io,
+// see docs/io.md). Edge streams are built by hand so each test shows exactly the signal that failed: constant
+// speed, and only the disturbance under test. The wheel is given as a tooth list so the old wheel names play
+// no part.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -179,7 +180,7 @@ TEST(DecoderRegression, CrankingSpeedRippleDoesNotDropSync) {
   EXPECT_GT(r.synced, 10 * w.teeth());
 }
 
-#ifndef TORQUED_DECODER_BEFORE_ISSUE_13  // min_pulse_us did not exist before issue 13
+#ifndef TORQUED_DECODER_BEFORE_ISSUE_13  // min_pulse_us did not exist before the real-capture fixes
 // Contact bounce on rising edges: 5 % of a period before every 7th tooth a 0.25 µs pulse. Without the
 // debounce its first edge is taken as the tooth (that tooth's speed 5 % off, the next one's the other way);
 // with min_pulse_us = 1 both of its edges are dropped and counted, and every tooth's speed is exact.

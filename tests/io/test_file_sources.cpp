@@ -157,7 +157,7 @@ TEST(EdgeCsv, TimeUnitFromHeader) {
 // rows with a leading space (always the general path) give the same events, bad-line count and messages.
 TEST(EdgeCsv, FastPathAgreesWithGeneralParser) {
   std::mt19937 rng(20261121);
-  // No e/E: since exponent notation is read (issue 13), "1.5e7" is a valid time far ahead that would make
+  // No e/E: since exponent notation is read, "1.5e7" is a valid time far ahead that would make
   // every later row "time goes backwards"; exponents are covered by EdgeCsv.ExponentNotationIsReadExactly.
   const std::string alphabet = "0123456789.,- x+";
   std::string fast = "Time [s],crank,cam\n", general = fast;
@@ -276,8 +276,8 @@ std::vector<EdgeEvent> read_all(EdgeCsvSource& src) {
 }
 }  // namespace
 
-// Issue 13: exports such as rusEFI's noisy-trigger logs print times like "8e-05"; the reader called that a
-// bad time. Exponent notation is now read exactly (to the ns, rounded half up).
+// Real captures: exports such as rusEFI's noisy-trigger logs print times like "8e-05"; the reader called that
+// a bad time. Exponent notation is now read exactly (to the ns, rounded half up).
 TEST(EdgeCsv, ExponentNotationIsReadExactly) {
   TempFile f("Time [s],crank\n0,0\n8e-05,1\n1.5E-3,0\n0.00383033,1\n2.5e+0,0\n1.0000000005e1,1\n");
   EdgeCsvOptions o;
@@ -294,8 +294,8 @@ TEST(EdgeCsv, ExponentNotationIsReadExactly) {
   EXPECT_EQ(src.stats().bad_lines, 0u);
 }
 
-// Issue 13: a file without a header (first line is data) was refused. Columns are then numbered (crank = 1,
-// cam = 2 if present) and the first row is data, not lost.
+// Real captures: a file without a header (first line is data) was refused. Columns are then numbered (crank =
+// 1, cam = 2 if present) and the first row is data, not lost.
 TEST(EdgeCsv, HeaderlessFileUsesColumnNumbers) {
   TempFile f("0,0\n8e-05,1\n0.00383033,0\n");
   EdgeCsvSource src(f.path());  // default names "crank"/"cam": column 1, no cam (only one level column)
@@ -375,7 +375,7 @@ TEST(EdgeCsv, HeaderOnlyFileIsWarnedAbout) {
   EXPECT_NE(src2.last_error().find("empty file"), std::string::npos);
 }
 
-// Issue 16: the fast path accumulated every leading digit into an int64 before checking the count: a long
+// Bad input: the fast path accumulated every leading digit into an int64 before checking the count: a long
 // digit run was signed overflow (UB; caught by -fsanitize=undefined). Such a row is now left to the general
 // parser, which reports it as out of range, and the next row still reads.
 TEST(EdgeCsv, LongIntegerPartIsNotUndefinedBehaviour) {

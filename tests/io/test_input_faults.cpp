@@ -1,4 +1,4 @@
-// Bad inputs of the readers owned by issue 16: over-long lines (skipped in block reads), DBC VAL_ out of the
+// Bad inputs of the readers: over-long lines (skipped in block reads), DBC VAL_ out of the
 // int64 range (was an out-of-range float->int cast: UB).
 #include <gtest/gtest.h>
 #include <unistd.h>

@@ -1,6 +1,6 @@
 // Real crank captures (rusEFI's test data, tests/data/captures/rusefi, see its README for source and
 // licence): each decoded with the wheel its README gives, asserting what can be checked without rusEFI's
-// engine model (issue 13). Prints one row per capture for the table in docs/io.md:
+// engine model. Prints one row per capture for the table in docs/io.md:
 //   ctest --test-dir build -R RealCaptures --output-on-failure -V | grep '^| '
 #include <gtest/gtest.h>
 
@@ -82,9 +82,9 @@ void print_row(const char* file, const char* wheel, const Decoded& d, const std:
               static_cast<unsigned long long>(d.stats.lost_teeth), speed.c_str());
 }
 
-// noisy-trigger-1: 36-2 crank while cranking at ~300 rpm with ±20 % tooth-to-tooth jitter. Before issue 13
-// the decoder synced three times and lost sync twice (the trend-extrapolated prediction turned jitter into
-// "unexpected gaps") and waited for a second gap before its first sync.
+// noisy-trigger-1: 36-2 crank while cranking at ~300 rpm with ±20 % tooth-to-tooth jitter. Before the
+// real-capture fixes the decoder synced three times and lost sync twice (the trend-extrapolated prediction
+// turned jitter into "unexpected gaps") and waited for a second gap before its first sync.
 TEST(RealCaptures, NoisyTrigger1HoldsSyncFromTheFirstGap) {
   const auto d = decode("noisy-trigger-1.csv", "36-2", true, "crank");
   EXPECT_EQ(d.bad_lines, 0u);  // headerless, exponent times ("8e-05")

@@ -1,6 +1,6 @@
 // Real captures whose crank cannot identify the position (rusEFI's test data, tests/data/captures/rusefi, see
 // its README): the cam pattern (4g63, nissan-cas-24+1, miata-nb2) or the pulse-width code (gm-24x) does
-// (issue 13). rusEFI's figures are compared the way rusEFI computes them:
+// rusEFI's figures are compared the way rusEFI computes them:
 //  - "event N" / "line N" is the N-th data row after the header (rusEFI drops the first line), read here from
 //    the file itself; the reader starts every channel low (EdgeCsvFirstRow::kEdgesFromLow), as rusEFI's does;
 //  - its RPM is the instant RPM of the last crank event at that row: the angle from the latest event at least

@@ -115,7 +115,7 @@ TEST(TorqueDecode, DemoRecordingThroughConfig) {
 
 namespace torqued {
 namespace {
-// Issue 13: per-revolution speed and the sync/loss/glitch summary, on a real capture (rusEFI's GM 24x
+// Per-revolution speed and the sync/loss/glitch summary, on a real capture (rusEFI's GM 24x
 // cranking, pulse-width coded): one sync, no loss, the revolutions listed, CSV and stdout agree.
 TEST(TorqueDecode, PerRevolutionSpeedAndSyncSummaryOnARealCapture) {
   const std::string dir = ::testing::TempDir();

@@ -109,7 +109,7 @@ TEST_F(StateStore, MalformedLinesAreRefusedNamingFileAndLine) {
 }
 
 TEST_F(StateStore, OneChangedCharacterFailsTheChecksum) {
-  // The typo: e-06 -> e+06 in C3.
+  // A typo: e-06 -> e+06 in C3.
   std::string text = serialize_state(good(), ctx_.identity);
   const auto at = text.find("e-06");
   ASSERT_NE(at, std::string::npos) << text;
@@ -127,7 +127,7 @@ TEST_F(StateStore, ValuesOutsidePhysicalBoundsAreRejectedEvenWithAValidChecksum)
     EXPECT_NE(err.find(expect), std::string::npos) << err;
   };
   LearnedState s = good();
-  (*s.friction)[0] = 1e12;  // the friction of 1e12
+  (*s.friction)[0] = 1e12;  // a friction of 1e12
   rejects(s, "physical bound");
   s = good();
   (*s.friction)[2] = -5.2e6;  // e-06 typed as e+06 in a version-1 file (no checksum to catch it)
@@ -142,7 +142,7 @@ TEST_F(StateStore, ValuesOutsidePhysicalBoundsAreRejectedEvenWithAValidChecksum)
   s.tooth_corrections_rad[10] = 0.06;  // > half of a 6 degree pitch (0.052 rad)
   rejects(s, "tooth correction 10");
   s = good();
-  s.tooth_corrections_rad.resize(30);  // the 30 corrections for a 58-tooth wheel
+  s.tooth_corrections_rad.resize(30);  // 30 corrections for a 58-tooth wheel
   rejects(s, "30 tooth corrections, but the wheel has 58 teeth");
   s = good();
   (*s.inertia)[0] = 3.0;  // J three times the spec sheet's

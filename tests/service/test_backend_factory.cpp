@@ -171,7 +171,7 @@ TEST(BackendFactory, DemoRecordingEndToEnd) {
 
 namespace torqued {
 namespace {
-// --check-config with a recording (issue 13): the demo's cam edge lies inside its configured window with a
+// --check-config with a recording: the demo's cam edge lies inside its configured window with a
 // margin; a window that misses it, or one whose edge sits on it, is warned about with the measured angle.
 TEST(BackendFactory, CamWindowCheckAgainstTheRecording) {
   LoadResult lr = load_config(std::string(TORQUED_SOURCE_DIR) + "/config/demo.yaml");

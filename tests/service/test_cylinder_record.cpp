@@ -1,6 +1,6 @@
 // tests/service/test_cylinder_record.cpp: the CylinderTorque topic carries, besides each cycle's shares, the
-// filtered per-cylinder pattern and its 1σ (issue 15: the pattern the --cylinders table scores, and what it
-// rests on). Replays the bundled demo recording (config/demo.yaml) through the daemon's fast replay.
+// filtered per-cylinder pattern and its 1σ (the pattern the --cylinders table scores, and what it rests
+// on). Replays the bundled demo recording (config/demo.yaml) through the daemon's fast replay.
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -132,7 +132,7 @@ TEST_F(FastReplayTest, NoAllocationPerRecord) {
   EXPECT_EQ(a1, a2) << "allocations grow with the replay length";
 }
 
-// Issue 16: bad lines are named with file:line at the end of the run, and an input with no record says so.
+// Bad input: bad lines are named with file:line at the end of the run, and an input with no record says so.
 TEST_F(FastReplayTest, BadLinesAndAnEmptyInputAreNamed) {
   {
     std::ofstream f(edges_, std::ios::app);

@@ -1,4 +1,4 @@
-// Physics of the crank-angle simulator (issue 2: energy balance, IMEP/BMEP/peak pressure, g = f', t(θ)
+// Physics of the crank-angle simulator (energy balance, IMEP/BMEP/peak pressure, g = f', t(θ)
 // monotonic, gap visible, reproducibility, misfire/fuel-cut truth) and the estimator-facing views.
 #include "engine_sim.hpp"
 

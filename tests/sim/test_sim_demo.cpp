@@ -1,4 +1,4 @@
-// The bundled demo recording data/demo/ is reproducible from the simulator and stays small (issue 2 "Done").
+// The bundled demo recording data/demo/ is reproducible from the simulator and stays small.
 #include <gtest/gtest.h>
 
 #include <filesystem>

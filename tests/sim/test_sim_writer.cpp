@@ -1,5 +1,5 @@
-// File formats of the simulator (common.md: edge CSV, candump -l, truth CSVs, engine YAML) and the CAN packing
-// behind config/demo.dbc (Intel and Motorola round trips, committed DBC in sync with the code).
+// File formats of the simulator (docs/simulator.md §7: edge CSV, candump -l, truth CSVs, engine YAML) and the
+// CAN packing behind config/demo.dbc (Intel and Motorola round trips, committed DBC in sync with the code).
 #include "sim_writer.hpp"
 
 #include <gtest/gtest.h>

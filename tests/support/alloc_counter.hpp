@@ -1,6 +1,6 @@
 #pragma once
-// Counting global operator new for tests that prove a code path does not allocate (CONVENTIONS.md habit 4).
-// Link torqued_test_support into the test binary; wrap the code under test in an AllocationScope.
+// Counting global operator new for tests that prove a code path does not allocate (docs/conventions.md habit
+// 4). Link torqued_test_support into the test binary; wrap the code under test in an AllocationScope.
 #include <cstddef>
 
 namespace torqued::test {

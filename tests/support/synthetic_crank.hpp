@@ -1,8 +1,9 @@
 #pragma once
 // Analytic crank-speed generator for the angle-estimator tests (helper "angle"): integrates the energy form of the
-// crankshaft balance d(½J(θ)θ̇²)/dθ = T_ind(θ) − T_load (ESTIMATORS.md §0, CF-2) for a known, speed-independent
-// indicated torque, so the truth is exact. Tooth edges get a fixed per-tooth angle error and Gaussian jitter.
-// Also: the accuracy metrics shared by the tests (RMS error in % of the true peak-to-peak, lag by cross-correlation).
+// crankshaft balance d(½J(θ)θ̇²)/dθ = T_ind(θ) − T_load (docs/equations.md §0, CF-2) for a known,
+// speed-independent indicated torque, so the truth is exact. Tooth edges get a fixed per-tooth angle error
+// and Gaussian jitter. Also: the accuracy metrics shared by the tests (RMS error in % of the true
+// peak-to-peak, lag by cross-correlation).
 #include <algorithm>
 #include <cmath>
 #include <cstdint>

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# ctest tools.cli_usage (issue 17): what a new user meets on the command line.
+# ctest tools.cli_usage: what a new user meets on the command line.
 #   - every binary's --help lists its exit statuses; a command-line error exits 2 (not CLI11's 105...);
 #   - torqued without arguments says what to give and exits 2; --config of a missing file exits 2;
 #   - torque-eval: an unknown column lists the columns that exist (exit 1); the table calls max |error| max|err|;

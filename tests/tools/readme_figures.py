@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Issue 17: the README's figures come from the commands it names, and reproduce.
+"""The README's figures come from the commands it names, and reproduce.
 
 Runs the README's deterministic commands (fast replay, torque-eval, torque-accuracy --recording, torque-na-repro,
 the quick commands of "Running it") and compares every figure the README prints for them with what the commands

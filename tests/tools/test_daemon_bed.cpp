@@ -1,10 +1,10 @@
 // tests/tools/test_daemon_bed.cpp: the unseen-engines bed THROUGH THE DAEMON'S CHAIN
-// (tools/accuracy/daemon_bed.cpp, issue 14 item 2): two report engines (never used for tuning: I4 with a 36-1
+// (tools/accuracy/daemon_bed.cpp, fuel model): two report engines (never used for tuning: I4 with a 36-1
 // wheel, I6 with a 60-2 wheel) are written by the simulator as recordings + torqued configs from their spec
 // sheets, learned with the load signal (state file saved and restored as the daemon does), then replayed
-// (short evaluated recording) with and without the load signal. Tolerances: the issue 14 targets (5 % or 3 N
-// m steady, 8 % or 5 N m transient) on >= 90 % of the cycles, RMS limits a little above what the chain gives
-// today. Label slow (about 10 s).
+// (short evaluated recording) with and without the load signal. Tolerances: the unseen-bed targets (5 % or 3
+// N m steady, 8 % or 5 N m transient) on >= 90 % of the cycles, RMS limits a little above what the chain
+// gives today. Label slow (about 10 s).
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -65,10 +65,10 @@ TEST_P(DaemonBed, LearnedStateCarriesTheNoLoadBrakeTorqueToTheTargets) {
 
 INSTANTIATE_TEST_SUITE_P(ReportEngines, DaemonBed, ::testing::Values("rep_i4_36", "rep_i6_60"));
 
-// Issue 14, fuel model (FuelAngleWindow) and learned inertia: every report engine over the full evaluated
-// recording (steady, transients, fuel cut-off entry and exit). Per engine: no-load brake max < 12 N m, RMS <
-// 3 N m,
-// >= 90 % within the issue's tolerance, claimed 1 sigma covers >= 40 % and 2 sigma >= 65 %; with the load
+// Without a load signal: fuel model (FuelAngleWindow) and learned inertia: every report engine over the full
+// evaluated recording (steady, transients, fuel cut-off entry and exit). Per engine: no-load brake max < 12 N
+// m, RMS < 3 N m,
+// >= 90 % within the target tolerance, claimed 1 sigma covers >= 40 % and 2 sigma >= 65 %; with the load
 // signal friction within 10 % or 2 N m on >= 95 % of the cycles and indicated within 3 % or 2 N m on >= 75 %;
 // the learned inertia within 2.5 % of the hidden truth (3.2 % off on rep_i6_36 before the fuel model's change
 // entered the firing pairs). Pooled over the six engines the claimed 1 sigma covers 62-78 % and 2 sigma at

@@ -1,5 +1,5 @@
 #pragma once
-// Per-cylinder truth (issue 15): imbalance error per cylinder and speed, in-cycle indicated torque RMS and
+// Per-cylinder truth: imbalance error per cylinder and speed, in-cycle indicated torque RMS and
 // lag per speed and load, misfires found/true/false, on the simulator's scenarios and on engines with
 // randomised geometry, tooth errors and imbalance patterns that nothing in torqued was tuned on. Not
 // real-time code.

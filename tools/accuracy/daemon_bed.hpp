@@ -16,10 +16,10 @@ namespace torqued::eval {
 
 struct DaemonBedStats {
   int n = 0;
-  int pass = 0;      ///< within 5 % or 3 N m steady, 8 % or 5 N m transient (issue 14)
+  int pass = 0;      ///< within 5 % or 3 N m steady, 8 % or 5 N m transient
   int covered = 0;   ///< |error| <= claimed 1 sigma
   int covered2 = 0;  ///< |error| <= 2 x claimed 1 sigma
-  int tight = 0;     ///< within the issue's tighter target: 3 % or 2 N m (indicated with the load signal),
+  int tight = 0;     ///< within the tighter target: 3 % or 2 N m (indicated with the load signal),
                      ///< 10 % or 2 N m (friction); counted for every quantity, meaningful for those two
   double rms_nm = 0.0, max_abs_nm = 0.0, bias_nm = 0.0;
 };

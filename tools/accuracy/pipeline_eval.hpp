@@ -38,7 +38,7 @@ struct EvalOptions {
   double load_lost_after_s = -1.0;  ///< >= 0: the load-torque signal (only) disappears from this time on
   int skip_cycles = 12;             ///< cycles ignored at the start (RLS / ESO convergence)
   double can_lost_after_s = -1.0;   ///< >= 0: CAN signals disappear from this time on
-  double steady_pct = 3.0, steady_nm = 2.0;  ///< issue 5 tolerances
+  double steady_pct = 3.0, steady_nm = 2.0;  ///< steady-state tolerances
   double transient_pct = 5.0, transient_nm = 3.0;
   AnglePipelineConfig base{};  ///< tuning (engine/wheel are taken from the scenario)
   EMachineParams e_machine{};  ///< hybrid input: bound = the EM_1 machine torque is used (scenario with a machine)
@@ -114,7 +114,7 @@ ScenarioResult evaluate(const sim::Scenario& scenario, const EvalOptions& option
 /// Same on an already simulated output.
 ScenarioResult evaluate(const sim::Scenario& scenario, const sim::SimOutput& out, const EvalOptions& options);
 
-/// One engine of the unseen-engines bed (issue 14): configured from its spec sheet only, friction from the
+/// One engine of the unseen-engines bed: configured from its spec sheet only, friction from the
 /// generic prior, learned on bed_learning_run(), then bed_eval_run() evaluated from that learned state with
 /// and without the load-torque signal (other CAN signals stay). Brake/indicated scored on every cycle after
 /// `skip_cycles`.
@@ -125,7 +125,7 @@ struct BedResult {
 };
 BedResult evaluate_bed_engine(const sim::BedEngine& engine, const EvalOptions& options, bool short_run);
 
-/// Hybrid input on the bed (issue 14 item 3): the engine's recordings with an electric machine of `ratio` as the
+/// Hybrid input on the bed: the engine's recordings with an electric machine of `ratio` as the
 /// load. learn: the learning recording with the machine as the known sole load (no dynamometer signal);
 /// with_machine: the evaluated recording without load signal, machine bound (sole load); control: the same recording,
 /// machine torque present on CAN but not bound (crank-only).

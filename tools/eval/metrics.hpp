@@ -1,5 +1,5 @@
 #pragma once
-// Error metrics of an estimate against truth (ESTIMATORS.md §1, Na-60..62: ISE = ∫ε² dt, MAE = max|ε|,
+// Error metrics of an estimate against truth (docs/equations.md §1.5, Na-60..62: ISE = ∫ε² dt, MAE = max|ε|,
 // SD = std(ε)), cycle-mean % error, in-cycle phase lag by cross-correlation, convergence and misfire counts.
 // Pure functions on vectors; NaN inputs are the caller's business (filter them first).
 #include <cstddef>

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Tooth edge -> subscriber latency over shared memory (iceoryx) and over the network path, same QoS, one after
-# the other, each with cyclictest alongside (issue 18). Both runs use the demo with the QoS iceoryx carries
+# the other, each with cyclictest alongside. Both runs use the demo with the QoS iceoryx carries
 # (docs/daemon.md, "Shared memory"), so the only difference is the path. As root, RouDi runs in a mount namespace
 # of its own (private /tmp and /dev/shm: it neither meets nor disturbs another RouDi); otherwise it must be the
 # only RouDi on the machine.

@@ -43,7 +43,7 @@ if [[ "${TORQUED_SKIP_SANITIZERS:-0}" != "1" ]]; then
   TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 run_tier tsan build-tsan -L tsan
 fi
 
-# ---- fuzzing (issue 16): a short bounded run of every libFuzzer target (clang build in build-fuzz) ----
+# ---- fuzzing: a short bounded run of every libFuzzer target (clang build in build-fuzz) ----
 if [[ "${TORQUED_SKIP_FUZZ:-0}" != "1" ]]; then
   echo "== fuzz (5 s per target) =="
   if tools/scripts/fuzz.sh "${TORQUED_FUZZ_SECONDS:-5}" build-fuzz | tee build/fuzz.txt; then :; else status=1; fi

@@ -1,6 +1,6 @@
 #pragma once
-// The simulator's CAN message set (common.md "CAN signals") as data: one table drives the frame packing, the
-// decoding used by signals_at() and the text of config/demo.dbc, so the three cannot disagree.
+// The simulator's CAN message set (docs/simulator.md §5, CAN) as data: one table drives the frame packing,
+// the decoding used by signals_at() and the text of config/demo.dbc, so the three cannot disagree.
 #include <array>
 #include <cstdint>
 #include <span>

@@ -84,7 +84,7 @@ void EngineModel::derivative(double theta_w, const State& y, const HeldInputs& i
     const double root = std::sqrt(q);
     const double s2 = 2.0 * s * co;
     const double c2 = co * co - s * s;
-    // f, g: ESTIMATORS.md §0 (EN-5 corrected), same formulas as CrankKinematics.
+    // f, g: docs/equations.md §0 (EN-5 corrected), same formulas as CrankKinematics.
     const double f = s + lambda_ * s2 / (2.0 * root);
     const double g = co + lambda_ * c2 / root + lambda_ * lambda_ * lambda_ * s2 * s2 / (4.0 * q * root);
     sum_ff += f * f;

@@ -44,7 +44,7 @@ class EngineModel {
 
   explicit EngineModel(const Scenario& scenario);
 
-  /// dy/dθ at wheel angle θ_w (ESTIMATORS.md §0 energy form (CF-2): dK/dθ = T_ind − T_fric − T_load;
+  /// dy/dθ at wheel angle θ_w (docs/equations.md §0 energy form (CF-2): dK/dθ = T_ind − T_fric − T_load;
   /// dt/dθ = 1/θ̇; first-law dp/dθ = ((γ−1)/V) dQ/dθ − γ (p/V) dV/dθ). Fills `ev` when non-null.
   void derivative(double theta_w, const State& y, const HeldInputs& in, State& dy, ModelEval* ev) const noexcept;
 

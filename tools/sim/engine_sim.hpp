@@ -1,5 +1,5 @@
 #pragma once
-// Crank-angle-resolved 4-stroke engine simulator with ground truth (issue 2, "Engine simulator with ground truth").
+// Crank-angle-resolved 4-stroke engine simulator with ground truth (docs/simulator.md).
 // Not real-time code: it allocates freely. Deterministic: the same Scenario (incl. seed) gives identical output.
 // Physics and parameter values: docs/simulator.md.
 //

@@ -1,6 +1,6 @@
 #pragma once
 // Crossley & Cook mean-value SI engine (the model behind MathWorks' "Engine Timing Model with Closed Loop
-// Control"), as used by Na et al. 2015 (CDC eq. 44-47) and summarised in ESTIMATORS.md §1.5. Units as in
+// Control"), as used by Na et al. 2015 (CDC eq. 44-47) and summarised in docs/equations.md §1.6. Units as in
 // that model: throttle angle deg, manifold pressure bar, air flows g/s, speed rad/s, torque N m.
 //   ṁ_ai = f(θ)·g(p_m),  f = 2.821 − 0.05231θ + 0.10299θ² − 0.00063θ³                         (CDC-45)
 //   g(p_m) = 1 for p_m ≤ p_amb/2, else (2/p_amb)·√(p_m·p_amb − p_m²)

@@ -1,5 +1,6 @@
 #pragma once
-// Writes a simulation in the project's input formats (common.md, DESIGN.md "Input formats") and its truth.
+// Writes a simulation in the project's input formats (docs/io.md "Sources", docs/simulator.md §7) and its
+// truth.
 #include <filesystem>
 #include <string>
 

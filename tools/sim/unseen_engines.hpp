@@ -1,7 +1,7 @@
 #pragma once
-// The "unseen engines" test bed (issue 14 item 4): a fixed list of seeded engines whose true parameters are
-// drawn from plausible ranges around a spec sheet, so that estimators are evaluated on engines they were not
-// tuned on. Each engine has a spec sheet (what a user configures: bore, stroke, rod, compression ratio,
+// The "unseen engines" test bed (docs/simulator.md §9): a fixed list of seeded engines whose true parameters
+// are drawn from plausible ranges around a spec sheet, so that estimators are evaluated on engines they were
+// not tuned on. Each engine has a spec sheet (what a user configures: bore, stroke, rod, compression ratio,
 // firing order, wheel, catalogue inertia and oscillating mass) and a hidden truth (inertia ±10 %, oscillating
 // mass ±10 %, friction level ±40 % and shape, combustion phasing and duration, heat loss, valve timing incl.
 // an EVO late enough to overlap the next cylinder's compression window, tooth errors 0.02-0.1°). 3, 4 and 6
