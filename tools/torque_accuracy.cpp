@@ -124,20 +124,23 @@ std::string dpc(const torqued::eval::DaemonBedStats& s) {
 /// --vehicle-bed: a vehicle and a hybrid on the bed's engines through the daemon's chain (daemon_bed.hpp).
 int run_vehicle_bed(bool all, const torqued::eval::DaemonBedOptions& opt) {
   std::printf(
-      "Vehicle bed (%s recordings in %s, daemon chain, fresh state, no load signal). Per run: cycles, then "
+      "Vehicle bed (%s recordings in %s, daemon chain, fresh state, no load signal). Per run: cycles; "
       "brake,\n"
       "indicated, friction: RMS / max |error| (N m) and cov = %% of cycles with |error| <= claimed 1 sigma;\n"
-      "pass = %% of brake within 5 %% or 3 N m steady, 8 %% or 5 N m transient; fused = %% of cycles whose "
-      "fused\n"
-      "brake was published. hybrid/open: standstill charging with the clutch open (em_sole_load flag "
-      "mapped);\n"
-      "hybrid/drive: driving after it (clutch closed, boost, generation, overrun in gear); "
-      "static-false/true:\n"
-      "the same recording with can.e_machine.sole_load fixed (no flag); vehicle: idle in neutral, driving,\n"
-      "overrun in gear, neutral coast-down, without any clutch signal (noflag) or with it as neutral.\n",
+      "pass = %% of brake within 5 %% or 3 N m steady, 8 %% or 5 N m transient; fused = %% of cycles whose\n"
+      "fused brake was published, then its RMS / max |error| over those (the brake column scores the "
+      "chain's\n"
+      "brake on every cycle, also where nothing is published). hybrid/open: standstill charging, clutch "
+      "open\n"
+      "(em_sole_load flag mapped); hybrid/drive: driving after it (clutch closed, boost, generation, "
+      "overrun\n"
+      "in gear); static-false/true: the same recording with can.e_machine.sole_load fixed, no flag; "
+      "vehicle:\n"
+      "idle in neutral, driving, overrun in gear, neutral coast-down, no clutch signal (noflag) or as "
+      "neutral.\n",
       opt.short_run ? "short" : "full", opt.out_dir.c_str());
-  std::printf("%-10s %-26s %4s | %-13s %-9s | %-13s %4s | %-13s %4s | %5s\n", "engine", "run", "cyc", "brake",
-              "pass/cov", "indicated", "cov", "friction", "cov", "fused");
+  std::printf("%-10s %-26s %4s | %-13s %-9s | %-13s %4s | %-13s %4s | %5s %s\n", "engine", "run", "cyc",
+              "brake", "pass/cov", "indicated", "cov", "friction", "cov", "fused", "RMS    max");
   int rc = 0;
   const auto pct = [](int k, int m) { return m > 0 ? 100 * k / m : 0; };
   for (const auto& e : torqued::sim::unseen_engines()) {
@@ -151,10 +154,11 @@ int run_vehicle_bed(bool all, const torqued::eval::DaemonBedOptions& opt) {
     }
     for (const auto& run : b.runs) {
       const auto& w = run.r;
-      std::printf("%-10s %-26s %4d | %-13s %-9s | %-13s %3d%% | %-13s %3d%% | %4d%%\n", b.engine.c_str(),
+      std::printf("%-10s %-26s %4d | %-13s %-9s | %-13s %3d%% | %-13s %3d%% | %4d%% %s\n", b.engine.c_str(),
                   run.label.c_str(), w.cycles, ds(w.brake).c_str(), dpc(w.brake).c_str(),
                   ds(w.indicated).c_str(), pct(w.indicated.covered, w.indicated.n), ds(w.friction).c_str(),
-                  pct(w.friction.covered, w.friction.n), pct(w.fused_published, w.cycles));
+                  pct(w.friction.covered, w.friction.n), pct(w.fused_published, w.cycles),
+                  ds(w.fused).c_str());
     }
     std::fflush(stdout);
   }
