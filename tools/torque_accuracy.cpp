@@ -269,6 +269,11 @@ int main(int argc, char** argv) {
       "run the vehicle bed: a vehicle (no load signal; clutch flag unmapped / as neutral) and a hybrid "
       "(machine torque and clutch flag on CAN) on the report engines through the daemon's chain "
       "(--bed-out, --bed-short, --bed-all apply)");
+  double vehicle_flag_lag = 0.0;
+  app.add_option("--vehicle-flag-lag", vehicle_flag_lag,
+                 "with --vehicle-bed: the clutch flag on CAN is late by this (s) instead of leading the clutch "
+                 "(robustness)")
+      ->check(CLI::Range(0.0, 10.0));
   app.add_flag("--bed-all", bed_all, "with --bed: also the tuning engines");
   app.add_flag("--bed-short", bed_short, "with --bed: the short evaluated recordings (the ctest subset)");
   double bed_machine = 0.0;
@@ -329,6 +334,7 @@ int main(int argc, char** argv) {
   if (vehicle_bed) {
     torqued::eval::DaemonBedOptions o;
     o.out_dir = bed_out == "bed-daemon" ? "bed-vehicle" : bed_out;
+    o.vehicle_flag_lag_s = vehicle_flag_lag;
     o.short_run = bed_short;
     o.skip_cycles = skip;
     return run_vehicle_bed(bed_all, o);

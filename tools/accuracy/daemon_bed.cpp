@@ -228,7 +228,8 @@ bool evaluate_vehicle_bed_engine(const sim::BedEngine& e, const DaemonBedOptions
   try {
     const fs::path dir = fs::path(opt.out_dir) / e.name;
     double td = 0.0;
-    const sim::Scenario hy = sim::bed_hybrid_run(e, opt.short_run, &td);
+    sim::Scenario hy = sim::bed_hybrid_run(e, opt.short_run, &td);
+    hy.vehicle.flag_lag_s = opt.vehicle_flag_lag_s;
     const sim::SimOutput hy_out = sim::simulate(hy);
     const fs::path hd = dir / "hybrid";
     sim::write_recording(hy_out, hy, e.spec, hd);
@@ -248,7 +249,8 @@ bool evaluate_vehicle_bed_engine(const sim::BedEngine& e, const DaemonBedOptions
         {"hybrid/drive static-false", score(b.rows, hy_out, 0, hd / "cycles_sf.csv", td + settle)});
     r.runs.push_back(
         {"hybrid/drive static-true", score(c.rows, hy_out, 0, hd / "cycles_st.csv", td + settle)});
-    const sim::Scenario ve = sim::bed_vehicle_run(e, opt.short_run);
+    sim::Scenario ve = sim::bed_vehicle_run(e, opt.short_run);
+    ve.vehicle.flag_lag_s = opt.vehicle_flag_lag_s;
     const sim::SimOutput ve_out = sim::simulate(ve);
     const fs::path vd = dir / "vehicle";
     sim::write_recording(ve_out, ve, e.spec, vd);

@@ -43,6 +43,7 @@ struct DaemonBedOptions {
   std::string out_dir = "bed-daemon";  ///< recordings, state files and configs are left here
   bool short_run = false;              ///< the 4 s evaluated recording
   int skip_cycles = 12;                ///< cycles left out at the start of each evaluated run
+  double vehicle_flag_lag_s = 0.0;     ///< --vehicle-bed: the clutch flag late by this (s; 0: the TCU's lead)
 };
 
 /// torque-accuracy --vehicle-bed: a vehicle (no load signal) and a hybrid (machine torque and clutch flag on

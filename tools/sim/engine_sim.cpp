@@ -43,6 +43,7 @@ bool clutch_closed_at(const VehicleSim& v, double t) {
 }
 /// VEH_1.ClutchOpen: open now and for flag_lead_s either side (drops before closing, rises after opening).
 bool clutch_flag_open(const VehicleSim& v, double t) {
+  if (v.flag_lag_s > 0.0) return !clutch_closed_at(v, t - v.flag_lag_s);  // a late flag (robustness runs)
   return !clutch_closed_at(v, t) && !clutch_closed_at(v, t - v.flag_lead_s) &&
          !clutch_closed_at(v, t + v.flag_lead_s);
 }

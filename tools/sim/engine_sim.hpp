@@ -147,6 +147,7 @@ struct VehicleSim {
   double road_ki = 30.0;            ///< (N m / rad)
   double accessory_w = 350.0;       ///< accessories' mechanical power (W)
   double flag_lead_s = 0.05;        ///< VEH_1.ClutchOpen leads the closing / lags the opening by this (s)
+  double flag_lag_s = 0.0;          ///< > 0: instead, a late flag: the clutch state of this long ago (s)
   bool flag_on_can = true;          ///< send VEH_1
 };
 
