@@ -35,6 +35,7 @@ AnglePipelineConfig resolve_prior(AnglePipelineConfig c) noexcept {
         std::numbers::pi * 0.25 * c.engine.bore_m * c.engine.bore_m * 2.0 * r * c.engine.cylinders;
     c.friction.c = generic_friction_prior(vd, c.friction.sign);
   }
+  c.load_ref.load_sd_nm = c.fusion.can_load_sd_nm;
   return c;
 }
 /// Firing TDC of each firing position relative to cylinder 1's (rad): 4π·m/n (docs/equations.md §0).
@@ -186,10 +187,14 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
 
   if (sig.oil_temp_valid && std::isfinite(sig.oil_temp_c)) oil_c_ = sig.oil_temp_c;
   const bool can_fresh = static_cast<double>(s.t_ns - sig.t_ns) * 1e-9 <= cfg_.fusion.max_can_age_s;
-  // Hybrid input: the machine's torque is a known part of the load (e_machine.hpp); not bound, this is the load
-  // signal alone. A stale machine value makes the net load unknown, as a stale load signal does.
-  const NetLoad net = fold_e_machine(cfg_.e_machine, sig);
+  // Hybrid input: the machine's torque is a known part of the load (e_machine.hpp); not bound, this is the
+  // load signal alone. A stale machine value makes the net load unknown, as a stale load signal does. On a
+  // vehicle the clutch / neutral flags decide whether anything fixes the load (classify_load,
+  // load_reference.hpp).
+  const LoadReference lref = classify_load(cfg_.e_machine, cfg_.load_ref, sig);
+  const NetLoad& net = lref.net;
   const bool load_ok = can_fresh && net.known;
+  track_reference(lref, load_ok);
   machine_motoring_ = can_fresh && net.em_valid && net.em_crank_nm > 0.0 && sig.fuel_mass_valid &&
                       !(sig.fuel_mass_kg > 0.0);
 
@@ -331,8 +336,7 @@ void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals&
     }
     prev_brake_ = brake;
     have_prev_brake_ = true;
-    o.brake_energy =
-        make(seg.t_ns, brake, std::sqrt(brake_var_) + cfg_.fusion.can_load_sd_nm, Health::kValid);
+    o.brake_energy = make(seg.t_ns, brake, std::sqrt(brake_var_) + load_sd_nm(), Health::kValid);
   } else {
     o.brake_energy = make(seg.t_ns, 0.0, 0.0, Health::kStaleInput);
   }
@@ -351,7 +355,7 @@ void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals&
            have_map_ && !friction_.is_prior() ? Health::kValid : Health::kNotConverged);
   fuel_ind_ = fuel_.estimate_window(seg.t_ns, fw, motored);
   if (seg.cycle_load_valid) {
-    o.load = make(seg.t_ns, seg.cycle_load_mean_nm, cfg_.fusion.can_load_sd_nm, Health::kValid);
+    o.load = make(seg.t_ns, seg.cycle_load_mean_nm, load_sd_nm(), Health::kValid);
     o.brake = o.brake_energy;
     o.indicated = make(seg.t_ns, o.brake_energy.torque_nm + fric,
                        std::hypot(o.brake_energy.uncertainty, fric_sd), fric_h);
@@ -376,45 +380,76 @@ void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals&
   (void)can_fresh;
 }
 
-bool AnglePipeline::motoring_observation_allowed(const SegmentEnergy& seg, const EngineSignals& sig,
-                                                 bool load_steady) const noexcept {
-  // Fuel cut-off for the whole 720° window plus one segment for the CAN flag's delay.
-  return cut_segments_ > cfg_.engine.cylinders + 1 && seg.cycle_load_valid && load_steady && sig.map_valid;
+void AnglePipeline::track_reference(const LoadReference& ref, bool load_ok) noexcept {
+  const ReferenceKind k = load_ok ? ref.kind : ReferenceKind::kNone;
+  if (k != ref_kind_) {
+    ref_kind_ = k;
+    ref_teeth_ = 0;
+    ref_sd_nm_ = 0.0;
+  }
+  if (ref_teeth_ < (1 << 30)) ++ref_teeth_;
+  ref_sd_nm_ = std::max(ref_sd_nm_, ref.sd_nm);
 }
 
-bool AnglePipeline::idle_observation_allowed(const SegmentEnergy& seg, const TorqueEstimate& rls, double rpm,
+// The one decision of whether a 720° window is a reference for the learners (friction, inertia, fuel model,
+// crank-chain error): its load was known at every tooth (a measured load, the machine alone with the clutch
+// open, neutral with the accessory prior) and one kind fixed it throughout (a window that saw the clutch /
+// neutral flag change is not a reference; a quarter cycle of margin for the wide KE window's outer edges). A
+// fuel cut-off with the clutch closed and no load signal has kind kNone: nothing is learned from it.
+CycleReference AnglePipeline::cycle_reference(const SegmentEnergy& seg) const noexcept {
+  CycleReference r;
+  const int teeth_cycle = 2 * cfg_.wheel.teeth();
+  r.kind = ref_kind_;
+  r.sd_nm = ref_sd_nm_;
+  r.ok =
+      seg.cycle_load_valid && ref_kind_ != ReferenceKind::kNone && ref_teeth_ > teeth_cycle + teeth_cycle / 4;
+  return r;
+}
+
+bool AnglePipeline::motoring_observation_allowed(const CycleReference& ref, const EngineSignals& sig,
+                                                 bool load_steady) const noexcept {
+  // Fuel cut-off for the whole 720° window plus one segment for the CAN flag's delay.
+  return cut_segments_ > cfg_.engine.cylinders + 1 && ref.ok && load_steady && sig.map_valid;
+}
+
+bool AnglePipeline::idle_observation_allowed(const SegmentEnergy& seg, const CycleReference& ref,
+                                             const TorqueEstimate& rls, double rpm,
                                              bool cycle_end) const noexcept {
   const int n = cfg_.engine.cylinders;
   const FrictionParams& f = cfg_.friction;
-  return cycle_end && fired_segments_ > n && since_cut_segments_ > f.idle_after_cut_cycles * n &&
-         seg.cycle_load_valid && rls.health == Health::kValid && rls.uncertainty < f.idle_max_rls_sd_nm &&
+  return cycle_end && fired_segments_ > n && since_cut_segments_ > f.idle_after_cut_cycles * n && ref.ok &&
+         rls.health == Health::kValid && rls.uncertainty < f.idle_max_rls_sd_nm &&
          idle_steady_cycles_ >= f.idle_steady_cycles && rpm < cfg_.energies.idle_max_rpm &&
          std::fabs(seg.cycle_load_mean_nm) < cfg_.energies.idle_max_load_nm;
 }
 
-bool AnglePipeline::fuel_reference_allowed(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh,
-                                           bool load_steady, bool cycle_end) const noexcept {
-  // A reference cycle: measured load (energy balance), learned friction, firing for a whole window, fuel on
-  // CAN.
-  return cycle_end && seg.cycle_load_valid && load_steady && !friction_.is_prior() &&
-         fired_segments_ > cfg_.engine.cylinders && can_fresh && sig.fuel_mass_valid && have_map_;
+bool AnglePipeline::fuel_reference_allowed(const CycleReference& ref, const EngineSignals& sig,
+                                           bool can_fresh, bool load_steady, bool cycle_end) const noexcept {
+  // A reference cycle: known load (energy balance) no less certain than fuel_max_sd_nm (FuelTorque::learn has
+  // no per-reference weight), learned friction, firing for a whole window, fuel on CAN.
+  return cycle_end && ref.ok && ref.sd_nm <= cfg_.load_ref.fuel_max_sd_nm && load_steady &&
+         !friction_.is_prior() && fired_segments_ > cfg_.engine.cylinders && can_fresh &&
+         sig.fuel_mass_valid && have_map_;
 }
 
 void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,
                           const FuelWindow& fw, const CycleOutput& o) noexcept {
   const double rpm = o.speed_mean_rad_s * kRadSToRpm;
+  const CycleReference ref = cycle_reference(seg);
   const bool load_steady =
       have_prev_load_ && std::fabs(seg.cycle_load_mean_nm - prev_load_) <= cfg_.friction.max_load_change_nm;
   prev_load_ = seg.cycle_load_mean_nm;
   have_prev_load_ = seg.cycle_load_valid;
   // EN-24..36 in fuel cut-off: T_ind = motored (pumping) torque, so T_fric = T_motored − Δ(½Jθ̇²)/4π − T_load.
-  if (motoring_observation_allowed(seg, sig, load_steady)) {
+  // The reference's 1σ weighs the observation (a measured load ≈ the learner's unit variance, neutral's
+  // accessory prior less).
+  if (motoring_observation_allowed(ref, sig, load_steady)) {
     const double obs = rls_.motored_torque_nm(sig.map_pa) - dke_nm - seg.cycle_load_mean_nm;
-    if (friction_.observe_motoring(rpm, oil_c_, obs)) ++stats_.friction_observations;
+    if (friction_.observe_motoring(rpm, oil_c_, obs, ref.sd_nm * ref.sd_nm)) ++stats_.friction_observations;
   }
   // Steady idle (speed within idle_speed_tolerance for idle_steady_cycles; the RLS remembers ≈ 10 cycles).
   if (o.cycle_end) {
-    const bool steady = rpm < cfg_.energies.idle_max_rpm && seg.cycle_load_valid && load_steady &&
+    const bool steady = rpm < cfg_.energies.idle_max_rpm && ref.ok && load_steady &&
                         std::fabs(rpm - prev_cycle_rpm_) < cfg_.friction.idle_speed_tolerance * rpm;
     idle_steady_cycles_ = steady ? idle_steady_cycles_ + 1 : 0;
     prev_cycle_rpm_ = rpm;
@@ -422,12 +457,12 @@ void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bo
   // Idle: no load, firing, RLS settled -> its extended load is the friction (EN-30..33; local idle
   // correction). The learner rejects observations far from the established idle level (no collapse on one bad
   // input).
-  if (idle_observation_allowed(seg, o.load_rls, rpm, o.cycle_end)) {
+  if (idle_observation_allowed(seg, ref, o.load_rls, rpm, o.cycle_end)) {
     friction_.observe_idle(rpm, oil_c_, o.load_rls.torque_nm - seg.cycle_load_mean_nm);
   }
   // Crank-only references: the energy balance with the measured load is the truth the crank-only chains are
   // scored against (fuel-model efficiency; measured 1σ of the compression-window chain).
-  if (fuel_reference_allowed(seg, sig, can_fresh, load_steady, o.cycle_end)) {
+  if (fuel_reference_allowed(ref, sig, can_fresh, load_steady, o.cycle_end)) {
     const double t_ind_ref = o.brake_energy.torque_nm + o.friction.torque_nm;
     if (fw.valid && fw.cut == 0) (void)fuel_.learn(fw.fuel_kg, fw.map_fired_pa, t_ind_ref);
     if (o.indicated_crank.health == Health::kValid) {
@@ -442,7 +477,7 @@ void AnglePipeline::learn_inertia(const SegmentEnergy& seg, bool can_fresh, doub
   if (!o.cycle_end) return;  // consecutive, non-overlapping 720° windows
   const int n = cfg_.engine.cylinders;
   InertiaPoint p;
-  p.ok = seg.cycle_load_valid && can_fresh && fw.valid && have_map_;
+  p.ok = cycle_reference(seg).ok && can_fresh && fw.valid && have_map_;
   p.fired = fw.fired == n && fw.cut == 0;
   p.cut = fw.fired == 0 && fw.cut == n;
   p.dke_spec_nm = dke_spec_nm;

@@ -18,6 +18,7 @@
 // Learning:    friction C1..C3 from fuel cut-off cycles and from motoring by the electric machine (energy balance
 //              + measured net load + modelled pumping loop),
 //              C4 at idle from the RLS extended load (= friction when the load is zero).
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -35,6 +36,7 @@
 #include "fuel_torque.hpp"
 #include "indicated_eso.hpp"
 #include "inertia_learner.hpp"
+#include "load_reference.hpp"
 #include "load_rls.hpp"
 #include "params.hpp"
 #include "samples.hpp"
@@ -55,6 +57,7 @@ struct AnglePipelineConfig {
   FourierParams fourier{};
   FuelTorqueParams fuel{};
   EMachineParams e_machine{};  ///< hybrid input: machine torque folded into the net load (e_machine.hpp)
+  LoadReferenceParams load_ref{};  ///< vehicle: clutch / neutral flags, accessory prior (load_reference.hpp)
   bool run_kalman = true;   ///< Chauvin TV-Kalman in-cycle indicated torque per tooth
   bool run_fourier = true;  ///< Chauvin Fourier observer per tooth (disabled if its gains fail CF-14)
   double default_oil_temp_c = 90.0;  ///< used until an oil temperature arrives on CAN (°C)
@@ -171,13 +174,22 @@ class AnglePipeline {
   void fuse(const SegmentEnergy& seg, const EngineSignals& sig, CycleOutput& o) noexcept;
   void learn_inertia(const SegmentEnergy& seg, bool can_fresh, double dke_spec_nm, const FuelWindow& fw,
                      const CycleOutput& o) noexcept;
-  [[nodiscard]] bool motoring_observation_allowed(const SegmentEnergy& seg, const EngineSignals& sig,
+  [[nodiscard]] bool motoring_observation_allowed(const CycleReference& ref, const EngineSignals& sig,
                                                   bool load_steady) const noexcept;
-  [[nodiscard]] bool idle_observation_allowed(const SegmentEnergy& seg, const TorqueEstimate& rls, double rpm,
+  [[nodiscard]] bool idle_observation_allowed(const SegmentEnergy& seg, const CycleReference& ref,
+                                              const TorqueEstimate& rls, double rpm,
                                               bool cycle_end) const noexcept;
-  [[nodiscard]] bool fuel_reference_allowed(const SegmentEnergy& seg, const EngineSignals& sig,
+  [[nodiscard]] bool fuel_reference_allowed(const CycleReference& ref, const EngineSignals& sig,
                                             bool can_fresh, bool load_steady, bool cycle_end) const noexcept;
   [[nodiscard]] double friction_sd_nm(double fric) const noexcept;
+  /// What fixes the load of the 720° window ending at `seg`, for the learners (one decision, see .cpp).
+  [[nodiscard]] CycleReference cycle_reference(const SegmentEnergy& seg) const noexcept;
+  /// 1σ of the load in the balance: the measured load's, or the reference kind's when larger (N m).
+  [[nodiscard]] double load_sd_nm() const noexcept {
+    return std::max(cfg_.fusion.can_load_sd_nm, ref_sd_nm_);
+  }
+  /// Per tooth: the load reference now, and how long its kind has held.
+  void track_reference(const LoadReference& ref, bool load_ok) noexcept;
 
   AnglePipelineConfig cfg_;
   CycleEnergy energy_;
@@ -205,6 +217,9 @@ class AnglePipeline {
       0.0;             ///< measured variance of the compression-window chain vs the energy balance (N m²)
   bool fired_ = true;  ///< current segment fires (no fuel cut-off flag, not motored by the machine)
   bool machine_motoring_ = false;  ///< at the last tooth: the machine drives the crank with no fuel injected
+  ReferenceKind ref_kind_ = ReferenceKind::kNone;  ///< at the last tooth (kNone: load unknown there)
+  double ref_sd_nm_ = 0.0;                         ///< its 1σ; the largest since the kind last changed (N m)
+  int ref_teeth_ = 0;                              ///< teeth since the kind last changed
   CylinderTorque cyl_;
   TorqueFusion fusion_;
   ToothPreprocessor pre_;

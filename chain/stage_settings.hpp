@@ -16,8 +16,8 @@
 namespace torqued {
 
 
-inline constexpr int kSignalCount =
-    11;  ///< EngineSignals quantities: map, maf, ..., load_torque, em_torque (this order)
+inline constexpr int kSignalCount = 13;  ///< EngineSignals quantities: map, maf, ..., load_torque, em_torque,
+                                         ///< em_sole_load, neutral (this order)
 
 struct SignalSpec {
   std::string message;  ///< DBC message ("" = not mapped)

@@ -63,8 +63,10 @@ const TimePipelineOutput& TimePipeline::step(std::int64_t t_ns, const EngineSign
   }
   // The signal store already turned time-outs into valid == false; we cannot tell stale from rejected here,
   // so a missing CAN signal is reported as stale (the common cause: CAN lost).
-  // Hybrid input: the net load T_load − T_em,crank (e_machine.hpp); a stale machine value makes it stale.
-  const NetLoad net = fold_e_machine(e_machine_, signals);
+  // Hybrid input: the net load T_load − T_em,crank (e_machine.hpp); a stale machine value makes it stale. On
+  // a vehicle the clutch / neutral flags decide whether anything fixes it (classify_load,
+  // load_reference.hpp).
+  const NetLoad net = classify_load(e_machine_, load_ref_, signals).net;
   s.load_torque_nm = net.torque_nm;
   s.load = net.known ? InputStatus::kOk : InputStatus::kStale;
   s.maf_kg_s = signals.maf_kg_s;

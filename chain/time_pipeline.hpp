@@ -11,6 +11,7 @@
 #include "e_machine.hpp"
 #include "engine_geometry.hpp"
 #include "estimate.hpp"
+#include "load_reference.hpp"
 #include "mean_speed_tracker.hpp"
 #include "params.hpp"
 #include "samples.hpp"
@@ -43,6 +44,8 @@ class TimePipeline {
   /// Hybrid input: how the machine's CAN torque folds into the load step() hands the estimators (before the
   /// first step; default: not bound, the load signal alone).
   void set_e_machine(const EMachineParams& p) noexcept { e_machine_ = p; }
+  /// Clutch / neutral flags (load_reference.hpp): which instants have a known load on a vehicle.
+  void set_load_reference(const LoadReferenceParams& p) noexcept { load_ref_ = p; }
   /// Feeds one decoded tooth to the mean-speed tracker. Real-time safe.
   void on_tooth(const ToothSample& tooth) noexcept;
   /// One timer tick at t_ns with the current signal-store snapshot. Real-time safe.
@@ -56,6 +59,7 @@ class TimePipeline {
  private:
   TimePipelineParams params_;
   EMachineParams e_machine_{};
+  LoadReferenceParams load_ref_{};
   double inertia_kgm2_;
   MeanSpeedTracker tracker_;
   Uio uio_;

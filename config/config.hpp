@@ -27,10 +27,13 @@ enum class LogLevel : std::uint8_t { kTrace, kDebug, kInfo, kWarn, kError, kCrit
 
 /// Number of CAN quantities of EngineSignals; `CanSignalsConfig::signals` is indexed by torqued::Quantity
 /// (io/signal_store.hpp: map, maf, intake_temp, oil_temp, throttle, lambda, spark_advance, fuel_mass,
-/// fuel_cutoff, load_torque, em_torque — the YAML keys under can.signals, same order).
-inline constexpr std::size_t kCanQuantityCount = 11;
+/// fuel_cutoff, load_torque, em_torque, em_sole_load, neutral — the YAML keys under can.signals, same order).
+inline constexpr std::size_t kCanQuantityCount = 13;
 /// Index of em_torque (the electric machine's torque, hybrid input) in `CanSignalsConfig::signals`.
 inline constexpr std::size_t kCanEmTorque = 10;
+/// Indices of the vehicle flags em_sole_load (the machine is the only load) and neutral (clutch open).
+inline constexpr std::size_t kCanEmSoleLoad = 11;
+inline constexpr std::size_t kCanNeutral = 12;
 /// YAML name of quantity index i under `can.signals` ("map", "maf", ...); "" when out of range.
 [[nodiscard]] std::string_view can_quantity_name(std::size_t i) noexcept;
 
@@ -84,10 +87,19 @@ struct EMachineConfig {
   bool sole_load = false;  ///< the machine is the only load on the crank (bench motoring, clutch open)
 };
 
+/// Vehicle load references (YAML can.load_reference; estimators/core/load_reference.hpp): used only when
+/// can.signals.em_sole_load or can.signals.neutral is mapped.
+struct LoadReferenceConfig {
+  double accessory_nm = 3.0;     ///< prior mean of the accessories' torque with the driveline open (N m)
+  double accessory_sd_nm = 2.0;  ///< its 1σ (N m)
+  double fuel_max_sd_nm = 3.0;   ///< the fuel model learns only from references at most this uncertain (N m)
+};
+
 struct CanSignalsConfig {
   std::string dbc;  ///< DBC file, absolute after loading ("" = none)
   std::array<SignalMapping, kCanQuantityCount> signals{};  ///< indexed by static_cast<size_t>(Quantity)
   EMachineConfig e_machine;
+  LoadReferenceConfig load_reference;
 };
 
 template <class Params>

@@ -531,6 +531,10 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
   if (c.wheel.crank_channel.empty()) out.push_back({"wheel.crank_channel", "", "a channel name"});
   if (c.can.e_machine.sign == 0) out.push_back({"can.e_machine.sign", "0", "+1 or -1"});
   const bool em_mapped = c.can.signals[kCanEmTorque].mapped();
+  if (c.can.signals[kCanEmSoleLoad].mapped() && !em_mapped)
+    out.push_back(
+        {"can.signals.em_sole_load", c.can.signals[kCanEmSoleLoad].message,
+         "can.signals.em_torque mapped (the flag says when the machine's torque is the only load)"});
   if (c.can.e_machine.sole_load && !em_mapped)
     out.push_back({"can.e_machine.sole_load", "true", "can.signals.em_torque mapped (the machine's torque on CAN)"});
   return out;

@@ -14,8 +14,8 @@ namespace torqued {
 
 std::string_view can_quantity_name(std::size_t i) noexcept {
   static constexpr std::array<std::string_view, kCanQuantityCount> kNames{
-      "map", "maf", "intake_temp", "oil_temp", "throttle", "lambda", "spark_advance", "fuel_mass", "fuel_cutoff",
-      "load_torque", "em_torque"};
+      "map",       "maf",         "intake_temp", "oil_temp",  "throttle",     "lambda", "spark_advance",
+      "fuel_mass", "fuel_cutoff", "load_torque", "em_torque", "em_sole_load", "neutral"};
   return i < kNames.size() ? kNames[i] : std::string_view{};
 }
 
@@ -188,8 +188,24 @@ void add_can(std::vector<SchemaEntry>& t) {
                      "machine speed / crank speed: machine torque on the crank = sign x ratio x em_torque"));
   t.push_back(integer("can.e_machine.sign", TQ_REF(int, can.e_machine.sign), closed(-1, 1), "",
                       "+1: em_torque positive when the machine drives the crank (motoring/boost), -1: when it brakes it"));
-  t.push_back(boolean("can.e_machine.sole_load", TQ_REF(bool, can.e_machine.sole_load),
-                      "the machine is the only load on the crank (bench motoring, clutch open): no load_torque needed"));
+  t.push_back(boolean(
+      "can.e_machine.sole_load", TQ_REF(bool, can.e_machine.sole_load),
+      "the machine is the only load on the crank (bench motoring, clutch open): no load_torque needed; "
+      "can.signals.em_sole_load, when mapped, decides this cycle by cycle instead"));
+  // Vehicle load references (estimators/core/load_reference.hpp): used only when em_sole_load or neutral is
+  // mapped.
+  t.push_back(number(
+      "can.load_reference.accessory_nm", TQ_REF(double, can.load_reference.accessory_nm), closed(-50.0, 50.0),
+      "N m",
+      "prior mean of the accessories' torque (alternator, pumps) while the clutch is open / in neutral "
+      "(vehicle flags mapped)"));
+  t.push_back(number(
+      "can.load_reference.accessory_sd_nm", TQ_REF(double, can.load_reference.accessory_sd_nm),
+      closed(0.0, 50.0), "N m",
+      "1 sigma of that prior: the uncertainty a clutch-open / neutral reference carries into the learners"));
+  t.push_back(number("can.load_reference.fuel_max_sd_nm", TQ_REF(double, can.load_reference.fuel_max_sd_nm),
+                     positive(1e3), "N m",
+                     "the fuel model learns only from load references at most this uncertain (1 sigma)"));
 }
 
 void add_topic_qos(std::vector<SchemaEntry>& t, const std::string& name, Ref<TopicQos> ref) {

@@ -9,9 +9,9 @@
 namespace torqued {
 namespace {
 
-constexpr const char* kNames[kQuantityCount] = {"map",         "maf",        "intake_temp",   "oil_temp",
-                                                "throttle",    "lambda",     "spark_advance", "fuel_mass",
-                                                "fuel_cutoff", "load_torque", "em_torque"};
+constexpr const char* kNames[kQuantityCount] = {
+    "map",       "maf",         "intake_temp", "oil_temp",  "throttle",     "lambda", "spark_advance",
+    "fuel_mass", "fuel_cutoff", "load_torque", "em_torque", "em_sole_load", "neutral"};
 
 std::string norm_unit(std::string_view u) {
   std::string s;
@@ -78,6 +78,8 @@ bool conversion(Quantity q, const std::string& u, double& scale, double& shift) 
     case Quantity::kFuelMass:
       return find(kMass);
     case Quantity::kFuelCutoff:
+    case Quantity::kEmSoleLoad:
+    case Quantity::kNeutral:
       return find(kFlag);
     case Quantity::kLoadTorque:
     case Quantity::kEmTorque:
@@ -234,6 +236,12 @@ EngineSignals SignalStore::signals_at(std::int64_t now_ns) const noexcept {
   s.fuel_cutoff = cut > 0.5;
   get(Quantity::kLoadTorque, s.load_torque_nm, s.load_torque_valid);
   get(Quantity::kEmTorque, s.em_torque_nm, s.em_torque_valid);
+  double flag = 0.0;
+  get(Quantity::kEmSoleLoad, flag, s.em_sole_load_valid);
+  s.em_sole_load = flag != 0.0;  // non-zero: the machine is the only load
+  flag = 0.0;
+  get(Quantity::kNeutral, flag, s.neutral_valid);
+  s.neutral = flag != 0.0;
   s.t_ns = newest;
   cache_ = s;
   cache_from_ns_ = now_ns;

@@ -27,13 +27,15 @@ enum class Quantity : std::uint8_t {
   kFuelMass,
   kFuelCutoff,
   kLoadTorque,
-  kEmTorque,  ///< electric machine torque (hybrid input, estimators/core/e_machine.hpp)
+  kEmTorque,    ///< electric machine torque (hybrid input, estimators/core/e_machine.hpp)
+  kEmSoleLoad,  ///< flag: the machine is the only load on the crank (estimators/core/load_reference.hpp)
+  kNeutral,     ///< flag: clutch open / gearbox in neutral (estimators/core/load_reference.hpp)
   kCount
 };
 inline constexpr int kQuantityCount = static_cast<int>(Quantity::kCount);
 
 /// "map", "maf", "intake_temp", "oil_temp", "throttle", "lambda", "spark_advance", "fuel_mass",
-/// "fuel_cutoff", "load_torque", "em_torque" (the config keys under can.signals).
+/// "fuel_cutoff", "load_torque", "em_torque", "em_sole_load", "neutral" (the config keys under can.signals).
 [[nodiscard]] const char* quantity_name(Quantity q) noexcept;
 [[nodiscard]] bool quantity_from_name(std::string_view name, Quantity& out) noexcept;
 

@@ -9,6 +9,7 @@ TimeStage::TimeStage(const StageSettings& s, const DbcDatabase* dbc, SampleSink&
       out_(out),
       pipeline_(s.time_pipeline, s.uio, s.sliding_mode, s.dirty_diff, s.adaptive, s.engine) {
   pipeline_.set_e_machine(s.angle.e_machine);  // hybrid input: the same net load as the angle chain
+  pipeline_.set_load_reference(s.angle.load_ref);
   step_ns_ = static_cast<std::int64_t>(std::llround(s.time_pipeline.step_s * 1e9));
   if (step_ns_ <= 0) error_ = "time pipeline step must be > 0";
   if (dbc) {

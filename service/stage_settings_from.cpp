@@ -22,6 +22,8 @@ StageSettings stage_settings_from(const Config& cfg) {
   s.decoder.cam_channel = 1;
   static_assert(kSignalCount == static_cast<int>(kCanQuantityCount));
   static_assert(kCanEmTorque == static_cast<std::size_t>(Quantity::kEmTorque));
+  static_assert(kCanEmSoleLoad == static_cast<std::size_t>(Quantity::kEmSoleLoad));
+  static_assert(kCanNeutral == static_cast<std::size_t>(Quantity::kNeutral));
   for (std::size_t i = 0; i < kCanQuantityCount; ++i) {
     const SignalMapping& m = cfg.can.signals[i];
     s.signals[i].message = m.message;
@@ -51,6 +53,13 @@ StageSettings stage_settings_from(const Config& cfg) {
   s.angle.e_machine.ratio = cfg.can.e_machine.ratio;
   s.angle.e_machine.sign = static_cast<double>(cfg.can.e_machine.sign);
   s.angle.e_machine.sole_load = cfg.can.e_machine.sole_load;
+  // Vehicle load references (estimators/core/load_reference.hpp): the clutch / neutral flags, the accessory prior.
+  s.angle.load_ref.sole_flag_bound =
+      cfg.can.signals[static_cast<std::size_t>(Quantity::kEmSoleLoad)].mapped();
+  s.angle.load_ref.neutral_bound = cfg.can.signals[static_cast<std::size_t>(Quantity::kNeutral)].mapped();
+  s.angle.load_ref.accessory_nm = cfg.can.load_reference.accessory_nm;
+  s.angle.load_ref.accessory_sd_nm = cfg.can.load_reference.accessory_sd_nm;
+  s.angle.load_ref.fuel_max_sd_nm = cfg.can.load_reference.fuel_max_sd_nm;
   s.angle_enabled = cfg.estimators.energies.enabled;
   s.angle.preprocess = cfg.estimators.preprocess;
   s.angle.kalman = cfg.estimators.kalman.params;

@@ -120,6 +120,50 @@ std::string dpc(const torqued::eval::DaemonBedStats& s) {
   return buf;
 }
 
+/// --vehicle-bed: a vehicle and a hybrid on the bed's engines through the daemon's chain (daemon_bed.hpp).
+int run_vehicle_bed(bool all, const torqued::eval::DaemonBedOptions& opt) {
+  std::printf(
+      "Vehicle bed (%s recordings in %s, daemon chain, fresh state, no load signal). Per run: cycles; "
+      "brake,\n"
+      "indicated, friction: RMS / max |error| (N m) and cov = %% of cycles with |error| <= claimed 1 sigma;\n"
+      "pass = %% of brake within 5 %% or 3 N m steady, 8 %% or 5 N m transient; fused = %% of cycles whose\n"
+      "fused brake was published, then its RMS / max |error| over those (the brake column scores the "
+      "chain's\n"
+      "brake on every cycle, also where nothing is published). hybrid/open: standstill charging, clutch "
+      "open\n"
+      "(em_sole_load flag mapped); hybrid/drive: driving after it (clutch closed, boost, generation, "
+      "overrun\n"
+      "in gear); static-false/true: the same recording with can.e_machine.sole_load fixed, no flag; "
+      "vehicle:\n"
+      "idle in neutral, driving, overrun in gear, neutral coast-down, no clutch signal (noflag) or as "
+      "neutral.\n",
+      opt.short_run ? "short" : "full", opt.out_dir.c_str());
+  std::printf("%-10s %-26s %4s | %-13s %-9s | %-13s %4s | %-13s %4s | %5s %s\n", "engine", "run", "cyc",
+              "brake", "pass/cov", "indicated", "cov", "friction", "cov", "fused", "RMS    max");
+  int rc = 0;
+  const auto pct = [](int k, int m) { return m > 0 ? 100 * k / m : 0; };
+  for (const auto& e : torqued::sim::unseen_engines()) {
+    if (!all && !e.report) continue;
+    torqued::eval::VehicleBedResult b;
+    std::string err;
+    if (!torqued::eval::evaluate_vehicle_bed_engine(e, opt, b, err)) {
+      std::fprintf(stderr, "error: %s\n", err.c_str());
+      rc = 1;
+      continue;
+    }
+    for (const auto& run : b.runs) {
+      const auto& w = run.r;
+      std::printf("%-10s %-26s %4d | %-13s %-9s | %-13s %3d%% | %-13s %3d%% | %4d%% %s\n", b.engine.c_str(),
+                  run.label.c_str(), w.cycles, ds(w.brake).c_str(), dpc(w.brake).c_str(),
+                  ds(w.indicated).c_str(), pct(w.indicated.covered, w.indicated.n), ds(w.friction).c_str(),
+                  pct(w.friction.covered, w.friction.n), pct(w.fused_published, w.cycles),
+                  ds(w.fused).c_str());
+    }
+    std::fflush(stdout);
+  }
+  return rc;
+}
+
 /// Without a load signal, through the daemon's chain: the unseen-engines bed as recordings replayed by
 /// run_fast_replay.
 int run_bed_daemon(bool all, const torqued::eval::DaemonBedOptions& opt) {
@@ -220,6 +264,17 @@ int main(int argc, char** argv) {
   std::string bed_out = "bed-daemon";
   app.add_option("--bed-out", bed_out,
                  "--bed unseen-daemon: directory for the recordings, configs and state files");
+  bool vehicle_bed = false;
+  app.add_flag(
+      "--vehicle-bed", vehicle_bed,
+      "run the vehicle bed: a vehicle (no load signal; clutch flag unmapped / as neutral) and a hybrid "
+      "(machine torque and clutch flag on CAN) on the report engines through the daemon's chain "
+      "(--bed-out, --bed-short, --bed-all apply)");
+  double vehicle_flag_lag = 0.0;
+  app.add_option("--vehicle-flag-lag", vehicle_flag_lag,
+                 "with --vehicle-bed: the clutch flag on CAN is late by this (s) instead of leading the clutch "
+                 "(robustness)")
+      ->check(CLI::Range(0.0, 10.0));
   app.add_flag("--bed-all", bed_all, "with --bed: also the tuning engines");
   app.add_flag("--bed-short", bed_short, "with --bed: the short evaluated recordings (the ctest subset)");
   double bed_machine = 0.0;
@@ -276,6 +331,14 @@ int main(int argc, char** argv) {
   if (!rec.config_path.empty()) {
     if (rec.out_dir.empty()) rec.out_dir = "accuracy-out";
     return torqued::eval::run_recording(rec);
+  }
+  if (vehicle_bed) {
+    torqued::eval::DaemonBedOptions o;
+    o.out_dir = bed_out == "bed-daemon" ? "bed-vehicle" : bed_out;
+    o.vehicle_flag_lag_s = vehicle_flag_lag;
+    o.short_run = bed_short;
+    o.skip_cycles = skip;
+    return run_vehicle_bed(bed_all, o);
   }
   if (bed == "unseen-daemon") {
     torqued::eval::DaemonBedOptions o;

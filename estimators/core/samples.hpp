@@ -43,6 +43,10 @@ struct EngineSignals {
   bool fuel_cutoff = false;        bool fuel_cutoff_valid = false;
   double load_torque_nm = 0.0;     bool load_torque_valid = false;///< dyno / driveline load torque
   double em_torque_nm = 0.0;       bool em_torque_valid = false;  ///< electric machine torque as on CAN (e_machine.hpp)
+  bool em_sole_load = false;
+  bool em_sole_load_valid = false;  ///< the machine is the only load (load_reference.hpp)
+  bool neutral = false;
+  bool neutral_valid = false;  ///< clutch open / neutral (load_reference.hpp)
 };
 
 }  // namespace torqued

@@ -63,7 +63,8 @@ bool FrictionLearner::gate_rejects(double err, double law_var) noexcept {
   return true;
 }
 
-bool FrictionLearner::observe_motoring(double speed_rpm, double oil_temp_c, double friction_nm) noexcept {
+bool FrictionLearner::observe_motoring(double speed_rpm, double oil_temp_c, double friction_nm,
+                                       double obs_var_nm2) noexcept {
   if (!params_.learn) return false;
   if (!std::isfinite(speed_rpm) || !std::isfinite(oil_temp_c) || !std::isfinite(friction_nm) ||
       speed_rpm < params_.min_rpm || speed_rpm > params_.max_rpm) {
@@ -77,7 +78,9 @@ bool FrictionLearner::observe_motoring(double speed_rpm, double oil_temp_c, doub
   double pphi[3];
   for (int i = 0; i < 3; ++i) pphi[i] = p_[i * 3 + 0] * phi[0] + p_[i * 3 + 1] * phi[1] + p_[i * 3 + 2] * phi[2];
   const double lam = params_.forgetting;
-  const double denom = lam + phi[0] * pphi[0] + phi[1] * pphi[1] + phi[2] * pphi[2];
+  // Weighted RLS with forgetting: K = Pφ / (λ r + φᵀPφ), r = the observation's variance in the unit one.
+  const double r = std::isfinite(obs_var_nm2) ? std::max(1.0, obs_var_nm2) : 1.0;
+  const double denom = lam * r + phi[0] * pphi[0] + phi[1] * pphi[1] + phi[2] * pphi[2];
   if (!(denom > 0.0) || !std::isfinite(denom)) {
     ++n_rejected_;
     return false;

@@ -49,7 +49,10 @@ class FrictionLearner {
   /// law's own spread there, large where it was never learned), so one bad cycle cannot move the law;
   /// motoring_gate_reaccept such rejections in a row on the same side are taken as a real change and learned
   /// from. Real-time safe.
-  bool observe_motoring(double speed_rpm, double oil_temp_c, double friction_nm) noexcept;
+  /// `obs_var_nm2`: the observation's variance (N m²) from its load reference (load_reference.hpp); the RLS
+  /// weighs it 1 / max(1, obs_var_nm2) (its unit variance is 1 N m², a measured load's balance).
+  bool observe_motoring(double speed_rpm, double oil_temp_c, double friction_nm,
+                        double obs_var_nm2 = 1.0) noexcept;
 
   /// Idle observation: friction torque equals the indicated torque (no load). Learns C4 from oil-temperature
   /// differences. Returns false when rejected. Real-time safe.

@@ -9,6 +9,7 @@
 // truth). Not real-time code.
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "unseen_engines.hpp"
 
@@ -26,6 +27,7 @@ struct DaemonBedStats {
 
 struct DaemonBedRun {
   int cycles = 0;
+  int fused_published = 0;  ///< cycles whose fused brake torque was published (quality not invalid)
   DaemonBedStats brake, indicated, friction, fused;
 };
 
@@ -41,7 +43,26 @@ struct DaemonBedOptions {
   std::string out_dir = "bed-daemon";  ///< recordings, state files and configs are left here
   bool short_run = false;              ///< the 4 s evaluated recording
   int skip_cycles = 12;                ///< cycles left out at the start of each evaluated run
+  double vehicle_flag_lag_s = 0.0;     ///< --vehicle-bed: the clutch flag late by this (s; 0: the TCU's lead)
 };
+
+/// torque-accuracy --vehicle-bed: a vehicle (no load signal) and a hybrid (machine torque and clutch flag on
+/// CAN) through the daemon's chain from a fresh state (tools/sim/unseen_engines.hpp bed_vehicle_run,
+/// bed_hybrid_run). Each run is one configuration of one recording, scored over a time range.
+struct VehicleBedRun {
+  std::string label;
+  DaemonBedRun r;
+};
+struct VehicleBedResult {
+  std::string engine;
+  std::vector<VehicleBedRun> runs;
+};
+/// Labels: hybrid/open (standstill charging, clutch flag mapped), hybrid/drive (driving after it),
+/// hybrid/drive static-false and static-true (can.e_machine.sole_load without the flag: the behaviour before
+/// it existed), vehicle/noflag (no clutch signal), vehicle/neutral (VEH_1.ClutchOpen mapped as
+/// can.signals.neutral).
+bool evaluate_vehicle_bed_engine(const sim::BedEngine& e, const DaemonBedOptions& opt, VehicleBedResult& r,
+                                 std::string& error);
 
 /// One engine; false with `error` set when a recording could not be written or replayed.
 bool evaluate_bed_engine_daemon(const sim::BedEngine& e, const DaemonBedOptions& opt, DaemonBedResult& r,

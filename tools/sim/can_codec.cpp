@@ -40,12 +40,19 @@ constexpr SignalDef kEm1[] = {
     {"EmSpeed", 16, 16, true, false, 0.5, 0.0, 0.0, 32767.5, "rpm"},
 };
 
+// VEH_1 0x220, Intel: driveline state of a vehicle scenario (clutch open: the engine drives no wheels). Sent
+// only by scenarios with a vehicle driveline (engine_sim.hpp VehicleSim).
+constexpr SignalDef kVeh1[] = {
+    {"ClutchOpen", 0, 1, true, false, 1.0, 0.0, 0.0, 1.0, ""},
+};
+
 constexpr MessageDef kMessages[] = {
     {"ENGINE_1", kEngine1Id, 8, "ECU", "Engine speed and air path, 100 Hz", kEngine1},
     {"ENGINE_2", kEngine2Id, 8, "ECU", "Fuel and ignition (Motorola byte order), 100 Hz", kEngine2},
     {"ENGINE_3", kEngine3Id, 4, "ECU", "Temperatures, 100 Hz", kEngine3},
     {"DYNO_1", kDyno1Id, 8, "DYNO", "Dynamometer torque flange and speed, 100 Hz", kDyno1},
     {"EM_1", kEm1Id, 4, "EM", "Electric machine on the crankshaft (hybrid), 100 Hz", kEm1},
+    {"VEH_1", kVeh1Id, 1, "TCU", "Driveline state (clutch open), 100 Hz", kVeh1},
 };
 
 /// Byte/bit position of the k-th bit counted from the LSB of the raw value.
@@ -124,7 +131,7 @@ std::string demo_dbc_text() {
        "\tVAL_TABLE_\n\tSIG_GROUP_\n\tSIG_VALTYPE_\n\tSIGTYPE_VALTYPE_\n\tBO_TX_BU_\n\tBA_DEF_REL_\n\tBA_REL_\n"
        "\tBA_DEF_DEF_REL_\n\tBU_SG_REL_\n\tBU_EV_REL_\n\tBU_BO_REL_\n\tSG_MUL_VAL_\n\n";
   s += "BS_:\n\n";
-  s += "BU_: ECU DYNO EM TORQUED\n\n\n";
+  s += "BU_: ECU DYNO EM TCU TORQUED\n\n\n";
   for (const auto& m : kMessages) {
     s += "BO_ " + std::to_string(m.id) + " " + m.name + ": " + std::to_string(m.dlc) + " " + m.sender + "\n";
     for (const auto& g : m.signals) {
@@ -139,6 +146,7 @@ std::string demo_dbc_text() {
   s += "CM_ BU_ ECU \"Engine control unit\";\n";
   s += "CM_ BU_ DYNO \"Test-bench dynamometer\";\n";
   s += "CM_ BU_ EM \"Electric machine inverter (hybrid)\";\n";
+  s += "CM_ BU_ TCU \"Transmission control unit (vehicle driveline)\";\n";
   for (const auto& m : kMessages) {
     s += "CM_ BO_ " + std::to_string(m.id) + " \"" + m.comment + "\";\n";
   }
@@ -147,6 +155,7 @@ std::string demo_dbc_text() {
   s += "CM_ SG_ 512 LoadTorque \"Torque absorbed by the dynamometer; negative when motoring\";\n";
   s += "CM_ SG_ 528 EmTorque \"Machine shaft torque; positive when it drives the crankshaft, negative when "
        "generating\";\n";
+  s += "CM_ SG_ 544 ClutchOpen \"1 = clutch open: the engine drives no wheels\";\n";
   s += "BA_DEF_ BO_ \"GenMsgCycleTime\" INT 0 65535;\n";
   s += "BA_DEF_ BO_ \"GenMsgSendType\" ENUM  \"Cyclic\",\"Event\";\n";
   s += "BA_DEF_  \"BusType\" STRING ;\n";

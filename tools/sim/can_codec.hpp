@@ -36,7 +36,9 @@ inline constexpr std::uint32_t kEngine1Id = 0x100;
 inline constexpr std::uint32_t kEngine2Id = 0x101;
 inline constexpr std::uint32_t kEngine3Id = 0x102;
 inline constexpr std::uint32_t kDyno1Id = 0x200;
-inline constexpr std::uint32_t kEm1Id = 0x210;  ///< electric machine (hybrid input); last in demo_messages()
+inline constexpr std::uint32_t kEm1Id = 0x210;  ///< electric machine (hybrid input)
+inline constexpr std::uint32_t kVeh1Id =
+    0x220;  ///< vehicle driveline flags (clutch open); last in demo_messages()
 
 [[nodiscard]] std::span<const MessageDef> demo_messages() noexcept;
 [[nodiscard]] const MessageDef* find_message(std::uint32_t id) noexcept;

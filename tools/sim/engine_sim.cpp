@@ -28,6 +28,50 @@ struct EdgeTemplate {
   int tooth;  ///< tooth index within 720° for marking edges, −1 otherwise
 };
 
+/// Vehicle driveline state (VehicleSim): shaft twist, vehicle-side speed referred to the crank, road PI.
+struct VehicleState {
+  double omega_v = 0.0;   ///< vehicle side, referred to the crank (rad/s)
+  double phi = 0.0;       ///< shaft twist (rad)
+  double integ = 0.0;     ///< road-load PI integral (N m)
+  double shaft_nm = 0.0;  ///< shaft torque on the crank, absorbing positive (N m)
+  double acc_nm = 0.0;    ///< accessories (N m)
+  bool closed = false;
+};
+
+bool clutch_closed_at(const VehicleSim& v, double t) {
+  return v.clutch_closed.empty() || evaluate(v.clutch_closed, t, 1.0) > 0.5;
+}
+/// VEH_1.ClutchOpen: open now and for flag_lead_s either side (drops before closing, rises after opening).
+bool clutch_flag_open(const VehicleSim& v, double t) {
+  if (v.flag_lag_s > 0.0) return !clutch_closed_at(v, t - v.flag_lag_s);  // a late flag (robustness runs)
+  return !clutch_closed_at(v, t) && !clutch_closed_at(v, t - v.flag_lead_s) &&
+         !clutch_closed_at(v, t + v.flag_lead_s);
+}
+
+/// One explicit-Euler step of the driveline (µs steps; the shaft mode is a few Hz).
+void step_vehicle(const Scenario& sc, VehicleState& s, double t_rel, double dt, double omega,
+                  double omega_f) {
+  const VehicleSim& v = sc.vehicle;
+  s.acc_nm = v.accessory_w / std::max(omega_f, 70.0);
+  const bool closed = clutch_closed_at(v, t_rel);
+  if (closed && !s.closed) {  // synchronised engagement
+    s.omega_v = omega;
+    s.phi = 0.0;
+    s.integ = 0.0;
+  }
+  s.closed = closed;
+  if (!closed) {
+    s.shaft_nm = 0.0;
+    return;
+  }
+  const double e = omega_f - evaluate(sc.speed_rpm, t_rel, 2000.0) * std::numbers::pi / 30.0;
+  s.integ += v.road_ki * e * dt;
+  const double road = v.road_kp * e + s.integ;
+  s.shaft_nm = v.stiffness_nm_rad * s.phi + v.damping_nms_rad * (omega - s.omega_v);
+  s.omega_v += dt * (s.shaft_nm - road) / v.j_vehicle_kgm2;
+  s.phi += dt * (omega - s.omega_v);
+}
+
 struct CycleAcc {
   double ind = 0, fric = 0, load = 0, mass = 0;
   bool started = false, range_done = false;
@@ -59,6 +103,8 @@ void validate(const Scenario& sc) {
   if (sc.step_deg <= 0 || std::abs(spc - std::round(spc)) > 1e-9) fail("step_deg must divide 720");
   if (!(sc.duration_s > 0)) fail("duration must be > 0");
   if (sc.e_machine.present && !(sc.e_machine.ratio > 0.0)) fail("e-machine ratio must be > 0");
+  if (sc.vehicle.present && !(sc.vehicle.j_vehicle_kgm2 > 0.0 && sc.vehicle.stiffness_nm_rad > 0.0))
+    fail("vehicle inertia and driveline stiffness must be > 0");
   if (sc.sensors.cam_rise_deg < 0 || sc.sensors.cam_fall_deg <= sc.sensors.cam_rise_deg || sc.sensors.cam_fall_deg >= 720)
     fail("cam window must satisfy 0 <= rise < fall < 720");
   for (const auto& m : sc.misfires)
@@ -153,7 +199,8 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
   air.reset(air.steady_map(throttle_base(0.0, omega0), omega0));
   double omega_f = omega0;      // dyno/ECU speed filter (rad/s)
   double dyno_integ = 0.0;      // PI integral (N m)
-  double t_load = 0.0;          // applied load torque (N m)
+  double t_load = 0.0;       // applied load torque (N m): dynamometer, or the machine's (absorbing positive)
+  VehicleState veh{omega0};  // vehicle driveline (clutch, shaft, road load; VehicleSim)
   double idle_integ = 0.0;      // idle PI integral (throttle fraction)
   double throttle = throttle_base(0.0, omega0);
   double map_s = air.map_pa(), maf_s = 0.0, load_s = 0.0, speed_s = omega0;  // sensor lags
@@ -204,9 +251,17 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
     advance_edge();
   }
 
-  // --- CAN ---------------------------------------------------------------------------------------------------
-  // EM_1 (last of the set) only with a machine: without one the frames and their random draws are unchanged.
-  const auto msgs = sc.e_machine.present ? demo_messages() : demo_messages().first(demo_messages().size() - 1);
+  // --- CAN
+  // --------------------------------------------------------------------------------------------------- EM_1
+  // only with a machine, VEH_1 only with a vehicle (which has no DYNO_1): without them the frames and their
+  // random draws are unchanged.
+  std::vector<MessageDef> msgs;
+  for (const MessageDef& m : demo_messages()) {
+    if ((m.id == kEm1Id && !sc.e_machine.present) || (m.id == kDyno1Id && sc.vehicle.present) ||
+        (m.id == kVeh1Id && !(sc.vehicle.present && sc.vehicle.flag_on_can)))
+      continue;
+    msgs.push_back(m);
+  }
   const double can_offsets[] = {0.0, 0.0025, 0.005, 0.0075};
   std::vector<std::int64_t> can_k(msgs.size(), 0);
   std::vector<double> can_next(msgs.size());
@@ -297,7 +352,10 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
       }
     }
 
-    const HeldInputs in{t_load, air.map_pa(), oil_c, locked ? omega0 : 0.0};
+    // Every load on the crank (N m); without a vehicle exactly t_load (a −0 stays −0 in the truth files).
+    const auto total_load = [&] { return sc.vehicle.present ? t_load + veh.shaft_nm + veh.acc_nm : t_load; };
+    const double t_total = total_load();
+    const HeldInputs in{t_total, air.map_pa(), oil_c, locked ? omega0 : 0.0};
     model.derivative(theta, y, in, k1, &ev);
     const double omega = ev.omega_rad_s;
     if (!locked && omega < 30.0)
@@ -307,7 +365,8 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
       auto& e = model.event(c);
       if (e.active) e.peak_pa = std::max(e.peak_pa, ev.p_pa[static_cast<std::size_t>(c)]);
     }
-    const double alpha = (ev.t_ind_nm - ev.t_fric_nm - t_load - ev.half_dinertia * omega * omega) / ev.inertia_kgm2;
+    const double alpha =
+        (ev.t_ind_nm - ev.t_fric_nm - t_total - ev.half_dinertia * omega * omega) / ev.inertia_kgm2;
     const double t_mass = (ev.inertia_kgm2 - sc.engine.j_rot_kgm2) * alpha + ev.half_dinertia * omega * omega;
 
     // --- truth accumulators (θ-integrals by the trapezoidal rule on the grid) ---
@@ -318,7 +377,7 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
       const auto add = [&](CycleAcc& a, double w) {
         a.ind += w * ev.t_ind_nm;
         a.fric += w * ev.t_fric_nm;
-        a.load += w * t_load;
+        a.load += w * t_total;
         a.mass += w * t_mass;
       };
       if (rel % spc == 0) {
@@ -343,7 +402,7 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
         fs.kinetic_j = 0.5 * ev.inertia_kgm2 * omega * omega;
         fs.t_ind_nm = ev.t_ind_nm;
         fs.t_fric_nm = ev.t_fric_nm;
-        fs.t_load_nm = t_load;
+        fs.t_load_nm = t_total;
         fs.p_cyl_pa = ev.p_pa;
         out.trace.push_back(fs);
       }
@@ -383,6 +442,8 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
       LoadMode mode = LoadMode::kDynoSpeed;
       for (const auto& ph : sc.load_phases)
         if (t_rel >= ph.t_start_s) mode = ph.mode;
+      if (sc.vehicle.present && clutch_closed_at(sc.vehicle, t_rel))
+        mode = LoadMode::kTorque;  // the road holds it
       double cmd;
       if (mode == LoadMode::kDynoSpeed) {
         const double e = omega_f - evaluate(sc.speed_rpm, t_rel, 2000.0) * kRpm;
@@ -392,7 +453,9 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
         cmd = evaluate(sc.load_torque_nm, t_rel, 0.0);
         dyno_integ = cmd - sc.dyno.kp_nm_per_rad_s * (omega_f - evaluate(sc.speed_rpm, t_rel, 2000.0) * kRpm);
       }
+      if (sc.vehicle.present && !sc.e_machine.present) cmd = 0.0;  // no dynamometer, no machine
       t_load += dt / sc.dyno.torque_lag_s * (cmd - t_load);
+      if (sc.vehicle.present) step_vehicle(sc, veh, t_rel, dt, omega, omega_f);
     }
     double u = throttle_base(t_rel, omega_f);
     if (sc.idle_control) {
@@ -445,6 +508,9 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
               put("LoadTorque", load_s + rng_noise.gaussian(sc.sensors.load_noise_nm));
               put("DynoSpeed", rpm + rng_noise.gaussian(sc.sensors.speed_noise_rpm));
               break;
+            case kVeh1Id:
+              put("ClutchOpen", clutch_flag_open(sc.vehicle, t_rel) ? 1.0 : 0.0);
+              break;
             case kEm1Id:
               put("EmTorque", -load_s / sc.e_machine.ratio + rng_noise.gaussian(sc.e_machine.noise_nm));
               put("EmSpeed", rpm * sc.e_machine.ratio);
@@ -490,7 +556,9 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
         if (et.tooth >= 0) {
           model.derivative(the, ye, in, q2, &ev_e);
           const double w = ev_e.omega_rad_s;
-          const double acc = (ev_e.t_ind_nm - ev_e.t_fric_nm - t_load - ev_e.half_dinertia * w * w) / ev_e.inertia_kgm2;
+          const double t_edge_load = total_load();  // after this step's slow update, as the truth always was
+          const double acc =
+              (ev_e.t_ind_nm - ev_e.t_fric_nm - t_edge_load - ev_e.half_dinertia * w * w) / ev_e.inertia_kgm2;
           ToothTruth tt;
           tt.t_s = t_true;
           tt.t_meas_ns = tns;
@@ -502,7 +570,7 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
           tt.t_ind_cyl_nm = ev_e.t_cyl_nm;
           tt.t_mass_nm = (ev_e.inertia_kgm2 - sc.engine.j_rot_kgm2) * acc + ev_e.half_dinertia * w * w;
           tt.t_fric_nm = ev_e.t_fric_nm;
-          tt.t_load_nm = t_load;
+          tt.t_load_nm = t_edge_load;
           tt.t_brake_nm = ev_e.t_ind_nm - ev_e.t_fric_nm;
           out.teeth.push_back(tt);
         }

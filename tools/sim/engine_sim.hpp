@@ -128,6 +128,29 @@ struct EMachineSim {
   double noise_nm = 0.3;  ///< EM_1 EmTorque noise 1σ at the machine shaft (N m)
 };
 
+/// Vehicle driveline (docs/simulator.md §4): a clutch, then the vehicle's inertia and road load referred to
+/// the crank through the gear and a compliant driveshaft. Clutch closed: the crank sees the shaft torque T_sh
+/// = k φ + c (ω − ω_v) (an unknown load to the estimator), J_v ω̇_v = T_sh − T_road, φ̇ = ω − ω_v, and the road
+/// load is a PI "driver and terrain" making the engine follow `speed_rpm` (grade, brakes). Clutch open: T_sh
+/// = 0 (on closing the vehicle side is synchronised, φ = 0). Accessories (alternator) always load the crank:
+/// T_acc = accessory_w / max(ω, 70 rad/s). The load model of the scenario (dynamometer PI or
+/// `load_torque_nm`) then acts through the electric machine only (EMachineSim; absent: set load_torque_nm =
+/// 0). No DYNO_1 frame: a vehicle has no load signal. VEH_1.ClutchOpen on CAN: it drops `flag_lead_s` before
+/// the clutch closes (the TCU knows before the plates touch) and rises `flag_lead_s` after it opened.
+struct VehicleSim {
+  bool present = false;
+  Schedule clutch_closed{};         ///< > 0.5: clutch closed (step schedule) (-); empty: closed throughout
+  double j_vehicle_kgm2 = 1.5;      ///< vehicle inertia referred to the crank, m r_w² / i² (kg m²)
+  double stiffness_nm_rad = 300.0;  ///< driveline torsional stiffness referred to the crank (N m / rad)
+  double damping_nms_rad = 2.5;     ///< driveline damping referred to the crank (N m s / rad)
+  double road_kp = 10.0;            ///< road-load PI on the engine speed error (N m / (rad/s))
+  double road_ki = 30.0;            ///< (N m / rad)
+  double accessory_w = 350.0;       ///< accessories' mechanical power (W)
+  double flag_lead_s = 0.05;        ///< VEH_1.ClutchOpen leads the closing / lags the opening by this (s)
+  double flag_lag_s = 0.0;          ///< > 0: instead, a late flag: the clutch state of this long ago (s)
+  bool flag_on_can = true;          ///< send VEH_1
+};
+
 /// Mean-value (Crossley & Cook) mode exists separately (mean_value_engine.hpp, helper "time").
 struct Scenario {
   std::string name;
@@ -158,6 +181,7 @@ struct Scenario {
   DynoParams dyno{};
   SensorParams sensors{};
   EMachineSim e_machine{};
+  VehicleSim vehicle{};
   int trace_every_steps = 0;             ///< >0: record a FineSample every n integration steps (tests)
 };
 

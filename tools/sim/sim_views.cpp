@@ -40,7 +40,7 @@ EngineSignals signals_at(const SimOutput& out, double t_s, double max_age_s) {
   // First frame after t: walk back until the newest frame of every message was seen (or we are too old).
   auto it = std::upper_bound(out.can.begin(), out.can.end(), t_ns,
                              [](std::int64_t v, const CanFrame& f) { return v < f.t_ns; });
-  bool seen1 = false, seen2 = false, seen3 = false, seen4 = false, seen5 = false;
+  bool seen1 = false, seen2 = false, seen3 = false, seen4 = false, seen5 = false, seen6 = false;
   while (it != out.can.begin()) {
     --it;
     const CanFrame& f = *it;
@@ -81,8 +81,13 @@ EngineSignals signals_at(const SimOutput& out, double t_s, double max_age_s) {
       seen5 = true;
       sig.em_torque_nm = get("EmTorque");
       sig.em_torque_valid = true;
+    } else if (f.id == kVeh1Id && !seen6) {
+      seen6 =
+          true;  // the one clutch flag, as em_sole_load (hybrid) and as neutral (vehicle): the config picks
+      sig.em_sole_load = sig.neutral = get("ClutchOpen") > 0.5;
+      sig.em_sole_load_valid = sig.neutral_valid = true;
     }
-    if (seen1 && seen2 && seen3 && seen4 && seen5) break;
+    if (seen1 && seen2 && seen3 && seen4 && seen5 && seen6) break;
   }
   return sig;
 }

@@ -150,6 +150,13 @@ void write_outputs(const SimOutput& out, const Scenario& sc, const std::filesyst
 }
 
 std::string torqued_config_yaml(const EngineGeometry& engine, const Scenario& sc, bool load_signal) {
+  return torqued_config_yaml(engine, sc, load_signal, sc.vehicle.present && sc.vehicle.flag_on_can);
+}
+
+std::string torqued_config_yaml(const EngineGeometry& engine, const Scenario& sc, bool load_signal,
+                                bool vehicle_flag) {
+  load_signal = load_signal && !sc.vehicle.present;  // a vehicle has no load signal
+  vehicle_flag = vehicle_flag && sc.vehicle.present && sc.vehicle.flag_on_can;
   Scenario spec = sc;
   spec.engine = engine;
   std::string s = "# torqued configuration of torque-sim recording '" + sc.name + "' (" +
@@ -173,7 +180,16 @@ std::string torqued_config_yaml(const EngineGeometry& engine, const Scenario& sc
   // A scenario with a machine: it is the load the simulator applies, so without the dynamometer signal the
   // machine's torque (EM_1) is the known sole load (hybrid input); with it, the machine is left unbound (the
   // dynamometer already measures the same torque).
-  if (sc.e_machine.present && !load_signal) {
+  // A vehicle (VehicleSim): the clutch flag VEH_1.ClutchOpen says when the machine is the only load (hybrid:
+  // em_sole_load) or when the engine is in neutral (no machine: neutral); unmapped when vehicle_flag is
+  // false.
+  if (sc.e_machine.present && sc.vehicle.present) {
+    s += "    em_torque:     {message: EM_1, signal: EmTorque, timeout_ms: 100}\n";
+    if (vehicle_flag) s += "    em_sole_load:  {message: VEH_1, signal: ClutchOpen, timeout_ms: 100}\n";
+    appendf(s, "  e_machine: {ratio: %.6g, sign: 1, sole_load: false}\n", sc.e_machine.ratio);
+  } else if (sc.vehicle.present) {
+    if (vehicle_flag) s += "    neutral:       {message: VEH_1, signal: ClutchOpen, timeout_ms: 100}\n";
+  } else if (sc.e_machine.present && !load_signal) {
     s += "    em_torque:     {message: EM_1, signal: EmTorque, timeout_ms: 100}\n";
     appendf(s, "  e_machine: {ratio: %.6g, sign: 1, sole_load: true}\n", sc.e_machine.ratio);
   }
@@ -185,8 +201,9 @@ void write_recording(const SimOutput& out, const Scenario& sc, const EngineGeome
                      const std::filesystem::path& dir) {
   write_outputs(out, sc, dir);
   write_text_file(dir / "demo.dbc", demo_dbc_text());
-  write_text_file(dir / "torqued.yaml", torqued_config_yaml(engine, sc, true));
-  write_text_file(dir / "torqued_noload.yaml", torqued_config_yaml(engine, sc, false));
+  // A vehicle: torqued.yaml maps the clutch flag (em_sole_load / neutral), torqued_noload.yaml does not.
+  write_text_file(dir / "torqued.yaml", torqued_config_yaml(engine, sc, true, true));
+  write_text_file(dir / "torqued_noload.yaml", torqued_config_yaml(engine, sc, false, false));
 }
 
 }  // namespace torqued::sim

@@ -22,9 +22,14 @@ inline constexpr std::int64_t kCandumpEpochS = 1700000000;
 /// `engine` (the spec sheet a user would configure, not the simulator's truth), wheel from `sc`, every CAN
 /// signal of demo.dbc mapped; the load-torque signal only when `load_signal` (dynamometer) is set.
 [[nodiscard]] std::string torqued_config_yaml(const EngineGeometry& engine, const Scenario& sc, bool load_signal);
+/// The same; a vehicle scenario (VehicleSim) never maps a load signal, and maps VEH_1.ClutchOpen (as
+/// em_sole_load with a machine, as neutral without) only when `vehicle_flag`.
+[[nodiscard]] std::string torqued_config_yaml(const EngineGeometry& engine, const Scenario& sc,
+                                              bool load_signal, bool vehicle_flag);
 
-/// write_outputs() plus demo.dbc, torqued.yaml (with the load signal) and torqued_noload.yaml (vehicle case),
-/// configured with `engine` (spec sheet). Throws std::runtime_error naming the file on failure.
+/// write_outputs() plus demo.dbc, torqued.yaml (with the load signal; a vehicle scenario: with its clutch
+/// flag) and torqued_noload.yaml (vehicle case; a vehicle scenario: no clutch flag either), configured with
+/// `engine` (spec sheet). Throws std::runtime_error naming the file on failure.
 void write_recording(const SimOutput& out, const Scenario& sc, const EngineGeometry& engine,
                      const std::filesystem::path& dir);
 

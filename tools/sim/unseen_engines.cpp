@@ -145,6 +145,63 @@ Scenario bed_eval_run(const BedEngine& e, bool short_run) {
   return s;
 }
 
+Scenario bed_vehicle_run(const BedEngine& e, bool short_run) {
+  Scenario s = e.truth;
+  s.name = e.name + (short_run ? "_vehicle_short" : "_vehicle");
+  s.warmup_s = 1.0;
+  s.idle_control = true;
+  s.vehicle.present = true;
+  s.load_phases = {{0.0, LoadMode::kTorque}};
+  s.load_torque_nm = {{0.0, 0.0}};
+  const double k = short_run ? 0.4 : 1.0;  // time scale of the short subset
+  const auto at = [k](double t) { return k * t; };
+  // Idle in neutral, clutch closes at 3 s: driving plateaus and steps, overrun in gear (fuel cut-off, the
+  // vehicle drives the engine down), then neutral with the fuel still cut: a free coast-down to idle.
+  s.vehicle.clutch_closed = {
+      {0.0, 0.0}, {at(3.0), 0.0}, {at(3.0) + 1e-3, 1.0}, {at(17.0), 1.0}, {at(17.0) + 1e-3, 0.0}};
+  s.speed_rpm = {{0.0, 800.0},       {at(3.0), 800.0},   {at(4.0), 1000.0}, {at(5.0), 1000.0},
+                 {at(6.0), 2000.0},  {at(8.0), 2000.0},  {at(9.0), 3000.0}, {at(11.0), 3000.0},
+                 {at(12.0), 2400.0}, {at(15.0), 1600.0}, {at(17.0), 2000.0}};
+  s.map_target_kpa = {{0.0, 20.0},      {at(3.0), 20.0},  {at(3.0) + 1e-3, 35.0}, {at(5.0), 35.0},
+                      {at(5.05), 60.0}, {at(8.0), 60.0},  {at(8.05), 92.0},       {at(9.0), 92.0},
+                      {at(9.05), 50.0}, {at(11.0), 50.0}, {at(11.05), 25.0}};
+  s.fuel_cuts = {{at(12.0), at(15.0), 1000.0}, {at(17.0), 100.0, 1100.0}};
+  s.duration_s = at(21.0);
+  return s;
+}
+
+Scenario bed_hybrid_run(const BedEngine& e, bool short_run, double* t_drive_s) {
+  Scenario s = e.truth;
+  s.name = e.name + (short_run ? "_hybrid_short" : "_hybrid");
+  s.warmup_s = 1.0;
+  s.vehicle.present = true;
+  s.e_machine.present = true;
+  s.e_machine.ratio = 1.0;
+  // Charging points: the machine holds speed (dynamometer-like PI), MAP sets the engine's torque.
+  const double p = short_run ? 1.5 : 3.5;    // length of each charging point (s)
+  const double t0 = 1.5, td = t0 + 3.0 * p;  // motored start, then 3 points; the clutch closes at td
+  if (t_drive_s) *t_drive_s = td;
+  s.load_phases = {{0.0, LoadMode::kDynoSpeed}};
+  s.vehicle.clutch_closed = {{0.0, 0.0}, {td, 0.0}, {td + 1e-3, 1.0}};
+  // Driving (clutch closed): machine torque absorbing positive (generation), negative = boost.
+  const double k = short_run ? 0.5 : 1.0;
+  const auto at = [td, k](double t) { return td + k * t; };
+  s.speed_rpm = {{0.0, 1000.0},          {t0, 2500.0},         {t0 + 0.01, 1200.0},        {t0 + p, 1200.0},
+                 {t0 + p + 0.3, 1800.0}, {t0 + 2 * p, 1800.0}, {t0 + 2 * p + 0.3, 2500.0}, {td, 2500.0},
+                 {at(2.0), 2000.0},      {at(4.0), 2000.0},    {at(5.0), 2800.0},          {at(7.0), 2800.0},
+                 {at(9.0), 1500.0},      {at(11.0), 1500.0}};
+  s.map_target_kpa = {{0.0, 30.0},           {t0, 30.0},         {t0 + 0.01, 45.0},         {t0 + p, 45.0},
+                      {t0 + p + 0.05, 65.0}, {t0 + 2 * p, 65.0}, {t0 + 2 * p + 0.05, 85.0}, {td, 85.0},
+                      {at(0.5), 55.0},       {at(2.5), 55.0},    {at(2.55), 90.0},          {at(5.0), 90.0},
+                      {at(5.05), 60.0},      {at(7.0), 60.0},    {at(7.05), 25.0},          {at(9.0), 25.0},
+                      {at(9.05), 45.0}};
+  s.load_torque_nm = {{0.0, 0.0},       {at(2.5), 0.0},  {at(2.55), -25.0}, {at(5.0), -25.0},
+                      {at(5.05), 20.0}, {at(7.0), 20.0}, {at(7.05), 0.0}};
+  s.fuel_cuts = {{0.0, t0, 0.0}, {at(7.05), at(9.0), 1000.0}};
+  s.duration_s = at(11.0);
+  return s;
+}
+
 const BedEngine* unseen_engine(const std::string& name) {
   for (const auto& e : unseen_engines())
     if (e.name == name) return &e;

@@ -33,6 +33,17 @@ struct BedEngine {
 /// Motoring recording (hybrid input): fuel cut-off throughout, closed throttle, the load (an electric machine when
 /// the scenario has one) holds 1000, 1500, ... 4000 rpm plateaus: the machine motors the engine.
 [[nodiscard]] Scenario bed_motoring_run(const BedEngine& e);
+/// Vehicle recordings (VehicleSim; docs/simulator.md §7). No load signal on CAN; VEH_1.ClutchOpen is sent (a
+/// configuration may leave it unmapped). Vehicle only: idle in neutral, driving 1000-3000 rpm at 35-92 kPa in
+/// gear, an overrun (fuel cut-off) in gear, a coast-down in neutral with the fuel cut. `short_run`: a few
+/// seconds.
+[[nodiscard]] Scenario bed_vehicle_run(const BedEngine& e, bool short_run = false);
+/// Hybrid (machine on the crank, ratio 1): standstill charging with the clutch open (the machine holds speed,
+/// after a motored start), at 3 speed/torque points (10.5 s; short: 3 s), then driving with the clutch
+/// closed, machine boost and generation, an overrun in gear. `t_drive_s` (may be null): when the clutch
+/// closes.
+[[nodiscard]] Scenario bed_hybrid_run(const BedEngine& e, bool short_run = false,
+                                      double* t_drive_s = nullptr);
 /// Evaluated recording: steady plateaus at several speeds and loads, throttle and load transients, a fuel
 /// cut-off. `short_run`: a 4 s subset (ctest).
 [[nodiscard]] Scenario bed_eval_run(const BedEngine& e, bool short_run = false);

@@ -1,0 +1,82 @@
+// tests/tools/test_vehicle_bed.cpp: live load references on a vehicle through the daemon's chain
+// (tools/accuracy/daemon_bed.cpp evaluate_vehicle_bed_engine, estimators/core/load_reference.hpp). Two report
+// engines of the unseen bed (never used for tuning: I4 60-2, I6 36-1), short recordings from a fresh state,
+// no load signal. Hybrid: the clutch is open (VEH_1.ClutchOpen mapped as can.signals.em_sole_load) during a
+// motored start and standstill charging (4.5 s here), then closes mid-run for driving with boost, generation
+// and an overrun in gear. Vehicle: idle in neutral, the clutch closes, driving, overrun in gear, the clutch
+// opens again (coast-down). Truth: the simulator's per-cycle brake, indicated and friction torque. Tolerances
+// are stated per assertion; they are the targets where reached and otherwise a little above what the chain
+// gives today (short runs: 4.5 s of charging, not the >= 10 s the hybrid target is stated for; the full runs
+// are in the report command `torque-accuracy --vehicle-bed`). Label slow (about 10 s).
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <string>
+
+#include "daemon_bed.hpp"
+
+namespace torqued::eval {
+namespace {
+namespace fs = std::filesystem;
+
+const DaemonBedRun& run(const VehicleBedResult& r, const std::string& label) {
+  for (const auto& x : r.runs)
+    if (x.label == label) return x.r;
+  static const DaemonBedRun none{};
+  ADD_FAILURE() << "no run " << label;
+  return none;
+}
+
+class VehicleBed : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(VehicleBed, ClutchFlagMakesTheMachineAReferenceAndTheOverrunInGearTeachesNothing) {
+  const sim::BedEngine* e = sim::unseen_engine(GetParam());
+  ASSERT_NE(e, nullptr);
+  ASSERT_TRUE(e->report) << "only report engines are scored";
+  DaemonBedOptions opt;
+  opt.out_dir = (fs::temp_directory_path() /
+                 ("torqued_vehicle_bed_" + std::string(GetParam()) + "_" + std::to_string(::getpid())))
+                    .string();
+  opt.short_run = true;
+  VehicleBedResult r;
+  std::string err;
+  const bool ok = evaluate_vehicle_bed_engine(*e, opt, r, err);
+  fs::remove_all(opt.out_dir);
+  ASSERT_TRUE(ok) << err;
+
+  const DaemonBedRun& open = run(r, "hybrid/open");
+  const DaemonBedRun& drive = run(r, "hybrid/drive");
+  const DaemonBedRun& st = run(r, "hybrid/drive static-true");
+  const DaemonBedRun& sf = run(r, "hybrid/drive static-false");
+  ASSERT_GT(open.cycles, 30);
+  ASSERT_GT(drive.cycles, 60);
+  // While open the machine is the only load: the energy balance (brake within 5 % or 3 N m steady).
+  EXPECT_GE(open.brake.pass, 85 * open.brake.n / 100);
+  // Friction learned in the motored start is used while closed; the overrun in gear (fuel cut-off, clutch
+  // closed, no load signal) must not move it: |error| < 3.5 N m at every cycle (10 % of the 25-40 N m true
+  // friction + 1 N m; today 1.7 and 1.9 N m).
+  EXPECT_LT(drive.friction.max_abs_nm, 3.5);
+  EXPECT_LT(drive.friction.rms_nm, 2.5);
+  // Fused brake torque is published on every driving cycle with the flag, on none without it (static false).
+  EXPECT_EQ(drive.fused_published, drive.cycles);
+  EXPECT_EQ(sf.fused_published, 0);
+  // Driving after 4.5 s of charging at 3 points (short run): the hybrid target (5 % or 3 N m steady, 8 % or
+  // 5 N m transient) on >= 95 % of the cycles (today 98-100 %), brake RMS < 4 N m (today 1.9 and 2.9).
+  EXPECT_GE(drive.brake.pass, 95 * drive.brake.n / 100);
+  EXPECT_LT(drive.brake.rms_nm, 4.0);
+  // The static sole_load (no flag) takes the vehicle's share to be zero: far off (today 65 and 110 N m RMS).
+  EXPECT_GT(st.brake.rms_nm, 5.0 * drive.brake.rms_nm);
+
+  // Vehicle without any load reference: nothing learned, fused never published; the friction stays the
+  // generic prior, whose claimed 1 sigma (40 %) covers its error on every cycle.
+  const DaemonBedRun& nf = run(r, "vehicle/noflag");
+  ASSERT_GT(nf.cycles, 60);
+  EXPECT_EQ(nf.fused_published, 0);
+  EXPECT_EQ(nf.friction.covered, nf.friction.n);
+}
+
+INSTANTIATE_TEST_SUITE_P(ReportEngines, VehicleBed, ::testing::Values("rep_i4_60", "rep_i6_36"));
+
+}  // namespace
+}  // namespace torqued::eval
