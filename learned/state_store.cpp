@@ -155,24 +155,27 @@ struct Line {
   bool (*check)(const LearnedState&, const StateContext&, std::string* what);  ///< bounds; null: none
 };
 
-// Rows of fixed-size real arrays (Opt<std::array<double, N>> fields) share these.
+// Rows of Opt<double> and Opt<std::array<double, N>> fields share these.
 template <auto F>
 bool has_opt(const LearnedState& s) {
   return (s.*F).has_value();
 }
 template <auto F>
 void get_reals(const LearnedState& s, Nums& v) {
-  for (const double x : *(s.*F)) v.push_back({.x = x});
-}
-template <auto F>
-auto reals(const Nums& v) {
-  std::remove_cvref_t<decltype(*(std::declval<LearnedState&>().*F))> a{};
-  for (std::size_t i = 0; i < a.size(); ++i) a[i] = v[i].x;
-  return a;
+  const auto& x = *(s.*F);
+  if constexpr (std::is_same_v<std::remove_cvref_t<decltype(x)>, double>)
+    v.push_back({.x = x});
+  else
+    for (const double e : x) v.push_back({.x = e});
 }
 template <auto F>
 bool set_reals(LearnedState& s, const Nums& v) {
-  s.*F = reals<F>(v);
+  std::remove_cvref_t<decltype(*(s.*F))> a{};
+  if constexpr (std::is_same_v<decltype(a), double>)
+    a = v[0].x;
+  else
+    for (std::size_t i = 0; i < a.size(); ++i) a[i] = v[i].x;
+  s.*F = a;
   return true;
 }
 
@@ -323,12 +326,7 @@ const std::array<Line, 8> kLines{{
      },
      check_fuel},
     {"crank_error_var", "g", 0, "expected a finite variance (N m^2)", has_opt<&S::crank_error_var>,
-     [](const S& s, Nums& v) { v.push_back({.x = *s.crank_error_var}); },
-     [](S& s, const Nums& v) {
-       s.crank_error_var = v[0].x;
-       return true;
-     },
-     check_crank_var},
+     get_reals<&S::crank_error_var>, set_reals<&S::crank_error_var>, check_crank_var},
     {"inertia", "ggg", 0, "expected an inertia scale, its information (1/sigma^2) and the spec J (kg m^2)",
      has_opt<&S::inertia>, get_reals<&S::inertia>, set_reals<&S::inertia>, check_inertia},
     {"saved_at_t_ns", "i", 0, "expected an integer time", [](const S&) { return true; },
