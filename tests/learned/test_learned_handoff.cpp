@@ -70,8 +70,8 @@ void expect_consistent(const LearnedState& got) {
 }
 
 TEST(LearnedHandoff, ConcurrentWriterNeverGivesATornState) {
-  // GIVEN a writer storing states 1, 2, 3, ... (6 kB each, 16 patterns) with gaps from none to about a
-  // store's length (the angle stage stores one per cycle: 20 ms at 6000 rpm) WHEN the reader takes 2000 of
+  // GIVEN a writer storing states 1, 2, 3, ... (6 kB each, 16 patterns) with gaps from none to 1.75 times a
+  // store's duration (the angle stage stores one per cycle: 20 ms at 6000 rpm) WHEN the reader takes 2000 of
   // them (or 2 s passed) THEN each is one whole state (every field consistent with its number), newer than
   // the one before. (A reader without the sequence re-check after its copy fails here in most runs, even on a
   // loaded machine; the TSan tier checks the hand-off for data races.)
@@ -80,15 +80,19 @@ TEST(LearnedHandoff, ConcurrentWriterNeverGivesATornState) {
   for (std::size_t k = 0; k < states.size(); ++k) states[k] = pattern(static_cast<std::int64_t>(k));
   std::atomic<bool> stop{false};
   std::thread w([&] {
-    volatile int spun = 0;
+    using Clock = std::chrono::steady_clock;
     for (std::int64_t i = 1; !stop.load(std::memory_order_relaxed); ++i) {
       LearnedState& s = states[static_cast<std::size_t>(i % 16)];
       s.saved_at_t_ns = i;
+      const auto t0 = Clock::now();
       slot.store(s);
-      // Gaps from none to about a store's length: a reader's copy can start in one and be overtaken.
-      for (int spin = 0; spin < (i % 8) * 300; ++spin) spun = spin;
+      // A gap of 0 to 1.75 times this store's duration (so also under TSan, where stores are much slower): a
+      // reader's copy can start in one and be overtaken by the next store.
+      const auto t1 = Clock::now();
+      const auto until = t1 + (t1 - t0) * (i % 8) / 4;
+      while (Clock::now() < until) {
+      }
     }
-    (void)spun;
   });
   int got = 0;
   std::int64_t last = 0;
@@ -104,6 +108,7 @@ TEST(LearnedHandoff, ConcurrentWriterNeverGivesATornState) {
   }
   stop = true;
   w.join();
+  RecordProperty("states_read", got);
   EXPECT_GE(got, 30) << "the reader got too few states to say anything";
 }
 
