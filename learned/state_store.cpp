@@ -291,7 +291,7 @@ bool check_inertia(const LearnedState& s, const StateContext& ctx, std::string* 
 }
 
 using S = LearnedState;
-const std::array<Line, 8> kLines{{
+const Line kLines[] = {
     {"friction", "gggg", 0, "expected 4 finite friction coefficients", has_opt<&S::friction>,
      get_reals<&S::friction>, set_reals<&S::friction>, check_friction},
     {"friction_idle", "gg", 0, "expected an idle friction correction (N m) and a positive idle speed (rpm)",
@@ -336,7 +336,7 @@ const std::array<Line, 8> kLines{{
        return true;
      },
      nullptr},
-}};
+};
 
 /// Kind of the i-th number of `l` (a count field's numbers all have kinds[0]).
 char kind_at(const Line& l, std::size_t i) {
@@ -413,8 +413,9 @@ std::string serialize_state(const LearnedState& s, const std::string& identity) 
 namespace {
 /// One "key values..." line into `s`; false with `what` set.
 bool parse_line(const std::string& key, std::istringstream& ls, LearnedState& s, std::string* what) {
-  const auto l = std::find_if(kLines.begin(), kLines.end(), [&](const Line& r) { return key == r.key; });
-  if (l != kLines.end()) {
+  const Line* l =
+      std::find_if(std::begin(kLines), std::end(kLines), [&](const Line& r) { return key == r.key; });
+  if (l != std::end(kLines)) {
     Nums v;
     if (!read_numbers(*l, ls, v) || !l->set(s, v)) {
       *what = l->expect;
