@@ -14,7 +14,8 @@
 //      check_state all walk; a bound of the configured engine goes into StateContext (state_context_from);
 //   3. where the chain fills it (AngleChain::snapshot) and applies it at start (AngleChain::import_state) in
 //      chain/angle_chain.cpp.
-// The angle stage, the supervisor, fast replay and the tools pass the record whole and need no change.
+// (And its line in the format comment of learned/state_store.hpp.) The angle stage, the supervisor, fast
+// replay and the tools pass the record whole and need no change.
 #include <algorithm>
 #include <array>
 #include <cstddef>
