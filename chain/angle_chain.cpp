@@ -154,47 +154,27 @@ bool AngleChain::friction_learned() const noexcept {
   return friction_imported_ || f.motoring_observations() + f.idle_observations() > 0;
 }
 
-bool AngleChain::snapshot(LearnedSnapshot& snap) const noexcept {
-  snap = LearnedSnapshot{};
-  snap.friction_valid = friction_learned();
-  if (snap.friction_valid) {
-    snap.friction = pipeline_->friction().coefficients();
-    if (pipeline_->friction().idle_speed_rpm() > 0.0) {
-      snap.idle_valid = true;
-      snap.idle = {pipeline_->friction().idle_correction_nm(), pipeline_->friction().idle_speed_rpm()};
-    }
-    const CoverageScale& r = pipeline_->friction().motoring_residual_scale();
-    snap.fric_res_valid = r.sd > 0.0;
-    snap.fric_res = {r.sd, static_cast<double>(r.n)};
+bool AngleChain::snapshot(LearnedState& st) const noexcept {
+  st = LearnedState{};
+  if (friction_learned()) {
+    const FrictionLearner& f = pipeline_->friction();
+    st.friction = f.coefficients();
+    if (f.idle_speed_rpm() > 0.0)
+      st.friction_idle = std::array<double, 2>{f.idle_correction_nm(), f.idle_speed_rpm()};
+    const CoverageScale& r = f.motoring_residual_scale();
+    if (r.sd > 0.0) st.friction_residual = std::array<double, 2>{r.sd, static_cast<double>(r.n)};
   }
-  snap.n_teeth = corr_n_;
-  std::copy_n(corr_.begin(), corr_n_, snap.teeth.begin());
+  st.tooth_corrections_rad.assign(corr_.begin(), corr_.begin() + corr_n_);
   if (pipeline_) {
     const FuelTorqueState& f = pipeline_->fuel_model().state();
-    snap.fuel_valid = fuel_imported_ || f.references > 0;
-    if (snap.fuel_valid) snap.fuel = f;
-    snap.crank_var = pipeline_->crank_error_var();
-    snap.crank_var_valid = crank_var_imported_ || snap.crank_var > 0.0;
+    if (fuel_imported_ || f.references > 0) st.fuel = f;
+    const double crank_var = pipeline_->crank_error_var();
+    if (crank_var_imported_ || crank_var > 0.0) st.crank_error_var = crank_var;
     const InertiaLearner& in = pipeline_->inertia();
-    snap.inertia_valid = inertia_imported_ || !in.is_prior();
-    snap.inertia = {in.scale(), in.information(), s_.engine.j_rot_kgm2};
+    if (inertia_imported_ || !in.is_prior())
+      st.inertia = std::array<double, 3>{in.scale(), in.information(), s_.engine.j_rot_kgm2};
   }
-  return snap.friction_valid || snap.n_teeth > 0 || snap.fuel_valid || snap.crank_var_valid ||
-         snap.inertia_valid;
-}
-
-bool AngleChain::learned_state(LearnedState& st) const {
-  LearnedSnapshot snap;
-  if (!snapshot(snap)) return false;
-  st = LearnedState{};
-  if (snap.friction_valid) st.friction = snap.friction;
-  if (snap.idle_valid) st.friction_idle = snap.idle;
-  if (snap.fric_res_valid) st.friction_residual = snap.fric_res;
-  st.tooth_corrections_rad.assign(snap.teeth.begin(), snap.teeth.begin() + snap.n_teeth);
-  if (snap.fuel_valid) st.fuel = snap.fuel;
-  if (snap.crank_var_valid) st.crank_error_var = snap.crank_var;
-  if (snap.inertia_valid) st.inertia = snap.inertia;
-  return true;
+  return st.friction || !st.tooth_corrections_rad.empty() || st.fuel || st.crank_error_var || st.inertia;
 }
 
 std::string AngleChain::import_state(const LearnedState& st) {
@@ -210,7 +190,7 @@ std::string AngleChain::import_state(const LearnedState& st) {
             (*st.friction_residual)[0], static_cast<std::uint32_t>((*st.friction_residual)[1])))
       what += " and motoring residual scale " + std::to_string((*st.friction_residual)[0]) + " N m";
   }
-  const auto n = st.tooth_corrections_rad.size();
+  const std::size_t n = st.tooth_corrections_rad.size();
   if (n > 0 && n <= corr_.size()) {
     const std::span<const double> tab(st.tooth_corrections_rad.data(), n);
     if (learner_) (void)learner_->import_table(tab, s_.tooth_learn.min_cycles);

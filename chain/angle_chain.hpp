@@ -13,11 +13,12 @@
 // Feedback loops, all in angle_chain.cpp: (1) learned tooth table → decoder edge corrections, applied at the
 // cycle boundary, and "wheel learned" → in-cycle observers and per-cylinder record (their health says when
 // not); (2) CAN fuel cut-off → tooth learner; (3) time pipeline's UIO brake estimate → fusion's external
-// source (fusion.time_estimate); (4) learned state import/export (friction law, tooth table); (5) hybrid input:
-// the electric machine's CAN torque (can.signals.em_torque × can.e_machine.ratio × sign) folded into the net load of
-// every balance (fold_e_machine, estimators/core/e_machine.hpp; the time stage folds the same), and motoring by the
-// machine → friction learner; a stale machine signal holds what rests on it with STALE_CAN, as the load signal.
-// on_edge/on_frame/poll/set_time_estimate are real-time safe: no allocation, no lock, no blocking.
+// source (fusion.time_estimate); (4) learned state import/export (friction law, tooth table); (5) hybrid
+// input: the electric machine's CAN torque (can.signals.em_torque × can.e_machine.ratio × sign) folded into
+// the net load of every balance (fold_e_machine, estimators/core/e_machine.hpp; the time stage folds the
+// same), and motoring by the machine → friction learner; a stale machine signal holds what rests on it with
+// STALE_CAN, as the load signal. on_edge/on_frame/poll/set_time_estimate are real-time safe: no allocation,
+// no lock, no blocking.
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -29,10 +30,10 @@
 #include "crank_decoder.hpp"
 #include "dbc.hpp"
 #include "decoder_events.hpp"
+#include "learned_state.hpp"
 #include "sample_sink.hpp"
 #include "signal_store.hpp"
 #include "stage_settings.hpp"
-#include "state_store.hpp"
 #include "tooth_error_learner.hpp"
 
 namespace torqued {
@@ -61,24 +62,6 @@ struct ChainSegment {
   std::uint64_t cycle = 0;           ///< cycles completed by the chain
   const CycleOutput* out = nullptr;  ///< energies chain, friction, fusion, per-cylinder (when cycle_end)
   ChainStatus status;
-};
-
-/// The learned state in fixed-size form (real-time safe to fill).
-struct LearnedSnapshot {
-  bool friction_valid = false;
-  std::array<double, 4> friction{};  ///< C1..C4 of the friction law
-  bool idle_valid = false;
-  std::array<double, 2> idle{};  ///< idle correction (N m), idle speed (rpm)
-  bool fric_res_valid = false;
-  std::array<double, 2> fric_res{};  ///< motoring residual scale (N m), its count
-  int n_teeth = 0;               ///< tooth corrections applied to the decoder (0: none)
-  std::array<double, 2 * kMaxTeeth> teeth{};
-  bool fuel_valid = false;  ///< fuel model learned from references, or imported
-  FuelTorqueState fuel{};
-  bool crank_var_valid = false;  ///< crank-only error variance measured, or imported
-  double crank_var = 0.0;        ///< (N m^2)
-  bool inertia_valid = false;    ///< inertia scale learned or imported
-  std::array<double, 3> inertia{};  ///< k, information, J_spec (LearnedState::inertia)
 };
 
 /// Receives the chain's records, on the chain's thread, in order. Implementations must be real-time safe.
@@ -129,12 +112,11 @@ class AngleChain {
   /// Feedback (4), before the first edge: restore persisted friction coefficients, tooth corrections, the
   /// fuel model and the measured crank-only error variance. Returns what was applied ("" when nothing).
   std::string import_state(const LearnedState& st);
-  /// The state learned so far (friction when learned or imported, tooth table once applied). False when
-  /// nothing was learned or imported. Real-time safe.
-  bool snapshot(LearnedSnapshot& snap) const noexcept;
-  /// The same as a LearnedState (allocates: not for the real-time threads).
-  bool learned_state(LearnedState& st) const;
-  /// True once per cycle end at which learned_state() may have changed (the daemon snapshots it then).
+  /// The state learned so far into `st` (friction when learned or imported, tooth table once applied;
+  /// identity and saved_at_t_ns left empty). False when nothing was learned or imported. Real-time safe (no
+  /// allocation).
+  bool snapshot(LearnedState& st) const noexcept;
+  /// True once per cycle end at which snapshot() may have changed (the daemon snapshots it then).
   [[nodiscard]] bool take_state_changed() noexcept {
     const bool c = state_changed_;
     state_changed_ = false;

@@ -10,9 +10,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   std::string err;
   if (auto s = torqued::parse_state(text, "fuzz", &err)) {
     (void)torqued::check_state(*s, ctx, "fuzz", &err);
-    // What parses must serialize and parse back to the same values.
-    const auto again = torqued::parse_state(torqued::serialize_state(*s, ctx.identity), "again", &err);
-    if (!again || again->tooth_corrections_rad != s->tooth_corrections_rad || again->friction != s->friction)
+    // What parses must serialize and parse back to the same values: every line of the table (the same text
+    // again).
+    const std::string text = torqued::serialize_state(*s, ctx.identity);
+    const auto again = torqued::parse_state(text, "again", &err);
+    if (!again || torqued::serialize_state(*again, ctx.identity) != text ||
+        again->tooth_corrections_rad != s->tooth_corrections_rad || again->friction != s->friction)
       __builtin_trap();
   }
   return 0;

@@ -15,7 +15,9 @@
 #include <fstream>
 #include <numbers>
 #include <sstream>
+#include <type_traits>
 #include <utility>
+#include <vector>
 
 #include "config.hpp"
 #include "friction_learner.hpp"
@@ -123,38 +125,286 @@ StateContext state_context_from(const Config& cfg) {
   return ctx;
 }
 
+// ---- The line table -------------------------------------------------------------------------------------
+// Every persisted line "<key> <numbers>" is described once, in kLines: serialize_state writes the rows whose
+// value is present, in table order; parse_state reads a row's numbers by their kinds; check_state runs each
+// present row's physical bounds check. Adding a learned quantity: its field in learned_state.hpp, its row
+// here, and where the chain fills and applies it (chain/angle_chain.cpp).
+
+namespace {
+/// One number of a line, by kind: 'g' a finite real (written %.17g), 'c' a count held as a real (0..2^32-1,
+/// written %.0f), 'u' an unsigned 32-bit integer, 'i' a signed 64-bit integer (both written in decimal).
+struct Num {
+  double x = 0.0;      ///< kinds g, c
+  std::int64_t n = 0;  ///< kinds u, i
+};
+using Nums = std::vector<Num>;
+
+/// One persisted line.
+struct Line {
+  const char* key;
+  /// One letter per number (see Num). A '|' marks where older files may end the line: the values after it
+  /// are optional trailing values, read as 0 when absent (always written).
+  const char* kinds;
+  /// > 0: the line is "<key> <n> <n numbers of kinds[0]>" with n <= max_count (a count field).
+  std::size_t max_count;
+  const char* expect;                       ///< what a malformed line is told it should hold
+  bool (*has)(const LearnedState&);         ///< present: written and checked
+  void (*get)(const LearnedState&, Nums&);  ///< the numbers to write
+  bool (*set)(LearnedState&, const Nums&);  ///< from the numbers read; false: not a valid value
+  bool (*check)(const LearnedState&, const StateContext&, std::string* what);  ///< bounds; null: none
+};
+
+// Rows of Opt<double> and Opt<std::array<double, N>> fields share these.
+template <auto F>
+bool has_opt(const LearnedState& s) {
+  return (s.*F).has_value();
+}
+template <auto F>
+void get_reals(const LearnedState& s, Nums& v) {
+  const auto& x = *(s.*F);
+  if constexpr (std::is_same_v<std::remove_cvref_t<decltype(x)>, double>)
+    v.push_back({.x = x});
+  else
+    for (const double e : x) v.push_back({.x = e});
+}
+template <auto F>
+bool set_reals(LearnedState& s, const Nums& v) {
+  std::remove_cvref_t<decltype(*(s.*F))> a{};
+  if constexpr (std::is_same_v<decltype(a), double>)
+    a = v[0].x;
+  else
+    for (std::size_t i = 0; i < a.size(); ++i) a[i] = v[i].x;
+  s.*F = a;
+  return true;
+}
+
+/// The fuel_model line's numbers: efficiency, pumping term p_exh V_d/4pi (N m), covariance P00 P01 P10 P11,
+/// residual variance (N m^2), reference count | 68th percentile of |residual| (N m), its count (added later:
+/// absent in older files, read as 0 = not measured yet).
+constexpr const char* kFuelKinds = "gggggggu|gu";
+void fuel_to_numbers(const FuelTorqueState& f, Nums& v) {
+  v = {{.x = f.theta[0]}, {.x = f.theta[1]},  {.x = f.p[0]},       {.x = f.p[1]},     {.x = f.p[2]},
+       {.x = f.p[3]},     {.x = f.resid_var}, {.n = f.references}, {.x = f.cover.sd}, {.n = f.cover.n}};
+}
+bool fuel_from_numbers(const Nums& v, FuelTorqueState& f) {
+  f.theta = {v[0].x, v[1].x};
+  f.p = {v[2].x, v[3].x, v[4].x, v[5].x};
+  f.resid_var = v[6].x;
+  f.references = static_cast<std::uint32_t>(v[7].n);
+  f.cover.sd = v[8].x;
+  f.cover.n = static_cast<std::uint32_t>(v[9].n);
+  return f.cover.sd >= 0.0;
+}
+
+bool check_friction(const LearnedState& s, const StateContext& ctx, std::string* what) {
+  const auto& c = *s.friction;
+  const double worst = max_abs_friction(ctx.friction, c);
+  if (worst <= ctx.max_friction_nm) return true;
+  *what = "friction law [" + fmt("%g", c[0]) + fmt(", %g", c[1]) + fmt(", %g", c[2]) + fmt(", %g", c[3]) +
+          "] reaches " + fmt("%g", worst) + " N m over 0.." + fmt("%g", ctx.friction.max_rpm) +
+          " rpm, -40..200 degC; physical bound " + fmt("%g", ctx.max_friction_nm) + " N m";
+  return false;
+}
+
+bool check_friction_idle(const LearnedState& s, const StateContext& ctx, std::string* what) {
+  const auto& v = *s.friction_idle;
+  if (!(std::abs(v[0]) <= ctx.max_friction_nm))
+    *what = "idle friction correction " + fmt("%g", v[0]) + " N m beyond the physical bound " +
+            fmt("%g", ctx.max_friction_nm) + " N m";
+  else if (!(v[1] > 0.0 && v[1] <= ctx.friction.max_rpm))
+    *what = "idle speed " + fmt("%g", v[1]) + " rpm not in (0, " + fmt("%g", ctx.friction.max_rpm) + "]";
+  else if (!s.friction)
+    *what = "an idle friction correction without friction coefficients";
+  else
+    return true;
+  return false;
+}
+
+bool check_friction_residual(const LearnedState& s, const StateContext& ctx, std::string* what) {
+  const double v = (*s.friction_residual)[0];
+  if (!(v > 0.0 && v <= ctx.max_torque_sd_nm))
+    *what = "motoring residual scale " + fmt("%g", v) + " N m not in (0, " + fmt("%g", ctx.max_torque_sd_nm) +
+            "]";
+  else if (!s.friction)
+    *what = "a motoring residual scale without friction coefficients";
+  else
+    return true;
+  return false;
+}
+
+bool check_teeth(const LearnedState& s, const StateContext& ctx, std::string* what) {
+  const auto& t = s.tooth_corrections_rad;
+  if (t.size() != static_cast<std::size_t>(ctx.teeth)) {
+    *what = std::to_string(t.size()) + " tooth corrections, but the wheel has " + std::to_string(ctx.teeth) +
+            " teeth";
+    return false;
+  }
+  for (std::size_t i = 0; i < t.size(); ++i)
+    if (!(std::abs(t[i]) < ctx.max_tooth_corr_rad)) {
+      *what = "tooth correction " + std::to_string(i) + " = " + fmt("%g", t[i]) +
+              " rad is not within half a tooth pitch (" + fmt("%g", ctx.max_tooth_corr_rad) + " rad)";
+      return false;
+    }
+  return true;
+}
+
+/// Physical bounds of a learned fuel model: 0 < efficiency < Otto efficiency; |pumping term| and the residual
+/// 1 sigma within the torque of kMaxFrictionMepPa; covariance symmetric positive semi-definite.
+bool check_fuel(const LearnedState& s, const StateContext& ctx, std::string* what) {
+  const FuelTorqueState& f = *s.fuel;
+  const double lim = ctx.max_torque_sd_nm;
+  const double tol = 1e-9 * (std::abs(f.p[1]) + std::abs(f.p[2])) + 1e-300;
+  if (!(f.theta[0] > 0.0 && f.theta[0] < ctx.max_eta))
+    *what = "fuel model efficiency " + fmt("%g", f.theta[0]) + " not in (0, " + fmt("%g", ctx.max_eta) +
+            ") (the Otto cycle's at this compression ratio)";
+  else if (!(std::abs(f.theta[1]) <= lim))
+    *what = "fuel model pumping term " + fmt("%g", f.theta[1]) + " N m beyond " + fmt("%g", lim) + " N m";
+  else if (!(f.resid_var >= 0.0 && std::sqrt(f.resid_var) <= lim))
+    *what = "fuel model residual variance " + fmt("%g", f.resid_var) + " N m^2 out of range";
+  else if (!(f.cover.sd >= 0.0 && f.cover.sd <= lim))
+    *what = "fuel model residual scale " + fmt("%g", f.cover.sd) + " N m not in [0, " + fmt("%g", lim) + "]";
+  else if (!(f.p[0] >= 0.0 && f.p[3] >= 0.0 && std::abs(f.p[1] - f.p[2]) <= tol &&
+             f.p[1] * f.p[2] <= f.p[0] * f.p[3] * (1.0 + 1e-9)))
+    *what = "fuel model covariance [" + fmt("%g", f.p[0]) + fmt(" %g", f.p[1]) + fmt(" %g", f.p[2]) +
+            fmt(" %g", f.p[3]) + "] is not symmetric positive semi-definite";
+  else
+    return true;
+  return false;
+}
+
+bool check_crank_var(const LearnedState& s, const StateContext& ctx, std::string* what) {
+  const double v = *s.crank_error_var;
+  if (v >= 0.0 && std::sqrt(v) <= ctx.max_torque_sd_nm) return true;
+  *what = "crank-only error variance " + fmt("%g", v) + " N m^2 not in [0, (" +
+          fmt("%g", ctx.max_torque_sd_nm) + " N m)^2]";
+  return false;
+}
+
+bool check_inertia(const LearnedState& s, const StateContext& ctx, std::string* what) {
+  const auto& v = *s.inertia;
+  if (v[0] >= ctx.min_inertia_scale && v[0] <= ctx.max_inertia_scale && v[1] > 0.0 && v[2] > 0.0) return true;
+  *what = "inertia scale " + fmt("%g", v[0]) + " not in [" + fmt("%g", ctx.min_inertia_scale) + ", " +
+          fmt("%g", ctx.max_inertia_scale) + "], or information " + fmt("%g", v[1]) + " or spec J " +
+          fmt("%g", v[2]) + " kg m^2 not positive";
+  return false;
+}
+
+using S = LearnedState;
+const Line kLines[] = {
+    {"friction", "gggg", 0, "expected 4 finite friction coefficients", has_opt<&S::friction>,
+     get_reals<&S::friction>, set_reals<&S::friction>, check_friction},
+    {"friction_idle", "gg", 0, "expected an idle friction correction (N m) and a positive idle speed (rpm)",
+     has_opt<&S::friction_idle>, get_reals<&S::friction_idle>,
+     [](S& s, const Nums& v) { return v[1].x > 0.0 && set_reals<&S::friction_idle>(s, v); },
+     check_friction_idle},
+    {"friction_residual", "gc", 0, "expected a positive motoring residual scale (N m) and a count",
+     has_opt<&S::friction_residual>, get_reals<&S::friction_residual>,
+     [](S& s, const Nums& v) { return v[0].x > 0.0 && set_reals<&S::friction_residual>(s, v); },
+     check_friction_residual},
+    {"tooth_corrections", "g", kMaxToothCorrections,
+     "expected a tooth count and that many finite corrections",
+     [](const S& s) { return !s.tooth_corrections_rad.empty(); },
+     [](const S& s, Nums& v) {
+       for (const double x : s.tooth_corrections_rad) v.push_back({.x = x});
+     },
+     [](S& s, const Nums& v) {
+       s.tooth_corrections_rad.clear();
+       for (const Num& x : v) s.tooth_corrections_rad.push_back(x.x);
+       return true;
+     },
+     check_teeth},
+    {"fuel_model", kFuelKinds, 0,
+     "expected efficiency, pumping term (N m), 4 covariance entries, residual variance (N m^2), a reference "
+     "count and optionally the residual scale (N m) and its count",
+     has_opt<&S::fuel>, [](const S& s, Nums& v) { fuel_to_numbers(*s.fuel, v); },
+     [](S& s, const Nums& v) {
+       FuelTorqueState f;
+       if (!fuel_from_numbers(v, f)) return false;
+       s.fuel = f;
+       return true;
+     },
+     check_fuel},
+    {"crank_error_var", "g", 0, "expected a finite variance (N m^2)", has_opt<&S::crank_error_var>,
+     get_reals<&S::crank_error_var>, set_reals<&S::crank_error_var>, check_crank_var},
+    {"inertia", "ggg", 0, "expected an inertia scale, its information (1/sigma^2) and the spec J (kg m^2)",
+     has_opt<&S::inertia>, get_reals<&S::inertia>, set_reals<&S::inertia>, check_inertia},
+    {"saved_at_t_ns", "i", 0, "expected an integer time", [](const S&) { return true; },
+     [](const S& s, Nums& v) { v.push_back({.n = s.saved_at_t_ns}); },
+     [](S& s, const Nums& v) {
+       s.saved_at_t_ns = v[0].n;
+       return true;
+     },
+     nullptr},
+};
+
+/// Kind of the i-th number of `l` (a count field's numbers all have kinds[0]).
+char kind_at(const Line& l, std::size_t i) {
+  if (l.max_count > 0) return l.kinds[0];
+  for (const char* k = l.kinds; *k; ++k)
+    if (*k != '|' && i-- == 0) return *k;
+  return 'g';
+}
+
+void append_number(std::string& text, char kind, const Num& v) {
+  if (kind == 'g')
+    text += fmt(" %.17g", v.x);
+  else if (kind == 'c')
+    text += fmt(" %.0f", v.x);
+  else
+    (text += ' ') += std::to_string(v.n);
+}
+
+bool read_number(std::istringstream& ls, char kind, Num& v) {
+  switch (kind) {
+    case 'g':
+      return static_cast<bool>(ls >> v.x) && std::isfinite(v.x);
+    case 'c':
+      return static_cast<bool>(ls >> v.x) && v.x >= 0.0 && v.x <= 4294967295.0;
+    case 'u':
+      return static_cast<bool>(ls >> v.n) && v.n >= 0 && v.n <= 0xFFFFFFFFll;
+    default:
+      return static_cast<bool>(ls >> v.n);
+  }
+}
+
+/// The numbers of a `l` line (after its key); false when one is missing or out of its kind's range.
+bool read_numbers(const Line& l, std::istringstream& ls, Nums& v) {
+  if (l.max_count > 0) {
+    std::int64_t n = -1;
+    if (!(ls >> n) || n < 0 || static_cast<std::size_t>(n) > l.max_count) return false;
+    v.assign(static_cast<std::size_t>(n), Num{});
+    for (Num& x : v)
+      if (!read_number(ls, l.kinds[0], x)) return false;
+    return true;
+  }
+  v.clear();
+  for (const char* k = l.kinds; *k; ++k)
+    if (*k != '|') v.emplace_back();  // absent optional trailing values stay 0
+  std::size_t i = 0;
+  for (const char* k = l.kinds; *k; ++k) {
+    if (*k == '|') {
+      if ((ls >> std::ws).eof()) return true;
+      continue;
+    }
+    if (!read_number(ls, *k, v[i++])) return false;
+  }
+  return true;
+}
+}  // namespace
+
 std::string serialize_state(const LearnedState& s, const std::string& identity) {
   std::string text = "torqued-state 2\nidentity " + identity + "\n";
-  if (s.friction) {
-    text += "friction";
-    for (double c : *s.friction) text += fmt(" %.17g", c);
+  Nums v;
+  for (const Line& l : kLines) {
+    if (!l.has(s)) continue;
+    v.clear();
+    l.get(s, v);
+    text += l.key;
+    if (l.max_count > 0) (text += ' ') += std::to_string(v.size());
+    for (std::size_t i = 0; i < v.size(); ++i) append_number(text, kind_at(l, i), v[i]);
     text += '\n';
   }
-  if (s.friction_idle)
-    text +=
-        "friction_idle" + fmt(" %.17g", (*s.friction_idle)[0]) + fmt(" %.17g", (*s.friction_idle)[1]) + "\n";
-  if (s.friction_residual)
-    text += "friction_residual" + fmt(" %.17g", (*s.friction_residual)[0]) +
-            fmt(" %.0f", (*s.friction_residual)[1]) + "\n";
-  if (!s.tooth_corrections_rad.empty()) {
-    text += "tooth_corrections " + std::to_string(s.tooth_corrections_rad.size());
-    for (double c : s.tooth_corrections_rad) text += fmt(" %.17g", c);
-    text += '\n';
-  }
-  if (s.fuel) {
-    const FuelTorqueState& f = *s.fuel;
-    text += "fuel_model" + fmt(" %.17g", f.theta[0]) + fmt(" %.17g", f.theta[1]);
-    for (double v : f.p) text += fmt(" %.17g", v);
-    text += fmt(" %.17g", f.resid_var) + " " + std::to_string(f.references);
-    text += fmt(" %.17g", f.cover.sd) + " " + std::to_string(f.cover.n) + "\n";
-  }
-  if (s.crank_error_var) text += "crank_error_var" + fmt(" %.17g", *s.crank_error_var) + "\n";
-  if (s.inertia) {
-    text += "inertia";
-    for (double v : *s.inertia) text += fmt(" %.17g", v);
-    text += '\n';
-  }
-  text += "saved_at_t_ns " + std::to_string(s.saved_at_t_ns) + "\n";
   char sum[32];
   std::snprintf(sum, sizeof sum, "checksum crc32 %08x\n", crc32(text.data(), text.size()));
   return text + sum;
@@ -163,62 +413,21 @@ std::string serialize_state(const LearnedState& s, const std::string& identity) 
 namespace {
 /// One "key values..." line into `s`; false with `what` set.
 bool parse_line(const std::string& key, std::istringstream& ls, LearnedState& s, std::string* what) {
-  if (key == "friction") {
-    std::array<double, 4> c{};
-    for (double& v : c)
-      if (!(ls >> v) || !std::isfinite(v)) return *what = "expected 4 finite friction coefficients", false;
-    s.friction = c;
-  } else if (key == "friction_idle") {
-    std::array<double, 2> v{};
-    if (!(ls >> v[0] >> v[1]) || !std::isfinite(v[0]) || !std::isfinite(v[1]) || !(v[1] > 0.0))
-      return *what = "expected an idle friction correction (N m) and a positive idle speed (rpm)", false;
-    s.friction_idle = v;
-  } else if (key == "friction_residual") {
-    std::array<double, 2> v{};
-    if (!(ls >> v[0] >> v[1]) || !std::isfinite(v[0]) || !(v[0] > 0.0) ||
-        !(v[1] >= 0.0 && v[1] <= 4294967295.0))
-      return *what = "expected a positive motoring residual scale (N m) and a count", false;
-    s.friction_residual = v;
-  } else if (key == "tooth_corrections") {
-    std::size_t n = 0;
-    if (!(ls >> n) || n > 2 * static_cast<std::size_t>(kMaxTeeth))
-      return *what = "expected a tooth count (<= " + std::to_string(2 * kMaxTeeth) + ")", false;
-    s.tooth_corrections_rad.resize(n);
-    for (double& v : s.tooth_corrections_rad)
-      if (!(ls >> v) || !std::isfinite(v))
-        return *what = "expected " + std::to_string(n) + " finite corrections", false;
-  } else if (key == "fuel_model") {
-    FuelTorqueState f;
-    std::int64_t refs = -1;
-    bool ok = static_cast<bool>(ls >> f.theta[0] >> f.theta[1]);
-    for (double& v : f.p) ok = ok && static_cast<bool>(ls >> v);
-    ok = ok && (ls >> f.resid_var >> refs) && refs >= 0 && refs <= 0xFFFFFFFFll;
-    std::int64_t cover_n = 0;
-    if (ok && !(ls >> std::ws).eof())  // the residual scale and its count (absent in older files)
-      ok = (ls >> f.cover.sd >> cover_n) && cover_n >= 0 && cover_n <= 0xFFFFFFFFll && f.cover.sd >= 0.0;
-    for (double v : {f.theta[0], f.theta[1], f.p[0], f.p[1], f.p[2], f.p[3], f.resid_var, f.cover.sd})
-      ok = ok && std::isfinite(v);
-    if (!ok)
-      return *what =
-                 "expected efficiency, pumping term (N m), 4 covariance entries, residual variance (N m^2), "
-                 "a reference count and optionally the residual scale (N m) and its count",
-             false;
-    f.references = static_cast<std::uint32_t>(refs);
-    f.cover.n = static_cast<std::uint32_t>(cover_n);
-    s.fuel = f;
-  } else if (key == "crank_error_var") {
-    double v = 0.0;
-    if (!(ls >> v) || !std::isfinite(v)) return *what = "expected a finite variance (N m^2)", false;
-    s.crank_error_var = v;
-  } else if (key == "inertia") {
-    std::array<double, 3> v{};
-    if (!(ls >> v[0] >> v[1] >> v[2]) || !std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2]))
-      return *what = "expected an inertia scale, its information (1/sigma^2) and the spec J (kg m^2)", false;
-    s.inertia = v;
-  } else if (key == "saved_at_t_ns") {
-    if (!(ls >> s.saved_at_t_ns)) return *what = "expected an integer time", false;
+  const Line* l =
+      std::find_if(std::begin(kLines), std::end(kLines), [&](const Line& r) { return key == r.key; });
+  if (l != std::end(kLines)) {
+    Nums v;
+    if (!read_numbers(*l, ls, v) || !l->set(s, v)) {
+      *what = l->expect;
+      if (l->max_count > 0) *what += " (a count <= " + std::to_string(l->max_count) + ")";
+      return false;
+    }
   } else if (key == "identity" && s.version >= 2) {
-    std::getline(ls >> std::ws, s.identity);
+    std::string id;
+    std::getline(ls >> std::ws, id);
+    if (id.size() > kMaxIdentityChars)
+      return *what = "identity longer than " + std::to_string(kMaxIdentityChars) + " characters", false;
+    s.identity = id;
   } else {
     return *what = "unknown key '" + key + "'", false;
   }
@@ -275,98 +484,18 @@ std::optional<LearnedState> parse_state(const std::string& text, const std::stri
   return s;
 }
 
-namespace {
-/// Physical bounds of a learned fuel model: 0 < efficiency < Otto efficiency; |pumping term| and the residual
-/// 1 sigma within the torque of kMaxFrictionMepPa; covariance symmetric positive semi-definite.
-bool check_fuel(const FuelTorqueState& f, const StateContext& ctx, std::string* what) {
-  if (!(f.theta[0] > 0.0 && f.theta[0] < ctx.max_eta)) {
-    *what = "fuel model efficiency " + fmt("%g", f.theta[0]) + " not in (0, " + fmt("%g", ctx.max_eta) +
-            ") (the Otto cycle's at this compression ratio)";
-    return false;
-  }
-  if (!(std::abs(f.theta[1]) <= ctx.max_torque_sd_nm)) {
-    *what = "fuel model pumping term " + fmt("%g", f.theta[1]) + " N m beyond " + fmt("%g", ctx.max_torque_sd_nm) +
-            " N m";
-    return false;
-  }
-  if (!(f.resid_var >= 0.0 && std::sqrt(f.resid_var) <= ctx.max_torque_sd_nm)) {
-    *what = "fuel model residual variance " + fmt("%g", f.resid_var) + " N m^2 out of range";
-    return false;
-  }
-  if (!(f.cover.sd >= 0.0 && f.cover.sd <= ctx.max_torque_sd_nm)) {
-    *what = "fuel model residual scale " + fmt("%g", f.cover.sd) + " N m not in [0, " +
-            fmt("%g", ctx.max_torque_sd_nm) + "]";
-    return false;
-  }
-  const double tol = 1e-9 * (std::abs(f.p[1]) + std::abs(f.p[2])) + 1e-300;
-  if (!(f.p[0] >= 0.0 && f.p[3] >= 0.0 && std::abs(f.p[1] - f.p[2]) <= tol &&
-        f.p[1] * f.p[2] <= f.p[0] * f.p[3] * (1.0 + 1e-9))) {
-    *what = "fuel model covariance [" + fmt("%g", f.p[0]) + fmt(" %g", f.p[1]) + fmt(" %g", f.p[2]) +
-            fmt(" %g", f.p[3]) + "] is not symmetric positive semi-definite";
-    return false;
-  }
-  return true;
-}
-}  // namespace
-
 bool check_state(const LearnedState& s, const StateContext& ctx, const std::string& name,
                  std::string* error) {
-  std::string fuel_err;
   auto fail = [&](const std::string& what) {
     if (error) *error = name + ": " + what;
     return false;
   };
   if (s.version >= 2 && s.identity != ctx.identity)
-    return fail("belongs to another engine/wheel (file: '" + s.identity + "', this configuration: '" +
+    return fail("belongs to another engine/wheel (file: '" + s.identity.str() + "', this configuration: '" +
                 ctx.identity + "')");
-  const auto n = s.tooth_corrections_rad.size();
-  if (n != 0 && n != static_cast<std::size_t>(ctx.teeth))
-    return fail(std::to_string(n) + " tooth corrections, but the wheel has " + std::to_string(ctx.teeth) +
-                " teeth");
-  for (std::size_t i = 0; i < n; ++i)
-    if (!(std::abs(s.tooth_corrections_rad[i]) < ctx.max_tooth_corr_rad))
-      return fail("tooth correction " + std::to_string(i) + " = " + fmt("%g", s.tooth_corrections_rad[i]) +
-                  " rad is not within half a tooth pitch (" + fmt("%g", ctx.max_tooth_corr_rad) + " rad)");
-  if (s.friction) {
-    const auto& c = *s.friction;
-    const double worst = max_abs_friction(ctx.friction, c);
-    if (!(worst <= ctx.max_friction_nm))
-      return fail("friction law [" + fmt("%g", c[0]) + fmt(", %g", c[1]) + fmt(", %g", c[2]) +
-                  fmt(", %g", c[3]) + "] reaches " + fmt("%g", worst) + " N m over 0.." +
-                  fmt("%g", ctx.friction.max_rpm) + " rpm, -40..200 degC; physical bound " +
-                  fmt("%g", ctx.max_friction_nm) + " N m");
-  }
-  if (s.friction_idle) {
-    const auto& v = *s.friction_idle;
-    if (!(std::abs(v[0]) <= ctx.max_friction_nm))
-      return fail("idle friction correction " + fmt("%g", v[0]) + " N m beyond the physical bound " +
-                  fmt("%g", ctx.max_friction_nm) + " N m");
-    if (!(v[1] > 0.0 && v[1] <= ctx.friction.max_rpm))
-      return fail("idle speed " + fmt("%g", v[1]) + " rpm not in (0, " + fmt("%g", ctx.friction.max_rpm) +
-                  "]");
-    if (!s.friction) return fail("an idle friction correction without friction coefficients");
-  }
-  if (s.friction_residual) {
-    const double v = (*s.friction_residual)[0];
-    if (!(v > 0.0 && v <= ctx.max_torque_sd_nm))
-      return fail("motoring residual scale " + fmt("%g", v) + " N m not in (0, " +
-                  fmt("%g", ctx.max_torque_sd_nm) + "]");
-    if (!s.friction) return fail("a motoring residual scale without friction coefficients");
-  }
-  if (s.fuel && !check_fuel(*s.fuel, ctx, &fuel_err)) return fail(fuel_err);
-  if (s.crank_error_var) {
-    const double v = *s.crank_error_var;
-    if (!(v >= 0.0 && std::sqrt(v) <= ctx.max_torque_sd_nm))
-      return fail("crank-only error variance " + fmt("%g", v) + " N m^2 not in [0, (" +
-                  fmt("%g", ctx.max_torque_sd_nm) + " N m)^2]");
-  }
-  if (s.inertia) {
-    const auto& v = *s.inertia;
-    if (!(v[0] >= ctx.min_inertia_scale && v[0] <= ctx.max_inertia_scale && v[1] > 0.0 && v[2] > 0.0))
-      return fail("inertia scale " + fmt("%g", v[0]) + " not in [" + fmt("%g", ctx.min_inertia_scale) + ", " +
-                  fmt("%g", ctx.max_inertia_scale) + "], or information " + fmt("%g", v[1]) + " or spec J " +
-                  fmt("%g", v[2]) + " kg m^2 not positive");
-  }
+  std::string what;
+  for (const Line& l : kLines)
+    if (l.check && l.has(s) && !l.check(s, ctx, &what)) return fail(what);
   return true;
 }
 
@@ -405,7 +534,8 @@ bool save_state_atomic(const std::string& path, const LearnedState& s, const std
 }
 
 bool save_state_atomic(const std::string& path, const LearnedState& s, std::string* error) {
-  return save_state_atomic(path, s, s.identity.empty() ? std::string("unspecified") : s.identity, error);
+  return save_state_atomic(path, s, s.identity.empty() ? std::string("unspecified") : s.identity.str(),
+                           error);
 }
 
 std::optional<LearnedState> load_state(const std::string& path, std::string* error) {

@@ -21,6 +21,11 @@
 // signal); version 2 files without them still load. Version 1 files (no identity, no checksum) are still read
 // and checked against the bounds; the next save rewrites them as version 2.
 //
+// The record is LearnedState (learned_state.hpp). Each line between the identity and the checksum is one row
+// of the line table in state_store.cpp (keyword, kinds of its numbers, count field, optional trailing values,
+// physical bounds check): serialize_state, parse_state and check_state all walk that table, so a new learned
+// quantity is its field, its row and its place in the chain (see learned_state.hpp).
+//
 // Writes are atomic: <file>.tmp is written and fsync()ed, the current file (always a checked one) is
 // hard-linked to <file>.bak, then <file>.tmp is renamed over <file> and the directory fsync()ed. A crash or
 // kill -9 at any moment leaves the old or the new complete file, never a torn one.
@@ -41,26 +46,12 @@
 #include <thread>
 #include <vector>
 
-#include "fuel_torque.hpp"
+#include "learned_state.hpp"
 #include "params.hpp"
 
 namespace torqued {
 
 struct Config;
-
-struct LearnedState {
-  std::optional<std::array<double, 4>> friction;       ///< FrictionLearner coefficients [C1..C4]
-  std::optional<std::array<double, 2>> friction_idle;  ///< idle correction (N m) and its idle speed (rpm)
-  std::optional<std::array<double, 2>> friction_residual;  ///< motoring residual scale (N m), its count
-  std::vector<double> tooth_corrections_rad;           ///< ToothErrorLearner table (empty = none)
-  std::optional<FuelTorqueState> fuel;    ///< FuelTorque learned efficiency / pumping / covariance
-  std::optional<double> crank_error_var;  ///< measured crank-only indicated error variance (N m^2)
-  std::optional<std::array<double, 3>>
-      inertia;  ///< InertiaLearner k, its information (1/sigma^2), J_spec (kg m^2)
-  std::int64_t saved_at_t_ns = 0;
-  std::string identity;  ///< read from the file (version 2); written from StateContext on save
-  int version = 2;       ///< read from the file
-};
 
 /// What a state file must match and the physical bounds its values must respect (from the configuration).
 struct StateContext {
@@ -72,7 +63,7 @@ struct StateContext {
   /// Upper bound of the gross indicated efficiency: the air-standard Otto cycle at the configured compression
   /// ratio, 1 - r^(1-gamma) with gamma = 1.4 (Heywood 1988 eq. 5.31); no real cycle converts more.
   double max_eta = 1.0;
-  double max_torque_sd_nm = 0;  ///< bound of a learned 1 sigma (N m): the torque of kMaxFrictionMepPa
+  double max_torque_sd_nm = 0;   ///< bound of a learned 1 sigma (N m): the torque of kMaxFrictionMepPa
   double min_inertia_scale = 0;  ///< bounds of the learned inertia scale (estimators.energies.inertia)
   double max_inertia_scale = 0;
 };

@@ -2,17 +2,18 @@
 // Angle stage: the DDS mapping of the angle chain (angle_chain.hpp, where edges and frames become estimates).
 // Emits the decimated CrankState per tooth, the in-cycle EstimatorTorque (Kalman, Fourier) every n-th tooth,
 // EngineTorque + EstimatorTorque per combustion segment (rolling 720° window) and per cycle, CylinderTorque
-// per cycle, and keeps a lock-free snapshot of the learned state for the supervisor. Runs on the angle thread
-// (paced/live) or inline in fast replay; on_edge/on_frame/poll are real-time safe.
+// per cycle, and publishes the learned state at cycle ends through a LatestValue<LearnedState> for the
+// supervisor. Runs on the angle thread (paced/live) or inline in fast replay; on_edge/on_frame/poll are
+// real-time safe.
 #include <array>
-#include <atomic>
 #include <cstdint>
 #include <string>
 
 #include "angle_chain.hpp"
+#include "latest_value.hpp"
+#include "learned_state.hpp"
 #include "sample_sink.hpp"
 #include "stage_settings.hpp"
-#include "state_store.hpp"
 
 namespace torqued {
 
@@ -37,9 +38,10 @@ class AngleStage final : public AngleChainSink {
 
   /// Before start (no concurrent on_edge): restore persisted state; returns what was applied ("": nothing).
   std::string import_state(const LearnedState& st);
-  /// From any thread: the newest learned state snapshot taken at a cycle end (seqlock). False when nothing
-  /// was learned or imported yet.
-  bool export_state(LearnedState& st) const;
+  /// The learned state, published at each cycle end that may have changed it and after import_state (nothing
+  /// before anything was learned or imported). One reader (the supervisor): load_new() gives each newest
+  /// snapshot once, complete (never torn).
+  [[nodiscard]] LatestValue<LearnedState>& learned() noexcept { return learned_; }
 
   void on_tooth(const ChainTooth& t) noexcept override;
   void on_segment(const ChainSegment& s) noexcept override;
@@ -59,25 +61,8 @@ class AngleStage final : public AngleChainSink {
   int tooth_est_count_ = 0;
   std::uint64_t seq_engine_ = 0, seq_cyl_ = 0, seq_crank_ = 0;
   std::array<std::uint64_t, 16> seq_method_{};
-  LearnedSnapshot scratch_;  ///< filled on the stage's thread, then copied into the seqlock below
-
-  // Learned-state snapshot for the supervisor (seqlock: odd = being written).
-  mutable std::atomic<std::uint32_t> snap_seq_{0};
-  std::array<std::atomic<double>, 4> snap_friction_{};
-  std::array<std::atomic<double>, 2 * kMaxTeeth> snap_teeth_{};
-  std::atomic<int> snap_n_teeth_{0};
-  std::atomic<bool> snap_friction_valid_{false};
-  std::array<std::atomic<double>, 2> snap_idle_{};  ///< friction idle correction (N m), idle speed (rpm)
-  std::atomic<bool> snap_idle_valid_{false};
-  std::array<std::atomic<double>, 2> snap_fric_res_{};  ///< motoring residual scale (N m), its count
-  std::atomic<bool> snap_fric_res_valid_{false};
-  std::array<std::atomic<double>, 10>
-      snap_fuel_{};  ///< FuelTorqueState: theta[2], p[4], resid_var, references, cover.sd, cover.n
-  std::atomic<bool> snap_fuel_valid_{false};
-  std::atomic<double> snap_crank_var_{0.0};
-  std::atomic<bool> snap_crank_var_valid_{false};
-  std::array<std::atomic<double>, 3> snap_inertia_{};  ///< InertiaLearner k, information, J_spec
-  std::atomic<bool> snap_inertia_valid_{false};
+  LearnedState scratch_;  ///< filled on the stage's thread, then stored into learned_
+  LatestValue<LearnedState> learned_;
 };
 
 }  // namespace torqued

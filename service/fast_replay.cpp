@@ -140,7 +140,7 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
   c.flags |= torque_STATUS_REPLAY_DONE;
   sink.emit(status.next(c, r.last_t_ns, r.last_t_ns - r.first_t_ns));
   r.counters = c;
-  if (state) r.learned = angle.chain().learned_state(*state);
+  if (state) r.learned = angle.chain().snapshot(*state);
   r.bad_frames = angle.chain().describe_bad_frames();
   r.input_problems = input_problems(edges, can);
   r.samples = sink.n_;

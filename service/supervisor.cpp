@@ -172,6 +172,8 @@ class Supervisor {
   Runtime rt_;
   dds::SampleRecorder* recorder_;
   std::unique_ptr<StateSaver> saver_;
+  LearnedState learned_;  ///< newest learned state read from the angle stage (this thread is its one reader)
+  bool have_learned_ = false;
   sigset_t sigs_{};
   StatusTracker status_;
   Heartbeats last_hb_{};
@@ -275,10 +277,11 @@ void Supervisor::ping_watchdog(std::int64_t now) {
 void Supervisor::save() {
   if (!saver_) return;
   for (const auto& e : saver_->take_errors()) spdlog::warn("learned state not saved: {}", e);
-  LearnedState st;
-  if (!rt_.angle_stage().export_state(st)) return;  // nothing learned yet
+  if (rt_.angle_stage().learned().load_new(learned_)) have_learned_ = true;  // else: unchanged since
+  if (!have_learned_) return;                                                // nothing learned yet
+  LearnedState st = learned_;
   st.saved_at_t_ns = rt_.last_source_t_ns();
-  saver_->submit(std::move(st));
+  saver_->submit(st);
 }
 
 int Supervisor::shutdown() {
