@@ -10,6 +10,7 @@
 #include <string>
 
 #include "angle_chain.hpp"
+#include "methods.hpp"
 #include "sample_sink.hpp"
 #include "stage_settings.hpp"
 #include "state_store.hpp"
@@ -58,7 +59,7 @@ class AngleStage final : public AngleChainSink {
   int crank_count_ = 0;
   int tooth_est_count_ = 0;
   std::uint64_t seq_engine_ = 0, seq_cyl_ = 0, seq_crank_ = 0;
-  std::array<std::uint64_t, 16> seq_method_{};
+  std::array<std::uint64_t, dds::kMethodCount> seq_method_{};  ///< per method id (idl/methods.hpp)
   LearnedSnapshot scratch_;  ///< filled on the stage's thread, then copied into the seqlock below
 
   // Learned-state snapshot for the supervisor (seqlock: odd = being written).
