@@ -33,7 +33,7 @@ struct StageSettings {
   std::array<SignalSpec, kSignalCount> signals{};
   std::string dbc_path;
   TimePipelineParams time_pipeline;
-  TimeEstimatorParams time_estimators;  ///< uio, sliding_mode, dirty_diff, adaptive
+  TimeEstimatorParams time_estimators;  ///< one field per time-domain estimator
   AnglePipelineConfig angle;  ///< energies chain, friction, cylinders, fusion, e_machine (engine/wheel filled too)
   bool angle_enabled = true;  ///< run the angle pipeline (estimators.energies.enabled)
   ToothLearnParams tooth_learn;
