@@ -38,6 +38,7 @@
 #include "inertia_learner.hpp"
 #include "load_reference.hpp"
 #include "load_rls.hpp"
+#include "methods.hpp"
 #include "params.hpp"
 #include "samples.hpp"
 #include "tooth_preprocessor.hpp"
@@ -75,6 +76,19 @@ struct ToothOutput {
       kalman_ind;  ///< Chauvin TV-Kalman T̂_ind; its t_ns is the edge it refers to (fixed-lag smoother)
   TorqueEstimate fourier_ind;  ///< Fourier observer T̂_ind at this edge
   bool valid = false;
+};
+
+/// Which ToothOutput member carries which in-cycle EstimatorTorque method: the angle stage emits the
+/// registry's in-cycle methods (idl/methods.hpp, domain kAngleInCycle, in its order) through this table, each
+/// stamped with its estimate's own t_ns; an in-cycle entry without a row fails the build
+/// (publish/angle_stage.cpp).
+struct InCycleMethodOutput {
+  std::uint8_t method = 0;
+  TorqueEstimate ToothOutput::*estimate = nullptr;
+};
+inline constexpr InCycleMethodOutput kInCycleMethodOutputs[] = {
+    {torque_METHOD_KALMAN, &ToothOutput::kalman_ind},
+    {torque_METHOD_FOURIER, &ToothOutput::fourier_ind},
 };
 
 /// Per-segment output (rolling 720° means), with the per-cylinder record refreshed once per cycle.

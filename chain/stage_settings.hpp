@@ -12,6 +12,7 @@
 #include "params.hpp"
 #include "qos.hpp"
 #include "signal_store.hpp"
+#include "time_pipeline.hpp"
 
 namespace torqued {
 
@@ -32,10 +33,7 @@ struct StageSettings {
   std::array<SignalSpec, kSignalCount> signals{};
   std::string dbc_path;
   TimePipelineParams time_pipeline;
-  UioParams uio;
-  SlidingModeParams sliding_mode;
-  DirtyDiffParams dirty_diff;
-  AdaptiveParams adaptive;
+  TimeEstimatorParams time_estimators;  ///< one field per time-domain estimator
   AnglePipelineConfig angle;  ///< energies chain, friction, cylinders, fusion, e_machine (engine/wheel filled too)
   bool angle_enabled = true;  ///< run the angle pipeline (estimators.energies.enabled)
   ToothLearnParams tooth_learn;

@@ -21,17 +21,17 @@ double pick_inertia(const TimePipelineParams& p, const EngineGeometry& g) noexce
 }
 }  // namespace
 
-TimePipeline::TimePipeline(const TimePipelineParams& params, const UioParams& uio, const SlidingModeParams& sliding,
-                           const DirtyDiffParams& dirty, const AdaptiveParams& adaptive,
+TimePipeline::TimePipeline(const TimePipelineParams& params, const TimeEstimatorParams& est,
                            const EngineGeometry& geometry) noexcept
     : params_(params),
       inertia_kgm2_(pick_inertia(params, geometry)),
-      tracker_(params.cycle_averaged_speed ? 4.0 * std::numbers::pi
-                                           : 4.0 * std::numbers::pi / static_cast<double>(geometry.cylinders)),
-      uio_(uio, inertia_kgm2_, params.step_s),
-      sliding_(sliding, inertia_kgm2_, params.step_s),
-      dirty_(dirty, inertia_kgm2_, params.step_s),
-      adaptive_(adaptive, inertia_kgm2_, params.step_s) {
+      tracker_(params.cycle_averaged_speed
+                   ? 4.0 * std::numbers::pi
+                   : 4.0 * std::numbers::pi / static_cast<double>(geometry.cylinders)),
+      uio_(est.uio, inertia_kgm2_, params.step_s),
+      sliding_(est.sliding_mode, inertia_kgm2_, params.step_s),
+      dirty_(est.dirty_diff, inertia_kgm2_, params.step_s),
+      adaptive_(est.adaptive, inertia_kgm2_, params.step_s) {
   reset();
 }
 

@@ -13,6 +13,7 @@
 #include "estimate.hpp"
 #include "load_reference.hpp"
 #include "mean_speed_tracker.hpp"
+#include "methods.hpp"
 #include "params.hpp"
 #include "samples.hpp"
 #include "sliding_mode.hpp"
@@ -20,6 +21,15 @@
 #include "uio.hpp"
 
 namespace torqued {
+
+/// The time-domain estimators' parameters, one field per estimator (StageSettings carries one; a new
+/// estimator adds its field here, not a constructor argument).
+struct TimeEstimatorParams {
+  UioParams uio;
+  SlidingModeParams sliding_mode;
+  DirtyDiffParams dirty_diff;
+  AdaptiveParams adaptive;
+};
 
 /// Result of one pipeline step. Estimators that are switched off report Health::kDisabled.
 struct TimePipelineOutput {
@@ -32,10 +42,24 @@ struct TimePipelineOutput {
   double lambda_min_p = 0.0;         ///< excitation level (Na Remark 9)
 };
 
+/// Which output member carries which EstimatorTorque method: the time stage emits the registry's time-domain
+/// methods (idl/methods.hpp, in its order) through this table; a time-domain entry without a row here fails
+/// the build (publish/time_stage.cpp). A new time estimator: its member above and its row here.
+struct TimeMethodOutput {
+  std::uint8_t method = 0;
+  TorqueEstimate TimePipelineOutput::*estimate = nullptr;
+};
+inline constexpr TimeMethodOutput kTimeMethodOutputs[] = {
+    {torque_METHOD_UIO, &TimePipelineOutput::uio},
+    {torque_METHOD_SLIDING_MODE, &TimePipelineOutput::sliding_mode},
+    {torque_METHOD_DIRTY_DIFF, &TimePipelineOutput::dirty_diff},
+    {torque_METHOD_ADAPTIVE, &TimePipelineOutput::adaptive},
+};
+
 class TimePipeline {
  public:
-  TimePipeline(const TimePipelineParams& params, const UioParams& uio, const SlidingModeParams& sliding,
-               const DirtyDiffParams& dirty, const AdaptiveParams& adaptive, const EngineGeometry& geometry) noexcept;
+  TimePipeline(const TimePipelineParams& params, const TimeEstimatorParams& estimators,
+               const EngineGeometry& geometry) noexcept;
 
   /// J used by the estimators (kg m^2): params.inertia_kgm2, or J_rot + cycle mean of the oscillating inertia.
   [[nodiscard]] double inertia_kgm2() const noexcept { return inertia_kgm2_; }

@@ -9,6 +9,7 @@
 #include <type_traits>
 
 #include "csv_number.hpp"
+#include "methods.hpp"
 
 namespace torqued::dds {
 namespace {
@@ -209,7 +210,7 @@ template <> void append_table_row(std::string& out, const torque_EngineTorque& s
           s.friction_nm, s.load_nm, s.fused_nm, unsigned{s.quality}, s.validity);
 }
 template <> void append_table_row(std::string& out, const torque_EstimatorTorque& s) {
-  const char* m = s.method < kMethodCount ? kMethodNames[s.method].data() : "?";
+  const char* m = method_name(s.method);
   appendf(out, "%8.3f %-16s %11.2f %7.3g %7u\n", ms(s.source_t_ns) * 1e-3, m, s.value_nm, s.uncertainty,
           unsigned{s.health});
 }

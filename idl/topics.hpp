@@ -49,10 +49,6 @@ template <> struct TopicTraits<torque_DaemonStatus> {
 inline constexpr std::string_view kTopicNames[kTopicCount] = {"EngineTorque", "EstimatorTorque", "CylinderTorque",
                                                              "CrankState", "DaemonStatus"};
 
-/// Method names of EstimatorTorque.method (index = METHOD_* id).
-inline constexpr std::string_view kMethodNames[] = {"uio",    "sliding_mode", "dirty_diff",    "adaptive",
-                                                   "kalman", "fourier",      "load_rls",      "indicated_eso",
-                                                   "cycle_energy", "friction", "fused"};
-inline constexpr int kMethodCount = static_cast<int>(sizeof(kMethodNames) / sizeof(kMethodNames[0]));
+// Method ids, names and labels of EstimatorTorque.method: the registry in methods.hpp.
 
 }  // namespace torqued::dds

@@ -1,11 +1,35 @@
 #include "angle_stage.hpp"
 
+#include <array>
 #include <cmath>
 
 #include "validity.hpp"
 
 namespace torqued {
 namespace {
+
+constexpr InCycleMethodOutput output_of(std::uint8_t method) {
+  for (const auto& b : kInCycleMethodOutputs)
+    if (b.method == method) return b;
+  return {};
+}
+/// The registry's in-cycle methods in registry order, each with its ToothOutput member.
+constexpr auto kInCycleEmitted = [] {
+  std::array<InCycleMethodOutput, dds::method_count(dds::MethodDomain::kAngleInCycle)> a{};
+  std::size_t k = 0;
+  for (const auto& m : dds::kMethods)
+    if (m.domain == dds::MethodDomain::kAngleInCycle) a[k++] = output_of(m.id);
+  return a;
+}();
+constexpr bool every_in_cycle_method_bound() {
+  for (const auto& b : kInCycleEmitted)
+    if (b.estimate == nullptr) return false;
+  return std::size(kInCycleMethodOutputs) == kInCycleEmitted.size();
+}
+static_assert(
+    every_in_cycle_method_bound(),
+    "an in-cycle method of idl/methods.hpp has no row in kInCycleMethodOutputs (chain/angle_pipeline.hpp), "
+    "or a row names a method that is not in-cycle");
 
 std::uint32_t validity_of(const ChainStatus& st) noexcept {
   std::uint32_t v = 0;
@@ -59,13 +83,16 @@ void AngleStage::on_tooth(const ChainTooth& t) noexcept {
     c.events = te.events;
     out_.emit(a);
   }
-  // In-cycle indicated torque (Chauvin Kalman / Fourier), every n-th tooth. The Kalman estimate is a
-  // fixed-lag smoother: its t_ns is the edge it refers to (k-4), so each method is stamped with its own t_ns.
+  // In-cycle indicated torque (the registry's in-cycle methods: Chauvin Kalman / Fourier), every n-th tooth.
+  // The Kalman estimate is a fixed-lag smoother: its t_ns is the edge it refers to (k-4), so each method is
+  // stamped with its own t_ns.
   if (t.estimates && s_.tooth_estimator_decimation > 0 &&
       ++tooth_est_count_ >= s_.tooth_estimator_decimation) {
     tooth_est_count_ = 0;
-    emit_method(torque_METHOD_KALMAN, t.estimates->kalman_ind, t.estimates->kalman_ind.t_ns);
-    emit_method(torque_METHOD_FOURIER, t.estimates->fourier_ind, t.estimates->fourier_ind.t_ns);
+    for (const InCycleMethodOutput& b : kInCycleEmitted) {
+      const TorqueEstimate& e = (*t.estimates).*b.estimate;
+      emit_method(b.method, e, e.t_ns);
+    }
   }
   if (tap_) tap_->on_tooth(t);
 }

@@ -12,6 +12,7 @@
 #include "angle_chain.hpp"
 #include "latest_value.hpp"
 #include "learned_state.hpp"
+#include "methods.hpp"
 #include "sample_sink.hpp"
 #include "stage_settings.hpp"
 
@@ -60,7 +61,7 @@ class AngleStage final : public AngleChainSink {
   int crank_count_ = 0;
   int tooth_est_count_ = 0;
   std::uint64_t seq_engine_ = 0, seq_cyl_ = 0, seq_crank_ = 0;
-  std::array<std::uint64_t, 16> seq_method_{};
+  std::array<std::uint64_t, dds::kMethodCount> seq_method_{};  ///< per method id (idl/methods.hpp)
   LearnedState scratch_;  ///< filled on the stage's thread, then stored into learned_
   LatestValue<LearnedState> learned_;
 };

@@ -1,13 +1,42 @@
 #include "time_stage.hpp"
 
+#include <array>
+
+#include "methods.hpp"
 #include "validity.hpp"
 
 namespace torqued {
+namespace {
+
+using dds::MethodDomain;
+
+constexpr TimeMethodOutput output_of(std::uint8_t method) {
+  for (const auto& b : kTimeMethodOutputs)
+    if (b.method == method) return b;
+  return {};
+}
+/// The registry's time-domain methods in registry order, each with its TimePipelineOutput member.
+constexpr auto kTimeEmitted = [] {
+  std::array<TimeMethodOutput, dds::method_count(MethodDomain::kTime)> a{};
+  std::size_t k = 0;
+  for (const auto& m : dds::kMethods)
+    if (m.domain == MethodDomain::kTime) a[k++] = output_of(m.id);
+  return a;
+}();
+constexpr bool every_time_method_bound() {
+  for (const auto& b : kTimeEmitted)
+    if (b.estimate == nullptr) return false;
+  return std::size(kTimeMethodOutputs) == kTimeEmitted.size();
+}
+static_assert(
+    every_time_method_bound(),
+    "a time-domain method of idl/methods.hpp has no row in kTimeMethodOutputs (chain/time_pipeline.hpp), "
+    "or a row names a method that is not of the time domain");
+
+}  // namespace
 
 TimeStage::TimeStage(const StageSettings& s, const DbcDatabase* dbc, SampleSink& out)
-    : s_(s),
-      out_(out),
-      pipeline_(s.time_pipeline, s.uio, s.sliding_mode, s.dirty_diff, s.adaptive, s.engine) {
+    : s_(s), out_(out), pipeline_(s.time_pipeline, s.time_estimators, s.engine) {
   pipeline_.set_e_machine(s.angle.e_machine);  // hybrid input: the same net load as the angle chain
   pipeline_.set_load_reference(s.angle.load_ref);
   step_ns_ = static_cast<std::int64_t>(std::llround(s.time_pipeline.step_s * 1e9));
@@ -49,10 +78,7 @@ void TimeStage::step(std::int64_t t_ns, std::int64_t ingest_ns) noexcept {
   const TimePipelineOutput& o = pipeline_.step(t_ns, sig);
   if (++decim_count_ < s_.time_decimation) return;
   decim_count_ = 0;
-  emit(torque_METHOD_UIO, o.uio, t_ns, ingest_ns);
-  emit(torque_METHOD_SLIDING_MODE, o.sliding_mode, t_ns, ingest_ns);
-  emit(torque_METHOD_DIRTY_DIFF, o.dirty_diff, t_ns, ingest_ns);
-  emit(torque_METHOD_ADAPTIVE, o.adaptive, t_ns, ingest_ns);
+  for (const TimeMethodOutput& b : kTimeEmitted) emit(b.method, o.*b.estimate, t_ns, ingest_ns);
 }
 
 void TimeStage::apply(const RuntimeTunables& t) noexcept {

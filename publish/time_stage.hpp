@@ -10,6 +10,7 @@
 #include <string>
 
 #include "dbc.hpp"
+#include "methods.hpp"
 #include "sample_sink.hpp"
 #include "signal_store.hpp"
 #include "stage_settings.hpp"
@@ -46,7 +47,7 @@ class TimeStage {
   std::int64_t step_ns_ = 1'000'000;
   std::uint64_t steps_ = 0;
   int decim_count_ = 0;
-  std::array<std::uint64_t, 16> seq_method_{};
+  std::array<std::uint64_t, dds::kMethodCount> seq_method_{};  ///< per method id (idl/methods.hpp)
 };
 
 }  // namespace torqued

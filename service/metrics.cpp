@@ -135,7 +135,7 @@ void tap_families(const MetricsTap& t, std::vector<MetricFamily>& out) {
     const auto& x = t.method[static_cast<std::size_t>(m)];
     const std::uint64_t k = x.samples.load(kRelaxed);
     if (k == 0) continue;  // method disabled or not producing: no series (absent, not a stale 0)
-    const Labels l{{"method", std::string(dds::kMethodNames[m])}};
+    const Labels l{{"method", std::string(dds::kMethods[m].name)}};
     add(val, x.value.load(kRelaxed), l);
     add(unc, x.uncertainty.load(kRelaxed), l);
     add(hl, x.health.load(kRelaxed), l);

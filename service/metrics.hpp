@@ -13,6 +13,8 @@
 //     age of the learned-state file (its mtime). The real-time threads never see this module.
 // Values of one method (value, uncertainty, health) are read one by one: a scrape may mix two consecutive
 // samples of that method, never a torn number.
+#include <prometheus/metric_family.h>
+
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -21,10 +23,9 @@
 #include <string>
 #include <vector>
 
-#include <prometheus/metric_family.h>
-
 #include "config.hpp"
 #include "latest_value.hpp"
+#include "methods.hpp"
 #include "sample_sink.hpp"
 #include "topics.hpp"
 

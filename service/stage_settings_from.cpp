@@ -36,10 +36,10 @@ StageSettings stage_settings_from(const Config& cfg) {
   s.time_pipeline.sliding_mode = s.time_pipeline.sliding_mode && cfg.estimators.sliding_mode.enabled;
   s.time_pipeline.dirty_diff = s.time_pipeline.dirty_diff && cfg.estimators.dirty_diff.enabled;
   s.time_pipeline.adaptive = s.time_pipeline.adaptive && cfg.estimators.adaptive.enabled;
-  s.uio = cfg.estimators.uio.params;
-  s.sliding_mode = cfg.estimators.sliding_mode.params;
-  s.dirty_diff = cfg.estimators.dirty_diff.params;
-  s.adaptive = cfg.estimators.adaptive.params;
+  s.time_estimators.uio = cfg.estimators.uio.params;
+  s.time_estimators.sliding_mode = cfg.estimators.sliding_mode.params;
+  s.time_estimators.dirty_diff = cfg.estimators.dirty_diff.params;
+  s.time_estimators.adaptive = cfg.estimators.adaptive.params;
   s.angle.engine = cfg.engine;
   s.angle.wheel = cfg.wheel.geometry;
   s.angle.energies = cfg.estimators.energies.params;

@@ -27,6 +27,7 @@
 #include "dds/dds.h"
 #include "dds/ddsc/dds_loan_api.h"
 #include "dds_from_config.hpp"
+#include "methods.hpp"
 #include "qos.hpp"
 #include "sample.hpp"
 #include "sample_recorder.hpp"
@@ -74,7 +75,7 @@ void append_engine_row(std::string& out, const torque_EngineTorque& s) {
     std::snprintf(fused, sizeof fused, "%7s", "=brake");
   else
     std::snprintf(fused, sizeof fused, "%7.1f", s.fused_nm);
-  const char* src = s.fused_source < dds::kMethodCount ? dds::kMethodNames[s.fused_source].data() : "?";
+  const char* src = dds::method_name(s.fused_source);
   std::snprintf(line, sizeof line, "%8.3f %-5s %5u %5.0f %7.1f %7.1f %7.1f %7.1f %s %-13s %2u 0x%02x\n",
                 static_cast<double>(s.source_t_ns) * 1e-9, s.kind == torque_KIND_CYCLE ? "cycle" : "seg",
                 s.cycle, s.speed_rad_s * 30.0 / 3.141592653589793, s.brake_nm, s.indicated_nm, s.friction_nm,

@@ -64,7 +64,7 @@ void BM_AdaptiveTimeVaryingGain(benchmark::State& s) {
 void BM_TimePipelineAllFour(benchmark::State& s) {
   TimePipelineParams p;
   p.inertia_kgm2 = 0.14;
-  TimePipeline e(p, UioParams{}, SlidingModeParams{}, DirtyDiffParams{}, AdaptiveParams{}, EngineGeometry{});
+  TimePipeline e(p, TimeEstimatorParams{}, EngineGeometry{});
   static const auto in = make_inputs();
   std::size_t i = 0;
   for (auto _ : s) {

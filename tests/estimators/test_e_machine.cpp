@@ -83,8 +83,7 @@ TEST(EMachine, TimePipelineSeesTheFoldedLoadAndStaleness) {
   // GIVEN the time pipeline with a sole-load machine (ratio 2) WHEN a step has the machine generating 10 N m
   // THEN the estimators are given 20 N m of load; WHEN the machine value goes stale THEN the load input is
   // stale.
-  TimePipeline tp(TimePipelineParams{}, UioParams{}, SlidingModeParams{}, DirtyDiffParams{}, AdaptiveParams{},
-                  EngineGeometry{});
+  TimePipeline tp(TimePipelineParams{}, TimeEstimatorParams{}, EngineGeometry{});
   tp.set_e_machine(bound(2.0, 1.0, true));
   EngineSignals sig;
   sig.em_torque_nm = -10.0;
@@ -96,8 +95,7 @@ TEST(EMachine, TimePipelineSeesTheFoldedLoadAndStaleness) {
   const TimePipelineOutput& b = tp.step(2'000'000, sig);
   EXPECT_EQ(b.input.load, InputStatus::kStale);
   // Not bound: the load signal alone, as before the hybrid input existed.
-  TimePipeline plain(TimePipelineParams{}, UioParams{}, SlidingModeParams{}, DirtyDiffParams{},
-                     AdaptiveParams{}, EngineGeometry{});
+  TimePipeline plain(TimePipelineParams{}, TimeEstimatorParams{}, EngineGeometry{});
   sig.load_torque_nm = 33.0;
   sig.load_torque_valid = true;
   sig.em_torque_valid = true;

@@ -76,8 +76,7 @@ EngineSignals signals(double load, double maf) {
 
 TEST(TimePipeline, SteadyEngineGivesLoadTorqueFromAllEstimators) {
   // GIVEN a steady engine at 250 rad/s (teeth every 6°), load 60 N m, 1 kHz ticks
-  TimePipeline pipe(pipeline_params(), UioParams{}, SlidingModeParams{}, DirtyDiffParams{}, AdaptiveParams{},
-                    EngineGeometry{});
+  TimePipeline pipe(pipeline_params(), TimeEstimatorParams{}, EngineGeometry{});
   const double tooth_dt = kTooth / 250.0;
   std::int64_t next_tooth = 0;
   const auto sig = signals(60.0, 0.02);
@@ -116,7 +115,7 @@ TEST(TimePipeline, UnsyncedDecoderIsInvalidAndDisabledEstimatorsSaySo) {
   auto p = pipeline_params();
   p.sliding_mode = false;
   p.adaptive = false;
-  TimePipeline pipe(p, UioParams{}, SlidingModeParams{}, DirtyDiffParams{}, AdaptiveParams{}, EngineGeometry{});
+  TimePipeline pipe(p, TimeEstimatorParams{}, EngineGeometry{});
   pipe.step(1'000'000, signals(50.0, 0.01));
   EXPECT_EQ(pipe.output().uio.health, Health::kInvalidInput);
   EXPECT_EQ(pipe.output().sliding_mode.health, Health::kDisabled);
@@ -127,7 +126,7 @@ TEST(TimePipeline, InertiaFromGeometryIsRotatingPlusMeanOscillating) {
   auto p = pipeline_params();
   p.inertia_kgm2 = 0.0;
   const EngineGeometry g{};
-  TimePipeline pipe(p, UioParams{}, SlidingModeParams{}, DirtyDiffParams{}, AdaptiveParams{}, g);
+  TimePipeline pipe(p, TimeEstimatorParams{}, g);
   // cycle mean of Σ m R² f² ≈ n·m·R²·(1/2)(1 + λ²/4) for the slider-crank
   const double r = g.crank_radius_m(), lam = r / g.rod_m;
   const double approx = g.j_rot_kgm2 + g.cylinders * g.m_osc_kg * r * r * 0.5 * (1.0 + lam * lam / 4.0);

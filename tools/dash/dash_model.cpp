@@ -118,6 +118,17 @@ void append_geometry(std::string& out, const Geometry& g) {
 
 }  // namespace
 
+std::string methods_json() {
+  std::string out = "[";
+  for (const auto& m : dds::kMethods) {
+    if (out.size() > 1) out += ',';
+    out += "{\"id\":" + std::to_string(m.id) + ",\"name\":\"" + std::string(m.name) + "\",\"label\":\"" +
+           std::string(m.label) + "\",\"domain\":\"" + std::string(dds::domain_name(m.domain)) +
+           "\",\"in_cycle\":" + (m.in_cycle ? "true" : "false") + '}';
+  }
+  return out + ']';
+}
+
 const char* daemon_health_word(std::uint8_t health) {
   switch (health) {
     case torque_DAEMON_OK:
@@ -175,7 +186,7 @@ void Model::add(const torque_EngineTorque& s) {
 }
 
 void Model::add(const torque_EstimatorTorque& s) {
-  if (s.method != torque_METHOD_KALMAN && s.method != torque_METHOD_FOURIER) return;
+  if (!dds::is_in_cycle(s.method)) return;  // the registry's instantaneous methods only
   EngineView* v = view(s.engine_id);
   if (!v) return;
   if (v->pending.size() >= limits_.pending) {  // no anchors arrive (CrankState not published): oldest go
@@ -306,7 +317,10 @@ std::string Model::delta(Cursor& c) const {
   }
   if (!changed) return {};
   std::string out = fresh ? "{\"type\":\"snapshot\"," : "{\"type\":\"delta\",";
-  if (fresh) append_geometry(out, geometry_);
+  if (fresh) {
+    append_geometry(out, geometry_);
+    out += "\"methods\":" + methods_json() + ',';
+  }
   out += "\"engines\":{";
   bool first = true;
   for (const auto& [id, v] : engines_) {

@@ -4,16 +4,18 @@
 // Not real-time code (a subscriber process of its own); bounded memory: every ring has a fixed capacity and
 // the oldest entries are overwritten.
 //
-// In-cycle indicated torque: EstimatorTorque of the Kalman (4) and Fourier (5) methods carry the time of the
-// tooth edge they refer to but no angle; CrankState (every dds.crank_state_decimation-th tooth) carries
-// (time, angle within 720°). A sample's angle is interpolated between the two CrankState anchors around its
-// time; samples wait (bounded) until the later anchor has arrived. A new cycle starts when the angle wraps.
+// In-cycle indicated torque: EstimatorTorque of the registry's in-cycle methods (idl/methods.hpp `in_cycle`:
+// Kalman, Fourier) carry the time of the tooth edge they refer to but no angle; CrankState (every
+// dds.crank_state_decimation-th tooth) carries (time, angle within 720°). A sample's angle is interpolated
+// between the two CrankState anchors around its time; samples wait (bounded) until the later anchor has
+// arrived. A new cycle starts when the angle wraps.
 #include <array>
 #include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
 
+#include "methods.hpp"
 #include "topics.hpp"
 
 namespace torqued::dash {
@@ -45,7 +47,7 @@ struct TorquePoint {  ///< one EngineTorque sample (segment or cycle)
   std::uint32_t cycle = 0, validity = 0;
   std::uint8_t kind = 0, cylinder = 0, quality = 0;
 };
-struct InCyclePoint {  ///< one Kalman/Fourier sample placed on the crank angle
+struct InCyclePoint {  ///< one sample of an in-cycle method placed on the crank angle
   double t_s = 0, angle_deg = 0, value = 0;
   std::uint64_t cycle = 0;  ///< dashboard cycle counter (angle wraps)
   std::uint8_t method = 0, health = 0;
@@ -110,7 +112,8 @@ class Model {
   void add(const torque_DaemonStatus& s);
 
   /// JSON message with everything after `c` (and advances it); "" when there is nothing new. A fresh cursor
-  /// gets the whole rings plus the page's static data (geometry) as {"type":"snapshot",...}.
+  /// gets the whole rings plus the page's static data (geometry, the method registry: methods_json()) as
+  /// {"type":"snapshot",...}.
   [[nodiscard]] std::string delta(Cursor& c) const;
   [[nodiscard]] const std::map<std::uint16_t, EngineView>& engines() const noexcept { return engines_; }
   [[nodiscard]] std::uint64_t ignored_engines() const noexcept { return ignored_; }
@@ -126,6 +129,9 @@ class Model {
   std::uint64_t ignored_ = 0;
 };
 
+/// The method registry (idl/methods.hpp) as a JSON array of {id, name, label, domain, in_cycle}: the page's
+/// method labels and which methods it draws on the crank angle (snapshot "methods", GET /api/methods).
+std::string methods_json();
 /// DaemonStatus flags as words ("DROPS", "NO_SYNC", ...), and the health word.
 std::vector<std::string> status_flag_words(std::uint32_t flags);
 const char* daemon_health_word(std::uint8_t health);

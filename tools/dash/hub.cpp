@@ -94,6 +94,10 @@ int Hub::on_http(mg_connection* conn) {
     send_text(conn, 200, "application/json", body);
     return 200;
   }
+  if (uri == "/api/methods") {
+    send_text(conn, 200, "application/json", methods_json());
+    return 200;
+  }
   if (uri == "/favicon.ico") {
     mg_printf(conn, "HTTP/1.1 204 No Content\r\nContent-Length: 0\r\nConnection: close\r\n\r\n");
     return 204;

@@ -3,6 +3,7 @@
 //   GET /                 the dashboard page (www/index.html, dash.js, dash.css)
 //   GET /lib/chart.js     Chart.js from Debian's libjs-chart.js (/usr/share/javascript/chart.js)
 //   GET /api/snapshot     the dashboard model as JSON (what a new page gets first)
+//   GET /api/methods      the method registry (ids, names, labels, domain, in_cycle) as JSON
 //   WS  /ws               the dashboard stream: a snapshot, then deltas every --period
 //   WS  /                 the Foxglove WebSocket protocol (subprotocol foxglove.websocket.v1)
 // Threads: the DDS thread calls on_sample() (model update + Foxglove queues; short lock, never a socket

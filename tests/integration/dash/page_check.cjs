@@ -25,6 +25,7 @@ async function readValues(page) {
       incycleSets: chart('c-incycle').data.datasets.length,
       incyclePoints: chart('c-incycle').data.datasets.reduce((n, d) => n + d.data.length, 0),
       incycleAngles: chart('c-incycle').data.datasets.flatMap(d => d.data.map(p => p.x)),
+      incycleLabels: chart('c-incycle').data.datasets.map(d => d.label),
       tdc: (chart('c-incycle').$tdc || []).length,
       bars: chart('c-cyl').data.datasets[0].data.length,
       statusRows: document.querySelectorAll('#status-table tr').length,
@@ -68,6 +69,8 @@ async function readValues(page) {
     if (!b.torquePoints.every(n => n > 5)) fail(`torque chart series ${b.torquePoints}`);
     if (!(b.incycleSets >= 2 && b.incyclePoints > 40)) fail('in-cycle chart nearly empty');
     if (!b.incycleAngles.every(x => x >= 0 && x < 720)) fail('in-cycle angles outside [0, 720)');
+    // Legend labels are the registry's (idl/methods.hpp, sent in the snapshot), not method ids.
+    if (!b.incycleLabels.every(l => /^(Kalman|Fourier) /.test(l))) fail(`in-cycle labels ${b.incycleLabels}`);
     if (b.tdc !== 4) fail(`expected 4 TDC marks (4 cylinders), got ${b.tdc}`);
     if (b.bars !== 4) fail(`expected 4 cylinder bars, got ${b.bars}`);
     if (!['OK', 'DEGRADED'].includes(b.health)) fail(`daemon health "${b.health}"`);

@@ -8,7 +8,14 @@ const HEALTH = ['valid', 'not converged', 'not excited', 'stale input', 'invalid
                 'disabled'];
 const HEALTH_COLOR = ['', '#ffe08280', '#ffd0a080', '#c8c8c880', '#ff8a8080', '#d1b3ff80', '#ff80c080',
                       '#e0e0e080'];
-const METHOD = {4: 'Kalman', 5: 'Fourier'};
+// The method registry (idl/methods.hpp) as the server sends it in its snapshot: labels, and which methods are
+// in-cycle (drawn on the crank angle). Styles go by position among the in-cycle methods (1st solid red, ...).
+let methods = [];
+const INCYCLE_STYLE = [
+  {rgb: '198,40,40', dash: []}, {rgb: '30,136,229', dash: [5, 3]}, {rgb: '67,160,71', dash: [2, 2]},
+  {rgb: '142,36,170', dash: [8, 2, 2, 2]}
+];
+const methodLabel = id => (methods.find(m => m.id === id) || {label: String(id)}).label;
 
 const engines = new Map();  // id -> state
 let selected = null;
@@ -30,6 +37,7 @@ function pushBounded(a, items, keep) { a.push(...items); if (a.length > keep) a.
 
 function ingest(msg) {
   if (msg.geometry) geometry = msg.geometry;
+  if (msg.methods) methods = msg.methods;
   for (const [key, e] of Object.entries(msg.engines)) {
     const st = engineState(Number(key));
     const seg = [], cyc = [];
@@ -185,10 +193,15 @@ function drawInCycle(st) {
     if (!cycles.includes(g.cycle)) continue;
     const age = newest - g.cycle;  // 0 = running cycle
     const alpha = [1, 0.7, 0.45, 0.25][Math.min(age, 3)];
-    const kalman = g.method === 4;
-    sets.push({label: `${METHOD[g.method] || g.method} ${age === 0 ? 'now' : '−' + age}`, data: g.pts,
-               borderColor: kalman ? `rgba(198,40,40,${alpha})` : `rgba(30,136,229,${alpha})`,
-               borderDash: kalman ? [] : [5, 3], order: age});
+    const k = Math.max(0, methods.filter(m => m.in_cycle).findIndex(m => m.id === g.method));
+    const style = INCYCLE_STYLE[k % INCYCLE_STYLE.length];
+    sets.push({
+      label: `${methodLabel(g.method)} ${age === 0 ? 'now' : '−' + age}`,
+      data: g.pts,
+      borderColor: `rgba(${style.rgb},${alpha})`,
+      borderDash: style.dash,
+      order: age
+    });
   }
   sets.sort((a, b) => a.label.localeCompare(b.label));
   charts.incycle.data.datasets = sets;

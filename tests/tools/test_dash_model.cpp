@@ -1,0 +1,69 @@
+// torque-dash's model and the method registry (idl/methods.hpp): the page's method labels and its in-cycle
+// methods come from the server's snapshot (no ids in dash.js), and the model places only the registry's
+// in-cycle methods on the crank angle.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "dash/dash_model.hpp"
+
+namespace {
+using namespace torqued;
+
+torque_EstimatorTorque estimate(std::uint8_t method, std::int64_t t_ns) {
+  torque_EstimatorTorque s{};
+  s.engine_id = 1;
+  s.method = method;
+  s.source_t_ns = t_ns;
+  s.value_nm = 100.0 + method;
+  return s;
+}
+
+TEST(DashModel, SnapshotCarriesTheMethodRegistry) {
+  dash::Model m;
+  dash::Cursor c;
+  const auto j = nlohmann::json::parse(m.delta(c));
+  ASSERT_TRUE(j.contains("methods"));
+  ASSERT_EQ(j["methods"].size(), static_cast<std::size_t>(dds::kMethodCount));
+  for (const auto& e : j["methods"]) {
+    const dds::MethodInfo* info = dds::method_info(e["id"].get<std::uint8_t>());
+    ASSERT_NE(info, nullptr);
+    EXPECT_EQ(e["name"].get<std::string>(), info->name);
+    EXPECT_EQ(e["label"].get<std::string>(), info->label);
+    EXPECT_EQ(e["in_cycle"].get<bool>(), info->in_cycle);
+  }
+  EXPECT_EQ(j["methods"][torque_METHOD_KALMAN]["label"], "Kalman");
+  EXPECT_EQ(j["methods"][torque_METHOD_FOURIER]["label"], "Fourier");
+  EXPECT_EQ(j["methods"][torque_METHOD_UIO]["domain"], "time");
+  EXPECT_EQ(nlohmann::json::parse(dash::methods_json()), j["methods"]);  // GET /api/methods: the same
+  dash::Cursor again = c;
+  EXPECT_EQ(m.delta(again), "");  // nothing new: no message (the registry is static data of the snapshot)
+}
+
+TEST(DashModel, PlacesOnlyInCycleMethodsOfTheRegistry) {
+  dash::Model m;
+  for (int id = 0; id < dds::kMethodCount; ++id) m.add(estimate(static_cast<std::uint8_t>(id), 1'500'000));
+  torque_CrankState a{}, b{};
+  a.engine_id = b.engine_id = 1;
+  a.sync = b.sync = 2;
+  a.phase_known = b.phase_known = true;
+  a.tooth = 10, b.tooth = 12;
+  a.source_t_ns = 1'000'000, b.source_t_ns = 2'000'000;
+  a.angle_rad = 1.0, b.angle_rad = 1.2;
+  m.add(a);
+  m.add(b);
+  const dash::EngineView& v = m.engines().at(1);
+  std::set<int> placed;
+  for (std::uint64_t i = v.incycle.first(); i < v.incycle.total(); ++i) placed.insert(v.incycle.at(i).method);
+  std::set<int> expected;
+  for (const auto& e : dds::kMethods)
+    if (e.in_cycle) expected.insert(e.id);
+  EXPECT_EQ(placed, expected);
+  EXPECT_EQ(expected, (std::set<int>{torque_METHOD_KALMAN, torque_METHOD_FOURIER}));
+  EXPECT_EQ(v.unplaced, 0u);
+  // Halfway in time between the anchors: halfway in angle (1.1 rad = 63.03°), within the 0.01° print step.
+  EXPECT_NEAR(v.incycle.at(v.incycle.first()).angle_deg, 1.1 * 180.0 / 3.141592653589793, 1e-9);
+}
+
+}  // namespace
