@@ -3,6 +3,7 @@
 #include <array>
 #include <cmath>
 
+#include "sample_builder.hpp"
 #include "validity.hpp"
 
 namespace torqued {
@@ -98,18 +99,9 @@ void AngleStage::on_tooth(const ChainTooth& t) noexcept {
 }
 
 void AngleStage::emit_method(std::uint8_t method, const TorqueEstimate& e, std::int64_t t_ns) noexcept {
-  if (e.health == Health::kDisabled) return;
   dds::AnySample a;
-  a.topic = dds::Topic::kEstimatorTorque;
-  auto& m = a.u.estimator;
-  m.method = method;
-  m.seq = ++seq_method_[method];
-  m.source_t_ns = t_ns;
-  m.ingest_t_ns = ingest_ns_;
-  m.value_nm = e.torque_nm;
-  m.uncertainty = e.uncertainty;
-  m.health = static_cast<std::uint8_t>(e.health);
-  m.validity = validity_of(e);
+  if (!estimator_sample(method, seq_method_[method] + 1, e, t_ns, ingest_ns_, a)) return;
+  ++seq_method_[method];
   out_.emit(a);
 }
 

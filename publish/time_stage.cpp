@@ -3,7 +3,7 @@
 #include <array>
 
 #include "methods.hpp"
-#include "validity.hpp"
+#include "sample_builder.hpp"
 
 namespace torqued {
 namespace {
@@ -36,46 +36,21 @@ static_assert(
 }  // namespace
 
 TimeStage::TimeStage(const StageSettings& s, const DbcDatabase* dbc, SampleSink& out)
-    : s_(s), out_(out), pipeline_(s.time_pipeline, s.time_estimators, s.engine) {
-  pipeline_.set_e_machine(s.angle.e_machine);  // hybrid input: the same net load as the angle chain
-  pipeline_.set_load_reference(s.angle.load_ref);
-  step_ns_ = static_cast<std::int64_t>(std::llround(s.time_pipeline.step_s * 1e9));
-  if (step_ns_ <= 0) error_ = "time pipeline step must be > 0";
-  if (dbc) {
-    store_ = std::make_unique<SignalStore>(*dbc);
-    if (error_.empty()) error_ = bind_signals(*store_, s_.signals);
-  }
-}
+    : s_(s), out_(out), chain_(s, dbc) {}
 
 TimeStage::~TimeStage() = default;
 
-void TimeStage::on_tooth(const ToothSample& t) noexcept { pipeline_.on_tooth(t); }
-
-void TimeStage::on_frame(const CanFrame& f) noexcept {
-  if (store_) (void)store_->on_frame(f);
-}
-
 void TimeStage::emit(std::uint8_t method, const TorqueEstimate& e, std::int64_t t_ns,
                      std::int64_t ingest_ns) noexcept {
-  if (e.health == Health::kDisabled) return;
   dds::AnySample a;
-  a.topic = dds::Topic::kEstimatorTorque;
-  auto& m = a.u.estimator;
-  m.method = method;
-  m.seq = ++seq_method_[method];
-  m.source_t_ns = t_ns;
-  m.ingest_t_ns = ingest_ns;
-  m.value_nm = e.torque_nm;
-  m.uncertainty = e.uncertainty;
-  m.health = static_cast<std::uint8_t>(e.health);
-  m.validity = validity_of(e);
+  if (!estimator_sample(method, seq_method_[method] + 1, e, t_ns, ingest_ns, a)) return;
+  ++seq_method_[method];
   out_.emit(a);
 }
 
 void TimeStage::step(std::int64_t t_ns, std::int64_t ingest_ns) noexcept {
   ++steps_;
-  const EngineSignals sig = store_ ? store_->signals_at(t_ns) : EngineSignals{};
-  const TimePipelineOutput& o = pipeline_.step(t_ns, sig);
+  const TimePipelineOutput& o = chain_.step(t_ns);
   if (++decim_count_ < s_.time_decimation) return;
   decim_count_ = 0;
   for (const TimeMethodOutput& b : kTimeEmitted) emit(b.method, o.*b.estimate, t_ns, ingest_ns);
@@ -83,9 +58,7 @@ void TimeStage::step(std::int64_t t_ns, std::int64_t ingest_ns) noexcept {
 
 void TimeStage::apply(const RuntimeTunables& t) noexcept {
   apply_tunables(s_, t);
-  if (store_)
-    for (std::size_t i = 0; i < t.signal_timeout_ns.size(); ++i)
-      store_->set_timeout(static_cast<Quantity>(i), t.signal_timeout_ns[i]);
+  chain_.set_timeouts(t);
 }
 
 }  // namespace torqued
