@@ -121,6 +121,7 @@ void AngleStage::emit_engine(const ChainSegment& s) noexcept {
   m.input_age_ns = o.fused.age_ns;
   m.validity = validity_of(s.status) | validity_of(o.brake) | validity_of(o.fused.health, o.fused.brake_nm);
   if (o.fused.can_lost) m.validity |= torque_VALIDITY_STALE_CAN;
+  if (o.fused.quality == FusionQuality::kPriorOnly) m.validity |= torque_VALIDITY_PRIOR_ONLY;
   if (!std::isfinite(m.indicated_nm) || !std::isfinite(m.friction_nm) || !std::isfinite(m.load_nm))
     m.validity |= torque_VALIDITY_ESTIMATOR_FAULT;
   m.seq = ++seq_engine_;
@@ -176,12 +177,8 @@ void AngleStage::publish_snapshot() noexcept {
                                                    std::memory_order_relaxed);
   snap_n_teeth_.store(scratch_.n_teeth, std::memory_order_relaxed);
   if (scratch_.fuel_valid) {
-    const FuelTorqueState& f = scratch_.fuel;
-    const std::array<double, 10> v{f.theta[0],  f.theta[1],
-                                   f.p[0],      f.p[1],
-                                   f.p[2],      f.p[3],
-                                   f.resid_var, static_cast<double>(f.references),
-                                   f.cover.sd,  static_cast<double>(f.cover.n)};
+    std::array<double, kFuelStateDoubles> v{};
+    pack(scratch_.fuel, v);
     for (std::size_t i = 0; i < v.size(); ++i) snap_fuel_[i].store(v[i], std::memory_order_relaxed);
   }
   snap_fuel_valid_.store(scratch_.fuel_valid, std::memory_order_relaxed);
@@ -215,16 +212,9 @@ bool AngleStage::export_state(LearnedState& st) const {
       tmp.tooth_corrections_rad[static_cast<std::size_t>(i)] =
           snap_teeth_[static_cast<std::size_t>(i)].load(std::memory_order_relaxed);
     if (snap_fuel_valid_.load(std::memory_order_relaxed)) {
-      std::array<double, 10> v{};
+      std::array<double, kFuelStateDoubles> v{};
       for (std::size_t i = 0; i < v.size(); ++i) v[i] = snap_fuel_[i].load(std::memory_order_relaxed);
-      FuelTorqueState f;
-      f.theta = {v[0], v[1]};
-      f.p = {v[2], v[3], v[4], v[5]};
-      f.resid_var = v[6];
-      f.references = static_cast<std::uint32_t>(v[7]);
-      f.cover.sd = v[8];
-      f.cover.n = static_cast<std::uint32_t>(v[9]);
-      tmp.fuel = f;
+      tmp.fuel = unpack(v);
     }
     if (snap_crank_var_valid_.load(std::memory_order_relaxed))
       tmp.crank_error_var = snap_crank_var_.load(std::memory_order_relaxed);

@@ -71,8 +71,7 @@ class AngleStage final : public AngleChainSink {
   std::atomic<bool> snap_idle_valid_{false};
   std::array<std::atomic<double>, 2> snap_fric_res_{};  ///< motoring residual scale (N m), its count
   std::atomic<bool> snap_fric_res_valid_{false};
-  std::array<std::atomic<double>, 10>
-      snap_fuel_{};  ///< FuelTorqueState: theta[2], p[4], resid_var, references, cover.sd, cover.n
+  std::array<std::atomic<double>, kFuelStateDoubles> snap_fuel_{};  ///< FuelTorqueState, pack()ed
   std::atomic<bool> snap_fuel_valid_{false};
   std::atomic<double> snap_crank_var_{0.0};
   std::atomic<bool> snap_crank_var_valid_{false};

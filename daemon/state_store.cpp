@@ -143,10 +143,17 @@ std::string serialize_state(const LearnedState& s, const std::string& identity) 
   }
   if (s.fuel) {
     const FuelTorqueState& f = *s.fuel;
-    text += "fuel_model" + fmt(" %.17g", f.theta[0]) + fmt(" %.17g", f.theta[1]);
-    for (double v : f.p) text += fmt(" %.17g", v);
+    text += "fuel_model" + fmt(" %.17g", f.eta_ref) + fmt(" %.17g", f.p_exh_nm);
+    for (double v : f.p2) text += fmt(" %.17g", v);
     text += fmt(" %.17g", f.resid_var) + " " + std::to_string(f.references);
-    text += fmt(" %.17g", f.cover.sd) + " " + std::to_string(f.cover.n) + "\n";
+    text += fmt(" %.17g", f.cover.sd) + " " + std::to_string(f.cover.n);
+    if (f.physics) {
+      text += " physics";
+      for (double v : f.theta) text += fmt(" %.17g", v);
+      for (double v : f.p) text += fmt(" %.17g", v);
+      for (auto c : f.cells) text += " " + std::to_string(c);
+    }
+    text += "\n";
   }
   if (s.crank_error_var) text += "crank_error_var" + fmt(" %.17g", *s.crank_error_var) + "\n";
   if (s.inertia) {
@@ -161,6 +168,23 @@ std::string serialize_state(const LearnedState& s, const std::string& identity) 
 }
 
 namespace {
+/// The physics model's extension of a fuel_model line: "physics" θ[4] P[16] cells[16].
+bool parse_fuel_physics(std::istringstream& ls, FuelTorqueState& f) {
+  std::string tag;
+  if (!(ls >> tag) || tag != "physics") return false;
+  for (double& v : f.theta)
+    if (!(ls >> v) || !std::isfinite(v)) return false;
+  for (double& v : f.p)
+    if (!(ls >> v) || !std::isfinite(v)) return false;
+  for (auto& c : f.cells) {
+    std::int64_t n = -1;
+    if (!(ls >> n) || n < 0 || n > 0xFFFF) return false;
+    c = static_cast<std::uint16_t>(n);
+  }
+  f.physics = true;
+  return true;
+}
+
 /// One "key values..." line into `s`; false with `what` set.
 bool parse_line(const std::string& key, std::istringstream& ls, LearnedState& s, std::string* what) {
   if (key == "friction") {
@@ -190,18 +214,21 @@ bool parse_line(const std::string& key, std::istringstream& ls, LearnedState& s,
   } else if (key == "fuel_model") {
     FuelTorqueState f;
     std::int64_t refs = -1;
-    bool ok = static_cast<bool>(ls >> f.theta[0] >> f.theta[1]);
-    for (double& v : f.p) ok = ok && static_cast<bool>(ls >> v);
+    bool ok = static_cast<bool>(ls >> f.eta_ref >> f.p_exh_nm);
+    for (double& v : f.p2) ok = ok && static_cast<bool>(ls >> v);
     ok = ok && (ls >> f.resid_var >> refs) && refs >= 0 && refs <= 0xFFFFFFFFll;
     std::int64_t cover_n = 0;
     if (ok && !(ls >> std::ws).eof())  // the residual scale and its count (absent in older files)
       ok = (ls >> f.cover.sd >> cover_n) && cover_n >= 0 && cover_n <= 0xFFFFFFFFll && f.cover.sd >= 0.0;
-    for (double v : {f.theta[0], f.theta[1], f.p[0], f.p[1], f.p[2], f.p[3], f.resid_var, f.cover.sd})
+    for (double v : {f.eta_ref, f.p_exh_nm, f.p2[0], f.p2[1], f.p2[2], f.p2[3], f.resid_var, f.cover.sd})
       ok = ok && std::isfinite(v);
+    f.physics = false;  // older files: the two-parameter model only (FuelTorque::import_state converts)
+    if (ok && !(ls >> std::ws).eof()) ok = parse_fuel_physics(ls, f);
     if (!ok)
       return *what =
                  "expected efficiency, pumping term (N m), 4 covariance entries, residual variance (N m^2), "
-                 "a reference count and optionally the residual scale (N m) and its count",
+                 "a reference count, optionally the residual scale (N m) and its count, optionally 'physics' "
+                 "with 4 parameters, 16 covariance entries and 16 cell counts",
              false;
     f.references = static_cast<std::uint32_t>(refs);
     f.cover.n = static_cast<std::uint32_t>(cover_n);
@@ -279,15 +306,22 @@ namespace {
 /// Physical bounds of a learned fuel model: 0 < efficiency < Otto efficiency; |pumping term| and the residual
 /// 1 sigma within the torque of kMaxFrictionMepPa; covariance symmetric positive semi-definite.
 bool check_fuel(const FuelTorqueState& f, const StateContext& ctx, std::string* what) {
-  if (!(f.theta[0] > 0.0 && f.theta[0] < ctx.max_eta)) {
-    *what = "fuel model efficiency " + fmt("%g", f.theta[0]) + " not in (0, " + fmt("%g", ctx.max_eta) +
+  if (!(f.eta_ref > 0.0 && f.eta_ref < ctx.max_eta)) {
+    *what = "fuel model efficiency " + fmt("%g", f.eta_ref) + " not in (0, " + fmt("%g", ctx.max_eta) +
             ") (the Otto cycle's at this compression ratio)";
     return false;
   }
-  if (!(std::abs(f.theta[1]) <= ctx.max_torque_sd_nm)) {
-    *what = "fuel model pumping term " + fmt("%g", f.theta[1]) + " N m beyond " + fmt("%g", ctx.max_torque_sd_nm) +
-            " N m";
+  if (!(std::abs(f.p_exh_nm) <= ctx.max_torque_sd_nm)) {
+    *what = "fuel model pumping term " + fmt("%g", f.p_exh_nm) + " N m beyond " +
+            fmt("%g", ctx.max_torque_sd_nm) + " N m";
     return false;
+  }
+  if (f.physics) {
+    for (int i = 0; i < kFuelParams; ++i)
+      if (!(f.p[static_cast<std::size_t>(i * kFuelParams + i)] >= 0.0)) {
+        *what = "fuel model covariance has a negative variance";
+        return false;
+      }
   }
   if (!(f.resid_var >= 0.0 && std::sqrt(f.resid_var) <= ctx.max_torque_sd_nm)) {
     *what = "fuel model residual variance " + fmt("%g", f.resid_var) + " N m^2 out of range";
@@ -298,11 +332,11 @@ bool check_fuel(const FuelTorqueState& f, const StateContext& ctx, std::string* 
             fmt("%g", ctx.max_torque_sd_nm) + "]";
     return false;
   }
-  const double tol = 1e-9 * (std::abs(f.p[1]) + std::abs(f.p[2])) + 1e-300;
-  if (!(f.p[0] >= 0.0 && f.p[3] >= 0.0 && std::abs(f.p[1] - f.p[2]) <= tol &&
-        f.p[1] * f.p[2] <= f.p[0] * f.p[3] * (1.0 + 1e-9))) {
-    *what = "fuel model covariance [" + fmt("%g", f.p[0]) + fmt(" %g", f.p[1]) + fmt(" %g", f.p[2]) +
-            fmt(" %g", f.p[3]) + "] is not symmetric positive semi-definite";
+  const auto& p = f.p2;
+  const double tol = 1e-9 * (std::abs(p[1]) + std::abs(p[2])) + 1e-300;
+  if (!(p[0] >= 0.0 && p[3] >= 0.0 && std::abs(p[1] - p[2]) <= tol && p[1] * p[2] <= p[0] * p[3] * (1.0 + 1e-9))) {
+    *what = "fuel model covariance [" + fmt("%g", p[0]) + fmt(" %g", p[1]) + fmt(" %g", p[2]) + fmt(" %g", p[3]) +
+            "] is not symmetric positive semi-definite";
     return false;
   }
   return true;
