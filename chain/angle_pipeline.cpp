@@ -353,7 +353,7 @@ void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals&
   const TorqueEstimate motored =
       make(seg.t_ns, rls_.motored_torque_nm(fw.map_cut_pa), friction_.motoring_sd_nm(),
            have_map_ && !friction_.is_prior() ? Health::kValid : Health::kNotConverged);
-  fuel_ind_ = fuel_.estimate_window(seg.t_ns, fw, motored);
+  fuel_ind_ = fuel_.estimate_window(seg.t_ns, fw, fuel_point(sig, can_fresh, rpm), motored);
   if (seg.cycle_load_valid) {
     o.load = make(seg.t_ns, seg.cycle_load_mean_nm, load_sd_nm(), Health::kValid);
     o.brake = o.brake_energy;
@@ -364,20 +364,38 @@ void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals&
     // measured).
     const bool use_fuel =
         fuel_ind_.health == Health::kValid &&
-        (trk.health != Health::kValid || fuel_ind_.uncertainty < o.indicated_crank.uncertainty);
+        (trk.health != Health::kValid || !crank_agrees_with_fuel(o) ||
+         fuel_ind_.uncertainty < o.indicated_crank.uncertainty);
     // Both chains were scored against T_ind,ref = balance + learned friction: their brake (value − friction)
     // carries the measured σ alone, their indicated also the friction's.
     const TorqueEstimate& src = use_fuel ? fuel_ind_ : o.indicated_crank;
     o.indicated =
         make(seg.t_ns, src.torque_nm, std::hypot(src.uncertainty, fric_sd), worst(src.health, fric_h));
     o.brake = make(seg.t_ns, src.torque_nm - fric, src.uncertainty, worst(src.health, fric_h));
+    if (use_fuel && !fuel_.valid()) o.brake = fuel_prior_brake(seg.t_ns, fric, fric_sd);
     o.load = make(seg.t_ns, o.brake.torque_nm - dke_nm, o.brake.uncertainty, o.brake.health);
   }
   // Extended load for the in-cycle observers: measured load + friction, or the crank-only estimate without
   // it.
   load_star_nm_ = seg.cycle_load_valid ? seg.cycle_load_mean_nm + fric : o.load.torque_nm + fric;
-  (void)sig;
-  (void)can_fresh;
+}
+
+// The fuel model's operating point for a window: cycle speed, and the spark advance and λ on CAN (they move
+// slowly; the window's fuel and MAP come from its intake events).
+FuelPoint AnglePipeline::fuel_point(const EngineSignals& sig, bool can_fresh, double rpm) const noexcept {
+  FuelPoint x;
+  x.rpm = rpm;
+  x.spark_valid = can_fresh && sig.spark_valid && std::isfinite(sig.spark_advance_deg);
+  x.spark_deg = x.spark_valid ? sig.spark_advance_deg : 0.0;
+  x.lambda_valid = can_fresh && sig.lambda_valid && std::isfinite(sig.lambda) && sig.lambda > 0.0;
+  x.lambda = x.lambda_valid ? sig.lambda : 1.0;
+  return x;
+}
+
+// Brake from a fuel model that has not measured its residuals yet (prior or few references): indicated from
+// fuel minus friction, nothing else; its 1σ is the model's (parameter + model-form) with the friction's.
+TorqueEstimate AnglePipeline::fuel_prior_brake(std::int64_t t_ns, double fric, double fric_sd) const noexcept {
+  return make(t_ns, fuel_ind_.torque_nm - fric, std::hypot(fuel_ind_.uncertainty, fric_sd), fuel_ind_.health);
 }
 
 void AnglePipeline::track_reference(const LoadReference& ref, bool load_ok) noexcept {
@@ -432,6 +450,25 @@ bool AnglePipeline::fuel_reference_allowed(const CycleReference& ref, const Engi
          sig.fuel_mass_valid && have_map_;
 }
 
+bool AnglePipeline::fuel_learning_allowed(const CycleReference& ref, const EngineSignals& sig, bool can_fresh,
+                                          bool cycle_end, const FuelWindow& fw) const noexcept {
+  // A fuel-model reference: as fuel_reference_allowed() but transients too (the window's fuel and MAP are the
+  // intake events' whose work it holds; FuelAngleWindow), every event fired.
+  return cycle_end && ref.ok && ref.sd_nm <= cfg_.load_ref.fuel_max_sd_nm && !friction_.is_prior() &&
+         fired_segments_ > cfg_.engine.cylinders && can_fresh && sig.fuel_mass_valid && have_map_ && fw.valid &&
+         fw.cut == 0 && fw.fired > 0;
+}
+
+void AnglePipeline::learn_fuel(const CycleReference& ref, const EngineSignals& sig, bool can_fresh,
+                               const FuelWindow& fw, const CycleOutput& o) noexcept {
+  if (!fuel_learning_allowed(ref, sig, can_fresh, o.cycle_end, fw)) return;
+  FuelPoint x = fuel_point(sig, can_fresh, o.speed_mean_rad_s * kRadSToRpm);
+  x.fuel_kg = fw.fuel_kg;
+  x.map_pa = fw.map_fired_pa;
+  const double t_ind_ref = o.brake_energy.torque_nm + o.friction.torque_nm;
+  (void)fuel_.learn(x, t_ind_ref, fuel_.transient_sd_nm(fw, x));
+}
+
 void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,
                           const FuelWindow& fw, const CycleOutput& o) noexcept {
   const double rpm = o.speed_mean_rad_s * kRadSToRpm;
@@ -464,12 +501,12 @@ void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bo
   // scored against (fuel-model efficiency; measured 1σ of the compression-window chain).
   if (fuel_reference_allowed(ref, sig, can_fresh, load_steady, o.cycle_end)) {
     const double t_ind_ref = o.brake_energy.torque_nm + o.friction.torque_nm;
-    if (fw.valid && fw.cut == 0) (void)fuel_.learn(fw.fuel_kg, fw.map_fired_pa, t_ind_ref);
     if (o.indicated_crank.health == Health::kValid) {
       const double e = o.indicated_crank.torque_nm - t_ind_ref;
       crank_err_var_ += cfg_.fusion.brake_sd_ema * (e * e - crank_err_var_);
     }
   }
+  learn_fuel(ref, sig, can_fresh, fw, o);
 }
 
 void AnglePipeline::learn_inertia(const SegmentEnergy& seg, bool can_fresh, double dke_spec_nm, const FuelWindow& fw,
@@ -497,8 +534,8 @@ void AnglePipeline::learn_inertia(const SegmentEnergy& seg, bool can_fresh, doub
     // torque's change in cut-off, the fuel model's (Willans line, learned or its prior) between two cycles of
     // nearly the same fuelling.
     const double d_ind = both_cut ? rls_.motored_torque_nm(p.map_pa) - rls_.motored_torque_nm(q.map_pa)
-                                  : fuel_.estimate(seg.t_ns, p.fuel_kg, p.map_pa).torque_nm -
-                                        fuel_.estimate(seg.t_ns, q.fuel_kg, q.map_pa).torque_nm;
+                                  : fuel_.estimate(seg.t_ns, p.fuel_kg, p.map_pa, p.rpm).torque_nm -
+                                        fuel_.estimate(seg.t_ns, q.fuel_kg, q.map_pa, q.rpm).torque_nm;
     const double y = -(p.load_nm - q.load_nm) -
                      (friction_.friction_nm(p.rpm, oil_c_) - friction_.friction_nm(q.rpm, oil_c_)) + d_ind;
     if (inertia_.observe(p.dke_spec_nm - q.dke_spec_nm, y)) ++stats_.inertia_observations;
@@ -526,17 +563,45 @@ void AnglePipeline::fuse(const SegmentEnergy& seg, const EngineSignals& sig, Cyc
   c.health = worst(o.load_rls.health, fric_h);
   c.uses_can = false;
   c.newest_input_ns = seg.t_ns;
-  // Model-based slot: the learned fuel model when valid, else the ESO.
-  const bool fuel_ok = fuel_ind_.health == Health::kValid;
-  const TorqueEstimate& m = fuel_ok ? fuel_ind_ : o.indicated_eso;
+  // Without the load signal a compression-window chain that disagrees with the fuel model is not offered: its
+  // claimed 1σ was measured at the references' operating points only (crank_agrees_with_fuel).
+  if (o.brake_energy.health != Health::kValid && !crank_agrees_with_fuel(o)) c.health = Health::kNotConverged;
+  // Model-based slot: the learned fuel model when valid, else the ESO; without a load signal the fuel model
+  // before it measured its residuals (fuel_model_slot).
   FusionSource& z = fin.src[static_cast<std::size_t>(FusionSourceId::kEso)];
-  z.brake_nm = m.torque_nm - fric;
-  z.sd_nm = fuel_ok ? m.uncertainty : std::hypot(m.uncertainty, fric_sd);
-  z.health = worst(m.health, fric_h);
+  if (!fuel_model_slot(o, z)) {
+    const bool fuel_ok = fuel_.valid() && fuel_ind_.health == Health::kValid;
+    const TorqueEstimate& m = fuel_ok ? fuel_ind_ : o.indicated_eso;
+    z.brake_nm = m.torque_nm - fric;
+    z.sd_nm = fuel_ok ? m.uncertainty : std::hypot(m.uncertainty, fric_sd);
+    z.health = worst(m.health, fric_h);
+  }
   z.uses_can = true;
   z.newest_input_ns = sig.t_ns;
   fin.src[static_cast<std::size_t>(FusionSourceId::kExternal)] = external_;
   o.fused = fusion_.update(fin);
+}
+
+bool AnglePipeline::crank_agrees_with_fuel(const CycleOutput& o) const noexcept {
+  // The compression-window chain's claimed 1σ is measured against the references, at their operating points;
+  // elsewhere its gas model can be wrong by far more (100-400 N m seen on the bed's I6). The fuel model's 1σ
+  // is backed by its priors everywhere: a chain farther from it than fusion.gate_sigma combined σ is not used.
+  if (o.indicated_crank.health != Health::kValid || fuel_ind_.health != Health::kValid) return true;
+  const double gate = cfg_.fusion.gate_sigma * std::hypot(o.indicated_crank.uncertainty, fuel_ind_.uncertainty);
+  return std::fabs(o.indicated_crank.torque_nm - fuel_ind_.torque_nm) <= gate;
+}
+
+bool AnglePipeline::fuel_model_slot(const CycleOutput& o, FusionSource& z) const noexcept {
+  // No load signal and a fuel model that has not measured its residual scale (prior, or a few references):
+  // brake = fuel model − friction with both 1σ (the prior's are wide); "prior only" while nothing was learned.
+  // With a load signal the balance leads and this slot stays as it was (learned fuel model or ESO).
+  if (fuel_.valid() || o.brake_energy.health == Health::kValid || fuel_ind_.health != Health::kValid) return false;
+  const TorqueEstimate b = fuel_prior_brake(o.t_ns, o.friction.torque_nm, o.friction.uncertainty);
+  z.brake_nm = b.torque_nm;
+  z.sd_nm = b.uncertainty;
+  z.health = b.health;
+  z.prior_only = fuel_.prior_only() && friction_.is_prior();
+  return true;
 }
 
 void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh) noexcept {

@@ -193,6 +193,14 @@ class AnglePipeline {
   [[nodiscard]] bool idle_observation_allowed(const SegmentEnergy& seg, const CycleReference& ref,
                                               const TorqueEstimate& rls, double rpm,
                                               bool cycle_end) const noexcept;
+  [[nodiscard]] bool fuel_learning_allowed(const CycleReference& ref, const EngineSignals& sig, bool can_fresh,
+                                           bool cycle_end, const FuelWindow& fw) const noexcept;
+  void learn_fuel(const CycleReference& ref, const EngineSignals& sig, bool can_fresh, const FuelWindow& fw,
+                  const CycleOutput& o) noexcept;
+  [[nodiscard]] FuelPoint fuel_point(const EngineSignals& sig, bool can_fresh, double rpm) const noexcept;
+  [[nodiscard]] TorqueEstimate fuel_prior_brake(std::int64_t t_ns, double fric, double fric_sd) const noexcept;
+  bool fuel_model_slot(const CycleOutput& o, FusionSource& z) const noexcept;
+  [[nodiscard]] bool crank_agrees_with_fuel(const CycleOutput& o) const noexcept;
   [[nodiscard]] bool fuel_reference_allowed(const CycleReference& ref, const EngineSignals& sig,
                                             bool can_fresh, bool load_steady, bool cycle_end) const noexcept;
   [[nodiscard]] double friction_sd_nm(double fric) const noexcept;

@@ -53,6 +53,7 @@ template <class F> constexpr void visit_fields(const torque_DaemonStatus& s, F&&
   f("latency_max_ns", s.latency_max_ns); f("sensor_timeouts", s.sensor_timeouts);
   f("publisher_polls", s.publisher_polls); f("publisher_poll_misses", s.publisher_poll_misses);
   f("rejected_edges", s.rejected_edges); f("cam_phase_errors", s.cam_phase_errors);
+  f("fuel_references", s.fuel_references); f("fuel_cells", s.fuel_cells);
 }
 
 /// CSV header line (with '\n') of a topic: "t_ns,engine_id,seq,...".

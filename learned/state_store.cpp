@@ -133,7 +133,9 @@ StateContext state_context_from(const Config& cfg) {
 
 namespace {
 /// One number of a line, by kind: 'g' a finite real (written %.17g), 'c' a count held as a real (0..2^32-1,
-/// written %.0f), 'u' an unsigned 32-bit integer, 'i' a signed 64-bit integer (both written in decimal).
+/// written %.0f), 'u' an unsigned 32-bit integer, 'i' a signed 64-bit integer (both written in decimal), 'p'
+/// the word "physics" that opens an optional part (n = 1 when present). A row's get() may stop at a '|': the
+/// line then ends there, as an older file's did.
 struct Num {
   double x = 0.0;      ///< kinds g, c
   std::int64_t n = 0;  ///< kinds u, i
@@ -179,21 +181,41 @@ bool set_reals(LearnedState& s, const Nums& v) {
   return true;
 }
 
-/// The fuel_model line's numbers: efficiency, pumping term p_exh V_d/4pi (N m), covariance P00 P01 P10 P11,
-/// residual variance (N m^2), reference count | 68th percentile of |residual| (N m), its count (added later:
-/// absent in older files, read as 0 = not measured yet).
-constexpr const char* kFuelKinds = "gggggggu|gu";
+/// The fuel_model line's numbers: the two-parameter (Willans) view at the reference point (efficiency, pumping
+/// term p_exh V_d/4pi in N m, its covariance P00 P01 P10 P11), residual variance (N m^2), reference count |
+/// 68th percentile of |residual| (N m), its count (added later: read as 0 = not measured yet) | the word
+/// "physics" then the physics model's 4 parameters, its 4 x 4 covariance and the 16 speed x MAP cell counts
+/// (added with the physics model: absent in older files, which FuelTorque::import_state converts).
+constexpr const char* kFuelKinds =
+    "gggggggu|gu|p"
+    "gggg"
+    "gggggggggggggggg"
+    "uuuuuuuuuuuuuuuu";
 void fuel_to_numbers(const FuelTorqueState& f, Nums& v) {
-  v = {{.x = f.theta[0]}, {.x = f.theta[1]},  {.x = f.p[0]},       {.x = f.p[1]},     {.x = f.p[2]},
-       {.x = f.p[3]},     {.x = f.resid_var}, {.n = f.references}, {.x = f.cover.sd}, {.n = f.cover.n}};
+  v = {{.x = f.eta_ref}, {.x = f.p_exh_nm},  {.x = f.p2[0]},      {.x = f.p2[1]},    {.x = f.p2[2]},
+       {.x = f.p2[3]},   {.x = f.resid_var}, {.n = f.references}, {.x = f.cover.sd}, {.n = f.cover.n}};
+  if (!f.physics) return;  // an older file's model: the line ends before the physics part
+  v.push_back({.n = 1});
+  for (const double x : f.theta) v.push_back({.x = x});
+  for (const double x : f.p) v.push_back({.x = x});
+  for (const auto c : f.cells) v.push_back({.n = c});
 }
 bool fuel_from_numbers(const Nums& v, FuelTorqueState& f) {
-  f.theta = {v[0].x, v[1].x};
-  f.p = {v[2].x, v[3].x, v[4].x, v[5].x};
+  f.eta_ref = v[0].x;
+  f.p_exh_nm = v[1].x;
+  f.p2 = {v[2].x, v[3].x, v[4].x, v[5].x};
   f.resid_var = v[6].x;
   f.references = static_cast<std::uint32_t>(v[7].n);
   f.cover.sd = v[8].x;
   f.cover.n = static_cast<std::uint32_t>(v[9].n);
+  f.physics = v[10].n == 1;
+  std::size_t i = 11;
+  for (double& x : f.theta) x = v[i++].x;
+  for (double& x : f.p) x = v[i++].x;
+  for (auto& c : f.cells) {
+    if (v[i].n > 0xFFFF) return false;
+    c = static_cast<std::uint16_t>(v[i++].n);
+  }
   return f.cover.sd >= 0.0;
 }
 
@@ -254,20 +276,26 @@ bool check_teeth(const LearnedState& s, const StateContext& ctx, std::string* wh
 bool check_fuel(const LearnedState& s, const StateContext& ctx, std::string* what) {
   const FuelTorqueState& f = *s.fuel;
   const double lim = ctx.max_torque_sd_nm;
-  const double tol = 1e-9 * (std::abs(f.p[1]) + std::abs(f.p[2])) + 1e-300;
-  if (!(f.theta[0] > 0.0 && f.theta[0] < ctx.max_eta))
-    *what = "fuel model efficiency " + fmt("%g", f.theta[0]) + " not in (0, " + fmt("%g", ctx.max_eta) +
+  const auto& p = f.p2;
+  const double tol = 1e-9 * (std::abs(p[1]) + std::abs(p[2])) + 1e-300;
+  bool negative_variance = false;
+  for (int i = 0; f.physics && i < kFuelParams; ++i)
+    negative_variance = negative_variance || !(f.p[static_cast<std::size_t>(i * kFuelParams + i)] >= 0.0);
+  if (!(f.eta_ref > 0.0 && f.eta_ref < ctx.max_eta))
+    *what = "fuel model efficiency " + fmt("%g", f.eta_ref) + " not in (0, " + fmt("%g", ctx.max_eta) +
             ") (the Otto cycle's at this compression ratio)";
-  else if (!(std::abs(f.theta[1]) <= lim))
-    *what = "fuel model pumping term " + fmt("%g", f.theta[1]) + " N m beyond " + fmt("%g", lim) + " N m";
+  else if (!(std::abs(f.p_exh_nm) <= lim))
+    *what = "fuel model pumping term " + fmt("%g", f.p_exh_nm) + " N m beyond " + fmt("%g", lim) + " N m";
+  else if (negative_variance)
+    *what = "fuel model covariance has a negative variance";
   else if (!(f.resid_var >= 0.0 && std::sqrt(f.resid_var) <= lim))
     *what = "fuel model residual variance " + fmt("%g", f.resid_var) + " N m^2 out of range";
   else if (!(f.cover.sd >= 0.0 && f.cover.sd <= lim))
     *what = "fuel model residual scale " + fmt("%g", f.cover.sd) + " N m not in [0, " + fmt("%g", lim) + "]";
-  else if (!(f.p[0] >= 0.0 && f.p[3] >= 0.0 && std::abs(f.p[1] - f.p[2]) <= tol &&
-             f.p[1] * f.p[2] <= f.p[0] * f.p[3] * (1.0 + 1e-9)))
-    *what = "fuel model covariance [" + fmt("%g", f.p[0]) + fmt(" %g", f.p[1]) + fmt(" %g", f.p[2]) +
-            fmt(" %g", f.p[3]) + "] is not symmetric positive semi-definite";
+  else if (!(p[0] >= 0.0 && p[3] >= 0.0 && std::abs(p[1] - p[2]) <= tol &&
+             p[1] * p[2] <= p[0] * p[3] * (1.0 + 1e-9)))
+    *what = "fuel model covariance [" + fmt("%g", p[0]) + fmt(" %g", p[1]) + fmt(" %g", p[2]) +
+            fmt(" %g", p[3]) + "] is not symmetric positive semi-definite";
   else
     return true;
   return false;
@@ -347,7 +375,9 @@ char kind_at(const Line& l, std::size_t i) {
 }
 
 void append_number(std::string& text, char kind, const Num& v) {
-  if (kind == 'g')
+  if (kind == 'p')
+    text += " physics";
+  else if (kind == 'g')
     text += fmt(" %.17g", v.x);
   else if (kind == 'c')
     text += fmt(" %.0f", v.x);
@@ -356,7 +386,11 @@ void append_number(std::string& text, char kind, const Num& v) {
 }
 
 bool read_number(std::istringstream& ls, char kind, Num& v) {
+  std::string word;
   switch (kind) {
+    case 'p':  // a literal word that opens an optional part; present = 1
+      v.n = 1;
+      return (ls >> word) && word == "physics";
     case 'g':
       return static_cast<bool>(ls >> v.x) && std::isfinite(v.x);
     case 'c':

@@ -140,6 +140,7 @@ void AngleStage::emit_engine(const ChainSegment& s) noexcept {
   m.input_age_ns = o.fused.age_ns;
   m.validity = validity_of(s.status) | validity_of(o.brake) | validity_of(o.fused.health, o.fused.brake_nm);
   if (o.fused.can_lost) m.validity |= torque_VALIDITY_STALE_CAN;
+  if (o.fused.quality == FusionQuality::kPriorOnly) m.validity |= torque_VALIDITY_PRIOR_ONLY;
   if (!std::isfinite(m.indicated_nm) || !std::isfinite(m.friction_nm) || !std::isfinite(m.load_nm))
     m.validity |= torque_VALIDITY_ESTIMATOR_FAULT;
   m.seq = ++seq_engine_;

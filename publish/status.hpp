@@ -15,6 +15,8 @@ struct RuntimeCounters {
   /// Publisher pre-wakes (paced replay) and those whose poll ended without a sample.
   std::uint64_t publisher_polls = 0, publisher_poll_misses = 0;
   std::uint64_t rejected_edges = 0, cam_phase_errors = 0;  ///< decoder: glitches rejected, cam disagreements
+  std::uint32_t fuel_references = 0;  ///< references the fuel model rests on (0: prior only)
+  std::uint16_t fuel_cells = 0;       ///< learned speed × MAP cells of the fuel model (FuelTorque::learned_cells)
   /// Paced replay / live: times the angle thread slept (one wake-up each); not in DaemonStatus (no field).
   std::uint64_t angle_wakeups = 0;
   std::uint32_t flags = 0;            ///< torque_STATUS_*
@@ -52,6 +54,8 @@ inline dds::AnySample make_status(const RuntimeCounters& c, const RuntimeCounter
   s.publisher_poll_misses = c.publisher_poll_misses;
   s.rejected_edges = c.rejected_edges;
   s.cam_phase_errors = c.cam_phase_errors;
+  s.fuel_references = c.fuel_references;
+  s.fuel_cells = c.fuel_cells;
   s.flags = c.flags;
   const auto dropped = [](const RuntimeCounters& x) {
     return x.ring_drops_edge + x.ring_drops_can + x.ring_drops_out + x.source_drops;

@@ -58,6 +58,10 @@ RuntimeCounters replay_counters(const AngleChain& chain, const ReplayMerger& mer
   c.rejected_edges = ds.rejected_edges;
   c.cam_phase_errors = ds.cam_phase_errors;
   c.cycles = chain.cycles();
+  if (const AnglePipeline* p = chain.pipeline()) {
+    c.fuel_references = p->fuel_model().state().references;
+    c.fuel_cells = p->fuel_model().learned_cells();
+  }
   c.can_frames = merger.frames_out();
   c.source_drops = (edges ? edges->stats().bad_lines + edges->stats().dropped : 0) +
                    (can ? can->stats().bad_lines + can->stats().dropped : 0);

@@ -71,6 +71,15 @@ void status_families(const torque_DaemonStatus& s, bool have, std::vector<Metric
          static_cast<double>(s.rejected_edges));
   single(out, "torqued_cam_phase_errors_total", "cam edges outside their window or disagreeing with the phase", C,
          static_cast<double>(s.cam_phase_errors));
+  single(out, "torqued_fuel_model_references",
+         "references the fuel model (indicated torque from fuel) rests on; 0: prior only", G,
+         static_cast<double>(s.fuel_references));
+  auto& cells = family(out, "torqued_fuel_model_cell_learned",
+                       "1: the fuel model's speed x MAP cell has >= fuel.cell_min_references references", G);
+  static constexpr const char* kSpeed[] = {"lt1500", "lt2500", "lt3500", "ge3500"};
+  static constexpr const char* kMap[] = {"lt40kPa", "lt60kPa", "lt80kPa", "ge80kPa"};
+  for (int i = 0; i < 16; ++i)
+    add(cells, (s.fuel_cells >> i) & 1u, {{"speed", kSpeed[i / 4]}, {"map", kMap[i % 4]}});
   auto& drops = family(out, "torqued_ring_drops_total", "records dropped because a ring was full", C);
   add(drops, static_cast<double>(s.ring_drops_edge), {{"ring", "edge"}});
   add(drops, static_cast<double>(s.ring_drops_can), {{"ring", "can"}});

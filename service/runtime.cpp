@@ -341,6 +341,10 @@ void Runtime::angle_publish_counters() noexcept {
   rejected_edges_.store(ds.rejected_edges, std::memory_order_relaxed);
   cam_phase_errors_.store(ds.cam_phase_errors, std::memory_order_relaxed);
   cycles_.store(chain.cycles(), std::memory_order_relaxed);
+  if (const AnglePipeline* p = chain.pipeline()) {
+    fuel_refs_.store(p->fuel_model().state().references, std::memory_order_relaxed);
+    fuel_cells_.store(p->fuel_model().learned_cells(), std::memory_order_relaxed);
+  }
   frames_.store(angle_frames_, std::memory_order_relaxed);
   stale_mask_.store(chain.status().stale_mask, std::memory_order_relaxed);
   synced_.store(chain.decoder().state() == SyncState::kSynced, std::memory_order_relaxed);
@@ -496,6 +500,8 @@ RuntimeCounters Runtime::counters() const noexcept {
   c.sync_losses = sync_losses_.load(std::memory_order_relaxed);
   c.rejected_edges = rejected_edges_.load(std::memory_order_relaxed);
   c.cam_phase_errors = cam_phase_errors_.load(std::memory_order_relaxed);
+  c.fuel_references = fuel_refs_.load(std::memory_order_relaxed);
+  c.fuel_cells = fuel_cells_.load(std::memory_order_relaxed);
   c.ring_drops_edge = edge_ring_.drops() + tooth_ring_.drops();
   c.ring_drops_can = can_angle_ring_.drops() + can_time_ring_.drops();
   c.ring_drops_out = out_angle_ring_.drops() + out_time_ring_.drops() + out_status_ring_.drops();

@@ -107,6 +107,77 @@ int run_bed_motoring(bool all, bool short_run, const torqued::eval::EvalOptions&
   return 0;
 }
 
+/// The fuel model without a load signal: taught at one operating point, and never taught.
+std::string fuel_cells(const torqued::eval::BedFuelRun& f) {
+  char buf[96];
+  const int pub = std::max(f.published, 1);
+  std::snprintf(buf, sizeof buf, "%4d%% %5.1f %5.1f%% %5.1f %4d%% %4d%%",
+                f.cycles > 0 ? 100 * f.published / f.cycles : 0, f.rms_nm, f.rms_pct, f.bias_nm, 100 * f.pass / pub,
+                100 * f.covered / pub);
+  return buf;
+}
+void write_fuel_csv(const std::string& path, const torqued::eval::BedFuelRun& f) {
+  std::ofstream o(path);
+  o << "t_s,transient,speed_rpm,brake_true_nm,fused_nm,fused_sd_nm,quality,indicated_true_nm,indicated_nm,"
+       "friction_true_nm,friction_nm\n";
+  for (const auto& w : f.rows)
+    o << w.t_s << ',' << w.transient << ',' << w.speed_rpm << ',' << w.brake_true << ',' << w.fused << ','
+      << w.fused_sd << ',' << torqued::to_string(w.quality) << ',' << w.indicated_true << ',' << w.indicated << ','
+      << w.friction_true << ',' << w.friction << '\n';
+}
+int run_bed_fuel(bool all, bool short_run, const torqued::eval::EvalOptions& base, const std::string& csv_dir) {
+  std::printf(
+      "fuel model without a load signal (fused brake torque of the evaluated recording, no load signal):\n"
+      "  ONE POINT: learned on a recording with the load signal at one operating point (2500 rpm, 60 kPa) plus\n"
+      "             an overrun and idle; NEVER: nothing learned anywhere (fuel-model and friction priors).\n"
+      "Cells: published share, RMS error (N m), RMS / RMS true (%%), bias (N m), within 8 %% or 5 N m, |error| <= claimed 1 sigma;\n"
+      "refs / cells: fuel-model references and learned speed x MAP cells (4x4 mask); load: fused RMS WITH the load\n"
+      "signal from the one-point state (N m).\n");
+  std::printf("%-11s | %-36s | %-9s | %-36s | %s\n", "engine", "ONE POINT pub rms rms% bias pass cov", "refs/cell",
+              "NEVER pub rms rms% bias pass cov", "load");
+  // Pooled over the report engines (and over the tuning engines when listed): cycles of all engines together.
+  struct Pool {
+    torqued::eval::BedFuelRun one, never;
+    double se1 = 0, st1 = 0, se0 = 0, st0 = 0;
+  } pool[2];
+  const auto pool_add = [](torqued::eval::BedFuelRun& p, double& se, double& st, const torqued::eval::BedFuelRun& f) {
+    p.cycles += f.cycles;
+    p.published += f.published;
+    p.pass += f.pass;
+    p.covered += f.covered;
+    se += f.rms_nm * f.rms_nm * f.published;
+    st += f.rms_pct > 0.0 ? f.rms_nm * f.rms_nm * f.published / (f.rms_pct * f.rms_pct / 1e4) : 0.0;
+    p.bias_nm += f.bias_nm * f.published;
+  };
+  for (const auto& e : torqued::sim::unseen_engines()) {
+    if (!all && !e.report) continue;
+    const auto b = torqued::eval::evaluate_bed_fuel(e, base, short_run);
+    Pool& pl = pool[e.report ? 1 : 0];
+    pool_add(pl.one, pl.se1, pl.st1, b.one_point);
+    pool_add(pl.never, pl.se0, pl.st0, b.never);
+    if (!csv_dir.empty()) {
+      write_fuel_csv(csv_dir + "/" + b.engine + "_one_point.csv", b.one_point);
+      write_fuel_csv(csv_dir + "/" + b.engine + "_never.csv", b.never);
+    }
+    std::printf("%-11s | %s | %4u/%04x | %s | %4.2f\n", b.engine.c_str(), fuel_cells(b.one_point).c_str(),
+                b.one_point.references, b.one_point.cells, fuel_cells(b.never).c_str(), b.with_load_rms_nm);
+    std::fflush(stdout);
+  }
+  for (int k = 0; k < 2; ++k) {
+    Pool& p = pool[k];
+    if (p.one.cycles == 0) continue;
+    for (auto* x : {&p.one, &p.never}) {
+      const double se = x == &p.one ? p.se1 : p.se0, st = x == &p.one ? p.st1 : p.st0;
+      x->rms_nm = x->published > 0 ? std::sqrt(se / x->published) : 0.0;
+      x->rms_pct = st > 0.0 ? 100.0 * std::sqrt(se / st) : 0.0;
+      x->bias_nm = x->published > 0 ? x->bias_nm / x->published : 0.0;
+    }
+    std::printf("%-11s | %s | %9s | %s |\n", k == 1 ? "REPORT all" : "TUNING all", fuel_cells(p.one).c_str(), "",
+                fuel_cells(p.never).c_str());
+  }
+  return 0;
+}
+
 std::string ds(const torqued::eval::DaemonBedStats& s) {
   if (s.n == 0) return "     -      -";
   char buf[64];
@@ -283,6 +354,10 @@ int main(int argc, char** argv) {
                  "with --bed unseen: an electric machine of this ratio (machine/crank speed) is the load; brake "
                  "with the machine torque bound (sole load) and a control run with it unbound")
       ->check(CLI::PositiveNumber);
+  bool bed_fuel = false;
+  app.add_flag("--bed-fuel", bed_fuel,
+               "with --bed unseen: the fuel model without a load signal, taught at one operating point and never "
+               "taught (published share, RMS, 1 sigma coverage)");
   app.add_flag("--bed-motoring", bed_motoring,
                "with --bed unseen: friction learned from motoring by the machine (ratio --bed-e-machine, default 1) "
                "vs the generic prior");
@@ -350,6 +425,7 @@ int main(int argc, char** argv) {
   if (!bed.empty()) {
     torqued::eval::EvalOptions bo;
     bo.skip_cycles = skip;
+    if (bed_fuel) return run_bed_fuel(bed_all, bed_short, bo, csv_dir);
     if (bed_motoring) return run_bed_motoring(bed_all, bed_short, bo, bed_machine > 0.0 ? bed_machine : 1.0);
     if (bed_machine > 0.0) return run_bed_e_machine(bed_all, bed_short, bo, bed_machine);
     return run_bed(bed_all, bed_short, bo);

@@ -61,7 +61,7 @@ const FusedTorque& TorqueFusion::update(const FusionInput& in) noexcept {
   switch (o.primary) {
     case FusionSourceId::kEnergyCan: o.quality = FusionQuality::kFull; break;
     case FusionSourceId::kCrankOnly: o.quality = FusionQuality::kCrankOnly; break;
-    default: o.quality = FusionQuality::kDegraded; break;
+    default: o.quality = p.prior_only ? FusionQuality::kPriorOnly : FusionQuality::kDegraded; break;
   }
   o.age_ns = in.t_ns - newest;
   o.health = Health::kValid;

@@ -11,8 +11,9 @@
 //  3. With `blend`, every other usable source whose difference from the primary is within gate_sigma·√(σp² + σi²) is
 //     blended with inverse-variance weights; otherwise the primary is used alone.
 //  4. Quality: kFull (primary uses CAN and crank), kCrankOnly (CAN lost or not needed: crank-only primary, `can_lost`
-//     says which), kDegraded (only model-based sources), kInvalid (nothing usable: the value holds the last good one
-//     and health says why; never NaN).
+//     says which), kDegraded (only model-based sources), kPriorOnly (the primary rests on priors only: the fuel model
+//     with no reference and the generic friction law; its claimed 1σ is the priors' wide one), kInvalid (nothing
+//     usable: the value holds the last good one and health says why; never NaN).
 //  5. age_ns = t_ns − newest input time among the used sources.
 #include <array>
 #include <cstdint>
@@ -25,7 +26,7 @@ namespace torqued {
 enum class FusionSourceId : std::uint8_t { kEnergyCan = 0, kCrankOnly = 1, kEso = 2, kExternal = 3 };
 inline constexpr int kFusionSources = 4;
 
-enum class FusionQuality : std::uint8_t { kFull = 0, kCrankOnly = 1, kDegraded = 2, kInvalid = 3 };
+enum class FusionQuality : std::uint8_t { kFull = 0, kCrankOnly = 1, kDegraded = 2, kInvalid = 3, kPriorOnly = 4 };
 
 [[nodiscard]] constexpr const char* to_string(FusionQuality q) noexcept {
   switch (q) {
@@ -33,6 +34,7 @@ enum class FusionQuality : std::uint8_t { kFull = 0, kCrankOnly = 1, kDegraded =
     case FusionQuality::kCrankOnly: return "crank_only";
     case FusionQuality::kDegraded: return "degraded";
     case FusionQuality::kInvalid: return "invalid";
+    case FusionQuality::kPriorOnly: return "prior_only";
   }
   return "unknown";
 }
@@ -43,6 +45,7 @@ struct FusionSource {
   Health health = Health::kDisabled;
   bool uses_can = false;
   std::int64_t newest_input_ns = 0;  ///< newest input time that went into this value (ns)
+  bool prior_only = false;           ///< rests on priors only (no reference learned): quality kPriorOnly
 };
 
 struct FusionInput {

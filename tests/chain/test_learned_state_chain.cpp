@@ -83,7 +83,20 @@ TEST(LearnedStateChain, FileRoundTripGivesIdenticalOutputsOnTheSecondReplay) {
   ASSERT_TRUE(check_state(*parsed, ctx, "round-trip", &err)) << err;
   ASSERT_TRUE(parsed->fuel && parsed->crank_error_var && parsed->inertia);
   EXPECT_EQ(*parsed->inertia, *st.inertia);
-  EXPECT_EQ(std::memcmp(&*parsed->fuel, &*st.fuel, sizeof(FuelTorqueState)), 0) << "exact round trip (%.17g)";
+  {  // exact round trip (%.17g), field by field (the struct has padding)
+    const FuelTorqueState &a = *parsed->fuel, &b = *st.fuel;
+    EXPECT_TRUE(a.physics);
+    EXPECT_EQ(a.theta, b.theta);
+    EXPECT_EQ(a.p, b.p);
+    EXPECT_EQ(a.cells, b.cells);
+    EXPECT_EQ(a.resid_var, b.resid_var);
+    EXPECT_EQ(a.references, b.references);
+    EXPECT_EQ(a.cover.sd, b.cover.sd);
+    EXPECT_EQ(a.cover.n, b.cover.n);
+    EXPECT_EQ(a.eta_ref, b.eta_ref);
+    EXPECT_EQ(a.p_exh_nm, b.p_exh_nm);
+    EXPECT_EQ(a.p2, b.p2);
+  }
   EXPECT_EQ(*parsed->crank_error_var, *st.crank_error_var);
   // THEN a vehicle run (no load signal) from the parsed file equals one from the state in memory, exactly,
   const ReplayRun mem = replay(kDir + "demo_vehicle.yaml", &st);
@@ -115,19 +128,21 @@ TEST(LearnedStateChain, OutOfBoundsFuelModelIsRejected) {
   EXPECT_NEAR(ctx.max_eta, 1.0 - std::pow(10.5, -0.4), 1e-12);
   LearnedState s;
   s.identity = ctx.identity;
-  FuelTorqueState f;
-  f.theta = {0.4, 10.0};
-  f.p = {1e-4, 0.0, 0.0, 1.0};
+  FuelTorqueState f;  // the two-parameter view (what an older file holds; the physics model keeps it current)
+  f.physics = false;
+  f.eta_ref = 0.4;
+  f.p_exh_nm = 10.0;
+  f.p2 = {1e-4, 0.0, 0.0, 1.0};
   f.resid_var = 4.0;
   f.references = 100;
   s.fuel = f;
   std::string err;
   EXPECT_TRUE(check_state(s, ctx, "ok", &err)) << err;
-  s.fuel->theta[0] = 0.7;
+  s.fuel->eta_ref = 0.7;
   EXPECT_FALSE(check_state(s, ctx, "eta", &err));
   EXPECT_NE(err.find("efficiency 0.7"), std::string::npos) << err;
   s.fuel = f;
-  s.fuel->p = {1e-4, 1.0, 1.0, 1.0};  // |P01|^2 > P00 P11
+  s.fuel->p2 = {1e-4, 1.0, 1.0, 1.0};  // |P01|^2 > P00 P11
   EXPECT_FALSE(check_state(s, ctx, "psd", &err));
   EXPECT_NE(err.find("positive semi-definite"), std::string::npos) << err;
   s.fuel = f;
@@ -147,6 +162,28 @@ TEST(LearnedStateChain, OutOfBoundsFuelModelIsRejected) {
   ASSERT_TRUE(of && of->fuel) << err;
   EXPECT_EQ(of->fuel->cover.sd, 0.0);
   EXPECT_EQ(of->fuel->references, 100u);
+  // ... and the fuel model takes it: the physics model from the old efficiency and pumping term.
+  EXPECT_FALSE(of->fuel->physics);
+  EXPECT_TRUE(check_state(*of, ctx, "old_fuel", &err)) << err;
+  FuelTorque ft(lr.config->engine, FuelTorqueParams{});
+  ASSERT_TRUE(ft.import_state(*of->fuel));
+  EXPECT_TRUE(ft.state().physics);
+  EXPECT_NEAR(ft.state().eta_ref, 0.4, 1e-12);
+  EXPECT_NEAR(ft.state().p_exh_nm, 10.0, 1e-9);
+  EXPECT_EQ(ft.state().references, 100u);
+  // A physics line (as written now) round-trips exactly, with its cell counts.
+  LearnedState ph;
+  ph.identity = ctx.identity;
+  FuelTorqueState g = ft.state();
+  g.cells[5] = 17;
+  g.theta[3] = 12345.678901234567;
+  ph.fuel = g;
+  const auto pr = parse_state(serialize_state(ph, ctx.identity), "physics", &err);
+  ASSERT_TRUE(pr && pr->fuel) << err;
+  EXPECT_TRUE(pr->fuel->physics);
+  EXPECT_EQ(pr->fuel->theta, g.theta);
+  EXPECT_EQ(pr->fuel->p, g.p);
+  EXPECT_EQ(pr->fuel->cells, g.cells);
   s.fuel = f;
   s.crank_error_var = -1.0;
   EXPECT_FALSE(check_state(s, ctx, "var", &err));

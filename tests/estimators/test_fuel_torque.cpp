@@ -1,5 +1,5 @@
-// FuelTorque: fuel-based indicated torque with learned gross efficiency and exhaust pressure (fuel
-// model).
+// FuelTorque: fuel-based indicated torque, physics model (Otto efficiency × combustion/heat-loss × spark × λ,
+// pumping with a flow-dependent back-pressure) with four learned parameters and their priors.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -19,6 +19,13 @@ double truth(const EngineGeometry& g, double fuel_kg, double map_pa) {
       std::numbers::pi * 0.25 * g.bore_m * g.bore_m * g.stroke_m * g.cylinders / (4 * std::numbers::pi);
   return 0.33 * g.cylinders * fuel_kg * 43e6 / (4 * std::numbers::pi) + (map_pa - 110000.0) * vd_4pi;
 }
+// The claimed 1σ from the measured residual scale alone: the truth below is inside the model's family, so no
+// model-form share (fuel.model_rel_sd, for operating points unlike the references) is added.
+FuelTorqueParams measured_only() {
+  FuelTorqueParams p;
+  p.model_rel_sd = p.model_rel_sd_learned = 0.0;
+  return p;
+}
 // Deterministic standard-normal-ish noise (sum of 12 uniforms − 6).
 double noise(unsigned& s) {
   double acc = 0.0;
@@ -32,8 +39,9 @@ double noise(unsigned& s) {
 
 TEST(FuelTorque, LearnsEfficiencyAndExhaustPressureThenCoversItsClaimedSigma) {
   EngineGeometry g;  // 4 cyl, 1.84 L
-  FuelTorque ft(g, FuelTorqueParams{});
-  EXPECT_EQ(ft.estimate(0, 20e-6, 60000.0).health, Health::kNotConverged);
+  FuelTorque ft(g, measured_only());
+  EXPECT_EQ(ft.estimate(0, 20e-6, 60000.0).health, Health::kValid);  // the prior model, published
+  EXPECT_TRUE(ft.prior_only());
   unsigned seed = 7;
   const double sd = 1.5;
   for (int k = 0; k < 400; ++k) {  // references across fuel (10-40 mg) and MAP (30-95 kPa)
@@ -41,7 +49,7 @@ TEST(FuelTorque, LearnsEfficiencyAndExhaustPressureThenCoversItsClaimedSigma) {
     const double map = 30000.0 + 65000.0 * (0.5 + 0.5 * std::cos(0.23 * k));
     (void)ft.learn(fuel, map, truth(g, fuel, map) + sd * noise(seed));
   }
-  EXPECT_NEAR(ft.state().theta[0], 0.33, 0.01);
+  EXPECT_NEAR(ft.state().eta_ref, 0.33, 0.01);  // efficiency at the reference point
   // Evaluation on fresh points: error within 2 N m, and |error| <= claimed 1σ in 55-85 % of the cases (≈ 68
   // %).
   int covered = 0, n = 0;
@@ -63,7 +71,7 @@ TEST(FuelTorque, HeavyTailedReferenceResidualsAreCoveredAsClaimedNotByTheirRms) 
   // GIVEN references whose residuals are small at most operating points and large at a few (an engine the
   // two-parameter model fits unevenly: 85 % with 1σ 0.3 N m, 15 % with 1σ 4 N m)
   EngineGeometry g;
-  FuelTorque ft(g, FuelTorqueParams{});
+  FuelTorque ft(g, measured_only());
   unsigned seed = 3;
   auto sd_at = [](int k) { return (k * 7919) % 100 < 15 ? 4.0 : 0.3; };
   auto point = [](int k, double& fuel, double& map) {
@@ -125,7 +133,8 @@ TEST(FuelTorque, WindowSplitsFiredAndCutOffEventsAndWidensSigmaInTransients) {
   steady.fired = 4;
   steady.fuel_kg = steady.fuel_min_kg = steady.fuel_max_kg = 20e-6;
   steady.map_fired_pa = steady.map_min_pa = steady.map_max_pa = 60000.0;
-  const auto all_fired = ft.estimate_window(0, steady, motored);
+  const torqued::FuelPoint at{};  // reference speed, no spark or λ on CAN
+  const auto all_fired = ft.estimate_window(0, steady, at, motored);
   const auto point = ft.estimate(0, 20e-6, 60000.0);
   // WHEN every event fired and nothing changed THEN it is the model at the window's fuel and MAP
   EXPECT_NEAR(all_fired.torque_nm, point.torque_nm, 1e-9);
@@ -135,14 +144,72 @@ TEST(FuelTorque, WindowSplitsFiredAndCutOffEventsAndWidensSigmaInTransients) {
   split.fired = 3;
   split.cut = 1;
   split.map_cut_pa = 60000.0;
-  const auto s = ft.estimate_window(0, split, motored);
+  const auto s = ft.estimate_window(0, split, at, motored);
   EXPECT_NEAR(s.torque_nm, 0.75 * point.torque_nm + 0.25 * motored.torque_nm, 1e-9);
   EXPECT_GT(s.uncertainty, 0.75 * point.uncertainty + 0.25 * motored.uncertainty + 1.0);
   // WHEN the fuel changes across the window THEN σ grows with the spread
   torqued::FuelWindow ramp = steady;
   ramp.fuel_min_kg = 15e-6;
   ramp.fuel_max_kg = 25e-6;
-  EXPECT_GT(ft.estimate_window(0, ramp, motored).uncertainty, all_fired.uncertainty + 1.0);
+  EXPECT_GT(ft.estimate_window(0, ramp, at, motored).uncertainty, all_fired.uncertainty + 1.0);
   // an unknown window is not an estimate
-  EXPECT_EQ(ft.estimate_window(0, torqued::FuelWindow{}, motored).health, Health::kStaleInput);
+  EXPECT_EQ(ft.estimate_window(0, torqued::FuelWindow{}, at, motored).health, Health::kStaleInput);
+}
+
+TEST(FuelTorque, AnOlderTwoParameterStateLoadsAndGivesTheSameTorqueAtItsReferencePoint) {
+  // GIVEN the state of the former Willans model (η, p_exh V_d/4π, 2 × 2 covariance), as an older state file's
+  // fuel_model line holds it
+  EngineGeometry g;
+  FuelTorque ft(g, FuelTorqueParams{});
+  torqued::FuelTorqueState old;
+  old.physics = false;
+  old.eta_ref = 0.35;
+  old.p_exh_nm = 17.0;
+  old.p2 = {1e-4, 0.0, 0.0, 1.0};
+  old.resid_var = 4.0;
+  old.references = 120;
+  old.cover.sd = 1.5;
+  old.cover.n = 90;
+  // WHEN it is imported
+  ASSERT_TRUE(ft.import_state(old));
+  // THEN at the reference point (2000 rpm, 100 kPa, no spark/λ) the torque is the old model's to 1e-9 N m,
+  // the references and residual scale are kept, the new parameters start at their priors
+  const double fuel = 30e-6, map = 100000.0;
+  const double f = g.cylinders * fuel * 43e6 / (4 * std::numbers::pi);
+  const double vd_4pi =
+      std::numbers::pi * 0.25 * g.bore_m * g.bore_m * g.stroke_m * g.cylinders / (4 * std::numbers::pi);
+  EXPECT_NEAR(ft.estimate(0, fuel, map).torque_nm, 0.35 * f + map * vd_4pi - 17.0, 1e-9);
+  EXPECT_EQ(ft.state().references, 120u);
+  EXPECT_DOUBLE_EQ(ft.state().cover.sd, 1.5);
+  EXPECT_TRUE(ft.state().physics);
+  EXPECT_NEAR(ft.state().eta_ref, 0.35, 1e-12);
+  EXPECT_DOUBLE_EQ(ft.state().theta[1], FuelTorqueParams{}.c1_prior);
+}
+
+TEST(FuelTorque, PriorIsPublishedWithAWideSigmaThatShrinksWhereReferencesArrive) {
+  // GIVEN a model with nothing learned
+  EngineGeometry g;
+  FuelTorque ft(g, FuelTorqueParams{});
+  torqued::FuelPoint here;
+  here.fuel_kg = 20e-6;
+  here.map_pa = 60000.0;
+  here.rpm = 2500.0;
+  torqued::FuelPoint there = here;
+  there.map_pa = 90000.0;
+  there.fuel_kg = 32e-6;
+  there.rpm = 4000.0;
+  const auto p0 = ft.estimate(0, here);
+  // THEN it is published (valid) with a 1σ of several % of its value (parameter priors + model form)
+  ASSERT_EQ(p0.health, Health::kValid);
+  EXPECT_GT(p0.uncertainty, 0.05 * p0.torque_nm);
+  // WHEN references arrive at one point (a truth 6 % above the prior there)
+  for (int k = 0; k < 60; ++k) ASSERT_TRUE(ft.learn(here, 1.06 * p0.torque_nm));
+  // THEN the point's σ shrinks to about the references' noise, its cell counts as learned, and the σ
+  // elsewhere stays wider than here
+  const auto p1 = ft.estimate(0, here);
+  EXPECT_NEAR(p1.torque_nm, 1.06 * p0.torque_nm, 0.5);
+  EXPECT_LT(p1.uncertainty, 0.4 * p0.uncertainty);
+  EXPECT_EQ(ft.learned_cells(), 1u << FuelTorque::cell_of(2500.0, 60000.0));
+  EXPECT_GT(ft.estimate(0, there).uncertainty, 2.0 * p1.uncertainty);
+  EXPECT_FALSE(ft.prior_only());
 }

@@ -21,9 +21,11 @@ LearnedState full_state() {
   s.tooth_corrections_rad.assign(6, 0.0);
   s.tooth_corrections_rad[3] = 7.123456789012345e-4;
   s.tooth_corrections_rad[5] = -1e-300;
-  FuelTorqueState f;
-  f.theta = {0.38123456789012345, -12.5};
-  f.p = {1e-4, -2.5e-7, -2.5e-7, 0.75};
+  FuelTorqueState f;  // an older file's model: the two-parameter view only (no physics part)
+  f.physics = false;
+  f.eta_ref = 0.38123456789012345;
+  f.p_exh_nm = -12.5;
+  f.p2 = {1e-4, -2.5e-7, -2.5e-7, 0.75};
   f.resid_var = 4.0000000000000009;
   f.references = 4294967295u;
   f.cover.sd = 0.73456789012345678;
@@ -56,6 +58,33 @@ TEST(StateFormat, TextOfAFullStateIsThatOfTheFormerSerializer) {
   const auto back = parse_state(text, "full", &err);
   ASSERT_TRUE(back) << err;
   EXPECT_EQ(serialize_state(*back, kIdentity), want) << "parse + serialize gives the same text";
+}
+
+TEST(StateFormat, APhysicsFuelModelLineRoundTripsExactly) {
+  // GIVEN a state whose fuel model carries the physics part (parameters, covariance, cell counts) WHEN it is
+  // written and read back THEN every number is the same, the line carries "physics", and a count beyond a
+  // cell's 16 bits is refused.
+  LearnedState s = full_state();
+  FuelTorqueState f = *s.fuel;
+  f.physics = true;
+  f.theta = {0.93123456789012345, 0.081, 5123.25, 31000.5};
+  for (std::size_t i = 0; i < f.p.size(); ++i) f.p[i] = (i % 5 == 0) ? 1e-3 * static_cast<double>(i + 1) : 0.0;
+  for (std::size_t i = 0; i < f.cells.size(); ++i) f.cells[i] = static_cast<std::uint16_t>(i * 4000);
+  s.fuel = f;
+  const std::string text = serialize_state(s, kIdentity);
+  EXPECT_NE(text.find(" 321 physics 0.93123456789012"), std::string::npos) << text;
+  std::string err;
+  const auto back = parse_state(text, "physics", &err);
+  ASSERT_TRUE(back) << err;
+  ASSERT_TRUE(back->fuel);
+  EXPECT_TRUE(back->fuel->physics);
+  EXPECT_EQ(back->fuel->theta, f.theta);
+  EXPECT_EQ(back->fuel->p, f.p);
+  EXPECT_EQ(back->fuel->cells, f.cells);
+  EXPECT_EQ(serialize_state(*back, kIdentity), text);
+  std::string big = text.substr(0, text.find("\nchecksum"));
+  big.replace(big.rfind(" 60000"), 6, " 65536");
+  EXPECT_FALSE(parse_state(big + "\n", "big", &err)) << "a cell count beyond 16 bits";
 }
 
 TEST(StateFormat, OlderFilesLoadAndAreRewrittenInTheCurrentForm) {

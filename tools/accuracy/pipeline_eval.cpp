@@ -465,6 +465,63 @@ BedMotoringResult evaluate_bed_motoring(const sim::BedEngine& e, const EvalOptio
   return b;
 }
 
+namespace {
+BedFuelRun score_fuel(const ScenarioResult& r) {
+  BedFuelRun f;
+  double se = 0.0, st = 0.0;
+  for (const CycleCompare& w : r.rows) {
+    ++f.cycles;
+    if (w.quality == FusionQuality::kInvalid) continue;
+    ++f.published;
+    f.prior_only += w.quality == FusionQuality::kPriorOnly ? 1 : 0;
+    const double err = w.fused - w.brake_true;
+    f.pass += std::fabs(err) <= std::max(0.08 * std::fabs(w.brake_true), 5.0) ? 1 : 0;
+    f.covered += std::fabs(err) <= w.fused_sd ? 1 : 0;
+    se += err * err;
+    st += w.brake_true * w.brake_true;
+    f.bias_nm += err;
+  }
+  f.rows = r.rows;
+  if (f.published > 0) {
+    f.rms_nm = std::sqrt(se / f.published);
+    f.rms_pct = st > 0.0 ? 100.0 * std::sqrt(se / st) : 0.0;
+    f.bias_nm /= f.published;
+  }
+  f.references = r.fuel_state.references;
+  for (int i = 0; i < kFuelCells; ++i)
+    if (r.fuel_state.cells[static_cast<std::size_t>(i)] >= FuelTorqueParams{}.cell_min_references)
+      f.cells = static_cast<std::uint16_t>(f.cells | (1u << i));
+  return f;
+}
+}  // namespace
+
+BedFuelResult evaluate_bed_fuel(const sim::BedEngine& e, const EvalOptions& options, bool short_run) {
+  BedFuelResult b;
+  b.engine = e.name;
+  EvalOptions o = bed_options(e, options);
+  const sim::Scenario sc = sim::bed_eval_run(e, short_run);
+  const sim::SimOutput out = sim::simulate(sc);
+  // Never taught: the generic friction prior, the fuel model's prior, no load signal anywhere.
+  EvalOptions never = o;
+  never.load_lost_after_s = 0.0;
+  b.never = score_fuel(evaluate(sc, out, never));
+  b.never.references = 0;
+  // Taught at one operating point (plus overrun and idle) with the load signal, evaluated without it.
+  const ScenarioResult learn = evaluate(sim::bed_one_point_learning_run(e), o);
+  if (learn.friction_observations > 0) o.friction = learn.friction_coefficients;
+  if (learn.idle_rpm > 0.0)
+    o.idle_correction = std::array<double, 2>{learn.idle_correction_nm, learn.idle_rpm};
+  o.fuel_state = learn.fuel_state;
+  o.crank_err_var = learn.crank_err_var;
+  const ScenarioResult with = evaluate(sc, out, o);
+  b.with_load_rms_nm = with.fused.rms_nm;
+  o.load_lost_after_s = 0.0;
+  b.one_point = score_fuel(evaluate(sc, out, o));
+  b.one_point.references = learn.fuel_state.references;
+  b.one_point.cells = score_fuel(learn).cells;
+  return b;
+}
+
 std::array<double, 4> learn_friction(const EvalOptions& options) {
   // The daemon keeps learning over its life and persists the coefficients; here: the fuel_cut coast-down from
   // the prior, then the demo run (whose fuel cut-off starts at 3500 rpm) continuing from the persisted

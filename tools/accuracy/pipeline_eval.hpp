@@ -145,6 +145,29 @@ struct BedMotoringResult {
 BedMotoringResult evaluate_bed_motoring(const sim::BedEngine& engine, const EvalOptions& options, bool short_run,
                                         double ratio);
 
+/// The fuel model on the bed without a load signal (the vehicle): fused brake torque of the evaluated
+/// recording scored within 8 % or 5 N m, its claimed 1σ's coverage and the published share.
+struct BedFuelRun {
+  int cycles = 0;           ///< scored cycles
+  int published = 0;        ///< of which the fused value was published (quality not invalid)
+  int prior_only = 0;       ///< of which with quality prior_only
+  int pass = 0;             ///< published within 8 % or 5 N m
+  int covered = 0;          ///< published with |error| <= claimed 1σ
+  double rms_nm = 0.0;      ///< RMS error of the published fused values (N m)
+  double rms_pct = 0.0;     ///< that RMS / RMS of the true brake torque (%)
+  double bias_nm = 0.0;     ///< mean error of the published fused values (N m)
+  std::vector<CycleCompare> rows;  ///< the evaluated recording's cycles
+  std::uint32_t references = 0;  ///< fuel-model references it rested on
+  std::uint16_t cells = 0;       ///< learned speed × MAP cells (bit mask)
+};
+struct BedFuelResult {
+  std::string engine;
+  BedFuelRun one_point;  ///< learned on bed_one_point_learning_run() (load signal), evaluated without it
+  BedFuelRun never;      ///< nothing learned, no load signal anywhere
+  double with_load_rms_nm = 0.0;  ///< fused RMS with the load signal from the one-point state (N m)
+};
+BedFuelResult evaluate_bed_fuel(const sim::BedEngine& engine, const EvalOptions& options, bool short_run);
+
 /// Learn friction on the "fuel_cut" coast-down, then on "demo", starting at the prior; returns the
 /// coefficients.
 std::array<double, 4> learn_friction(const EvalOptions& options);

@@ -112,6 +112,21 @@ Scenario bed_learning_run(const BedEngine& e) {
   return s;
 }
 
+Scenario bed_one_point_learning_run(const BedEngine& e) {
+  Scenario s = e.truth;
+  s.name = e.name + "_learn_one_point";
+  s.duration_s = 12.0;
+  s.warmup_s = 1.5;
+  s.idle_control = true;
+  s.load_phases = {{0.0, LoadMode::kTorque}, {2.5, LoadMode::kDynoSpeed}};
+  s.load_torque_nm = {{0.0, 0.0}};
+  s.speed_rpm = {{0.0, 800.0},  {2.5, 800.0},  {3.2, 3500.0}, {3.6, 3500.0},
+                 {5.1, 1500.0}, {5.8, 2500.0}, {12.0, 2500.0}};
+  s.map_target_kpa = {{0.0, 20.0}, {2.5, 20.0}, {2.7, 50.0}, {5.2, 50.0}, {5.3, 60.0}};
+  s.fuel_cuts = {{3.6, 5.1, 1000.0}};
+  return s;
+}
+
 Scenario bed_motoring_run(const BedEngine& e) {
   Scenario s = e.truth;
   s.name = e.name + "_motoring";

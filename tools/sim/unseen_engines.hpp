@@ -30,6 +30,10 @@ struct BedEngine {
 /// fuel cut-off coast-down; the load signal is on CAN. The estimator state learned here is carried into the
 /// evaluated recording, as a daemon in service does.
 [[nodiscard]] Scenario bed_learning_run(const BedEngine& e);
+/// One-point learning recording (the vehicle that met a load reference once): idle (free engine), the
+/// dyno-held overrun in fuel cut-off as in bed_learning_run(), then firing at ONE operating point (2500 rpm,
+/// 60 kPa) with the load signal on CAN. What it teaches must carry to the rest of the map.
+[[nodiscard]] Scenario bed_one_point_learning_run(const BedEngine& e);
 /// Motoring recording (hybrid input): fuel cut-off throughout, closed throttle, the load (an electric machine when
 /// the scenario has one) holds 1000, 1500, ... 4000 rpm plateaus: the machine motors the engine.
 [[nodiscard]] Scenario bed_motoring_run(const BedEngine& e);
