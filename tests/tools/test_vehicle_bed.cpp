@@ -58,9 +58,11 @@ TEST_P(VehicleBed, ClutchFlagMakesTheMachineAReferenceAndTheOverrunInGearTeaches
   // friction + 1 N m; today 1.7 and 1.9 N m).
   EXPECT_LT(drive.friction.max_abs_nm, 3.5);
   EXPECT_LT(drive.friction.rms_nm, 2.5);
-  // Fused brake torque is published on every driving cycle with the flag, on none without it (static false).
+  // Fused brake torque is published on every driving cycle with the flag; without it (static false) too, from
+  // the prior fuel model (quality prior_only), within 12 N m RMS on the short run (today 2.8 and 6.5).
   EXPECT_EQ(drive.fused_published, drive.cycles);
-  EXPECT_EQ(sf.fused_published, 0);
+  EXPECT_GE(sf.fused_published, 95 * sf.cycles / 100);
+  EXPECT_LT(sf.fused.rms_nm, 12.0);
   // Driving after 4.5 s of charging at 3 points (short run): the hybrid target (5 % or 3 N m steady, 8 % or
   // 5 N m transient) on >= 95 % of the cycles (today 98-100 %), brake RMS < 4 N m (today 1.9 and 2.9).
   EXPECT_GE(drive.brake.pass, 95 * drive.brake.n / 100);
@@ -68,11 +70,13 @@ TEST_P(VehicleBed, ClutchFlagMakesTheMachineAReferenceAndTheOverrunInGearTeaches
   // The static sole_load (no flag) takes the vehicle's share to be zero: far off (today 65 and 110 N m RMS).
   EXPECT_GT(st.brake.rms_nm, 5.0 * drive.brake.rms_nm);
 
-  // Vehicle without any load reference: nothing learned, fused never published; the friction stays the
-  // generic prior, whose claimed 1 sigma (40 %) covers its error on every cycle.
+  // Vehicle without any load reference: nothing learned, fused published from the priors (prior_only) on
+  // >= 95 % of the cycles within 12 N m RMS (today 2.0 and 5.5); the friction stays the generic prior, whose
+  // claimed 1 sigma (40 %) covers its error on every cycle.
   const DaemonBedRun& nf = run(r, "vehicle/noflag");
   ASSERT_GT(nf.cycles, 60);
-  EXPECT_EQ(nf.fused_published, 0);
+  EXPECT_GE(nf.fused_published, 95 * nf.cycles / 100);
+  EXPECT_LT(nf.fused.rms_nm, 12.0);
   EXPECT_EQ(nf.friction.covered, nf.friction.n);
 }
 
