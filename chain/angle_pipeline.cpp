@@ -195,8 +195,8 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   const NetLoad& net = lref.net;
   const bool load_ok = can_fresh && net.known;
   track_reference(lref, load_ok);
-  machine_motoring_ = can_fresh && net.em_valid && net.em_crank_nm > 0.0 && sig.fuel_mass_valid &&
-                      !(sig.fuel_mass_kg > 0.0);
+  machine_motoring_ =
+      can_fresh && net.em_valid && net.em_crank_nm > 0.0 && sig.fuel_mass_valid && !(sig.fuel_mass_kg > 0.0);
 
   // CAN lost: the RLS keeps running on the last MAP / spark advance it saw (they move slowly at a steady
   // operating point); the fusion marks the result crank-only with can_lost set.
@@ -237,8 +237,9 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
 
 void AnglePipeline::count_fuel_state(const EngineSignals& sig, bool can_fresh) noexcept {
   const bool cut_known = can_fresh && sig.fuel_cutoff_valid;
-  // Motoring by the electric machine (no fuel, the machine drives the crank) is a cut-off segment too, whatever the
-  // ECU's cut-off flag says (a bench motoring the engine may not send one): a friction reference (learn()).
+  // Motoring by the electric machine (no fuel, the machine drives the crank) is a cut-off segment too,
+  // whatever the ECU's cut-off flag says (a bench motoring the engine may not send one): a friction reference
+  // (learn()).
   fired_ = !(cut_known && sig.fuel_cutoff) && !machine_motoring_;
   if (fired_) {
     ++fired_segments_;
@@ -363,9 +364,8 @@ void AnglePipeline::cycle_balance(const SegmentEnergy& seg, const EngineSignals&
     // No load signal: the more certain of the fuel model and the compression-window chain (claimed 1σ, both
     // measured).
     const bool use_fuel =
-        fuel_ind_.health == Health::kValid &&
-        (trk.health != Health::kValid || !crank_agrees_with_fuel(o) ||
-         fuel_ind_.uncertainty < o.indicated_crank.uncertainty);
+        fuel_ind_.health == Health::kValid && (trk.health != Health::kValid || !crank_agrees_with_fuel(o) ||
+                                               fuel_ind_.uncertainty < o.indicated_crank.uncertainty);
     // Both chains were scored against T_ind,ref = balance + learned friction: their brake (value − friction)
     // carries the measured σ alone, their indicated also the friction's.
     const TorqueEstimate& src = use_fuel ? fuel_ind_ : o.indicated_crank;
@@ -394,7 +394,8 @@ FuelPoint AnglePipeline::fuel_point(const EngineSignals& sig, bool can_fresh, do
 
 // Brake from a fuel model that has not measured its residuals yet (prior or few references): indicated from
 // fuel minus friction, nothing else; its 1σ is the model's (parameter + model-form) with the friction's.
-TorqueEstimate AnglePipeline::fuel_prior_brake(std::int64_t t_ns, double fric, double fric_sd) const noexcept {
+TorqueEstimate AnglePipeline::fuel_prior_brake(std::int64_t t_ns, double fric,
+                                               double fric_sd) const noexcept {
   return make(t_ns, fuel_ind_.torque_nm - fric, std::hypot(fuel_ind_.uncertainty, fric_sd), fuel_ind_.health);
 }
 
@@ -455,8 +456,8 @@ bool AnglePipeline::fuel_learning_allowed(const CycleReference& ref, const Engin
   // A fuel-model reference: as fuel_reference_allowed() but transients too (the window's fuel and MAP are the
   // intake events' whose work it holds; FuelAngleWindow), every event fired.
   return cycle_end && ref.ok && ref.sd_nm <= cfg_.load_ref.fuel_max_sd_nm && !friction_.is_prior() &&
-         fired_segments_ > cfg_.engine.cylinders && can_fresh && sig.fuel_mass_valid && have_map_ && fw.valid &&
-         fw.cut == 0 && fw.fired > 0;
+         fired_segments_ > cfg_.engine.cylinders && can_fresh && sig.fuel_mass_valid && have_map_ &&
+         fw.valid && fw.cut == 0 && fw.fired > 0;
 }
 
 void AnglePipeline::learn_fuel(const CycleReference& ref, const EngineSignals& sig, bool can_fresh,
@@ -509,8 +510,8 @@ void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bo
   learn_fuel(ref, sig, can_fresh, fw, o);
 }
 
-void AnglePipeline::learn_inertia(const SegmentEnergy& seg, bool can_fresh, double dke_spec_nm, const FuelWindow& fw,
-                                  const CycleOutput& o) noexcept {
+void AnglePipeline::learn_inertia(const SegmentEnergy& seg, bool can_fresh, double dke_spec_nm,
+                                  const FuelWindow& fw, const CycleOutput& o) noexcept {
   if (!o.cycle_end) return;  // consecutive, non-overlapping 720° windows
   const int n = cfg_.engine.cylinders;
   InertiaPoint p;
@@ -585,17 +586,20 @@ void AnglePipeline::fuse(const SegmentEnergy& seg, const EngineSignals& sig, Cyc
 bool AnglePipeline::crank_agrees_with_fuel(const CycleOutput& o) const noexcept {
   // The compression-window chain's claimed 1σ is measured against the references, at their operating points;
   // elsewhere its gas model can be wrong by far more (100-400 N m seen on the bed's I6). The fuel model's 1σ
-  // is backed by its priors everywhere: a chain farther from it than fusion.gate_sigma combined σ is not used.
+  // is backed by its priors everywhere: a chain farther from it than fusion.gate_sigma combined σ is not
+  // used.
   if (o.indicated_crank.health != Health::kValid || fuel_ind_.health != Health::kValid) return true;
-  const double gate = cfg_.fusion.gate_sigma * std::hypot(o.indicated_crank.uncertainty, fuel_ind_.uncertainty);
+  const double gate =
+      cfg_.fusion.gate_sigma * std::hypot(o.indicated_crank.uncertainty, fuel_ind_.uncertainty);
   return std::fabs(o.indicated_crank.torque_nm - fuel_ind_.torque_nm) <= gate;
 }
 
 bool AnglePipeline::fuel_model_slot(const CycleOutput& o, FusionSource& z) const noexcept {
   // No load signal and a fuel model that has not measured its residual scale (prior, or a few references):
-  // brake = fuel model − friction with both 1σ (the prior's are wide); "prior only" while nothing was learned.
-  // With a load signal the balance leads and this slot stays as it was (learned fuel model or ESO).
-  if (fuel_.valid() || o.brake_energy.health == Health::kValid || fuel_ind_.health != Health::kValid) return false;
+  // brake = fuel model − friction with both 1σ (the prior's are wide); "prior only" while nothing was
+  // learned. With a load signal the balance leads and this slot stays as it was (learned fuel model or ESO).
+  if (fuel_.valid() || o.brake_energy.health == Health::kValid || fuel_ind_.health != Health::kValid)
+    return false;
   const TorqueEstimate b = fuel_prior_brake(o.t_ns, o.friction.torque_nm, o.friction.uncertainty);
   z.brake_nm = b.torque_nm;
   z.sd_nm = b.uncertainty;

@@ -15,7 +15,8 @@
 // Per cycle:   per-cylinder indicated torque, imbalance, misfire (CylinderTorque).
 // Load:        everywhere above, "load" is the net load on the crank, T_load − T_em,crank when an electric
 //              machine's torque is on CAN (fold_e_machine, e_machine.hpp): a known input of every balance.
-// Learning:    friction C1..C3 from fuel cut-off cycles and from motoring by the electric machine (energy balance
+// Learning:    friction C1..C3 from fuel cut-off cycles and from motoring by the electric machine (energy
+// balance
 //              + measured net load + modelled pumping loop),
 //              C4 at idle from the RLS extended load (= friction when the load is zero).
 #include <algorithm>
@@ -57,10 +58,10 @@ struct AnglePipelineConfig {
   KalmanParams kalman{};
   FourierParams fourier{};
   FuelTorqueParams fuel{};
-  EMachineParams e_machine{};  ///< hybrid input: machine torque folded into the net load (e_machine.hpp)
+  EMachineParams e_machine{};      ///< hybrid input: machine torque folded into the net load (e_machine.hpp)
   LoadReferenceParams load_ref{};  ///< vehicle: clutch / neutral flags, accessory prior (load_reference.hpp)
-  bool run_kalman = true;   ///< Chauvin TV-Kalman in-cycle indicated torque per tooth
-  bool run_fourier = true;  ///< Chauvin Fourier observer per tooth (disabled if its gains fail CF-14)
+  bool run_kalman = true;          ///< Chauvin TV-Kalman in-cycle indicated torque per tooth
+  bool run_fourier = true;         ///< Chauvin Fourier observer per tooth (disabled if its gains fail CF-14)
   double default_oil_temp_c = 90.0;  ///< used until an oil temperature arrives on CAN (°C)
 };
 
@@ -183,8 +184,8 @@ class AnglePipeline {
   void cylinder_segment(const SegmentEnergy& seg, double work_j, bool ok) noexcept;
   void cycle_balance(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,
                      const FuelWindow& fw, CycleOutput& o) noexcept;
-  void learn(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm, const FuelWindow& fw,
-             const CycleOutput& o) noexcept;
+  void learn(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,
+             const FuelWindow& fw, const CycleOutput& o) noexcept;
   void fuse(const SegmentEnergy& seg, const EngineSignals& sig, CycleOutput& o) noexcept;
   void learn_inertia(const SegmentEnergy& seg, bool can_fresh, double dke_spec_nm, const FuelWindow& fw,
                      const CycleOutput& o) noexcept;
@@ -193,12 +194,14 @@ class AnglePipeline {
   [[nodiscard]] bool idle_observation_allowed(const SegmentEnergy& seg, const CycleReference& ref,
                                               const TorqueEstimate& rls, double rpm,
                                               bool cycle_end) const noexcept;
-  [[nodiscard]] bool fuel_learning_allowed(const CycleReference& ref, const EngineSignals& sig, bool can_fresh,
-                                           bool cycle_end, const FuelWindow& fw) const noexcept;
+  [[nodiscard]] bool fuel_learning_allowed(const CycleReference& ref, const EngineSignals& sig,
+                                           bool can_fresh, bool cycle_end,
+                                           const FuelWindow& fw) const noexcept;
   void learn_fuel(const CycleReference& ref, const EngineSignals& sig, bool can_fresh, const FuelWindow& fw,
                   const CycleOutput& o) noexcept;
   [[nodiscard]] FuelPoint fuel_point(const EngineSignals& sig, bool can_fresh, double rpm) const noexcept;
-  [[nodiscard]] TorqueEstimate fuel_prior_brake(std::int64_t t_ns, double fric, double fric_sd) const noexcept;
+  [[nodiscard]] TorqueEstimate fuel_prior_brake(std::int64_t t_ns, double fric,
+                                                double fric_sd) const noexcept;
   bool fuel_model_slot(const CycleOutput& o, FusionSource& z) const noexcept;
   [[nodiscard]] bool crank_agrees_with_fuel(const CycleOutput& o) const noexcept;
   [[nodiscard]] bool fuel_reference_allowed(const CycleReference& ref, const EngineSignals& sig,

@@ -1,7 +1,7 @@
 #pragma once
-// What the daemon's chains and stages need from the Config, as plain data sized before the threads start. Built
-// once by stage_settings_from() (service/stage_settings_from.cpp, where the Config meets the chains), so the
-// real-time code does not depend on the config schema's churn.
+// What the daemon's chains and stages need from the Config, as plain data sized before the threads start.
+// Built once by stage_settings_from() (service/stage_settings_from.cpp, where the Config meets the chains),
+// so the real-time code does not depend on the config schema's churn.
 #include <array>
 #include <cstdint>
 #include <string>
@@ -15,7 +15,6 @@
 #include "time_pipeline.hpp"
 
 namespace torqued {
-
 
 inline constexpr int kSignalCount = 13;  ///< EngineSignals quantities: map, maf, ..., load_torque, em_torque,
                                          ///< em_sole_load, neutral (this order)
@@ -34,7 +33,8 @@ struct StageSettings {
   std::string dbc_path;
   TimePipelineParams time_pipeline;
   TimeEstimatorParams time_estimators;  ///< one field per time-domain estimator
-  AnglePipelineConfig angle;  ///< energies chain, friction, cylinders, fusion, e_machine (engine/wheel filled too)
+  AnglePipelineConfig
+      angle;  ///< energies chain, friction, cylinders, fusion, e_machine (engine/wheel filled too)
   bool angle_enabled = true;  ///< run the angle pipeline (estimators.energies.enabled)
   ToothLearnParams tooth_learn;
   bool tooth_learn_enabled = true;  ///< learn tooth corrections and feed them to the decoder

@@ -1,9 +1,9 @@
 #pragma once
 // The time chain: the ONE place where tooth samples and CAN frames become the time-triggered estimates of
 // Na et al. (time_pipeline.hpp), stepped at a fixed rate on the edge clock. It owns its own signal store (the
-// CAN frames it is given, decoded with the DBC), the pipeline and its step. No DDS, no threads: the time stage
-// (publish/time_stage.hpp) maps its outputs onto topics, on the time thread (paced/live) or inline (fast
-// replay); tests drive it directly. on_tooth/on_frame/step are real-time safe (no allocation, no lock).
+// CAN frames it is given, decoded with the DBC), the pipeline and its step. No DDS, no threads: the time
+// stage (publish/time_stage.hpp) maps its outputs onto topics, on the time thread (paced/live) or inline
+// (fast replay); tests drive it directly. on_tooth/on_frame/step are real-time safe (no allocation, no lock).
 #include <cstdint>
 #include <memory>
 #include <string>

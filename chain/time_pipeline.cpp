@@ -76,7 +76,8 @@ const TimePipelineOutput& TimePipeline::step(std::int64_t t_ns, const EngineSign
 
 const TimePipelineOutput& TimePipeline::step(const TimeSample& sample) noexcept {
   out_.input = sample;
-  if (!(sample.dt_s > 0.0)) out_.input.dt_s = params_.step_s;  // repeated or reordered tick: use the nominal step
+  if (!(sample.dt_s > 0.0))
+    out_.input.dt_s = params_.step_s;  // repeated or reordered tick: use the nominal step
   last_t_ns_ = sample.t_ns;
   has_last_ = true;
   auto run = [&](bool enabled, auto& est, TorqueEstimate& dst) {

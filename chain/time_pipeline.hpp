@@ -33,13 +33,13 @@ struct TimeEstimatorParams {
 
 /// Result of one pipeline step. Estimators that are switched off report Health::kDisabled.
 struct TimePipelineOutput {
-  TimeSample input{};                ///< what the estimators saw
-  TorqueEstimate uio{};              ///< Na-14
-  TorqueEstimate sliding_mode{};     ///< Na-21
-  TorqueEstimate dirty_diff{};       ///< Na-24
-  TorqueEstimate adaptive{};         ///< Na-50 or Na-54; uncertainty = λ_min(P)
+  TimeSample input{};                                  ///< what the estimators saw
+  TorqueEstimate uio{};                                ///< Na-14
+  TorqueEstimate sliding_mode{};                       ///< Na-21
+  TorqueEstimate dirty_diff{};                         ///< Na-24
+  TorqueEstimate adaptive{};                           ///< Na-50 or Na-54; uncertainty = λ_min(P)
   AdaptiveTv::Vec theta_si = AdaptiveTv::Vec::Zero();  ///< θ̂ in SI [N m s/rad, N m s/kg]
-  double lambda_min_p = 0.0;         ///< excitation level (Na Remark 9)
+  double lambda_min_p = 0.0;                           ///< excitation level (Na Remark 9)
 };
 
 /// Which output member carries which EstimatorTorque method: the time stage emits the registry's time-domain
@@ -61,7 +61,8 @@ class TimePipeline {
   TimePipeline(const TimePipelineParams& params, const TimeEstimatorParams& estimators,
                const EngineGeometry& geometry) noexcept;
 
-  /// J used by the estimators (kg m^2): params.inertia_kgm2, or J_rot + cycle mean of the oscillating inertia.
+  /// J used by the estimators (kg m^2): params.inertia_kgm2, or J_rot + cycle mean of the oscillating
+  /// inertia.
   [[nodiscard]] double inertia_kgm2() const noexcept { return inertia_kgm2_; }
 
   void reset() noexcept;

@@ -39,7 +39,7 @@ inline constexpr std::size_t kCanNeutral = 12;
 
 /// Crank wheel and channel names (names match the header of the edge CSV).
 struct WheelConfig {
-  WheelGeometry geometry;            ///< YAML: teeth (positions), missing, tooth_angles_deg, edge
+  WheelGeometry geometry;               ///< YAML: teeth (positions), missing, tooth_angles_deg, edge
   std::string crank_channel = "crank";  ///< edge CSV column of the crank sensor
   std::string cam_channel = "cam";      ///< edge CSV column of the cam sensor ("" = no cam: 360° only)
   bool cam_rising_edge = true;          ///< cam edge that marks the phase (YAML cam_edge: rising|falling)
@@ -50,21 +50,21 @@ struct WheelConfig {
 
 struct EdgeInputConfig {
   EdgeBackend backend = EdgeBackend::kFile;
-  std::string path;                      ///< edge capture file (backend file), absolute after loading
-  EdgeFormat format = EdgeFormat::kCsv;  ///< csv = logic-analyzer export, list = one edge time per line
+  std::string path;                          ///< edge capture file (backend file), absolute after loading
+  EdgeFormat format = EdgeFormat::kCsv;      ///< csv = logic-analyzer export, list = one edge time per line
   std::string gpio_chip = "/dev/gpiochip0";  ///< backend gpio
-  int gpio_crank_line = 0;               ///< GPIO line offset of the crank sensor
-  int gpio_cam_line = -1;                ///< GPIO line offset of the cam sensor (-1 = none)
-  std::uint32_t encoder_can_id = 0x300;  ///< backend can_encoder: CAN id of the tooth-timestamp frames
-  double timeout_s = 0.5;                ///< no crank edge for this long: DaemonStatus EDGE_TIMEOUT flag (s)
+  int gpio_crank_line = 0;                   ///< GPIO line offset of the crank sensor
+  int gpio_cam_line = -1;                    ///< GPIO line offset of the cam sensor (-1 = none)
+  std::uint32_t encoder_can_id = 0x300;      ///< backend can_encoder: CAN id of the tooth-timestamp frames
+  double timeout_s = 0.5;  ///< no crank edge for this long: DaemonStatus EDGE_TIMEOUT flag (s)
 };
 
 struct CanInputConfig {
   CanBackend backend = CanBackend::kFile;
-  std::string path;                  ///< candump -l log (backend file), absolute after loading
-  std::string interface = "can0";    ///< SocketCAN interface (backend socketcan)
-  bool fd = false;                   ///< enable CAN FD frames
-  double time_offset_s = 0.0;        ///< added to CAN timestamps to put them on the edge clock (s)
+  std::string path;                ///< candump -l log (backend file), absolute after loading
+  std::string interface = "can0";  ///< SocketCAN interface (backend socketcan)
+  bool fd = false;                 ///< enable CAN FD frames
+  double time_offset_s = 0.0;      ///< added to CAN timestamps to put them on the edge clock (s)
 };
 
 struct InputsConfig {
@@ -80,10 +80,11 @@ struct SignalMapping {
   [[nodiscard]] bool mapped() const noexcept { return !message.empty(); }
 };
 
-/// Hybrid input (YAML can.e_machine): how can.signals.em_torque maps onto the crank (estimators/core/e_machine.hpp).
+/// Hybrid input (YAML can.e_machine): how can.signals.em_torque maps onto the crank
+/// (estimators/core/e_machine.hpp).
 struct EMachineConfig {
-  double ratio = 1.0;      ///< machine speed / crank speed: T_em,crank = sign · ratio · T_em (-)
-  int sign = 1;            ///< +1: em_torque positive when the machine drives the crank; −1: when it brakes it
+  double ratio = 1.0;  ///< machine speed / crank speed: T_em,crank = sign · ratio · T_em (-)
+  int sign = 1;        ///< +1: em_torque positive when the machine drives the crank; −1: when it brakes it
   bool sole_load = false;  ///< the machine is the only load on the crank (bench motoring, clutch open)
 };
 
@@ -96,7 +97,7 @@ struct LoadReferenceConfig {
 };
 
 struct CanSignalsConfig {
-  std::string dbc;  ///< DBC file, absolute after loading ("" = none)
+  std::string dbc;                                         ///< DBC file, absolute after loading ("" = none)
   std::array<SignalMapping, kCanQuantityCount> signals{};  ///< indexed by static_cast<size_t>(Quantity)
   EMachineConfig e_machine;
   LoadReferenceConfig load_reference;
@@ -130,9 +131,9 @@ struct EstimatorsConfig {
 /// QoS of one DDS topic (defined in one place; the daemon maps it onto dds_qos_t).
 struct TopicQos {
   Reliability reliability = Reliability::kReliable;
-  int history_depth = 8;   ///< KEEP_LAST depth
-  int deadline_ms = 0;     ///< 0 = no deadline
-  int lease_ms = 0;        ///< liveliness (automatic) lease, 0 = infinite
+  int history_depth = 8;  ///< KEEP_LAST depth
+  int deadline_ms = 0;    ///< 0 = no deadline
+  int lease_ms = 0;       ///< liveliness (automatic) lease, 0 = infinite
 };
 
 struct DdsConfig {
@@ -145,17 +146,18 @@ struct DdsConfig {
   TopicQos cylinder_torque{Reliability::kReliable, 16, 1000, 1000};
   TopicQos crank_state{Reliability::kBestEffort, 1, 1000, 1000};
   TopicQos status{Reliability::kReliable, 4, 3000, 1000};
-  int crank_state_decimation = 10;      ///< CrankState every n-th tooth
-  int time_estimator_decimation = 10;   ///< EstimatorTorque of the time methods every n-th time step
-  int tooth_estimator_decimation = 2;   ///< EstimatorTorque of the in-cycle Kalman/Fourier every n-th tooth (0 = off)
-  double status_period_s = 1.0;         ///< DaemonStatus (and sd_notify STATUS=) period (s)
+  int crank_state_decimation = 10;     ///< CrankState every n-th tooth
+  int time_estimator_decimation = 10;  ///< EstimatorTorque of the time methods every n-th time step
+  int tooth_estimator_decimation =
+      2;  ///< EstimatorTorque of the in-cycle Kalman/Fourier every n-th tooth (0 = off)
+  double status_period_s = 1.0;  ///< DaemonStatus (and sd_notify STATUS=) period (s)
 };
 
 /// Scheduling of one daemon thread.
 struct ThreadConfig {
   SchedPolicy policy = SchedPolicy::kFifo;
-  int priority = 50;          ///< SCHED_FIFO priority 1..99 (ignored for policy other)
-  std::vector<int> cpus;      ///< CPU affinity list (empty = any CPU)
+  int priority = 50;      ///< SCHED_FIFO priority 1..99 (ignored for policy other)
+  std::vector<int> cpus;  ///< CPU affinity list (empty = any CPU)
 };
 
 struct RealtimeConfig {
@@ -163,20 +165,21 @@ struct RealtimeConfig {
   ThreadConfig time{SchedPolicy::kFifo, 70, {}};
   ThreadConfig source{SchedPolicy::kFifo, 85, {}};
   ThreadConfig publisher{SchedPolicy::kFifo, 60, {}};  // below the pipelines; not allocation-free (DDS)
-  bool lock_memory = true;   ///< mlockall(MCL_CURRENT|MCL_FUTURE) before the threads start
+  bool lock_memory = true;     ///< mlockall(MCL_CURRENT|MCL_FUTURE) before the threads start
   bool lock_on_fault = false;  ///< ... with MCL_ONFAULT: lock pages when first touched, not every mapped page
-  bool require_rt = false;   ///< refuse to start when SCHED_FIFO / mlockall are not permitted (else warn)
-  int publisher_spin_us = 150;  ///< paced replay: publisher wakes at the next edge's due time and polls this long
+  bool require_rt = false;     ///< refuse to start when SCHED_FIFO / mlockall are not permitted (else warn)
+  int publisher_spin_us =
+      150;  ///< paced replay: publisher wakes at the next edge's due time and polls this long
 };
 
 struct OutputConfig {
-  std::string record_dir;   ///< write estimate CSVs here ("" = no recording), absolute after loading
+  std::string record_dir;  ///< write estimate CSVs here ("" = no recording), absolute after loading
   std::string state_dir = "/var/lib/torqued";  ///< learned state (friction, tooth corrections)
 };
 
 struct ReplayConfig {
   ReplayMode mode = ReplayMode::kFast;
-  double speed = 1.0;       ///< paced replay speed factor (2 = twice real time)
+  double speed = 1.0;           ///< paced replay speed factor (2 = twice real time)
   bool exit_when_done = false;  ///< paced replay: exit once the recording is consumed (= --exit-when-done)
   bool loop = false;  ///< paced replay of files: start the recording again at its end (io/looping_source.hpp)
 };

@@ -2,20 +2,19 @@
 #include "config_loader.hpp"
 
 #include <unistd.h>
+#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
-#include <cstring>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
 #include <set>
 #include <sstream>
 #include <unordered_map>
-
-#include <yaml-cpp/yaml.h>
 
 #include "config_schema.hpp"
 #include "fourier_observer.hpp"
@@ -24,7 +23,8 @@ namespace torqued {
 namespace {
 
 std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(s.begin(), s.end(), s.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return s;
 }
 
@@ -44,9 +44,18 @@ std::size_t edit_distance(const std::string& a, const std::string& b) {
 /// values so that the caller reports them as "not finite" rather than "not a number".
 bool parse_double(const std::string& s, double& out) {
   const std::string l = lower(s);
-  if (l == ".nan" || l == "nan") { out = std::numeric_limits<double>::quiet_NaN(); return true; }
-  if (l == ".inf" || l == "+.inf" || l == "inf") { out = std::numeric_limits<double>::infinity(); return true; }
-  if (l == "-.inf" || l == "-inf") { out = -std::numeric_limits<double>::infinity(); return true; }
+  if (l == ".nan" || l == "nan") {
+    out = std::numeric_limits<double>::quiet_NaN();
+    return true;
+  }
+  if (l == ".inf" || l == "+.inf" || l == "inf") {
+    out = std::numeric_limits<double>::infinity();
+    return true;
+  }
+  if (l == "-.inf" || l == "-inf") {
+    out = -std::numeric_limits<double>::infinity();
+    return true;
+  }
   if (s.empty()) return false;
   const char* b = s.data();
   if (*b == '+') ++b;
@@ -58,9 +67,15 @@ bool parse_int(const std::string& s, std::int64_t& out) {
   if (s.empty()) return false;
   std::size_t k = 0;
   bool neg = false;
-  if (s[0] == '+' || s[0] == '-') { neg = s[0] == '-'; k = 1; }
+  if (s[0] == '+' || s[0] == '-') {
+    neg = s[0] == '-';
+    k = 1;
+  }
   int base = 10;
-  if (s.size() > k + 2 && s[k] == '0' && (s[k + 1] == 'x' || s[k + 1] == 'X')) { base = 16; k += 2; }
+  if (s.size() > k + 2 && s[k] == '0' && (s[k + 1] == 'x' || s[k + 1] == 'X')) {
+    base = 16;
+    k += 2;
+  }
   std::uint64_t u = 0;
   auto [p, ec] = std::from_chars(s.data() + k, s.data() + s.size(), u, base);
   if (ec != std::errc{} || p != s.data() + s.size() || k == s.size()) return false;
@@ -71,8 +86,14 @@ bool parse_int(const std::string& s, std::int64_t& out) {
 
 bool parse_bool(const std::string& s, bool& out) {
   const std::string l = lower(s);
-  if (l == "true" || l == "yes" || l == "on") { out = true; return true; }
-  if (l == "false" || l == "no" || l == "off") { out = false; return true; }
+  if (l == "true" || l == "yes" || l == "on") {
+    out = true;
+    return true;
+  }
+  if (l == "false" || l == "no" || l == "off") {
+    out = false;
+    return true;
+  }
   return false;
 }
 
@@ -85,14 +106,17 @@ bool in_bounds(const SchemaEntry& e, double x) {
 
 std::string node_text(const YAML::Node& n) {
   switch (n.Type()) {
-    case YAML::NodeType::Scalar: return n.Scalar();
+    case YAML::NodeType::Scalar:
+      return n.Scalar();
     case YAML::NodeType::Sequence: {
       std::string s = "[";
       for (std::size_t k = 0; k < n.size(); ++k) s += (k ? ", " : "") + node_text(n[k]);
       return s + "]";
     }
-    case YAML::NodeType::Map: return "{...}";
-    default: return "";
+    case YAML::NodeType::Map:
+      return "{...}";
+    default:
+      return "";
   }
 }
 
@@ -117,8 +141,10 @@ class Loader {
       return std::move(r_);
     }
     if (root.IsDefined() && !root.IsNull()) {
-      if (!root.IsMap()) add(root.Mark(), "the top level must be a mapping of sections (engine:, wheel:, ...)");
-      else walk(root, "");
+      if (!root.IsMap())
+        add(root.Mark(), "the top level must be a mapping of sections (engine:, wheel:, ...)");
+      else
+        walk(root, "");
     }
     // Derived settings (documented in config.hpp).
     cfg_.wheel.decoder.use_cam = !cfg_.wheel.cam_channel.empty();
@@ -128,8 +154,10 @@ class Loader {
     check_files();
     for (const auto& p : check_config_physics(cfg_)) {
       if (failed_.count(p.key)) continue;  // already reported as a bad value
-      if (present(p.key)) add(mark_of(p.key), p.key, p.found, p.expected);
-      else add(mark_of(p.key), "key '" + p.key + "': found '" + p.found + "' (default), expected " + p.expected);
+      if (present(p.key))
+        add(mark_of(p.key), p.key, p.found, p.expected);
+      else
+        add(mark_of(p.key), "key '" + p.key + "': found '" + p.found + "' (default), expected " + p.expected);
     }
     if (r_.errors.empty()) r_.config = cfg_;
     return std::move(r_);
@@ -138,10 +166,12 @@ class Loader {
  private:
   void add(const YAML::Mark& m, const std::string& msg) {
     std::ostringstream os;
-    os << file_ << ":" << (m.line >= 0 ? m.line + 1 : 1) << ":" << (m.column >= 0 ? m.column + 1 : 1) << ": " << msg;
+    os << file_ << ":" << (m.line >= 0 ? m.line + 1 : 1) << ":" << (m.column >= 0 ? m.column + 1 : 1) << ": "
+       << msg;
     r_.errors.push_back(os.str());
   }
-  void add(const YAML::Mark& m, const std::string& key, const std::string& found, const std::string& expected) {
+  void add(const YAML::Mark& m, const std::string& key, const std::string& found,
+           const std::string& expected) {
     add(m, "key '" + key + "': found '" + found + "', expected " + expected);
   }
 
@@ -173,7 +203,10 @@ class Loader {
     std::size_t best_d = std::max<std::size_t>(2, leaf.size() / 3) + 1;
     for (const auto& c : children_of(prefix)) {
       const std::size_t d = edit_distance(lower(leaf), c);
-      if (d < best_d) { best_d = d; best = prefix.empty() ? c : prefix + "." + c; }
+      if (d < best_d) {
+        best_d = d;
+        best = prefix.empty() ? c : prefix + "." + c;
+      }
     }
     if (!best.empty()) return best;
     for (const auto& e : config_schema()) {  // right name in the wrong section (engine.teeth → wheel.teeth)
@@ -202,12 +235,16 @@ class Loader {
         if (r_.errors.size() != before) failed_.insert(key);
       } else if (is_schema_section(key)) {
         marks_[key] = k.Mark();
-        if (v.IsMap()) walk(v, key);
-        else if (!v.IsNull()) add(vm, key, node_text(v), "a section (mapping of keys: " + join(children_of(key)) + ")");
+        if (v.IsMap())
+          walk(v, key);
+        else if (!v.IsNull())
+          add(vm, key, node_text(v), "a section (mapping of keys: " + join(children_of(key)) + ")");
       } else {
         const std::string s = suggestion(prefix, name);
-        add(k.Mark(), "unknown key '" + key + "'" + (s.empty() ? "" : " (did you mean '" + s + "'?)") +
-                          (prefix.empty() || s.size() ? "" : "; keys of '" + prefix + "': " + join(children_of(prefix))));
+        add(k.Mark(),
+            "unknown key '" + key + "'" + (s.empty() ? "" : " (did you mean '" + s + "'?)") +
+                (prefix.empty() || s.size() ? ""
+                                            : "; keys of '" + prefix + "': " + join(children_of(prefix))));
       }
     }
   }
@@ -218,9 +255,13 @@ class Loader {
     return s;
   }
 
-  bool scalar_number(const SchemaEntry& e, const YAML::Node& n, const std::string& key, const YAML::Mark& m, double& d) {
+  bool scalar_number(const SchemaEntry& e, const YAML::Node& n, const std::string& key, const YAML::Mark& m,
+                     double& d) {
     const bool is_int = e.kind == ValueKind::kInt || e.kind == ValueKind::kIntList;
-    if (!n.IsScalar()) { add(m, key, node_text(n), describe_expected(e)); return false; }
+    if (!n.IsScalar()) {
+      add(m, key, node_text(n), describe_expected(e));
+      return false;
+    }
     const std::string& s = n.Scalar();
     std::int64_t i = 0;
     bool ok = is_int ? parse_int(s, i) : parse_double(s, d);
@@ -239,18 +280,27 @@ class Loader {
       case ValueKind::kDouble:
       case ValueKind::kInt: {
         double d = 0.0;
-        if (null) { add(m, key, "", describe_expected(e)); return; }
+        if (null) {
+          add(m, key, "", describe_expected(e));
+          return;
+        }
         if (!scalar_number(e, n, key, m, d)) return;
         v.d = d;
         v.i = static_cast<std::int64_t>(d);
         break;
       }
       case ValueKind::kBool:
-        if (null || !n.IsScalar() || !parse_bool(n.Scalar(), v.b)) { add(m, key, node_text(n), describe_expected(e)); return; }
+        if (null || !n.IsScalar() || !parse_bool(n.Scalar(), v.b)) {
+          add(m, key, node_text(n), describe_expected(e));
+          return;
+        }
         break;
       case ValueKind::kString:
       case ValueKind::kPath:
-        if (!null && !n.IsScalar()) { add(m, key, node_text(n), describe_expected(e)); return; }
+        if (!null && !n.IsScalar()) {
+          add(m, key, node_text(n), describe_expected(e));
+          return;
+        }
         v.s = null ? "" : n.Scalar();
         if (e.kind == ValueKind::kPath && !v.s.empty()) {
           std::filesystem::path p(v.s);
@@ -272,12 +322,18 @@ class Loader {
       }
       case ValueKind::kDoubleList:
       case ValueKind::kIntList: {
-        if (null || !n.IsSequence()) { add(m, key, node_text(n), describe_expected(e)); return; }
+        if (null || !n.IsSequence()) {
+          add(m, key, node_text(n), describe_expected(e));
+          return;
+        }
         bool ok = true;
         for (std::size_t k = 0; k < n.size(); ++k) {
           double d = 0.0;
           const YAML::Mark em = n[k].Mark().line >= 0 ? n[k].Mark() : m;
-          if (!scalar_number(e, n[k], key + "[" + std::to_string(k) + "]", em, d)) { ok = false; continue; }
+          if (!scalar_number(e, n[k], key + "[" + std::to_string(k) + "]", em, d)) {
+            ok = false;
+            continue;
+          }
           v.dl.push_back(d);
           v.il.push_back(static_cast<std::int64_t>(d));
         }
@@ -293,7 +349,8 @@ class Loader {
     e.set(cfg_, v);
   }
 
-  /// metrics.address: HOST:PORT (PORT 1..65535; [v6]:PORT allowed), checked so the service fails at --check-config.
+  /// metrics.address: HOST:PORT (PORT 1..65535; [v6]:PORT allowed), checked so the service fails at
+  /// --check-config.
   void check_metrics_address() {
     const std::string& a = cfg_.metrics.address;
     const auto colon = a.rfind(':');
@@ -312,12 +369,14 @@ class Loader {
     if (!present("wheel.tooth_angles_deg") || cfg_.wheel.geometry.tooth_count == 0) return;  // [] = N-M wheel
     for (const char* k : {"wheel.teeth", "wheel.missing"})
       if (present(k))
-        add(mark_of(k), k, values_[k], "no value when wheel.tooth_angles_deg is given (use one description of the wheel)");
+        add(mark_of(k), k, values_[k],
+            "no value when wheel.tooth_angles_deg is given (use one description of the wheel)");
   }
 
   void require_file(const std::string& key, const std::string& path, const std::string& why) {
     if (!options_.check_files) return;
-    const std::string shown = values_.count(key) && values_.at(key) != path ? values_.at(key) + "' (= " + path + ")" : path + "'";
+    const std::string shown =
+        values_.count(key) && values_.at(key) != path ? values_.at(key) + "' (= " + path + ")" : path + "'";
     auto fail = [&](const std::string& expected) {
       add(mark_of(key), "key '" + key + "': found '" + shown + ", expected " + expected);
     };
@@ -338,10 +397,13 @@ class Loader {
 
   void check_files() {
     const auto& in = cfg_.inputs;
-    if (in.edges.backend == EdgeBackend::kFile && !failed("inputs.edges.backend")) require_file("inputs.edges.path", in.edges.path, "inputs.edges.backend is file");
+    if (in.edges.backend == EdgeBackend::kFile && !failed("inputs.edges.backend"))
+      require_file("inputs.edges.path", in.edges.path, "inputs.edges.backend is file");
     if (in.can.backend == CanBackend::kFile && !failed("inputs.can.backend")) {
-      if (!in.can.path.empty() || !options_.check_files) require_file("inputs.can.path", in.can.path, "inputs.can.backend is file");
-      else r_.warnings.push_back(file_ + ": inputs.can.path is empty: no CAN input, CAN-based estimators hold");
+      if (!in.can.path.empty() || !options_.check_files)
+        require_file("inputs.can.path", in.can.path, "inputs.can.backend is file");
+      else
+        r_.warnings.push_back(file_ + ": inputs.can.path is empty: no CAN input, CAN-based estimators hold");
     }
     bool any_mapped = false;
     for (std::size_t q = 0; q < kCanQuantityCount; ++q) {
@@ -357,11 +419,12 @@ class Loader {
       const std::size_t before = r_.errors.size();
       require_file("can.dbc", cfg_.can.dbc, "named DBC file");
       if (r_.errors.size() == before && options_.check_files) check_dbc_names();
-    }
-    else if (any_mapped && options_.check_files) add(mark_of("can.dbc"), "can.dbc", "", "a DBC file path (can.signals maps DBC signals)");
+    } else if (any_mapped && options_.check_files)
+      add(mark_of("can.dbc"), "can.dbc", "", "a DBC file path (can.signals maps DBC signals)");
   }
 
-  /// Every mapped message/signal must exist in the DBC (a light scan of BO_/SG_ lines; io/dbc.cpp parses fully).
+  /// Every mapped message/signal must exist in the DBC (a light scan of BO_/SG_ lines; io/dbc.cpp parses
+  /// fully).
   void check_dbc_names() {
     std::ifstream in(cfg_.can.dbc);
     std::unordered_map<std::string, std::vector<std::string>> messages;
@@ -389,7 +452,8 @@ class Loader {
         std::vector<std::string> names;
         for (const auto& [n, sigs] : messages) names.push_back(n);
         std::sort(names.begin(), names.end());
-        add(mark_of(base + ".message"), base + ".message", m.message, "a message of " + dbc_name + " (" + join(names) + ")");
+        add(mark_of(base + ".message"), base + ".message", m.message,
+            "a message of " + dbc_name + " (" + join(names) + ")");
       } else if (std::find(it->second.begin(), it->second.end(), m.signal) == it->second.end()) {
         add(mark_of(base + ".signal"), base + ".signal", m.signal,
             "a signal of message " + m.message + " in " + dbc_name + " (" + join(it->second) + ")");
@@ -404,7 +468,7 @@ class Loader {
   LoadResult r_;
   std::unordered_map<std::string, YAML::Mark> marks_;
   std::unordered_map<std::string, std::string> values_;  ///< raw YAML text of every key given
-  std::set<std::string> failed_;                          ///< keys whose value was refused
+  std::set<std::string> failed_;                         ///< keys whose value was refused
 };
 
 std::string fmt(double v) {
@@ -454,10 +518,13 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
     }
     listed += "]";
     std::string why;
-    if (len != e.cylinders) why = std::to_string(len) + " entries for " + std::to_string(e.cylinders) + " cylinders";
+    if (len != e.cylinders)
+      why = std::to_string(len) + " entries for " + std::to_string(e.cylinders) + " cylinders";
     for (int cyl = 1; cyl <= e.cylinders && why.empty(); ++cyl) {
-      if (count[std::size_t(cyl)] > 1) why = "cylinder " + std::to_string(cyl) + " appears twice";
-      else if (count[std::size_t(cyl)] == 0) why = "cylinder " + std::to_string(cyl) + " is missing";
+      if (count[std::size_t(cyl)] > 1)
+        why = "cylinder " + std::to_string(cyl) + " appears twice";
+      else if (count[std::size_t(cyl)] == 0)
+        why = "cylinder " + std::to_string(cyl) + " is missing";
     }
     for (int k = 0; k < len && why.empty(); ++k)
       if (e.firing_order[std::size_t(k)] > e.cylinders)
@@ -467,8 +534,9 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
                      "a permutation of 1.." + std::to_string(e.cylinders) + " (" + why + ")"});
   }
   if (!(e.rod_m > e.crank_radius_m()))
-    out.push_back({"engine.rod_m", fmt(e.rod_m),
-                   "a rod longer than the crank radius stroke_m/2 = " + fmt(e.crank_radius_m()) + " m (slider-crank)"});
+    out.push_back(
+        {"engine.rod_m", fmt(e.rod_m),
+         "a rod longer than the crank radius stroke_m/2 = " + fmt(e.crank_radius_m()) + " m (slider-crank)"});
   const auto& w = c.wheel.geometry;
   if (w.tooth_count == 0) {
     if (w.missing >= w.positions)
@@ -479,11 +547,13 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
   } else {
     for (int k = 1; k < w.tooth_count; ++k)
       if (!(w.tooth_angles_deg[std::size_t(k)] > w.tooth_angles_deg[std::size_t(k - 1)])) {
-        out.push_back({"wheel.tooth_angles_deg", fmt(w.tooth_angles_deg[std::size_t(k)]),
-                       "strictly increasing angles (element " + std::to_string(k) + " is not above the previous one)"});
+        out.push_back(
+            {"wheel.tooth_angles_deg", fmt(w.tooth_angles_deg[std::size_t(k)]),
+             "strictly increasing angles (element " + std::to_string(k) + " is not above the previous one)"});
         break;
       }
-    if (w.tooth_count < 2) out.push_back({"wheel.tooth_angles_deg", std::to_string(w.tooth_count) + " teeth", "at least 2 teeth"});
+    if (w.tooth_count < 2)
+      out.push_back({"wheel.tooth_angles_deg", std::to_string(w.tooth_count) + " teeth", "at least 2 teeth"});
   }
   const bool geometry_ok = out.empty();  // the Fourier observer's check needs a valid engine and wheel
   if (!(c.wheel.decoder.gap_ratio_min < c.wheel.decoder.gap_ratio_max))
@@ -509,10 +579,12 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
   // observer runs; check_fourier_stability() above is the paper's bound alone.
   if (c.estimators.fourier.enabled && geometry_ok)
     if (auto why = FourierObserver::check_stability(c.estimators.fourier.params, c.engine, w))
-      out.push_back({"estimators.fourier.l_ke", fmt(c.estimators.fourier.params.l_ke), "stable observer gains: " + *why});
-  const std::pair<const char*, const ThreadConfig*> threads[] = {
-      {"angle", &c.realtime.angle}, {"time", &c.realtime.time}, {"source", &c.realtime.source},
-      {"publisher", &c.realtime.publisher}};
+      out.push_back({"estimators.fourier.l_ke", fmt(c.estimators.fourier.params.l_ke),
+                     "stable observer gains: " + *why});
+  const std::pair<const char*, const ThreadConfig*> threads[] = {{"angle", &c.realtime.angle},
+                                                                 {"time", &c.realtime.time},
+                                                                 {"source", &c.realtime.source},
+                                                                 {"publisher", &c.realtime.publisher}};
   for (const auto& [name, t] : threads) {
     const std::string base = std::string("realtime.") + name;
     if (t->policy == SchedPolicy::kFifo && t->priority < 1)
@@ -536,11 +608,13 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
         {"can.signals.em_sole_load", c.can.signals[kCanEmSoleLoad].message,
          "can.signals.em_torque mapped (the flag says when the machine's torque is the only load)"});
   if (c.can.e_machine.sole_load && !em_mapped)
-    out.push_back({"can.e_machine.sole_load", "true", "can.signals.em_torque mapped (the machine's torque on CAN)"});
+    out.push_back(
+        {"can.e_machine.sole_load", "true", "can.signals.em_torque mapped (the machine's torque on CAN)"});
   return out;
 }
 
-LoadResult load_config_from_string(const std::string& yaml, const std::string& file_name, const LoadOptions& options) {
+LoadResult load_config_from_string(const std::string& yaml, const std::string& file_name,
+                                   const LoadOptions& options) {
   return Loader(file_name, options).run(yaml);
 }
 

@@ -11,14 +11,15 @@
 namespace torqued {
 
 struct LoadResult {
-  std::optional<Config> config;      ///< set only when errors is empty
-  std::vector<std::string> errors;   ///< one formatted message per problem
-  std::vector<std::string> warnings; ///< accepted but suspicious (e.g. no CAN input)
+  std::optional<Config> config;       ///< set only when errors is empty
+  std::vector<std::string> errors;    ///< one formatted message per problem
+  std::vector<std::string> warnings;  ///< accepted but suspicious (e.g. no CAN input)
   [[nodiscard]] bool ok() const noexcept { return config.has_value() && errors.empty(); }
 };
 
 struct LoadOptions {
-  bool check_files = true;  ///< require the input files named in the config to exist (off: validate for another machine)
+  bool check_files =
+      true;  ///< require the input files named in the config to exist (off: validate for another machine)
 };
 
 /// Load and validate a YAML configuration file. Never throws.
@@ -38,6 +39,7 @@ struct ConfigProblem {
 /// Fourier observer stability (CF-14): L_ke > (Δα/2) Σ_k l_k f_k(n)² for every sample n of the cycle, and
 /// 2 n_h + 1 < samples per cycle. Hook for the estimator's own check (FourierObserver::check_stability).
 /// Returns the reason when the gains are refused.
-[[nodiscard]] std::optional<std::string> check_fourier_stability(const FourierParams& p, const WheelGeometry& w);
+[[nodiscard]] std::optional<std::string> check_fourier_stability(const FourierParams& p,
+                                                                 const WheelGeometry& w);
 
 }  // namespace torqued

@@ -19,7 +19,7 @@ struct Bounds {
   bool lo_open = false, hi_open = false;
 };
 inline Bounds closed(double lo, double hi) { return {lo, hi, false, false}; }
-inline Bounds positive(double hi) { return {0.0, hi, true, false}; }   // (0, hi]
+inline Bounds positive(double hi) { return {0.0, hi, true, false}; }  // (0, hi]
 inline Bounds unbounded() { return {}; }
 
 inline void apply(SchemaEntry& e, Bounds b) {
@@ -42,14 +42,20 @@ inline SchemaEntry entry(std::string key, ValueKind kind, std::string unit, std:
   return e;
 }
 
-inline Config& mut(const Config& c) { return const_cast<Config&>(c); }  // getters only read through the reference
+inline Config& mut(const Config& c) {
+  return const_cast<Config&>(c);
+}  // getters only read through the reference
 
 inline SchemaEntry number(std::string key, Ref<double> ref, Bounds b, std::string unit, std::string desc,
-                   double scale = 1.0) {
+                          double scale = 1.0) {
   SchemaEntry e = entry(std::move(key), ValueKind::kDouble, std::move(unit), std::move(desc));
   apply(e, b);
   e.set = [ref, scale](Config& c, const ConfigValue& v) { ref(c) = v.d * scale; };
-  e.get = [ref, scale](const Config& c) { ConfigValue v; v.d = ref(mut(c)) / scale; return v; };
+  e.get = [ref, scale](const Config& c) {
+    ConfigValue v;
+    v.d = ref(mut(c)) / scale;
+    return v;
+  };
   return e;
 }
 
@@ -58,26 +64,39 @@ SchemaEntry integer(std::string key, Ref<T> ref, Bounds b, std::string unit, std
   SchemaEntry e = entry(std::move(key), ValueKind::kInt, std::move(unit), std::move(desc));
   apply(e, b);
   e.set = [ref](Config& c, const ConfigValue& v) { ref(c) = static_cast<T>(v.i); };
-  e.get = [ref](const Config& c) { ConfigValue v; v.i = static_cast<std::int64_t>(ref(mut(c))); return v; };
+  e.get = [ref](const Config& c) {
+    ConfigValue v;
+    v.i = static_cast<std::int64_t>(ref(mut(c)));
+    return v;
+  };
   return e;
 }
 
 inline SchemaEntry boolean(std::string key, Ref<bool> ref, std::string desc) {
   SchemaEntry e = entry(std::move(key), ValueKind::kBool, "", std::move(desc));
   e.set = [ref](Config& c, const ConfigValue& v) { ref(c) = v.b; };
-  e.get = [ref](const Config& c) { ConfigValue v; v.b = ref(mut(c)); return v; };
+  e.get = [ref](const Config& c) {
+    ConfigValue v;
+    v.b = ref(mut(c));
+    return v;
+  };
   return e;
 }
 
 inline SchemaEntry text(std::string key, Ref<std::string> ref, std::string desc, bool is_path = false) {
   SchemaEntry e = entry(std::move(key), is_path ? ValueKind::kPath : ValueKind::kString, "", std::move(desc));
   e.set = [ref](Config& c, const ConfigValue& v) { ref(c) = v.s; };
-  e.get = [ref](const Config& c) { ConfigValue v; v.s = ref(mut(c)); return v; };
+  e.get = [ref](const Config& c) {
+    ConfigValue v;
+    v.s = ref(mut(c));
+    return v;
+  };
   return e;
 }
 
 template <class E>
-SchemaEntry choice(std::string key, Ref<E> ref, std::vector<std::pair<std::string, E>> names, std::string desc) {
+SchemaEntry choice(std::string key, Ref<E> ref, std::vector<std::pair<std::string, E>> names,
+                   std::string desc) {
   SchemaEntry e = entry(std::move(key), ValueKind::kEnum, "", std::move(desc));
   for (const auto& n : names) e.choices.push_back(n.first);
   e.set = [ref, names](Config& c, const ConfigValue& v) {
@@ -102,7 +121,11 @@ SchemaEntry fixed_list(std::string key, Ref<std::array<double, N>> ref, Bounds b
   e.set = [ref](Config& c, const ConfigValue& v) {
     for (std::size_t k = 0; k < N && k < v.dl.size(); ++k) ref(c)[k] = v.dl[k];
   };
-  e.get = [ref](const Config& c) { ConfigValue v; v.dl.assign(ref(mut(c)).begin(), ref(mut(c)).end()); return v; };
+  e.get = [ref](const Config& c) {
+    ConfigValue v;
+    v.dl.assign(ref(mut(c)).begin(), ref(mut(c)).end());
+    return v;
+  };
   return e;
 }
 
@@ -111,7 +134,11 @@ inline SchemaEntry cpu_list(std::string key, Ref<std::vector<int>> ref, std::str
   apply(e, closed(0, 1023));
   e.max_len = 1024;
   e.set = [ref](Config& c, const ConfigValue& v) { ref(c).assign(v.il.begin(), v.il.end()); };
-  e.get = [ref](const Config& c) { ConfigValue v; v.il.assign(ref(mut(c)).begin(), ref(mut(c)).end()); return v; };
+  e.get = [ref](const Config& c) {
+    ConfigValue v;
+    v.il.assign(ref(mut(c)).begin(), ref(mut(c)).end());
+    return v;
+  };
   return e;
 }
 

@@ -22,11 +22,21 @@ dds_qos_t* make_qos(const TopicQos& q) {
 dds_entity_t create_topic(dds_entity_t participant, const DdsSettings& s, Topic t) {
   const dds_topic_descriptor_t* desc = nullptr;
   switch (t) {
-    case Topic::kEngineTorque: desc = TopicTraits<torque_EngineTorque>::descriptor(); break;
-    case Topic::kEstimatorTorque: desc = TopicTraits<torque_EstimatorTorque>::descriptor(); break;
-    case Topic::kCylinderTorque: desc = TopicTraits<torque_CylinderTorque>::descriptor(); break;
-    case Topic::kCrankState: desc = TopicTraits<torque_CrankState>::descriptor(); break;
-    case Topic::kDaemonStatus: desc = TopicTraits<torque_DaemonStatus>::descriptor(); break;
+    case Topic::kEngineTorque:
+      desc = TopicTraits<torque_EngineTorque>::descriptor();
+      break;
+    case Topic::kEstimatorTorque:
+      desc = TopicTraits<torque_EstimatorTorque>::descriptor();
+      break;
+    case Topic::kCylinderTorque:
+      desc = TopicTraits<torque_CylinderTorque>::descriptor();
+      break;
+    case Topic::kCrankState:
+      desc = TopicTraits<torque_CrankState>::descriptor();
+      break;
+    case Topic::kDaemonStatus:
+      desc = TopicTraits<torque_DaemonStatus>::descriptor();
+      break;
   }
   const std::string name = s.topic_name(t);
   return dds_create_topic(participant, desc, name.c_str(), nullptr, nullptr);

@@ -13,15 +13,16 @@
 namespace torqued::dds {
 
 struct TopicQos {
-  bool reliable = true;            ///< reliable (true) or best-effort
-  std::int32_t depth = 16;         ///< keep-last history depth (samples per instance)
-  std::int64_t deadline_ms = 0;    ///< offered deadline period (ms); 0 = infinite
-  std::int64_t lease_ms = 0;       ///< automatic liveliness lease (ms); 0 = infinite
+  bool reliable = true;          ///< reliable (true) or best-effort
+  std::int32_t depth = 16;       ///< keep-last history depth (samples per instance)
+  std::int64_t deadline_ms = 0;  ///< offered deadline period (ms); 0 = infinite
+  std::int64_t lease_ms = 0;     ///< automatic liveliness lease (ms); 0 = infinite
 };
 
 struct DdsSettings {
   std::uint32_t domain_id = 0;
-  std::string topic_prefix = "torque";  ///< full topic name = prefix + "/" + type name (config dds.topic_prefix)
+  std::string topic_prefix =
+      "torque";  ///< full topic name = prefix + "/" + type name (config dds.topic_prefix)
   std::uint16_t engine_id = 1;
   std::array<TopicQos, kTopicCount> qos = default_qos();
 

@@ -13,7 +13,8 @@ const char* validate(const CanEncoderConfig& cfg) noexcept {
   }
   if (cfg.tick_ns < 1 || cfg.tick_ns > 1'000'000) return "encoder tick_ns must be 1 .. 1000000 ns";
   if (cfg.crank_channel == cfg.cam_channel) return "encoder crank_channel and cam_channel must differ";
-  if (!(cfg.max_slew_ppm >= 0.0 && cfg.max_slew_ppm <= 10000.0)) return "encoder max_slew_ppm must be 0 .. 10000";
+  if (!(cfg.max_slew_ppm >= 0.0 && cfg.max_slew_ppm <= 10000.0))
+    return "encoder max_slew_ppm must be 0 .. 10000";
   if (cfg.align_window_frames < 8 || cfg.align_window_frames > 100000) {
     return "encoder align_window_frames must be 8 .. 100000";
   }
@@ -67,12 +68,14 @@ const char* decode_frame(const CanFrame& frame, const CanEncoderConfig& cfg, Fra
   if ((frame.data[1] & 0x30u) != 0) return "reserved bits 4-5 of byte 1 to be zero";
   const int cap = frame.fd ? kMaxEntriesFd : kMaxEntriesClassic;
   (void)cfg;
-  if (out.n > cap) return frame.fd ? "at most 15 entries in a CAN FD frame" : "at most 1 entry in a classic frame";
+  if (out.n > cap)
+    return frame.fd ? "at most 15 entries in a CAN FD frame" : "at most 1 entry in a classic frame";
   if (frame.len < 2 + 4 * out.n) return "frame length >= 2 + 4 x entry count";
   for (int k = 0; k < out.n; ++k) {
     const std::uint8_t* p = frame.data.data() + 2 + 4 * k;
     const std::uint32_t w = static_cast<std::uint32_t>(p[0]) | (static_cast<std::uint32_t>(p[1]) << 8) |
-                            (static_cast<std::uint32_t>(p[2]) << 16) | (static_cast<std::uint32_t>(p[3]) << 24);
+                            (static_cast<std::uint32_t>(p[2]) << 16) |
+                            (static_cast<std::uint32_t>(p[3]) << 24);
     out.entries[static_cast<std::size_t>(k)] =
         Entry{w & kTickMask, static_cast<std::uint8_t>((w >> 30) & 1u), ((w >> 31) & 1u) != 0};
   }
@@ -102,14 +105,16 @@ bool Batcher::flush(CanFrame& out) noexcept { return emit(out); }
 
 }  // namespace can_encoder
 
-CanEncoderEdgeSource::CanEncoderEdgeSource(CanSource& can, const CanEncoderConfig& cfg) : can_(can), cfg_(cfg) {
+CanEncoderEdgeSource::CanEncoderEdgeSource(CanSource& can, const CanEncoderConfig& cfg)
+    : can_(can), cfg_(cfg) {
   if (const char* why = validate(cfg)) error_ = why;
 }
 
 std::string CanEncoderEdgeSource::describe() const {
   char buf[160];
-  std::snprintf(buf, sizeof buf, "can-encoder id=0x%X%s %s tick=%lld ns over ", static_cast<unsigned>(cfg_.id),
-                cfg_.extended ? "x" : "", cfg_.fd ? "fd" : "classic", static_cast<long long>(cfg_.tick_ns));
+  std::snprintf(buf, sizeof buf, "can-encoder id=0x%X%s %s tick=%lld ns over ",
+                static_cast<unsigned>(cfg_.id), cfg_.extended ? "x" : "", cfg_.fd ? "fd" : "classic",
+                static_cast<long long>(cfg_.tick_ns));
   return buf + can_.describe();
 }
 
@@ -124,8 +129,8 @@ void CanEncoderEdgeSource::accept(const CanFrame& frame) noexcept {
     ++enc_.bad_frames;
     ++stats_.bad_lines;
     std::snprintf(bad_msg_.data(), bad_msg_.size(), "encoder frame %llu (t=%lld ns): expected %s",
-                  static_cast<unsigned long long>(enc_.frames + enc_.bad_frames), static_cast<long long>(frame.t_ns),
-                  why);
+                  static_cast<unsigned long long>(enc_.frames + enc_.bad_frames),
+                  static_cast<long long>(frame.t_ns), why);
     return;
   }
   ++enc_.frames;
@@ -156,7 +161,8 @@ void CanEncoderEdgeSource::accept(const CanFrame& frame) noexcept {
       ticks = e.ticks;  // first entry: the encoder's own origin
     } else {
       const std::int64_t rx_dt_ticks = (frame.t_ns - last_rx_ns_) / cfg_.tick_ns;
-      std::int64_t delta = (static_cast<std::int64_t>(e.ticks) - static_cast<std::int64_t>(last_raw_)) & (kWrap - 1);
+      std::int64_t delta =
+          (static_cast<std::int64_t>(e.ticks) - static_cast<std::int64_t>(last_raw_)) & (kWrap - 1);
       if (restart && k == 0) {
         // New encoder origin: continue the time line from the receive-time gap (at least one tick).
         delta = rx_dt_ticks > 0 ? rx_dt_ticks : 1;
@@ -190,16 +196,17 @@ void CanEncoderEdgeSource::accept(const CanFrame& frame) noexcept {
 
 void CanEncoderEdgeSource::align(std::int64_t rx_ns) noexcept {
   // Maps encoder time e onto the receive clock: t = e + offset. The receive latency rx − e_last of a frame is
-  // transport floor + jitter ≥ floor, so the lower envelope of raw = rx − e_last over a window of frames is the
-  // offset we want (up to the constant floor, which time_offset_ns can remove). The envelope's slope is the
-  // oscillator drift. The applied offset is never stepped after the first frame: it is slewed at
-  // rate = drift + error/window, at most max_slew_ppm, so tooth periods change by at most that rate.
+  // transport floor + jitter ≥ floor, so the lower envelope of raw = rx − e_last over a window of frames is
+  // the offset we want (up to the constant floor, which time_offset_ns can remove). The envelope's slope is
+  // the oscillator drift. The applied offset is never stepped after the first frame: it is slewed at rate =
+  // drift + error/window, at most max_slew_ppm, so tooth periods change by at most that rate.
   const std::int64_t e_first = out_[0].t_ns;
   const std::int64_t e_last = out_[static_cast<std::size_t>(out_n_ - 1)].t_ns;
   const double max_rate = cfg_.max_slew_ppm * 1e-6;
   if (!aligned_) {
     aligned_ = true;
-    offset_base_ns_ = rx_ns - e_last;  // integer part: receive clocks are ~1.7e18 ns, beyond double's ns precision
+    offset_base_ns_ =
+        rx_ns - e_last;  // integer part: receive clocks are ~1.7e18 ns, beyond double's ns precision
     offset_ns_ = 0.0;
     slew_ref_ns_ = e_first;
     win_start_ns_ = e_last;

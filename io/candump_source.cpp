@@ -14,7 +14,8 @@ bool valid_fd_len(int n) noexcept {
 }
 }  // namespace
 
-CandumpSource::CandumpSource(std::string path, CandumpOptions options) : path_(std::move(path)), opt_(options) {
+CandumpSource::CandumpSource(std::string path, CandumpOptions options)
+    : path_(std::move(path)), opt_(options) {
   messages_.reserve(kMaxMessages);
   ok_ = reader_.open(path_);
   if (!ok_) error_ = reader_.error();
@@ -27,7 +28,8 @@ std::string_view CandumpSource::bus_name(std::uint8_t bus) const noexcept {
   return std::string_view(bus_names_[bus].data());
 }
 
-const char* CandumpSource::parse_line(std::string_view line, CanFrame& out, std::string_view& bus_name) noexcept {
+const char* CandumpSource::parse_line(std::string_view line, CanFrame& out,
+                                      std::string_view& bus_name) noexcept {
   const char* p = line.data();
   const char* end = p + line.size();
   parse::skip_ws(p, end);
@@ -78,7 +80,8 @@ const char* CandumpSource::parse_line(std::string_view line, CanFrame& out, std:
     const int hi = parse::hex_digit(p[0]);
     const int lo = p + 1 < end ? parse::hex_digit(p[1]) : -1;
     if (lo < 0) return "odd number of hex digits in the payload";
-    if (n == max_len) return out.fd ? "payload longer than 64 bytes" : "classic CAN payload longer than 8 bytes";
+    if (n == max_len)
+      return out.fd ? "payload longer than 64 bytes" : "classic CAN payload longer than 8 bytes";
     out.data[static_cast<std::size_t>(n++)] = static_cast<std::uint8_t>((hi << 4) | lo);
     p += 2;
   }

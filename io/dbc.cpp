@@ -32,8 +32,8 @@ std::int64_t sign_extend(std::uint64_t v, int length, bool is_signed) noexcept {
 }  // namespace
 
 // Word-at-a-time: gather the (at most 8) bytes the signal spans into one integer, shift and mask. Bytes past
-// `len` read as 0, as in the bitwise definition. Signals spanning 9 bytes (e.g. 64 bits not byte-aligned) take the
-// bitwise path.
+// `len` read as 0, as in the bitwise definition. Signals spanning 9 bytes (e.g. 64 bits not byte-aligned)
+// take the bitwise path.
 std::int64_t DbcSignal::raw(const std::uint8_t* data, std::size_t len) const noexcept {
   const int n = static_cast<int>(length);
   if (n <= 0 || n > 64) return raw_bitwise(data, len);
@@ -95,7 +95,8 @@ const DbcSignal* DbcMessage::find(std::string_view signal_name) const noexcept {
   return nullptr;
 }
 
-bool DbcMessage::signal_present(const DbcSignal& s, const std::uint8_t* data, std::size_t len) const noexcept {
+bool DbcMessage::signal_present(const DbcSignal& s, const std::uint8_t* data,
+                                std::size_t len) const noexcept {
   if (s.mux != DbcSignal::Mux::kMultiplexed || multiplexor < 0) return true;
   const DbcSignal& m = signals[static_cast<std::size_t>(multiplexor)];
   if (len < m.bytes_needed()) return false;
@@ -143,19 +144,22 @@ class Lexer {
         ++pos_;
       }
       const std::string_view text = s_.substr(start + 1, pos_ - start - 1);
-      if (pos_ < s_.size()) ++pos_;
-      else unterminated_ = true;
+      if (pos_ < s_.size())
+        ++pos_;
+      else
+        unterminated_ = true;
       return {Tok::kString, text};
     }
     const bool sign_num = (c == '-' || c == '+') && pos_ + 1 < s_.size() &&
                           (std::isdigit(static_cast<unsigned char>(s_[pos_ + 1])) || s_[pos_ + 1] == '.');
-    if (std::isdigit(static_cast<unsigned char>(c)) || sign_num || (c == '.' && pos_ + 1 < s_.size() &&
-                                                                   std::isdigit(static_cast<unsigned char>(s_[pos_ + 1])))) {
+    if (std::isdigit(static_cast<unsigned char>(c)) || sign_num ||
+        (c == '.' && pos_ + 1 < s_.size() && std::isdigit(static_cast<unsigned char>(s_[pos_ + 1])))) {
       ++pos_;
       while (pos_ < s_.size()) {
         const char d = s_[pos_];
         if (std::isdigit(static_cast<unsigned char>(d)) || d == '.' || d == 'x' || d == 'X' ||
-            ((d == 'e' || d == 'E')) || ((d == '-' || d == '+') && (s_[pos_ - 1] == 'e' || s_[pos_ - 1] == 'E')) ||
+            ((d == 'e' || d == 'E')) ||
+            ((d == '-' || d == '+') && (s_[pos_ - 1] == 'e' || s_[pos_ - 1] == 'E')) ||
             std::isxdigit(static_cast<unsigned char>(d))) {
           ++pos_;
         } else {
@@ -165,7 +169,8 @@ class Lexer {
       return {Tok::kNumber, s_.substr(start, pos_ - start)};
     }
     if (std::isalpha(static_cast<unsigned char>(c)) || c == '_') {
-      while (pos_ < s_.size() && (std::isalnum(static_cast<unsigned char>(s_[pos_])) || s_[pos_] == '_')) ++pos_;
+      while (pos_ < s_.size() && (std::isalnum(static_cast<unsigned char>(s_[pos_])) || s_[pos_] == '_'))
+        ++pos_;
       return {Tok::kIdent, s_.substr(start, pos_ - start)};
     }
     ++pos_;
@@ -206,7 +211,8 @@ bool to_uint32(std::string_view t, std::uint32_t& v) {
 
 bool starts_with_kw(std::string_view line, std::string_view kw) {
   if (line.substr(0, kw.size()) != kw) return false;
-  return line.size() == kw.size() || !(std::isalnum(static_cast<unsigned char>(line[kw.size()])) || line[kw.size()] == '_');
+  return line.size() == kw.size() ||
+         !(std::isalnum(static_cast<unsigned char>(line[kw.size()])) || line[kw.size()] == '_');
 }
 
 std::string_view trim(std::string_view s) {
@@ -230,10 +236,11 @@ bool complete(std::string_view stmt) {
 }
 
 constexpr std::string_view kIgnored[] = {
-    "BA_DEF_",  "BA_DEF_DEF_", "BA_",         "BA_DEF_REL_", "BA_REL_",     "BA_DEF_DEF_REL_", "BA_SGTYPE_",
-    "VAL_TABLE_", "SIG_GROUP_", "SIG_VALTYPE_", "EV_",       "ENVVAR_DATA_", "SGTYPE_",        "SGTYPE_VAL_",
-    "BO_TX_BU_", "SIG_TYPE_REF_", "CAT_DEF_",  "CAT_",        "FILTER",      "SIG_MUL_VAL_",    "BU_SG_REL_",
-    "BU_EV_REL_", "BU_BO_REL_", "NS_DESC_",    "ENVVAR_DATA_", "SIGTYPE_VALTYPE_"};
+    "BA_DEF_",      "BA_DEF_DEF_",     "BA_",        "BA_DEF_REL_",   "BA_REL_",    "BA_DEF_DEF_REL_",
+    "BA_SGTYPE_",   "VAL_TABLE_",      "SIG_GROUP_", "SIG_VALTYPE_",  "EV_",        "ENVVAR_DATA_",
+    "SGTYPE_",      "SGTYPE_VAL_",     "BO_TX_BU_",  "SIG_TYPE_REF_", "CAT_DEF_",   "CAT_",
+    "FILTER",       "SIG_MUL_VAL_",    "BU_SG_REL_", "BU_EV_REL_",    "BU_BO_REL_", "NS_DESC_",
+    "ENVVAR_DATA_", "SIGTYPE_VALTYPE_"};
 
 }  // namespace
 
@@ -256,7 +263,8 @@ class DbcParser {
       if (line.empty() || line.starts_with("//")) continue;
       if (in_ns) {
         // NS_ block: indented keyword names, one per line.
-        if (indented && line.find(' ') == std::string_view::npos && line.find('"') == std::string_view::npos) continue;
+        if (indented && line.find(' ') == std::string_view::npos && line.find('"') == std::string_view::npos)
+          continue;
         in_ns = false;
       }
       if (starts_with_kw(line, "NS_")) {
@@ -302,8 +310,10 @@ class DbcParser {
     }
     if (kw.text == "VERSION") {
       const Token v = lx.next();
-      if (v.kind != Tok::kString) error(line, "expected VERSION \"<text>\"");
-      else db_.version_ = std::string(v.text);
+      if (v.kind != Tok::kString)
+        error(line, "expected VERSION \"<text>\"");
+      else
+        db_.version_ = std::string(v.text);
     } else if (kw.text == "BS_") {
       // Bus timing, obsolete: ignored.
     } else if (kw.text == "BU_") {
@@ -340,13 +350,15 @@ class DbcParser {
     std::uint32_t raw_id = 0;
     std::int64_t len = 0;
     if (id.kind != Tok::kNumber || !to_uint32(id.text, raw_id) || name.kind != Tok::kIdent ||
-        !(colon.kind == Tok::kPunct && colon.text == ":") || dlc.kind != Tok::kNumber || !to_int64(dlc.text, len)) {
+        !(colon.kind == Tok::kPunct && colon.text == ":") || dlc.kind != Tok::kNumber ||
+        !to_int64(dlc.text, len)) {
       error(line, "expected 'BO_ <id> <name>: <dlc> <transmitter>'");
       current_ = -1;
       return;
     }
     if (len < 0 || len > 64) {
-      error(line, "message " + std::string(name.text) + ": DLC " + std::to_string(len) + " outside 0..64 bytes");
+      error(line,
+            "message " + std::string(name.text) + ": DLC " + std::to_string(len) + " outside 0..64 bytes");
       current_ = -1;
       return;
     }
@@ -363,7 +375,8 @@ class DbcParser {
     }
     skip_signals_ = false;
     if (!m.extended && m.id > 0x7FF) {
-      error(line, "message " + m.name + ": standard id 0x" + hex(m.id) + " above 0x7FF (extended ids have bit 31 set)");
+      error(line, "message " + m.name + ": standard id 0x" + hex(m.id) +
+                      " above 0x7FF (extended ids have bit 31 set)");
       current_ = -1;
       return;
     }
@@ -389,7 +402,8 @@ class DbcParser {
     }
     DbcMessage& m = db_.messages_[static_cast<std::size_t>(current_)];
     static const char* kExpected =
-        "expected 'SG_ <name> [M|m<n>] : <start>|<length>@<0|1><+|-> (<factor>,<offset>) [<min>|<max>] \"<unit>\" "
+        "expected 'SG_ <name> [M|m<n>] : <start>|<length>@<0|1><+|-> (<factor>,<offset>) [<min>|<max>] "
+        "\"<unit>\" "
         "<receivers>'";
     DbcSignal s;
     Token t = lx.next();
@@ -405,10 +419,12 @@ class DbcParser {
         const bool also_mux = digits.ends_with("M");
         if (also_mux) {
           digits.remove_suffix(1);
-          warning(line, "signal " + s.name + ": extended multiplexing (m<n>M) treated as simple multiplexing");
+          warning(line,
+                  "signal " + s.name + ": extended multiplexing (m<n>M) treated as simple multiplexing");
         }
         std::int64_t v = 0;
-        if (!to_int64(digits, v) || v < 0) return error(line, "signal " + s.name + ": bad multiplex indicator '" + std::string(mi) + "'");
+        if (!to_int64(digits, v) || v < 0)
+          return error(line, "signal " + s.name + ": bad multiplex indicator '" + std::string(mi) + "'");
         s.mux = DbcSignal::Mux::kMultiplexed;
         s.mux_value = static_cast<std::uint32_t>(v);
       } else {
@@ -429,15 +445,18 @@ class DbcParser {
     if (o.kind == Tok::kNumber && (o.text == "0" || o.text == "1")) {
       order = o.text == "1" ? 1 : 0;
       sign = lx.next();
-    } else if (o.kind == Tok::kNumber && (o.text == "0+" || o.text == "1+" || o.text == "0-" || o.text == "1-")) {
+    } else if (o.kind == Tok::kNumber &&
+               (o.text == "0+" || o.text == "1+" || o.text == "0-" || o.text == "1-")) {
       order = o.text[0] == '1' ? 1 : 0;
       sign = Token{Tok::kPunct, o.text.substr(1)};
     } else {
       return error(line, kExpected);
     }
     if (!(sign.kind == Tok::kPunct && (sign.text == "+" || sign.text == "-"))) return error(line, kExpected);
-    if (length < 1 || length > 64) return error(line, "signal " + s.name + ": length " + std::to_string(length) + " outside 1..64 bits");
-    if (start < 0 || start >= 512) return error(line, "signal " + s.name + ": start bit " + std::to_string(start) + " outside 0..511");
+    if (length < 1 || length > 64)
+      return error(line, "signal " + s.name + ": length " + std::to_string(length) + " outside 1..64 bits");
+    if (start < 0 || start >= 512)
+      return error(line, "signal " + s.name + ": start bit " + std::to_string(start) + " outside 0..511");
     s.start_bit = static_cast<std::uint16_t>(start);
     s.length = static_cast<std::uint16_t>(length);
     s.little_endian = order == 1;
@@ -455,15 +474,16 @@ class DbcParser {
     const Token unit = lx.next();
     if (unit.kind != Tok::kString) return error(line, "signal " + s.name + ": expected \"<unit>\"");
     s.unit = std::string(unit.text);
-    for (Token r = lx.next(); r.kind == Tok::kIdent || (r.kind == Tok::kPunct && r.text == ","); r = lx.next()) {
+    for (Token r = lx.next(); r.kind == Tok::kIdent || (r.kind == Tok::kPunct && r.text == ",");
+         r = lx.next()) {
       if (r.kind == Tok::kIdent) s.receivers.emplace_back(r.text);
     }
     if (s.factor == 0.0) warning(line, "signal " + s.name + ": factor 0");
     const std::size_t need = s.bytes_needed();
     if (need > 64) return error(line, "signal " + s.name + ": does not fit in 64 bytes");
     if (need > m.dlc) {
-      warning(line, "signal " + s.name + ": needs " + std::to_string(need) + " bytes, message " + m.name + " has DLC " +
-                        std::to_string(m.dlc));
+      warning(line, "signal " + s.name + ": needs " + std::to_string(need) + " bytes, message " + m.name +
+                        " has DLC " + std::to_string(m.dlc));
     }
     if (m.find(s.name) != nullptr) return error(line, "message " + m.name + ": duplicate signal " + s.name);
     if (s.mux == DbcSignal::Mux::kMultiplexor) {
@@ -537,7 +557,8 @@ class DbcParser {
           return error(line, "VAL_: value " + std::string(v.text) + " is outside the 64-bit raw range");
         x = static_cast<std::int64_t>(d);
       }
-      if (text.kind != Tok::kString) return error(line, "VAL_: expected \"<text>\" after value " + std::string(v.text));
+      if (text.kind != Tok::kString)
+        return error(line, "VAL_: expected \"<text>\" after value " + std::string(v.text));
       table.emplace_back(x, std::string(text.text));
     }
     if (s != nullptr) s->value_table = std::move(table);

@@ -19,18 +19,18 @@ struct DbcSignal {
   enum class Mux : std::uint8_t { kPlain = 0, kMultiplexor = 1, kMultiplexed = 2 };
 
   std::string name;
-  std::uint16_t start_bit = 0;   ///< as written in the DBC (Motorola: MSB position in sawtooth numbering)
-  std::uint16_t length = 0;      ///< bits (1..64)
-  bool little_endian = true;     ///< @1 Intel, @0 Motorola
+  std::uint16_t start_bit = 0;  ///< as written in the DBC (Motorola: MSB position in sawtooth numbering)
+  std::uint16_t length = 0;     ///< bits (1..64)
+  bool little_endian = true;    ///< @1 Intel, @0 Motorola
   bool is_signed = false;
   double factor = 1.0;
   double offset = 0.0;
-  double min = 0.0;              ///< physical range; min == max == 0 means "no range given"
+  double min = 0.0;  ///< physical range; min == max == 0 means "no range given"
   double max = 0.0;
   std::string unit;
   std::vector<std::string> receivers;
   Mux mux = Mux::kPlain;
-  std::uint32_t mux_value = 0;   ///< for kMultiplexed: value of the multiplexor selecting this signal
+  std::uint32_t mux_value = 0;  ///< for kMultiplexed: value of the multiplexor selecting this signal
   std::string comment;
   std::vector<std::pair<std::int64_t, std::string>> value_table;  ///< VAL_ entries
 
@@ -50,18 +50,19 @@ struct DbcSignal {
 };
 
 struct DbcMessage {
-  std::uint32_t id = 0;          ///< identifier without the extended flag (bit 31 of the DBC id)
+  std::uint32_t id = 0;  ///< identifier without the extended flag (bit 31 of the DBC id)
   bool extended = false;
   std::string name;
-  std::uint8_t dlc = 0;          ///< declared length in bytes (0..64)
+  std::uint8_t dlc = 0;  ///< declared length in bytes (0..64)
   std::string transmitter;
   std::string comment;
   std::vector<DbcSignal> signals;
-  int multiplexor = -1;          ///< index into signals of the multiplexor, -1 if none
+  int multiplexor = -1;  ///< index into signals of the multiplexor, -1 if none
 
   [[nodiscard]] const DbcSignal* find(std::string_view signal_name) const noexcept;
   /// Whether a multiplexed signal is present in this payload (always true for plain signals).
-  [[nodiscard]] bool signal_present(const DbcSignal& s, const std::uint8_t* data, std::size_t len) const noexcept;
+  [[nodiscard]] bool signal_present(const DbcSignal& s, const std::uint8_t* data,
+                                    std::size_t len) const noexcept;
 };
 
 struct DbcParseResult;

@@ -25,23 +25,29 @@ std::string validate(const GpioConfig& cfg) {
   if (cfg.crank_line < 0) return "gpio: crank_line must be given (line offset on the chip, >= 0)";
   if (cfg.cam_line < -1) return "gpio: cam_line must be -1 (none) or a line offset >= 0";
   if (cfg.cam_line == cfg.crank_line) return "gpio: crank_line and cam_line must differ";
-  if (cfg.poll_timeout_ms < 1 || cfg.poll_timeout_ms > 10000) return "gpio: poll_timeout_ms must be 1 .. 10000";
+  if (cfg.poll_timeout_ms < 1 || cfg.poll_timeout_ms > 10000)
+    return "gpio: poll_timeout_ms must be 1 .. 10000";
   if (cfg.consumer.empty() || cfg.consumer.size() > 31) return "gpio: consumer label must be 1 .. 31 chars";
   if (cfg.crank_channel == cfg.cam_channel) return "gpio: crank_channel and cam_channel must differ";
   return {};
 }
 
 bool parse_gpio_bias(const std::string& name, GpioConfig::Bias& out) noexcept {
-  if (name == "as-is") out = GpioConfig::Bias::kAsIs;
-  else if (name == "disable") out = GpioConfig::Bias::kDisable;
-  else if (name == "pull-up") out = GpioConfig::Bias::kPullUp;
-  else if (name == "pull-down") out = GpioConfig::Bias::kPullDown;
-  else return false;
+  if (name == "as-is")
+    out = GpioConfig::Bias::kAsIs;
+  else if (name == "disable")
+    out = GpioConfig::Bias::kDisable;
+  else if (name == "pull-up")
+    out = GpioConfig::Bias::kPullUp;
+  else if (name == "pull-down")
+    out = GpioConfig::Bias::kPullDown;
+  else
+    return false;
   return true;
 }
 
-bool GpioEdgeConverter::convert(int event_type, std::int64_t ts_sec, std::int64_t ts_nsec, std::int64_t offset_ns,
-                                EdgeEvent& out) noexcept {
+bool GpioEdgeConverter::convert(int event_type, std::int64_t ts_sec, std::int64_t ts_nsec,
+                                std::int64_t offset_ns, EdgeEvent& out) noexcept {
   if (event_type != GPIOD_LINE_EVENT_RISING_EDGE && event_type != GPIOD_LINE_EVENT_FALLING_EDGE) return false;
   if (ts_sec < 0 || ts_nsec < 0 || ts_nsec >= 1'000'000'000) return false;
   const int level = event_type == GPIOD_LINE_EVENT_RISING_EDGE ? 1 : 0;
@@ -82,8 +88,9 @@ GpioEdgeSource::GpioEdgeSource(GpioConfig cfg) : cfg_(std::move(cfg)) {
 bool GpioEdgeSource::request(Line& l, int offset, std::uint8_t channel, const char* what) {
   const unsigned n = gpiod_chip_num_lines(chip_);
   if (static_cast<unsigned>(offset) >= n) {
-    error_ = std::string("gpio: ") + what + "_line " + std::to_string(offset) + " is not on chip '" + cfg_.chip +
-             "' (it has " + std::to_string(n) + " lines: 0 .. " + std::to_string(n == 0 ? 0 : n - 1) + ")";
+    error_ = std::string("gpio: ") + what + "_line " + std::to_string(offset) + " is not on chip '" +
+             cfg_.chip + "' (it has " + std::to_string(n) + " lines: 0 .. " +
+             std::to_string(n == 0 ? 0 : n - 1) + ")";
     return false;
   }
   l.line = gpiod_chip_get_line(chip_, static_cast<unsigned>(offset));
@@ -94,10 +101,17 @@ bool GpioEdgeSource::request(Line& l, int offset, std::uint8_t channel, const ch
   int flags = 0;
   if (cfg_.active_low) flags |= GPIOD_LINE_REQUEST_FLAG_ACTIVE_LOW;
   switch (cfg_.bias) {
-    case GpioConfig::Bias::kAsIs: break;
-    case GpioConfig::Bias::kDisable: flags |= GPIOD_LINE_REQUEST_FLAG_BIAS_DISABLE; break;
-    case GpioConfig::Bias::kPullUp: flags |= GPIOD_LINE_REQUEST_FLAG_BIAS_PULL_UP; break;
-    case GpioConfig::Bias::kPullDown: flags |= GPIOD_LINE_REQUEST_FLAG_BIAS_PULL_DOWN; break;
+    case GpioConfig::Bias::kAsIs:
+      break;
+    case GpioConfig::Bias::kDisable:
+      flags |= GPIOD_LINE_REQUEST_FLAG_BIAS_DISABLE;
+      break;
+    case GpioConfig::Bias::kPullUp:
+      flags |= GPIOD_LINE_REQUEST_FLAG_BIAS_PULL_UP;
+      break;
+    case GpioConfig::Bias::kPullDown:
+      flags |= GPIOD_LINE_REQUEST_FLAG_BIAS_PULL_DOWN;
+      break;
   }
   if (gpiod_line_request_both_edges_events_flags(l.line, cfg_.consumer.c_str(), flags) < 0) {
     const int err = errno;
@@ -148,7 +162,8 @@ int GpioEdgeSource::read_line(Line& l) noexcept {
   l.n = l.i = 0;
   for (int k = 0; k < n; ++k) {
     const std::uint64_t lost_before = l.conv.lost();
-    if (l.conv.convert(ev[k].event_type, ev[k].ts.tv_sec, ev[k].ts.tv_nsec, offset_ns_, l.buf[static_cast<std::size_t>(l.n)])) {
+    if (l.conv.convert(ev[k].event_type, ev[k].ts.tv_sec, ev[k].ts.tv_nsec, offset_ns_,
+                       l.buf[static_cast<std::size_t>(l.n)])) {
       ++l.n;
     } else {
       ++stats_.bad_lines;
@@ -170,7 +185,8 @@ SourceStatus GpioEdgeSource::next(EdgeEvent& out) noexcept {
         const Line& mine = lines_[static_cast<std::size_t>(k)];
         if (mine.i < mine.n && other.i >= other.n) {
           pollfd q{other.fd, POLLIN, 0};
-          if (::poll(&q, 1, 0) > 0 && (q.revents & (POLLIN | POLLPRI)) && read_line(other) < 0) ++stats_.bad_lines;
+          if (::poll(&q, 1, 0) > 0 && (q.revents & (POLLIN | POLLPRI)) && read_line(other) < 0)
+            ++stats_.bad_lines;
         }
       }
     }
@@ -178,9 +194,11 @@ SourceStatus GpioEdgeSource::next(EdgeEvent& out) noexcept {
     int best = -1;
     for (int k = 0; k < num_lines_; ++k) {
       const Line& l = lines_[static_cast<std::size_t>(k)];
-      if (l.i < l.n && (best < 0 || l.buf[static_cast<std::size_t>(l.i)].t_ns <
-                                        lines_[static_cast<std::size_t>(best)].buf[static_cast<std::size_t>(
-                                            lines_[static_cast<std::size_t>(best)].i)].t_ns)) {
+      if (l.i < l.n &&
+          (best < 0 || l.buf[static_cast<std::size_t>(l.i)].t_ns <
+                           lines_[static_cast<std::size_t>(best)]
+                               .buf[static_cast<std::size_t>(lines_[static_cast<std::size_t>(best)].i)]
+                               .t_ns)) {
         best = k;
       }
     }

@@ -1,11 +1,12 @@
 #pragma once
-// GPIO live backend: crank (and optionally cam) sensor edges as libgpiod v1 line events with kernel timestamps.
-// Both edges of each line are requested (gpiod_line_request_both_edges_events_flags); next() polls the lines'
-// event fds plus a stop eventfd for at most poll_timeout_ms, reads the events in batches and hands them out in
-// time order. The kernel stamps v1 line events with CLOCK_MONOTONIC (Linux >= 5.7); by default they are moved
-// onto CLOCK_REALTIME (the clock of SocketCAN's SO_TIMESTAMPNS) with an offset re-measured once a second.
-// next() does not allocate, lock or throw (it makes poll/read system calls: source thread only).
-// A repeated level on a line means the kernel's event FIFO lost edges in between: counted in stats().dropped.
+// GPIO live backend: crank (and optionally cam) sensor edges as libgpiod v1 line events with kernel
+// timestamps. Both edges of each line are requested (gpiod_line_request_both_edges_events_flags); next()
+// polls the lines' event fds plus a stop eventfd for at most poll_timeout_ms, reads the events in batches and
+// hands them out in time order. The kernel stamps v1 line events with CLOCK_MONOTONIC (Linux >= 5.7); by
+// default they are moved onto CLOCK_REALTIME (the clock of SocketCAN's SO_TIMESTAMPNS) with an offset
+// re-measured once a second. next() does not allocate, lock or throw (it makes poll/read system calls: source
+// thread only). A repeated level on a line means the kernel's event FIFO lost edges in between: counted in
+// stats().dropped.
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -19,10 +20,11 @@ struct gpiod_line;
 namespace torqued {
 
 struct GpioConfig {
-  std::string chip = "gpiochip0";  ///< chip name ("gpiochip0"), number ("0"), path ("/dev/gpiochip0") or label
-  int crank_line = -1;             ///< line offset of the crank sensor on the chip (required)
-  int cam_line = -1;               ///< line offset of the cam sensor, -1 = none
-  bool active_low = false;         ///< invert the levels
+  std::string chip =
+      "gpiochip0";          ///< chip name ("gpiochip0"), number ("0"), path ("/dev/gpiochip0") or label
+  int crank_line = -1;      ///< line offset of the crank sensor on the chip (required)
+  int cam_line = -1;        ///< line offset of the cam sensor, -1 = none
+  bool active_low = false;  ///< invert the levels
   enum class Bias : std::uint8_t { kAsIs = 0, kDisable, kPullUp, kPullDown } bias = Bias::kAsIs;
   std::string consumer = "torqued";  ///< consumer label shown by gpioinfo
   int poll_timeout_ms = 100;         ///< longest wait inside next() (ms), 1 .. 10000

@@ -1,12 +1,12 @@
 #pragma once
-// Endless paced replay of a recording (replay.loop, off by default; the Debian package's configuration turns it
-// on so that the service keeps publishing the bundled demo). Wraps a file source: at its end the file is opened
-// again and every later record is shifted by one loop period, so time keeps increasing for the rings, the
-// decoder and the estimators. The period is the same for the edge and the CAN source (loop_period_ns), so both
-// inputs stay aligned loop after loop. At each seam the crank angle jumps (the recording's last and first teeth
-// are not neighbours): the decoder loses sync once per loop and finds it again within a revolution.
-// next() is real-time safe except at a seam, where the file is reopened (allocates; once per recording length,
-// in the source thread, which reads files anyway).
+// Endless paced replay of a recording (replay.loop, off by default; the Debian package's configuration turns
+// it on so that the service keeps publishing the bundled demo). Wraps a file source: at its end the file is
+// opened again and every later record is shifted by one loop period, so time keeps increasing for the rings,
+// the decoder and the estimators. The period is the same for the edge and the CAN source (loop_period_ns), so
+// both inputs stay aligned loop after loop. At each seam the crank angle jumps (the recording's last and
+// first teeth are not neighbours): the decoder loses sync once per loop and finds it again within a
+// revolution. next() is real-time safe except at a seam, where the file is reopened (allocates; once per
+// recording length, in the source thread, which reads files anyway).
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -65,7 +65,9 @@ class LoopingSource final : public Base {
     return (inner_ ? inner_->describe() : std::string("(closed)")) + ", looped every " +
            std::to_string(static_cast<double>(period_ns_) * 1e-9) + " s";
   }
-  [[nodiscard]] std::string last_error() const override { return inner_ ? inner_->last_error() : "reopen failed"; }
+  [[nodiscard]] std::string last_error() const override {
+    return inner_ ? inner_->last_error() : "reopen failed";
+  }
   [[nodiscard]] std::vector<std::string> input_messages() const override {
     return inner_ ? inner_->input_messages() : std::vector<std::string>{};
   }

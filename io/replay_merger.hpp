@@ -16,8 +16,8 @@ class ReplayMerger {
   enum class Kind : std::uint8_t { kEdge = 0, kCan = 1 };
   struct Item {
     Kind kind = Kind::kEdge;
-    EdgeEvent edge;   ///< valid when kind == kEdge
-    CanFrame frame;   ///< valid when kind == kCan (t_ns already shifted onto the edge clock)
+    EdgeEvent edge;  ///< valid when kind == kEdge
+    CanFrame frame;  ///< valid when kind == kCan (t_ns already shifted onto the edge clock)
     [[nodiscard]] std::int64_t t_ns() const noexcept { return kind == Kind::kEdge ? edge.t_ns : frame.t_ns; }
   };
 
@@ -44,7 +44,8 @@ class ReplayMerger {
   CanFrame frame_{};
   bool edge_ready_ = false, can_ready_ = false;
   bool edge_done_ = false, can_done_ = false;
-  std::int64_t last_edge_t_ = std::numeric_limits<std::int64_t>::min(), last_can_t_ = std::numeric_limits<std::int64_t>::min();
+  std::int64_t last_edge_t_ = std::numeric_limits<std::int64_t>::min(),
+               last_can_t_ = std::numeric_limits<std::int64_t>::min();
   std::uint64_t edges_out_ = 0, frames_out_ = 0, out_of_order_ = 0;
 };
 

@@ -31,10 +31,14 @@ bool is_link_error(int err) noexcept { return err == ENETDOWN || err == ENODEV |
 
 const char* to_string(CanLinkState s) noexcept {
   switch (s) {
-    case CanLinkState::kUp: return "up";
-    case CanLinkState::kDown: return "down";
-    case CanLinkState::kMissing: return "missing";
-    case CanLinkState::kError: return "error";
+    case CanLinkState::kUp:
+      return "up";
+    case CanLinkState::kDown:
+      return "down";
+    case CanLinkState::kMissing:
+      return "missing";
+    case CanLinkState::kError:
+      return "error";
   }
   return "unknown";
 }
@@ -42,12 +46,14 @@ const char* to_string(CanLinkState s) noexcept {
 std::string validate(const SocketCanConfig& cfg) {
   if (cfg.interface.empty()) return "socketcan: interface name is empty";
   if (cfg.interface.size() >= IFNAMSIZ) {
-    return "socketcan: interface name '" + cfg.interface + "' longer than " + std::to_string(IFNAMSIZ - 1) + " chars";
+    return "socketcan: interface name '" + cfg.interface + "' longer than " + std::to_string(IFNAMSIZ - 1) +
+           " chars";
   }
   if (cfg.interface.find_first_of("/ \t") != std::string::npos) {
     return "socketcan: interface name '" + cfg.interface + "' contains '/' or blanks";
   }
-  if (cfg.poll_timeout_ms < 1 || cfg.poll_timeout_ms > 10000) return "socketcan: poll_timeout_ms must be 1 .. 10000";
+  if (cfg.poll_timeout_ms < 1 || cfg.poll_timeout_ms > 10000)
+    return "socketcan: poll_timeout_ms must be 1 .. 10000";
   if (cfg.reopen_interval_ms < 1 || cfg.reopen_interval_ms > 60000) {
     return "socketcan: reopen_interval_ms must be 1 .. 60000";
   }
@@ -73,7 +79,8 @@ SocketCanSource::SocketCanSource(SocketCanConfig cfg) : cfg_(std::move(cfg)) {
     config_error_ = std::string("socketcan: eventfd: ") + std::strerror(errno);
     return;
   }
-  if (!open_socket()) next_open_ns_ = now_ns(CLOCK_MONOTONIC) + std::int64_t{cfg_.reopen_interval_ms} * 1'000'000;
+  if (!open_socket())
+    next_open_ns_ = now_ns(CLOCK_MONOTONIC) + std::int64_t{cfg_.reopen_interval_ms} * 1'000'000;
 }
 
 SocketCanSource::~SocketCanSource() {
@@ -121,8 +128,9 @@ bool SocketCanSource::open_socket() noexcept {
   const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW);
   if (fd < 0) {
     ++can_stats_.open_failures;
-    set_error(errno == EAFNOSUPPORT || errno == EPROTONOSUPPORT ? "socket(PF_CAN) (kernel without CAN support?)"
-                                                               : "socket(PF_CAN)",
+    set_error(errno == EAFNOSUPPORT || errno == EPROTONOSUPPORT
+                  ? "socket(PF_CAN) (kernel without CAN support?)"
+                  : "socket(PF_CAN)",
               errno);
     set_link(CanLinkState::kError);
     return false;
@@ -138,7 +146,8 @@ bool SocketCanSource::open_socket() noexcept {
   std::memcpy(ifr.ifr_name, cfg_.interface.c_str(), cfg_.interface.size() + 1);
   if (::ioctl(fd, SIOCGIFINDEX, &ifr) < 0) {
     const int err = errno;
-    return fail("no such interface (SIOCGIFINDEX)", err, err == ENODEV ? CanLinkState::kMissing : CanLinkState::kError);
+    return fail("no such interface (SIOCGIFINDEX)", err,
+                err == ENODEV ? CanLinkState::kMissing : CanLinkState::kError);
   }
   const int ifindex = ifr.ifr_ifindex;
   const int on = 1;
@@ -154,7 +163,8 @@ bool SocketCanSource::open_socket() noexcept {
       f[n].can_mask = (c.mask & (c.extended ? CAN_EFF_MASK : CAN_SFF_MASK)) | CAN_EFF_FLAG | CAN_RTR_FLAG;
       ++n;
     }
-    if (::setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, f, static_cast<socklen_t>(n * sizeof(can_filter))) < 0) {
+    if (::setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, f, static_cast<socklen_t>(n * sizeof(can_filter))) <
+        0) {
       return fail("setsockopt(CAN_RAW_FILTER)", errno, CanLinkState::kError);
     }
   }
@@ -211,8 +221,8 @@ SourceStatus SocketCanSource::ensure_open() noexcept {
   return SourceStatus::kWouldBlock;
 }
 
-// Nothing to read: wait for a frame or a stop request (kOk: read again). While the link is down, the interface
-// flags are checked at the reopen rate; frames arriving also prove it is up.
+// Nothing to read: wait for a frame or a stop request (kOk: read again). While the link is down, the
+// interface flags are checked at the reopen rate; frames arriving also prove it is up.
 SourceStatus SocketCanSource::wait_readable() noexcept {
   int timeout = cfg_.poll_timeout_ms;
   if (link_.load(std::memory_order_relaxed) == CanLinkState::kDown) {
@@ -235,7 +245,8 @@ SourceStatus SocketCanSource::wait_readable() noexcept {
   return r <= 0 ? SourceStatus::kWouldBlock : SourceStatus::kOk;
 }
 
-// A failed recvmsg (not EAGAIN/EINTR): counted, and a lost link handled (down: keep the socket; gone: reopen).
+// A failed recvmsg (not EAGAIN/EINTR): counted, and a lost link handled (down: keep the socket; gone:
+// reopen).
 void SocketCanSource::on_read_error(int err) noexcept {
   if (!is_link_error(err)) {
     ++can_stats_.read_errors;
@@ -275,7 +286,8 @@ std::int64_t SocketCanSource::read_control(msghdr& msg) noexcept {
 }
 
 // A received frame into `out`; false (counted) for truncated, error and remote frames.
-bool SocketCanSource::accept_frame(const canfd_frame& frame, ssize_t n, std::int64_t t_ns, CanFrame& out) noexcept {
+bool SocketCanSource::accept_frame(const canfd_frame& frame, ssize_t n, std::int64_t t_ns,
+                                   CanFrame& out) noexcept {
   const bool is_fd = n == static_cast<ssize_t>(CANFD_MTU);
   if (!is_fd && n != static_cast<ssize_t>(CAN_MTU)) {
     ++can_stats_.truncated;

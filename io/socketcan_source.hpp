@@ -4,22 +4,23 @@
 //  - kernel receive timestamps (SO_TIMESTAMPNS, CLOCK_REALTIME ns) from the recvmsg control data;
 //  - kernel filters (CAN_RAW_FILTER) for the configured ids;
 //  - kernel queue overflows counted from SO_RXQ_OVFL (stats().dropped);
-//  - next() waits at most poll_timeout_ms (poll on the socket and a stop eventfd), then returns kWouldBlock so
+//  - next() waits at most poll_timeout_ms (poll on the socket and a stop eventfd), then returns kWouldBlock
+//  so
 //    the source thread can check its stop flag; request_stop() makes it return kEnd;
 //  - survives the interface going down or away (ENETDOWN / ENODEV / ENXIO): the error is counted and kept in
-//    last_error(), the socket is closed, and every reopen_interval_ms it is reopened by name once the interface
-//    exists and is up again (stats().reopens, link_state()).
+//    last_error(), the socket is closed, and every reopen_interval_ms it is reopened by name once the
+//    interface exists and is up again (stats().reopens, link_state()).
 // next() does not allocate, lock or throw; it makes system calls (poll, recvmsg), so it belongs in a source
 // thread, never in a pipeline thread. Single consumer: call next() from one thread.
+#include <linux/can.h>
+#include <sys/socket.h>
+#include <sys/types.h>
+
 #include <array>
 #include <atomic>
 #include <cstdint>
 #include <string>
 #include <vector>
-
-#include <linux/can.h>
-#include <sys/socket.h>
-#include <sys/types.h>
 
 #include "source.hpp"
 
@@ -88,7 +89,9 @@ class SocketCanSource final : public CanSource {
   /// Thread-safe view of the link state (for status reports from another thread).
   [[nodiscard]] CanLinkState link_state() const noexcept { return link_.load(std::memory_order_relaxed); }
   /// Number of link state changes so far (thread-safe): a reporter compares it with the value it saw last.
-  [[nodiscard]] std::uint64_t link_changes() const noexcept { return link_changes_.load(std::memory_order_relaxed); }
+  [[nodiscard]] std::uint64_t link_changes() const noexcept {
+    return link_changes_.load(std::memory_order_relaxed);
+  }
 
  private:
   bool open_socket() noexcept;

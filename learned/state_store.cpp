@@ -181,11 +181,11 @@ bool set_reals(LearnedState& s, const Nums& v) {
   return true;
 }
 
-/// The fuel_model line's numbers: the two-parameter (Willans) view at the reference point (efficiency, pumping
-/// term p_exh V_d/4pi in N m, its covariance P00 P01 P10 P11), residual variance (N m^2), reference count |
-/// 68th percentile of |residual| (N m), its count (added later: read as 0 = not measured yet) | the word
-/// "physics" then the physics model's 4 parameters, its 4 x 4 covariance and the 16 speed x MAP cell counts
-/// (added with the physics model: absent in older files, which FuelTorque::import_state converts).
+/// The fuel_model line's numbers: the two-parameter (Willans) view at the reference point (efficiency,
+/// pumping term p_exh V_d/4pi in N m, its covariance P00 P01 P10 P11), residual variance (N m^2), reference
+/// count | 68th percentile of |residual| (N m), its count (added later: read as 0 = not measured yet) | the
+/// word "physics" then the physics model's 4 parameters, its 4 x 4 covariance and the 16 speed x MAP cell
+/// counts (added with the physics model: absent in older files, which FuelTorque::import_state converts).
 constexpr const char* kFuelKinds =
     "gggggggu|gu|p"
     "gggg"

@@ -12,8 +12,8 @@
 //   fuel_model <eta> <p_exh V_d/4pi N m> <P00> <P01> <P10> <P11> <resid var N m^2> <references>
 //              [<68th percentile of |residual| N m> <its count>]  (optional; the last two added later: 0 0
 //              or absent = not measured yet)
-//              [physics <c0> <c1> <p_off Pa> <k_bp Pa> <P 4x4, 16 values> <references per speed x MAP cell, 16>]
-//              (optional, the physics model of fuel_torque.hpp; eta and p_exh are then its values at the
+//              [physics <c0> <c1> <p_off Pa> <k_bp Pa> <P 4x4, 16 values> <references per speed x MAP cell,
+//              16>] (optional, the physics model of fuel_torque.hpp; eta and p_exh are then its values at the
 //              reference point. A line without it, as older files have, loads: the two-parameter state is
 //              converted, the parameters it did not have start at their priors)
 //   crank_error_var <N m^2>                          (optional: measured variance of the crank-only chain)

@@ -32,7 +32,8 @@ DdsPublisher::DdsPublisher(const dds::DdsSettings& settings, bool stamp_times)
     writers_[static_cast<std::size_t>(i)] = dds_create_writer(participant_, topic, qos, nullptr);
     dds_delete_qos(qos);
     if (writers_[static_cast<std::size_t>(i)] < 0) {
-      error_ = "dds_create_writer '" + settings_.topic_name(t) + "': " + dds_strretcode(writers_[static_cast<std::size_t>(i)]);
+      error_ = "dds_create_writer '" + settings_.topic_name(t) +
+               "': " + dds_strretcode(writers_[static_cast<std::size_t>(i)]);
       return;
     }
     shm_[static_cast<std::size_t>(i)] = dds_is_shared_memory_available(writers_[static_cast<std::size_t>(i)]);
@@ -87,7 +88,8 @@ bool DdsPublisher::write(dds::AnySample& s) noexcept {
 
 int DdsPublisher::matched_readers(dds::Topic t) const noexcept {
   dds_publication_matched_status_t st{};
-  if (dds_get_publication_matched_status(writers_[static_cast<std::size_t>(t)], &st) != DDS_RETCODE_OK) return -1;
+  if (dds_get_publication_matched_status(writers_[static_cast<std::size_t>(t)], &st) != DDS_RETCODE_OK)
+    return -1;
   return static_cast<int>(st.current_count);
 }
 

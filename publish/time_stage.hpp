@@ -1,8 +1,8 @@
 #pragma once
 // Time stage: the topic mapping of the time chain (chain/time_chain.hpp, where tooth samples and CAN frames
 // become the time-triggered estimates of Na et al.). Outputs: EstimatorTorque per time method of the registry
-// (idl/methods.hpp), decimated (StageSettings::time_decimation). Runs on the time pipeline thread (timerfd) or
-// inline in fast replay. on_tooth/on_frame/step are real-time safe (no allocation, no lock, no blocking).
+// (idl/methods.hpp), decimated (StageSettings::time_decimation). Runs on the time pipeline thread (timerfd)
+// or inline in fast replay. on_tooth/on_frame/step are real-time safe (no allocation, no lock, no blocking).
 #include <array>
 #include <cstdint>
 #include <string>

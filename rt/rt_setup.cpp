@@ -23,7 +23,8 @@ void fail(RtOutcome& o, const char* what, int err) {
 RtOutcome lock_memory(bool on_fault) noexcept {
   RtOutcome o;
   if (mlockall(MCL_CURRENT | MCL_FUTURE | (on_fault ? MCL_ONFAULT : 0)) != 0)
-    fail(o, on_fault ? "mlockall(MCL_CURRENT|MCL_FUTURE|MCL_ONFAULT)" : "mlockall(MCL_CURRENT|MCL_FUTURE)", errno);
+    fail(o, on_fault ? "mlockall(MCL_CURRENT|MCL_FUTURE|MCL_ONFAULT)" : "mlockall(MCL_CURRENT|MCL_FUTURE)",
+         errno);
   return o;
 }
 

@@ -24,8 +24,8 @@ struct RtOutcome {
   std::string message;         ///< what failed and why (errno text)
 };
 
-/// mlockall(MCL_CURRENT | MCL_FUTURE), with MCL_ONFAULT when on_fault (pages locked when first touched: mapped
-/// pages never touched, such as the unused part of a shared-memory segment, stay out of RSS).
+/// mlockall(MCL_CURRENT | MCL_FUTURE), with MCL_ONFAULT when on_fault (pages locked when first touched:
+/// mapped pages never touched, such as the unused part of a shared-memory segment, stay out of RSS).
 RtOutcome lock_memory(bool on_fault = false) noexcept;
 /// Applies affinity, policy/priority and the name to the CALLING thread, then prefaults its stack.
 RtOutcome apply_to_current_thread(const ThreadRt& rt) noexcept;

@@ -1,7 +1,8 @@
 #pragma once
-// Fixed-capacity single-producer/single-consumer lock-free ring (after rigtorp/SPSCQueue, github.com/rigtorp/SPSCQueue).
-// Why our own and not moodycamel/Boost: a full ring must drop the NEWEST record and count it, never allocate
-// and never block; the benchmark tests/rt/bench_ring.cpp compares it with both libraries.
+// Fixed-capacity single-producer/single-consumer lock-free ring (after rigtorp/SPSCQueue,
+// github.com/rigtorp/SPSCQueue). Why our own and not moodycamel/Boost: a full ring must drop the NEWEST
+// record and count it, never allocate and never block; the benchmark tests/rt/bench_ring.cpp compares it with
+// both libraries.
 //
 // Layout: the producer writes tail_, the consumer writes head_; each index sits on its own cache line with
 // a cached copy of the other side's index, so in the steady state a push or pop touches only one shared
@@ -79,7 +80,9 @@ class SpscRing {
     return &slots_[(head + i) & mask_];
   }
   /// Consumer side: removes the record returned by front().
-  void pop_front() noexcept { head_.store(head_.load(std::memory_order_relaxed) + 1, std::memory_order_release); }
+  void pop_front() noexcept {
+    head_.store(head_.load(std::memory_order_relaxed) + 1, std::memory_order_release);
+  }
 
   /// Records currently queued (approximate when called from a third thread).
   [[nodiscard]] std::size_t size() const noexcept {
@@ -100,10 +103,10 @@ class SpscRing {
   const std::size_t mask_;
   const std::unique_ptr<T[]> slots_;
   alignas(kCacheLine) std::atomic<std::size_t> tail_{0};  ///< written by the producer
-  std::size_t head_cache_ = 0;                             ///< producer's copy of head_
+  std::size_t head_cache_ = 0;                            ///< producer's copy of head_
   std::atomic<std::uint64_t> drops_{0};                   ///< written by the producer only
   alignas(kCacheLine) std::atomic<std::size_t> head_{0};  ///< written by the consumer
-  std::size_t tail_cache_ = 0;                             ///< consumer's copy of tail_
+  std::size_t tail_cache_ = 0;                            ///< consumer's copy of tail_
   char pad_[kCacheLine - sizeof(std::size_t) * 2];
 };
 

@@ -21,17 +21,20 @@ class Wakeup {
     std::atomic_thread_fence(std::memory_order_seq_cst);
     if (sleeping_.load(std::memory_order_relaxed) != 0) {
       word_.fetch_add(1, std::memory_order_release);
-      syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&word_), FUTEX_WAKE_PRIVATE, 1, nullptr, nullptr, 0);
+      syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&word_), FUTEX_WAKE_PRIVATE, 1, nullptr, nullptr,
+              0);
     }
   }
 
   /// Consumer side: sleeps up to timeout_ns unless has_work() (checked after announcing the sleep) is true.
-  template <class HasWork> void wait_for(std::int64_t timeout_ns, HasWork&& has_work) noexcept {
+  template <class HasWork>
+  void wait_for(std::int64_t timeout_ns, HasWork&& has_work) noexcept {
     const std::uint32_t w = word_.load(std::memory_order_acquire);
     sleeping_.store(1, std::memory_order_relaxed);
     std::atomic_thread_fence(std::memory_order_seq_cst);
     if (!has_work()) {
-      timespec ts{static_cast<time_t>(timeout_ns / 1'000'000'000), static_cast<long>(timeout_ns % 1'000'000'000)};
+      timespec ts{static_cast<time_t>(timeout_ns / 1'000'000'000),
+                  static_cast<long>(timeout_ns % 1'000'000'000)};
       syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&word_), FUTEX_WAIT_PRIVATE, w, &ts, nullptr, 0);
     }
     sleeping_.store(0, std::memory_order_relaxed);

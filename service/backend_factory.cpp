@@ -107,7 +107,8 @@ std::unique_ptr<EdgeSource> make_edge_source(const Config& config, std::string* 
         SocketCanConfig c;
         c.interface = config.inputs.can.interface;
         c.fd = config.inputs.can.fd;
-        c.filters.push_back(CanIdFilter{in.encoder_can_id & 0x1FFFFFFFu, 0x1FFFFFFFu, in.encoder_can_id > 0x7FFu});
+        c.filters.push_back(
+            CanIdFilter{in.encoder_can_id & 0x1FFFFFFFu, 0x1FFFFFFFu, in.encoder_can_id > 0x7FFu});
         auto sock = std::make_unique<SocketCanSource>(c);
         if (!sock->ok()) {
           set(error, "inputs.edges (can_encoder): " + sock->last_error());
@@ -156,7 +157,8 @@ std::unique_ptr<CanSource> make_can_source(const Config& config, std::string* er
   return src;
 }
 
-std::optional<DbcDatabase> load_dbc(const Config& config, std::string* error, std::vector<std::string>* warnings) {
+std::optional<DbcDatabase> load_dbc(const Config& config, std::string* error,
+                                    std::vector<std::string>* warnings) {
   if (config.can.dbc.empty()) return std::nullopt;
   DbcParseResult r = DbcDatabase::parse_file(config.can.dbc);
   if (warnings) *warnings = std::move(r.warnings);
@@ -175,7 +177,8 @@ bool bind_signals(const Config& config, SignalStore& store, std::string* error) 
     const SignalMapping& m = config.can.signals[i];
     if (!m.mapped()) continue;
     std::string err;
-    if (!store.bind(static_cast<Quantity>(i), m.message, m.signal, std::int64_t{m.timeout_ms} * 1'000'000, &err)) {
+    if (!store.bind(static_cast<Quantity>(i), m.message, m.signal, std::int64_t{m.timeout_ms} * 1'000'000,
+                    &err)) {
       all += (all.empty() ? "" : "\n") + err;
     }
   }

@@ -3,18 +3,18 @@
 //   torqued --print-schema [yaml|text]  print every configuration key with default, bounds, unit, description
 //   torqued --config FILE         run (pipelines are wired by the daemon part; see docs/daemon.md)
 // Exit statuses: the footer of --help (app.footer below).
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
 #include <cstdio>
 #include <iostream>
 #include <string>
 
-#include <CLI/CLI.hpp>
-#include <spdlog/spdlog.h>
-
+#include "cam_check.hpp"
 #include "config_loader.hpp"
 #include "config_schema.hpp"
 #include "daemon_run.hpp"
 #include "logging.hpp"
-#include "cam_check.hpp"
 
 #ifndef TORQUED_VERSION
 #define TORQUED_VERSION "0.0.0"
@@ -32,50 +32,65 @@ int check_config(const std::string& path, bool check_files) {
   }
   const auto& c = *r.config;
   std::cout << path << ": OK (" << c.engine.cylinders << " cylinders, wheel "
-            << (c.wheel.geometry.tooth_count > 0 ? std::to_string(c.wheel.geometry.tooth_count) + " listed teeth"
-                                                 : std::to_string(c.wheel.geometry.positions) + "-" +
-                                                       std::to_string(c.wheel.geometry.missing))
+            << (c.wheel.geometry.tooth_count > 0
+                    ? std::to_string(c.wheel.geometry.tooth_count) + " listed teeth"
+                    : std::to_string(c.wheel.geometry.positions) + "-" +
+                          std::to_string(c.wheel.geometry.missing))
             << ", dds domain " << c.dds.domain_id << ")\n";
-  if (check_files) for (const auto& w : torqued::cam_window_warnings(c)) std::cerr << "warning: " << w << "\n";
+  if (check_files)
+    for (const auto& w : torqued::cam_window_warnings(c)) std::cerr << "warning: " << w << "\n";
   return 0;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"torqued: real-time engine torque estimation from a crank encoder and CAN, published over DDS"};
+  CLI::App app{
+      "torqued: real-time engine torque estimation from a crank encoder and CAN, published over DDS"};
   app.set_version_flag("--version", std::string("torqued ") + TORQUED_VERSION);
   std::string config_path, check_path, schema_format;
-  auto* run_opt = app.add_option("--config,-c", config_path, "run with this YAML configuration")->check(CLI::ExistingFile);
-  auto* check_opt = app.add_option("--check-config", check_path, "validate a configuration file and exit (0 = valid)");
-  auto* schema_opt = app.add_option("--print-schema", schema_format, "print every configuration key (yaml|text) and exit")
-                         ->expected(0, 1)
-                         ->default_str("yaml");
+  auto* run_opt = app.add_option("--config,-c", config_path, "run with this YAML configuration")
+                      ->check(CLI::ExistingFile);
+  auto* check_opt =
+      app.add_option("--check-config", check_path, "validate a configuration file and exit (0 = valid)");
+  auto* schema_opt =
+      app.add_option("--print-schema", schema_format, "print every configuration key (yaml|text) and exit")
+          ->expected(0, 1)
+          ->default_str("yaml");
   bool no_file_checks = false;
-  app.add_flag("--no-file-checks", no_file_checks, "with --check-config: do not require the input files to exist");
+  app.add_flag("--no-file-checks", no_file_checks,
+               "with --check-config: do not require the input files to exist");
   torqued::RunOptions run;
   std::string mode;
   double speed = 0.0;
   std::string record_dir, state_dir;
-  auto* mode_opt = app.add_option("--replay", mode, "override replay.mode: fast | paced")->check(CLI::IsMember({"fast", "paced"}));
-  auto* speed_opt = app.add_option("--speed", speed, "override replay.speed (paced replay speed factor)")->check(CLI::PositiveNumber);
+  auto* mode_opt = app.add_option("--replay", mode, "override replay.mode: fast | paced")
+                       ->check(CLI::IsMember({"fast", "paced"}));
+  auto* speed_opt = app.add_option("--speed", speed, "override replay.speed (paced replay speed factor)")
+                        ->check(CLI::PositiveNumber);
   auto* record_opt = app.add_option("--record", record_dir, "override output.record_dir (CSV recording)");
-  auto* state_opt = app.add_option("--state-dir", state_dir,
-                                   "override output.state_dir: learned state loaded at start and saved while running "
-                                   "and at exit (also in fast replay)");
+  auto* state_opt =
+      app.add_option("--state-dir", state_dir,
+                     "override output.state_dir: learned state loaded at start and saved while running "
+                     "and at exit (also in fast replay)");
   app.add_flag("--fresh-state", run.fresh_state,
                "do not load the learned state: learn from the prior (the state is still saved)");
   app.add_flag("--no-dds", run.no_dds, "do not publish on DDS (record only)");
   app.add_flag("--exit-when-done", run.exit_when_done, "paced replay: exit once the recording is consumed");
-  app.add_option("--wait-subscribers", run.wait_subscribers, "wait (up to 10 s) for this many EngineTorque readers");
+  app.add_option("--wait-subscribers", run.wait_subscribers,
+                 "wait (up to 10 s) for this many EngineTorque readers");
   check_opt->excludes(run_opt);
   schema_opt->excludes(run_opt)->excludes(check_opt);
   app.footer(
       "Exit status:\n"
-      "  0  run ended normally (SIGTERM/SIGINT, end of a fast replay, --exit-when-done); --check-config: valid\n"
-      "  1  configuration refused (every error printed as FILE:LINE:COL), an input/DDS/metrics endpoint could not\n"
-      "     be opened, the real-time set-up was refused with realtime.require_rt, or the drain at stop timed out\n"
-      "  2  command-line error: no --config/--check-config/--print-schema, unknown option, bad value, or a file\n"
+      "  0  run ended normally (SIGTERM/SIGINT, end of a fast replay, --exit-when-done); --check-config: "
+      "valid\n"
+      "  1  configuration refused (every error printed as FILE:LINE:COL), an input/DDS/metrics endpoint "
+      "could not\n"
+      "     be opened, the real-time set-up was refused with realtime.require_rt, or the drain at stop timed "
+      "out\n"
+      "  2  command-line error: no --config/--check-config/--print-schema, unknown option, bad value, or a "
+      "file\n"
       "     that does not exist\n"
       "  3  the CSV recording (output.record_dir / --record) failed; estimation and publishing went on");
   try {
@@ -86,8 +101,10 @@ int main(int argc, char** argv) {
   }
 
   if (*schema_opt) {
-    if (schema_format.empty() || schema_format == "yaml") std::cout << torqued::schema_example_yaml();
-    else if (schema_format == "text") std::cout << torqued::schema_table_text();
+    if (schema_format.empty() || schema_format == "yaml")
+      std::cout << torqued::schema_example_yaml();
+    else if (schema_format == "text")
+      std::cout << torqued::schema_table_text();
     else {
       std::cerr << "--print-schema: unknown format '" << schema_format << "', expected yaml or text\n";
       return 2;

@@ -60,8 +60,7 @@ void status_families(const torque_DaemonStatus& s, bool have, std::vector<Metric
   const auto C = MetricType::Counter;
   const auto G = MetricType::Gauge;
   single(out, "torqued_status_received",
-         "1 once a DaemonStatus was published (0: the figures below are not filled yet)",
-         G, have ? 1 : 0);
+         "1 once a DaemonStatus was published (0: the figures below are not filled yet)", G, have ? 1 : 0);
   single(out, "torqued_edges_total", "edges consumed by the crank decoder", C, static_cast<double>(s.edges));
   single(out, "torqued_teeth_total", "teeth produced by the decoder", C, static_cast<double>(s.teeth));
   single(out, "torqued_can_frames_total", "CAN frames consumed", C, static_cast<double>(s.can_frames));
@@ -69,7 +68,8 @@ void status_families(const torque_DaemonStatus& s, bool have, std::vector<Metric
   single(out, "torqued_sync_losses_total", "crank sync losses", C, static_cast<double>(s.sync_losses));
   single(out, "torqued_rejected_edges_total", "crank edges rejected by the decoder as noise or debounced", C,
          static_cast<double>(s.rejected_edges));
-  single(out, "torqued_cam_phase_errors_total", "cam edges outside their window or disagreeing with the phase", C,
+  single(out, "torqued_cam_phase_errors_total",
+         "cam edges outside their window or disagreeing with the phase", C,
          static_cast<double>(s.cam_phase_errors));
   single(out, "torqued_fuel_model_references",
          "references the fuel model (indicated torque from fuel) rests on; 0: prior only", G,

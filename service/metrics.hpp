@@ -7,7 +7,8 @@
 //     live) or the fast replay loop: per-method last value/uncertainty/health, engine torque, crank sync
 //     state and the ingest -> publish latency histogram. Relaxed atomics only: no allocation, no lock, no
 //     blocking.
-//   - the DaemonStatus samples the supervisor builds pass through the same tap (on their way to DDS): the newest
+//   - the DaemonStatus samples the supervisor builds pass through the same tap (on their way to DDS): the
+//   newest
 //     is kept in a seqlock slot (LatestValue), so the supervisor needs no hook of its own.
 //   - the HTTP threads of prometheus-cpp (civetweb) build the exposition on each scrape from those, plus the
 //     age of the learned-state file (its mtime). The real-time threads never see this module.
@@ -63,7 +64,8 @@ class MetricsTap final : public SampleSink {
   std::array<std::atomic<std::uint64_t>, kLatencyBuckets.size() + 1> latency_bucket{};  ///< not cumulative
   std::atomic<std::uint64_t> latency_count{0};
   std::atomic<std::int64_t> latency_sum_ns{0};
-  LatestValue<torque_DaemonStatus> status;  ///< newest DaemonStatus (single reader: MetricsServer, under its mutex)
+  LatestValue<torque_DaemonStatus>
+      status;  ///< newest DaemonStatus (single reader: MetricsServer, under its mutex)
 
  private:
   SampleSink& next_;

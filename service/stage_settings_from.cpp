@@ -53,7 +53,8 @@ StageSettings stage_settings_from(const Config& cfg) {
   s.angle.e_machine.ratio = cfg.can.e_machine.ratio;
   s.angle.e_machine.sign = static_cast<double>(cfg.can.e_machine.sign);
   s.angle.e_machine.sole_load = cfg.can.e_machine.sole_load;
-  // Vehicle load references (estimators/core/load_reference.hpp): the clutch / neutral flags, the accessory prior.
+  // Vehicle load references (estimators/core/load_reference.hpp): the clutch / neutral flags, the accessory
+  // prior.
   s.angle.load_ref.sole_flag_bound =
       cfg.can.signals[static_cast<std::size_t>(Quantity::kEmSoleLoad)].mapped();
   s.angle.load_ref.neutral_bound = cfg.can.signals[static_cast<std::size_t>(Quantity::kNeutral)].mapped();

@@ -69,11 +69,12 @@ int run_bed(bool all, bool short_run, const torqued::eval::EvalOptions& base) {
 /// Hybrid input: the bed with an electric machine of `ratio` as the load (no dynamometer signal).
 int run_bed_e_machine(bool all, bool short_run, const torqued::eval::EvalOptions& base, double ratio) {
   std::printf(
-      "unseen-engines bed with an electric machine (ratio %.3g) as the load, no dynamometer signal; learned with the\n"
+      "unseen-engines bed with an electric machine (ratio %.3g) as the load, no dynamometer signal; learned "
+      "with the\n"
       "machine as the known sole load. Cells: RMS and max |error| (N m), pass/cov as the bed table.\n",
       ratio);
-  std::printf("%-11s %4s | %-25s | %-13s | %-25s | %-13s\n", "engine", "cyc", "MACHINE brake rms max pass/cov",
-              "indicated", "CONTROL (unbound) brake", "friction");
+  std::printf("%-11s %4s | %-25s | %-13s | %-25s | %-13s\n", "engine", "cyc",
+              "MACHINE brake rms max pass/cov", "indicated", "CONTROL (unbound) brake", "friction");
   for (const auto& e : torqued::sim::unseen_engines()) {
     if (!all && !e.report) continue;
     const auto b = torqued::eval::evaluate_bed_e_machine(e, base, short_run, ratio);
@@ -90,11 +91,13 @@ int run_bed_e_machine(bool all, bool short_run, const torqued::eval::EvalOptions
 /// Hybrid input: friction learned from motoring by the machine vs the generic prior.
 int run_bed_motoring(bool all, bool short_run, const torqued::eval::EvalOptions& base, double ratio) {
   std::printf(
-      "friction learned from motoring by the electric machine (ratio %.3g; fuel cut-off, 1000-4000 rpm plateaus),\n"
-      "scored on the evaluated recording. Cells: RMS and max |error| (N m), %% cycles within 10 %% or 2 N m.\n",
+      "friction learned from motoring by the electric machine (ratio %.3g; fuel cut-off, 1000-4000 rpm "
+      "plateaus),\n"
+      "scored on the evaluated recording. Cells: RMS and max |error| (N m), %% cycles within 10 %% or 2 N "
+      "m.\n",
       ratio);
-  std::printf("%-11s | %-13s %-5s | %-13s %-5s | %s\n", "engine", "PRIOR rms max", "pass", "LEARNED rms max", "pass",
-              "motoring observations");
+  std::printf("%-11s | %-13s %-5s | %-13s %-5s | %s\n", "engine", "PRIOR rms max", "pass", "LEARNED rms max",
+              "pass", "motoring observations");
   for (const auto& e : torqued::sim::unseen_engines()) {
     if (!all && !e.report) continue;
     const auto b = torqued::eval::evaluate_bed_motoring(e, base, short_run, ratio);
@@ -112,8 +115,8 @@ std::string fuel_cells(const torqued::eval::BedFuelRun& f) {
   char buf[96];
   const int pub = std::max(f.published, 1);
   std::snprintf(buf, sizeof buf, "%4d%% %5.1f %5.1f%% %5.1f %4d%% %4d%%",
-                f.cycles > 0 ? 100 * f.published / f.cycles : 0, f.rms_nm, f.rms_pct, f.bias_nm, 100 * f.pass / pub,
-                100 * f.covered / pub);
+                f.cycles > 0 ? 100 * f.published / f.cycles : 0, f.rms_nm, f.rms_pct, f.bias_nm,
+                100 * f.pass / pub, 100 * f.covered / pub);
   return buf;
 }
 void write_fuel_csv(const std::string& path, const torqued::eval::BedFuelRun& f) {
@@ -122,25 +125,30 @@ void write_fuel_csv(const std::string& path, const torqued::eval::BedFuelRun& f)
        "friction_true_nm,friction_nm\n";
   for (const auto& w : f.rows)
     o << w.t_s << ',' << w.transient << ',' << w.speed_rpm << ',' << w.brake_true << ',' << w.fused << ','
-      << w.fused_sd << ',' << torqued::to_string(w.quality) << ',' << w.indicated_true << ',' << w.indicated << ','
-      << w.friction_true << ',' << w.friction << '\n';
+      << w.fused_sd << ',' << torqued::to_string(w.quality) << ',' << w.indicated_true << ',' << w.indicated
+      << ',' << w.friction_true << ',' << w.friction << '\n';
 }
-int run_bed_fuel(bool all, bool short_run, const torqued::eval::EvalOptions& base, const std::string& csv_dir) {
+int run_bed_fuel(bool all, bool short_run, const torqued::eval::EvalOptions& base,
+                 const std::string& csv_dir) {
   std::printf(
       "fuel model without a load signal (fused brake torque of the evaluated recording, no load signal):\n"
-      "  ONE POINT: learned on a recording with the load signal at one operating point (2500 rpm, 60 kPa) plus\n"
+      "  ONE POINT: learned on a recording with the load signal at one operating point (2500 rpm, 60 kPa) "
+      "plus\n"
       "             an overrun and idle; NEVER: nothing learned anywhere (fuel-model and friction priors).\n"
-      "Cells: published share, RMS error (N m), RMS / RMS true (%%), bias (N m), within 8 %% or 5 N m, |error| <= claimed 1 sigma;\n"
-      "refs / cells: fuel-model references and learned speed x MAP cells (4x4 mask); load: fused RMS WITH the load\n"
+      "Cells: published share, RMS error (N m), RMS / RMS true (%%), bias (N m), within 8 %% or 5 N m, "
+      "|error| <= claimed 1 sigma;\n"
+      "refs / cells: fuel-model references and learned speed x MAP cells (4x4 mask); load: fused RMS WITH "
+      "the load\n"
       "signal from the one-point state (N m).\n");
-  std::printf("%-11s | %-36s | %-9s | %-36s | %s\n", "engine", "ONE POINT pub rms rms% bias pass cov", "refs/cell",
-              "NEVER pub rms rms% bias pass cov", "load");
+  std::printf("%-11s | %-36s | %-9s | %-36s | %s\n", "engine", "ONE POINT pub rms rms% bias pass cov",
+              "refs/cell", "NEVER pub rms rms% bias pass cov", "load");
   // Pooled over the report engines (and over the tuning engines when listed): cycles of all engines together.
   struct Pool {
     torqued::eval::BedFuelRun one, never;
     double se1 = 0, st1 = 0, se0 = 0, st0 = 0;
   } pool[2];
-  const auto pool_add = [](torqued::eval::BedFuelRun& p, double& se, double& st, const torqued::eval::BedFuelRun& f) {
+  const auto pool_add = [](torqued::eval::BedFuelRun& p, double& se, double& st,
+                           const torqued::eval::BedFuelRun& f) {
     p.cycles += f.cycles;
     p.published += f.published;
     p.pass += f.pass;
@@ -172,8 +180,8 @@ int run_bed_fuel(bool all, bool short_run, const torqued::eval::EvalOptions& bas
       x->rms_pct = st > 0.0 ? 100.0 * std::sqrt(se / st) : 0.0;
       x->bias_nm = x->published > 0 ? x->bias_nm / x->published : 0.0;
     }
-    std::printf("%-11s | %s | %9s | %s |\n", k == 1 ? "REPORT all" : "TUNING all", fuel_cells(p.one).c_str(), "",
-                fuel_cells(p.never).c_str());
+    std::printf("%-11s | %s | %9s | %s |\n", k == 1 ? "REPORT all" : "TUNING all", fuel_cells(p.one).c_str(),
+                "", fuel_cells(p.never).c_str());
   }
   return 0;
 }
@@ -342,29 +350,32 @@ int main(int argc, char** argv) {
       "(machine torque and clutch flag on CAN) on the report engines through the daemon's chain "
       "(--bed-out, --bed-short, --bed-all apply)");
   double vehicle_flag_lag = 0.0;
-  app.add_option("--vehicle-flag-lag", vehicle_flag_lag,
-                 "with --vehicle-bed: the clutch flag on CAN is late by this (s) instead of leading the clutch "
-                 "(robustness)")
+  app.add_option(
+         "--vehicle-flag-lag", vehicle_flag_lag,
+         "with --vehicle-bed: the clutch flag on CAN is late by this (s) instead of leading the clutch "
+         "(robustness)")
       ->check(CLI::Range(0.0, 10.0));
   app.add_flag("--bed-all", bed_all, "with --bed: also the tuning engines");
   app.add_flag("--bed-short", bed_short, "with --bed: the short evaluated recordings (the ctest subset)");
   double bed_machine = 0.0;
   bool bed_motoring = false;
-  app.add_option("--bed-e-machine", bed_machine,
-                 "with --bed unseen: an electric machine of this ratio (machine/crank speed) is the load; brake "
-                 "with the machine torque bound (sole load) and a control run with it unbound")
+  app.add_option(
+         "--bed-e-machine", bed_machine,
+         "with --bed unseen: an electric machine of this ratio (machine/crank speed) is the load; brake "
+         "with the machine torque bound (sole load) and a control run with it unbound")
       ->check(CLI::PositiveNumber);
   bool bed_fuel = false;
-  app.add_flag("--bed-fuel", bed_fuel,
-               "with --bed unseen: the fuel model without a load signal, taught at one operating point and never "
-               "taught (published share, RMS, 1 sigma coverage)");
-  app.add_flag("--bed-motoring", bed_motoring,
-               "with --bed unseen: friction learned from motoring by the machine (ratio --bed-e-machine, default 1) "
-               "vs the generic prior");
   app.add_flag(
-      "--cylinders", cylinders,
-      "per-cylinder table instead: imbalance error per cylinder and speed, in-cycle RMS and lag, "
-      "misfires, on the simulator's scenarios and randomised engines");
+      "--bed-fuel", bed_fuel,
+      "with --bed unseen: the fuel model without a load signal, taught at one operating point and never "
+      "taught (published share, RMS, 1 sigma coverage)");
+  app.add_flag(
+      "--bed-motoring", bed_motoring,
+      "with --bed unseen: friction learned from motoring by the machine (ratio --bed-e-machine, default 1) "
+      "vs the generic prior");
+  app.add_flag("--cylinders", cylinders,
+               "per-cylinder table instead: imbalance error per cylinder and speed, in-cycle RMS and lag, "
+               "misfires, on the simulator's scenarios and randomised engines");
   app.add_option("--random-engines", random_engines, "--cylinders: number of randomised engines");
   app.add_option("--random-seed", random_seed, "--cylinders: seed of the randomised engines");
   int cylinder_seeds = 1;

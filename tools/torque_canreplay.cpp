@@ -1,11 +1,11 @@
 // torque-canreplay: produce and send CAN traffic for live-backend tests and bench set-ups.
 //   torque-canreplay encode --edges edges.csv -o encoder.log [--id 0x300] [--classic] [--tick-ns 10]
 //       turns an edge capture into the encoder-over-CAN frames an encoder interface would send
-//       (layout: io/can_encoder.hpp, docs/live.md), written as a `candump -l` log (replay it with canplayer or
-//       `torque-canreplay send`).
+//       (layout: io/can_encoder.hpp, docs/live.md), written as a `candump -l` log (replay it with canplayer
+//       or `torque-canreplay send`).
 //   torque-canreplay send --iface vcan0 [--fd] [--speed 1.0 | --fast] log...
-//       sends a candump log onto a SocketCAN interface, paced by the log's timestamps (scaled) or as fast as the
-//       socket accepts (write blocks when the queue is full: nothing is dropped).
+//       sends a candump log onto a SocketCAN interface, paced by the log's timestamps (scaled) or as fast as
+//       the socket accepts (write blocks when the queue is full: nothing is dropped).
 #include <linux/can.h>
 #include <linux/can/raw.h>
 #include <net/if.h>
@@ -13,8 +13,6 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
-
-#include "cli_exit.hpp"
 #include <cerrno>
 #include <chrono>
 #include <cinttypes>
@@ -26,6 +24,7 @@
 
 #include "can_encoder.hpp"
 #include "candump_source.hpp"
+#include "cli_exit.hpp"
 #include "edge_file_source.hpp"
 
 namespace {
@@ -73,13 +72,16 @@ int encode(const std::string& edges_path, const std::string& out_path, const Can
   while (batcher.flush(f)) write_candump_line(out, f, iface.c_str(), time_base_s);
   if (out != stdout) std::fclose(out);
   for (const auto& m : src.bad_line_messages()) std::fprintf(stderr, "torque-canreplay: %s\n", m.c_str());
-  std::fprintf(stderr, "torque-canreplay: %" PRIu64 " edges -> %" PRIu64 " frames (%s, id 0x%X, tick %" PRId64
+  std::fprintf(stderr,
+               "torque-canreplay: %" PRIu64 " edges -> %" PRIu64 " frames (%s, id 0x%X, tick %" PRId64
                " ns), %" PRIu64 " bad lines\n",
-               edges, batcher.frames(), cfg.fd ? "CAN FD" : "classic", cfg.id, cfg.tick_ns, src.stats().bad_lines);
+               edges, batcher.frames(), cfg.fd ? "CAN FD" : "classic", cfg.id, cfg.tick_ns,
+               src.stats().bad_lines);
   return 0;
 }
 
-int send(const std::vector<std::string>& logs, const std::string& iface, bool fd_frames, double speed, bool fast) {
+int send(const std::vector<std::string>& logs, const std::string& iface, bool fd_frames, double speed,
+         bool fast) {
   const int s = socket(PF_CAN, SOCK_RAW, CAN_RAW);
   if (s < 0) {
     std::fprintf(stderr, "torque-canreplay: socket(PF_CAN): %s\n", std::strerror(errno));
@@ -110,7 +112,8 @@ int send(const std::vector<std::string>& logs, const std::string& iface, bool fd
     while (log.next(f) == SourceStatus::kOk) {
       if (t0_log < 0) t0_log = f.t_ns;
       if (!fast) {
-        const auto due = t0 + std::chrono::nanoseconds(static_cast<std::int64_t>(static_cast<double>(f.t_ns - t0_log) / speed));
+        const auto due = t0 + std::chrono::nanoseconds(
+                                  static_cast<std::int64_t>(static_cast<double>(f.t_ns - t0_log) / speed));
         std::this_thread::sleep_until(due);
       }
       canfd_frame k{};
@@ -145,7 +148,8 @@ int send(const std::vector<std::string>& logs, const std::string& iface, bool fd
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"torque-canreplay: encoder-over-CAN frames from edge captures; send candump logs onto SocketCAN"};
+  CLI::App app{
+      "torque-canreplay: encoder-over-CAN frames from edge captures; send candump logs onto SocketCAN"};
   app.require_subcommand(1);
 
   auto* enc = app.add_subcommand("encode", "edge CSV -> candump log of encoder frames (docs/live.md)");
@@ -159,9 +163,11 @@ int main(int argc, char** argv) {
   enc->add_option("-o,--output", out_path, "candump log to write ('-' = stdout)");
   enc->add_option("--id", id_text, "CAN id of the encoder frames (hex with 0x, or decimal)");
   enc->add_flag("--extended", cfg.extended, "29-bit identifier");
-  enc->add_flag("--classic", classic, "classic CAN frames (1 edge per frame) instead of CAN FD (15 per frame)");
+  enc->add_flag("--classic", classic,
+                "classic CAN frames (1 edge per frame) instead of CAN FD (15 per frame)");
   enc->add_option("--tick-ns", cfg.tick_ns, "encoder counter tick (ns)")->check(CLI::Range(1, 1'000'000));
-  enc->add_option("--latency-us", latency_us, "longest time an edge waits for its frame (µs)")->check(CLI::Range(0.0, 1e6));
+  enc->add_option("--latency-us", latency_us, "longest time an edge waits for its frame (µs)")
+      ->check(CLI::Range(0.0, 1e6));
   enc->add_option("--iface", iface, "interface name written in the log");
   enc->add_option("--time-base", time_base_s, "seconds added to the edge clock for the log's timestamps");
   enc->add_option("--crank-column", csv.crank_column, "crank column name");
@@ -178,7 +184,9 @@ int main(int argc, char** argv) {
   snd->add_option("--speed", speed, "replay speed factor (2 = twice as fast)")->check(CLI::Range(1e-3, 1e3));
   snd->add_flag("--fast", fast, "ignore timestamps: as fast as the socket accepts");
 
-  app.footer("Exit status: 0 done; 1 an input could not be read or parsed, the output not written, or SocketCAN refused; 2 command-line error (unknown option, bad value, file that does not exist).");
+  app.footer(
+      "Exit status: 0 done; 1 an input could not be read or parsed, the output not written, or SocketCAN "
+      "refused; 2 command-line error (unknown option, bad value, file that does not exist).");
   TORQUED_CLI_PARSE(app, argc, argv);
   if (enc->parsed()) {
     try {

@@ -1,16 +1,15 @@
-// torque-eval: compares a recorded estimate CSV (torque-echo / daemon recording, first column t_ns on the edge
-// clock) with the simulator's ground truth, prints a metrics table and optionally writes a PNG plot.
-//   torque-eval --estimate engine_cycle.csv --truth truth_cycle.csv --column fused_nm=t_brake_mean_nm --plot out.png
+// torque-eval: compares a recorded estimate CSV (torque-echo / daemon recording, first column t_ns on the
+// edge clock) with the simulator's ground truth, prints a metrics table and optionally writes a PNG plot.
+//   torque-eval --estimate engine_cycle.csv --truth truth_cycle.csv --column fused_nm=t_brake_mean_nm --plot
+//   out.png
+#include <CLI/CLI.hpp>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <string>
 #include <vector>
 
-#include <CLI/CLI.hpp>
-
 #include "cli_exit.hpp"
-
 #include "evaluator.hpp"
 
 #ifndef TORQUED_PLOT_SCRIPT
@@ -38,26 +37,39 @@ std::string shell_quote(const std::string& s) {
 
 int main(int argc, char** argv) {
   CLI::App app{"torque-eval: error metrics of a torque estimate against the simulator's ground truth"};
-  std::string est_path, truth_cycle, truth_tooth, plot, plot_script = TORQUED_PLOT_SCRIPT, time_ref = "auto", title;
+  std::string est_path, truth_cycle, truth_tooth, plot, plot_script = TORQUED_PLOT_SCRIPT, time_ref = "auto",
+                                                        title;
   std::string misfire;
   std::vector<std::string> columns, where;
   torqued::eval::EvalOptions opt;
-  app.add_option("--estimate,-e", est_path, "estimate CSV (header; first column t_ns)")->required()->check(CLI::ExistingFile);
-  app.add_option("--truth,-t", truth_cycle, "per-cycle truth CSV (truth_cycle.csv)")->check(CLI::ExistingFile);
-  app.add_option("--truth-tooth", truth_tooth, "per-tooth truth CSV (truth_tooth.csv)")->check(CLI::ExistingFile);
-  app.add_option("--column,-c", columns, "EST=TRUTH column pair, repeatable (e.g. fused_nm=t_brake_mean_nm)")->required();
+  app.add_option("--estimate,-e", est_path, "estimate CSV (header; first column t_ns)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  app.add_option("--truth,-t", truth_cycle, "per-cycle truth CSV (truth_cycle.csv)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--truth-tooth", truth_tooth, "per-tooth truth CSV (truth_tooth.csv)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--column,-c", columns, "EST=TRUTH column pair, repeatable (e.g. fused_nm=t_brake_mean_nm)")
+      ->required();
   app.add_option("--where", where, "keep estimate rows with COL=VALUE, repeatable (e.g. method=4)");
   app.add_option("--from", opt.from_s, "start of the evaluated window (s, edge clock)");
   app.add_option("--to", opt.to_s, "end of the evaluated window (s, edge clock)");
-  app.add_option("--tolerance", opt.tolerance, "convergence tolerance on the cycle-mean error (column unit)")->capture_default_str();
-  app.add_option("--misfire", misfire, "estimate misfire bit-mask column (bit i = cylinder i+1) vs truth misfire1..N");
-  app.add_option("--time-ref", time_ref, "estimate time matched to truth cycles: auto|sample|mid|end")->capture_default_str()
+  app.add_option("--tolerance", opt.tolerance, "convergence tolerance on the cycle-mean error (column unit)")
+      ->capture_default_str();
+  app.add_option("--misfire", misfire,
+                 "estimate misfire bit-mask column (bit i = cylinder i+1) vs truth misfire1..N");
+  app.add_option("--time-ref", time_ref, "estimate time matched to truth cycles: auto|sample|mid|end")
+      ->capture_default_str()
       ->check(CLI::IsMember({"auto", "sample", "mid", "end"}));
   app.add_option("--max-lag", opt.max_lag_deg, "phase-lag search range (crank deg)")->capture_default_str();
   app.add_option("--plot", plot, "write a PNG of estimated vs true torque");
-  app.add_option("--plot-script", plot_script, "plot script (run with /usr/bin/python3)")->capture_default_str();
+  app.add_option("--plot-script", plot_script, "plot script (run with /usr/bin/python3)")
+      ->capture_default_str();
   app.add_option("--title", title, "plot title");
-  app.footer("Exit status: 0 done (table printed, plot written); 1 a CSV could not be read or parsed, a column is not in it (the columns that exist are listed), or the plot failed; 2 command-line error (unknown option, bad value, file that does not exist).");
+  app.footer(
+      "Exit status: 0 done (table printed, plot written); 1 a CSV could not be read or parsed, a column is "
+      "not in it (the columns that exist are listed), or the plot failed; 2 command-line error (unknown "
+      "option, bad value, file that does not exist).");
   TORQUED_CLI_PARSE(app, argc, argv);
 
   if (truth_cycle.empty() && truth_tooth.empty()) {
@@ -72,22 +84,34 @@ int main(int argc, char** argv) {
   std::vector<torqued::eval::PairSpec> pairs;
   for (const auto& c : columns) {
     auto p = torqued::eval::parse_pair(c);
-    if (!p) { std::cerr << "error: --column '" << c << "': expected EST=TRUTH\n"; return 2; }
+    if (!p) {
+      std::cerr << "error: --column '" << c << "': expected EST=TRUTH\n";
+      return 2;
+    }
     pairs.push_back(*p);
   }
   for (const auto& w : where) {
     auto p = torqued::eval::parse_pair(w);
     char* end = nullptr;
     const double v = p ? std::strtod(p->truth_col.c_str(), &end) : 0.0;
-    if (!p || end == nullptr || *end != '\0') { std::cerr << "error: --where '" << w << "': expected COL=NUMBER\n"; return 2; }
+    if (!p || end == nullptr || *end != '\0') {
+      std::cerr << "error: --where '" << w << "': expected COL=NUMBER\n";
+      return 2;
+    }
     opt.where.emplace_back(p->est_col, v);
   }
 
   torqued::eval::CsvTable est;
   torqued::eval::Truth truth;
   if (!load(est_path, est)) return 1;
-  if (!truth_cycle.empty()) { truth.cycle.emplace(); if (!load(truth_cycle, *truth.cycle)) return 1; }
-  if (!truth_tooth.empty()) { truth.tooth.emplace(); if (!load(truth_tooth, *truth.tooth)) return 1; }
+  if (!truth_cycle.empty()) {
+    truth.cycle.emplace();
+    if (!load(truth_cycle, *truth.cycle)) return 1;
+  }
+  if (!truth_tooth.empty()) {
+    truth.tooth.emplace();
+    if (!load(truth_tooth, *truth.tooth)) return 1;
+  }
 
   torqued::eval::EvalReport report;
   std::string error;
@@ -97,19 +121,27 @@ int main(int argc, char** argv) {
   }
   std::cout << torqued::eval::format_report(report, opt.tolerance);
   for (const auto& p : report.pairs)
-    if (p.stats.n == 0) std::cerr << "warning: no joined samples for " << p.spec.est_col << " = " << p.spec.truth_col
-                                  << " (check the time window and time_offset)\n";
+    if (p.stats.n == 0)
+      std::cerr << "warning: no joined samples for " << p.spec.est_col << " = " << p.spec.truth_col
+                << " (check the time window and time_offset)\n";
 
   if (!plot.empty()) {
     const std::string csv = plot + ".data.csv";
-    if (!torqued::eval::write_plot_csv(report, csv, error)) { std::cerr << "error: " << error << "\n"; return 1; }
+    if (!torqued::eval::write_plot_csv(report, csv, error)) {
+      std::cerr << "error: " << error << "\n";
+      return 1;
+    }
     // Debian's python3-matplotlib lives with /usr/bin/python3 (the PATH python may be another one).
     const std::string cmd = "/usr/bin/python3 " + shell_quote(plot_script) + " --data " + shell_quote(csv) +
-                            " --out " + shell_quote(plot) + (title.empty() ? "" : " --title " + shell_quote(title));
+                            " --out " + shell_quote(plot) +
+                            (title.empty() ? "" : " --title " + shell_quote(title));
     const int rc = std::system(cmd.c_str());
     std::error_code ec;
     std::filesystem::remove(csv, ec);
-    if (rc != 0) { std::cerr << "error: plot failed (" << cmd << ")\n"; return 1; }
+    if (rc != 0) {
+      std::cerr << "error: plot failed (" << cmd << ")\n";
+      return 1;
+    }
     std::cout << "plot: " << plot << "\n";
   }
   return 0;

@@ -20,8 +20,6 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
-
-#include "cli_exit.hpp"
 #include <algorithm>
 #include <array>
 #include <cerrno>
@@ -31,6 +29,8 @@
 #include <string>
 #include <thread>
 #include <vector>
+
+#include "cli_exit.hpp"
 
 #ifndef TORQUED_LATENCY_PLOT_SCRIPT
 #define TORQUED_LATENCY_PLOT_SCRIPT "tools/scripts/plot_latency.py"
@@ -345,12 +345,16 @@ int main(int argc, char** argv) {
   app.add_option("--plot-script", plot_script, "plot script (run with /usr/bin/python3)")
       ->capture_default_str();
   app.add_option("--title", title, "plot title");
-  app.add_option("--daemon-env", daemon_env,
-                 "NAME=VALUE set in the daemon's environment only (repeatable); e.g. TORQUED_DDS_ROLE=daemon with "
-                 "config/security/cyclonedds-secure-loopback.xml, to measure DDS Security (docs/security.md)")
-      ->check([](const std::string& v) { return v.find('=') == std::string::npos ? "expected NAME=VALUE" : ""; });
+  app.add_option(
+         "--daemon-env", daemon_env,
+         "NAME=VALUE set in the daemon's environment only (repeatable); e.g. TORQUED_DDS_ROLE=daemon with "
+         "config/security/cyclonedds-secure-loopback.xml, to measure DDS Security (docs/security.md)")
+      ->check(
+          [](const std::string& v) { return v.find('=') == std::string::npos ? "expected NAME=VALUE" : ""; });
   app.add_flag("--keep-logs", keep_logs, "keep the temporary directory with the daemon's and helpers' logs");
-  app.footer("Exit status: 0 done; 1 no latency sample measured, the daemon could not be started or DDS failed; 2 command-line error (unknown option, bad value, file that does not exist).");
+  app.footer(
+      "Exit status: 0 done; 1 no latency sample measured, the daemon could not be started or DDS failed; 2 "
+      "command-line error (unknown option, bad value, file that does not exist).");
   TORQUED_CLI_PARSE(app, argc, argv);
 
   // The daemon's DDS settings: same domain, topic prefix and engine_id as the daemon this run starts.

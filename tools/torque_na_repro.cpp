@@ -2,14 +2,12 @@
 // Runs UIO, sliding mode, dirty differentiation and the adaptive laws (50)/(54) with κ = 0 and 0.1 on a
 // speed-stepped scenario with Gaussian noise on speed and load, and prints ISE, MAE, SD over 5-30 s.
 #include <CLI/CLI.hpp>
-
-#include "cli_exit.hpp"
-
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
 
+#include "cli_exit.hpp"
 #include "na_repro.hpp"
 
 int main(int argc, char** argv) {
@@ -31,10 +29,14 @@ int main(int argc, char** argv) {
   app.add_option("--duration", scenario.duration_s, "scenario length (s)")->check(CLI::Range(6.0, 3600.0));
   app.add_option("--step", scenario.step_s, "estimator step (s)")->check(CLI::Range(1e-5, 0.1));
   app.add_option("--k", repro.uio.k_s, "filter constant k of all methods (s)")->check(CLI::PositiveNumber);
-  app.add_option("--lambda1", repro.sliding.lambda1_nm, "sliding-mode gain (N m)")->check(CLI::PositiveNumber);
-  app.add_flag("--square", square, "2000/3000 rpm square speed reference (Na 2015) instead of the 2017 steps");
+  app.add_option("--lambda1", repro.sliding.lambda1_nm, "sliding-mode gain (N m)")
+      ->check(CLI::PositiveNumber);
+  app.add_flag("--square", square,
+               "2000/3000 rpm square speed reference (Na 2015) instead of the 2017 steps");
   app.add_option("--csv", csv_path, "write t_s, truth and every estimate per sample to this CSV");
-  app.footer("Exit status: 0 done; 1 the output could not be written; 2 command-line error (unknown option, bad value).");
+  app.footer(
+      "Exit status: 0 done; 1 the output could not be written; 2 command-line error (unknown option, bad "
+      "value).");
   TORQUED_CLI_PARSE(app, argc, argv);
 
   repro.sliding.k_s = repro.dirty.k_s = repro.adaptive.k_s = repro.uio.k_s;
@@ -50,10 +52,12 @@ int main(int argc, char** argv) {
   const auto results = run_na_methods(samples, repro);
 
   std::printf("Scenario: Crossley & Cook mean-value engine, J = %.2f kg m^2, step %.4g s, %s reference,\n",
-              repro.inertia_kgm2, scenario.step_s, square ? "2000/3000 rpm square" : "2200/2500/2200/1900/2200 rpm step");
-  std::printf("noise w1 = N(0, %.3g rpm), w2 = N(0, %.3g N m), seed %llu; k = %.3g s, lambda1 = %.0f N m.\n\n",
-              scenario.speed_noise_rpm, scenario.load_noise_nm, static_cast<unsigned long long>(scenario.seed),
-              repro.uio.k_s, repro.sliding.lambda1_nm);
+              repro.inertia_kgm2, scenario.step_s,
+              square ? "2000/3000 rpm square" : "2200/2500/2200/1900/2200 rpm step");
+  std::printf(
+      "noise w1 = N(0, %.3g rpm), w2 = N(0, %.3g N m), seed %llu; k = %.3g s, lambda1 = %.0f N m.\n\n",
+      scenario.speed_noise_rpm, scenario.load_noise_nm, static_cast<unsigned long long>(scenario.seed),
+      repro.uio.k_s, repro.sliding.lambda1_nm);
   std::fputs(format_na_tables(results).c_str(), stdout);
 
   if (!csv_path.empty()) {

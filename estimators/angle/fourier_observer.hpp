@@ -105,7 +105,7 @@ class FourierObserver {
   double model_next_ = 0.0;                            ///< set_model_torque() for the next tooth
   bool model_next_valid_ = false;
   bool model_active_ = false;
-  std::array<double, kMaxLag + 1> model_{};            ///< model ripple of the last steps, [0] = newest
+  std::array<double, kMaxLag + 1> model_{};  ///< model ripple of the last steps, [0] = newest
   FourierStats stats_;
 };
 

@@ -110,7 +110,8 @@ bool ToothPreprocessor::update(const ToothSample& s) noexcept {
   out_.speed_sq = omega * omega;
   // The period's mean speed belongs to its centre time (second-order accurate).
   const std::int64_t center_ns = s.t_ns - static_cast<std::int64_t>(0.5e9 * s.dt_s);
-  const double rel_sd = 0.5 * speed_sq_rel_sd(s.width_rad, omega, params_.edge_noise_deg * kDeg, params_.jitter_s);
+  const double rel_sd =
+      0.5 * speed_sq_rel_sd(s.width_rad, omega, params_.edge_noise_deg * kDeg, params_.jitter_s);
   const double r = (rel_sd * omega) * (rel_sd * omega) + 1e-12;
   if (!have_prev_) {
     out_.speed_lp_rad_s = omega;
@@ -129,7 +130,8 @@ bool ToothPreprocessor::update(const ToothSample& s) noexcept {
   const double h = 1e-9 * static_cast<double>(center_ns - prev_center_ns_);
   prev_center_ns_ = center_ns;
   // Exact first-order low-pass: y += (1 − e^{−2π f_c h})(x − y).
-  out_.speed_lp_rad_s += (1.0 - std::exp(-2.0 * std::numbers::pi * params_.lowpass_hz * h)) * (omega - out_.speed_lp_rad_s);
+  out_.speed_lp_rad_s +=
+      (1.0 - std::exp(-2.0 * std::numbers::pi * params_.lowpass_hz * h)) * (omega - out_.speed_lp_rad_s);
   // [θ̇, θ̈] Kalman filter, constant-acceleration model with white jerk q (Energies 2019 §2.1 uses a KF for θ̈):
   // F = [[1, h], [0, 1]], Q = q [[h³/3, h²/2], [h²/2, h]], measurement θ̇ with variance r.
   const double q = params_.accel_jerk_sd * params_.accel_jerk_sd;

@@ -1,9 +1,9 @@
 #pragma once
 // Per-tooth pre-processing for the angle-domain estimators (Energies 2019 §2.1):
 // speed from the TRUE angular width of each tooth period, θ̇², a first-order low-pass of the speed and a small
-// Kalman filter [θ̇, θ̈] for the acceleration. Also holds `ToothAngleTable`, the per-sample angles and kinematics
-// of one 720° cycle for the configured wheel and engine, shared by ChauvinKalman, FourierObserver and the
-// tooth-error learner (built once at start-up; no trigonometry per tooth).
+// Kalman filter [θ̇, θ̈] for the acceleration. Also holds `ToothAngleTable`, the per-sample angles and
+// kinematics of one 720° cycle for the configured wheel and engine, shared by ChauvinKalman, FourierObserver
+// and the tooth-error learner (built once at start-up; no trigonometry per tooth).
 #include <cstdint>
 #include <vector>
 
@@ -14,15 +14,17 @@
 
 namespace torqued {
 
-/// Nominal geometry of the K = 2·teeth samples of a 720° cycle. Sample k is the tooth period that ENDS at edge k
-/// (ToothSample::tooth == k). Its speed w/dt is the mean over the period, i.e. the speed at the period's centre
-/// c_k = e_k − w_k/2 to second order. Between two samples the crank turns Δ_k = c_{k+1} − c_k, whose midpoint is
-/// edge e_k: the model steps therefore use the kinematics at e_k (midpoint rule) and J at the centres.
-/// Unequal steps (the missing-tooth gap) are handled exactly, so any N−M or explicit wheel works unchanged.
+/// Nominal geometry of the K = 2·teeth samples of a 720° cycle. Sample k is the tooth period that ENDS at
+/// edge k (ToothSample::tooth == k). Its speed w/dt is the mean over the period, i.e. the speed at the
+/// period's centre c_k = e_k − w_k/2 to second order. Between two samples the crank turns Δ_k = c_{k+1} −
+/// c_k, whose midpoint is edge e_k: the model steps therefore use the kinematics at e_k (midpoint rule) and J
+/// at the centres. Unequal steps (the missing-tooth gap) are handled exactly, so any N−M or explicit wheel
+/// works unchanged.
 struct ToothAngleTable {
-  int samples = 0;                ///< K = 2 × teeth per revolution
-  int teeth = 0;                  ///< physical teeth per revolution
-  std::vector<double> edge_rad;   ///< e_k: nominal edge angle in 720°, from tooth 0 (first after the gap) (rad)
+  int samples = 0;  ///< K = 2 × teeth per revolution
+  int teeth = 0;    ///< physical teeth per revolution
+  std::vector<double>
+      edge_rad;  ///< e_k: nominal edge angle in 720°, from tooth 0 (first after the gap) (rad)
   std::vector<double> width_rad;  ///< w_k: nominal width of the period ending at edge k (rad)
   std::vector<double> step_rad;   ///< Δ_k = c_{k+1} − c_k = (w_k + w_{k+1})/2 (rad)
   std::vector<double> j_center;   ///< J(c_k) (kg m²)
@@ -32,7 +34,8 @@ struct ToothAngleTable {
   /// Builds the table; angles relative to cylinder 1's firing TDC are e_k − geometry.tdc_offset_rad.
   static ToothAngleTable build(const EngineGeometry& engine, const WheelGeometry& wheel);
   /// Nominal edge angles of one revolution (rad, tooth 0 at 0) and the widths ending at them.
-  static void wheel_edges(const WheelGeometry& wheel, std::vector<double>& edge_rad, std::vector<double>& width_rad);
+  static void wheel_edges(const WheelGeometry& wheel, std::vector<double>& edge_rad,
+                          std::vector<double>& width_rad);
 };
 
 /// Output of the pre-processor for one tooth.
@@ -50,8 +53,8 @@ struct ToothKinematics {
 /// Counters of rejected input (never silent).
 struct PreprocessStats {
   std::uint64_t accepted = 0;
-  std::uint64_t not_synced = 0;   ///< samples with synced == false (estimators hold)
-  std::uint64_t invalid = 0;      ///< non-finite / non-positive dt or width, tooth index out of range
+  std::uint64_t not_synced = 0;  ///< samples with synced == false (estimators hold)
+  std::uint64_t invalid = 0;     ///< non-finite / non-positive dt or width, tooth index out of range
 };
 
 class ToothPreprocessor {
@@ -76,8 +79,8 @@ class ToothPreprocessor {
   ToothKinematics out_;
   PreprocessStats stats_;
   bool have_prev_ = false;
-  double kf_x_[2] = {0.0, 0.0};               ///< [θ̇, θ̈]
-  double kf_p_[3] = {0.0, 0.0, 0.0};          ///< P00, P01, P11
+  double kf_x_[2] = {0.0, 0.0};       ///< [θ̇, θ̈]
+  double kf_p_[3] = {0.0, 0.0, 0.0};  ///< P00, P01, P11
   std::int64_t prev_center_ns_ = 0;
 };
 

@@ -1,7 +1,7 @@
 #pragma once
 // Slider-crank kinematics (docs/equations.md §0; Energies 2019 eq. (EN-5)..(EN-9), Chauvin TV-KF eq. (CK-1)).
-// Scalar functions are real-time safe (no allocation, noexcept). `KinematicsTable` precomputes per-angle values
-// for a wheel at construction so that the per-tooth path never calls trigonometry.
+// Scalar functions are real-time safe (no allocation, noexcept). `KinematicsTable` precomputes per-angle
+// values for a wheel at construction so that the per-tooth path never calls trigonometry.
 #include <cstddef>
 #include <vector>
 
@@ -25,7 +25,8 @@ class CrankKinematics {
   [[nodiscard]] double dvolume(double theta) const noexcept { return area_ * r_ * f(theta); }
   /// Firing phase φ_j of cylinder `cyl` (1-based) in rad within [0, 4π): from the firing order position.
   [[nodiscard]] double phase(int cyl) const noexcept;
-  /// Crank angle relative to cylinder `cyl`'s firing TDC, wrapped to [0, 4π). `theta720` is angle after cyl-1 TDC.
+  /// Crank angle relative to cylinder `cyl`'s firing TDC, wrapped to [0, 4π). `theta720` is angle after cyl-1
+  /// TDC.
   [[nodiscard]] double local_angle(double theta720, int cyl) const noexcept;
   /// Gas torque of one cylinder at pressure p (Pa): (p − p_cc) A R f(θ − φ_j) (N m) (EN-9).
   [[nodiscard]] double gas_torque(double theta720, int cyl, double p_pa) const noexcept;
@@ -43,10 +44,10 @@ class CrankKinematics {
 
  private:
   EngineGeometry geometry_;
-  double r_;       ///< crank radius (m)
-  double lambda_;  ///< R/l (-)
-  double area_;    ///< piston area (m^2)
-  double vc_;      ///< clearance volume (m^3)
+  double r_;                                   ///< crank radius (m)
+  double lambda_;                              ///< R/l (-)
+  double area_;                                ///< piston area (m^2)
+  double vc_;                                  ///< clearance volume (m^3)
   std::array<double, kMaxCylinders> phase_{};  ///< φ_j by cylinder index (0-based) (rad)
 };
 

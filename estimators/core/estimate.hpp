@@ -20,23 +20,31 @@ enum class Health : std::uint8_t {
 
 [[nodiscard]] constexpr const char* to_string(Health h) noexcept {
   switch (h) {
-    case Health::kValid: return "valid";
-    case Health::kNotConverged: return "not_converged";
-    case Health::kNotExcited: return "not_excited";
-    case Health::kStaleInput: return "stale_input";
-    case Health::kInvalidInput: return "invalid_input";
-    case Health::kNoSync: return "no_sync";
-    case Health::kNumerical: return "numerical";
-    case Health::kDisabled: return "disabled";
+    case Health::kValid:
+      return "valid";
+    case Health::kNotConverged:
+      return "not_converged";
+    case Health::kNotExcited:
+      return "not_excited";
+    case Health::kStaleInput:
+      return "stale_input";
+    case Health::kInvalidInput:
+      return "invalid_input";
+    case Health::kNoSync:
+      return "no_sync";
+    case Health::kNumerical:
+      return "numerical";
+    case Health::kDisabled:
+      return "disabled";
   }
   return "unknown";
 }
 
 /// One torque estimate as every estimator reports it.
 struct TorqueEstimate {
-  std::int64_t t_ns = 0;       ///< source timestamp: the tooth edge or CAN frame the estimate came from (ns)
-  double torque_nm = 0.0;      ///< the estimated quantity (N m); which torque depends on the estimator
-  double uncertainty = 0.0;    ///< 1-sigma (N m) where known, or the excitation level λ_min(P) (adaptive)
+  std::int64_t t_ns = 0;     ///< source timestamp: the tooth edge or CAN frame the estimate came from (ns)
+  double torque_nm = 0.0;    ///< the estimated quantity (N m); which torque depends on the estimator
+  double uncertainty = 0.0;  ///< 1-sigma (N m) where known, or the excitation level λ_min(P) (adaptive)
   Health health = Health::kNotConverged;
 };
 

@@ -16,11 +16,11 @@ enum class InputStatus : std::uint8_t {
 
 /// One step of the time-triggered pipeline (Na-8: J ω̇ = τ_e − τ_l).
 struct TimeSample {
-  std::int64_t t_ns = 0;         ///< time of this step on the edge clock (ns)
-  double dt_s = 0.001;           ///< step since the previous sample (s); filters are exact for any dt > 0
-  double speed_rad_s = 0.0;      ///< mean crank speed ω (cycle- or segment-averaged) (rad/s)
-  double load_torque_nm = 0.0;   ///< measured load torque τ_l (dyno / e-machine) (N m)
-  double maf_kg_s = 0.0;         ///< air mass flow ṁ_air (kg/s); only the adaptive estimator uses it
+  std::int64_t t_ns = 0;        ///< time of this step on the edge clock (ns)
+  double dt_s = 0.001;          ///< step since the previous sample (s); filters are exact for any dt > 0
+  double speed_rad_s = 0.0;     ///< mean crank speed ω (cycle- or segment-averaged) (rad/s)
+  double load_torque_nm = 0.0;  ///< measured load torque τ_l (dyno / e-machine) (N m)
+  double maf_kg_s = 0.0;        ///< air mass flow ṁ_air (kg/s); only the adaptive estimator uses it
   InputStatus speed = InputStatus::kInvalid;
   InputStatus load = InputStatus::kInvalid;
   InputStatus maf = InputStatus::kInvalid;

@@ -16,13 +16,15 @@ double diff720(double a, double b) noexcept {
 }
 }  // namespace
 
-CycleKeWindow::CycleKeWindow(const CycleEnergy& g, double window_deg, double end_deg) : samples_(g.samples()) {
+CycleKeWindow::CycleKeWindow(const CycleEnergy& g, double window_deg, double end_deg)
+    : samples_(g.samples()) {
   const auto n = static_cast<std::size_t>(samples_);
   j_center_.resize(n);
   width_.resize(n);
   in_.assign(n, 0);
   last_.assign(n, 0);
-  if (!(window_deg > 0.0) || !std::isfinite(window_deg) || window_deg >= 360.0 || !std::isfinite(end_deg)) return;
+  if (!(window_deg > 0.0) || !std::isfinite(window_deg) || window_deg >= 360.0 || !std::isfinite(end_deg))
+    return;
   const double b0 = g.boundary_rad(0);
   const double hi = end_deg * kDeg, lo = hi - window_deg * kDeg;
   constexpr double kEps = 1e-9;  // same half-open convention as CycleEnergy's windows
@@ -69,7 +71,8 @@ bool CycleKeWindow::update(const ToothSample& s) noexcept {
   if (!in_[i]) return false;
   const double speed = s.width_rad / s.dt_s;
   sum_w_ += width_[i];
-  sum_wke_ += width_[i] * 0.5 * j_center_[i] * speed * speed;  // angle-weighted (nominal widths), as CycleEnergy
+  sum_wke_ +=
+      width_[i] * 0.5 * j_center_[i] * speed * speed;  // angle-weighted (nominal widths), as CycleEnergy
   ++count_;
   if (!last_[i]) return false;
   const bool complete = count_ == expected_;

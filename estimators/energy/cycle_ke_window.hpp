@@ -19,7 +19,8 @@ namespace torqued {
 
 class CycleKeWindow {
  public:
-  /// `window_deg` ≤ 0 disables it (enabled() false). `end_deg`: window end after boundary 0 (per-cylinder w/2).
+  /// `window_deg` ≤ 0 disables it (enabled() false). `end_deg`: window end after boundary 0 (per-cylinder
+  /// w/2).
   CycleKeWindow(const CycleEnergy& geometry, double window_deg, double end_deg);
 
   void reset() noexcept;

@@ -118,7 +118,7 @@ class CylinderTorque {
   int cut_cycles_ = 0;          ///< consecutive cycles with no segment flagged fired
   bool after_cut_ = false;      ///< a steady cut-off was seen and no cycle since was flagged fired throughout
   bool prev_combusting_ = false;  ///< the previous cycle combusted in every segment (all_combusting)
-  double w_floor_j_ = 0.0;  ///< share floor (J)
+  double w_floor_j_ = 0.0;        ///< share floor (J)
   std::uint32_t cycles_ = 0;
   std::int64_t prev_cycle_t_ns_ = 0;  ///< time of the previous cycle's end (ns), 0 before the first
   std::uint64_t misfires_ = 0;

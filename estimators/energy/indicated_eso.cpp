@@ -32,8 +32,8 @@ double IndicatedEso::model_efficiency(double lambda) const noexcept {
 
 bool IndicatedEso::update(const EsoInput& in) noexcept {
   if (!in.valid || !std::isfinite(in.ke_j) || !(in.segment_rad > 0.0) || !(in.segment_dt_s > 0.0) ||
-      !std::isfinite(in.fuel_kg) || in.fuel_kg < 0.0 || !std::isfinite(in.friction_nm) || !std::isfinite(in.load_nm) ||
-      !(in.lambda > 0.0)) {
+      !std::isfinite(in.fuel_kg) || in.fuel_kg < 0.0 || !std::isfinite(in.friction_nm) ||
+      !std::isfinite(in.load_nm) || !(in.lambda > 0.0)) {
     init_ = false;
     est_.health = Health::kInvalidInput;
     return false;

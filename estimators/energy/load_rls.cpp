@@ -21,13 +21,14 @@ double wrap4pi(double a) noexcept {
 }
 
 /// Burn-independent pieces of the pressure model at local angle φ (volume powers, blowdown blend, dV/dθ):
-/// evaluated once per integration angle and shared by every burn centroid (no trigonometry/pow in the inner loops).
+/// evaluated once per integration angle and shared by every burn centroid (no trigonometry/pow in the inner
+/// loops).
 struct AngleTerms {
   double phi = 0.0;
-  double dvol = 0.0;       ///< dV/dθ (m³/rad)
-  double ivc_poly = 0.0;   ///< (V_IVC/V)^κ
-  double c_poly = 0.0;     ///< (V_c/V)^κ
-  double blend = 0.0;      ///< raised-cosine blowdown blend (only meaningful in [EVO, blowdown end))
+  double dvol = 0.0;      ///< dV/dθ (m³/rad)
+  double ivc_poly = 0.0;  ///< (V_IVC/V)^κ
+  double c_poly = 0.0;    ///< (V_c/V)^κ
+  double blend = 0.0;     ///< raised-cosine blowdown blend (only meaningful in [EVO, blowdown end))
 };
 AngleTerms angle_terms(double phi, const CrankKinematics& kin, const EnergiesParams& prm, double v_ivc,
                        double v_c) noexcept {
@@ -44,7 +45,8 @@ AngleTerms angle_terms(double phi, const CrankKinematics& kin, const EnergiesPar
   return t;
 }
 
-/// Pressure-model weights at local angle φ after a cylinder's firing TDC: p = w_map·MAP + w_exh·p_exh + w_p3·p3.
+/// Pressure-model weights at local angle φ after a cylinder's firing TDC: p = w_map·MAP + w_exh·p_exh +
+/// w_p3·p3.
 struct Weights {
   double map = 0.0, exh = 0.0, p3 = 0.0;
 };
@@ -57,7 +59,8 @@ Weights model_weights(const AngleTerms& t, const EnergiesParams& prm, double bur
   Weights w;
   if (phi < burn) {
     // Before the burn centroid the charge follows the compression polytrope back out (heat release lumped at
-    // the centroid: a constant-volume burn at TDC would understate the late expansion pressure for a given work).
+    // the centroid: a constant-volume burn at TDC would understate the late expansion pressure for a given
+    // work).
     w.map = prm.ivc_pressure_factor * t.ivc_poly;
   } else if (phi < evo) {
     w.p3 = t.c_poly;
@@ -104,16 +107,19 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
   std::vector<double> center(static_cast<std::size_t>(samples_));
   for (int k = 0; k < samples_; ++k) {
     const double e = (k / t) * kTwoPi + e1[static_cast<std::size_t>(k % t)];
-    center[static_cast<std::size_t>(k)] = wrap4pi(e - 0.5 * w1[static_cast<std::size_t>(k % t)] - engine.tdc_offset_rad);
+    center[static_cast<std::size_t>(k)] =
+        wrap4pi(e - 0.5 * w1[static_cast<std::size_t>(k % t)] - engine.tdc_offset_rad);
   }
   window_first_of_.assign(static_cast<std::size_t>(samples_), -1);
   window_last_of_.assign(static_cast<std::size_t>(samples_), -1);
   const double step = 0.05 * kDeg;
-  // Full-cycle ∮p dV coefficients of one cylinder (local angle), one set per burn centroid 0..kCentroids−1 deg.
-  // The burn-independent terms are tabulated once over the integration grid (same φ sequence for every centroid).
+  // Full-cycle ∮p dV coefficients of one cylinder (local angle), one set per burn centroid 0..kCentroids−1
+  // deg. The burn-independent terms are tabulated once over the integration grid (same φ sequence for every
+  // centroid).
   std::vector<AngleTerms> grid;
   grid.reserve(static_cast<std::size_t>(kFourPi / step) + 2);
-  for (double phi = 0.5 * step; phi < kFourPi; phi += step) grid.push_back(angle_terms(phi, kin, params, v_ivc_, v_c_));
+  for (double phi = 0.5 * step; phi < kFourPi; phi += step)
+    grid.push_back(angle_terms(phi, kin, params, v_ivc_, v_c_));
   for (int ci = 0; ci < kCentroids; ++ci) {
     double cm = 0.0, ce = 0.0, cp = 0.0;
     for (const AngleTerms& at : grid) {
@@ -129,53 +135,60 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
   }
   const double pitch = kFourPi / samples_;
   for (int m = 0; m < n; ++m)
-  for (int shift = 0; shift < std::max(1, params.rls_window_shifts); ++shift) {
-    const double tdc = kFourPi * m / n - shift * pitch;
-    const double a = tdc - params.window_start_btdc_deg * kDeg;
-    const double b = tdc - params.window_end_btdc_deg * kDeg;
-    // Teeth whose period centre lies in [a, b] (relative distance from a, wrapped).
-    int first = -1, last = -1;
-    double best_first = 1e9, best_last = -1e9;
-    for (int k = 0; k < samples_; ++k) {
-      const double d = wrap4pi(center[static_cast<std::size_t>(k)] - a + 1e-9);  // rounding-safe edges
-      if (d <= b - a + 1e-9) {
-        if (d < best_first) { best_first = d; first = k; }
-        if (d > best_last) { best_last = d; last = k; }
+    for (int shift = 0; shift < std::max(1, params.rls_window_shifts); ++shift) {
+      const double tdc = kFourPi * m / n - shift * pitch;
+      const double a = tdc - params.window_start_btdc_deg * kDeg;
+      const double b = tdc - params.window_end_btdc_deg * kDeg;
+      // Teeth whose period centre lies in [a, b] (relative distance from a, wrapped).
+      int first = -1, last = -1;
+      double best_first = 1e9, best_last = -1e9;
+      for (int k = 0; k < samples_; ++k) {
+        const double d = wrap4pi(center[static_cast<std::size_t>(k)] - a + 1e-9);  // rounding-safe edges
+        if (d <= b - a + 1e-9) {
+          if (d < best_first) {
+            best_first = d;
+            first = k;
+          }
+          if (d > best_last) {
+            best_last = d;
+            last = k;
+          }
+        }
       }
-    }
-    if (first < 0 || last < 0 || first == last) continue;  // window narrower than a tooth: unusable
-    Window win;
-    win.first = first;
-    win.last = last;
-    win.c_first = center[static_cast<std::size_t>(first)];
-    win.c_last = center[static_cast<std::size_t>(last)];
-    win.span = wrap4pi(win.c_last - win.c_first);
-    win.j_first = kin.inertia(win.c_first);
-    win.j_last = kin.inertia(win.c_last);
-    const int steps = static_cast<int>(std::ceil(win.span / step));
-    const double h = win.span / steps;
-    for (int q = 0; q < n; ++q) {
-      const double phase = kFourPi * q / n;
-      for (int i = 0; i < steps; ++i) {
-        const double th = win.c_first + (i + 0.5) * h;
-        const double phi = wrap4pi(th - phase);
-        const AngleTerms at = angle_terms(phi, kin, params, v_ivc_, v_c_);
-        const Weights w = model_weights(at, params, params.burn_centroid_atdc_deg * kDeg);
-        const double dv = at.dvol * h;  // dV_j/dθ dθ = A R f(θ − φ_j) dθ (EN-9)
-        win.k_map += w.map * dv;
-        win.k_exh += w.exh * dv;
-        win.k_p3[static_cast<std::size_t>(q)] += w.p3 * dv;
-        win.k_cc -= dv;
+      if (first < 0 || last < 0 || first == last) continue;  // window narrower than a tooth: unusable
+      Window win;
+      win.first = first;
+      win.last = last;
+      win.c_first = center[static_cast<std::size_t>(first)];
+      win.c_last = center[static_cast<std::size_t>(last)];
+      win.span = wrap4pi(win.c_last - win.c_first);
+      win.j_first = kin.inertia(win.c_first);
+      win.j_last = kin.inertia(win.c_last);
+      const int steps = static_cast<int>(std::ceil(win.span / step));
+      const double h = win.span / steps;
+      for (int q = 0; q < n; ++q) {
+        const double phase = kFourPi * q / n;
+        for (int i = 0; i < steps; ++i) {
+          const double th = win.c_first + (i + 0.5) * h;
+          const double phi = wrap4pi(th - phase);
+          const AngleTerms at = angle_terms(phi, kin, params, v_ivc_, v_c_);
+          const Weights w = model_weights(at, params, params.burn_centroid_atdc_deg * kDeg);
+          const double dv = at.dvol * h;  // dV_j/dθ dθ = A R f(θ − φ_j) dθ (EN-9)
+          win.k_map += w.map * dv;
+          win.k_exh += w.exh * dv;
+          win.k_p3[static_cast<std::size_t>(q)] += w.p3 * dv;
+          win.k_cc -= dv;
+        }
       }
+      if (window_first_of_[static_cast<std::size_t>(first)] >= 0 ||
+          window_last_of_[static_cast<std::size_t>(last)] >= 0) {
+        continue;  // irregular wheel: two shifts mapped onto the same teeth
+      }
+      window_first_of_[static_cast<std::size_t>(first)] = static_cast<int>(windows_tab_.size());
+      window_last_of_[static_cast<std::size_t>(last)] = static_cast<int>(windows_tab_.size());
+      win.position = m;
+      windows_tab_.push_back(win);
     }
-    if (window_first_of_[static_cast<std::size_t>(first)] >= 0 || window_last_of_[static_cast<std::size_t>(last)] >= 0) {
-      continue;  // irregular wheel: two shifts mapped onto the same teeth
-    }
-    window_first_of_[static_cast<std::size_t>(first)] = static_cast<int>(windows_tab_.size());
-    window_last_of_[static_cast<std::size_t>(last)] = static_cast<int>(windows_tab_.size());
-    win.position = m;
-    windows_tab_.push_back(win);
-  }
   // The group's closing window: the smallest shift kept (it ends at window_end_btdc, the latest).
   for (int m = 0; m < n; ++m) {
     for (std::size_t w = 0; w < windows_tab_.size(); ++w) {
@@ -299,9 +312,9 @@ void LoadRls::reset() noexcept {
 }
 
 namespace {
-constexpr int kFastCycles = 4;        // tracker memory held at one cycle for this many cycles after a load change
-constexpr double kZConfirm = 2.5;     // |z − tracker| must exceed this many σ of its steady spread
-constexpr int kStatsCycles = 10;      // steady cycles of innovation statistics before changes are detected
+constexpr int kFastCycles = 4;  // tracker memory held at one cycle for this many cycles after a load change
+constexpr double kZConfirm = 2.5;  // |z − tracker| must exceed this many σ of its steady spread
+constexpr int kStatsCycles = 10;   // steady cycles of innovation statistics before changes are detected
 }  // namespace
 
 void LoadRls::track(double obs, const Window& win) noexcept {
@@ -318,7 +331,8 @@ void LoadRls::track(double obs, const Window& win) noexcept {
   hist_[static_cast<std::size_t>(hist_head_)] = h;
   hist_count_ = std::min(hist_count_ + 1, n + 1);
   if (hist_count_ < n + 1) return;
-  // Trapezoid over the n firing intervals spanned by the last n + 1 firings (the same 720° as the energy balance).
+  // Trapezoid over the n firing intervals spanned by the last n + 1 firings (the same 720° as the energy
+  // balance).
   double z = 0.0;
   for (int j = 0; j <= n; ++j) {
     const double v = hist_[static_cast<std::size_t>((hist_head_ - j + kHist) % kHist)];
@@ -332,22 +346,23 @@ void LoadRls::track(double obs, const Window& win) noexcept {
   const double e = h - trk_theta_;
   const double floor_sd = params_.rls_step_min_sd_nm;
   const double sd = std::sqrt(std::max(d_var_, floor_sd * floor_sd));
-  const bool ready = windows_ >= static_cast<std::uint64_t>(params_.rls_min_windows) && d_n_ >= kStatsCycles * n;
+  const bool ready =
+      windows_ >= static_cast<std::uint64_t>(params_.rls_min_windows) && d_n_ >= kStatsCycles * n;
   constexpr double kAllowance = 0.5;
   cusum_pos_ = std::max(0.0, cusum_pos_ + e / sd - kAllowance);
   cusum_neg_ = std::max(0.0, cusum_neg_ - e / sd - kAllowance);
-  // The cycle mean must also have left the tracker by 3σ of its own steady spread: z − RLS is correlated from firing
-  // to firing (z spans n + 1 firings, and at 4000 rpm the jitter noise wanders over several cycles), which alone
-  // would let the CUSUM fire on noise.
+  // The cycle mean must also have left the tracker by 3σ of its own steady spread: z − RLS is correlated from
+  // firing to firing (z spans n + 1 firings, and at 4000 rpm the jitter noise wanders over several cycles),
+  // which alone would let the CUSUM fire on noise.
   const double zd = z_cycle_ - trk_theta_;
   const double zsd = std::sqrt(std::max(zd_var_, floor_sd * floor_sd));
-  // Only where the cycle mean is informative: at high speed its jitter noise (±10-20 N m at 4000 rpm) is larger than
-  // the changes worth tracking, and the RLS average is the better value even in transients.
+  // Only where the cycle mean is informative: at high speed its jitter noise (±10-20 N m at 4000 rpm) is
+  // larger than the changes worth tracking, and the RLS average is the better value even in transients.
   const bool informative = zsd <= params_.rls_change_max_sd_nm;
   if (ready && informative && std::fabs(zd) > kZConfirm * zsd &&
       (cusum_pos_ > params_.rls_change_threshold || cusum_neg_ > params_.rls_change_threshold)) {
-    // A load change: restart the tracker's memory at the cycle mean (worth one cycle of windows) and report the
-    // cycle mean for one cycle.
+    // A load change: restart the tracker's memory at the cycle mean (worth one cycle of windows) and report
+    // the cycle mean for one cycle.
     trk_theta_ = z_cycle_;
     trk_p_ = 1.0 / std::max(1.0, static_cast<double>(windows_tab_.size()));
     fast_windows_ = kFastCycles * static_cast<int>(windows_tab_.size());
@@ -364,7 +379,8 @@ void LoadRls::track(double obs, const Window& win) noexcept {
     return;
   }
   blend_ = 0.0;
-  if (std::fabs(e) > 3.0 * sd && d_n_ >= kStatsCycles * n) return;  // an outlier or a change: not a steady sample
+  if (std::fabs(e) > 3.0 * sd && d_n_ >= kStatsCycles * n)
+    return;  // an outlier or a change: not a steady sample
   ++d_n_;
   const double a = std::max(1.0 / d_n_, 0.05);
   d_var_ += a * (e * e - d_var_);
@@ -388,7 +404,8 @@ double LoadRls::expansion_p3(double work_j, double map_pa, double spark_advance_
   return (work_j - cm * map_pa - cyc_exh_ * params_.exhaust_pressure_pa) / cp;
 }
 
-double LoadRls::model_pressure(double local_rad, double map_pa, double p3_pa, double spark_advance_deg) const noexcept {
+double LoadRls::model_pressure(double local_rad, double map_pa, double p3_pa,
+                               double spark_advance_deg) const noexcept {
   const CrankKinematics kin(engine_);
   const Weights w = model_weights(angle_terms(wrap4pi(local_rad), kin, params_, v_ivc_, v_c_), params_,
                                   centroid_deg(spark_advance_deg) * kDeg);
@@ -402,18 +419,23 @@ double LoadRls::motored_p3(double map_pa) const noexcept {
 
 double LoadRls::motored_torque_nm(double map_pa) const noexcept {
   // Motored: no heat release, the centroid does not matter (use 0).
-  const double w = cyc_map_[0] * map_pa + cyc_exh_ * params_.exhaust_pressure_pa + cyc_p3_[0] * motored_p3(map_pa);
+  const double w =
+      cyc_map_[0] * map_pa + cyc_exh_ * params_.exhaust_pressure_pa + cyc_p3_[0] * motored_p3(map_pa);
   return engine_.cylinders * w / kFourPi;
 }
 
-double LoadRls::window_gas_work(int w, double map_pa, const std::array<double, kMaxCylinders>& p3_pa) const noexcept {
+double LoadRls::window_gas_work(int w, double map_pa,
+                                const std::array<double, kMaxCylinders>& p3_pa) const noexcept {
   const Window& win = windows_tab_[static_cast<std::size_t>(w)];
-  double work = win.k_map * map_pa + win.k_exh * params_.exhaust_pressure_pa + win.k_cc * engine_.crankcase_pressure_pa;
-  for (int q = 0; q < engine_.cylinders; ++q) work += win.k_p3[static_cast<std::size_t>(q)] * p3_pa[static_cast<std::size_t>(q)];
+  double work =
+      win.k_map * map_pa + win.k_exh * params_.exhaust_pressure_pa + win.k_cc * engine_.crankcase_pressure_pa;
+  for (int q = 0; q < engine_.cylinders; ++q)
+    work += win.k_p3[static_cast<std::size_t>(q)] * p3_pa[static_cast<std::size_t>(q)];
   return work;
 }
 
-// One RLS step on the window's observation y (N m) with angle-mean θ̈ phi_a (rad/s²); returns the a-priori error.
+// One RLS step on the window's observation y (N m) with angle-mean θ̈ phi_a (rad/s²); returns the a-priori
+// error.
 double LoadRls::rls_step(double y, double phi_a) noexcept {
   const double lam = params_.rls_forgetting;
   double err;
@@ -469,7 +491,8 @@ void LoadRls::publish(std::int64_t t_ns, double err, const Window& win) noexcept
   const double n_eff = std::min<double>(static_cast<double>(windows_), (1.0 + lam) / (1.0 - lam));
   const double sd_rls = std::sqrt(resid_var_ / n_eff);
   est_.uncertainty = sd_rls;
-  est_.health = windows_ >= static_cast<std::uint64_t>(params_.rls_min_windows) ? Health::kValid : Health::kNotConverged;
+  est_.health = windows_ >= static_cast<std::uint64_t>(params_.rls_min_windows) ? Health::kValid
+                                                                                : Health::kNotConverged;
   trk_ = est_;
   if (z_valid_ && blend_ > 0.0) {
     const double floor_sd = params_.rls_step_min_sd_nm;
@@ -515,16 +538,19 @@ bool LoadRls::update(const ToothSample& s, double map_pa, bool map_valid, double
   std::array<double, kMaxCylinders> p3{};
   for (int q = 0; q < engine_.cylinders; ++q) {
     const auto qi = static_cast<std::size_t>(q);
-    p3[qi] = params_.model_expansion_cylinder && works_valid ? expansion_p3(cyl_work_j[qi], map_pa, spark_advance_deg)
-                                                                       : motored_p3(map_pa);
-    if (!params_.model_expansion_cylinder) p3[qi] = 0.0;  // paper's simplification: no other cylinder's gas torque
+    p3[qi] = params_.model_expansion_cylinder && works_valid
+                 ? expansion_p3(cyl_work_j[qi], map_pa, spark_advance_deg)
+                 : motored_p3(map_pa);
+    if (!params_.model_expansion_cylinder)
+      p3[qi] = 0.0;  // paper's simplification: no other cylinder's gas torque
   }
-  // Paper's simplification keeps only the compressing cylinder: drop every cylinder's expansion/exhaust terms.
+  // Paper's simplification keeps only the compressing cylinder: drop every cylinder's expansion/exhaust
+  // terms.
   double gas = window_gas_work(closed, map_pa, p3);
   if (!params_.model_expansion_cylinder) gas -= win.k_exh * params_.exhaust_pressure_pa;
   const double ke_rel = 0.5 * (win.j_last - engine_.j_rot_kgm2) * w2 - ke_first_[ci];
-  const double y = (gas - ke_rel) / win.span;                 // energy form of EN-11
-  const double phi_a = 0.5 * (w2 - w2_first_[ci]) / win.span; // angle-mean θ̈ (rad/s²)
+  const double y = (gas - ke_rel) / win.span;                  // energy form of EN-11
+  const double phi_a = 0.5 * (w2 - w2_first_[ci]) / win.span;  // angle-mean θ̈ (rad/s²)
   if (!std::isfinite(y) || !std::isfinite(phi_a)) {
     est_.health = Health::kInvalidInput;
     return false;

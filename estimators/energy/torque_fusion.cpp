@@ -15,11 +15,13 @@ const FusedTorque& TorqueFusion::update(const FusionInput& in) noexcept {
   for (int i = 0; i < kFusionSources; ++i) {
     const FusionSource& s = in.src[static_cast<std::size_t>(i)];
     usable[static_cast<std::size_t>(i)] = s.health == Health::kValid && std::isfinite(s.brake_nm) &&
-                                          s.sd_nm > 0.0 && std::isfinite(s.sd_nm) && !(s.uses_can && o.can_lost);
+                                          s.sd_nm > 0.0 && std::isfinite(s.sd_nm) &&
+                                          !(s.uses_can && o.can_lost);
     if (primary < 0 && usable[static_cast<std::size_t>(i)]) primary = i;
   }
-  // Rule 2b: without the energy balance (no measured load), the usable source with the smallest claimed 1σ leads
-  // (the claimed σ of the crank-only and model-based sources are measured against the balance while it was there).
+  // Rule 2b: without the energy balance (no measured load), the usable source with the smallest claimed 1σ
+  // leads (the claimed σ of the crank-only and model-based sources are measured against the balance while it
+  // was there).
   if (primary > 0) {
     for (int i = primary + 1; i < kFusionSources; ++i) {
       const auto iu = static_cast<std::size_t>(i);
@@ -59,9 +61,15 @@ const FusedTorque& TorqueFusion::update(const FusionInput& in) noexcept {
   o.sd_nm = std::sqrt(1.0 / wsum);
   o.primary = static_cast<FusionSourceId>(primary);
   switch (o.primary) {
-    case FusionSourceId::kEnergyCan: o.quality = FusionQuality::kFull; break;
-    case FusionSourceId::kCrankOnly: o.quality = FusionQuality::kCrankOnly; break;
-    default: o.quality = p.prior_only ? FusionQuality::kPriorOnly : FusionQuality::kDegraded; break;
+    case FusionSourceId::kEnergyCan:
+      o.quality = FusionQuality::kFull;
+      break;
+    case FusionSourceId::kCrankOnly:
+      o.quality = FusionQuality::kCrankOnly;
+      break;
+    default:
+      o.quality = p.prior_only ? FusionQuality::kPriorOnly : FusionQuality::kDegraded;
+      break;
   }
   o.age_ns = in.t_ns - newest;
   o.health = Health::kValid;

@@ -7,7 +7,8 @@
 namespace torqued {
 
 namespace {
-// Scaled coefficients keep the 3x3 RLS well conditioned: θ = [C1, C2·1e3, C3·1e6], regressor [1, n/1e3, (n/1e3)²].
+// Scaled coefficients keep the 3x3 RLS well conditioned: θ = [C1, C2·1e3, C3·1e6], regressor [1, n/1e3,
+// (n/1e3)²].
 constexpr double kS2 = 1e3;
 constexpr double kS3 = 1e6;
 bool finite4(const std::array<double, 4>& c) noexcept {
@@ -76,7 +77,8 @@ bool FrictionLearner::observe_motoring(double speed_rpm, double oil_temp_c, doub
   const double e = params_.sign * std::exp(c4_ * oil_temp_c);
   const double phi[3] = {e, e * nk, e * nk * nk};
   double pphi[3];
-  for (int i = 0; i < 3; ++i) pphi[i] = p_[i * 3 + 0] * phi[0] + p_[i * 3 + 1] * phi[1] + p_[i * 3 + 2] * phi[2];
+  for (int i = 0; i < 3; ++i)
+    pphi[i] = p_[i * 3 + 0] * phi[0] + p_[i * 3 + 1] * phi[1] + p_[i * 3 + 2] * phi[2];
   const double lam = params_.forgetting;
   // Weighted RLS with forgetting: K = Pφ / (λ r + φᵀPφ), r = the observation's variance in the unit one.
   const double r = std::isfinite(obs_var_nm2) ? std::max(1.0, obs_var_nm2) : 1.0;
@@ -106,7 +108,8 @@ bool FrictionLearner::observe_motoring(double speed_rpm, double oil_temp_c, doub
   const double pmax = params_.prior_sd_nm * params_.prior_sd_nm;
   for (int i = 0; i < 3; ++i) {
     for (int j = i + 1; j < 3; ++j) {
-      const double m = 0.5 * (pn[static_cast<std::size_t>(i * 3 + j)] + pn[static_cast<std::size_t>(j * 3 + i)]);
+      const double m =
+          0.5 * (pn[static_cast<std::size_t>(i * 3 + j)] + pn[static_cast<std::size_t>(j * 3 + i)]);
       pn[static_cast<std::size_t>(i * 3 + j)] = pn[static_cast<std::size_t>(j * 3 + i)] = m;
     }
     if (pn[static_cast<std::size_t>(i * 4)] > pmax) {
@@ -180,7 +183,8 @@ double FrictionLearner::friction_nm(double speed_rpm, double oil_temp_c) const n
   double f = law_nm(speed_rpm, oil_temp_c);
   if (idle_rpm_ > 0.0 && speed_rpm < params_.idle_fade_rpm) {
     const double span = params_.idle_fade_rpm - idle_rpm_;
-    const double w = speed_rpm <= idle_rpm_ || !(span > 0.0) ? 1.0 : (params_.idle_fade_rpm - speed_rpm) / span;
+    const double w =
+        speed_rpm <= idle_rpm_ || !(span > 0.0) ? 1.0 : (params_.idle_fade_rpm - speed_rpm) / span;
     f += w * idle_corr_nm_;
   }
   return f;
@@ -216,7 +220,7 @@ bool FrictionLearner::import_motoring_residual_scale(double sd_nm, std::uint32_t
 Health FrictionLearner::health() const noexcept {
   if (!params_.learn || imported_) return Health::kValid;
   return n_motoring_ >= static_cast<std::uint64_t>(params_.min_observations) ? Health::kValid
-                                                                              : Health::kNotConverged;
+                                                                             : Health::kNotConverged;
 }
 
 }  // namespace torqued

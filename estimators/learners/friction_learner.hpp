@@ -9,14 +9,18 @@
 //    Regressor φ = s e^{C4 t_oil} [1, n/1000, (n/1000)²] (scaled for conditioning), forgetting factor, and
 //    prior covariance around the starting coefficients so that a narrow speed range cannot run away.
 //  - C4 at idle: T_fric = T_ind, so Δ ln T_fric = C4 Δt_oil between idle observations at different oil
-//    temperatures (EN-30..33); scalar RLS on the pairs. Without oil-temperature variation C4 stays at its prior.
-//  - Idle correction (learn_at_idle): motoring never reaches idle (fuel resumes at ≈ 1100 rpm), so the quadratic
-//    is extrapolated there (≈ 1.2 N m off on the simulator). Fitting the idle point into C1..C3 tilts the whole
-//    quadratic (a correction Δ at 800 rpm moves 4000 rpm by ≈ 7Δ). Instead the steady-idle friction (EN-30: T_fric =
-//    T_ind at zero load) sets a LOCAL additive correction δ = T_idle − law(n_idle) (running mean), applied fully at
-//    and below the idle speed and faded linearly to 0 at idle_fade_rpm. It is not persisted (the four coefficients
-//    are); it is relearned after idle_steady_cycles of steady idle in each run.
-// Coefficients can be exported and imported for persistence across restarts (the daemon writes them atomically).
+//    temperatures (EN-30..33); scalar RLS on the pairs. Without oil-temperature variation C4 stays at its
+//    prior.
+//  - Idle correction (learn_at_idle): motoring never reaches idle (fuel resumes at ≈ 1100 rpm), so the
+//  quadratic
+//    is extrapolated there (≈ 1.2 N m off on the simulator). Fitting the idle point into C1..C3 tilts the
+//    whole quadratic (a correction Δ at 800 rpm moves 4000 rpm by ≈ 7Δ). Instead the steady-idle friction
+//    (EN-30: T_fric = T_ind at zero load) sets a LOCAL additive correction δ = T_idle − law(n_idle) (running
+//    mean), applied fully at and below the idle speed and faded linearly to 0 at idle_fade_rpm. It is not
+//    persisted (the four coefficients are); it is relearned after idle_steady_cycles of steady idle in each
+//    run.
+// Coefficients can be exported and imported for persistence across restarts (the daemon writes them
+// atomically).
 #include <array>
 #include <cstdint>
 
@@ -30,10 +34,10 @@ namespace torqued {
 /// friction mean effective pressure of warm 4-stroke SI engines (845-2000 cm³), as given in J. B. Heywood,
 /// "Internal Combustion Engine Fundamentals", McGraw-Hill 1988, §13.5:
 ///   fmep [bar] = 0.97 + 0.15 (N/1000) + 0.05 (N/1000)²,  N in rpm,
-/// and the mean friction torque of a 4-stroke engine T_fric = fmep · V_d / 4π. Stroke enters through V_d only (the
-/// Patton-Nitschke-Heywood / Sandoval-Heywood models add mean-piston-speed terms: a finer prior, not used here).
-/// C4 = 0 (the correlation is for a warm engine; the oil-temperature law is learned at idle). Returned in the
-/// learner's units for the given `sign` (C = T / sign).
+/// and the mean friction torque of a 4-stroke engine T_fric = fmep · V_d / 4π. Stroke enters through V_d only
+/// (the Patton-Nitschke-Heywood / Sandoval-Heywood models add mean-piston-speed terms: a finer prior, not
+/// used here). C4 = 0 (the correlation is for a warm engine; the oil-temperature law is learned at idle).
+/// Returned in the learner's units for the given `sign` (C = T / sign).
 [[nodiscard]] std::array<double, 4> generic_friction_prior(double displacement_m3, double sign) noexcept;
 
 class FrictionLearner {
@@ -58,7 +62,8 @@ class FrictionLearner {
   /// differences. Returns false when rejected. Real-time safe.
   bool observe_idle(double speed_rpm, double oil_temp_c, double friction_nm) noexcept;
 
-  /// T_fric (N m) at the given speed and oil temperature (law + faded idle correction). Real-time safe (one exp()).
+  /// T_fric (N m) at the given speed and oil temperature (law + faded idle correction). Real-time safe (one
+  /// exp()).
   [[nodiscard]] double friction_nm(double speed_rpm, double oil_temp_c) const noexcept;
   /// The EN-24 law alone (no idle correction).
   [[nodiscard]] double law_nm(double speed_rpm, double oil_temp_c) const noexcept;
@@ -74,7 +79,8 @@ class FrictionLearner {
   bool import_idle_correction(double correction_nm, double idle_rpm) noexcept;
   static constexpr int kIdlePriorObservations = 10;
 
-  /// Local idle correction δ (N m) and the idle speed it was learned at (rpm); 0 / 0 before any idle observation.
+  /// Local idle correction δ (N m) and the idle speed it was learned at (rpm); 0 / 0 before any idle
+  /// observation.
   [[nodiscard]] double idle_correction_nm() const noexcept { return idle_corr_nm_; }
   [[nodiscard]] double idle_speed_rpm() const noexcept { return idle_rpm_; }
   /// Claimed 1σ of a motoring (fuel cut-off) balance against the law: the 68th percentile of the a-priori
@@ -103,13 +109,13 @@ class FrictionLearner {
   std::array<double, 3> theta_{};  ///< scaled [C1, C2·1000, C3·1e6]
   std::array<double, 9> p_{};      ///< RLS covariance (row-major 3x3)
   double c4_ = 0.0;
-  double p4_ = 0.0;                ///< C4 RLS covariance
+  double p4_ = 0.0;  ///< C4 RLS covariance
   bool have_idle_ref_ = false;
   double idle_ref_oil_c_ = 0.0;
   double idle_ref_ln_ = 0.0;
-  double idle_corr_nm_ = 0.0;      ///< local idle correction δ (N m)
-  double idle_rpm_ = 0.0;          ///< speed of the idle observations (rpm), 0: none yet
-  std::uint64_t idle_prior_n_ = 0; ///< weight (observations) of an imported idle correction
+  double idle_corr_nm_ = 0.0;       ///< local idle correction δ (N m)
+  double idle_rpm_ = 0.0;           ///< speed of the idle observations (rpm), 0: none yet
+  std::uint64_t idle_prior_n_ = 0;  ///< weight (observations) of an imported idle correction
   bool imported_ = false;
   CoverageScale cover_;  ///< motoring residual scale (sd 0: none measured)
   std::uint64_t n_motoring_ = 0, n_idle_ = 0, n_rejected_ = 0;

@@ -154,7 +154,7 @@ class ToothErrorLearner {
   std::vector<double> coef_;       ///< scratch: coefficients of the last cycle
   /// Speed-law sums of one load slot (x = (ω_ref/ω̄)², f = x·ln x); per column j at [j]: Σβ, Σxβ, Σfβ, Σβ².
   struct LoadSlot {
-    double map_pa = 0.0;  ///< the slot's load (0: free)
+    double map_pa = 0.0;                                                  ///< the slot's load (0: free)
     double n = 0.0, sx = 0.0, sxx = 0.0, sf = 0.0, sxf = 0.0, sff = 0.0;  ///< f = x·ln x
   };
   std::array<LoadSlot, kLoadSlots> slots_{};

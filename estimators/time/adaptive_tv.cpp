@@ -114,7 +114,7 @@ void AdaptiveTv::update(const TimeSample& s) noexcept {
       return;
     }
     k_ = inv2(m_, det_m);
-    g = gamma_ * k_;    // Na-54
+    g = gamma_ * k_;  // Na-54
   }
   // Backward Euler on θ̂̇ = −G(Sθ̂ − b) (Na-50/54 with W1 + κW2 = Sθ̂ − b).
   const Mat sm = p_ + params_.kappa * ppt;

@@ -38,7 +38,8 @@ class AdaptiveTv {
   AdaptiveTv(const AdaptiveParams& params, double inertia_kgm2, double step_s = 0.001) noexcept;
 
   void reset() noexcept;
-  /// One step; needs speed, load and air mass flow. Stale/invalid input holds θ̂ and the estimate. Real-time safe.
+  /// One step; needs speed, load and air mass flow. Stale/invalid input holds θ̂ and the estimate. Real-time
+  /// safe.
   void update(const TimeSample& s) noexcept;
   /// torque_nm = φᵀθ̂, uncertainty = λ_min(P) (excitation level), health kNotExcited while λ_min(P) < σ.
   [[nodiscard]] TorqueEstimate estimate() const noexcept { return estimate_; }
@@ -62,19 +63,19 @@ class AdaptiveTv {
 
   AdaptiveParams params_;
   double inertia_kgm2_;
-  Mat gamma_;                  ///< Γ of the selected law
-  Mat k0_;                     ///< K(0)^-1 = K0
-  Vec scale_;                  ///< φ normalisation
+  Mat gamma_;  ///< Γ of the selected law
+  Mat k0_;     ///< K(0)^-1 = K0
+  Vec scale_;  ///< φ normalisation
   double step_s_ = -1.0;
-  double decay_ = 1.0;         ///< e^{−ℓT}
-  double beta_ = 0.0;          ///< (1 − e^{−ℓT})/ℓ
+  double decay_ = 1.0;  ///< e^{−ℓT}
+  double beta_ = 0.0;   ///< (1 − e^{−ℓT})/ℓ
   FirstOrderFilter<double> omega_f_;
   FirstOrderFilter<double> load_f_;
   FirstOrderFilter<Vec> phi_f_;
   Mat p_ = Mat::Zero();
   Vec q_ = Vec::Zero();
-  Mat m_ = Mat::Identity();    ///< K^-1
-  Mat k_ = Mat::Identity();    ///< K
+  Mat m_ = Mat::Identity();  ///< K^-1
+  Mat k_ = Mat::Identity();  ///< K
   Vec theta_ = Vec::Zero();
   double y_f_ = 0.0;
   double lambda_min_p_ = 0.0;

@@ -32,7 +32,8 @@ void DirtyDiff::update(const TimeSample& s) noexcept {
   }
   omega_f_.set_step(s.dt_s);
   // Na-24: dirty derivative of ω times J, plus the raw load torque.
-  const double torque = inertia_kgm2_ * omega_f_.gain_per_s() * (s.speed_rad_s - omega_f_.state()) + s.load_torque_nm;
+  const double torque =
+      inertia_kgm2_ * omega_f_.gain_per_s() * (s.speed_rad_s - omega_f_.state()) + s.load_torque_nm;
   omega_f_.update(s.speed_rad_s);
   if (!std::isfinite(torque) || !std::isfinite(omega_f_.state())) {
     reset();

@@ -23,7 +23,7 @@ class MeanSpeedTracker {
   /// Adds one tooth. A tooth with synced == false, or a non-positive width/period, clears the window.
   void update(const ToothSample& tooth) noexcept;
 
-  [[nodiscard]] bool valid() const noexcept { return valid_; }      ///< window fully covered since last sync
+  [[nodiscard]] bool valid() const noexcept { return valid_; }  ///< window fully covered since last sync
   [[nodiscard]] double speed_rad_s() const noexcept { return speed_rad_s_; }
   [[nodiscard]] std::int64_t t_ns() const noexcept { return t_ns_; }  ///< edge time of the newest tooth
   [[nodiscard]] double window_rad() const noexcept { return window_rad_; }

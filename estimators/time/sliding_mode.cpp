@@ -36,7 +36,7 @@ void SlidingMode::update(const TimeSample& s) noexcept {
   const double e = s.speed_rad_s - omega_hat_;
   const double sw = e > 0.0 ? params_.lambda1_nm : (e < 0.0 ? -params_.lambda1_nm : 0.0);  // λ1 sign(ω − ω̂)
   omega_hat_ += s.dt_s / inertia_kgm2_ * (sw - s.load_torque_nm);  // Na-35, exact for held inputs
-  const double torque = out_f_.update(sw);                           // Na-21
+  const double torque = out_f_.update(sw);                         // Na-21
   if (!std::isfinite(torque) || !std::isfinite(omega_hat_)) {
     reset();
     estimate_.t_ns = s.t_ns;

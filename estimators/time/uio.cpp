@@ -40,8 +40,10 @@ void Uio::update(const TimeSample& s) noexcept {
   }
   omega_f_.set_step(s.dt_s);
   load_f_.set_step(s.dt_s);
-  // Na-14 with the filter states at t_n (inputs up to t_{n-1}); then advance the filters with the held inputs.
-  const double torque = inertia_kgm2_ * omega_f_.gain_per_s() * (s.speed_rad_s - omega_f_.state()) + load_f_.state();
+  // Na-14 with the filter states at t_n (inputs up to t_{n-1}); then advance the filters with the held
+  // inputs.
+  const double torque =
+      inertia_kgm2_ * omega_f_.gain_per_s() * (s.speed_rad_s - omega_f_.state()) + load_f_.state();
   omega_f_.update(s.speed_rad_s);
   load_f_.update(s.load_torque_nm);
   if (!std::isfinite(torque) || !std::isfinite(omega_f_.state()) || !std::isfinite(load_f_.state())) {
@@ -53,7 +55,8 @@ void Uio::update(const TimeSample& s) noexcept {
   running_s_ += s.dt_s;
   estimate_.torque_nm = torque;
   estimate_.uncertainty = 0.0;
-  estimate_.health = running_s_ >= kSettleTimeConstants * params_.k_s ? Health::kValid : Health::kNotConverged;
+  estimate_.health =
+      running_s_ >= kSettleTimeConstants * params_.k_s ? Health::kValid : Health::kNotConverged;
 }
 
 }  // namespace torqued

@@ -33,8 +33,8 @@ class Uio {
   double step_s_;
   FirstOrderFilter<double> omega_f_;
   FirstOrderFilter<double> load_f_;
-  bool primed_ = false;       ///< filters start at the first sample (avoids the zero-start transient of Na §VIII)
-  double running_s_ = 0.0;    ///< time since (re)start with good inputs (s)
+  bool primed_ = false;  ///< filters start at the first sample (avoids the zero-start transient of Na §VIII)
+  double running_s_ = 0.0;  ///< time since (re)start with good inputs (s)
   TorqueEstimate estimate_{};
 };
 

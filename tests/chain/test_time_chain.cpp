@@ -5,6 +5,7 @@
 #include <numbers>
 #include <vector>
 
+#include "steady_teeth.hpp"
 #include "time_chain.hpp"
 #include "time_stage.hpp"
 
@@ -16,20 +17,10 @@ struct Capture final : SampleSink {
   void emit(const dds::AnySample& s) noexcept override { v.push_back(s); }
 };
 
-ToothSample tooth_at(std::int64_t& tooth_t, double w) {
-  ToothSample ts;
-  ts.width_rad = 6.0 * std::numbers::pi / 180.0;
-  ts.dt_s = ts.width_rad / w;
-  tooth_t += static_cast<std::int64_t>(ts.dt_s * 1e9);
-  ts.t_ns = tooth_t;
-  ts.synced = true;
-  return ts;
-}
-
 TEST(TimeChain, StageIsAThinMappingOfTheChain) {
   // GIVEN the same steady 2500 rpm teeth fed to a time chain and to a time stage (decimation 1, no CAN)
-  // WHEN both step 500 times THEN every published sample carries the chain's estimate of that step and method,
-  // bit for bit, and the chain's step follows the configured rate.
+  // WHEN both step 500 times THEN every published sample carries the chain's estimate of that step and
+  // method, bit for bit, and the chain's step follows the configured rate.
   StageSettings s;
   s.time_decimation = 1;
   TimeChain chain(s, nullptr);
@@ -43,7 +34,7 @@ TEST(TimeChain, StageIsAThinMappingOfTheChain) {
   for (int k = 1; k <= 500; ++k) {
     const std::int64_t now = k * 1'000'000LL;
     while (tooth_t < now) {
-      const ToothSample ts = tooth_at(tooth_t, w);
+      const ToothSample ts = test::next_steady_tooth(tooth_t, w);
       chain.on_tooth(ts);
       stage.on_tooth(ts);
     }

@@ -1,5 +1,5 @@
-// config/config_loader.cpp: every bad file in tests/config/bad is refused with the expected message (file:line:col,
-// key, found, expected), good files load with the values they give, defaults equal Config{}.
+// config/config_loader.cpp: every bad file in tests/config/bad is refused with the expected message
+// (file:line:col, key, found, expected), good files load with the values they give, defaults equal Config{}.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -30,41 +30,108 @@ struct BadCase {
   std::size_t errors;    ///< total number of errors expected
 };
 
-// GIVEN a bad file WHEN it is loaded THEN it is refused, one error names file:line:col, key, found and expected.
+// GIVEN a bad file WHEN it is loaded THEN it is refused, one error names file:line:col, key, found and
+// expected.
 const BadCase kBad[] = {
-    {"negative_bore", "negative_bore.yaml:4:11: key 'engine.bore_m': found '-0.08', expected a finite number (m, range (0, 1])", 1},
-    {"firing_order_not_permutation", "firing_order_not_permutation.yaml:5:17: key 'engine.firing_order': found '[1, 3, 3, 2]', expected a permutation of 1..4 (cylinder 3 appears twice)", 1},
-    {"firing_order_wrong_length", ":5:17: key 'engine.firing_order': found '[1, 3, 4, 2]', expected a permutation of 1..3 (4 entries for 3 cylinders)", 1},
-    {"rod_too_short", "rod_too_short.yaml:5:10: key 'engine.rod_m': found '0.04', expected a rod longer than the crank radius stroke_m/2 = 0.043 m", 1},
-    {"missing_ge_teeth", "missing_ge_teeth.yaml:5:12: key 'wheel.missing': found '36', expected fewer missing teeth than teeth = 36", 1},
-    {"unknown_key_typo", "unknown_key_typo.yaml:4:3: unknown key 'engine.boer_m' (did you mean 'engine.bore_m'?)", 1},
+    {"negative_bore",
+     "negative_bore.yaml:4:11: key 'engine.bore_m': found '-0.08', expected a finite number (m, range (0, "
+     "1])",
+     1},
+    {"firing_order_not_permutation",
+     "firing_order_not_permutation.yaml:5:17: key 'engine.firing_order': found '[1, 3, 3, 2]', expected a "
+     "permutation of 1..4 (cylinder 3 appears twice)",
+     1},
+    {"firing_order_wrong_length",
+     ":5:17: key 'engine.firing_order': found '[1, 3, 4, 2]', expected a permutation of 1..3 (4 entries for "
+     "3 cylinders)",
+     1},
+    {"rod_too_short",
+     "rod_too_short.yaml:5:10: key 'engine.rod_m': found '0.04', expected a rod longer than the crank radius "
+     "stroke_m/2 = 0.043 m",
+     1},
+    {"missing_ge_teeth",
+     "missing_ge_teeth.yaml:5:12: key 'wheel.missing': found '36', expected fewer missing teeth than teeth = "
+     "36",
+     1},
+    {"unknown_key_typo",
+     "unknown_key_typo.yaml:4:3: unknown key 'engine.boer_m' (did you mean 'engine.bore_m'?)", 1},
     {"unknown_section", "unknown_section.yaml:3:1: unknown key 'engin' (did you mean 'engine'?)", 1},
-    {"key_in_wrong_section", "key_in_wrong_section.yaml:4:3: unknown key 'engine.teeth' (did you mean 'wheel.teeth'?)", 1},
-    {"wrong_type", "wrong_type.yaml:4:14: key 'engine.cylinders': found 'four', expected an integer (range [1, 8])", 1},
-    {"float_for_integer", "float_for_integer.yaml:4:14: key 'engine.cylinders': found '4.5', expected an integer", 1},
+    {"key_in_wrong_section",
+     "key_in_wrong_section.yaml:4:3: unknown key 'engine.teeth' (did you mean 'wheel.teeth'?)", 1},
+    {"wrong_type",
+     "wrong_type.yaml:4:14: key 'engine.cylinders': found 'four', expected an integer (range [1, 8])", 1},
+    {"float_for_integer",
+     "float_for_integer.yaml:4:14: key 'engine.cylinders': found '4.5', expected an integer", 1},
     {"invalid_syntax", "invalid_syntax.yaml:5:9: invalid YAML: end of sequence flow not found", 1},
     {"tab_indent", "tab_indent.yaml:4:8: invalid YAML:", 1},
-    {"unknown_backend", "unknown_backend.yaml:4:14: key 'inputs.edges.backend': found 'serial', expected one of file|gpio|can_encoder", 1},
-    {"priority_150", "priority_150.yaml:6:15: key 'realtime.angle.priority': found '150', expected an integer (range [0, 99])", 1},
-    {"fifo_priority_zero", "fifo_priority_zero.yaml:6:15: key 'realtime.time.priority': found '0', expected 1..99 with policy fifo", 1},
-    {"missing_input_file", "missing_input_file.yaml:5:11: key 'inputs.edges.path': found '../data/does_not_exist.csv' (= ", 1},
-    {"nan_value", "nan_value.yaml:4:22: key 'engine.compression_ratio': found '.nan', expected a finite number (range (1, 40])", 1},
-    {"infinite_value", "infinite_value.yaml:4:15: key 'engine.j_rot_kgm2': found '.inf', expected a finite number (kg m^2", 1},
-    {"compression_ratio_le_1", "compression_ratio_le_1.yaml:4:22: key 'engine.compression_ratio': found '0.9', expected a finite number (range (1, 40])", 1},
-    {"unknown_enum_typo", "unknown_enum_typo.yaml:4:9: key 'wheel.edge': found 'risin', expected one of rising|falling (did you mean 'rising'?)", 1},
-    {"fourier_unstable", "fourier_unstable.yaml:5:11: key 'estimators.fourier.l_ke': found '0.001', expected stable observer gains: ", 1},
+    {"unknown_backend",
+     "unknown_backend.yaml:4:14: key 'inputs.edges.backend': found 'serial', expected one of "
+     "file|gpio|can_encoder",
+     1},
+    {"priority_150",
+     "priority_150.yaml:6:15: key 'realtime.angle.priority': found '150', expected an integer (range [0, "
+     "99])",
+     1},
+    {"fifo_priority_zero",
+     "fifo_priority_zero.yaml:6:15: key 'realtime.time.priority': found '0', expected 1..99 with policy fifo",
+     1},
+    {"missing_input_file",
+     "missing_input_file.yaml:5:11: key 'inputs.edges.path': found '../data/does_not_exist.csv' (= ", 1},
+    {"nan_value",
+     "nan_value.yaml:4:22: key 'engine.compression_ratio': found '.nan', expected a finite number (range (1, "
+     "40])",
+     1},
+    {"infinite_value",
+     "infinite_value.yaml:4:15: key 'engine.j_rot_kgm2': found '.inf', expected a finite number (kg m^2", 1},
+    {"compression_ratio_le_1",
+     "compression_ratio_le_1.yaml:4:22: key 'engine.compression_ratio': found '0.9', expected a finite "
+     "number (range (1, 40])",
+     1},
+    {"unknown_enum_typo",
+     "unknown_enum_typo.yaml:4:9: key 'wheel.edge': found 'risin', expected one of rising|falling (did you "
+     "mean 'rising'?)",
+     1},
+    {"fourier_unstable",
+     "fourier_unstable.yaml:5:11: key 'estimators.fourier.l_ke': found '0.001', expected stable observer "
+     "gains: ",
+     1},
     {"duplicate_key", "duplicate_key.yaml:5:3: key 'engine.bore_m' appears twice in the same section", 1},
-    {"tooth_angles_and_teeth", "tooth_angles_and_teeth.yaml:4:10: key 'wheel.teeth': found '36', expected no value when wheel.tooth_angles_deg is given", 1},
-    {"tooth_angles_not_increasing", "tooth_angles_not_increasing.yaml:4:21: key 'wheel.tooth_angles_deg': found '205', expected strictly increasing angles", 1},
-    {"cpus_not_a_list", "cpus_not_a_list.yaml:5:11: key 'realtime.angle.cpus': found '0,1', expected a list of integers", 1},
-    {"signal_without_dbc", "signal_without_dbc.yaml:3:1: key 'can.dbc': found '', expected a DBC file path", 1},
-    {"section_is_scalar", "section_is_scalar.yaml:3:9: key 'engine': found '4', expected a section (mapping of keys: bore_m,", 1},
-    {"dbc_signal_typo", "dbc_signal_typo.yaml:6:38: key 'can.signals.map.signal': found 'MAPP', expected a signal of message ENGINE_1 in test.dbc (MAP)", 2},
-    {"e_machine_ratio_zero", "e_machine_ratio_zero.yaml:5:12: key 'can.e_machine.ratio': found '0', expected a finite number (range (0, 100])", 1},
-    {"e_machine_sign_zero", "e_machine_sign_zero.yaml:5:11: key 'can.e_machine.sign': found '0', expected +1 or -1", 1},
-    {"e_machine_sole_load_unmapped", "e_machine_sole_load_unmapped.yaml:5:16: key 'can.e_machine.sole_load': found 'true', expected can.signals.em_torque mapped", 1},
-    {"cylinder_window_overlaps", "cylinder_window_overlaps.yaml:8:26: key 'estimators.energies.cylinder_window_deg': found '150', expected less than 720 deg / cylinders = 120 deg", 1},
-    {"many_errors", "many_errors.yaml:12:10: key 'logging.level': found 'verbose', expected one of trace|debug|info|warn|error|critical|off", 6},
+    {"tooth_angles_and_teeth",
+     "tooth_angles_and_teeth.yaml:4:10: key 'wheel.teeth': found '36', expected no value when "
+     "wheel.tooth_angles_deg is given",
+     1},
+    {"tooth_angles_not_increasing",
+     "tooth_angles_not_increasing.yaml:4:21: key 'wheel.tooth_angles_deg': found '205', expected strictly "
+     "increasing angles",
+     1},
+    {"cpus_not_a_list",
+     "cpus_not_a_list.yaml:5:11: key 'realtime.angle.cpus': found '0,1', expected a list of integers", 1},
+    {"signal_without_dbc", "signal_without_dbc.yaml:3:1: key 'can.dbc': found '', expected a DBC file path",
+     1},
+    {"section_is_scalar",
+     "section_is_scalar.yaml:3:9: key 'engine': found '4', expected a section (mapping of keys: bore_m,", 1},
+    {"dbc_signal_typo",
+     "dbc_signal_typo.yaml:6:38: key 'can.signals.map.signal': found 'MAPP', expected a signal of message "
+     "ENGINE_1 in test.dbc (MAP)",
+     2},
+    {"e_machine_ratio_zero",
+     "e_machine_ratio_zero.yaml:5:12: key 'can.e_machine.ratio': found '0', expected a finite number (range "
+     "(0, 100])",
+     1},
+    {"e_machine_sign_zero",
+     "e_machine_sign_zero.yaml:5:11: key 'can.e_machine.sign': found '0', expected +1 or -1", 1},
+    {"e_machine_sole_load_unmapped",
+     "e_machine_sole_load_unmapped.yaml:5:16: key 'can.e_machine.sole_load': found 'true', expected "
+     "can.signals.em_torque mapped",
+     1},
+    {"cylinder_window_overlaps",
+     "cylinder_window_overlaps.yaml:8:26: key 'estimators.energies.cylinder_window_deg': found '150', "
+     "expected less than 720 deg / cylinders = 120 deg",
+     1},
+    {"many_errors",
+     "many_errors.yaml:12:10: key 'logging.level': found 'verbose', expected one of "
+     "trace|debug|info|warn|error|critical|off",
+     6},
 };
 
 class BadFile : public ::testing::TestWithParam<BadCase> {};
@@ -77,14 +144,18 @@ TEST_P(BadFile, IsRefusedWithPositionKeyFoundExpected) {
   EXPECT_FALSE(r.ok());
   EXPECT_FALSE(r.config.has_value());
   EXPECT_EQ(r.errors.size(), c.errors) << joined(r.errors);
-  const bool found = std::any_of(r.errors.begin(), r.errors.end(),
-                                 [&](const std::string& e) { return e.find(c.expected) != std::string::npos; });
+  const bool found = std::any_of(r.errors.begin(), r.errors.end(), [&](const std::string& e) {
+    return e.find(c.expected) != std::string::npos;
+  });
   EXPECT_TRUE(found) << "expected an error containing\n  " << c.expected << "\ngot\n" << joined(r.errors);
-  for (const auto& e : r.errors) EXPECT_EQ(e.rfind(path + ":", 0), 0u) << "error must start with the file: " << e;
+  for (const auto& e : r.errors)
+    EXPECT_EQ(e.rfind(path + ":", 0), 0u) << "error must start with the file: " << e;
 }
 
 INSTANTIATE_TEST_SUITE_P(Config, BadFile, ::testing::ValuesIn(kBad),
-                         [](const ::testing::TestParamInfo<BadCase>& i) { return std::string(i.param.file); });
+                         [](const ::testing::TestParamInfo<BadCase>& i) {
+                           return std::string(i.param.file);
+                         });
 
 TEST(ConfigLoader, EveryBadFileIsInTheTable) {
   std::size_t files = 0;
@@ -92,7 +163,8 @@ TEST(ConfigLoader, EveryBadFileIsInTheTable) {
     if (f.path().extension() != ".yaml") continue;
     ++files;
     const std::string stem = f.path().stem().string();
-    EXPECT_TRUE(std::any_of(std::begin(kBad), std::end(kBad), [&](const BadCase& c) { return stem == c.file; }))
+    EXPECT_TRUE(
+        std::any_of(std::begin(kBad), std::end(kBad), [&](const BadCase& c) { return stem == c.file; }))
         << stem << " has no expected error in kBad";
   }
   EXPECT_GE(files, 12u);
@@ -100,9 +172,11 @@ TEST(ConfigLoader, EveryBadFileIsInTheTable) {
 
 TEST(ConfigLoader, ManyErrorsAreAllReported) {
   const LoadResult r = load_config(kDir + "bad/many_errors.yaml");
-  const char* keys[] = {"engine.bore_m", "engine.stroke_m", "engine.cylinders", "wheel.teeth", "dds.domain_id", "logging.level"};
+  const char* keys[] = {"engine.bore_m", "engine.stroke_m", "engine.cylinders",
+                        "wheel.teeth",   "dds.domain_id",   "logging.level"};
   for (const char* k : keys)
-    EXPECT_NE(joined(r.errors).find(std::string("key '") + k + "'"), std::string::npos) << k << "\n" << joined(r.errors);
+    EXPECT_NE(joined(r.errors).find(std::string("key '") + k + "'"), std::string::npos) << k << "\n"
+                                                                                        << joined(r.errors);
 }
 
 TEST(ConfigLoader, GoodFileValuesAndRelativePaths) {
@@ -149,13 +223,19 @@ TEST(ConfigLoader, EveryDefaultIsInsideItsBounds) {
     if (!e.bounded) continue;
     const ConfigValue v = e.get(defaults);
     std::vector<double> xs;
-    if (e.kind == ValueKind::kDouble) xs = {v.d};
-    else if (e.kind == ValueKind::kInt) xs = {static_cast<double>(v.i)};
-    else if (e.kind == ValueKind::kDoubleList) xs = v.dl;
-    else if (e.kind == ValueKind::kIntList) xs.assign(v.il.begin(), v.il.end());
+    if (e.kind == ValueKind::kDouble)
+      xs = {v.d};
+    else if (e.kind == ValueKind::kInt)
+      xs = {static_cast<double>(v.i)};
+    else if (e.kind == ValueKind::kDoubleList)
+      xs = v.dl;
+    else if (e.kind == ValueKind::kIntList)
+      xs.assign(v.il.begin(), v.il.end());
     for (double x : xs) {
-      EXPECT_TRUE(e.lo_open ? x > e.lo : x >= e.lo) << e.key << " default " << x << " vs " << describe_expected(e);
-      EXPECT_TRUE(e.hi_open ? x < e.hi : x <= e.hi) << e.key << " default " << x << " vs " << describe_expected(e);
+      EXPECT_TRUE(e.lo_open ? x > e.lo : x >= e.lo)
+          << e.key << " default " << x << " vs " << describe_expected(e);
+      EXPECT_TRUE(e.hi_open ? x < e.hi : x <= e.hi)
+          << e.key << " default " << x << " vs " << describe_expected(e);
     }
   }
   EXPECT_TRUE(check_config_physics(defaults).empty());
@@ -163,7 +243,8 @@ TEST(ConfigLoader, EveryDefaultIsInsideItsBounds) {
 
 TEST(ConfigLoader, EnabledFlagsOfNaEstimatorsReachTheTimePipeline) {
   const LoadResult r = load_config_from_string(
-      "inputs: {edges: {backend: gpio}}\nestimators: {uio: {enabled: false}, adaptive: {enabled: false}}\n", "/tmp/x.yaml");
+      "inputs: {edges: {backend: gpio}}\nestimators: {uio: {enabled: false}, adaptive: {enabled: false}}\n",
+      "/tmp/x.yaml");
   ASSERT_TRUE(r.ok()) << joined(r.errors);
   EXPECT_FALSE(r.config->estimators.uio.enabled);
   EXPECT_FALSE(r.config->estimators.time_pipeline.uio);
@@ -174,7 +255,8 @@ TEST(ConfigLoader, EnabledFlagsOfNaEstimatorsReachTheTimePipeline) {
 TEST(ConfigLoader, MissingFileIsAClearError) {
   const LoadResult r = load_config(kDir + "no_such_config.yaml");
   ASSERT_EQ(r.errors.size(), 1u);
-  EXPECT_NE(r.errors[0].find("no_such_config.yaml: cannot open configuration file"), std::string::npos) << r.errors[0];
+  EXPECT_NE(r.errors[0].find("no_such_config.yaml: cannot open configuration file"), std::string::npos)
+      << r.errors[0];
 }
 
 TEST(ConfigLoader, FileChecksCanBeSkipped) {

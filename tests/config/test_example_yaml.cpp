@@ -1,11 +1,10 @@
 // config/torqued.example.yaml documents every key of the schema table, commented, at its default, and parses.
 #include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
 
 #include <fstream>
 #include <set>
 #include <string>
-
-#include <yaml-cpp/yaml.h>
 
 #include "config_loader.hpp"
 #include "config_schema.hpp"
@@ -14,13 +13,16 @@ namespace torqued {
 namespace {
 
 const std::string kExample = std::string(TORQUED_SOURCE_DIR) + "/config/torqued.example.yaml";
-constexpr const char* kRegenerate = "regenerate: build/service/torqued --print-schema > config/torqued.example.yaml";
+constexpr const char* kRegenerate =
+    "regenerate: build/service/torqued --print-schema > config/torqued.example.yaml";
 
 void collect(const YAML::Node& n, const std::string& prefix, std::set<std::string>& keys) {
   for (auto it = n.begin(); it != n.end(); ++it) {
     const std::string key = prefix.empty() ? it->first.Scalar() : prefix + "." + it->first.Scalar();
-    if (it->second.IsMap()) collect(it->second, key, keys);
-    else keys.insert(key);
+    if (it->second.IsMap())
+      collect(it->second, key, keys);
+    else
+      keys.insert(key);
   }
 }
 
@@ -28,7 +30,8 @@ TEST(ExampleYaml, DocumentsEverySchemaKey) {
   const YAML::Node root = YAML::LoadFile(kExample);
   std::set<std::string> keys;
   collect(root, "", keys);
-  for (const auto& e : config_schema()) EXPECT_TRUE(keys.count(e.key)) << "undocumented key " << e.key << "; " << kRegenerate;
+  for (const auto& e : config_schema())
+    EXPECT_TRUE(keys.count(e.key)) << "undocumented key " << e.key << "; " << kRegenerate;
   for (const auto& k : keys) EXPECT_NE(find_schema_entry(k), nullptr) << "example has unknown key " << k;
 }
 

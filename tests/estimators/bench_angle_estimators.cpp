@@ -1,6 +1,7 @@
-// Per-tooth cost of the angle-domain estimators (helper "angle"): pre-processing, Chauvin Kalman with asymptotic
-// periodic gains (APS) vs exact Riccati (paper Table I: 11x), Fourier observer, tooth-error learner.
-// Not a ctest: figures are reported in docs/angle_estimators.md. Run: build/tests/estimators/bench_angle_estimators
+// Per-tooth cost of the angle-domain estimators (helper "angle"): pre-processing, Chauvin Kalman with
+// asymptotic periodic gains (APS) vs exact Riccati (paper Table I: 11x), Fourier observer, tooth-error
+// learner. Not a ctest: figures are reported in docs/angle_estimators.md. Run:
+// build/tests/estimators/bench_angle_estimators
 #include <benchmark/benchmark.h>
 
 #include "chauvin_kalman.hpp"

@@ -1,6 +1,7 @@
 // Google Benchmark: the whole AnglePipeline per tooth with all methods enabled (target ≤ 2 µs median),
 // and its parts. Input: a simulated 3000 rpm steady run with CAN signals precomputed per tooth.
-// Run: build-*/tests/estimators/bench_angle_pipeline --benchmark_repetitions=5 --benchmark_report_aggregates_only
+// Run: build-*/tests/estimators/bench_angle_pipeline --benchmark_repetitions=5
+// --benchmark_report_aggregates_only
 #include <benchmark/benchmark.h>
 
 #include <vector>
@@ -23,7 +24,8 @@ const Input& input() {
     x.sc.duration_s = 1.0;
     const auto out = sim::simulate(x.sc);
     x.samples = sim::ideal_tooth_samples(out, x.sc);
-    for (const auto& s : x.samples) x.sigs.push_back(sim::signals_at(out, static_cast<double>(s.t_ns) * 1e-9));
+    for (const auto& s : x.samples)
+      x.sigs.push_back(sim::signals_at(out, static_cast<double>(s.t_ns) * 1e-9));
     return x;
   }();
   return in;

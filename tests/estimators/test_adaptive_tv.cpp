@@ -19,8 +19,8 @@ constexpr double kJ = 0.14;
 /// Excited operating point: ω and ṁ vary at different frequencies; τ_e = θ_si·[ω, ṁ] with constant θ,
 /// and the load is whatever makes J ω̇ = τ_e − τ_l hold exactly.
 struct ExcitedPlant {
-  double theta_speed = 0.05;   ///< N m s/rad
-  double theta_maf = 3000.0;   ///< N m s/kg
+  double theta_speed = 0.05;  ///< N m s/rad
+  double theta_maf = 3000.0;  ///< N m s/kg
   double omega(double t) const { return 220.0 + 25.0 * std::sin(2.0 * std::numbers::pi * 0.7 * t); }
   double domega(double t) const {
     return 25.0 * 2.0 * std::numbers::pi * 0.7 * std::cos(2.0 * std::numbers::pi * 0.7 * t);
@@ -38,8 +38,9 @@ AdaptiveParams params_for(bool tv, double kappa) {
   return p;
 }
 
-/// Law (50) converges at rate Γ·λ_min(P) (Na Theorem 3); the paper's Γ = diag(0.1, 100) is slow along the weakly
-/// excited direction, so convergence tests give law (50) a gain matched to this excitation (λ_min(P) ≈ 1e-3..1e-2).
+/// Law (50) converges at rate Γ·λ_min(P) (Na Theorem 3); the paper's Γ = diag(0.1, 100) is slow along the
+/// weakly excited direction, so convergence tests give law (50) a gain matched to this excitation (λ_min(P) ≈
+/// 1e-3..1e-2).
 AdaptiveParams converging_params_for(bool tv, double kappa) {
   AdaptiveParams p = params_for(tv, kappa);
   if (!tv) p.gamma = {2000.0, 2000.0};
@@ -88,7 +89,8 @@ TEST(AdaptiveTv, ConstantRegressorIsFlaggedNotExcitedAndKStaysBounded) {
 
 TEST(AdaptiveTv, LambdaMinClosedFormMatchesEigenSolver) {
   AdaptiveTv::Mat a;
-  for (const auto& v : {std::array<double, 3>{2.0, 0.5, 1.0}, {1e-6, 1e-7, 3.0}, {4.0, 0.0, 4.0}, {0.3, -0.2, 0.1}}) {
+  for (const auto& v :
+       {std::array<double, 3>{2.0, 0.5, 1.0}, {1e-6, 1e-7, 3.0}, {4.0, 0.0, 4.0}, {0.3, -0.2, 0.1}}) {
     a << v[0], v[1], v[1], v[2];
     Eigen::SelfAdjointEigenSolver<AdaptiveTv::Mat> es(a);
     EXPECT_NEAR(AdaptiveTv::lambda_min(a), es.eigenvalues()[0], 1e-12 * (1.0 + a.norm()));
@@ -122,7 +124,8 @@ TEST(AdaptiveTv, StepSizeBarelyChangesTheTrajectory) {
       fine.update(plant.sample(t, 0.0001));
       if (n % 10 == 0) {
         coarse.update(plant.sample(t, 0.001));
-        if (t > 0.5) max_diff = std::max(max_diff, std::abs(coarse.estimate().torque_nm - fine.estimate().torque_nm));
+        if (t > 0.5)
+          max_diff = std::max(max_diff, std::abs(coarse.estimate().torque_nm - fine.estimate().torque_nm));
       }
     }
     EXPECT_LT(max_diff, 0.01 * plant.torque(0.0)) << "law " << (tv ? 54 : 50);

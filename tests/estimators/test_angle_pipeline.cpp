@@ -1,10 +1,10 @@
 // AnglePipeline on the simulator's short scenarios: the accuracy targets for the cycle-mean torques,
 // per-cylinder imbalance and misfire, crank-only fallback, no allocation per tooth, determinism.
-// Tooth widths: the ToothErrorLearner table learned on a warm-up recording of the same wheel (eval::warmup_scenario,
-// as the daemon learns and persists it) for friction learning, imbalance, misfire, 3-cyl/36-1; the steady-target
-// test uses the simulator's true machining errors (its crank-only RLS bound of 5 N m needs the firing orders of
-// the wheel error better than the learner gets them at 3000 rpm: 5.3 N m learned). Friction is learned on the
-// fuel_cut coast-down from a zero prior.
+// Tooth widths: the ToothErrorLearner table learned on a warm-up recording of the same wheel
+// (eval::warmup_scenario, as the daemon learns and persists it) for friction learning, imbalance, misfire,
+// 3-cyl/36-1; the steady-target test uses the simulator's true machining errors (its crank-only RLS bound of
+// 5 N m needs the firing orders of the wheel error better than the learner gets them at 3000 rpm: 5.3 N m
+// learned). Friction is learned on the fuel_cut coast-down from a zero prior.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -51,7 +51,8 @@ TEST_F(AnglePipelineSim, FrictionIsLearnedInFuelCutOff) {
   EXPECT_GT(observations_, 30u);
   // −(C1 + C2 n + C3 n²) at 2000 rpm, 90 °C vs the simulator's law (26.2 N m).
   const double n = 2000.0;
-  const double learned = -(friction_[0] + friction_[1] * n + friction_[2] * n * n) * std::exp(friction_[3] * 90.0);
+  const double learned =
+      -(friction_[0] + friction_[1] * n + friction_[2] * n * n) * std::exp(friction_[3] * 90.0);
   EXPECT_NEAR(learned, 26.2, 0.8);
 }
 
@@ -62,14 +63,16 @@ TEST_F(AnglePipelineSim, SteadyCycleMeansWithinThreePercentOrTwoNm) {
     EXPECT_EQ(r.brake.pass, r.brake.n) << name << " brake max err " << r.brake.max_abs_nm;
     EXPECT_EQ(r.indicated.pass, r.indicated.n) << name << " indicated max err " << r.indicated.max_abs_nm;
     EXPECT_EQ(r.fused.pass, r.fused.n) << name << " fused max err " << r.fused.max_abs_nm;
-    EXPECT_EQ(r.indicated_eso.pass, r.indicated_eso.n) << name << " ESO max err " << r.indicated_eso.max_abs_nm;
+    EXPECT_EQ(r.indicated_eso.pass, r.indicated_eso.n)
+        << name << " ESO max err " << r.indicated_eso.max_abs_nm;
     EXPECT_LT(r.load_rls.max_abs_nm, 5.0) << name;  // crank-only extended load (paper: ±3 N m)
   }
 }
 
 TEST_F(AnglePipelineSim, FourThousandRpmLowLoadBrakeWithinTwoNmWithTheWideKineticEnergyWindow) {
-  // Edge jitter (0.3 µs) on the 720° balance grows as ω³ in N m: with the ±15° per-cylinder window only, 4000 rpm
-  // low load had 1.4 N m RMS, 3.2 N m max (84 % within 2 N m). The 120° window (CycleKeWindow) divides it by ≈ 4.
+  // Edge jitter (0.3 µs) on the 720° balance grows as ω³ in N m: with the ±15° per-cylinder window only, 4000
+  // rpm low load had 1.4 N m RMS, 3.2 N m max (84 % within 2 N m). The 120° window (CycleKeWindow) divides it
+  // by ≈ 4.
   sim::Scenario sc = sim::scenario_by_name("steady_4000_low");
   sc.duration_s = 1.2;
   const auto out = sim::simulate(sc);
@@ -77,13 +80,14 @@ TEST_F(AnglePipelineSim, FourThousandRpmLowLoadBrakeWithinTwoNmWithTheWideKineti
   ASSERT_GT(r.brake.n, 15);
   EXPECT_EQ(r.brake.pass, r.brake.n) << "brake max err " << r.brake.max_abs_nm;
   EXPECT_LT(r.brake.max_abs_nm, 2.0);
-  // (indicated = brake + friction: this fixture learned friction on the fuel_cut coast-down from 3000 rpm only)
+  // (indicated = brake + friction: this fixture learned friction on the fuel_cut coast-down from 3000 rpm
+  // only)
   EvalOptions narrow = options();
   narrow.base.energies.cycle_ke_window_deg = 0.0;  // the per-cylinder window only (before)
   const ScenarioResult n = eval::evaluate(sc, out, narrow);
   ASSERT_EQ(n.brake.n, r.brake.n);
-  std::printf("4000 rpm low load brake RMS: %.2f N m (wide window) vs %.2f N m (per-cylinder window)\n", r.brake.rms_nm,
-              n.brake.rms_nm);
+  std::printf("4000 rpm low load brake RMS: %.2f N m (wide window) vs %.2f N m (per-cylinder window)\n",
+              r.brake.rms_nm, n.brake.rms_nm);
   EXPECT_LT(r.brake.rms_nm, 0.5 * n.brake.rms_nm);
 }
 
@@ -146,8 +150,8 @@ TEST_F(AnglePipelineSim, CylinderWindowLeavesTheCycleBalanceAndItsLearnersUnchan
 }
 
 TEST_F(AnglePipelineSim, IdleIndicatedTorqueWithinTwoNmWithTheLocalIdleCorrection) {
-  // Motoring (fuel cut-off) never reaches idle: the friction law is extrapolated below ≈ 1100 rpm. Steady idle
-  // (zero load) teaches the learner a local correction (FrictionLearner, EN-30: T_fric = T_ind at idle).
+  // Motoring (fuel cut-off) never reaches idle: the friction law is extrapolated below ≈ 1100 rpm. Steady
+  // idle (zero load) teaches the learner a local correction (FrictionLearner, EN-30: T_fric = T_ind at idle).
   sim::Scenario sc = sim::scenario_by_name("idle");
   sc.duration_s = 5.0;
   const auto out = sim::simulate(sc);
@@ -158,9 +162,11 @@ TEST_F(AnglePipelineSim, IdleIndicatedTorqueWithinTwoNmWithTheLocalIdleCorrectio
   no_idle.base.friction.learn_at_idle = false;
   const ScenarioResult n = eval::evaluate(sc, out, no_idle);
   ASSERT_GE(r.indicated.n, 6);
-  std::printf("idle indicated: max %.2f N m (idle correction) vs %.2f N m (extrapolated law); last row %.2f vs %.2f\n",
-              r.indicated.max_abs_nm, n.indicated.max_abs_nm, r.rows.back().indicated - r.rows.back().indicated_true,
-              n.rows.back().indicated - n.rows.back().indicated_true);
+  std::printf(
+      "idle indicated: max %.2f N m (idle correction) vs %.2f N m (extrapolated law); last row %.2f vs "
+      "%.2f\n",
+      r.indicated.max_abs_nm, n.indicated.max_abs_nm, r.rows.back().indicated - r.rows.back().indicated_true,
+      n.rows.back().indicated - n.rows.back().indicated_true);
   EXPECT_EQ(r.indicated.pass, r.indicated.n);
   EXPECT_LT(r.indicated.max_abs_nm, 2.0);
   EXPECT_LT(std::fabs(r.rows.back().indicated - r.rows.back().indicated_true),
@@ -223,7 +229,8 @@ TEST_F(AnglePipelineSim, OnToothDoesNotAllocateAndIsDeterministic) {
   {
     torqued::test::AllocationScope scope;
     for (std::size_t i = 0; i < samples.size(); ++i) {
-      if (a.on_tooth(samples[i], sigs[i]) & AnglePipeline::kSegmentReady) first.push_back(a.cycle_output().fused.brake_nm);
+      if (a.on_tooth(samples[i], sigs[i]) & AnglePipeline::kSegmentReady)
+        first.push_back(a.cycle_output().fused.brake_nm);
     }
     EXPECT_EQ(scope.count(), 0u);
   }
@@ -286,7 +293,14 @@ TEST_F(AnglePipelineSim, InCycleKalmanAndFourierFollowTheTrueIndicatedTorque) {
     const auto it_f = truth.find(o.fourier_ind.t_ns);
     if (it_k == truth.end() || it_f == truth.end()) continue;
     const double k = o.kalman_ind.torque_nm, f = o.fourier_ind.torque_nm, t = it_k->second, tf = it_f->second;
-    sk += k; sf += f; st += t; skk += k * k; sff += f * f; stt += t * t; skt += k * t; sft += f * tf;
+    sk += k;
+    sf += f;
+    st += t;
+    skk += k * k;
+    sff += f * f;
+    stt += t * t;
+    skt += k * t;
+    sft += f * tf;
     ++n;
   }
   ASSERT_GT(n, 500);

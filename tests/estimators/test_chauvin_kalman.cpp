@@ -1,7 +1,5 @@
 // Chauvin time-varying Kalman filter (CK-3..13, CK-18): APS vs exact Riccati, accuracy against an analytic
 // truth, no allocation in update(), other engines and wheels by configuration only.
-#include "chauvin_kalman.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,6 +7,7 @@
 #include <numbers>
 
 #include "alloc_counter.hpp"
+#include "chauvin_kalman.hpp"
 #include "synthetic_crank.hpp"
 
 namespace torqued {
@@ -22,7 +21,8 @@ void apply_true_widths(test::SyntheticRun& run, const WheelGeometry& wheel) {
   for (auto& s : run.samples) {
     const int p = s.tooth % teeth;
     const int q = (p + teeth - 1) % teeth;
-    s.width_rad += run.edge_error_rad[static_cast<std::size_t>(p)] - run.edge_error_rad[static_cast<std::size_t>(q)];
+    s.width_rad +=
+        run.edge_error_rad[static_cast<std::size_t>(p)] - run.edge_error_rad[static_cast<std::size_t>(q)];
   }
 }
 
@@ -86,7 +86,8 @@ TEST(ChauvinKalman, ApsAndExactRiccatiAgreeAfterConvergence) {
     const auto ga = f_aps.last_gain(), ge = f_exact.last_gain();
     max_gain = max_gain.cwiseMax(ge.cwiseAbs());
     max_diff = max_diff.cwiseMax((ga - ge).cwiseAbs());
-    max_est_diff = std::max(max_est_diff, std::abs(f_aps.estimate().torque_nm - f_exact.estimate().torque_nm));
+    max_est_diff =
+        std::max(max_est_diff, std::abs(f_aps.estimate().torque_nm - f_exact.estimate().torque_nm));
   }
   // Relative per state where the state's gain matters (≥ 5 % of the net-torque state's): the deep smoother
   // lags of a 12-tooth smoother have gains of 0.4-2 % at 2000 rpm (with the differenced edge-noise states,
@@ -101,10 +102,10 @@ TEST(ChauvinKalman, ApsAndExactRiccatiAgreeAfterConvergence) {
     }
   }
   EXPECT_LT(max_small_abs, 0.002);
-  std::printf("APS vs exact: max relative gain difference %.3g, max estimate difference %.3g N m\n", max_gain_rel,
-              max_est_diff);
-  // THEN gains agree within 2 % (the APS gain is for the speed bins' interpolated R, the exact filter uses the
-  // running mean speed) and the torque estimates within 1 N m.
+  std::printf("APS vs exact: max relative gain difference %.3g, max estimate difference %.3g N m\n",
+              max_gain_rel, max_est_diff);
+  // THEN gains agree within 2 % (the APS gain is for the speed bins' interpolated R, the exact filter uses
+  // the running mean speed) and the torque estimates within 1 N m.
   EXPECT_LT(max_gain_rel, 0.02);
   EXPECT_LT(max_est_diff, 1.0);
 }
@@ -127,7 +128,8 @@ TEST(ChauvinKalman, ExactRiccatiConvergesToTheStoredPeriodicGains) {
   for (int k = 0; k < kk; ++k) {
     kf.riccati_step(k, w, pm, g);
     const auto aps = kf.periodic_gain(k, w);
-    for (int i = 0; i < ChauvinKalman::kStates; ++i) EXPECT_NEAR(g(i), aps(i), 1e-6 * std::abs(aps(0)) + 1e-12) << k;
+    for (int i = 0; i < ChauvinKalman::kStates; ++i)
+      EXPECT_NEAR(g(i), aps(i), 1e-6 * std::abs(aps(0)) + 1e-12) << k;
   }
 }
 

@@ -1,9 +1,9 @@
-#include "crank_kinematics.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numbers>
+
+#include "crank_kinematics.hpp"
 
 namespace torqued {
 namespace {

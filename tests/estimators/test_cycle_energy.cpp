@@ -238,7 +238,9 @@ TEST(CycleEnergy, UpdateDoesNotAllocate) {
 
 namespace {
 /// Flange load of the latency tests: 20 N m, a 300 N m/s ramp from 0.1 s to 0.25 s, a +15 N m step at 0.35 s.
-double flange_load(double t) { return 20.0 + 300.0 * std::clamp(t - 0.1, 0.0, 0.15) + (t >= 0.35 ? 15.0 : 0.0); }
+double flange_load(double t) {
+  return 20.0 + 300.0 * std::clamp(t - 0.1, 0.0, 0.15) + (t >= 0.35 ? 15.0 : 0.0);
+}
 
 struct LatencyRun {
   double max_err_ramp = 0.0;  ///< cycles entirely inside the ramp
@@ -312,15 +314,16 @@ TEST(CycleEnergy, CanLoadLatencyIsCompensated) {
   ASSERT_GT(comp.cycles, 20);
   // WITHOUT compensation a 300 N m/s ramp is under-read by r·τ ≈ 3 N m
   EXPECT_GT(raw.max_err_ramp, 2.5);
-  // WITH the 10 ms latency the residual is the hold extrapolation of each segment's last τ: r·τ²/(2·T_seg) ≈ 1 N m
-  // on average (the frame phase makes the actual latency 5..15 ms)
+  // WITH the 10 ms latency the residual is the hold extrapolation of each segment's last τ: r·τ²/(2·T_seg) ≈
+  // 1 N m on average (the frame phase makes the actual latency 5..15 ms)
   EXPECT_LT(comp.max_err_ramp, 1.6);
-  // AND a 15 N m step is booked in the right segment: it shows in fewer rolling windows (the one window whose last
-  // segment had to extrapolate it can still be off by up to S·τ/T_cycle ≈ 2.5..3.8 N m)
+  // AND a 15 N m step is booked in the right segment: it shows in fewer rolling windows (the one window whose
+  // last segment had to extrapolate it can still be off by up to S·τ/T_cycle ≈ 2.5..3.8 N m)
   EXPECT_LT(comp.step_err_sum, 0.7 * raw.step_err_sum);
   EXPECT_LT(comp.max_err, 4.0);
-  std::printf("latency: raw ramp %.2f all %.2f step sum %.2f | compensated ramp %.2f all %.2f step sum %.2f N m\n",
-              raw.max_err_ramp, raw.max_err, raw.step_err_sum, comp.max_err_ramp, comp.max_err, comp.step_err_sum);
+  std::printf(
+      "latency: raw ramp %.2f all %.2f step sum %.2f | compensated ramp %.2f all %.2f step sum %.2f N m\n",
+      raw.max_err_ramp, raw.max_err, raw.step_err_sum, comp.max_err_ramp, comp.max_err, comp.step_err_sum);
 }
 
 TEST(CycleEnergy, LatencyDelayLineDoesNotAllocate) {
@@ -337,8 +340,8 @@ TEST(CycleEnergy, LatencyDelayLineDoesNotAllocate) {
 }
 
 TEST(CycleEnergy, BrakeWithinTargetTolerancesThroughSimulatorTransients) {
-  // GIVEN the simulator's throttle step (dyno holds 2000 rpm: its torque rises by ~90 N m within two cycles) and the
-  // e-machine load step (+15 N m), CAN at 100 Hz with 5 ms flange lag
+  // GIVEN the simulator's throttle step (dyno holds 2000 rpm: its torque rises by ~90 N m within two cycles)
+  // and the e-machine load step (+15 N m), CAN at 100 Hz with 5 ms flange lag
   for (const char* name : {"throttle_step", "load_step"}) {
     const sim::Scenario sc = sim::scenario_by_name(name);
     const sim::SimOutput out = sim::simulate(sc);
@@ -350,8 +353,8 @@ TEST(CycleEnergy, BrakeWithinTargetTolerancesThroughSimulatorTransients) {
     int transient = 0;
     for (const auto& row : comp.rows) transient += row.transient ? 1 : 0;
     EXPECT_GT(transient, 3) << name;
-    // THEN every cycle is within 3 % / 2 N m (steady, incl. within 30 cycles of the step) or 5 % / 3 N m (cycles
-    // where the true torque or speed moves): the cycle-mean accuracy targets
+    // THEN every cycle is within 3 % / 2 N m (steady, incl. within 30 cycles of the step) or 5 % / 3 N m
+    // (cycles where the true torque or speed moves): the cycle-mean accuracy targets
     EXPECT_EQ(comp.brake.pass, comp.brake.n) << name << " max err " << comp.brake.max_abs_nm;
     EXPECT_EQ(comp.fused.pass, comp.fused.n) << name << " max err " << comp.fused.max_abs_nm;
     EXPECT_LE(comp.brake.max_abs_nm, raw.brake.max_abs_nm + 0.2) << name;

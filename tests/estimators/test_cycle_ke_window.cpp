@@ -1,6 +1,7 @@
 // tests/estimators/test_cycle_ke_window.cpp: the wide kinetic-energy window of the 720° balance
-// (estimators/energy/cycle_ke_window.cpp) on exact tooth sequences of a 60-2 wheel: KE ∝ ω², no cycle difference at
-// constant speed, the exact difference after a speed step, a missing tooth invalidates, W ≤ 0 disables it.
+// (estimators/energy/cycle_ke_window.cpp) on exact tooth sequences of a 60-2 wheel: KE ∝ ω², no cycle
+// difference at constant speed, the exact difference after a speed step, a missing tooth invalidates, W ≤ 0
+// disables it.
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,13 +1,12 @@
 // Chauvin adaptive Fourier-basis observer (CF-2..14): the stability check refuses bad gains with a reason,
 // accuracy against an analytic truth, no allocation in update(), other engines/wheels by configuration.
-#include "fourier_observer.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
 
 #include "alloc_counter.hpp"
+#include "fourier_observer.hpp"
 #include "synthetic_crank.hpp"
 
 namespace torqued {
@@ -18,7 +17,8 @@ void apply_true_widths(test::SyntheticRun& run, const WheelGeometry& wheel) {
   for (auto& s : run.samples) {
     const int p = s.tooth % teeth;
     const int q = (p + teeth - 1) % teeth;
-    s.width_rad += run.edge_error_rad[static_cast<std::size_t>(p)] - run.edge_error_rad[static_cast<std::size_t>(q)];
+    s.width_rad +=
+        run.edge_error_rad[static_cast<std::size_t>(p)] - run.edge_error_rad[static_cast<std::size_t>(q)];
   }
 }
 
@@ -87,7 +87,8 @@ TEST(FourierObserver, RefusesGainsThatAreUnstableOverACycleEvenIfCf14Holds) {
 }
 
 TEST(FourierObserver, TwentyHarmonicsAreRefusedOnA36Minus1WheelWithTheReason) {
-  // 70 samples per cycle: n_h = 20 passes (CF-14) but its periodic error dynamics diverge; n_h = 12 is accepted.
+  // 70 samples per cycle: n_h = 20 passes (CF-14) but its periodic error dynamics diverge; n_h = 12 is
+  // accepted.
   WheelGeometry w;
   w.positions = 36;
   w.missing = 1;

@@ -1,10 +1,9 @@
-// FrictionLearner (Energies 2019 EN-24..36): learns the law from motoring observations, C4 from idle, persists.
+// FrictionLearner (Energies 2019 EN-24..36): learns the law from motoring observations, C4 from idle,
+// persists.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
-
-#include <cmath>
 
 #include "alloc_counter.hpp"
 #include "friction_learner.hpp"
@@ -95,7 +94,8 @@ TEST(FrictionLearner, ExportImportRoundTripSurvivesRestart) {
   FrictionParams p;
   p.c = {0.0, 0.0, 0.0, -4.67e-3};
   FrictionLearner a(p);
-  for (double rpm = 3000.0; rpm > 1100.0; rpm -= 20.0) a.observe_motoring(rpm, 90.0, true_friction(rpm, 90.0));
+  for (double rpm = 3000.0; rpm > 1100.0; rpm -= 20.0)
+    a.observe_motoring(rpm, 90.0, true_friction(rpm, 90.0));
   const auto c = a.coefficients();
   FrictionLearner b(p);  // "restart"
   ASSERT_TRUE(b.import_coefficients(c));
@@ -115,8 +115,8 @@ TEST(FrictionLearner, UpdateDoesNotAllocate) {
 }
 
 TEST(FrictionLearner, IdleCorrectionIsLocalAndLeavesTheMotoringRangeAlone) {
-  // GIVEN a law learned in a 3000 -> 1100 rpm coast-down, and an engine whose friction at idle is 1.5 N m above
-  // the quadratic (motoring never reaches idle: the law is extrapolated there)
+  // GIVEN a law learned in a 3000 -> 1100 rpm coast-down, and an engine whose friction at idle is 1.5 N m
+  // above the quadratic (motoring never reaches idle: the law is extrapolated there)
   FrictionParams p;
   p.c = {0.0, 0.0, 0.0, -4.67e-3};
   FrictionLearner fl(p);
@@ -124,7 +124,8 @@ TEST(FrictionLearner, IdleCorrectionIsLocalAndLeavesTheMotoringRangeAlone) {
   p_off.learn_at_idle = false;
   FrictionLearner no_corr(p_off);
   for (FrictionLearner* l : {&fl, &no_corr}) {
-    for (double rpm = 3000.0; rpm > 1100.0; rpm -= 15.0) EXPECT_TRUE(l->observe_motoring(rpm, 90.0, true_friction(rpm, 90.0)));
+    for (double rpm = 3000.0; rpm > 1100.0; rpm -= 15.0)
+      EXPECT_TRUE(l->observe_motoring(rpm, 90.0, true_friction(rpm, 90.0)));
   }
   const double law800 = fl.friction_nm(800.0, 90.0), law1200 = fl.friction_nm(1200.0, 90.0);
   const double law2000 = fl.friction_nm(2000.0, 90.0), law4000 = fl.friction_nm(4000.0, 90.0);
@@ -135,7 +136,8 @@ TEST(FrictionLearner, IdleCorrectionIsLocalAndLeavesTheMotoringRangeAlone) {
     EXPECT_TRUE(fl.observe_idle(800.0, 90.0, idle_true + noise));
     EXPECT_TRUE(no_corr.observe_idle(800.0, 90.0, idle_true + noise));
   }
-  // THEN the idle friction is right, the correction fades out by idle_fade_rpm and the motoring range is unchanged
+  // THEN the idle friction is right, the correction fades out by idle_fade_rpm and the motoring range is
+  // unchanged
   EXPECT_NEAR(fl.friction_nm(800.0, 90.0), idle_true, 0.15);
   EXPECT_NEAR(fl.idle_correction_nm(), idle_true - law800, 0.15);
   EXPECT_NEAR(fl.idle_speed_rpm(), 800.0, 1e-9);
@@ -152,7 +154,8 @@ TEST(FrictionLearner, PersistedIdleCorrectionIsRestoredAndRefinedNotReplaced) {
   FrictionParams p;
   p.c = {0.0, 0.0, 0.0, -4.67e-3};
   FrictionLearner fl(p);
-  for (double rpm = 3000.0; rpm > 1100.0; rpm -= 15.0) fl.observe_motoring(rpm, 90.0, true_friction(rpm, 90.0));
+  for (double rpm = 3000.0; rpm > 1100.0; rpm -= 15.0)
+    fl.observe_motoring(rpm, 90.0, true_friction(rpm, 90.0));
   const double idle_true = true_friction(800.0, 90.0) + 1.5;
   for (int k = 0; k < 30; ++k) fl.observe_idle(800.0, 90.0, idle_true);
   // WHEN a restarted learner imports the coefficients and then the idle correction (the daemon's order)
@@ -167,7 +170,8 @@ TEST(FrictionLearner, PersistedIdleCorrectionIsRestoredAndRefinedNotReplaced) {
   // AND one outlying idle observation moves it by at most 1/(1 + 10) of the outlier, not all the way
   const double before = restarted.idle_correction_nm();
   ASSERT_TRUE(restarted.observe_idle(800.0, 90.0, idle_true + 5.5));
-  EXPECT_NEAR(restarted.idle_correction_nm() - before, 5.5 / (1.0 + FrictionLearner::kIdlePriorObservations), 0.05);
+  EXPECT_NEAR(restarted.idle_correction_nm() - before, 5.5 / (1.0 + FrictionLearner::kIdlePriorObservations),
+              0.05);
 }
 
 TEST(FrictionLearner, GenericPriorIsBarnesMossByDisplacement) {
@@ -197,7 +201,8 @@ TEST(FrictionLearner, IdleFrictionDoesNotCollapseOnBadIdleObservationsAfterFuelC
 }
 
 TEST(FrictionLearner, IdleCorrectionIsBounded) {
-  // A first idle observation far from the prior moves the correction by at most idle_max_correction_frac of the law.
+  // A first idle observation far from the prior moves the correction by at most idle_max_correction_frac of
+  // the law.
   FrictionParams p;
   p.c = torqued::generic_friction_prior(1.6e-3, p.sign);
   FrictionLearner fl(p);

@@ -1,5 +1,5 @@
-// FuelAngleWindow (estimators/energy/fuel_angle_window.hpp): the fuel and MAP of a 720° window come from the intake
-// events of the cylinders whose work lies in it; cut-off events are counted apart (fuel model).
+// FuelAngleWindow (estimators/energy/fuel_angle_window.hpp): the fuel and MAP of a 720° window come from the
+// intake events of the cylinders whose work lies in it; cut-off events are counted apart (fuel model).
 #include <gtest/gtest.h>
 
 #include <cmath>

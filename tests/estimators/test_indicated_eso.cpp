@@ -1,5 +1,5 @@
-// IndicatedEso (Energies 2019 EN-16..23, angle/energy form): converges to the true mean indicated torque even when
-// the efficiency model is wrong, and follows a step.
+// IndicatedEso (Energies 2019 EN-16..23, angle/energy form): converges to the true mean indicated torque even
+// when the efficiency model is wrong, and follows a step.
 #include <gtest/gtest.h>
 
 #include <cmath>

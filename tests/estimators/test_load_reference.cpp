@@ -1,7 +1,7 @@
-// estimators/core/load_reference.hpp: what fixes the load on the crank on a vehicle (clutch / neutral flags), each
-// case against its analytic value (exact, 1e-12): the flag switches the machine between the only load and one
-// input among unknown ones, a fuel cut-off with the clutch closed and no load signal is no reference, neutral
-// carries the accessory prior and its 1σ.
+// estimators/core/load_reference.hpp: what fixes the load on the crank on a vehicle (clutch / neutral flags),
+// each case against its analytic value (exact, 1e-12): the flag switches the machine between the only load
+// and one input among unknown ones, a fuel cut-off with the clutch closed and no load signal is no reference,
+// neutral carries the accessory prior and its 1σ.
 #include <gtest/gtest.h>
 
 #include <cmath>

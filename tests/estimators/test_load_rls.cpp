@@ -1,10 +1,11 @@
-// LoadRls (Energies 2019 EN-10..15 in energy form, with the expansion cylinder modelled) against the simulator.
+// LoadRls (Energies 2019 EN-10..15 in energy form, with the expansion cylinder modelled) against the
+// simulator.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
-#include <string>
 #include <numbers>
+#include <string>
 
 #include "alloc_counter.hpp"
 #include "crank_kinematics.hpp"
@@ -33,12 +34,14 @@ TEST(LoadRls, PressureModelMatchesTheSimulatorWhereTheWindowNeedsIt) {
   int checked = 0;
   for (const auto& f : out.trace) {
     const double th = f.wheel_angle_rad - sc.engine.tdc_offset_rad;
-    if (f.wheel_angle_rad < 4.0 * std::numbers::pi * 2 || f.wheel_angle_rad >= 4.0 * std::numbers::pi * 3) continue;
+    if (f.wheel_angle_rad < 4.0 * std::numbers::pi * 2 || f.wheel_angle_rad >= 4.0 * std::numbers::pi * 3)
+      continue;
     for (int cyl = 1; cyl <= 4; ++cyl) {
       const double loc = kin.local_angle(th, cyl) / kDeg;
       const double work = c.cyl_ind_mean_nm[static_cast<std::size_t>(cyl - 1)] * 4.0 * std::numbers::pi;
-      const double p_model = rls.model_pressure(loc * kDeg, c.map_pa, rls.expansion_p3(work, c.map_pa, sig.spark_advance_deg),
-                                                sig.spark_advance_deg);
+      const double p_model =
+          rls.model_pressure(loc * kDeg, c.map_pa, rls.expansion_p3(work, c.map_pa, sig.spark_advance_deg),
+                             sig.spark_advance_deg);
       const double p_sim = f.p_cyl_pa[static_cast<std::size_t>(cyl - 1)];
       // THEN the compressing cylinder (50°..20° BTDC) is within 1 %, and the cylinder that fired 180° earlier
       // (130°..160° ATDC, blowdown) within 5 % — ignoring it would be a 100 % error of several bar.
@@ -74,7 +77,8 @@ double rls_error(bool model_expansion, double* load_star_true = nullptr) {
   // Per-cylinder works from the truth of the first cycle (the pipeline measures them; here: isolate the RLS).
   for (int m = 0; m < 4; ++m) {
     const int cyl = sc.engine.firing_order[static_cast<std::size_t>(m)];
-    works[static_cast<std::size_t>(m)] = out.cycles[1].cyl_ind_mean_nm[static_cast<std::size_t>(cyl - 1)] * 4.0 * std::numbers::pi;
+    works[static_cast<std::size_t>(m)] =
+        out.cycles[1].cyl_ind_mean_nm[static_cast<std::size_t>(cyl - 1)] * 4.0 * std::numbers::pi;
   }
   for (const auto& s : samples) {
     const EngineSignals sig = sim::signals_at(out, static_cast<double>(s.t_ns) * 1e-9);
@@ -101,7 +105,8 @@ TEST(LoadRls, PaperSimplificationIsBiasedByTheExpansionCylinder) {
 }
 
 TEST(LoadRls, MotoredTorqueIsThePumpingLoss) {
-  // Fuel cut-off at 30 kPa: the motored engine loses about (p_exh − MAP)·V_d / 4π plus the expansion cut at EVO.
+  // Fuel cut-off at 30 kPa: the motored engine loses about (p_exh − MAP)·V_d / 4π plus the expansion cut at
+  // EVO.
   const EngineGeometry g;
   LoadRls rls(g, WheelGeometry{}, EnergiesParams{});
   const CrankKinematics kin(g);
@@ -125,12 +130,14 @@ TEST(LoadRls, UpdateDoesNotAllocate) {
 }
 
 TEST(LoadRls, CrankOnlyTracksTheThrottleStepAndKeepsSteadyStateQuiet) {
-  // The crank-only indicated torque Δ(½Jθ̇²)/4π + extended load (no CAN load, no friction law involved) against the
-  // simulator's truth over the same 720° windows, with and without the load-change tracker (rule 4). The expansion
-  // cylinder's closure uses the measured cylinder works, which need a friction law: learned on the coast-down.
+  // The crank-only indicated torque Δ(½Jθ̇²)/4π + extended load (no CAN load, no friction law involved)
+  // against the simulator's truth over the same 720° windows, with and without the load-change tracker (rule
+  // 4). The expansion cylinder's closure uses the measured cylinder works, which need a friction law: learned
+  // on the coast-down.
   eval::EvalOptions learn;
   learn.friction.reset();
-  const std::array<double, 4> friction = eval::evaluate(sim::scenario_by_name("fuel_cut"), learn).friction_coefficients;
+  const std::array<double, 4> friction =
+      eval::evaluate(sim::scenario_by_name("fuel_cut"), learn).friction_coefficients;
   for (const char* name : {"throttle_step", "steady_2000_mid", "steady_4000_mid"}) {
     const sim::Scenario sc = sim::scenario_by_name(name);
     const sim::SimOutput out = sim::simulate(sc);
@@ -143,8 +150,9 @@ TEST(LoadRls, CrankOnlyTracksTheThrottleStepAndKeepsSteadyStateQuiet) {
     std::printf("%s: crank-only indicated max err %.1f N m tracked, %.1f N m plain RLS\n", name,
                 on.indicated_crank.max_abs_nm, off.indicated_crank.max_abs_nm);
     if (std::string(name) == "throttle_step") {
-      // GIVEN a +10 % throttle step (the dyno torque rises ~90 N m within two cycles): the plain RLS needs 10-30
-      // cycles (≈ 80 N m error), the tracker re-seeds on the cycle mean of the compression-window observations
+      // GIVEN a +10 % throttle step (the dyno torque rises ~90 N m within two cycles): the plain RLS needs
+      // 10-30 cycles (≈ 80 N m error), the tracker re-seeds on the cycle mean of the compression-window
+      // observations
       EXPECT_GT(off.indicated_crank.max_abs_nm, 50.0);
       EXPECT_LT(on.indicated_crank.max_abs_nm, 15.0);
     } else {

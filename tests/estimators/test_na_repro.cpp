@@ -38,10 +38,13 @@ TEST(NaRepro, PaperOrderingsHoldUnderNoise) {
     EXPECT_LT(uio.sd, sm.sd) << "seed " << seed;
     EXPECT_LT(uio.sd, dd.sd) << "seed " << seed;
     // Table IV: time-varying gain with κ = 0.1 beats constant gain with κ = 0 in ISE
-    EXPECT_LT(find(r, "law54_kappa0.1").metrics.ise, find(r, "law50_kappa0.0").metrics.ise) << "seed " << seed;
+    EXPECT_LT(find(r, "law54_kappa0.1").metrics.ise, find(r, "law50_kappa0.0").metrics.ise)
+        << "seed " << seed;
     // κ = 0.1 (instant information W2) improves both laws
-    EXPECT_LT(find(r, "law54_kappa0.1").metrics.ise, find(r, "law54_kappa0.0").metrics.ise) << "seed " << seed;
-    EXPECT_LT(find(r, "law50_kappa0.1").metrics.ise, find(r, "law50_kappa0.0").metrics.ise) << "seed " << seed;
+    EXPECT_LT(find(r, "law54_kappa0.1").metrics.ise, find(r, "law54_kappa0.0").metrics.ise)
+        << "seed " << seed;
+    EXPECT_LT(find(r, "law50_kappa0.1").metrics.ise, find(r, "law50_kappa0.0").metrics.ise)
+        << "seed " << seed;
   }
 }
 

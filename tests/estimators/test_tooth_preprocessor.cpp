@@ -1,12 +1,11 @@
 // Per-tooth pre-processing: angle table of the wheel, speed from the true width, low-pass, θ̈ Kalman filter.
-#include "tooth_preprocessor.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numbers>
 
 #include "alloc_counter.hpp"
+#include "tooth_preprocessor.hpp"
 
 namespace torqued {
 namespace {
@@ -38,7 +37,8 @@ TEST(ToothAngleTable, ExplicitToothListAndThirtySixMinusOne) {
   e.tooth_count = 35;
   for (int i = 0; i < 35; ++i) e.tooth_angles_deg[static_cast<std::size_t>(i)] = 100.0 + 10.0 * i;
   const auto t2 = ToothAngleTable::build(EngineGeometry{}, e);
-  for (int k = 0; k < 70; ++k) EXPECT_NEAR(t2.width_rad[static_cast<std::size_t>(k)], t.width_rad[static_cast<std::size_t>(k)], 1e-12);
+  for (int k = 0; k < 70; ++k)
+    EXPECT_NEAR(t2.width_rad[static_cast<std::size_t>(k)], t.width_rad[static_cast<std::size_t>(k)], 1e-12);
 }
 
 TEST(ToothPreprocessor, ConstantAccelerationIsRecovered) {

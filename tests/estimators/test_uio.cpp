@@ -36,7 +36,8 @@ TEST(Uio, ConstantTorqueExactForAnyStep) {
     AnalyticPlant plant{.tau0 = 120.0, .load = 150.0};  // decelerating
     Uio uio(UioParams{.k_s = 0.01}, plant.inertia, step);
     const int steps = static_cast<int>(std::lround(1.0 / step));
-    for (int n = 0; n <= steps; ++n) uio.update(make_sample(n * step, step, plant.speed(n * step), plant.load));
+    for (int n = 0; n <= steps; ++n)
+      uio.update(make_sample(n * step, step, plant.speed(n * step), plant.load));
     EXPECT_NEAR(uio.estimate().torque_nm, 120.0, 120.0 * 1e-6) << "step " << step;
   }
 }
@@ -87,7 +88,8 @@ TEST(Uio, FilterStateMatchesFineStepIntegration) {
     const double h = kStep / sub;
     for (int i = 0; i < sub; ++i) {
       auto d = [&](double x) { return (u - x) / k; };
-      const double k1 = d(fine), k2 = d(fine + 0.5 * h * k1), k3 = d(fine + 0.5 * h * k2), k4 = d(fine + h * k3);
+      const double k1 = d(fine), k2 = d(fine + 0.5 * h * k1), k3 = d(fine + 0.5 * h * k2),
+                   k4 = d(fine + h * k3);
       fine += h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4);
     }
     ASSERT_NEAR(f.state(), fine, 1e-9 * std::abs(fine)) << "step " << n;
@@ -128,7 +130,8 @@ TEST(Uio, UpdateDoesNotAllocate) {
   AnalyticPlant plant;
   Uio uio(UioParams{}, plant.inertia, kStep);
   test::AllocationScope scope;
-  for (int n = 0; n < 1000; ++n) uio.update(make_sample(n * kStep, n % 3 ? kStep : 1.1 * kStep, plant.speed(n * kStep), plant.load));
+  for (int n = 0; n < 1000; ++n)
+    uio.update(make_sample(n * kStep, n % 3 ? kStep : 1.1 * kStep, plant.speed(n * kStep), plant.load));
   EXPECT_EQ(scope.count(), 0u);
 }
 

@@ -62,9 +62,10 @@ TEST_P(UnseenBed, MeetsTheTargetsWithAndWithoutTheLoadSignal) {
   // Without the load signal: brake within 5 % / 3 N m steady, 8 % / 5 N m transient on ≥ 85 % of the cycles.
   EXPECT_GE(frac(n.brake), 0.85) << "rms " << n.brake.rms_nm << " max " << n.brake.max_abs_nm;
   EXPECT_LE(n.brake.rms_nm, 3.0);
-  // Honest 1σ: the claimed brake σ covers the error on ≥ 50 % of the cycles (68 % ideal). Conservative since the
-  // four-parameter fuel model (its residual scale is measured at the learn run's references, larger than the
-  // short run's steady errors): 98-100 % here, 86-98 % on the full runs (was ≤ 95 % with the Willans line).
+  // Honest 1σ: the claimed brake σ covers the error on ≥ 50 % of the cycles (68 % ideal). Conservative since
+  // the four-parameter fuel model (its residual scale is measured at the learn run's references, larger than
+  // the short run's steady errors): 98-100 % here, 86-98 % on the full runs (was ≤ 95 % with the Willans
+  // line).
   EXPECT_GE(cov(n.brake), 0.50);
 }
 
@@ -125,8 +126,8 @@ TEST_P(UnseenBedFuel, TaughtAtOnePointTheMapIsWithinTargetAndNeverTaughtIsPublis
   // teaches too): at most 6 of the 16 (measured 4-6), not the whole map.
   EXPECT_GT(one.references, 50u);
   EXPECT_LE(__builtin_popcount(one.cells), 6);
-  // Never taught: published on >= 95 % of the cycles with quality prior_only, RMS <= 25 % (the generic friction
-  // law's ±40 % dominates), its wide claimed 1σ covering >= 25 %.
+  // Never taught: published on >= 95 % of the cycles with quality prior_only, RMS <= 25 % (the generic
+  // friction law's ±40 % dominates), its wide claimed 1σ covering >= 25 %.
   EXPECT_GE(never.published, 95 * never.cycles / 100);
   EXPECT_EQ(never.prior_only, never.published);
   EXPECT_LE(never.rms_pct, 25.0);

@@ -1,8 +1,8 @@
 // The angle pipeline's reference decision on a simulated hybrid (AnglePipeline::cycle_reference,
-// estimators/core/load_reference.hpp): report engine rep_i4_60 (not tuned on), short bed_hybrid_run (motored start
-// and 4.5 s standstill charging with the clutch open, then driving with the clutch closed and an overrun in
-// gear). Ideal tooth samples and the simulator's CAN frames straight into the pipeline. Truth: the fuel
-// cut-off intervals and clutch schedule of the scenario, the simulator's per-cycle friction.
+// estimators/core/load_reference.hpp): report engine rep_i4_60 (not tuned on), short bed_hybrid_run (motored
+// start and 4.5 s standstill charging with the clutch open, then driving with the clutch closed and an
+// overrun in gear). Ideal tooth samples and the simulator's CAN frames straight into the pipeline. Truth: the
+// fuel cut-off intervals and clutch schedule of the scenario, the simulator's per-cycle friction.
 #include <gtest/gtest.h>
 
 #include <cmath>

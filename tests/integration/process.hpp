@@ -1,10 +1,10 @@
 #pragma once
 // Test helper: run a program in another process with extra environment, output to a file; wait with a
 // time-out; signal it. POSIX only.
+#include <fcntl.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
-#include <fcntl.h>
 
 #include <chrono>
 #include <cstdlib>
@@ -18,7 +18,8 @@ namespace torqued::test {
 
 class Process {
  public:
-  Process(const std::vector<std::string>& argv, const std::vector<std::string>& env, const std::string& log_path) {
+  Process(const std::vector<std::string>& argv, const std::vector<std::string>& env,
+          const std::string& log_path) {
     pid_ = ::fork();
     if (pid_ == 0) {
       const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
@@ -55,7 +56,8 @@ class Process {
   /// Waits up to timeout_s; returns true when the process exited.
   bool wait(double timeout_s) {
     const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    while (running() && std::chrono::steady_clock::now() < until) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    while (running() && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
     return !running();
   }
   /// Exit code (or 128 + signal number).
@@ -79,7 +81,8 @@ inline std::string slurp(const std::string& path) {
 }
 
 /// Polls until pred() or the time-out; returns pred().
-template <class P> bool eventually(double timeout_s, P&& pred) {
+template <class P>
+bool eventually(double timeout_s, P&& pred) {
   const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   while (!pred()) {
     if (std::chrono::steady_clock::now() >= until) return false;
@@ -94,7 +97,8 @@ inline std::string write_demo_config(const std::string& dir, const std::string& 
   const std::string src = std::string(TORQUED_SOURCE_DIR) + "/config/demo.yaml";
   std::string y = slurp(src);
   auto replace_all = [&](const std::string& from, const std::string& to) {
-    for (std::size_t p = 0; (p = y.find(from, p)) != std::string::npos; p += to.size()) y.replace(p, from.size(), to);
+    for (std::size_t p = 0; (p = y.find(from, p)) != std::string::npos; p += to.size())
+      y.replace(p, from.size(), to);
   };
   replace_all("../data/demo/", std::string(TORQUED_SOURCE_DIR) + "/data/demo/");
   replace_all("dbc: demo.dbc", std::string("dbc: ") + TORQUED_SOURCE_DIR + "/config/demo.dbc");

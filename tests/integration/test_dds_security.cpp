@@ -1,7 +1,7 @@
-// tests/integration/test_dds_security.cpp: opt-in DDS Security (config/security, docs/security.md) on loopback,
-// with real processes: torqued publishing, torque-echo subscribing, each with its own identity from a test PKI
-// made here by tools/scripts/make-test-pki.sh (openssl, offline) in a temporary directory.
-// DDS domains 17, 18 and 19, one per test, used by no other test (so they may run beside the others).
+// tests/integration/test_dds_security.cpp: opt-in DDS Security (config/security, docs/security.md) on
+// loopback, with real processes: torqued publishing, torque-echo subscribing, each with its own identity from
+// a test PKI made here by tools/scripts/make-test-pki.sh (openssl, offline) in a temporary directory. DDS
+// domains 17, 18 and 19, one per test, used by no other test (so they may run beside the others).
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -73,12 +73,15 @@ class DdsSecurity : public ::testing::Test {
     return {"CYCLONEDDS_URI=file://" + kSrc + "/config/security/cyclonedds-secure-loopback.xml",
             "TORQUED_DDS_PKI=" + path(pki), "TORQUED_DDS_ROLE=" + role};
   }
-  [[nodiscard]] static Env plain() { return {"CYCLONEDDS_URI=file://" + kSrc + "/config/cyclonedds-loopback.xml"}; }
+  [[nodiscard]] static Env plain() {
+    return {"CYCLONEDDS_URI=file://" + kSrc + "/config/cyclonedds-loopback.xml"};
+  }
   /// demo.yaml on `domain` with `engine_id`, written as <name>.yaml.
   [[nodiscard]] std::string config(const std::string& name, int domain, int engine_id) const {
     const std::string sub = path(name);
     fs::create_directories(sub);
-    std::string y = test::slurp(test::write_demo_config(sub, "domain_id: 0", "domain_id: " + std::to_string(domain)));
+    std::string y =
+        test::slurp(test::write_demo_config(sub, "domain_id: 0", "domain_id: " + std::to_string(domain)));
     const std::string from = "engine_id: 1";
     y.replace(y.find(from), from.size(), "engine_id: " + std::to_string(engine_id));
     std::ofstream(sub + "/torqued.yaml") << y;
@@ -86,20 +89,30 @@ class DdsSecurity : public ::testing::Test {
   }
   [[nodiscard]] std::vector<std::string> daemon_args(const std::string& name, int domain, int engine_id,
                                                      bool wait_for_subscriber) const {
-    std::vector<std::string> a{TORQUED_EXE, "--config", config(name, domain, engine_id), "--speed", "4",
-                               "--exit-when-done", "--state-dir", path(name + "/state")};
+    std::vector<std::string> a{TORQUED_EXE,
+                               "--config",
+                               config(name, domain, engine_id),
+                               "--speed",
+                               "4",
+                               "--exit-when-done",
+                               "--state-dir",
+                               path(name + "/state")};
     if (wait_for_subscriber) a.insert(a.end(), {"--wait-subscribers", "1"});
     return a;
   }
-  [[nodiscard]] std::vector<std::string> echo_args(const std::string& name, int domain, double duration_s) const {
-    return {TORQUE_ECHO_EXE, "--domain", std::to_string(domain), "--topic", "engine", "--cycles-only",
-            "--format", "none", "--record", path(name), "--duration", std::to_string(duration_s)};
+  [[nodiscard]] std::vector<std::string> echo_args(const std::string& name, int domain,
+                                                   double duration_s) const {
+    return {TORQUE_ECHO_EXE, "--domain",   std::to_string(domain),
+            "--topic",       "engine",     "--cycles-only",
+            "--format",      "none",       "--record",
+            path(name),      "--duration", std::to_string(duration_s)};
   }
   fs::path dir_;
 };
 
 TEST_F(DdsSecurity, OnlyTheAuthenticatedSubscriberReceivesEngineTorque) {
-  // GIVEN a secure daemon (daemon identity) on domain 17 and two subscribers: one with the subscriber identity,
+  // GIVEN a secure daemon (daemon identity) on domain 17 and two subscribers: one with the subscriber
+  // identity,
   //       one without security (the plain loopback configuration)
   constexpr int kDomain = 17;
   test::Process authed(echo_args("echo_authed", kDomain, 25), secure("subscriber"), path("echo_authed.log"));
@@ -120,14 +133,16 @@ TEST_F(DdsSecurity, OnlyTheAuthenticatedSubscriberReceivesEngineTorque) {
 }
 
 TEST_F(DdsSecurity, UnauthenticatedPublishersCannotInject) {
-  // GIVEN an authenticated subscriber on domain 18, our secure daemon (engine 1), and two intruders publishing
+  // GIVEN an authenticated subscriber on domain 18, our secure daemon (engine 1), and two intruders
+  // publishing
   //       EngineTorque for engines 2 and 3: one without security, one with an identity and signed documents
   //       from another CA (a complete PKI of its own, the same subject names)
   constexpr int kDomain = 18;
   test::Process echo(echo_args("echo", kDomain, 25), secure("subscriber"), path("echo.log"));
-  test::Process plain_intruder(daemon_args("intruder_plain", kDomain, 2, false), plain(), path("intruder_plain.log"));
-  test::Process rogue_intruder(daemon_args("intruder_rogue", kDomain, 3, false), secure("daemon", "rogue_pki"),
-                               path("intruder_rogue.log"));
+  test::Process plain_intruder(daemon_args("intruder_plain", kDomain, 2, false), plain(),
+                               path("intruder_plain.log"));
+  test::Process rogue_intruder(daemon_args("intruder_rogue", kDomain, 3, false),
+                               secure("daemon", "rogue_pki"), path("intruder_rogue.log"));
   test::Process daemon(daemon_args("daemon", kDomain, 1, true), secure("daemon"), path("daemon.log"));
   // WHEN all three publish for the length of the demo
   for (auto* p : {&daemon, &plain_intruder, &rogue_intruder}) ASSERT_TRUE(p->wait(60));
@@ -147,7 +162,8 @@ TEST_F(DdsSecurity, EachRoleOnlyWhatItsPermissionsGrant) {
   //       the daemon identity running torque-echo (subscribing)
   test::Process daemon_as_subscriber(daemon_args("daemon_as_sub", kDomain, 1, false), secure("subscriber"),
                                      path("daemon_as_sub.log"));
-  test::Process echo_as_daemon(echo_args("echo_as_daemon", kDomain, 10), secure("daemon"), path("echo_as_daemon.log"));
+  test::Process echo_as_daemon(echo_args("echo_as_daemon", kDomain, 10), secure("daemon"),
+                               path("echo_as_daemon.log"));
   // WHEN they start
   ASSERT_TRUE(daemon_as_subscriber.wait(30));
   ASSERT_TRUE(echo_as_daemon.wait(30));

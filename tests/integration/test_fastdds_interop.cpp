@@ -21,9 +21,9 @@ TEST(FastDdsInterop, FastDdsSubscriberReceivesEngineTorque) {
   const std::string out = (dir / "fastdds.out").string(), err = (dir / "fastdds.err").string();
   constexpr int kCount = 60;
   test::Process sub({FASTDDS_SUB_EXE, std::to_string(kCount), "40"}, {}, out);
-  test::Process d({TORQUED_EXE, "--config", std::string(TORQUED_SOURCE_DIR) + "/config/demo.yaml", "--speed", "4",
-                   "--exit-when-done", "--wait-subscribers", "1", "--record", (dir / "rec").string(), "--state-dir",
-                   (dir / "state").string()},
+  test::Process d({TORQUED_EXE, "--config", std::string(TORQUED_SOURCE_DIR) + "/config/demo.yaml", "--speed",
+                   "4", "--exit-when-done", "--wait-subscribers", "1", "--record", (dir / "rec").string(),
+                   "--state-dir", (dir / "state").string()},
                   {}, (dir / "daemon.log").string());
   ASSERT_TRUE(sub.wait(45)) << test::slurp(out);
   ASSERT_EQ(sub.exit_code(), 0) << "Fast DDS subscriber failed:\n" << test::slurp(out);
@@ -43,7 +43,8 @@ TEST(FastDdsInterop, FastDdsSubscriberReceivesEngineTorque) {
       fused[std::stoull(c[2])] = std::stod(c[15]);
     }
   }
-  // Fast DDS lines: "cycle kind fused_nm seq engine_id" (stdout and stderr share the file; skip stderr lines).
+  // Fast DDS lines: "cycle kind fused_nm seq engine_id" (stdout and stderr share the file; skip stderr
+  // lines).
   std::istringstream in(test::slurp(out));
   std::string line;
   int checked = 0;

@@ -9,12 +9,12 @@
 //   - paced with DDS and mlockall, the daemon stays within 64 MiB resident (thread stacks of 512 KiB);
 //   - without the right to SCHED_FIFO and mlockall it runs anyway, says so and flags it in DaemonStatus,
 //     unless realtime.require_rt is set.
-#include <algorithm>
 #include <gtest/gtest.h>
 #include <sched.h>
 #include <sys/socket.h>
 #include <sys/un.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -163,7 +163,8 @@ TEST_F(Service, SighupAppliesDecimationLive) {
   const std::string rec = (dir_ / "rec").string();
   test::Process d(args({"--record", rec}), {}, (dir_ / "daemon.log").string());
   ASSERT_TRUE(test::eventually(10, [&] { return log().find("running") != std::string::npos; })) << log();
-  ASSERT_TRUE(test::eventually(10, [&] { return csv_rows(rec + "/crank_state.csv") > 60; })) << log();  // > 20 steps of 10
+  ASSERT_TRUE(test::eventually(10, [&] { return csv_rows(rec + "/crank_state.csv") > 60; }))
+      << log();  // > 20 steps of 10
   std::string y = test::slurp(config_);
   y.replace(y.find("  engine_id: 1"), 14, "  engine_id: 1\n  crank_state_decimation: 1");
   std::ofstream(config_) << y;
@@ -172,7 +173,8 @@ TEST_F(Service, SighupAppliesDecimationLive) {
     return log().find("SIGHUP: applied decimation") != std::string::npos;
   })) << log();
   const std::size_t at_reload = csv_rows(rec + "/crank_state.csv");
-  ASSERT_TRUE(test::eventually(10, [&] { return csv_rows(rec + "/crank_state.csv") > at_reload + 300; })) << log();
+  ASSERT_TRUE(test::eventually(10, [&] { return csv_rows(rec + "/crank_state.csv") > at_reload + 300; }))
+      << log();
   d.signal(SIGTERM);
   ASSERT_TRUE(d.wait(5));
   EXPECT_EQ(d.exit_code(), 0);
@@ -232,8 +234,10 @@ TEST_F(Service, FastReplayCarriesLearnedStateLikeTheService) {
   EXPECT_NE(l3.find("--fresh-state"), std::string::npos) << l3;
   const std::string c1 = test::slurp((dir_ / "r1" / "engine_cycle.csv").string());
   ASSERT_GT(c1.size(), 1000u);
-  EXPECT_FALSE(c1 == test::slurp((dir_ / "r2" / "engine_cycle.csv").string())) << "the learned state changed nothing";
-  EXPECT_TRUE(c1 == test::slurp((dir_ / "r3" / "engine_cycle.csv").string())) << "--fresh-state is not a fresh start";
+  EXPECT_FALSE(c1 == test::slurp((dir_ / "r2" / "engine_cycle.csv").string()))
+      << "the learned state changed nothing";
+  EXPECT_TRUE(c1 == test::slurp((dir_ / "r3" / "engine_cycle.csv").string()))
+      << "--fresh-state is not a fresh start";
 }
 
 TEST_F(Service, LearnedStateSurvivesKill9) {
@@ -261,7 +265,8 @@ TEST_F(Service, LearnedStateSurvivesKill9) {
   ASSERT_TRUE(test::eventually(10, [&] { return test::slurp(log2).find("running") != std::string::npos; }))
       << test::slurp(log2);
   // The line lists what the angle chain applied (a table the decoder refused would say REJECTED instead).
-  EXPECT_NE(test::slurp(log2).find("learned state loaded from " + state + ": friction law"), std::string::npos)
+  EXPECT_NE(test::slurp(log2).find("learned state loaded from " + state + ": friction law"),
+            std::string::npos)
       << test::slurp(log2);
   EXPECT_NE(test::slurp(log2).find(", 58 tooth corrections"), std::string::npos) << test::slurp(log2);
   EXPECT_EQ(test::slurp(log2).find("REJECTED"), std::string::npos) << test::slurp(log2);
@@ -270,7 +275,8 @@ TEST_F(Service, LearnedStateSurvivesKill9) {
 }
 
 TEST_F(Service, FastReplayOfDemoIsByteIdentical) {
-  // Same input, same (empty) learned state: --fresh-state, or the second run would start from the first's state.
+  // Same input, same (empty) learned state: --fresh-state, or the second run would start from the first's
+  // state.
   for (const char* run : {"a", "b"}) {
     test::Process d(args({"--replay", "fast", "--fresh-state", "--record", (dir_ / run).string()}), {},
                     (dir_ / (std::string(run) + ".log")).string());
@@ -426,7 +432,8 @@ TEST_F(Service, CycloneThreadsInheritThePublisherScheduling) {
       {std::string("CYCLONEDDS_URI=file://") + TORQUED_SOURCE_DIR + "/config/cyclonedds-loopback.xml"},
       (dir_ / "daemon.log").string());
   ASSERT_TRUE(test::eventually(15, [&] { return log().find("running") != std::string::npos; })) << log();
-  // "running" is logged once the threads are started; each names itself right after it starts: wait for the names.
+  // "running" is logged once the threads are started; each names itself right after it starts: wait for the
+  // names.
   std::map<std::string, std::pair<int, int>> by_name;
   (void)test::eventually(10, [&] {
     by_name.clear();

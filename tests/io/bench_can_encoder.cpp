@@ -15,7 +15,8 @@ namespace {
 std::vector<EdgeEvent> make_edges(std::size_t n) {
   std::vector<EdgeEvent> e(n);
   for (std::size_t k = 0; k < n; ++k) {
-    e[k] = {static_cast<std::int64_t>(k) * 83'333 + 17, 0, static_cast<std::uint8_t>(k & 1)};  // 6000 rpm, 60-2
+    e[k] = {static_cast<std::int64_t>(k) * 83'333 + 17, 0,
+            static_cast<std::uint8_t>(k & 1)};  // 6000 rpm, 60-2
   }
   return e;
 }

@@ -2,10 +2,10 @@
 //   edges decoded per second (crank decoder), edge CSV parsing MB/s, candump parsing lines/s and MB/s,
 //   signal-store frames/s. Run: build-io/tests/io/bench_io
 #include <benchmark/benchmark.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <string>
-#include <unistd.h>
 
 #include "candump_source.hpp"
 #include "crank_decoder.hpp"
@@ -47,7 +47,9 @@ void BM_DecodeEdges(benchmark::State& state) {
 }
 BENCHMARK(BM_DecodeEdges)->Unit(benchmark::kMillisecond);
 
-std::string temp_path(const char* name) { return "/tmp/torqued_bench_" + std::to_string(::getpid()) + "_" + name; }
+std::string temp_path(const char* name) {
+  return "/tmp/torqued_bench_" + std::to_string(::getpid()) + "_" + name;
+}
 
 const std::string& edge_csv_file() {
   static const std::string path = [] {
@@ -90,13 +92,15 @@ const std::string& candump_file() {
   static const std::string path = [] {
     const std::string p = temp_path("can.log");
     std::FILE* f = std::fopen(p.c_str(), "w");
-    for (int i = 0; i < 600'000; ++i) {  // ~27 MB: 100 Hz x 4 messages x 25 min, plus some FD and extended frames
+    for (int i = 0; i < 600'000;
+         ++i) {  // ~27 MB: 100 Hz x 4 messages x 25 min, plus some FD and extended frames
       const long long us = 1'700'000'000'000'000LL + i * 2500LL;
       if (i % 50 == 7) {
-        std::fprintf(f, "(%lld.%06lld) can1 18FF0102##100112233445566778899AABBCCDDEEFF\n", us / 1'000'000, us % 1'000'000);
+        std::fprintf(f, "(%lld.%06lld) can1 18FF0102##100112233445566778899AABBCCDDEEFF\n", us / 1'000'000,
+                     us % 1'000'000);
       } else {
-        std::fprintf(f, "(%lld.%06lld) can0 %03X#%02X11223344556677\n", us / 1'000'000, us % 1'000'000, 0x100 + i % 4,
-                     i & 0xFF);
+        std::fprintf(f, "(%lld.%06lld) can0 %03X#%02X11223344556677\n", us / 1'000'000, us % 1'000'000,
+                     0x100 + i % 4, i & 0xFF);
       }
     }
     std::fclose(f);
@@ -123,7 +127,8 @@ BENCHMARK(BM_CandumpParse)->Unit(benchmark::kMillisecond);
 void BM_SignalStoreFrame(benchmark::State& state) {
   const auto r = DbcDatabase::parse_string(
       "BO_ 256 ENGINE_1: 8 ECU\n SG_ EngineSpeed : 0|16@1+ (0.25,0) [0|16383.75] \"rpm\" X\n"
-      " SG_ MAP : 16|16@1+ (0.01,0) [0|655.35] \"kPa\" X\n SG_ IntakeAirTemp : 32|8@1- (1,0) [-40|125] \"degC\" X\n"
+      " SG_ MAP : 16|16@1+ (0.01,0) [0|655.35] \"kPa\" X\n SG_ IntakeAirTemp : 32|8@1- (1,0) [-40|125] "
+      "\"degC\" X\n"
       " SG_ Throttle : 47|8@0+ (0.4,0) [0|102] \"%\" X\n",
       "bench");
   SignalStore store(*r.db);

@@ -1,11 +1,11 @@
 #pragma once
 // Small helpers for io/ tests: temporary files.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <fstream>
 #include <string>
-#include <unistd.h>
 
 namespace torqued::test {
 

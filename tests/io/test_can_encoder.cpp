@@ -69,7 +69,8 @@ TEST(CanEncoderFrame, RoundTripFullFdFrame) {
   cfg.tick_ns = 1;
   std::vector<EdgeEvent> edges;
   for (int k = 0; k < 15; ++k) {
-    edges.push_back({(std::int64_t{1} << 31) + 12345 * k, static_cast<std::uint8_t>(k % 3 == 0), static_cast<std::uint8_t>(k & 1)});
+    edges.push_back({(std::int64_t{1} << 31) + 12345 * k, static_cast<std::uint8_t>(k % 3 == 0),
+                     static_cast<std::uint8_t>(k & 1)});
   }
   // WHEN encoded and decoded
   CanFrame f;
@@ -186,7 +187,8 @@ TEST(CanEncoderEdgeSource, ReproducesEdgesAcrossManyWrapsWithoutAllocating) {
 TEST(CanEncoderEdgeSource, CountsLostAndDuplicateFramesAndIgnoresOtherIds) {
   CanEncoderConfig cfg;
   std::vector<EdgeEvent> edges;
-  for (int k = 0; k < 15 * 300; ++k) edges.push_back({100'000 + 50'000 * k, 0, static_cast<std::uint8_t>(k & 1)});
+  for (int k = 0; k < 15 * 300; ++k)
+    edges.push_back({100'000 + 50'000 * k, 0, static_cast<std::uint8_t>(k & 1)});
   auto frames = encode_all(edges, cfg);
   ASSERT_EQ(frames.size(), 300u);
   // Lose frames 10, 11, 12 and 100; the sequence also wraps past 255 on the way.
@@ -245,8 +247,8 @@ TEST(CanEncoderEdgeSource, MalformedFrameIsCountedAndNamed) {
 }
 
 TEST(CanEncoderEdgeSource, AlignsToReceiveClockAndFollowsOscillatorDrift) {
-  // GIVEN an encoder whose oscillator runs 80 ppm fast with its own origin, edges every 1 ms for 120 s, frames
-  // received 200 µs + 0..300 µs (pseudo-random) after their last edge, on a host clock near 1.7e18 ns
+  // GIVEN an encoder whose oscillator runs 80 ppm fast with its own origin, edges every 1 ms for 120 s,
+  // frames received 200 µs + 0..300 µs (pseudo-random) after their last edge, on a host clock near 1.7e18 ns
   const std::int64_t host0 = 1'700'000'000'000'000'000;
   const double drift = 80e-6;
   const std::int64_t delay = 200'000;
@@ -274,9 +276,9 @@ TEST(CanEncoderEdgeSource, AlignsToReceiveClockAndFollowsOscillatorDrift) {
   // WHEN decoded
   const auto got = drain(src);
   ASSERT_EQ(got.size(), host_t.size());
-  // THEN after 20 s the edges sit on the host clock, late by the transport floor (200 µs) within 20 µs (jitter 300 µs),
-  // the error does not grow (without alignment: 9.6 ms after 120 s), and no period is changed by more than
-  // the slew limit
+  // THEN after 20 s the edges sit on the host clock, late by the transport floor (200 µs) within 20 µs
+  // (jitter 300 µs), the error does not grow (without alignment: 9.6 ms after 120 s), and no period is
+  // changed by more than the slew limit
   double worst = 0.0, worst_period = 0.0;
   for (std::size_t k = 20'000; k < got.size(); ++k) {
     const double err = static_cast<double>(got[k].t_ns - (host_t[k] + delay));

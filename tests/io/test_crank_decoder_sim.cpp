@@ -57,7 +57,8 @@ TEST_P(DecoderOnSim, SyncsKeepsSyncAndAngleErrorBelowToothError) {
   EXPECT_EQ(plain.stats.noise_edges, 0u);
   EXPECT_EQ(plain.stats.lost_teeth, 0u);
   EXPECT_EQ(plain.mismatches, 0);
-  EXPECT_GT(plain.checked, static_cast<int>(out.teeth.size()) - 4 * sc.wheel.teeth());  // synced within 2 cycles
+  EXPECT_GT(plain.checked,
+            static_cast<int>(out.teeth.size()) - 4 * sc.wheel.teeth());  // synced within 2 cycles
   EXPECT_LE(plain.max_angle_err_rad, max_tooth_err + 1e-12);
   // AND with the true correction table the angle is exact
   const Result corrected = decode(out, sc.wheel, true);
@@ -65,8 +66,8 @@ TEST_P(DecoderOnSim, SyncsKeepsSyncAndAngleErrorBelowToothError) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenarios, DecoderOnSim,
-                         ::testing::Values("steady_1000_low", "steady_4000_high", "three_cyl", "wheel_36_1", "misfire",
-                                           "fuel_cut", "idle", "load_step", "throttle_step"),
+                         ::testing::Values("steady_1000_low", "steady_4000_high", "three_cyl", "wheel_36_1",
+                                           "misfire", "fuel_cut", "idle", "load_step", "throttle_step"),
                          [](const auto& info) { return std::string(info.param); });
 
 }  // namespace

@@ -1,5 +1,5 @@
-// DBC parser on snippets written in the styles of Vector CANdb++, cantools and Kvaser Database Editor exports,
-// plus bit extraction checked against hand-packed payloads.
+// DBC parser on snippets written in the styles of Vector CANdb++, cantools and Kvaser Database Editor
+// exports, plus bit extraction checked against hand-packed payloads.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -14,7 +14,8 @@ namespace {
 constexpr const char* kCandb =
     "VERSION \"\"\r\n\r\n\r\nNS_ : \r\n\tNS_DESC_\r\n\tCM_\r\n\tBA_DEF_\r\n\tBA_\r\n\tVAL_\r\n\tCAT_DEF_\r\n"
     "\tCAT_\r\n\tFILTER\r\n\tBA_DEF_DEF_\r\n\tEV_DATA_\r\n\tENVVAR_DATA_\r\n\tSGTYPE_\r\n\tSGTYPE_VAL_\r\n"
-    "\tBA_DEF_SGTYPE_\r\n\tBA_SGTYPE_\r\n\tSIG_TYPE_REF_\r\n\tVAL_TABLE_\r\n\tSIG_GROUP_\r\n\tSIG_VALTYPE_\r\n"
+    "\tBA_DEF_SGTYPE_\r\n\tBA_SGTYPE_\r\n\tSIG_TYPE_REF_\r\n\tVAL_TABLE_\r\n\tSIG_GROUP_\r\n\tSIG_VALTYPE_"
+    "\r\n"
     "\tSIGTYPE_VALTYPE_\r\n\tBO_TX_BU_\r\n\tBA_DEF_REL_\r\n\tBA_REL_\r\n\tBA_DEF_DEF_REL_\r\n\tBU_SG_REL_\r\n"
     "\tBU_EV_REL_\r\n\tBU_BO_REL_\r\n\tSG_MUL_VAL_\r\n\r\nBS_:\r\n\r\nBU_: ECU DYNO Logger\r\n"
     "VAL_TABLE_ OnOff 1 \"On\" 0 \"Off\" ;\r\n\r\n\r\n"
@@ -107,7 +108,8 @@ TEST(Dbc, CandbStyle) {
   EXPECT_EQ(map->unit, "kPa");
   EXPECT_EQ(map->comment, "Manifold absolute pressure");
   EXPECT_EQ(e1->find("EngineSpeed")->receivers.size(), 2u);
-  // Payload: speed 3000 rpm = 12000 = 0x2EE0; MAP 101.3 kPa = 10130 = 0x2792; IAT -5 = 0xFB; throttle 40 % = 100
+  // Payload: speed 3000 rpm = 12000 = 0x2EE0; MAP 101.3 kPa = 10130 = 0x2792; IAT -5 = 0xFB; throttle 40 % =
+  // 100
   const std::uint8_t d[8] = {0xE0, 0x2E, 0x92, 0x27, 0xFB, 100, 0, 0};
   EXPECT_DOUBLE_EQ(e1->find("EngineSpeed")->decode(d, 8), 3000.0);
   EXPECT_NEAR(map->decode(d, 8), 101.30, 1e-9);
@@ -165,22 +167,24 @@ TEST(Dbc, KvaserStyleExtendedAndWarnings) {
 }
 
 TEST(Dbc, ErrorsNameFileAndLineAndParsingContinues) {
-  constexpr const char* bad = "VERSION \"\"\n"
-                              "BO_ 256 A: 8 ECU\n"
-                              " SG_ Good : 0|8@1+ (1,0) [0|255] \"\" X\n"
-                              " SG_ Broken : 8|8@2+ (1,0) [0|255] \"\" X\n"
-                              "BO_ 256 B: 8 ECU\n"
-                              " SG_ Long : 0|65@1+ (1,0) [0|1] \"\" X\n"
-                              "BO_ 4096 C: 8 ECU\n"
-                              "CM_ SG_ 256 Good \"never closed;\n"
-                              "FOO_ bar;\n";
+  constexpr const char* bad =
+      "VERSION \"\"\n"
+      "BO_ 256 A: 8 ECU\n"
+      " SG_ Good : 0|8@1+ (1,0) [0|255] \"\" X\n"
+      " SG_ Broken : 8|8@2+ (1,0) [0|255] \"\" X\n"
+      "BO_ 256 B: 8 ECU\n"
+      " SG_ Long : 0|65@1+ (1,0) [0|1] \"\" X\n"
+      "BO_ 4096 C: 8 ECU\n"
+      "CM_ SG_ 256 Good \"never closed;\n"
+      "FOO_ bar;\n";
   const auto r = DbcDatabase::parse_string(bad, "bad.dbc");
   EXPECT_FALSE(r.db.has_value());
   ASSERT_EQ(r.errors.size(), 5u) << ::testing::PrintToString(r.errors);
   EXPECT_NE(r.errors[0].find("bad.dbc:4: expected 'SG_"), std::string::npos) << r.errors[0];
   EXPECT_NE(r.errors[1].find("bad.dbc:5: message B: duplicate id 0x100"), std::string::npos) << r.errors[1];
   EXPECT_NE(r.errors[2].find("bad.dbc:6: SG_ outside"), std::string::npos) << r.errors[2];
-  EXPECT_NE(r.errors[3].find("bad.dbc:7: message C: standard id 0x1000 above 0x7FF"), std::string::npos) << r.errors[3];
+  EXPECT_NE(r.errors[3].find("bad.dbc:7: message C: standard id 0x1000 above 0x7FF"), std::string::npos)
+      << r.errors[3];
   EXPECT_NE(r.errors[4].find("bad.dbc:8: statement not terminated"), std::string::npos) << r.errors[4];
 }
 
@@ -212,8 +216,8 @@ TEST(Dbc, RawExtractionEdgeCases) {
 }
 
 TEST(Dbc, WordAtATimeExtractionEqualsTheBitwiseDefinition) {
-  // GIVEN every start bit of a 64-byte CAN FD payload, every length 1..64, both byte orders, signed and unsigned,
-  // random payloads and payloads cut short (bytes past len read as 0)
+  // GIVEN every start bit of a 64-byte CAN FD payload, every length 1..64, both byte orders, signed and
+  // unsigned, random payloads and payloads cut short (bytes past len read as 0)
   std::mt19937_64 rng(7);
   std::uint8_t d[64];
   int checked = 0;
@@ -229,7 +233,8 @@ TEST(Dbc, WordAtATimeExtractionEqualsTheBitwiseDefinition) {
         const std::size_t len = (start % 5 == 0) ? static_cast<std::size_t>(rng() % 65) : 64u;
         // THEN the fast path gives the bitwise definition's value
         ASSERT_EQ(s.raw(d, len), s.raw_bitwise(d, len))
-            << "start " << start << " length " << length << (s.little_endian ? " Intel" : " Motorola") << " len " << len;
+            << "start " << start << " length " << length << (s.little_endian ? " Intel" : " Motorola")
+            << " len " << len;
         ++checked;
       }
   EXPECT_EQ(checked, 512 * 64 * 2);
@@ -243,8 +248,10 @@ TEST(Dbc, MutatedFilesNeverCrash) {
       std::string text = sample;
       for (int k = 0; k < 5; ++k) {
         const std::size_t pos = rng() % text.size();
-        if (rng() % 2) text[pos] = "\"|;:@+-()[], \nM0123456789abcdef_"[rng() % 32];
-        else text.erase(pos, 1 + rng() % 8);
+        if (rng() % 2)
+          text[pos] = "\"|;:@+-()[], \nM0123456789abcdef_"[rng() % 32];
+        else
+          text.erase(pos, 1 + rng() % 8);
       }
       const auto r = DbcDatabase::parse_string(text, "mutated.dbc");
       if (r.db) {
@@ -259,9 +266,11 @@ TEST(Dbc, MutatedFilesNeverCrash) {
 TEST(Dbc, DemoDbcParsesWhenPresent) {
   const std::string path = std::string(TORQUED_SOURCE_DIR) + "/config/demo.dbc";
   const auto r = DbcDatabase::parse_file(path);
-  if (!r.errors.empty() && r.errors[0].find("cannot open") != std::string::npos) GTEST_SKIP() << "no " << path << " yet";
+  if (!r.errors.empty() && r.errors[0].find("cannot open") != std::string::npos)
+    GTEST_SKIP() << "no " << path << " yet";
   ASSERT_TRUE(r.db.has_value()) << r.errors.front();
-  for (const char* name : {"ENGINE_1", "ENGINE_2", "ENGINE_3", "DYNO_1"}) EXPECT_NE(r.db->find(name), nullptr) << name;
+  for (const char* name : {"ENGINE_1", "ENGINE_2", "ENGINE_3", "DYNO_1"})
+    EXPECT_NE(r.db->find(name), nullptr) << name;
 }
 
 }  // namespace

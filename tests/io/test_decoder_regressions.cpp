@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "crank_decoder.hpp"
+#include "synthetic_wheel.hpp"
 
 namespace torqued {
 namespace {
@@ -17,19 +18,7 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 
 WheelGeometry runs_wheel(int positions, const std::vector<int>& runs, bool rising = true) {
-  WheelGeometry w;
-  w.positions = positions;
-  int pos = 0, n = 0;
-  for (std::size_t r = 0; r < runs.size(); ++r) {
-    if (r % 2 == 0) {
-      for (int i = 0; i < runs[r]; ++i)
-        w.tooth_angles_deg[static_cast<std::size_t>(n++)] = 360.0 * (pos++) / positions;
-    } else {
-      pos += runs[r];
-    }
-  }
-  w.tooth_count = n;
-  w.missing = positions - n;
+  WheelGeometry w = test::wheel_runs(positions, runs);  // the shared sensor simulator's wheel builder
   w.rising_edge = rising;
   return w;
 }

@@ -1,10 +1,10 @@
 // io/looping_source.hpp: replay.loop restarts a recording with its times shifted by one common period.
-#include "looping_source.hpp"
-
 #include <gtest/gtest.h>
 
 #include <memory>
 #include <vector>
+
+#include "looping_source.hpp"
 
 namespace torqued {
 namespace {
@@ -65,7 +65,8 @@ TEST(LoopingSource, EdgesRestartShiftedByThePeriodWithCumulativeCounters) {
     got.push_back(e.t_ns);
   }
   // THEN the times continue loop after loop (strictly increasing), shifted by exactly 600 ns each loop
-  const std::vector<std::int64_t> want{1000, 1100, 1200, 1400, 1600, 1700, 1800, 2000, 2200, 2300, 2400, 2600};
+  const std::vector<std::int64_t> want{1000, 1100, 1200, 1400, 1600, 1700,
+                                       1800, 2000, 2200, 2300, 2400, 2600};
   EXPECT_EQ(got, want);
   EXPECT_EQ(opened, 3);
   EXPECT_EQ(s.loops(), 2u);

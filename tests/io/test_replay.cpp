@@ -57,7 +57,8 @@ TEST(ReplayMerger, OrdersByTimeEdgesFirstOnTiesAndAppliesOffset) {
   std::vector<std::pair<int, std::int64_t>> got;
   ReplayMerger::Item it;
   while (m.next(it) == SourceStatus::kOk) got.emplace_back(static_cast<int>(it.kind), it.t_ns());
-  const std::vector<std::pair<int, std::int64_t>> want = {{1, 5}, {0, 10}, {0, 20}, {1, 20}, {0, 30}, {1, 40}};
+  const std::vector<std::pair<int, std::int64_t>> want = {{1, 5},  {0, 10}, {0, 20},
+                                                          {1, 20}, {0, 30}, {1, 40}};
   EXPECT_EQ(got, want);
   EXPECT_EQ(m.edges_out(), 3u);
   EXPECT_EQ(m.frames_out(), 3u);

@@ -161,9 +161,14 @@ TEST_F(SignalStoreTest, CachedSnapshotEqualsFreshOneAtAnyTime) {
     const unsigned what = static_cast<unsigned>(rng() % 100);
     if (what < 8) {  // frames: engine_1, engine_2 (sometimes out of range), dyno; sometimes a gap (stale)
       const auto b = static_cast<std::uint8_t>(rng());
-      if (what < 3) (void)store_->on_frame(frame(0x100, t, {0, 0, b, 0x27, static_cast<std::uint8_t>(b % 100), 0, 0, 0}));
-      else if (what < 6) (void)store_->on_frame(frame(0x101, t, {b, 0xD2, 0x50, 0x14, 0, static_cast<std::uint8_t>(b & 1), 0, 0}));
-      else (void)store_->on_frame(frame(0x200, t, {b, static_cast<std::uint8_t>(rng() % 2 ? 0x7F : 0x01), 0, 0}));
+      if (what < 3)
+        (void)store_->on_frame(frame(0x100, t, {0, 0, b, 0x27, static_cast<std::uint8_t>(b % 100), 0, 0, 0}));
+      else if (what < 6)
+        (void)store_->on_frame(
+            frame(0x101, t, {b, 0xD2, 0x50, 0x14, 0, static_cast<std::uint8_t>(b & 1), 0, 0}));
+      else
+        (void)store_->on_frame(
+            frame(0x200, t, {b, static_cast<std::uint8_t>(rng() % 2 ? 0x7F : 0x01), 0, 0}));
     } else if (what == 8) {
       t += 80'000'000;  // everything times out
     } else if (what == 9) {

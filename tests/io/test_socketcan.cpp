@@ -76,7 +76,8 @@ TEST(SocketCanSource, StopWakesABlockedNext) {
   CanFrame f;
   SourceStatus st = SourceStatus::kWouldBlock;
   const auto t0 = std::chrono::steady_clock::now();
-  while (st == SourceStatus::kWouldBlock && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(30)) {
+  while (st == SourceStatus::kWouldBlock &&
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(30)) {
     st = s.next(f);
   }
   stopper.join();

@@ -68,7 +68,8 @@ TEST(StateFormat, APhysicsFuelModelLineRoundTripsExactly) {
   FuelTorqueState f = *s.fuel;
   f.physics = true;
   f.theta = {0.93123456789012345, 0.081, 5123.25, 31000.5};
-  for (std::size_t i = 0; i < f.p.size(); ++i) f.p[i] = (i % 5 == 0) ? 1e-3 * static_cast<double>(i + 1) : 0.0;
+  for (std::size_t i = 0; i < f.p.size(); ++i)
+    f.p[i] = (i % 5 == 0) ? 1e-3 * static_cast<double>(i + 1) : 0.0;
   for (std::size_t i = 0; i < f.cells.size(); ++i) f.cells[i] = static_cast<std::uint16_t>(i * 4000);
   s.fuel = f;
   const std::string text = serialize_state(s, kIdentity);

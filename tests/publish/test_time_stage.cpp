@@ -1,6 +1,6 @@
-// tests/publish/test_time_stage.cpp: the time chain's DDS mapping (publish/time_stage.cpp) and the one validity
-// mapping shared with the angle stage (publish/validity.hpp): decimation, method ids, every Health flagged the
-// same way, a non-finite value never valid, and a bad step rejected.
+// tests/publish/test_time_stage.cpp: the time chain's DDS mapping (publish/time_stage.cpp) and the one
+// validity mapping shared with the angle stage (publish/validity.hpp): decimation, method ids, every Health
+// flagged the same way, a non-finite value never valid, and a bad step rejected.
 #include <gtest/gtest.h>
 
 #include <limits>
@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "dbc.hpp"
+#include "steady_teeth.hpp"
 #include "time_stage.hpp"
 #include "validity.hpp"
 
@@ -21,15 +22,7 @@ struct Capture final : SampleSink {
 
 // Synced 6° teeth at constant speed `w` (rad/s) up to `now`; `tooth_t` is the last tooth's time (ns).
 void feed_teeth_until(TimeStage& t, std::int64_t now, double w, std::int64_t& tooth_t) {
-  while (tooth_t < now) {
-    ToothSample ts;
-    ts.width_rad = 6.0 * std::numbers::pi / 180.0;
-    ts.dt_s = ts.width_rad / w;
-    tooth_t += static_cast<std::int64_t>(ts.dt_s * 1e9);
-    ts.t_ns = tooth_t;
-    ts.synced = true;
-    t.on_tooth(ts);
-  }
+  while (tooth_t < now) t.on_tooth(test::next_steady_tooth(tooth_t, w));
 }
 
 TEST(Validity, EveryHealthHasOneMeaning) {

@@ -2,10 +2,10 @@
 // 16-byte EdgeEvent record: (a) push+pop in one thread (pure cost), (b) producer/consumer on two threads
 // (throughput). Not in ctest; run build-*/tests/rt/bench_ring.
 #include <benchmark/benchmark.h>
+#include <readerwriterqueue/readerwriterqueue.h>
 
 #include <atomic>
 #include <boost/lockfree/spsc_queue.hpp>
-#include <readerwriterqueue/readerwriterqueue.h>
 #include <thread>
 
 #include "records.hpp"
@@ -31,7 +31,8 @@ struct Boost {
   bool pop(EdgeEvent& e) { return q.pop(e); }
 };
 
-template <class Q> void BM_PushPopSameThread(benchmark::State& st) {
+template <class Q>
+void BM_PushPopSameThread(benchmark::State& st) {
   auto q = std::make_unique<Q>();
   EdgeEvent e{}, out{};
   for (auto _ : st) {
@@ -42,7 +43,8 @@ template <class Q> void BM_PushPopSameThread(benchmark::State& st) {
   st.SetItemsProcessed(st.iterations());
 }
 
-template <class Q> void BM_TwoThreads(benchmark::State& st) {
+template <class Q>
+void BM_TwoThreads(benchmark::State& st) {
   constexpr std::int64_t kBatch = 1 << 20;
   for (auto _ : st) {
     auto q = std::make_unique<Q>();
@@ -50,7 +52,8 @@ template <class Q> void BM_TwoThreads(benchmark::State& st) {
     std::thread consumer([&] {
       EdgeEvent out{};
       std::int64_t n = 0;
-      while (!go.load(std::memory_order_acquire)) {}
+      while (!go.load(std::memory_order_acquire)) {
+      }
       while (n < kBatch)
         if (q->pop(out)) ++n;
     });
@@ -68,9 +71,18 @@ template <class Q> void BM_TwoThreads(benchmark::State& st) {
 BENCHMARK(BM_PushPopSameThread<Ours>)->Name("push_pop/same_thread/ours");
 BENCHMARK(BM_PushPopSameThread<Moody>)->Name("push_pop/same_thread/moodycamel");
 BENCHMARK(BM_PushPopSameThread<Boost>)->Name("push_pop/same_thread/boost");
-BENCHMARK(BM_TwoThreads<Ours>)->Name("transfer/two_threads/ours")->UseRealTime()->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_TwoThreads<Moody>)->Name("transfer/two_threads/moodycamel")->UseRealTime()->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_TwoThreads<Boost>)->Name("transfer/two_threads/boost")->UseRealTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_TwoThreads<Ours>)
+    ->Name("transfer/two_threads/ours")
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_TwoThreads<Moody>)
+    ->Name("transfer/two_threads/moodycamel")
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_TwoThreads<Boost>)
+    ->Name("transfer/two_threads/boost")
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
 }  // namespace
 
 BENCHMARK_MAIN();

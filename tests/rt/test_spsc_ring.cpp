@@ -1,12 +1,11 @@
 // tests/rt/test_spsc_ring.cpp: SPSC ring semantics (rt/spsc_ring.hpp).
-#include "spsc_ring.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cstdint>
 #include <thread>
 
 #include "alloc_counter.hpp"
+#include "spsc_ring.hpp"
 
 namespace torqued {
 namespace {

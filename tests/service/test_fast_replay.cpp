@@ -1,6 +1,7 @@
-// tests/service/test_fast_replay.cpp: the single-threaded replay (service/fast_replay.cpp) on a synthetic 60-2
-// wheel with known speed: per-cycle speed matches the analytic truth, output is byte-identical across runs,
-// and the replay makes no heap allocation once the stages are built (allocation test over a full replay).
+// tests/service/test_fast_replay.cpp: the single-threaded replay (service/fast_replay.cpp) on a synthetic
+// 60-2 wheel with known speed: per-cycle speed matches the analytic truth, output is byte-identical across
+// runs, and the replay makes no heap allocation once the stages are built (allocation test over a full
+// replay).
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,10 +1,10 @@
-// service/logging.cpp: journald style has "<N>" priority prefixes and no colour codes; terminal style has neither.
+// service/logging.cpp: journald style has "<N>" priority prefixes and no colour codes; terminal style has
+// neither.
 #include <gtest/gtest.h>
+#include <spdlog/sinks/ostream_sink.h>
 
 #include <cstdlib>
 #include <sstream>
-
-#include <spdlog/sinks/ostream_sink.h>
 
 #include "logging.hpp"
 

@@ -71,7 +71,8 @@ TEST(RuntimeAllocation, RealTimeThreadsDoNotAllocateOverAFullReplay) {
   Runtime rt(s, o, &src, nullptr, 0, nullptr, sink);
   ASSERT_TRUE(rt.ok()) << rt.error();
   ASSERT_TRUE(rt.start()) << rt.error();
-  for (int i = 0; i < 200 && !rt.input_done(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  for (int i = 0; i < 200 && !rt.input_done(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   EXPECT_TRUE(rt.input_done());
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
   EXPECT_TRUE(rt.stop_and_drain(1'000'000'000));

@@ -1,7 +1,8 @@
 // tests/service/test_stage_settings.cpp: the daemon's YAML keys reach StageSettings (publication decimations,
 // edge time-out, status period, decoder max_trend/lost_tooth_min_rpm, in-cycle estimator parameters), bad
 // values are refused with the key named, and the per-tooth Kalman/Fourier EstimatorTorque samples follow
-// dds.tooth_estimator_decimation (Kalman stamped at the edge it refers to, before the tooth that produced it).
+// dds.tooth_estimator_decimation (Kalman stamped at the edge it refers to, before the tooth that produced
+// it).
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -55,11 +56,12 @@ TEST(StageSettings, DefaultsMatchTheStructs) {
 }
 
 TEST(StageSettings, BadValuesNameTheKey) {
-  for (const auto& [yaml, key] : {std::pair{"dds: {crank_state_decimation: 0}\n", "dds.crank_state_decimation"},
-                                  std::pair{"dds: {tooth_estimator_decimation: -1}\n", "dds.tooth_estimator_decimation"},
-                                  std::pair{"dds: {status_period_s: 0}\n", "dds.status_period_s"},
-                                  std::pair{"inputs: {edges: {timeout_s: -1}}\n", "inputs.edges.timeout_s"},
-                                  std::pair{"wheel: {decoder: {max_trend: 0.5}}\n", "wheel.decoder.max_trend"}}) {
+  for (const auto& [yaml, key] :
+       {std::pair{"dds: {crank_state_decimation: 0}\n", "dds.crank_state_decimation"},
+        std::pair{"dds: {tooth_estimator_decimation: -1}\n", "dds.tooth_estimator_decimation"},
+        std::pair{"dds: {status_period_s: 0}\n", "dds.status_period_s"},
+        std::pair{"inputs: {edges: {timeout_s: -1}}\n", "inputs.edges.timeout_s"},
+        std::pair{"wheel: {decoder: {max_trend: 0.5}}\n", "wheel.decoder.max_trend"}}) {
     const LoadResult r = load_config_from_string(yaml, "/tmp/x.yaml", LoadOptions{false});
     ASSERT_FALSE(r.ok()) << yaml;
     ASSERT_FALSE(r.errors.empty());
@@ -104,7 +106,8 @@ TEST(StageSettings, ToothEstimatorDecimation) {
     EXPECT_EQ(sink.kalman, sink.fourier) << "decimation " << dec;
     if (dec == 1) {
       EXPECT_GT(sink.kalman, 1500) << "2000 rpm 60-2 for 1 s: ~1900 teeth";
-      EXPECT_GT(sink.kalman_before_tooth, sink.kalman * 9 / 10) << "Kalman = fixed-lag smoother: stamped at an earlier edge";
+      EXPECT_GT(sink.kalman_before_tooth, sink.kalman * 9 / 10)
+          << "Kalman = fixed-lag smoother: stamped at an earlier edge";
       EXPECT_GT(sink.fourier_at_tooth, sink.fourier * 9 / 10);
     }
     counts[dec == 0 ? 0 : dec == 1 ? 1 : 2] = sink.kalman;

@@ -14,8 +14,8 @@ struct Run {
 };
 
 /// Simulates `name` shortened to `duration_s` after applying `tweak`; cached under `key` (default: name).
-inline const Run& run(const std::string& name, double duration_s, const std::function<void(Scenario&)>& tweak = {},
-                      const std::string& key = {}) {
+inline const Run& run(const std::string& name, double duration_s,
+                      const std::function<void(Scenario&)>& tweak = {}, const std::string& key = {}) {
   static std::map<std::string, Run> cache;
   const std::string k = (key.empty() ? name : key) + "/" + std::to_string(duration_s);
   auto it = cache.find(k);

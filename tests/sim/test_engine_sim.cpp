@@ -1,7 +1,5 @@
 // Physics of the crank-angle simulator (energy balance, IMEP/BMEP/peak pressure, g = f', t(θ)
 // monotonic, gap visible, reproducibility, misfire/fuel-cut truth) and the estimator-facing views.
-#include "engine_sim.hpp"
-
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -12,6 +10,7 @@
 #include "can_codec.hpp"
 #include "crank_kinematics.hpp"
 #include "engine_model.hpp"
+#include "engine_sim.hpp"
 #include "sim_fixture.hpp"
 
 namespace torqued::sim {
@@ -33,15 +32,17 @@ double net_work(const std::vector<FineSample>& tr, std::size_t i0, std::size_t i
 }
 
 TEST(EngineSim, EnergyBalanceOverCyclesIncludingALoadStep) {
-  // GIVEN the load-step scenario traced at every 0.1° step, WHEN we integrate T_ind − T_fric − T_load over each
-  // 720° cycle, THEN it equals the change of ½Jθ̇² (CF-2) to 0.1 % of the indicated work of the cycle.
-  const auto& r = run("load_step", 1.4, [](Scenario& s) { s.trace_every_steps = 1; }, "load_step_trace");
+  // GIVEN the load-step scenario traced at every 0.1° step, WHEN we integrate T_ind − T_fric − T_load over
+  // each 720° cycle, THEN it equals the change of ½Jθ̇² (CF-2) to 0.1 % of the indicated work of the cycle.
+  const auto& r = run(
+      "load_step", 1.4, [](Scenario& s) { s.trace_every_steps = 1; }, "load_step_trace");
   const auto& tr = r.out.trace;
   ASSERT_GT(tr.size(), 1000u);
   int checked = 0, changing = 0;
   std::size_t i0 = 0;
   for (std::size_t i = 1; i < tr.size(); ++i) {
-    if (std::floor(tr[i].wheel_angle_rad / kFourPi + 1e-9) != std::floor(tr[i0].wheel_angle_rad / kFourPi + 1e-9)) {
+    if (std::floor(tr[i].wheel_angle_rad / kFourPi + 1e-9) !=
+        std::floor(tr[i0].wheel_angle_rad / kFourPi + 1e-9)) {
       if (std::fmod(tr[i0].wheel_angle_rad, kFourPi) < 1e-9) {
         double abs_work = 0.0;
         for (std::size_t j = i0; j < i; ++j)
@@ -95,7 +96,8 @@ TEST(EngineSim, SteadyCycleTruthIsConsistent) {
     // Steady: load absorbs the brake torque.
     EXPECT_NEAR(c.t_load_mean_nm, c.t_brake_mean_nm, 0.5);
     // Friction law (EN-27, sign-corrected) at 2000 rpm and 90 °C.
-    EXPECT_NEAR(c.t_fric_mean_nm, (23.86 - 2.45e-3 * 2000 + 5.2e-6 * 2000 * 2000) * std::exp(-4.67e-3 * 90), 0.3);
+    EXPECT_NEAR(c.t_fric_mean_nm, (23.86 - 2.45e-3 * 2000 + 5.2e-6 * 2000 * 2000) * std::exp(-4.67e-3 * 90),
+                0.3);
   }
 }
 
@@ -145,11 +147,14 @@ TEST(EngineSim, FallingEdgeAndExplicitToothListWheels) {
   // GIVEN the 36-1 wheel written as an explicit tooth list with falling marking edges, THEN the marking edges
   // have level 0 and the tooth truth equals that of the N−M description (same seed, same machining errors).
   const auto& nm = run("wheel_36_1", 0.2);
-  const auto& ex = run("wheel_36_1", 0.2, [](Scenario& s) {
-    s.wheel.tooth_count = 35;
-    for (int k = 0; k < 35; ++k) s.wheel.tooth_angles_deg[k] = 10.0 * k;
-    s.wheel.rising_edge = false;
-  }, "wheel_36_1_explicit_falling");
+  const auto& ex = run(
+      "wheel_36_1", 0.2,
+      [](Scenario& s) {
+        s.wheel.tooth_count = 35;
+        for (int k = 0; k < 35; ++k) s.wheel.tooth_angles_deg[k] = 10.0 * k;
+        s.wheel.rising_edge = false;
+      },
+      "wheel_36_1_explicit_falling");
   ASSERT_EQ(nm.out.teeth.size(), ex.out.teeth.size());
   for (std::size_t i = 0; i < nm.out.teeth.size(); ++i) {
     ASSERT_EQ(nm.out.teeth[i].tooth, ex.out.teeth[i].tooth);
@@ -178,8 +183,8 @@ TEST(EngineSim, EdgeTimesConvergeWithTheIntegrationStep) {
   const auto& a = run("steady_2000_high", 0.3, tweak(0.1), "conv_0.1");
   const auto& b = run("steady_2000_high", 0.3, tweak(0.05), "conv_0.05");
   ASSERT_EQ(a.out.teeth.size(), b.out.teeth.size());
-  // Absolute times also carry the (tiny) drift of the explicitly integrated slow loops (dyno, manifold), which
-  // see a different grid; tooth periods isolate the crank integration error.
+  // Absolute times also carry the (tiny) drift of the explicitly integrated slow loops (dyno, manifold),
+  // which see a different grid; tooth periods isolate the crank integration error.
   double worst = 0.0, worst_period = 0.0;
   for (std::size_t i = 0; i < a.out.teeth.size(); ++i) {
     worst = std::max(worst, std::abs(a.out.teeth[i].t_s - b.out.teeth[i].t_s));
@@ -321,8 +326,9 @@ TEST(EngineSim, SignalsAtMatchTruth) {
 }
 
 TEST(EngineSim, EMachineFrameCarriesTheLoadThroughItsRatioOnlyWhenPresent) {
-  // GIVEN a scenario whose load is an electric machine through a 2:1 gear WHEN simulated THEN EM_1 (0x210) carries
-  // the machine's shaft torque, −T_load / 2 (driving positive), within the sensor noise; the demo set has no EM_1.
+  // GIVEN a scenario whose load is an electric machine through a 2:1 gear WHEN simulated THEN EM_1 (0x210)
+  // carries the machine's shaft torque, −T_load / 2 (driving positive), within the sensor noise; the demo set
+  // has no EM_1.
   Scenario sc = scenario_by_name("steady_2000_mid");
   sc.duration_s = 0.5;
   sc.e_machine.present = true;
@@ -335,7 +341,8 @@ TEST(EngineSim, EMachineFrameCarriesTheLoadThroughItsRatioOnlyWhenPresent) {
   EXPECT_NEAR(sig.em_torque_nm, -c.t_load_mean_nm / 2.0, 2.0);
   EXPECT_TRUE(std::any_of(out.can.begin(), out.can.end(), [](const CanFrame& f) { return f.id == kEm1Id; }));
   const auto& plain = run("steady_2000_mid", 0.5);
-  EXPECT_FALSE(std::any_of(plain.out.can.begin(), plain.out.can.end(), [](const CanFrame& f) { return f.id == kEm1Id; }));
+  EXPECT_FALSE(std::any_of(plain.out.can.begin(), plain.out.can.end(),
+                           [](const CanFrame& f) { return f.id == kEm1Id; }));
   EXPECT_FALSE(signals_at(plain.out, c.t_end_s).em_torque_valid);
 }
 
@@ -353,8 +360,8 @@ TEST(EngineSim, AllScenariosAreNamedAndDistinct) {
   const auto names = scenario_names();
   const std::set<std::string> unique(names.begin(), names.end());
   EXPECT_EQ(unique.size(), names.size());
-  for (const char* want : {"steady_1000_low", "steady_4000_high", "throttle_step", "load_step", "imbalance", "misfire",
-                           "fuel_cut", "idle", "three_cyl", "wheel_36_1", "demo"})
+  for (const char* want : {"steady_1000_low", "steady_4000_high", "throttle_step", "load_step", "imbalance",
+                           "misfire", "fuel_cut", "idle", "three_cyl", "wheel_36_1", "demo"})
     EXPECT_TRUE(unique.count(want)) << want;
   for (const auto& n : names) EXPECT_EQ(scenario_by_name(n).name, n);
 }

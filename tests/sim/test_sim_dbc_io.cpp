@@ -1,5 +1,5 @@
-// The committed config/demo.dbc, parsed by io/'s DBC parser, decodes the simulator's frames to the same values
-// the simulator packed (both byte orders), and its signal ranges match the codec table.
+// The committed config/demo.dbc, parsed by io/'s DBC parser, decodes the simulator's frames to the same
+// values the simulator packed (both byte orders), and its signal ranges match the codec table.
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,7 +1,5 @@
 // File formats of the simulator (docs/simulator.md §7: edge CSV, candump -l, truth CSVs, engine YAML) and the
 // CAN packing behind config/demo.dbc (Intel and Motorola round trips, committed DBC in sync with the code).
-#include "sim_writer.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -12,6 +10,7 @@
 #include "can_codec.hpp"
 #include "sim_fixture.hpp"
 #include "sim_random.hpp"
+#include "sim_writer.hpp"
 
 namespace torqued::sim {
 namespace {
@@ -40,7 +39,8 @@ TEST(CanCodec, RoundTripEverySignalBothByteOrders) {
       for (std::size_t i = 0; i < m.signals.size(); ++i)
         EXPECT_NEAR(unpack_signal(m.signals[i], data.data()), want[i], 0.5001 * m.signals[i].factor)
             << m.name << "." << m.signals[i].name;
-      for (std::size_t b = static_cast<std::size_t>(m.dlc); b < data.size(); ++b) EXPECT_EQ(data[b], 0) << m.name;
+      for (std::size_t b = static_cast<std::size_t>(m.dlc); b < data.size(); ++b)
+        EXPECT_EQ(data[b], 0) << m.name;
     }
   }
 }
@@ -122,23 +122,26 @@ TEST(SimWriter, CandumpFormatAndTimes) {
 TEST(SimWriter, TruthCsvHeadersAndRows) {
   const auto& r = run("steady_2000_mid", 0.2);
   const auto tooth = lines(truth_tooth_csv(r.out, r.scenario));
-  EXPECT_EQ(tooth[0],
-            "t_s,tooth,angle720_deg,speed_rad_s,t_ind_nm,t_ind_cyl1_nm,t_ind_cyl2_nm,t_ind_cyl3_nm,t_ind_cyl4_nm,"
-            "t_mass_nm,t_fric_nm,t_load_nm,t_brake_nm");
+  EXPECT_EQ(
+      tooth[0],
+      "t_s,tooth,angle720_deg,speed_rad_s,t_ind_nm,t_ind_cyl1_nm,t_ind_cyl2_nm,t_ind_cyl3_nm,t_ind_cyl4_nm,"
+      "t_mass_nm,t_fric_nm,t_load_nm,t_brake_nm");
   EXPECT_EQ(tooth.size(), r.out.teeth.size() + 1);
   const auto cyc = lines(truth_cycle_csv(r.out, r.scenario));
-  EXPECT_EQ(cyc[0].rfind("cycle,t_start_s,t_end_s,speed_mean_rpm,t_ind_mean_nm,t_brake_mean_nm,t_fric_mean_nm,"
-                         "t_load_mean_nm,cyl1_ind_mean_nm,cyl2_ind_mean_nm,cyl3_ind_mean_nm,cyl4_ind_mean_nm,"
-                         "misfire1,misfire2,misfire3,misfire4,fuel_cut",
-                         0),
-            0u);
+  EXPECT_EQ(
+      cyc[0].rfind("cycle,t_start_s,t_end_s,speed_mean_rpm,t_ind_mean_nm,t_brake_mean_nm,t_fric_mean_nm,"
+                   "t_load_mean_nm,cyl1_ind_mean_nm,cyl2_ind_mean_nm,cyl3_ind_mean_nm,cyl4_ind_mean_nm,"
+                   "misfire1,misfire2,misfire3,misfire4,fuel_cut",
+                   0),
+      0u);
   EXPECT_EQ(cyc.size(), r.out.cycles.size() + 1);
   const auto ncols = [](const std::string& s) { return std::count(s.begin(), s.end(), ',') + 1; };
   for (const auto& l : tooth) EXPECT_EQ(ncols(l), ncols(tooth[0]));
   for (const auto& l : cyc) EXPECT_EQ(ncols(l), ncols(cyc[0]));
   const std::string yaml = engine_yaml(r.scenario);
-  for (const char* key : {"engine:\n", "  cylinders: 4\n", "  firing_order: [1, 3, 4, 2]\n", "  bore_m: 0.0825\n",
-                          "  tdc_offset_deg: 90\n", "wheel:\n", "  teeth: 60\n", "  missing: 2\n", "  edge: rising\n"})
+  for (const char* key :
+       {"engine:\n", "  cylinders: 4\n", "  firing_order: [1, 3, 4, 2]\n", "  bore_m: 0.0825\n",
+        "  tdc_offset_deg: 90\n", "wheel:\n", "  teeth: 60\n", "  missing: 2\n", "  edge: rising\n"})
     EXPECT_NE(yaml.find(key), std::string::npos) << key;
 }
 
@@ -159,9 +162,11 @@ TEST(SimWriter, SameSeedGivesByteIdenticalFiles) {
 
 TEST(SimWriter, WritesAllFilesIntoADirectory) {
   const auto& r = run("steady_2000_mid", 0.2);
-  const auto dir = std::filesystem::temp_directory_path() / ("torqued_sim_test_" + std::to_string(::getpid()));
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("torqued_sim_test_" + std::to_string(::getpid()));
   write_outputs(r.out, r.scenario, dir);
-  for (const char* f : {"edges.csv", "can.log", "truth_tooth.csv", "truth_cycle.csv", "engine.yaml", "tooth_errors.csv"})
+  for (const char* f :
+       {"edges.csv", "can.log", "truth_tooth.csv", "truth_cycle.csv", "engine.yaml", "tooth_errors.csv"})
     EXPECT_GT(std::filesystem::file_size(dir / f), 10u) << f;
   std::filesystem::remove_all(dir);
   EXPECT_THROW(write_outputs(r.out, r.scenario, "/proc/no/such/dir"), std::runtime_error);

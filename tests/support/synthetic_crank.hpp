@@ -1,6 +1,6 @@
 #pragma once
-// Analytic crank-speed generator for the angle-estimator tests (helper "angle"): integrates the energy form of the
-// crankshaft balance d(½J(θ)θ̇²)/dθ = T_ind(θ) − T_load (docs/equations.md §0, CF-2) for a known,
+// Analytic crank-speed generator for the angle-estimator tests (helper "angle"): integrates the energy form
+// of the crankshaft balance d(½J(θ)θ̇²)/dθ = T_ind(θ) − T_load (docs/equations.md §0, CF-2) for a known,
 // speed-independent indicated torque, so the truth is exact. Tooth edges get a fixed per-tooth angle error
 // and Gaussian jitter. Also: the accuracy metrics shared by the tests (RMS error in % of the true
 // peak-to-peak, lag by cross-correlation).
@@ -19,23 +19,23 @@
 namespace torqued::test {
 
 struct SyntheticRun {
-  std::vector<ToothSample> samples;   ///< measured teeth (nominal widths), first one not synced
-  std::vector<double> t_ind_nm;       ///< true indicated torque at each sample's edge
-  std::vector<double> t_net_nm;       ///< true T_ind − T_load at each edge
-  std::vector<double> edge_error_rad; ///< per physical tooth machining error (rad)
-  double load_nm = 0.0;               ///< constant load (= cycle-mean indicated torque)
+  std::vector<ToothSample> samples;    ///< measured teeth (nominal widths), first one not synced
+  std::vector<double> t_ind_nm;        ///< true indicated torque at each sample's edge
+  std::vector<double> t_net_nm;        ///< true T_ind − T_load at each edge
+  std::vector<double> edge_error_rad;  ///< per physical tooth machining error (rad)
+  double load_nm = 0.0;                ///< constant load (= cycle-mean indicated torque)
 };
 
 struct SyntheticSpec {
   EngineGeometry engine{};
   WheelGeometry wheel{};
-  double rpm = 2000.0;          ///< mean speed
+  double rpm = 2000.0;  ///< mean speed
   int cycles = 30;
-  double peak_bar = 40.0;       ///< combustion pressure bump (bar) on top of the motored pressure
-  double map_bar = 0.6;         ///< pressure at IVC (bar)
+  double peak_bar = 40.0;  ///< combustion pressure bump (bar) on top of the motored pressure
+  double map_bar = 0.6;    ///< pressure at IVC (bar)
   double tooth_error_deg = 0.05;
   double jitter_s = 0.3e-6;
-  std::uint64_t wheel_seed = 7; ///< fixed wheel (same machining errors for every run with this seed)
+  std::uint64_t wheel_seed = 7;  ///< fixed wheel (same machining errors for every run with this seed)
   std::uint64_t noise_seed = 11;
 };
 
@@ -128,10 +128,12 @@ inline SyntheticRun make_synthetic(const SyntheticSpec& sp) {
   for (int n = 0; n < sp.cycles * kk + 1; ++n) {
     const int k = n % kk;
     const int p = k % teeth;
-    const double wheel_angle = (n / kk) * 4.0 * pi + (k / teeth) * 2.0 * pi + e1[static_cast<std::size_t>(p)] +
+    const double wheel_angle = (n / kk) * 4.0 * pi + (k / teeth) * 2.0 * pi +
+                               e1[static_cast<std::size_t>(p)] +
                                run.edge_error_rad[static_cast<std::size_t>(p)];
     const double theta = wheel_angle - sp.engine.tdc_offset_rad;
-    const double t = time_at(theta + 4.0 * pi) - cycle_s + sp.jitter_s * noise();  // keep the argument positive
+    const double t =
+        time_at(theta + 4.0 * pi) - cycle_s + sp.jitter_s * noise();  // keep the argument positive
     const auto t_ns = static_cast<std::int64_t>(std::llround((t + 1.0) * 1e9));
     ToothSample s;
     s.t_ns = t_ns;

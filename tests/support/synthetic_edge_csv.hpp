@@ -1,7 +1,7 @@
 #pragma once
-// Test helper: a logic-analyzer edge CSV (docs/io.md format) of a 60-2 wheel with one cam pulse per 720°, at a
-// constant or linearly ramping speed, from the shared sensor simulator (synthetic_wheel.hpp). Tooth 0 is 10°
-// after the capture starts; the cam is high from 100° to 460° after tooth 0. The truth (speed) is exact.
+// Test helper: a logic-analyzer edge CSV (docs/io.md format) of a 60-2 wheel with one cam pulse per 720°, at
+// a constant or linearly ramping speed, from the shared sensor simulator (synthetic_wheel.hpp). Tooth 0 is
+// 10° after the capture starts; the cam is high from 100° to 460° after tooth 0. The truth (speed) is exact.
 #include <cstdio>
 #include <string>
 

@@ -1,6 +1,6 @@
 #pragma once
-// The tests' shared crank/cam sensor simulator: edge streams with known truth (no engine simulator needed). The
-// decoder tests use the edges directly, the chain and service tests write them as an edge CSV
+// The tests' shared crank/cam sensor simulator: edge streams with known truth (no engine simulator needed).
+// The decoder tests use the edges directly, the chain and service tests write them as an edge CSV
 // (synthetic_edge_csv.hpp); the engine simulator in tools/sim is for whole-engine truth.
 // The wheel turns with ω(t, θ) = ω_lin(t)·(1 + ripple·sin(order·θ)), integrated with a fine step; tooth edges
 // are found by linear interpolation of θ(t). Wheel angle θ is measured like the simulator's: from tooth 0 of
@@ -32,13 +32,13 @@ struct SynthOptions {
 
 struct SynthTooth {
   std::int64_t t_ns;
-  int tooth720;        ///< true index within 720°
-  double angle_rad;    ///< true angle within 720° (incl. tooth error)
+  int tooth720;      ///< true index within 720°
+  double angle_rad;  ///< true angle within 720° (incl. tooth error)
 };
 
 struct SynthOutput {
   std::vector<EdgeEvent> edges;
-  std::vector<SynthTooth> teeth;  ///< marking (rising) crank edges only
+  std::vector<SynthTooth> teeth;    ///< marking (rising) crank edges only
   std::vector<double> nominal_deg;  ///< nominal tooth angles of one revolution
 };
 
@@ -51,13 +51,19 @@ inline SynthOutput synthesize(const SynthOptions& o) {
                                                 : 360.0 * i / w.positions);
   }
   // Event angles within 720° (deg), sorted: crank rise/fall, cam rise/fall.
-  struct Ev { double deg; std::uint8_t ch, level; int tooth; double err_rad; };
+  struct Ev {
+    double deg;
+    std::uint8_t ch, level;
+    int tooth;
+    double err_rad;
+  };
   std::vector<Ev> evs;
   const double pitch = 360.0 / w.positions;
   for (int rev = 0; rev < 2; ++rev) {
     for (int i = 0; i < t; ++i) {
       const double err = o.tooth_error_rad.empty() ? 0.0 : o.tooth_error_rad[static_cast<std::size_t>(i)];
-      const double a = out.nominal_deg[static_cast<std::size_t>(i)] + 360.0 * rev + err * 180.0 / std::numbers::pi;
+      const double a =
+          out.nominal_deg[static_cast<std::size_t>(i)] + 360.0 * rev + err * 180.0 / std::numbers::pi;
       evs.push_back({a, 0, 1, rev * t + i, err});
       if (o.falling_edges) evs.push_back({a + 0.5 * pitch, 0, 0, -1, 0.0});
     }
@@ -76,14 +82,16 @@ inline SynthOutput synthesize(const SynthOptions& o) {
   long cycle = 0;
   std::size_t k = 0;
   while (k < evs.size() && evs[k].deg <= theta_deg) ++k;
-  if (k == evs.size()) {  // the start lies after the cycle's last event: the next one is the first of the next
+  if (k ==
+      evs.size()) {  // the start lies after the cycle's last event: the next one is the first of the next
     k = 0;
     ++cycle;
   }
   auto target = [&](std::size_t kk, long cyc) { return evs[kk].deg + 720.0 * static_cast<double>(cyc); };
   while (t_s < o.duration_s) {
     const double rpm = o.rpm0 + (o.rpm1 - o.rpm0) * t_s / o.duration_s;
-    const double omega_deg_s = rpm * 6.0 * (1.0 + o.ripple * std::sin(o.ripple_order * theta_deg / deg_per_rad));
+    const double omega_deg_s =
+        rpm * 6.0 * (1.0 + o.ripple * std::sin(o.ripple_order * theta_deg / deg_per_rad));
     const double next_theta = theta_deg + omega_deg_s * o.step_s;
     while (target(k, cycle) <= next_theta) {
       const double frac = (target(k, cycle) - theta_deg) / (next_theta - theta_deg);
@@ -120,7 +128,8 @@ inline WheelGeometry wheel_runs(int positions, const std::vector<int>& runs) {
   int pos = 0, n = 0;
   for (std::size_t r = 0; r < runs.size(); ++r) {
     if (r % 2 == 0) {
-      for (int i = 0; i < runs[r]; ++i) w.tooth_angles_deg[static_cast<std::size_t>(n++)] = 360.0 * (pos++) / positions;
+      for (int i = 0; i < runs[r]; ++i)
+        w.tooth_angles_deg[static_cast<std::size_t>(n++)] = 360.0 * (pos++) / positions;
     } else {
       pos += runs[r];
     }

@@ -24,9 +24,9 @@ struct AnalyticPlant {
   double inertia = 0.14;
   double omega0 = 200.0;
   double tau0 = 80.0;
-  double rate = 0.0;   ///< N m/s
-  double amp = 0.0;    ///< N m
-  double w = 0.0;      ///< rad/s
+  double rate = 0.0;  ///< N m/s
+  double amp = 0.0;   ///< N m
+  double w = 0.0;     ///< rad/s
   double load = 50.0;
 
   [[nodiscard]] double torque(double t) const { return tau0 + rate * t + amp * std::sin(w * t); }

@@ -97,8 +97,8 @@ TEST(DaemonBedFuelWindow, ReportEnginesNoLoadBrakeFrictionInertiaAndPooledCovera
     covered2 += b.covered2;
   }
   EXPECT_GE(covered, 62 * n / 100) << "pooled claimed 1 sigma too small";
-  // Upper bound 85 % (was 78 %): the four-parameter fuel model's claimed 1σ is conservative once taught on the
-  // full learn run (measured 83 %; its residual scale is measured on transient references too).
+  // Upper bound 85 % (was 78 %): the four-parameter fuel model's claimed 1σ is conservative once taught on
+  // the full learn run (measured 83 %; its residual scale is measured on transient references too).
   EXPECT_LE(covered, 85 * n / 100) << "pooled claimed 1 sigma too large";
   EXPECT_GE(covered2, 88 * n / 100) << "pooled claimed 2 sigma too small";
 }

@@ -57,11 +57,19 @@ TEST(EvalMetrics, PhaseLagOfAShiftedWaveform) {
   // GIVEN a 4-cylinder in-cycle waveform (period 180 deg) WHEN the estimate is the truth delayed by 12 deg
   // THEN the cross-correlation finds a 12 deg lag (tolerance 0.3 deg); a lead gives a negative lag.
   std::vector<double> ta, tv, ea, ev, ea2, ev2;
-  auto wave = [](double deg) { return 80.0 * std::sin(2 * std::numbers::pi * deg / 180.0) + 20.0 * std::sin(2 * std::numbers::pi * deg / 90.0 + 0.4); };
-  for (double a = 0; a <= 7200; a += 6.0) { ta.push_back(a); tv.push_back(wave(a)); }
+  auto wave = [](double deg) {
+    return 80.0 * std::sin(2 * std::numbers::pi * deg / 180.0) +
+           20.0 * std::sin(2 * std::numbers::pi * deg / 90.0 + 0.4);
+  };
+  for (double a = 0; a <= 7200; a += 6.0) {
+    ta.push_back(a);
+    tv.push_back(wave(a));
+  }
   for (double a = 100; a <= 7000; a += 6.0) {
-    ea.push_back(a); ev.push_back(wave(a - 12.0));
-    ea2.push_back(a); ev2.push_back(wave(a + 7.0));
+    ea.push_back(a);
+    ev.push_back(wave(a - 12.0));
+    ea2.push_back(a);
+    ev2.push_back(wave(a + 7.0));
   }
   const PhaseLag lag = phase_lag(ea, ev, ta, tv);
   ASSERT_TRUE(lag.ok);
@@ -95,15 +103,17 @@ Truth cycle_truth() {
   std::ostringstream os;
   os << "cycle,t_start_s,t_end_s,t_brake_mean_nm,misfire1,misfire2,misfire3,misfire4\n";
   for (int c = 0; c < 10; ++c)
-    os << c << "," << c * 0.06 << "," << (c + 1) * 0.06 << "," << 100 + c << "," << (c == 7) << "," << (c == 4) << ",0,0\n";
+    os << c << "," << c * 0.06 << "," << (c + 1) * 0.06 << "," << 100 + c << "," << (c == 7) << ","
+       << (c == 4) << ",0,0\n";
   Truth t;
   t.cycle = table(os.str(), "truth_cycle.csv");
   return t;
 }
 
 TEST(EvalJoin, PerCycleJoinConvergenceAndMisfires) {
-  // GIVEN one estimate per cycle, stamped at the cycle end with its window start (the daemon's EngineTorque rows):
-  // error +50 N m in cycles 0-2, then +3 N m. THEN the midpoint join matches each row to its own cycle.
+  // GIVEN one estimate per cycle, stamped at the cycle end with its window start (the daemon's EngineTorque
+  // rows): error +50 N m in cycles 0-2, then +3 N m. THEN the midpoint join matches each row to its own
+  // cycle.
   std::ostringstream os;
   os << "t_ns,window_start_t_ns,fused_nm,misfire_mask\n";
   for (int c = 0; c < 10; ++c) {
@@ -170,7 +180,8 @@ TEST(EvalJoin, PerToothInterpolationWhereFilterAndWindow) {
   // Truth ramp 10 N m/s sampled every 10 ms; estimate rows of two methods; method 4 is exact, method 0 is +1.
   std::ostringstream tt;
   tt << "t_s,tooth,angle720_deg,t_brake_nm\n";
-  for (int i = 0; i <= 100; ++i) tt << i * 0.01 << "," << i % 120 << "," << (i * 6) % 720 << "," << 10.0 * i * 0.01 << "\n";
+  for (int i = 0; i <= 100; ++i)
+    tt << i * 0.01 << "," << i % 120 << "," << (i * 6) % 720 << "," << 10.0 * i * 0.01 << "\n";
   Truth truth;
   truth.tooth = table(tt.str(), "truth_tooth.csv");
   std::ostringstream es;

@@ -1,18 +1,19 @@
 // Checks of the SocketCAN paths, run inside the test VM (tests/vm/run_in_vm.sh) where vcan0 exists.
 //   vm_can_check frames  --log can.log [--dbc demo.dbc] [--iface vcan0]
 //       canplayer replays the log onto vcan0 while SocketCanSource receives it; the frames (id, type, length,
-//       payload, order) and the DBC-decoded signal values must equal those of the candump file backend; a second
-//       socket with a kernel filter receives exactly the frames of one id.
+//       payload, order) and the DBC-decoded signal values must equal those of the candump file backend; a
+//       second socket with a kernel filter receives exactly the frames of one id.
 //   vm_can_check encoder --edges edges.csv --log encoder.log [--tick-ns 1] [--iface vcan0]
 //       canplayer replays encoder frames (made by torque-canreplay encode); CanEncoderEdgeSource over
 //       SocketCanSource must give the same edges as the edge CSV, and the crank decoder the same teeth and no
 //       sync loss.
 //   vm_can_check compare --a sent.log --b captured.log
-//       the frames of two candump logs (id, type, length, payload, order) are equal; used with candump capturing
-//       what torque-canreplay send put on vcan0.
+//       the frames of two candump logs (id, type, length, payload, order) are equal; used with candump
+//       capturing what torque-canreplay send put on vcan0.
 //   vm_can_check downup [--iface vcan0]
-//       a sender thread writes frames every ms; vcan0 is set down and up, then deleted and re-created; the source
-//       must report each loss (link state, counters, last_error) and receive again after each recovery.
+//       a sender thread writes frames every ms; vcan0 is set down and up, then deleted and re-created; the
+//       source must report each loss (link state, counters, last_error) and receive again after each
+//       recovery.
 // Prints "PASS ..." / "FAIL ..." lines; exit code 0 only if every assertion held.
 #include <linux/can.h>
 #include <net/if.h>
@@ -147,8 +148,8 @@ int cmd_frames(int argc, char** argv) {
   std::string log_if;
   std::uint64_t bad = 0;
   const auto expected = read_log(path, log_if, bad);
-  check(!expected.empty(), "frames: file backend read " + std::to_string(expected.size()) + " frames from " + path +
-                               " (" + std::to_string(bad) + " bad lines)");
+  check(!expected.empty(), "frames: file backend read " + std::to_string(expected.size()) + " frames from " +
+                               path + " (" + std::to_string(bad) + " bad lines)");
   if (expected.empty()) return 1;
   const std::uint32_t filter_id = expected.front().id;
   const bool filter_ext = expected.front().extended;
@@ -160,14 +161,15 @@ int cmd_frames(int argc, char** argv) {
   SocketCanConfig one = all;
   one.filters.push_back({filter_id, 0x1FFFFFFF, filter_ext});
   Receiver rx_all(all), rx_one(one);
-  check(rx_all.src.link_state() == CanLinkState::kUp, "frames: socket on " + ifname + " is up (" +
-                                                           to_string(rx_all.src.link_state()) + ")");
+  check(rx_all.src.link_state() == CanLinkState::kUp,
+        "frames: socket on " + ifname + " is up (" + to_string(rx_all.src.link_state()) + ")");
   rx_all.start();
   rx_one.start();
   const auto t0 = Clock::now();
   const int rc = run({"canplayer", "-I", path, ifname + "=" + log_if});
   const double replay_s = std::chrono::duration<double>(Clock::now() - t0).count();
-  check(rc == 0, "frames: canplayer exit code " + std::to_string(rc) + " after " + std::to_string(replay_s) + " s");
+  check(rc == 0,
+        "frames: canplayer exit code " + std::to_string(rc) + " after " + std::to_string(replay_s) + " s");
   rx_all.finish(std::chrono::milliseconds(500), std::chrono::seconds(60));
   rx_one.finish(std::chrono::milliseconds(100), std::chrono::seconds(5));
 
@@ -181,8 +183,9 @@ int cmd_frames(int argc, char** argv) {
       if (mismatch++ == 0) first_bad = i;
     }
   }
-  check(mismatch == 0, "frames: id/type/length/payload/order equal to the file backend (" + std::to_string(mismatch) +
-                           " mismatches, first at " + std::to_string(first_bad) + ")");
+  check(mismatch == 0, "frames: id/type/length/payload/order equal to the file backend (" +
+                           std::to_string(mismatch) + " mismatches, first at " + std::to_string(first_bad) +
+                           ")");
   std::size_t fd_frames = 0, with_ts = 0;
   for (const auto& f : got) {
     fd_frames += f.fd;
@@ -194,7 +197,8 @@ int cmd_frames(int argc, char** argv) {
   if (got.size() > 2 && got.size() == expected.size()) {
     const double log_span = static_cast<double>(expected.back().t_ns - expected.front().t_ns) * 1e-9;
     const double rx_span = static_cast<double>(got.back().t_ns - got.front().t_ns) * 1e-9;
-    std::printf("info: log span %.3f s, kernel receive span %.3f s, FD frames %zu\n", log_span, rx_span, fd_frames);
+    std::printf("info: log span %.3f s, kernel receive span %.3f s, FD frames %zu\n", log_span, rx_span,
+                fd_frames);
   }
   std::size_t n_id = 0;
   for (const auto& f : expected) n_id += (f.id == filter_id && f.extended == filter_ext);
@@ -202,14 +206,16 @@ int cmd_frames(int argc, char** argv) {
   for (const auto& f : rx_one.frames) only_id = only_id && f.id == filter_id;
   char idbuf[32];
   std::snprintf(idbuf, sizeof idbuf, "0x%X", filter_id);
-  check(only_id && rx_one.frames.size() == n_id, std::string("frames: kernel filter for ") + idbuf + " passed " +
-                                                     std::to_string(rx_one.frames.size()) + " of " +
-                                                     std::to_string(n_id) + " frames and nothing else");
+  check(only_id && rx_one.frames.size() == n_id, std::string("frames: kernel filter for ") + idbuf +
+                                                     " passed " + std::to_string(rx_one.frames.size()) +
+                                                     " of " + std::to_string(n_id) +
+                                                     " frames and nothing else");
 #ifdef TORQUED_HAVE_DBC
   const std::string dbc_path = arg(argc, argv, "--dbc", "");
   if (!dbc_path.empty()) {
     auto res = DbcDatabase::parse_file(dbc_path);
-    check(res.db.has_value(), "frames: DBC " + dbc_path + " parsed (" + std::to_string(res.errors.size()) + " errors)");
+    check(res.db.has_value(),
+          "frames: DBC " + dbc_path + " parsed (" + std::to_string(res.errors.size()) + " errors)");
     if (res.db) {
       std::size_t values = 0, diffs = 0;
       std::map<std::string, std::pair<double, double>> ranges;
@@ -217,7 +223,9 @@ int cmd_frames(int argc, char** argv) {
         const DbcMessage* m = res.db->find(expected[i].id, expected[i].extended);
         if (m == nullptr) continue;
         for (const DbcSignal& s : m->signals) {
-          if (s.bytes_needed() > expected[i].len || !m->signal_present(s, expected[i].data.data(), expected[i].len)) continue;
+          if (s.bytes_needed() > expected[i].len ||
+              !m->signal_present(s, expected[i].data.data(), expected[i].len))
+            continue;
           const double a = s.decode(expected[i].data.data(), expected[i].len);
           const double b = got[i].len >= s.bytes_needed() ? s.decode(got[i].data.data(), got[i].len) : -1e300;
           ++values;
@@ -227,9 +235,12 @@ int cmd_frames(int argc, char** argv) {
           r.second = std::max(r.second, b);
         }
       }
-      check(values > 0 && diffs == 0, "frames: " + std::to_string(values) + " decoded signal values equal to the file "
-                                       "backend's (" + std::to_string(diffs) + " differ)");
-      for (const auto& [name, r] : ranges) std::printf("info: %-14s %12.4f .. %12.4f\n", name.c_str(), r.first, r.second);
+      check(values > 0 && diffs == 0, "frames: " + std::to_string(values) +
+                                          " decoded signal values equal to the file "
+                                          "backend's (" +
+                                          std::to_string(diffs) + " differ)");
+      for (const auto& [name, r] : ranges)
+        std::printf("info: %-14s %12.4f .. %12.4f\n", name.c_str(), r.first, r.second);
     }
   }
 #endif
@@ -301,13 +312,16 @@ int cmd_encoder(int argc, char** argv) {
       ++diff;
     }
   }
-  check(diff == 0, "encoder: edge times (to the tick), channels and levels equal (" + std::to_string(diff) + " differ)");
+  check(diff == 0,
+        "encoder: edge times (to the tick), channels and levels equal (" + std::to_string(diff) + " differ)");
   check(src.encoder_stats().lost_frames == 0 && src.encoder_stats().bad_frames == 0,
         "encoder: " + std::to_string(src.encoder_stats().frames) + " frames, lost " +
-            std::to_string(src.encoder_stats().lost_frames) + ", bad " + std::to_string(src.encoder_stats().bad_frames));
+            std::to_string(src.encoder_stats().lost_frames) + ", bad " +
+            std::to_string(src.encoder_stats().bad_frames));
   check(live.stats.sync_losses == 0 && live.stats.syncs >= 1,
         "encoder: decoder synced " + std::to_string(live.stats.syncs) + "x, sync losses " +
-            std::to_string(live.stats.sync_losses) + " (file: " + std::to_string(ref.stats.sync_losses) + ")");
+            std::to_string(live.stats.sync_losses) + " (file: " + std::to_string(ref.stats.sync_losses) +
+            ")");
   check(live.stats.synced_teeth == ref.stats.synced_teeth && live.stats.teeth == ref.stats.teeth,
         "encoder: synced teeth " + std::to_string(live.stats.synced_teeth) + " = file " +
             std::to_string(ref.stats.synced_teeth));
@@ -321,8 +335,8 @@ int cmd_compare(int argc, char** argv) {
   std::uint64_t bad_a = 0, bad_b = 0;
   const auto a = read_log(a_path, ia, bad_a);
   const auto b = read_log(b_path, ib, bad_b);
-  check(!a.empty() && a.size() == b.size(), "compare: " + std::to_string(b.size()) + " frames captured on " + ib +
-                                                " of " + std::to_string(a.size()) + " sent");
+  check(!a.empty() && a.size() == b.size(), "compare: " + std::to_string(b.size()) + " frames captured on " +
+                                                ib + " of " + std::to_string(a.size()) + " sent");
   std::size_t diff = 0;
   for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) diff += !same_frame(a[i], b[i]);
   check(diff == 0 && bad_b == 0, "compare: frames equal (" + std::to_string(diff) + " differ, " +
@@ -405,7 +419,7 @@ int cmd_downup(int argc, char** argv) {
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
     check(received.load() >= target, std::string("downup: ") + phase + ": receiving (" +
-                                          std::to_string(received.load()) + " frames so far)");
+                                         std::to_string(received.load()) + " frames so far)");
   };
   wait_more(100, "before");
   check(run({"ip", "link", "set", ifname, "down"}) == 0, "downup: ip link set " + ifname + " down");
@@ -418,7 +432,8 @@ int cmd_downup(int argc, char** argv) {
   const std::uint64_t reopens_before = src.stats().reopens;
   check(run({"ip", "link", "del", ifname}) == 0, "downup: ip link del " + ifname);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
-  check(run({"ip", "link", "add", "dev", ifname, "type", "vcan"}) == 0 && run({"ip", "link", "set", ifname, "up"}) == 0,
+  check(run({"ip", "link", "add", "dev", ifname, "type", "vcan"}) == 0 &&
+            run({"ip", "link", "set", ifname, "up"}) == 0,
         "downup: re-created " + ifname);
   wait_more(100, "after re-creation");
   stop = true;
@@ -427,16 +442,20 @@ int cmd_downup(int argc, char** argv) {
   rx.join();
   for (const auto& s : states) std::printf("info: link state -> %s\n", s.c_str());
   const auto& cs = src.can_stats();
-  check(cs.link_losses >= 2, "downup: link losses reported: " + std::to_string(cs.link_losses) + " (down, removal)");
+  check(cs.link_losses >= 2,
+        "downup: link losses reported: " + std::to_string(cs.link_losses) + " (down, removal)");
   bool saw_down = false, saw_missing = false;
   for (const auto& s : states) {
     saw_down = saw_down || s.rfind("down", 0) == 0;
     saw_missing = saw_missing || s.rfind("missing", 0) == 0;
   }
   check(saw_down && saw_missing, "downup: link state went through 'down' and 'missing'");
-  check(src.stats().reopens > reopens_before, "downup: socket reopened by name (" + std::to_string(src.stats().reopens) + ")");
-  check(src.link_state() == CanLinkState::kUp, std::string("downup: final link state ") + to_string(src.link_state()));
-  check(src.link_changes() >= 4, "downup: " + std::to_string(src.link_changes()) + " link state changes counted");
+  check(src.stats().reopens > reopens_before,
+        "downup: socket reopened by name (" + std::to_string(src.stats().reopens) + ")");
+  check(src.link_state() == CanLinkState::kUp,
+        std::string("downup: final link state ") + to_string(src.link_state()));
+  check(src.link_changes() >= 4,
+        "downup: " + std::to_string(src.link_changes()) + " link state changes counted");
   std::printf("info: sent %u, received %zu, last counter %u, last error '%s'\n", sent.load(), received.load(),
               last_counter.load(), src.last_error().c_str());
   return g_failures == 0 ? 0 : 1;
@@ -455,6 +474,7 @@ int main(int argc, char** argv) {
   if (cmd == "encoder") return torqued::cmd_encoder(argc, argv);
   if (cmd == "downup") return torqued::cmd_downup(argc, argv);
   if (cmd == "compare") return torqued::cmd_compare(argc, argv);
-  std::fprintf(stderr, "vm_can_check: unknown command '%s' (expected frames, encoder, downup or compare)\n", cmd.c_str());
+  std::fprintf(stderr, "vm_can_check: unknown command '%s' (expected frames, encoder, downup or compare)\n",
+               cmd.c_str());
   return 2;
 }

@@ -41,7 +41,8 @@ struct EvalOptions {
   double steady_pct = 3.0, steady_nm = 2.0;  ///< steady-state tolerances
   double transient_pct = 5.0, transient_nm = 3.0;
   AnglePipelineConfig base{};  ///< tuning (engine/wheel are taken from the scenario)
-  EMachineParams e_machine{};  ///< hybrid input: bound = the EM_1 machine torque is used (scenario with a machine)
+  EMachineParams
+      e_machine{};  ///< hybrid input: bound = the EM_1 machine torque is used (scenario with a machine)
   bool no_fuel_cutoff_flag = false;  ///< the ECU sends no cut-off flag: fuel mass 0 is all there is
 };
 
@@ -107,8 +108,8 @@ std::vector<double> learned_width_ratios(const sim::Scenario& scenario, const To
                                          std::uint64_t* cycles = nullptr, bool* low_orders = nullptr);
 
 /// Simulate `scenario` and evaluate the pipeline on it.
-/// The pipeline configuration of an evaluation: options.base with the scenario's (or the spec sheet's) engine and
-/// wheel, and the friction prior (options.friction_prior, else the generic correlation by displacement).
+/// The pipeline configuration of an evaluation: options.base with the scenario's (or the spec sheet's) engine
+/// and wheel, and the friction prior (options.friction_prior, else the generic correlation by displacement).
 AnglePipelineConfig pipeline_config(const sim::Scenario& scenario, const EvalOptions& options);
 ScenarioResult evaluate(const sim::Scenario& scenario, const EvalOptions& options);
 /// Same on an already simulated output.
@@ -127,38 +128,38 @@ BedResult evaluate_bed_engine(const sim::BedEngine& engine, const EvalOptions& o
 
 /// Hybrid input on the bed: the engine's recordings with an electric machine of `ratio` as the
 /// load. learn: the learning recording with the machine as the known sole load (no dynamometer signal);
-/// with_machine: the evaluated recording without load signal, machine bound (sole load); control: the same recording,
-/// machine torque present on CAN but not bound (crank-only).
+/// with_machine: the evaluated recording without load signal, machine bound (sole load); control: the same
+/// recording, machine torque present on CAN but not bound (crank-only).
 struct BedMachineResult {
   std::string engine;
   ScenarioResult learn, with_machine, control;
 };
-BedMachineResult evaluate_bed_e_machine(const sim::BedEngine& engine, const EvalOptions& options, bool short_run,
-                                        double ratio);
-/// Motoring by the machine as the friction reference: friction of the evaluated recording (no load signal, nothing
-/// learned during it) from the generic prior (`prior`) and after learning on bed_motoring_run() (`learned`).
-/// Friction scored within 10 % or 2 N m.
+BedMachineResult evaluate_bed_e_machine(const sim::BedEngine& engine, const EvalOptions& options,
+                                        bool short_run, double ratio);
+/// Motoring by the machine as the friction reference: friction of the evaluated recording (no load signal,
+/// nothing learned during it) from the generic prior (`prior`) and after learning on bed_motoring_run()
+/// (`learned`). Friction scored within 10 % or 2 N m.
 struct BedMotoringResult {
   std::string engine;
   ScenarioResult motoring, prior, learned;
 };
-BedMotoringResult evaluate_bed_motoring(const sim::BedEngine& engine, const EvalOptions& options, bool short_run,
-                                        double ratio);
+BedMotoringResult evaluate_bed_motoring(const sim::BedEngine& engine, const EvalOptions& options,
+                                        bool short_run, double ratio);
 
 /// The fuel model on the bed without a load signal (the vehicle): fused brake torque of the evaluated
 /// recording scored within 8 % or 5 N m, its claimed 1σ's coverage and the published share.
 struct BedFuelRun {
-  int cycles = 0;           ///< scored cycles
-  int published = 0;        ///< of which the fused value was published (quality not invalid)
-  int prior_only = 0;       ///< of which with quality prior_only
-  int pass = 0;             ///< published within 8 % or 5 N m
-  int covered = 0;          ///< published with |error| <= claimed 1σ
-  double rms_nm = 0.0;      ///< RMS error of the published fused values (N m)
-  double rms_pct = 0.0;     ///< that RMS / RMS of the true brake torque (%)
-  double bias_nm = 0.0;     ///< mean error of the published fused values (N m)
+  int cycles = 0;                  ///< scored cycles
+  int published = 0;               ///< of which the fused value was published (quality not invalid)
+  int prior_only = 0;              ///< of which with quality prior_only
+  int pass = 0;                    ///< published within 8 % or 5 N m
+  int covered = 0;                 ///< published with |error| <= claimed 1σ
+  double rms_nm = 0.0;             ///< RMS error of the published fused values (N m)
+  double rms_pct = 0.0;            ///< that RMS / RMS of the true brake torque (%)
+  double bias_nm = 0.0;            ///< mean error of the published fused values (N m)
   std::vector<CycleCompare> rows;  ///< the evaluated recording's cycles
-  std::uint32_t references = 0;  ///< fuel-model references it rested on
-  std::uint16_t cells = 0;       ///< learned speed × MAP cells (bit mask)
+  std::uint32_t references = 0;    ///< fuel-model references it rested on
+  std::uint16_t cells = 0;         ///< learned speed × MAP cells (bit mask)
 };
 struct BedFuelResult {
   std::string engine;

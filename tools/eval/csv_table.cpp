@@ -25,7 +25,10 @@ std::vector<std::string> split(const std::string& line) {
 
 bool to_double(const std::string& s, double& v) {
   if (s.empty()) return false;
-  if (s == "nan" || s == "NaN" || s == "-nan") { v = std::nan(""); return true; }
+  if (s == "nan" || s == "NaN" || s == "-nan") {
+    v = std::nan("");
+    return true;
+  }
   char* end = nullptr;
   const double x = std::strtod(s.c_str(), &end);
   if (end != s.c_str() + s.size()) return false;
@@ -68,7 +71,8 @@ bool parse_csv(const std::string& text, const std::string& name, CsvTable& out, 
     if (trim(line).empty() || trim(line)[0] == '#') continue;
     const auto cells = split(line);
     if (cells.size() != out.names.size()) {
-      warn("expected " + std::to_string(out.names.size()) + " cells, found " + std::to_string(cells.size()) + "; row skipped");
+      warn("expected " + std::to_string(out.names.size()) + " cells, found " + std::to_string(cells.size()) +
+           "; row skipped");
       continue;
     }
     bool bad = false;
@@ -83,7 +87,8 @@ bool parse_csv(const std::string& text, const std::string& name, CsvTable& out, 
   return true;
 }
 
-bool read_csv(const std::string& path, CsvTable& out, std::string& error, std::vector<std::string>& warnings) {
+bool read_csv(const std::string& path, CsvTable& out, std::string& error,
+              std::vector<std::string>& warnings) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     error = path + ": cannot open";

@@ -16,7 +16,9 @@ struct CsvTable {
   [[nodiscard]] std::size_t rows() const noexcept { return cols.empty() ? 0 : cols.front().size(); }
   /// Index of a column, or -1.
   [[nodiscard]] int column(const std::string& name) const noexcept;
-  [[nodiscard]] const std::vector<double>& col(int index) const { return cols.at(static_cast<std::size_t>(index)); }
+  [[nodiscard]] const std::vector<double>& col(int index) const {
+    return cols.at(static_cast<std::size_t>(index));
+  }
 };
 
 /// Reads `path`. Returns false (with a message naming the file) if it cannot be read or has no header.

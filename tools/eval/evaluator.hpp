@@ -1,7 +1,7 @@
 #pragma once
 // torque-eval's core: joins an estimate CSV (first column t_ns on the edge clock) with the simulator's truth
-// (truth_cycle.csv: cycle,t_start_s,t_end_s,...; truth_tooth.csv: t_s,tooth,angle720_deg,...) and computes the
-// metrics of metrics.hpp per column pair.
+// (truth_cycle.csv: cycle,t_start_s,t_end_s,...; truth_tooth.csv: t_s,tooth,angle720_deg,...) and computes
+// the metrics of metrics.hpp per column pair.
 //   per-cycle join: the truth column is in truth_cycle.csv → the cycle whose [t_start, t_end) contains the
 //                   estimate time (the window midpoint when the estimate has window_start_t_ns, see TimeRef);
 //   per-tooth join: the truth column is in truth_tooth.csv → linear interpolation at the estimate time.
@@ -39,21 +39,23 @@ enum class TimeRef {
 struct EvalOptions {
   double from_s = -std::numeric_limits<double>::infinity();  ///< edge-clock window (s)
   double to_s = std::numeric_limits<double>::infinity();
-  double tolerance = 5.0;       ///< convergence tolerance on the per-cycle mean error (unit of the columns)
-  std::vector<std::pair<std::string, double>> where;  ///< keep estimate rows with col == value (e.g. method=4)
-  std::string misfire_col;      ///< estimate bit-mask column (bit i = cylinder i+1) vs truth misfire1..N
+  double tolerance = 5.0;  ///< convergence tolerance on the per-cycle mean error (unit of the columns)
+  std::vector<std::pair<std::string, double>>
+      where;                ///< keep estimate rows with col == value (e.g. method=4)
+  std::string misfire_col;  ///< estimate bit-mask column (bit i = cylinder i+1) vs truth misfire1..N
   TimeRef time_ref = TimeRef::kAuto;
   double max_lag_deg = 90.0;
 };
 
 struct PairResult {
   PairSpec spec;
-  bool per_cycle = true;            ///< join kind
+  bool per_cycle = true;  ///< join kind
   ErrorStats stats;
-  std::size_t cycles = 0;           ///< cycles with at least one sample
+  std::size_t cycles = 0;  ///< cycles with at least one sample
   double cycle_pct = std::numeric_limits<double>::quiet_NaN();
-  std::optional<PhaseLag> lag;      ///< per-tooth joins with angle720_deg in the tooth truth
-  std::optional<std::size_t> converged_cycle;  ///< truth cycle number after which the cycle-mean error stays in tolerance
+  std::optional<PhaseLag> lag;  ///< per-tooth joins with angle720_deg in the tooth truth
+  std::optional<std::size_t>
+      converged_cycle;  ///< truth cycle number after which the cycle-mean error stays in tolerance
   double converged_t_s = std::numeric_limits<double>::quiet_NaN();
   std::vector<double> t_s, est, truth;  ///< joined samples (for the plot)
 };
@@ -66,8 +68,8 @@ struct EvalReport {
 };
 
 /// Returns false with `error` (naming the file and column) when a column or the needed truth is missing.
-bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpec>& pairs, const EvalOptions& opt,
-              EvalReport& report, std::string& error);
+bool evaluate(const CsvTable& est, const Truth& truth, const std::vector<PairSpec>& pairs,
+              const EvalOptions& opt, EvalReport& report, std::string& error);
 
 /// The printed table (one row per pair, then misfire counts).
 [[nodiscard]] std::string format_report(const EvalReport& r, double tolerance);

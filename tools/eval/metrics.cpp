@@ -6,7 +6,8 @@
 
 namespace torqued::eval {
 
-ErrorStats error_stats(const std::vector<double>& t_s, const std::vector<double>& est, const std::vector<double>& truth) {
+ErrorStats error_stats(const std::vector<double>& t_s, const std::vector<double>& est,
+                       const std::vector<double>& truth) {
   ErrorStats s;
   s.n = std::min({t_s.size(), est.size(), truth.size()});
   if (s.n == 0) return s;
@@ -59,14 +60,18 @@ double interpolate(const std::vector<double>& x, const std::vector<double>& y, d
 namespace {
 
 /// Pearson correlation of est with truth shifted by lag (truth evaluated at θ − lag); NaN if too few samples.
-double correlation_at(const std::vector<double>& ea, const std::vector<double>& e, const std::vector<double>& ta,
-                      const std::vector<double>& tv, double lag) {
+double correlation_at(const std::vector<double>& ea, const std::vector<double>& e,
+                      const std::vector<double>& ta, const std::vector<double>& tv, double lag) {
   double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
   std::size_t n = 0;
   for (std::size_t i = 0; i < ea.size(); ++i) {
     const double y = interpolate(ta, tv, ea[i] - lag);
     if (!std::isfinite(y) || !std::isfinite(e[i])) continue;
-    sx += e[i]; sy += y; sxx += e[i] * e[i]; syy += y * y; sxy += e[i] * y;
+    sx += e[i];
+    sy += y;
+    sxx += e[i] * e[i];
+    syy += y * y;
+    sxy += e[i] * y;
     ++n;
   }
   if (n < 8) return std::numeric_limits<double>::quiet_NaN();
@@ -80,8 +85,8 @@ double correlation_at(const std::vector<double>& ea, const std::vector<double>& 
 }  // namespace
 
 PhaseLag phase_lag(const std::vector<double>& est_angle_deg, const std::vector<double>& est,
-                   const std::vector<double>& truth_angle_deg, const std::vector<double>& truth, double max_lag_deg,
-                   double step_deg) {
+                   const std::vector<double>& truth_angle_deg, const std::vector<double>& truth,
+                   double max_lag_deg, double step_deg) {
   PhaseLag out;
   const int steps = static_cast<int>(std::floor(max_lag_deg / step_deg));
   std::vector<double> rho;

@@ -22,7 +22,8 @@ struct ErrorStats {
                                      const std::vector<double>& truth);
 
 /// 100 · Σ_c |ē_c − t̄_c| / Σ_c |t̄_c| over cycle means (robust to cycles with a mean near zero). NaN if empty.
-[[nodiscard]] double cycle_mean_pct_error(const std::vector<double>& est_means, const std::vector<double>& truth_means);
+[[nodiscard]] double cycle_mean_pct_error(const std::vector<double>& est_means,
+                                          const std::vector<double>& truth_means);
 
 /// Index of the first element after which |e| stays <= tol for good; size() when never.
 [[nodiscard]] std::size_t convergence_index(const std::vector<double>& err, double tol);
@@ -33,9 +34,9 @@ struct PhaseLag {
   double correlation = 0.0;  ///< Pearson correlation at the best lag
 };
 
-/// Cross-correlation in the crank-angle domain. `est_angle_deg` are the (unwrapped, ascending) crank angles of the
-/// estimate samples; truth is given on its own ascending angle grid. Lags in [-max_lag_deg, max_lag_deg] by
-/// step_deg, refined by a parabola through the best three.
+/// Cross-correlation in the crank-angle domain. `est_angle_deg` are the (unwrapped, ascending) crank angles
+/// of the estimate samples; truth is given on its own ascending angle grid. Lags in [-max_lag_deg,
+/// max_lag_deg] by step_deg, refined by a parabola through the best three.
 [[nodiscard]] PhaseLag phase_lag(const std::vector<double>& est_angle_deg, const std::vector<double>& est,
                                  const std::vector<double>& truth_angle_deg, const std::vector<double>& truth,
                                  double max_lag_deg = 90.0, double step_deg = 0.5);
@@ -46,8 +47,8 @@ struct PhaseLag {
 struct MisfireStats {
   std::size_t cylinder_cycles = 0;  ///< (cycle, cylinder) pairs compared
   std::size_t true_misfires = 0;
-  std::size_t detected = 0;         ///< true misfires flagged
-  std::size_t false_alarms = 0;     ///< flagged without a true misfire
+  std::size_t detected = 0;      ///< true misfires flagged
+  std::size_t false_alarms = 0;  ///< flagged without a true misfire
   [[nodiscard]] double recall() const noexcept {
     return true_misfires ? static_cast<double>(detected) / static_cast<double>(true_misfires) : 1.0;
   }

@@ -7,8 +7,8 @@
 namespace torqued::sim {
 
 namespace {
-constexpr double kRAir = 287.0;     // J/(kg K)
-constexpr double kGammaAir = 1.4;   // (-)
+constexpr double kRAir = 287.0;    // J/(kg K)
+constexpr double kGammaAir = 1.4;  // (-)
 constexpr double kPi = std::numbers::pi;
 
 /// Isentropic flow function Ψ(r) of a nozzle at pressure ratio r = p_down/p_up (choked below r_crit).
@@ -33,7 +33,8 @@ AirPath::AirPath(const AirPathParams& air, const CombustionParams& comb, double 
 double AirPath::area_m2(double u) const noexcept {
   u = std::clamp(u, 0.0, 1.0);
   // Butterfly valve: projected open area ~ 1 − cos(opening angle), opening 0..90° for u 0..1.
-  return area_max_m2_ * (air_.throttle_leak_frac + (1.0 - air_.throttle_leak_frac) * (1.0 - std::cos(u * kPi / 2)));
+  return area_max_m2_ *
+         (air_.throttle_leak_frac + (1.0 - air_.throttle_leak_frac) * (1.0 - std::cos(u * kPi / 2)));
 }
 
 double AirPath::throttle_flow_kg_s(double u, double p_m_pa) const noexcept {

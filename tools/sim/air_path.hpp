@@ -8,7 +8,8 @@ namespace torqued::sim {
 
 class AirPath {
  public:
-  AirPath(const AirPathParams& air, const CombustionParams& comb, double displacement_m3, double intake_temp_k);
+  AirPath(const AirPathParams& air, const CombustionParams& comb, double displacement_m3,
+          double intake_temp_k);
 
   /// Air mass flow through the throttle at opening u ∈ [0, 1] and manifold pressure p_m (kg/s).
   [[nodiscard]] double throttle_flow_kg_s(double u, double p_m_pa) const noexcept;

@@ -41,10 +41,10 @@ double EngineModel::volume_m3(double psi) const noexcept {
 }
 
 double EngineModel::friction_nm(double omega_rad_s, double oil_temp_c) const noexcept {
-  // Energies 2019 eq. (27): T_fric = (C1 + C2 n + C3 n²) e^{C4 t_oil}, n in rpm, t_oil in °C, with the paper's
-  // Table values C1 = −23.86, C2 = 2.45e−3, C3 = −5.20e−6, C4 = −4.67e−3. As printed the bracket is negative
-  // (−26 N m at 2000 rpm, 90 °C): the paper counts friction as a torque acting on the crank. We use the loss
-  // T_fric = −(C1 + C2 n + C3 n²) e^{C4 t_oil} > 0 (docs/simulator.md §4).
+  // Energies 2019 eq. (27): T_fric = (C1 + C2 n + C3 n²) e^{C4 t_oil}, n in rpm, t_oil in °C, with the
+  // paper's Table values C1 = −23.86, C2 = 2.45e−3, C3 = −5.20e−6, C4 = −4.67e−3. As printed the bracket is
+  // negative (−26 N m at 2000 rpm, 90 °C): the paper counts friction as a torque acting on the crank. We use
+  // the loss T_fric = −(C1 + C2 n + C3 n²) e^{C4 t_oil} > 0 (docs/simulator.md §4).
   constexpr double kC1 = -23.86, kC2 = 2.45e-3, kC3 = -5.20e-6, kC4 = -4.67e-3;
   const double n = omega_rad_s * 30.0 / kPi;
   if (!fric_.paper_law) {

@@ -46,17 +46,21 @@ class EngineModel {
 
   /// dy/dθ at wheel angle θ_w (docs/equations.md §0 energy form (CF-2): dK/dθ = T_ind − T_fric − T_load;
   /// dt/dθ = 1/θ̇; first-law dp/dθ = ((γ−1)/V) dQ/dθ − γ (p/V) dV/dθ). Fills `ev` when non-null.
-  void derivative(double theta_w, const State& y, const HeldInputs& in, State& dy, ModelEval* ev) const noexcept;
+  void derivative(double theta_w, const State& y, const HeldInputs& in, State& dy,
+                  ModelEval* ev) const noexcept;
 
   /// Wheel angle of cylinder c's (0-based) firing TDC with index 0.
   [[nodiscard]] double tdc_base_rad(int c) const noexcept { return tdc_base_[static_cast<std::size_t>(c)]; }
   /// Cylinder volume at angle ψ after that cylinder's firing TDC (m³).
   [[nodiscard]] double volume_m3(double psi) const noexcept;
-  /// Friction (EN-27 with the paper's coefficients, sign corrected so that it is a positive loss; speed in rpm).
+  /// Friction (EN-27 with the paper's coefficients, sign corrected so that it is a positive loss; speed in
+  /// rpm).
   [[nodiscard]] double friction_nm(double omega_rad_s, double oil_temp_c) const noexcept;
 
   [[nodiscard]] CylinderEvent& event(int c) noexcept { return events_[static_cast<std::size_t>(c)]; }
-  [[nodiscard]] const CylinderEvent& event(int c) const noexcept { return events_[static_cast<std::size_t>(c)]; }
+  [[nodiscard]] const CylinderEvent& event(int c) const noexcept {
+    return events_[static_cast<std::size_t>(c)];
+  }
   [[nodiscard]] int cylinders() const noexcept { return n_; }
   [[nodiscard]] double displacement_m3() const noexcept { return area_ * 2.0 * r_ * n_; }
 

@@ -88,7 +88,8 @@ void validate(const Scenario& sc) {
   std::array<bool, kMaxCylinders> seen{};
   for (int i = 0; i < n; ++i) {
     const int c = sc.engine.firing_order[static_cast<std::size_t>(i)];
-    if (c < 1 || c > n || seen[static_cast<std::size_t>(c - 1)]) fail("firing order is not a permutation of 1..n");
+    if (c < 1 || c > n || seen[static_cast<std::size_t>(c - 1)])
+      fail("firing order is not a permutation of 1..n");
     seen[static_cast<std::size_t>(c - 1)] = true;
   }
   if (sc.engine.bore_m <= 0 || sc.engine.stroke_m <= 0 || sc.engine.rod_m <= sc.engine.crank_radius_m())
@@ -96,7 +97,8 @@ void validate(const Scenario& sc) {
   if (sc.engine.compression_ratio <= 1.0) fail("compression ratio must be > 1");
   if (sc.engine.j_rot_kgm2 <= 0) fail("j_rot_kgm2 must be > 0");
   const auto& w = sc.wheel;
-  if (w.tooth_count == 0 && (w.positions < 3 || w.positions > kMaxTeeth || w.missing < 0 || w.missing >= w.positions - 1))
+  if (w.tooth_count == 0 &&
+      (w.positions < 3 || w.positions > kMaxTeeth || w.missing < 0 || w.missing >= w.positions - 1))
     fail("wheel needs 3..360 positions and 0 <= missing < positions - 1");
   if (w.tooth_count < 0 || w.tooth_count > kMaxTeeth) fail("tooth_count out of range");
   const double spc = 720.0 / sc.step_deg;
@@ -105,7 +107,8 @@ void validate(const Scenario& sc) {
   if (sc.e_machine.present && !(sc.e_machine.ratio > 0.0)) fail("e-machine ratio must be > 0");
   if (sc.vehicle.present && !(sc.vehicle.j_vehicle_kgm2 > 0.0 && sc.vehicle.stiffness_nm_rad > 0.0))
     fail("vehicle inertia and driveline stiffness must be > 0");
-  if (sc.sensors.cam_rise_deg < 0 || sc.sensors.cam_fall_deg <= sc.sensors.cam_rise_deg || sc.sensors.cam_fall_deg >= 720)
+  if (sc.sensors.cam_rise_deg < 0 || sc.sensors.cam_fall_deg <= sc.sensors.cam_rise_deg ||
+      sc.sensors.cam_fall_deg >= 720)
     fail("cam window must satisfy 0 <= rise < fall < 720");
   for (const auto& m : sc.misfires)
     if (m.cylinder < 1 || m.cylinder > n) fail("misfire cylinder out of range");
@@ -123,14 +126,17 @@ std::vector<EdgeTemplate> build_template(const Scenario& sc, const std::vector<d
   std::vector<EdgeTemplate> t;
   for (int rev = 0; rev < 2; ++rev) {
     for (int k = 0; k < teeth; ++k) {
-      const double a = 2.0 * kPi * rev + nominal[static_cast<std::size_t>(k)] + err[static_cast<std::size_t>(k)];
+      const double a =
+          2.0 * kPi * rev + nominal[static_cast<std::size_t>(k)] + err[static_cast<std::size_t>(k)];
       t.push_back({a, 0, mark, k + rev * teeth});
-      t.push_back({a + 0.5 * min_gap, 0, static_cast<std::uint8_t>(1 - mark), -1});  // other flank, half a pitch later
+      t.push_back({a + 0.5 * min_gap, 0, static_cast<std::uint8_t>(1 - mark),
+                   -1});  // other flank, half a pitch later
     }
   }
   t.push_back({sc.sensors.cam_rise_deg * kDeg, 1, 1, -1});
   t.push_back({sc.sensors.cam_fall_deg * kDeg, 1, 0, -1});
-  std::stable_sort(t.begin(), t.end(), [](const EdgeTemplate& a, const EdgeTemplate& b) { return a.angle_rad < b.angle_rad; });
+  std::stable_sort(t.begin(), t.end(),
+                   [](const EdgeTemplate& a, const EdgeTemplate& b) { return a.angle_rad < b.angle_rad; });
   return t;
 }
 
@@ -159,7 +165,8 @@ double evaluate(const Schedule& s, double t_s, double fallback) noexcept {
 std::vector<double> nominal_tooth_angles_rad(const WheelGeometry& wheel) {
   std::vector<double> a;
   if (wheel.tooth_count > 0) {
-    for (int k = 0; k < wheel.tooth_count; ++k) a.push_back(wheel.tooth_angles_deg[static_cast<std::size_t>(k)] * kDeg);
+    for (int k = 0; k < wheel.tooth_count; ++k)
+      a.push_back(wheel.tooth_angles_deg[static_cast<std::size_t>(k)] * kDeg);
   } else {
     for (int k = 0; k < wheel.positions - wheel.missing; ++k) a.push_back(2.0 * kPi * k / wheel.positions);
   }
@@ -193,15 +200,16 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
   // --- slow states ----------------------------------------------------------------------------------------
   const auto throttle_base = [&](double t, double omega) {
     if (!sc.throttle_pct.empty()) return std::clamp(evaluate(sc.throttle_pct, t, 0.0) / 100.0, 0.0, 1.0);
-    if (!sc.map_target_kpa.empty()) return air.throttle_for_map(evaluate(sc.map_target_kpa, t, 50.0) * 1e3, omega);
+    if (!sc.map_target_kpa.empty())
+      return air.throttle_for_map(evaluate(sc.map_target_kpa, t, 50.0) * 1e3, omega);
     return 0.0;
   };
   air.reset(air.steady_map(throttle_base(0.0, omega0), omega0));
-  double omega_f = omega0;      // dyno/ECU speed filter (rad/s)
-  double dyno_integ = 0.0;      // PI integral (N m)
+  double omega_f = omega0;   // dyno/ECU speed filter (rad/s)
+  double dyno_integ = 0.0;   // PI integral (N m)
   double t_load = 0.0;       // applied load torque (N m): dynamometer, or the machine's (absorbing positive)
   VehicleState veh{omega0};  // vehicle driveline (clutch, shaft, road load; VehicleSim)
-  double idle_integ = 0.0;      // idle PI integral (throttle fraction)
+  double idle_integ = 0.0;   // idle PI integral (throttle fraction)
   double throttle = throttle_base(0.0, omega0);
   double map_s = air.map_pa(), maf_s = 0.0, load_s = 0.0, speed_s = omega0;  // sensor lags
   double last_fuel_mg = 0.0, spark_deg = 0.0;
@@ -235,8 +243,10 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
     y[1] = 0.5 * ev.inertia_kgm2 * omega0 * omega0;
   }
 
-  // --- edges -------------------------------------------------------------------------------------------------
-  auto kc = static_cast<std::int64_t>(std::floor(theta_start / kFourPi)) - 1;  // template cycle of the next edge
+  // --- edges
+  // -------------------------------------------------------------------------------------------------
+  auto kc =
+      static_cast<std::int64_t>(std::floor(theta_start / kFourPi)) - 1;  // template cycle of the next edge
   std::size_t ki = 0;
   std::array<std::uint8_t, 2> level{};
   const auto edge_angle = [&]() { return kFourPi * static_cast<double>(kc) + tmpl[ki].angle_rad; };
@@ -307,12 +317,15 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
     for (std::size_t i = 0; i < sc.fuel_cuts.size(); ++i) {
       const auto& fc = sc.fuel_cuts[i];
       if (rec && t_rel >= fc.t_start_s && t_rel < fc.t_end_s && !cut_resumed[i]) {
-        if (omega_f < fc.resume_rpm * kRpm) cut_resumed[i] = true;
-        else fuel_cut_now = true;
+        if (omega_f < fc.resume_rpm * kRpm)
+          cut_resumed[i] = true;
+        else
+          fuel_cut_now = true;
       }
     }
-    spark_deg = sc.spark_advance_deg.empty() ? spark_map_deg(omega_f / kRpm, air.map_pa()) + sc.spark_offset_deg
-                                             : evaluate(sc.spark_advance_deg, t_rel, 15.0);
+    spark_deg = sc.spark_advance_deg.empty()
+                    ? spark_map_deg(omega_f / kRpm, air.map_pa()) + sc.spark_offset_deg
+                    : evaluate(sc.spark_advance_deg, t_rel, 15.0);
     const double oil_c = evaluate(sc.oil_temp_c, t_rel, 90.0);
 
     // Cylinder events: IVC starts the closed-cycle integration.
@@ -333,7 +346,8 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
                             (sc.combustion.afr_stoich * sc.combustion.lambda) * sc.fuel_factor[cu];
         e.active = true;
         e.theta_tdc_rad = tdc;
-        e.q_total_j = (misfire || fuel_cut_now) ? 0.0 : fuel * sc.combustion.q_lhv_j_kg * sc.combustion.heat_fraction;
+        e.q_total_j =
+            (misfire || fuel_cut_now) ? 0.0 : fuel * sc.combustion.q_lhv_j_kg * sc.combustion.heat_fraction;
         e.soc_rad = -spark_deg * kDeg;
         e.cycle = static_cast<int>(k);
         y[2 + cu] = air.map_pa() * std::pow(model.volume_m3(ivc_psi) / model.volume_m3(theta - tdc), gamma);
@@ -409,7 +423,8 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
     }
     for (int c = 0; c < ncyl; ++c) {
       const auto cu = static_cast<std::size_t>(c);
-      const auto w = static_cast<std::int64_t>(std::floor((theta - model.tdc_base_rad(c) + 2.0 * kPi) / kFourPi + 1e-12));
+      const auto w = static_cast<std::int64_t>(
+          std::floor((theta - model.tdc_base_rad(c) + 2.0 * kPi) / kFourPi + 1e-12));
       if (w != win_idx[cu]) {
         const double tdc = model.tdc_base_rad(c) + kFourPi * static_cast<double>(win_idx[cu]);
         const auto k = static_cast<std::int64_t>(std::floor(tdc / kFourPi + 1e-12));
@@ -465,7 +480,9 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
     }
     throttle = std::clamp(u, 0.0, 1.0);
     air.step(throttle, omega, dt);
-    const auto lag = [&](double& s, double x, double tau) { s += (tau > 0 ? std::min(dt / tau, 1.0) : 1.0) * (x - s); };
+    const auto lag = [&](double& s, double x, double tau) {
+      s += (tau > 0 ? std::min(dt / tau, 1.0) : 1.0) * (x - s);
+    };
     lag(map_s, air.map_pa(), sc.sensors.map_lag_s);
     lag(maf_s, air.throttle_flow_now_kg_s(), sc.sensors.maf_lag_s);
     lag(load_s, t_load, sc.sensors.load_lag_s);
@@ -484,7 +501,9 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
           f.t_ns = std::llround(ts * 1e6) * 1000;  // candump resolution: µs
           f.id = msgs[m].id;
           f.len = static_cast<std::uint8_t>(msgs[m].dlc);
-          const auto put = [&](const char* name, double v) { pack_signal(*find_signal(msgs[m], name), v, f.data.data()); };
+          const auto put = [&](const char* name, double v) {
+            pack_signal(*find_signal(msgs[m], name), v, f.data.data());
+          };
           const double rpm = speed_s / kRpm;
           switch (msgs[m].id) {
             case kEngine1Id:
@@ -497,7 +516,8 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
               put("MAF", maf_s * 1e3 * (1.0 + rng_noise.gaussian(sc.sensors.maf_noise_frac)));
               put("FuelMass", last_fuel_mg);
               put("SparkAdvance", spark_deg);
-              put("Lambda", fuel_cut_now ? 5.0 : sc.combustion.lambda + rng_noise.gaussian(sc.sensors.lambda_noise));
+              put("Lambda",
+                  fuel_cut_now ? 5.0 : sc.combustion.lambda + rng_noise.gaussian(sc.sensors.lambda_noise));
               put("FuelCutoff", fuel_cut_now ? 1.0 : 0.0);
               break;
             case kEngine3Id:
@@ -515,7 +535,8 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
               put("EmTorque", -load_s / sc.e_machine.ratio + rng_noise.gaussian(sc.e_machine.noise_nm));
               put("EmSpeed", rpm * sc.e_machine.ratio);
               break;
-            default: break;
+            default:
+              break;
           }
           out.can.push_back(f);
         }
@@ -523,7 +544,8 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
     }
 
     // --- RK4 step in crank angle (held slow inputs) ---
-    const auto axpy = [](EngineModel::State& r, const EngineModel::State& a, double s, const EngineModel::State& b) {
+    const auto axpy = [](EngineModel::State& r, const EngineModel::State& a, double s,
+                         const EngineModel::State& b) {
       for (std::size_t i = 0; i < r.size(); ++i) r[i] = a[i] + s * b[i];
     };
     axpy(yt, y, 0.5 * h, k1);
@@ -545,7 +567,8 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
       model.derivative(theta + 0.5 * he, yt, in, q3, nullptr);
       axpy(yt, y, he, q3);
       model.derivative(the, yt, in, q4, nullptr);
-      for (std::size_t i = 0; i < ye.size(); ++i) ye[i] = y[i] + he / 6.0 * (k1[i] + 2.0 * q2[i] + 2.0 * q3[i] + q4[i]);
+      for (std::size_t i = 0; i < ye.size(); ++i)
+        ye[i] = y[i] + he / 6.0 * (k1[i] + 2.0 * q2[i] + 2.0 * q3[i] + q4[i]);
       level[et.channel] = et.level;
       const double t_true = ye[0] - t_zero;
       if (rec && t_true >= 0.0) {
@@ -593,8 +616,10 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
     t.t_brake_mean_nm = t.t_ind_mean_nm - t.t_fric_mean_nm;
     out.cycles.push_back(t);
   }
-  std::stable_sort(out.edges.begin(), out.edges.end(), [](const EdgeEvent& a, const EdgeEvent& b) { return a.t_ns < b.t_ns; });
-  std::stable_sort(out.can.begin(), out.can.end(), [](const CanFrame& a, const CanFrame& b) { return a.t_ns < b.t_ns; });
+  std::stable_sort(out.edges.begin(), out.edges.end(),
+                   [](const EdgeEvent& a, const EdgeEvent& b) { return a.t_ns < b.t_ns; });
+  std::stable_sort(out.can.begin(), out.can.end(),
+                   [](const CanFrame& a, const CanFrame& b) { return a.t_ns < b.t_ns; });
   return out;
 }
 

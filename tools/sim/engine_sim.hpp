@@ -1,14 +1,16 @@
 #pragma once
 // Crank-angle-resolved 4-stroke engine simulator with ground truth (docs/simulator.md).
-// Not real-time code: it allocates freely. Deterministic: the same Scenario (incl. seed) gives identical output.
-// Physics and parameter values: docs/simulator.md.
+// Not real-time code: it allocates freely. Deterministic: the same Scenario (incl. seed) gives identical
+// output. Physics and parameter values: docs/simulator.md.
 //
 // Angle conventions (shared with the decoder and estimators):
-//  - "wheel angle" θ_w: crank angle measured from the first tooth after the gap (tooth 0) of the revolution in
+//  - "wheel angle" θ_w: crank angle measured from the first tooth after the gap (tooth 0) of the revolution
+//  in
 //    which the cam signal rises; 720° cycle = [0, 4π). Cycle k of the output covers θ_w ∈ [4πk, 4π(k+1)).
 //  - crank angle after cylinder-1 firing TDC: θ = θ_w − engine.tdc_offset_rad (CrankKinematics' theta720).
 //  - tooth index 0 .. 2·teeth−1 within 720°; tooth 0 closes the gap in the cam-phase-0 revolution.
-//  - the cam channel is high for wheel angles [cam_rise_deg, cam_fall_deg) of each 720° cycle (default 45°..225°).
+//  - the cam channel is high for wheel angles [cam_rise_deg, cam_fall_deg) of each 720° cycle (default
+//  45°..225°).
 #include <array>
 #include <cstdint>
 #include <functional>
@@ -31,8 +33,9 @@ using Schedule = std::vector<Breakpoint>;
 [[nodiscard]] double evaluate(const Schedule& schedule, double t_s, double fallback) noexcept;
 
 enum class LoadMode : std::uint8_t {
-  kDynoSpeed = 0,  ///< dynamometer PI controller holds `speed_rpm` (load torque free, may go negative = motoring)
-  kTorque = 1,     ///< load torque follows `load_torque_nm` (0 = declutched / free engine)
+  kDynoSpeed =
+      0,  ///< dynamometer PI controller holds `speed_rpm` (load torque free, may go negative = motoring)
+  kTorque = 1,  ///< load torque follows `load_torque_nm` (0 = declutched / free engine)
 };
 /// From `t_start_s` on, the load works in `mode` (phases sorted by time; the first applies from t = 0).
 struct LoadPhase {
@@ -59,7 +62,8 @@ struct CombustionParams {
   double wiebe_m = 2.0;             ///< Wiebe form factor m (-)
   double burn_duration_deg = 50.0;  ///< Wiebe duration Δθ (deg)
   double q_lhv_j_kg = 44.0e6;       ///< fuel lower heating value (J/kg)
-  double heat_fraction = 0.80;      ///< fraction of fuel energy released as gas heat (combustion eff. × wall losses)
+  double heat_fraction =
+      0.80;  ///< fraction of fuel energy released as gas heat (combustion eff. × wall losses)
   double afr_stoich = 14.7;         ///< stoichiometric air/fuel ratio (-)
   double lambda = 1.0;              ///< commanded air/fuel equivalence λ (-)
   double vol_efficiency = 0.85;     ///< volumetric efficiency η_v (-)
@@ -71,20 +75,20 @@ struct CombustionParams {
 
 /// Air path: throttle orifice + manifold filling (docs/simulator.md §3).
 struct AirPathParams {
-  double ambient_pa = 100000.0;     ///< ambient pressure upstream of the throttle (Pa)
+  double ambient_pa = 100000.0;  ///< ambient pressure upstream of the throttle (Pa)
   double manifold_volume_m3 = 2.0e-3;
   double throttle_diameter_m = 0.055;
   double throttle_leak_frac = 0.0025;  ///< closed-throttle leakage as fraction of the full area (-)
-  double idle_kp = 2.0e-3;          ///< idle controller: throttle % per rpm of speed error (%/rpm)
-  double idle_ki = 1.0e-2;          ///< idle controller integral gain (%/rpm/s)
+  double idle_kp = 2.0e-3;             ///< idle controller: throttle % per rpm of speed error (%/rpm)
+  double idle_ki = 1.0e-2;             ///< idle controller integral gain (%/rpm/s)
 };
 
 /// Dynamometer / load (docs/simulator.md §4).
 struct DynoParams {
-  double kp_nm_per_rad_s = 3.0;     ///< speed PI proportional gain (N m / (rad/s))
-  double ki_nm_per_rad = 30.0;      ///< speed PI integral gain (N m / rad)
-  double speed_filter_s = 0.02;     ///< speed low-pass for the controller (s)
-  double torque_lag_s = 0.005;      ///< actuator lag of the load torque (s)
+  double kp_nm_per_rad_s = 3.0;  ///< speed PI proportional gain (N m / (rad/s))
+  double ki_nm_per_rad = 30.0;   ///< speed PI integral gain (N m / rad)
+  double speed_filter_s = 0.02;  ///< speed low-pass for the controller (s)
+  double torque_lag_s = 0.005;   ///< actuator lag of the load torque (s)
 };
 
 /// Sensors (docs/simulator.md §5). All noise seeded from Scenario::seed.
@@ -108,20 +112,22 @@ struct SensorParams {
   double lambda_noise = 0.005;       ///< lambda sensor noise 1σ (-)
 };
 
-/// Friction of the simulated engine (docs/simulator.md §4). Default: the Energies 2019 law (EN-27) that the demo and
-/// the built-in scenarios use. The unseen-engines bed (unseen_engines.hpp) draws its own FMEP polynomial instead.
+/// Friction of the simulated engine (docs/simulator.md §4). Default: the Energies 2019 law (EN-27) that the
+/// demo and the built-in scenarios use. The unseen-engines bed (unseen_engines.hpp) draws its own FMEP
+/// polynomial instead.
 struct FrictionModel {
-  bool paper_law = true;           ///< true: EN-27 with the paper's coefficients (fields below unused)
-  double fmep0_kpa = 100.0;        ///< FMEP = fmep0 + fmep1 (n/1000) + fmep2 (n/1000)^2, n in rpm (kPa)
-  double fmep1_kpa = 15.0;         ///< (kPa per 1000 rpm)
-  double fmep2_kpa = 5.0;          ///< (kPa per (1000 rpm)^2)
-  double oil_coeff_per_c = -4.0e-3;///< FMEP × e^{k (t_oil − oil_ref_c)} (1/°C)
-  double oil_ref_c = 90.0;         ///< (°C)
+  bool paper_law = true;             ///< true: EN-27 with the paper's coefficients (fields below unused)
+  double fmep0_kpa = 100.0;          ///< FMEP = fmep0 + fmep1 (n/1000) + fmep2 (n/1000)^2, n in rpm (kPa)
+  double fmep1_kpa = 15.0;           ///< (kPa per 1000 rpm)
+  double fmep2_kpa = 5.0;            ///< (kPa per (1000 rpm)^2)
+  double oil_coeff_per_c = -4.0e-3;  ///< FMEP × e^{k (t_oil − oil_ref_c)} (1/°C)
+  double oil_ref_c = 90.0;           ///< (°C)
 };
 
-/// Electric machine on the crankshaft (hybrid; docs/simulator.md §4). When present it is the load: the torque the
-/// load model computes (speed-holding or scheduled) is applied by the machine, through a gear of `ratio`, and EM_1
-/// reports its shaft torque T_em = −T_load / ratio (positive when it drives the crank, i.e. motoring).
+/// Electric machine on the crankshaft (hybrid; docs/simulator.md §4). When present it is the load: the torque
+/// the load model computes (speed-holding or scheduled) is applied by the machine, through a gear of `ratio`,
+/// and EM_1 reports its shaft torque T_em = −T_load / ratio (positive when it drives the crank, i.e.
+/// motoring).
 struct EMachineSim {
   bool present = false;   ///< false: no machine, no EM_1 frame (the demo and built-in scenarios)
   double ratio = 1.0;     ///< machine speed / crank speed (-)
@@ -168,13 +174,15 @@ struct Scenario {
   Schedule spark_advance_deg{};          ///< spark advance (deg BTDC); empty: built-in map of speed and MAP
   bool idle_control = false;             ///< ECU idle speed controller adds throttle below idle_rpm
   double idle_rpm = 800.0;
-  std::array<double, kMaxCylinders> fuel_factor{1, 1, 1, 1, 1, 1, 1, 1};  ///< per-cylinder fuel multiplier (-)
+  std::array<double, kMaxCylinders> fuel_factor{1, 1, 1, 1,
+                                                1, 1, 1, 1};  ///< per-cylinder fuel multiplier (-)
   std::vector<Misfire> misfires{};
   std::vector<FuelCut> fuel_cuts{};
-  Schedule oil_temp_c{};                 ///< oil temperature (°C); empty: 90
+  Schedule oil_temp_c{};  ///< oil temperature (°C); empty: 90
   double coolant_temp_c = 88.0;
   double intake_temp_c = 30.0;
-  double spark_offset_deg = 0.0;         ///< added to the built-in spark map (combustion phasing of another ECU) (deg)
+  double spark_offset_deg =
+      0.0;  ///< added to the built-in spark map (combustion phasing of another ECU) (deg)
   FrictionModel friction{};
   CombustionParams combustion{};
   AirPathParams air{};
@@ -182,7 +190,7 @@ struct Scenario {
   SensorParams sensors{};
   EMachineSim e_machine{};
   VehicleSim vehicle{};
-  int trace_every_steps = 0;             ///< >0: record a FineSample every n integration steps (tests)
+  int trace_every_steps = 0;  ///< >0: record a FineSample every n integration steps (tests)
 };
 
 /// Names of all built-in scenarios, and one by name (throws std::invalid_argument listing the names).
@@ -191,18 +199,18 @@ struct Scenario {
 
 /// Ground truth at one crank-tooth (marking) edge.
 struct ToothTruth {
-  double t_s = 0.0;               ///< true time of the physical edge (s), before jitter/quantisation
-  std::int64_t t_meas_ns = 0;     ///< the same edge as written to edges (jitter + quantisation) (ns)
-  int tooth = 0;                  ///< 0 .. 2·teeth−1 within 720°
-  int cycle = 0;                  ///< output cycle index
-  double angle720_rad = 0.0;      ///< physical wheel angle of this edge within 720° (nominal + machining error)
-  double speed_rad_s = 0.0;       ///< θ̇ at the edge
-  double t_ind_nm = 0.0;          ///< Σ gas torque (indicated) (N m)
+  double t_s = 0.0;            ///< true time of the physical edge (s), before jitter/quantisation
+  std::int64_t t_meas_ns = 0;  ///< the same edge as written to edges (jitter + quantisation) (ns)
+  int tooth = 0;               ///< 0 .. 2·teeth−1 within 720°
+  int cycle = 0;               ///< output cycle index
+  double angle720_rad = 0.0;   ///< physical wheel angle of this edge within 720° (nominal + machining error)
+  double speed_rad_s = 0.0;    ///< θ̇ at the edge
+  double t_ind_nm = 0.0;       ///< Σ gas torque (indicated) (N m)
   std::array<double, kMaxCylinders> t_ind_cyl_nm{};  ///< gas torque per cylinder (index = cylinder − 1)
-  double t_mass_nm = 0.0;         ///< reciprocating torque (J − J_rot)θ̈ + ½J'θ̇² (N m)
-  double t_fric_nm = 0.0;         ///< friction (N m), positive = loss
-  double t_load_nm = 0.0;         ///< dyno / load torque (N m), positive = absorbing
-  double t_brake_nm = 0.0;        ///< t_ind − t_fric (crank output) (N m)
+  double t_mass_nm = 0.0;   ///< reciprocating torque (J − J_rot)θ̈ + ½J'θ̇² (N m)
+  double t_fric_nm = 0.0;   ///< friction (N m), positive = loss
+  double t_load_nm = 0.0;   ///< dyno / load torque (N m), positive = absorbing
+  double t_brake_nm = 0.0;  ///< t_ind − t_fric (crank output) (N m)
 };
 
 /// Ground truth per 720° cycle (θ-averages = work / 4π).
@@ -212,35 +220,36 @@ struct CycleTruth {
   double speed_mean_rad_s = 0.0;  ///< 4π / (t_end − t_start)
   double t_ind_mean_nm = 0.0, t_brake_mean_nm = 0.0, t_fric_mean_nm = 0.0, t_load_mean_nm = 0.0;
   double t_mass_mean_nm = 0.0;
-  /// Each cylinder's indicated work / 4π over its own cycle (firing TDC ± 360°) of the combustion in this cycle.
+  /// Each cylinder's indicated work / 4π over its own cycle (firing TDC ± 360°) of the combustion in this
+  /// cycle.
   std::array<double, kMaxCylinders> cyl_ind_mean_nm{};
-  std::array<double, kMaxCylinders> cyl_imep_pa{};    ///< same as IMEP (Pa)
-  std::array<double, kMaxCylinders> cyl_peak_pa{};    ///< peak cylinder pressure of that combustion (Pa)
-  std::array<double, kMaxCylinders> cyl_fuel_kg{};    ///< injected fuel (kg)
-  std::array<bool, kMaxCylinders> misfire{};          ///< injected misfire (not fuel cut)
-  bool fuel_cut = false;          ///< any cylinder of this cycle had its fuel cut
-  double map_pa = 0.0;            ///< true MAP at cylinder-1 IVC (Pa)
+  std::array<double, kMaxCylinders> cyl_imep_pa{};  ///< same as IMEP (Pa)
+  std::array<double, kMaxCylinders> cyl_peak_pa{};  ///< peak cylinder pressure of that combustion (Pa)
+  std::array<double, kMaxCylinders> cyl_fuel_kg{};  ///< injected fuel (kg)
+  std::array<bool, kMaxCylinders> misfire{};        ///< injected misfire (not fuel cut)
+  bool fuel_cut = false;                            ///< any cylinder of this cycle had its fuel cut
+  double map_pa = 0.0;                              ///< true MAP at cylinder-1 IVC (Pa)
   double oil_temp_c = 0.0;
 };
 
 /// Fine trace (every trace_every_steps integration steps) for physics tests.
 struct FineSample {
   double t_s = 0.0;
-  double wheel_angle_rad = 0.0;   ///< cumulative wheel angle (rad)
+  double wheel_angle_rad = 0.0;  ///< cumulative wheel angle (rad)
   double speed_rad_s = 0.0;
-  double kinetic_j = 0.0;         ///< ½ J(θ) θ̇²
+  double kinetic_j = 0.0;  ///< ½ J(θ) θ̇²
   double t_ind_nm = 0.0, t_fric_nm = 0.0, t_load_nm = 0.0;
   std::array<double, kMaxCylinders> p_cyl_pa{};
 };
 
 struct SimOutput {
-  std::vector<EdgeEvent> edges;          ///< channel 0 crank, 1 cam; sorted by t_ns; t = 0 is capture start
+  std::vector<EdgeEvent> edges;  ///< channel 0 crank, 1 cam; sorted by t_ns; t = 0 is capture start
   std::array<std::uint8_t, 2> initial_levels{};  ///< crank, cam levels at t = 0
-  std::vector<CanFrame> can;             ///< sorted by t_ns (edge clock, µs resolution), bus 0
+  std::vector<CanFrame> can;                     ///< sorted by t_ns (edge clock, µs resolution), bus 0
   std::vector<ToothTruth> teeth;
-  std::vector<CycleTruth> cycles;        ///< complete cycles only
-  std::vector<double> tooth_error_rad;   ///< machining error of each physical tooth 0..teeth−1 (rad)
-  std::vector<FineSample> trace;         ///< empty unless trace_every_steps > 0
+  std::vector<CycleTruth> cycles;       ///< complete cycles only
+  std::vector<double> tooth_error_rad;  ///< machining error of each physical tooth 0..teeth−1 (rad)
+  std::vector<FineSample> trace;        ///< empty unless trace_every_steps > 0
 };
 
 /// Nominal marking-edge angle of each physical tooth within one revolution (rad), tooth 0 = 0 for N−M wheels.
@@ -248,15 +257,16 @@ struct SimOutput {
 
 /// Run the scenario. Throws std::invalid_argument on an inconsistent scenario, std::runtime_error on a stall.
 /// `progress`, when set, is called with the simulated time about every 0.5 s of simulation.
-[[nodiscard]] SimOutput simulate(const Scenario& scenario, const std::function<void(double t_s)>& progress = {});
+[[nodiscard]] SimOutput simulate(const Scenario& scenario,
+                                 const std::function<void(double t_s)>& progress = {});
 
-/// Tooth samples as a synced decoder would give them: measured times (machining error + jitter + quantisation),
-/// correct tooth index / 720° phase, NOMINAL angle and width (gap tooth: (missing + 1) pitches), dt_s from the
-/// previous measured edge. The first sample has synced = false and dt_s = 0.
+/// Tooth samples as a synced decoder would give them: measured times (machining error + jitter +
+/// quantisation), correct tooth index / 720° phase, NOMINAL angle and width (gap tooth: (missing + 1)
+/// pitches), dt_s from the previous measured edge. The first sample has synced = false and dt_s = 0.
 [[nodiscard]] std::vector<ToothSample> ideal_tooth_samples(const SimOutput& out, const Scenario& scenario);
 
-/// EngineSignals (SI) decoded from the newest CAN frame of each message at or before t_s; a signal is valid when
-/// its frame is younger than `max_age_s`.
+/// EngineSignals (SI) decoded from the newest CAN frame of each message at or before t_s; a signal is valid
+/// when its frame is younger than `max_age_s`.
 [[nodiscard]] EngineSignals signals_at(const SimOutput& out, double t_s, double max_age_s = 0.05);
 
 }  // namespace torqued::sim

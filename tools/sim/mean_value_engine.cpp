@@ -22,7 +22,8 @@ double MeanValueEngine::port_flow_g_s(double n, double p_m) const {
 }
 
 double MeanValueEngine::torque_nm(double n, double p_m) const {
-  const double m_a = std::max(0.0, port_flow_g_s(n, p_m)) * std::numbers::pi / std::max(n, 1.0);  // g per event
+  const double m_a =
+      std::max(0.0, port_flow_g_s(n, p_m)) * std::numbers::pi / std::max(n, 1.0);  // g per event
   const double afr = params_.afr;
   const double sg = params_.spark_advance_deg;
   return -181.3 + 379.36 * m_a + 21.91 * afr - 0.85 * afr * afr + 0.26 * sg - 0.0028 * sg * sg + 0.027 * n -
@@ -41,7 +42,8 @@ void MeanValueEngine::step(double dt, double th, double load) {
   const auto k3 = deriv(n0 + 0.5 * dt * k2[0], p0 + 0.5 * dt * k2[1]);
   const auto k4 = deriv(n0 + dt * k3[0], p0 + dt * k3[1]);
   state_.omega_rad_s = n0 + dt / 6.0 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]);
-  state_.p_m_bar = std::clamp(p0 + dt / 6.0 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]), 0.01, params_.p_amb_bar);
+  state_.p_m_bar =
+      std::clamp(p0 + dt / 6.0 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]), 0.01, params_.p_amb_bar);
 }
 
 double MeanValueEngine::steady_throttle_deg(double n, double p_m) const {
@@ -66,7 +68,9 @@ double MeanValueEngine::steady_pressure_bar(double n, double torque) const {
 std::vector<NaScenarioSample> run_na_scenario(const NaScenarioConfig& cfg) {
   MeanValueEngine engine(cfg.engine);
   constexpr double kRpmToRadS = std::numbers::pi / 30.0;
-  auto load_of = [&](double n) { return cfg.load_coeffs[0] + cfg.load_coeffs[1] * n + cfg.load_coeffs[2] * n * n; };
+  auto load_of = [&](double n) {
+    return cfg.load_coeffs[0] + cfg.load_coeffs[1] * n + cfg.load_coeffs[2] * n * n;
+  };
   auto reference = [&](double t) {
     double rpm = cfg.speed_steps_rpm.empty() ? 2000.0 : cfg.speed_steps_rpm.front()[1];
     for (const auto& s : cfg.speed_steps_rpm) {

@@ -64,7 +64,8 @@ NaMethodResult run_one(const std::string& name, Est est, const std::vector<NaSce
 }
 }  // namespace
 
-std::vector<NaMethodResult> run_na_methods(const std::vector<NaScenarioSample>& samples, const NaReproConfig& cfg) {
+std::vector<NaMethodResult> run_na_methods(const std::vector<NaScenarioSample>& samples,
+                                           const NaReproConfig& cfg) {
   const double step = samples.size() > 1 ? samples[1].t_s - samples[0].t_s : 0.001;
   std::vector<NaMethodResult> out;
   out.push_back(run_one("uio", Uio(cfg.uio, cfg.inertia_kgm2, step), samples, cfg));
@@ -105,17 +106,23 @@ std::string format_na_tables(const std::vector<NaMethodResult>& results) {
   const std::vector<const ErrorMetrics*> t3{find("uio"), find("sliding_mode"), find("dirty_diff")};
   s += "TABLE III. Torque estimation performance indices (window 5-30 s)\n";
   s += "Index        UIO (14)  Sliding mode (21)  Dirty diff. (24)\n";
-  row("ISE", t3, [](const ErrorMetrics& m) { return m.ise; }, " %16.4e");
-  row("MAE", t3, [](const ErrorMetrics& m) { return m.mae; }, " %16.4f");
-  row("SD", t3, [](const ErrorMetrics& m) { return m.sd; }, " %16.4f");
-  const std::vector<const ErrorMetrics*> t4{find("law50_kappa0.0"), find("law50_kappa0.1"), find("law54_kappa0.0"),
-                                            find("law54_kappa0.1")};
+  row(
+      "ISE", t3, [](const ErrorMetrics& m) { return m.ise; }, " %16.4e");
+  row(
+      "MAE", t3, [](const ErrorMetrics& m) { return m.mae; }, " %16.4f");
+  row(
+      "SD", t3, [](const ErrorMetrics& m) { return m.sd; }, " %16.4f");
+  const std::vector<const ErrorMetrics*> t4{find("law50_kappa0.0"), find("law50_kappa0.1"),
+                                            find("law54_kappa0.0"), find("law54_kappa0.1")};
   s += "\nTABLE IV. Adaptive laws (window 5-30 s)\n";
   s += "             Constant gain (50)                  Time-varying gain (54)\n";
   s += "Index      kappa=0       kappa=0.1          kappa=0       kappa=0.1\n";
-  row("ISE", t4, [](const ErrorMetrics& m) { return m.ise; }, " %16.4e");
-  row("MAE", t4, [](const ErrorMetrics& m) { return m.mae; }, " %16.4f");
-  row("SD", t4, [](const ErrorMetrics& m) { return m.sd; }, " %16.4f");
+  row(
+      "ISE", t4, [](const ErrorMetrics& m) { return m.ise; }, " %16.4e");
+  row(
+      "MAE", t4, [](const ErrorMetrics& m) { return m.mae; }, " %16.4f");
+  row(
+      "SD", t4, [](const ErrorMetrics& m) { return m.sd; }, " %16.4f");
   return s;
 }
 

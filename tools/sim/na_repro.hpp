@@ -10,14 +10,14 @@
 namespace torqued::sim {
 
 struct ErrorMetrics {
-  double ise = 0.0;  ///< ∫ε² dt over the window (N² m² s) (Na-60)
-  double mae = 0.0;  ///< max|ε| (N m) (Na-61)
-  double sd = 0.0;   ///< standard deviation of ε (N m) (Na-62)
-  double mean = 0.0; ///< mean of ε (N m)
+  double ise = 0.0;   ///< ∫ε² dt over the window (N² m² s) (Na-60)
+  double mae = 0.0;   ///< max|ε| (N m) (Na-61)
+  double sd = 0.0;    ///< standard deviation of ε (N m) (Na-62)
+  double mean = 0.0;  ///< mean of ε (N m)
 };
 
 struct NaMethodResult {
-  std::string name;         ///< e.g. "uio", "sliding_mode", "law50_k0"
+  std::string name;  ///< e.g. "uio", "sliding_mode", "law50_k0"
   ErrorMetrics metrics;
   std::vector<double> torque_nm;  ///< estimate per sample
 };
@@ -33,8 +33,8 @@ struct NaReproConfig {
 };
 
 /// ε = truth − estimate over [start, end]; rectangle rule with the sample step.
-[[nodiscard]] ErrorMetrics error_metrics(const std::vector<NaScenarioSample>& samples, const std::vector<double>& est,
-                                         double start_s, double end_s);
+[[nodiscard]] ErrorMetrics error_metrics(const std::vector<NaScenarioSample>& samples,
+                                         const std::vector<double>& est, double start_s, double end_s);
 
 /// UIO, sliding mode, dirty differentiation, then the adaptive laws (50) and (54) each with κ = 0 and 0.1.
 [[nodiscard]] std::vector<NaMethodResult> run_na_methods(const std::vector<NaScenarioSample>& samples,

@@ -40,7 +40,8 @@ std::vector<std::pair<std::string, Factory>> registry() {
   for (int rpm : {1000, 2000, 3000, 4000}) {
     for (const char* load : {"low", "mid", "high"}) {
       const std::uint64_t sd = seed++;
-      r.emplace_back("steady_" + std::to_string(rpm) + "_" + load, [rpm, load, sd] { return steady(rpm, load, sd); });
+      r.emplace_back("steady_" + std::to_string(rpm) + "_" + load,
+                     [rpm, load, sd] { return steady(rpm, load, sd); });
     }
   }
   r.emplace_back("throttle_step", [] {
@@ -55,7 +56,8 @@ std::vector<std::pair<std::string, Factory>> registry() {
     s.duration_s = 3.0;
     s.load_phases = {{0.0, LoadMode::kTorque}};
     // e-machine torque step against the engine at fixed MAP: the engine settles near 2500 rpm at 85 N m and
-    // decelerates towards a new equilibrium after the step (friction is the only speed-dependent restoring term).
+    // decelerates towards a new equilibrium after the step (friction is the only speed-dependent restoring
+    // term).
     s.speed_rpm = {{0.0, 2500.0}};  // initial speed
     s.load_torque_nm = {{0.0, 85.0}, {1.0, 85.0}, {1.01, 100.0}};
     s.map_target_kpa = {{0.0, 75.0}};
@@ -123,13 +125,13 @@ std::vector<std::pair<std::string, Factory>> registry() {
     s.idle_control = true;
     s.load_phases = {{0.0, LoadMode::kTorque}, {3.0, LoadMode::kDynoSpeed}};
     s.load_torque_nm = {{0.0, 0.0}};
-    s.speed_rpm = {{0.0, 800.0},  {3.0, 800.0},   {4.0, 1500.0},  {6.0, 1500.0},  {7.0, 2500.0},
-                   {9.0, 2500.0}, {9.4, 3500.0},  {11.0, 3500.0}, {12.0, 2000.0}, {16.0, 2000.0},
-                   {17.0, 3000.0}, {20.0, 3000.0}};
-    s.map_target_kpa = {{0.0, 15.0},  {3.0, 15.0},  {3.2, 35.0},  {5.0, 35.0},  {5.02, 70.0}, {6.0, 70.0},
-                        {6.2, 50.0},  {8.5, 50.0},  {8.52, 90.0}, {9.0, 90.0},  {9.2, 60.0},  {11.0, 60.0},
-                        {11.05, 20.0}, {12.0, 20.0}, {12.2, 45.0}, {14.0, 45.0}, {14.02, 80.0}, {16.0, 80.0},
-                        {16.2, 55.0}, {18.5, 55.0}, {18.52, 95.0}, {20.0, 95.0}};
+    s.speed_rpm = {{0.0, 800.0},   {3.0, 800.0},   {4.0, 1500.0},  {6.0, 1500.0},
+                   {7.0, 2500.0},  {9.0, 2500.0},  {9.4, 3500.0},  {11.0, 3500.0},
+                   {12.0, 2000.0}, {16.0, 2000.0}, {17.0, 3000.0}, {20.0, 3000.0}};
+    s.map_target_kpa = {{0.0, 15.0},   {3.0, 15.0},  {3.2, 35.0},   {5.0, 35.0},  {5.02, 70.0},  {6.0, 70.0},
+                        {6.2, 50.0},   {8.5, 50.0},  {8.52, 90.0},  {9.0, 90.0},  {9.2, 60.0},   {11.0, 60.0},
+                        {11.05, 20.0}, {12.0, 20.0}, {12.2, 45.0},  {14.0, 45.0}, {14.02, 80.0}, {16.0, 80.0},
+                        {16.2, 55.0},  {18.5, 55.0}, {18.52, 95.0}, {20.0, 95.0}};
     s.fuel_cuts = {{11.1, 11.9, 1100.0}};
     s.misfires = {{110, 1}, {111, 3}, {150, 4}, {230, 2}, {300, 1}};
     return s;

@@ -1,6 +1,7 @@
 #pragma once
-// Seeded random numbers for the simulator: std::mt19937_64 (its output sequence is fixed by the standard) with
-// our own uniform mapping and Box-Muller, so results never depend on the standard library's distributions.
+// Seeded random numbers for the simulator: std::mt19937_64 (its output sequence is fixed by the standard)
+// with our own uniform mapping and Box-Muller, so results never depend on the standard library's
+// distributions.
 #include <cmath>
 #include <cstdint>
 #include <numbers>
@@ -12,7 +13,8 @@ class SimRandom {
  public:
   /// Independent stream `stream` of seed `seed` (SplitMix64 mixing), so that adding draws to one sensor
   /// does not change the others.
-  SimRandom(std::uint64_t seed, std::uint64_t stream) : engine_(mix(seed ^ mix(stream + 0x9E3779B97F4A7C15ull))) {}
+  SimRandom(std::uint64_t seed, std::uint64_t stream)
+      : engine_(mix(seed ^ mix(stream + 0x9E3779B97F4A7C15ull))) {}
 
   /// Uniform in [0, 1) with 53 random bits.
   double uniform() { return static_cast<double>(engine_() >> 11) * 0x1.0p-53; }

@@ -48,7 +48,8 @@ std::string candump_log(const SimOutput& out) {
     const std::int64_t us = f.t_ns / 1000;
     appendf(s, "(%" PRId64 ".%06" PRId64 ") can0 %03X#", kCandumpEpochS + us / 1000000, us % 1000000,
             static_cast<unsigned>(f.id));
-    for (int i = 0; i < f.len; ++i) appendf(s, "%02X", static_cast<unsigned>(f.data[static_cast<std::size_t>(i)]));
+    for (int i = 0; i < f.len; ++i)
+      appendf(s, "%02X", static_cast<unsigned>(f.data[static_cast<std::size_t>(i)]));
     s += '\n';
   }
   return s;
@@ -62,7 +63,8 @@ std::string truth_tooth_csv(const SimOutput& out, const Scenario& sc) {
   for (int c = 1; c <= n; ++c) appendf(s, ",t_ind_cyl%d_nm", c);
   s += ",t_mass_nm,t_fric_nm,t_load_nm,t_brake_nm\n";
   for (const auto& t : out.teeth) {
-    appendf(s, "%.8f,%d,%.4f,%.4f,%.2f", t.t_s, t.tooth, t.angle720_rad * kRadToDeg, t.speed_rad_s, t.t_ind_nm);
+    appendf(s, "%.8f,%d,%.4f,%.4f,%.2f", t.t_s, t.tooth, t.angle720_rad * kRadToDeg, t.speed_rad_s,
+            t.t_ind_nm);
     for (int c = 0; c < n; ++c) appendf(s, ",%.2f", t.t_ind_cyl_nm[static_cast<std::size_t>(c)]);
     appendf(s, ",%.2f,%.3f,%.3f,%.2f\n", t.t_mass_nm, t.t_fric_nm, t.t_load_nm, t.t_brake_nm);
   }
@@ -82,8 +84,8 @@ std::string truth_cycle_csv(const SimOutput& out, const Scenario& sc) {
   s += '\n';
   for (const auto& y : out.cycles) {
     appendf(s, "%d,%.9f,%.9f,%.3f,%.4f,%.4f,%.4f,%.4f", y.cycle, y.t_start_s, y.t_end_s,
-            y.speed_mean_rad_s * 30.0 / std::numbers::pi, y.t_ind_mean_nm, y.t_brake_mean_nm, y.t_fric_mean_nm,
-            y.t_load_mean_nm);
+            y.speed_mean_rad_s * 30.0 / std::numbers::pi, y.t_ind_mean_nm, y.t_brake_mean_nm,
+            y.t_fric_mean_nm, y.t_load_mean_nm);
     for (int c = 0; c < n; ++c) appendf(s, ",%.4f", y.cyl_ind_mean_nm[static_cast<std::size_t>(c)]);
     for (int c = 0; c < n; ++c) appendf(s, ",%d", y.misfire[static_cast<std::size_t>(c)] ? 1 : 0);
     appendf(s, ",%d,%.4f,%.3f,%.2f", y.fuel_cut ? 1 : 0, y.t_mass_mean_nm, y.map_pa / 1e3, y.oil_temp_c);
@@ -106,21 +108,25 @@ std::string engine_yaml(const Scenario& sc) {
   const auto& e = sc.engine;
   const auto& w = sc.wheel;
   std::string s;
-  appendf(s, "# Engine and wheel of torque-sim scenario '%s' (seed %" PRIu64 "); paste into the torqued config.\n",
+  appendf(s,
+          "# Engine and wheel of torque-sim scenario '%s' (seed %" PRIu64
+          "); paste into the torqued config.\n",
           sc.name.c_str(), sc.seed);
   s += "engine:\n";
   appendf(s, "  cylinders: %d\n", e.cylinders);
   s += "  firing_order: [";
-  for (int i = 0; i < e.cylinders; ++i) appendf(s, "%s%d", i ? ", " : "", e.firing_order[static_cast<std::size_t>(i)]);
+  for (int i = 0; i < e.cylinders; ++i)
+    appendf(s, "%s%d", i ? ", " : "", e.firing_order[static_cast<std::size_t>(i)]);
   s += "]\n";
-  appendf(s, "  bore_m: %.6g\n  stroke_m: %.6g\n  rod_m: %.6g\n  compression_ratio: %.6g\n", e.bore_m, e.stroke_m,
-          e.rod_m, e.compression_ratio);
+  appendf(s, "  bore_m: %.6g\n  stroke_m: %.6g\n  rod_m: %.6g\n  compression_ratio: %.6g\n", e.bore_m,
+          e.stroke_m, e.rod_m, e.compression_ratio);
   appendf(s, "  j_rot_kgm2: %.6g\n  m_osc_kg: %.6g\n  tdc_offset_deg: %.6g\n  crankcase_pressure_pa: %.6g\n",
           e.j_rot_kgm2, e.m_osc_kg, e.tdc_offset_rad * kRadToDeg, e.crankcase_pressure_pa);
   s += "wheel:\n";
   if (w.tooth_count > 0) {
     s += "  tooth_angles_deg: [";
-    for (int k = 0; k < w.tooth_count; ++k) appendf(s, "%s%.6g", k ? ", " : "", w.tooth_angles_deg[static_cast<std::size_t>(k)]);
+    for (int k = 0; k < w.tooth_count; ++k)
+      appendf(s, "%s%.6g", k ? ", " : "", w.tooth_angles_deg[static_cast<std::size_t>(k)]);
     s += "]\n";
   } else {
     appendf(s, "  teeth: %d\n  missing: %d\n", w.positions, w.missing);
@@ -159,9 +165,10 @@ std::string torqued_config_yaml(const EngineGeometry& engine, const Scenario& sc
   vehicle_flag = vehicle_flag && sc.vehicle.present && sc.vehicle.flag_on_can;
   Scenario spec = sc;
   spec.engine = engine;
-  std::string s = "# torqued configuration of torque-sim recording '" + sc.name + "' (" +
-                  (load_signal ? "with the load-torque signal: dynamometer" : "no load-torque signal: vehicle") +
-                  ").\n# Engine section: the spec sheet, not the simulator's hidden truth. Other keys: defaults.\n";
+  std::string s =
+      "# torqued configuration of torque-sim recording '" + sc.name + "' (" +
+      (load_signal ? "with the load-torque signal: dynamometer" : "no load-torque signal: vehicle") +
+      ").\n# Engine section: the spec sheet, not the simulator's hidden truth. Other keys: defaults.\n";
   const std::string eng = engine_yaml(spec);
   s += eng.substr(eng.find('\n') + 1);  // without engine_yaml's own comment line
   s += "inputs:\n  edges: {backend: file, path: edges.csv, format: csv}\n";

@@ -34,8 +34,8 @@ struct BedEngine {
 /// dyno-held overrun in fuel cut-off as in bed_learning_run(), then firing at ONE operating point (2500 rpm,
 /// 60 kPa) with the load signal on CAN. What it teaches must carry to the rest of the map.
 [[nodiscard]] Scenario bed_one_point_learning_run(const BedEngine& e);
-/// Motoring recording (hybrid input): fuel cut-off throughout, closed throttle, the load (an electric machine when
-/// the scenario has one) holds 1000, 1500, ... 4000 rpm plateaus: the machine motors the engine.
+/// Motoring recording (hybrid input): fuel cut-off throughout, closed throttle, the load (an electric machine
+/// when the scenario has one) holds 1000, 1500, ... 4000 rpm plateaus: the machine motors the engine.
 [[nodiscard]] Scenario bed_motoring_run(const BedEngine& e);
 /// Vehicle recordings (VehicleSim; docs/simulator.md §7). No load signal on CAN; VEH_1.ClutchOpen is sent (a
 /// configuration may leave it unmapped). Vehicle only: idle in neutral, driving 1000-3000 rpm at 35-92 kPa in

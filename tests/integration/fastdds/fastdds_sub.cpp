@@ -2,7 +2,14 @@
 // using fastddsgen's code for idl/torque.idl generated at build time. Loopback only: UDPv4 transport with
 // 127.0.0.1 white-listed, unicast initial peer 127.0.0.1, no builtin multicast.
 // Prints one line per sample "cycle kind fused_nm seq" and exits 0 after --count samples; exits 2 (loudly)
-// if no writer matched or no sample arrived before the time-out (a type/topic-name mismatch is silent in DDS).
+// if no writer matched or no sample arrived before the time-out (a type/topic-name mismatch is silent in
+// DDS).
+#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
+#include <fastrtps/utils/IPLocator.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/subscriber/DataReader.hpp>
@@ -10,12 +17,6 @@
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
-#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
-#include <fastrtps/utils/IPLocator.h>
-
-#include <chrono>
-#include <cstdio>
-#include <cstdlib>
 #include <memory>
 #include <string>
 #include <thread>
@@ -39,7 +40,8 @@ int main(int argc, char** argv) {
   eprosima::fastrtps::rtps::Locator_t peer;
   eprosima::fastrtps::rtps::IPLocator::setIPv4(peer, 127, 0, 0, 1);
   pq.wire_protocol().builtin.initialPeersList.push_back(peer);
-  pq.wire_protocol().builtin.discovery_config.leaseDuration_announcementperiod = eprosima::fastrtps::Duration_t(0, 200000000);
+  pq.wire_protocol().builtin.discovery_config.leaseDuration_announcementperiod =
+      eprosima::fastrtps::Duration_t(0, 200000000);
 
   DomainParticipant* p = DomainParticipantFactory::get_instance()->create_participant(0, pq);
   if (!p) {
@@ -55,7 +57,8 @@ int main(int argc, char** argv) {
   rq.history().kind = KEEP_LAST_HISTORY_QOS;
   rq.history().depth = 256;
   DataReader* reader = sub->create_datareader(topic, rq);
-  std::fprintf(stderr, "fastdds-torque-sub: type %s topic %s\n", type.get_type_name().c_str(), topic_name.c_str());
+  std::fprintf(stderr, "fastdds-torque-sub: type %s topic %s\n", type.get_type_name().c_str(),
+               topic_name.c_str());
 
   const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   int got = 0;
@@ -81,12 +84,14 @@ int main(int argc, char** argv) {
   p->delete_contained_entities();
   DomainParticipantFactory::get_instance()->delete_participant(p);
   if (!matched) {
-    std::fprintf(stderr, "fastdds-torque-sub: FAILED: no Cyclone writer matched '%s' (type or topic name mismatch?)\n",
-                 topic_name.c_str());
+    std::fprintf(
+        stderr, "fastdds-torque-sub: FAILED: no Cyclone writer matched '%s' (type or topic name mismatch?)\n",
+        topic_name.c_str());
     return 2;
   }
   if (got < count) {
-    std::fprintf(stderr, "fastdds-torque-sub: FAILED: matched but only %d of %d samples arrived\n", got, count);
+    std::fprintf(stderr, "fastdds-torque-sub: FAILED: matched but only %d of %d samples arrived\n", got,
+                 count);
     return 2;
   }
   std::fprintf(stderr, "fastdds-torque-sub: %d samples\n", got);
