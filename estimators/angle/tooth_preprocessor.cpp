@@ -52,7 +52,8 @@ ToothAngleTable ToothAngleTable::build(const EngineGeometry& engine, const Wheel
   for (int k = 0; k < t.samples; ++k) {
     const auto i = static_cast<std::size_t>(k % t.teeth);
     const auto kk = static_cast<std::size_t>(k);
-    t.edge_rad[kk] = (k / t.teeth) * kTwoPi + e1[i];
+    const int rev = k / t.teeth;  // whole revolutions before sample k
+    t.edge_rad[kk] = rev * kTwoPi + e1[i];
     t.width_rad[kk] = w1[i];
   }
   for (int k = 0; k < t.samples; ++k) {

@@ -186,9 +186,9 @@ struct FrictionParams {
       0.35;  ///< idle observations farther than this fraction from the current friction
              ///< at idle are rejected (counted) once the idle level is established (-)
   double idle_max_correction_frac = 0.5;  ///< |idle correction| ≤ this fraction of the law at idle (-)
-  int idle_after_cut_cycles = 25;  ///< idle observations only this many firing cycles after a fuel cut-off,
-                                   ///< so that the RLS memory holds no coasting windows (cycles)
-  double idle_max_rls_sd_nm = 1.5;     ///< and only with an RLS load 1σ below this (tight, settled) (N m)
+  int idle_after_cut_cycles = 25;   ///< idle observations only this many firing cycles after a fuel cut-off,
+                                    ///< so that the RLS memory holds no coasting windows (cycles)
+  double idle_max_rls_sd_nm = 1.5;  ///< and only with an RLS load 1σ below this (tight, settled) (N m)
   double idle_speed_tolerance = 0.03;  ///< steady idle: cycle-to-cycle speed change below this fraction (-)
   double prior_rel_sd = 0.4;           ///< 1σ of the generic prior, fraction of the friction (±40 %) (-)
   double learned_sd_nm = 2.0;          ///< 1σ claimed for the learned friction law (N m)
