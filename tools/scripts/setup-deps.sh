@@ -12,7 +12,7 @@ PKGS=(
   libsystemd-dev systemd libgpiod-dev
   libreaderwriterqueue-dev libboost-dev prometheus-cpp-dev
   can-utils iproute2
-  clang libclang-rt-dev openssl
+  clang libclang-rt-dev openssl clang-format clang-tidy   # clang-format, clang-tidy: tools/scripts/lint.sh
   python3 python3-matplotlib python3-numpy
   debhelper dpkg-dev help2man lintian
   libcivetweb-dev nlohmann-json3-dev libjs-chart.js   # torque-dash (HTTP/WebSocket server, JSON, page plots)

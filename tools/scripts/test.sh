@@ -52,6 +52,11 @@ if [[ "${TORQUED_SKIP_FUZZ:-0}" != "1" ]]; then
 fi
 # ---- end fuzzing ----
 
+# ---- habits: clang-format on the whole tree, clang-tidy on the files the last commit changed ----
+echo "== lint =="
+if tools/scripts/lint.sh build | tee build/lint.txt; then :; else status=1; fi
+summary+=("[lint] $(grep -c '^lint: .*clean' build/lint.txt)/2 checks clean")
+
 echo "== summary =="
 printf '%s\n' "${summary[@]}"
 exit $status
