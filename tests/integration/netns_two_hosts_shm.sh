@@ -56,9 +56,10 @@ grep -q "crank_state: {reliability: reliable" "$tmp/demo_shm.yaml" || { echo "FA
 echo_args=(--config "$tmp/demo_shm.yaml" --topic engine --topic estimator --topic cylinder --topic crank
            --format none --idle-exit 3 --duration 90)
 
-# Host B: the network path.
+# Host B: the network path. SCHED_FIFO like host A's subscriber: the writer keeps 16 samples per instance, so a
+# reader the loaded 2-core machine leaves unscheduled for a few ms loses EngineTorque cycles (5 of 357 seen).
 ip netns exec "$b" env CYCLONEDDS_URI="file://$tmp/b.xml" \
-  "$echo_exe" "${echo_args[@]}" --record "$tmp/rec_net" > "$tmp/echo_net.log" 2>&1 &
+  chrt -f 20 "$echo_exe" "${echo_args[@]}" --record "$tmp/rec_net" > "$tmp/echo_net.log" 2>&1 &
 net_pid=$!
 
 # Host A: private /tmp and /dev/shm, RouDi, the shared-memory subscriber, the daemon; RouDi stopped last (it sends
