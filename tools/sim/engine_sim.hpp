@@ -70,7 +70,9 @@ struct CombustionParams {
   double ivc_deg = 540.0;           ///< IVC, local angle after firing TDC (deg) (= BDC, 180° before TDC)
   double evo_deg = 130.0;           ///< EVO after firing TDC (deg)
   double blowdown_end_deg = 200.0;  ///< end of the exhaust blowdown blend (deg)
-  double exhaust_pa = 105000.0;     ///< exhaust back-pressure (Pa)
+  double exhaust_pa =
+      105000.0;  ///< exhaust back-pressure (Pa): textbook ambient + system drop (physics),
+                 ///< the same figure the estimators take as their prior, neither from the other
 };
 
 /// Air path: throttle orifice + manifold filling (docs/simulator.md §3).
