@@ -447,15 +447,16 @@ bool AnglePipeline::fuel_reference_allowed(const CycleReference& ref, const Engi
   // A reference cycle: known load (energy balance) no less certain than fuel_max_sd_nm (FuelTorque::learn has
   // no per-reference weight), learned friction, firing for a whole window, fuel on CAN.
   return cycle_end && ref.ok && ref.sd_nm <= cfg_.load_ref.fuel_max_sd_nm && load_steady &&
-         !friction_.is_prior() && fired_segments_ > cfg_.engine.cylinders && can_fresh &&
+         friction_.speed_law_learned() && fired_segments_ > cfg_.engine.cylinders && can_fresh &&
          sig.fuel_mass_valid && have_map_;
 }
 
 bool AnglePipeline::fuel_learning_allowed(const CycleReference& ref, const EngineSignals& sig, bool can_fresh,
                                           bool cycle_end, const FuelWindow& fw) const noexcept {
-  // A fuel-model reference: as fuel_reference_allowed() but transients too (the window's fuel and MAP are the
-  // intake events' whose work it holds; FuelAngleWindow), every event fired.
-  return cycle_end && ref.ok && ref.sd_nm <= cfg_.load_ref.fuel_max_sd_nm && !friction_.is_prior() &&
+  // A fuel-model reference: as fuel_reference_allowed() but transients too (the friction law learned over
+  // speed, not only corrected at idle: T_ind,ref = balance + friction carries the friction's error) (the
+  // window's fuel and MAP are the intake events' whose work it holds; FuelAngleWindow), every event fired.
+  return cycle_end && ref.ok && ref.sd_nm <= cfg_.load_ref.fuel_max_sd_nm && friction_.speed_law_learned() &&
          fired_segments_ > cfg_.engine.cylinders && can_fresh && sig.fuel_mass_valid && have_map_ &&
          fw.valid && fw.cut == 0 && fw.fired > 0;
 }

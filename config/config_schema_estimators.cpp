@@ -371,6 +371,10 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_INT("fuel.cell_min_references", fuel.cell_min_references, closed(1, 65535), "cycles",
          "references in a speed x MAP cell (4 x 4 grid) before it counts as learned (DaemonStatus, metrics; "
          "no model-form share in its 1 sigma)");
+  TQ_INT("fuel.gate_reaccept", fuel.gate_reaccept, closed(1, 1000000), "cycles",
+         "once learned, so many references in a row beyond the 5 sigma gate on the same side mean the model "
+         "is wrong (learned from a bad reference, or the engine changed): its covariance and residual scale "
+         "restart from the prior's and it learns again");
   TQ_NUM("fuel.sd_ema", fuel.sd_ema, open_closed(0.0, 1.0), "",
          "weight of the measured residual variance per reference cycle: EMA weight until valid, then the "
          "floor of a running mean (1/k)");

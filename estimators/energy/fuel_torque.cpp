@@ -192,7 +192,12 @@ bool FuelTorque::learn(const FuelPoint& x, double t_ind_ref, double extra_sd_nm)
   // 5σ outlier gate once learned: the residual scale (never below one reference's own noise) plus the
   // parameter uncertainty here (a new operating point far from the references is not an outlier).
   const double pv = param_var(reg);
-  if (valid() && err * err > 25.0 * (std::max(st_.resid_var, r) + pv)) return false;
+  if (valid() && err * err > 25.0 * (std::max(st_.resid_var, r) + pv)) {
+    if (!gated_run(err)) return false;
+    relearn();  // consistent on one side: what was learned is wrong (or the engine changed)
+    return learn(x, t_ind_ref, extra_sd_nm);
+  }
+  gated_ = 0;
   std::array<double, kN> pphi{};
   for (int i = 0; i < kN; ++i)
     for (int j = 0; j < kN; ++j)
@@ -231,6 +236,25 @@ bool FuelTorque::learn(const FuelPoint& x, double t_ind_ref, double extra_sd_nm)
   st_.resid_var += w * (e_res * e_res - st_.resid_var);
   if (was_valid) observe_coverage(e_res);
   return true;
+}
+
+bool FuelTorque::gated_run(double err) noexcept {
+  const int sign = err > 0.0 ? 1 : -1;
+  gated_ = sign == gated_sign_ ? gated_ + 1 : 1;
+  gated_sign_ = sign;
+  return gated_ >= params_.gate_reaccept;
+}
+
+void FuelTorque::relearn() noexcept {
+  // The parameters stay where they are; their covariance goes back to the prior's and the residual scale is
+  // measured again, so the next references move them as freely as the first did. The cell counts stay.
+  const FuelTorqueState prior = prior_state();
+  st_.p = prior.p;
+  st_.references = 0;
+  st_.resid_var = prior.resid_var;
+  st_.cover = prior.cover;
+  gated_ = 0;
+  ++relearns_;
 }
 
 void FuelTorque::cap_covariance() noexcept {

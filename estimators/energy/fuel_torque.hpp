@@ -18,9 +18,11 @@
 // covariance never grows beyond the prior's (forgetting only forgets information, never the prior), and the
 // claimed 1σ is the parameter uncertainty at the operating point plus a residual scale: before references
 // a model-form share of the gross work (the prior's own error), once learned the 68th percentile of
-// |reference residual| (CoverageScale). Transient references count, with the window's spread as extra
-// measurement noise (FuelAngleWindow aligns fuel and work per intake event). A 4 × 4 speed × MAP grid counts
-// the references per cell (DaemonStatus, metrics). Real-time safe: no allocation, no exceptions.
+// |reference residual| (CoverageScale). References beyond the 5σ gate are outliers, unless gate_reaccept of
+// them in a row fall on one side: then what was learned is wrong and its covariance restarts. Transient
+// references count, with the window's spread as extra measurement noise (FuelAngleWindow aligns fuel and work
+// per intake event). A 4 × 4 speed × MAP grid counts the references per cell (DaemonStatus, metrics).
+// Real-time safe: no allocation, no exceptions.
 #include <array>
 #include <cstdint>
 
@@ -73,8 +75,10 @@ struct FuelTorqueParams {
   double residual_sd_nm = 2.0;  ///< measurement 1σ of one reference cycle (N m)
   int min_references = 30;      ///< references before the residual scale is measured ("learned") (-)
   int cell_min_references = 5;  ///< references in a speed × MAP cell before it counts as learned (-)
-  double sd_ema = 0.005;  ///< residual variance: EMA weight before learned, floor of the running-mean weight
-                          ///< 1/k after (-)
+  int gate_reaccept = 10;  ///< once learned, so many references in a row beyond the 5σ gate on the same side
+                           ///< mean the model is wrong: its covariance and residual scale restart (-)
+  double sd_ema = 0.005;   ///< residual variance: EMA weight before learned, floor of the running-mean weight
+                           ///< 1/k after (-)
   double fuel_lhv_j_kg = 43e6;  ///< q_LHV (J/kg)
   // The angle window (FuelAngleWindow): which intake events' fuel and MAP a 720° window's work comes from.
   double intake_btdc_deg = 130.0;  ///< intake event (IVC, fuel decided) before firing TDC (deg): IVC 40-60°
@@ -154,6 +158,8 @@ class FuelTorque {
   /// the model's state: c0 from η, p_off from p_exh; c1 and k_bp at their priors.
   [[nodiscard]] FuelTorqueState from_willans(double eta, double p_exh_nm, const std::array<double, 4>& p2,
                                              double resid_var, std::uint32_t references) const noexcept;
+  /// Times gate_reaccept gated references in a row restarted the learning (since construction).
+  [[nodiscard]] std::uint32_t relearns() const noexcept { return relearns_; }
   /// Residual scale measured: enough references for a claimed σ of its own.
   [[nodiscard]] bool valid() const noexcept {
     return st_.references >= static_cast<std::uint32_t>(params_.min_references);
@@ -177,12 +183,18 @@ class FuelTorque {
   void cap_covariance() noexcept;
   void refresh_legacy() noexcept;
   void observe_coverage(double err) noexcept;
+  /// Counts a gated reference; true when gate_reaccept of them in a row fell on the same side.
+  bool gated_run(double err) noexcept;
+  void relearn() noexcept;
   FuelTorqueParams params_;
   int n_cyl_;
   double vd_4pi_;  ///< V_d / 4π (m³/rad)
   double eta_otto_;
   std::array<double, kFuelParams> prior_sd_{};
   FuelTorqueState st_;
+  int gated_ = 0;       ///< gated references in a row (same side)
+  int gated_sign_ = 0;  ///< their side
+  std::uint32_t relearns_ = 0;
 };
 
 }  // namespace torqued

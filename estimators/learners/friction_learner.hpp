@@ -97,6 +97,9 @@ class FrictionLearner {
   [[nodiscard]] std::uint64_t rejected() const noexcept { return n_rejected_; }
   /// True while the law rests on the prior alone (no motoring observation learned, nothing imported).
   [[nodiscard]] bool is_prior() const noexcept { return !imported_ && n_motoring_ == 0 && n_idle_ == 0; }
+  /// True once the law over speed rests on motoring (or imported coefficients): idle observations alone
+  /// correct it near idle only, elsewhere it is still the prior.
+  [[nodiscard]] bool speed_law_learned() const noexcept { return imported_ || n_motoring_ > 0; }
   /// kValid once `min_observations` motoring observations were learned (or coefficients were imported),
   /// kNotConverged before (the prior is still used), kDisabled when learning is off (fixed law: kValid).
   [[nodiscard]] Health health() const noexcept;

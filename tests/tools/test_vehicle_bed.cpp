@@ -4,7 +4,8 @@
 // no load signal. Hybrid: the clutch is open (VEH_1.ClutchOpen mapped as can.signals.em_sole_load) during a
 // motored start and standstill charging (4.5 s here), then closes mid-run for driving with boost, generation
 // and an overrun in gear. Vehicle: idle in neutral, the clutch closes, driving, overrun in gear, the clutch
-// opens again (coast-down). Truth: the simulator's per-cycle brake, indicated and friction torque. Tolerances
+// opens again (coast-down). One point: a learning run with the load signal at one operating point, then the
+// map without it. Truth: the simulator's per-cycle brake, indicated and friction torque. Tolerances
 // are stated per assertion; they are the targets where reached and otherwise a little above what the chain
 // gives today (short runs: 4.5 s of charging, not the >= 10 s the hybrid target is stated for; the full runs
 // are in the report command `torque-accuracy --vehicle-bed`). Label slow (about 10 s).
@@ -78,6 +79,19 @@ TEST_P(VehicleBed, ClutchFlagMakesTheMachineAReferenceAndTheOverrunInGearTeaches
   EXPECT_GE(nf.fused_published, 95 * nf.cycles / 100);
   EXPECT_LT(nf.fused.rms_nm, 12.0);
   EXPECT_EQ(nf.friction.covered, nf.friction.n);
+
+  // (c) Taught at one operating point (load signal at 2500 rpm, an overrun and idle), the map without it:
+  // the target, fused within 8 % or 5 N m, on >= 95 % of the cycles (today 100 % on both engines, RMS 1.7 and
+  // 2.7 N m). Before the fuel model waited for a friction law learned over speed, the references taken with
+  // the idle-corrected prior friction taught it 17 N m wrong on another report engine.
+  const DaemonBedRun& op = run(r, "one-point/map");
+  ASSERT_GT(op.cycles, 40);
+  EXPECT_EQ(op.fused_published, op.cycles);
+  EXPECT_GE(op.fused.loose, 95 * op.fused.n / 100);
+  EXPECT_LT(op.fused.rms_nm, 0.05 * op.fused.rms_true_nm + 1.0);
+  // Never taught, the same map: published from the priors on every cycle.
+  const DaemonBedRun& nv = run(r, "never/map");
+  EXPECT_GE(nv.fused_published, 95 * nv.cycles / 100);
 }
 
 INSTANTIATE_TEST_SUITE_P(ReportEngines, VehicleBed, ::testing::Values("rep_i4_60", "rep_i6_36"));
