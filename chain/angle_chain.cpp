@@ -163,6 +163,7 @@ bool AngleChain::snapshot(LearnedState& st) const noexcept {
       st.friction_idle = std::array<double, 2>{f.idle_correction_nm(), f.idle_speed_rpm()};
     const CoverageScale& r = f.motoring_residual_scale();
     if (r.sd > 0.0) st.friction_residual = std::array<double, 2>{r.sd, static_cast<double>(r.n)};
+    if (f.reference_sd_nm() > 0.0) st.friction_reference_sd = f.reference_sd_nm();
   }
   st.tooth_corrections_rad.assign(corr_.begin(), corr_.begin() + corr_n_);
   if (pipeline_) {
@@ -189,6 +190,8 @@ std::string AngleChain::import_state(const LearnedState& st) {
         pipeline_->friction().import_motoring_residual_scale(
             (*st.friction_residual)[0], static_cast<std::uint32_t>((*st.friction_residual)[1])))
       what += " and motoring residual scale " + std::to_string((*st.friction_residual)[0]) + " N m";
+    if (st.friction_reference_sd && pipeline_->friction().import_reference_sd(*st.friction_reference_sd))
+      what += " (references 1 sigma " + std::to_string(*st.friction_reference_sd) + " N m)";
   }
   const std::size_t n = st.tooth_corrections_rad.size();
   if (n > 0 && n <= corr_.size()) {

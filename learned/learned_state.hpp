@@ -139,6 +139,7 @@ struct LearnedState {
   Opt<std::array<double, 4>> friction;           ///< FrictionLearner coefficients [C1..C4]
   Opt<std::array<double, 2>> friction_idle;      ///< idle correction (N m) and its idle speed (rpm)
   Opt<std::array<double, 2>> friction_residual;  ///< motoring residual scale (N m), its count
+  Opt<double> friction_reference_sd;  ///< 1σ of the most certain load reference the law rests on (N m)
   FixedVec<double, kMaxToothCorrections> tooth_corrections_rad;  ///< ToothErrorLearner table (empty: none)
   Opt<FuelTorqueState> fuel;           ///< FuelTorque learned efficiency / pumping / covariance
   Opt<double> crank_error_var;         ///< measured crank-only indicated error variance (N m^2)

@@ -243,6 +243,18 @@ bool check_friction_idle(const LearnedState& s, const StateContext& ctx, std::st
   return false;
 }
 
+bool check_friction_reference(const LearnedState& s, const StateContext& ctx, std::string* what) {
+  const double v = *s.friction_reference_sd;
+  if (!(v >= 0.0 && v <= ctx.max_torque_sd_nm))
+    *what = "friction reference 1 sigma " + fmt("%g", v) + " N m not in [0, " +
+            fmt("%g", ctx.max_torque_sd_nm) + "]";
+  else if (!s.friction)
+    *what = "a friction reference 1 sigma without friction coefficients";
+  else
+    return true;
+  return false;
+}
+
 bool check_friction_residual(const LearnedState& s, const StateContext& ctx, std::string* what) {
   const double v = (*s.friction_residual)[0];
   if (!(v > 0.0 && v <= ctx.max_torque_sd_nm))
@@ -330,6 +342,10 @@ const Line kLines[] = {
      has_opt<&S::friction_residual>, get_reals<&S::friction_residual>,
      [](S& s, const Nums& v) { return v[0].x > 0.0 && set_reals<&S::friction_residual>(s, v); },
      check_friction_residual},
+    {"friction_reference", "g", 0,
+     "expected the 1 sigma (N m) of the load references the friction law rests on",
+     has_opt<&S::friction_reference_sd>, get_reals<&S::friction_reference_sd>,
+     set_reals<&S::friction_reference_sd>, check_friction_reference},
     {"tooth_corrections", "g", kMaxToothCorrections,
      "expected a tooth count and that many finite corrections",
      [](const S& s) { return !s.tooth_corrections_rad.empty(); },

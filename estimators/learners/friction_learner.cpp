@@ -45,6 +45,7 @@ void FrictionLearner::reset() noexcept {
   gated_run_ = 0;
   gated_sign_ = 0.0;
   cover_ = CoverageScale{};
+  ref_sd_nm_ = 0.0;
 }
 
 bool FrictionLearner::gate_rejects(double err, double law_var) noexcept {
@@ -93,6 +94,8 @@ bool FrictionLearner::observe_motoring(double speed_rpm, double oil_temp_c, doub
     ++n_rejected_;
     return false;
   }
+  const double ref_sd = std::isfinite(obs_var_nm2) ? std::sqrt(std::max(0.0, obs_var_nm2)) : 0.0;
+  ref_sd_nm_ = n_motoring_ == 0 ? ref_sd : std::min(ref_sd_nm_, ref_sd);
   if (n_motoring_ >= static_cast<std::uint64_t>(params_.min_observations)) {
     cover_.observe_from(params_.learned_sd_nm, err, params_.residual_gain_min, params_.residual_sd_floor_nm);
   }
@@ -214,6 +217,12 @@ bool FrictionLearner::import_motoring_residual_scale(double sd_nm, std::uint32_t
   if (!std::isfinite(sd_nm) || !(sd_nm > 0.0)) return false;
   cover_.sd = std::max(sd_nm, params_.residual_sd_floor_nm);
   cover_.n = n;
+  return true;
+}
+
+bool FrictionLearner::import_reference_sd(double sd_nm) noexcept {
+  if (!std::isfinite(sd_nm) || sd_nm < 0.0) return false;
+  ref_sd_nm_ = sd_nm;
   return true;
 }
 

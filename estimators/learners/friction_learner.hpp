@@ -54,9 +54,10 @@ class FrictionLearner {
   /// motoring_gate_reaccept such rejections in a row on the same side are taken as a real change and learned
   /// from. Real-time safe.
   /// `obs_var_nm2`: the observation's variance (N m²) from its load reference (load_reference.hpp); the RLS
-  /// weighs it 1 / max(1, obs_var_nm2) (its unit variance is 1 N m², a measured load's balance).
+  /// weighs it 1 / max(1, obs_var_nm2) (its unit variance is 1 N m², a measured load's balance); its 1σ also
+  /// bounds the law's claimed 1σ from below (reference_sd_nm; 0: a noise-free reference, tests).
   bool observe_motoring(double speed_rpm, double oil_temp_c, double friction_nm,
-                        double obs_var_nm2 = 1.0) noexcept;
+                        double obs_var_nm2 = 0.0) noexcept;
 
   /// Idle observation: friction torque equals the indicated torque (no load). Learns C4 from oil-temperature
   /// differences. Returns false when rejected. Real-time safe.
@@ -86,8 +87,14 @@ class FrictionLearner {
   /// Claimed 1σ of a motoring (fuel cut-off) balance against the law: the 68th percentile of the a-priori
   /// motoring residuals once the law is learned (CoverageScale), learned_sd_nm before. Real-time safe.
   [[nodiscard]] double motoring_sd_nm() const noexcept {
-    return cover_.sd > 0.0 ? cover_.sd : params_.learned_sd_nm;
+    return std::max(cover_.sd > 0.0 ? cover_.sd : params_.learned_sd_nm, ref_sd_nm_);
   }
+  /// 1σ of the most certain load reference the law was learned from (N m; 0: none). Its error is shared by
+  /// every observation (an accessory prior, a torque sensor's calibration) and does not average out: the
+  /// law's claimed 1σ never goes below it.
+  [[nodiscard]] double reference_sd_nm() const noexcept { return ref_sd_nm_; }
+  /// A persisted reference_sd_nm() (after import_coefficients, which clears it); false if not finite or < 0.
+  bool import_reference_sd(double sd_nm) noexcept;
   [[nodiscard]] const CoverageScale& motoring_residual_scale() const noexcept { return cover_; }
   /// Load a persisted residual scale (after import_coefficients, which clears it). Rejects non-finite or
   /// non-positive scales (returns false).
@@ -120,7 +127,8 @@ class FrictionLearner {
   double idle_rpm_ = 0.0;           ///< speed of the idle observations (rpm), 0: none yet
   std::uint64_t idle_prior_n_ = 0;  ///< weight (observations) of an imported idle correction
   bool imported_ = false;
-  CoverageScale cover_;  ///< motoring residual scale (sd 0: none measured)
+  CoverageScale cover_;     ///< motoring residual scale (sd 0: none measured)
+  double ref_sd_nm_ = 0.0;  ///< smallest 1σ of the references learned from (N m), 0: none
   std::uint64_t n_motoring_ = 0, n_idle_ = 0, n_rejected_ = 0;
   int gated_run_ = 0;        ///< consecutive motoring observations rejected by the gate, all on one side
   double gated_sign_ = 0.0;  ///< side (sign of the error) of that run

@@ -236,3 +236,34 @@ TEST(FrictionLearner, OneBadMotoringCycleIsRejectedButAConsistentChangeIsLearned
   EXPECT_GT(accepted, 150);
   EXPECT_NEAR(fl.friction_nm(2000.0, 90.0), true_friction(2000.0, 90.0) + 10.0, 2.0);
 }
+
+TEST(FrictionLearner, ClaimedSigmaNeverGoesBelowTheSharedErrorOfItsLoadReferences) {
+  // GIVEN references whose load carries a shared (systematic) error: 300 motoring cycles whose load is the
+  // machine plus an accessory prior that is 1.7 N m off on every one of them (1σ 2 N m claimed), noise 0.2
+  FrictionParams p;
+  p.c = {0.0, 0.0, 0.0, -4.67e-3};
+  FrictionLearner fl(p);
+  int k = 0;
+  for (double rpm = 3000.0; rpm > 1100.0; rpm -= 6.0, ++k) {
+    const double obs = true_friction(rpm, 90.0) - 1.7 + 0.2 * std::sin(12.9898 * k);
+    ASSERT_TRUE(fl.observe_motoring(rpm, 90.0, obs, 4.0));
+  }
+  // THEN the law is off by the shared error, which no number of cycles removes, and the claimed 1σ of a
+  // motoring balance says so (>= 2 N m): it covers the 1.7 N m error; the residual scale alone (≈ 0.2)
+  // would not
+  const double err = std::fabs(fl.friction_nm(2000.0, 90.0) - true_friction(2000.0, 90.0));
+  EXPECT_NEAR(err, 1.7, 0.3);
+  EXPECT_NEAR(fl.reference_sd_nm(), 2.0, 1e-9);
+  EXPECT_GE(fl.motoring_sd_nm(), err);
+  EXPECT_LT(fl.motoring_residual_scale().sd, 1.0);
+  // AND one measured-load cycle (1σ 0.5) lowers the floor to the most certain reference's
+  EXPECT_TRUE(fl.observe_motoring(2000.0, 90.0, true_friction(2000.0, 90.0) - 1.7, 0.25));
+  EXPECT_NEAR(fl.reference_sd_nm(), 0.5, 1e-9);
+  // AND the floor survives a restart through its persisted value
+  FrictionLearner restarted(p);
+  ASSERT_TRUE(restarted.import_coefficients(fl.coefficients()));
+  EXPECT_EQ(restarted.reference_sd_nm(), 0.0);
+  ASSERT_TRUE(restarted.import_reference_sd(fl.reference_sd_nm()));
+  EXPECT_NEAR(restarted.motoring_sd_nm(), std::max(0.5, p.learned_sd_nm), 1e-9);
+  EXPECT_FALSE(restarted.import_reference_sd(-1.0));
+}

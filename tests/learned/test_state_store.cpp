@@ -50,6 +50,7 @@ class StateStore : public ::testing::Test {
     s.friction = std::array<double, 4>{-23.86 * scale, 2.45e-3, -5.2e-6, -4.67e-3};
     s.friction_idle = std::array<double, 2>{1.4999999999999998, 812.25};
     s.friction_residual = std::array<double, 2>{0.31234567890123456, 87.0};
+    s.friction_reference_sd = 2.0615528128088303;
     s.tooth_corrections_rad.assign(58, 0.0);
     s.tooth_corrections_rad[3] = 7.123456789012345e-4 * scale;
     s.inertia = std::array<double, 3>{1.0873456789012345, 4321.5, 0.146722};
@@ -76,6 +77,7 @@ TEST_F(StateStore, RoundTripIsExactForEveryFieldAndPassesTheChecks) {
   EXPECT_EQ(r->friction, s.friction);
   EXPECT_EQ(r->friction_idle, s.friction_idle);
   EXPECT_EQ(r->friction_residual, s.friction_residual);
+  EXPECT_EQ(r->friction_reference_sd, s.friction_reference_sd);
   EXPECT_EQ(r->tooth_corrections_rad, s.tooth_corrections_rad);
   EXPECT_EQ(r->inertia, s.inertia);
   EXPECT_EQ(r->saved_at_t_ns, s.saved_at_t_ns);
@@ -93,6 +95,7 @@ TEST_F(StateStore, MalformedLinesAreRefusedNamingFileAndLine) {
       {"torqued-state 1\nwhat 1\n", "unknown key 'what'"},
       {"torqued-state 1\ninertia 1.1 400\n", "inertia scale, its information"},
       {"torqued-state 1\nfriction_residual 0 10\n", "positive motoring residual scale"},
+      {"torqued-state 1\nfriction_reference x\n", "1 sigma (N m) of the load references"},
       {"torqued-state 1\nfriction_residual 0.3 -1\n", "positive motoring residual scale"},
       {"torqued-state 1\nfuel_model 0.4 10 1e-4 0 0 1 4 100 0.5\n", "optionally the residual scale"},
       {"torqued-state 2\nidentity x\n", "no checksum line"},
