@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cinttypes>
 #include <cmath>
@@ -16,6 +17,7 @@
 #include <numbers>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "backend_factory.hpp"
 #include "candump_source.hpp"
@@ -76,6 +78,33 @@ std::string events_text(std::uint32_t e) {
   if (e & kToothResynced) add("resync");
   if (e & kToothGap) add("gap");
   return s;
+}
+
+/// One RFC 4180 field: quoted (with '"' doubled) when it holds a comma, a quote or a line break.
+void csv_field(std::FILE* f, std::string_view v) {
+  if (v.find_first_of(",\"\r\n") == std::string_view::npos) {
+    std::fwrite(v.data(), 1, v.size(), f);
+    return;
+  }
+  std::fputc('"', f);
+  for (const char c : v) {
+    if (c == '"') std::fputc('"', f);
+    std::fputc(c, f);
+  }
+  std::fputc('"', f);
+}
+
+/// A signal's value at full precision: the exact integer when the signal is an unscaled integer, else the
+/// shortest text that reads back as the same double.
+std::string value_text(const DbcSignal& s, const std::uint8_t* data, std::size_t len) {
+  char buf[40];
+  std::to_chars_result r{};
+  if (s.value_type == DbcSignal::ValueType::kInteger && s.factor == 1.0 && s.offset == 0.0)
+    r = s.is_signed ? std::to_chars(buf, buf + sizeof buf, s.raw(data, len))
+                    : std::to_chars(buf, buf + sizeof buf, s.raw_bits(data, len));
+  else
+    r = std::to_chars(buf, buf + sizeof buf, s.decode(data, len));
+  return std::string(buf, r.ptr);
 }
 
 /// Buffered CSV file (large stdio buffer; nothing is flushed per line).
@@ -256,7 +285,8 @@ int open_from_options(const Options& o, Inputs& in) {
   }
   if (!o.dbc.empty()) {
     DbcParseResult r = DbcDatabase::parse_file(o.dbc);
-    if (!r.errors.empty()) in.err = r.errors.front();
+    if (!r.db) return fail(1, r.errors.empty() ? o.dbc + ": cannot read" : r.errors.front());
+    for (const auto& e : r.errors) std::fprintf(stderr, "torque-decode: %s\n", e.c_str());  // each skipped
     in.dbc = std::move(r.db);
   }
   return 0;
@@ -317,11 +347,19 @@ void on_frame(const CanFrame& f, const std::optional<DbcDatabase>& dbc, Decoding
     }
     if (!m->signal_present(s, f.data.data(), f.len)) continue;
     if (d.can_csv.f != nullptr) {
-      const std::int64_t raw = s.raw(f.data.data(), f.len);
-      const std::string* label = s.value_name(raw);
-      std::fprintf(d.can_csv.f, "%" PRId64 ",%.6f,%u,0x%X,%s,%s,%.10g,%s,%s\n", f.t_ns, f.t_ns * 1e-9, f.bus,
-                   f.id, m->name.c_str(), s.name.c_str(), s.decode(f.data.data(), f.len), s.unit.c_str(),
-                   label ? label->c_str() : "");
+      const std::string* label = s.value_name(s.raw(f.data.data(), f.len));
+      std::FILE* out = d.can_csv.f;
+      std::fprintf(out, "%" PRId64 ",%.6f,%u,0x%X,", f.t_ns, f.t_ns * 1e-9, f.bus, f.id);
+      for (const std::string_view v : {std::string_view(m->name), std::string_view(s.name)}) {
+        csv_field(out, v);
+        std::fputc(',', out);
+      }
+      std::fputs(value_text(s, f.data.data(), f.len).c_str(), out);
+      std::fputc(',', out);
+      csv_field(out, s.unit);
+      std::fputc(',', out);
+      csv_field(out, label ? *label : std::string_view{});
+      std::fputc('\n', out);
     }
   }
   bad ? ++d.frames_bad_dlc : ++d.frames_decoded;
