@@ -34,13 +34,14 @@ bool same_up_to_rotation(const std::vector<int>& a, const std::vector<int>& b) {
   return false;
 }
 
-/// Smallest number of gaps after which the (teeth, missing) sequence repeats, allowing 10 % mismatches.
-int cycle_length(const std::vector<std::pair<int, int>>& seq) {
+/// Smallest number of gaps after which the sequence of teeth between gaps repeats, allowing 10 % mismatches
+/// (the gap ratios vary too much while cranking to compare: the missing counts come from their medians).
+int cycle_length(const std::vector<std::pair<int, double>>& seq) {
   const int n = static_cast<int>(seq.size());
   for (int len = 1; len <= std::min(16, n / 2); ++len) {
     int bad = 0;
     for (int i = 0; i + len < n; ++i)
-      bad += seq[static_cast<std::size_t>(i)] != seq[static_cast<std::size_t>(i + len)];
+      bad += seq[static_cast<std::size_t>(i)].first != seq[static_cast<std::size_t>(i + len)].first;
     if (bad * 10 <= n - len) return len;
   }
   return 0;
@@ -63,7 +64,7 @@ WheelDetection detect_wheel(std::span<const std::int64_t> t) {
   std::vector<std::int64_t> p(t.size() - 1);
   for (std::size_t k = 0; k + 1 < t.size(); ++k) p[k] = t[k + 1] - t[k];
   // (teeth, missing) per gap, and the index of the tooth closing each gap.
-  std::vector<std::pair<int, int>> seq;
+  std::vector<std::pair<int, double>> seq;  ///< teeth before the gap, gap period / neighbours' median
   std::vector<std::size_t> gap_end;
   int teeth = -1;  // -1: before the first gap (partial run, dropped)
   for (std::size_t k = 0; k < p.size(); ++k) {
@@ -76,7 +77,7 @@ WheelDetection detect_wheel(std::span<const std::int64_t> t) {
       if (teeth >= 0) ++teeth;
       continue;
     }
-    if (teeth >= 0) seq.emplace_back(teeth + 1, std::max(1, static_cast<int>(std::lround(r)) - 1));
+    if (teeth >= 0) seq.emplace_back(teeth + 1, r);
     gap_end.push_back(k + 1);
     teeth = 0;
   }
@@ -87,16 +88,26 @@ WheelDetection detect_wheel(std::span<const std::int64_t> t) {
                   gap_end.size(), t.size(), d.noise_periods);
     return d.error = buf, d;
   }
-  // Start after the widest gap, then the longest run after it.
-  std::size_t best = 0;
-  for (std::size_t i = 1; i < static_cast<std::size_t>(len); ++i) {
-    const auto& a = seq[(i + len - 1) % len];
-    const auto& b = seq[(best + len - 1) % len];
-    if (a.second > b.second || (a.second == b.second && seq[i].first > seq[best].first)) best = i;
-  }
+  // Missing teeth of each gap of the cycle: its median ratio, rounded, minus one.
+  std::vector<std::pair<int, int>> cyc(static_cast<std::size_t>(len));
   for (int i = 0; i < len; ++i) {
-    const auto& [n_teeth, missing] =
-        seq[(best + static_cast<std::size_t>(i)) % static_cast<std::size_t>(len)];
+    std::vector<double> r;
+    for (std::size_t k = static_cast<std::size_t>(i); k < seq.size(); k += static_cast<std::size_t>(len))
+      r.push_back(seq[k].second);
+    std::nth_element(r.begin(), r.begin() + static_cast<std::ptrdiff_t>(r.size() / 2), r.end());
+    cyc[static_cast<std::size_t>(i)] = {seq[static_cast<std::size_t>(i)].first,
+                                        std::max(1, static_cast<int>(std::lround(r[r.size() / 2])) - 1)};
+  }
+  // Start after the widest gap, then the longest run after it.
+  const auto ulen = static_cast<std::size_t>(len);
+  std::size_t best = 0;
+  for (std::size_t i = 1; i < ulen; ++i) {
+    const auto& a = cyc[(i + ulen - 1) % ulen];
+    const auto& b = cyc[(best + ulen - 1) % ulen];
+    if (a.second > b.second || (a.second == b.second && cyc[i].first > cyc[best].first)) best = i;
+  }
+  for (std::size_t i = 0; i < ulen; ++i) {
+    const auto& [n_teeth, missing] = cyc[(best + i) % ulen];
     d.runs.push_back(n_teeth);
     d.runs.push_back(missing);
     d.positions += n_teeth + missing;

@@ -27,6 +27,7 @@
 #include "dbc.hpp"
 #include "edge_file_source.hpp"
 #include "replay_merger.hpp"
+#include "wheel_detect.hpp"
 #include "wheel_names.hpp"
 
 #ifndef TORQUED_DECODE_PLOT_SCRIPT
@@ -39,8 +40,8 @@ using namespace torqued;
 
 struct Options {
   std::string edges, can, dbc, config, wheel = "60-2", format = "csv", crank = "crank", cam = "cam";
-  std::string out_teeth, out_can, first_row = "levels", out_revs, plot,
-                                  plot_script = TORQUED_DECODE_PLOT_SCRIPT;
+  std::string detect_wheel, out_teeth, out_can, first_row = "levels", out_revs, plot,
+                                                plot_script = TORQUED_DECODE_PLOT_SCRIPT;
   double can_offset_s = 0.0;
   bool can_offset_given = false;
   bool falling = false, quiet = false, revs = false, transitions = false;
@@ -184,6 +185,9 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("--can", o.can, "candump -l log");
   app.add_option("--dbc", o.dbc, "DBC file to decode the CAN frames");
   app.add_option("--wheel", o.wheel, "crank wheel: " + known_wheel_names());
+  app.add_option("--detect-wheel", o.detect_wheel,
+                 "read an unknown wheel off this edge capture (crank column --crank, --falling): gap "
+                 "structure, matching catalogue entries, tooth_angles_deg to paste, speed range");
   app.add_flag("--falling", o.falling, "teeth are marked by falling crank edges");
   app.add_option("--crank", o.crank, "crank column name in the edge CSV");
   app.add_option("--cam", o.cam, "cam column name in the edge CSV (\"\" = none)");
@@ -290,6 +294,22 @@ int open_from_options(const Options& o, Inputs& in) {
     in.dbc = std::move(r.db);
   }
   return 0;
+}
+
+/// --detect-wheel: the marking crank edges of the capture, then the wheel they show.
+int detect_wheel_main(Options o) {
+  o.edges = o.detect_wheel;
+  o.cam = "";  // the crank edges only
+  std::string err;
+  auto src = open_edge_file(o, err);
+  if (!err.empty()) return fail(1, err);
+  std::vector<std::int64_t> teeth;
+  EdgeEvent e;
+  while (src->next(e) == SourceStatus::kOk)
+    if (e.channel == kCrankChannel && (e.level != 0) != o.falling) teeth.push_back(e.t_ns);
+  const WheelDetection d = detect_wheel(teeth);
+  std::fputs(describe(d).c_str(), d.error.empty() ? stdout : stderr);
+  return d.error.empty() ? 0 : 1;
 }
 
 /// The decoding loop's outputs and counters.
@@ -460,6 +480,7 @@ int main(int argc, char** argv) {
   TORQUED_CLI_PARSE(app, argc, argv);
   o.can_offset_given = app.count("--can-offset") > 0;
 
+  if (!o.detect_wheel.empty()) return detect_wheel_main(o);
   Inputs in;
   in.can_offset_ns = static_cast<std::int64_t>(std::llround(o.can_offset_s * 1e9));
   if (const int rc = o.config.empty() ? open_from_options(o, in) : open_from_config(o, in); rc != 0)

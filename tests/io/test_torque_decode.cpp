@@ -111,6 +111,20 @@ TEST(TorqueDecode, CanCsvIsRfc4180WithFullPrecision) {
   EXPECT_NE(csv.find(",0x101,U,U64,9223372036854775809,\"5\\\"\" pipe\",\n"), std::string::npos) << csv;
 }
 
+TEST(TorqueDecode, DetectWheelOnARealCapture) {
+  // GIVEN the arctic-cat capture (tests/data/captures/rusefi) and no wheel name
+  const ToolRun r = run("--detect-wheel " + std::string(TORQUED_SOURCE_DIR) +
+                        "/tests/data/captures/rusefi/arctic-cat.csv --crank 'Channel 1'");
+  // THEN the gap structure, its catalogue entry and the angles to paste
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("wheel: 24 positions, 21 teeth; runs (teeth, missing): 11, 1, 10, 2"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("catalogue: arctic-cat"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("tooth_angles_deg: [0, 15, 30,"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("15 revolutions"), std::string::npos) << r.out;
+}
+
 TEST(TorqueDecode, UsageErrors) {
   EXPECT_NE(run("").status, 0);
   const ToolRun bad_wheel = run("--edges /dev/null --wheel 60");
