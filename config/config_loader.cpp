@@ -17,6 +17,7 @@
 #include <unordered_map>
 
 #include "config_schema.hpp"
+#include "dbc.hpp"
 #include "fourier_observer.hpp"
 
 namespace torqued {
@@ -423,30 +424,36 @@ class Loader {
       add(mark_of("can.dbc"), "can.dbc", "", "a DBC file path (can.signals maps DBC signals)");
   }
 
-  /// Every mapped message/signal must exist in the DBC (a light scan of BO_/SG_ lines; io/dbc.cpp parses
-  /// fully).
+  /// Every mapped message/signal must exist in the DBC as the daemon's parser (io/dbc.cpp) reads it: a
+  /// statement it skips is an error here when it takes out a mapped signal, else a warning.
   void check_dbc_names() {
-    std::ifstream in(cfg_.can.dbc);
-    std::unordered_map<std::string, std::vector<std::string>> messages;
-    std::vector<std::string>* current = nullptr;
-    for (std::string line; std::getline(in, line);) {
-      std::istringstream is(line);
-      std::string tag, a, b;
-      is >> tag;
-      if (tag == "BO_" && (is >> a >> b)) {
-        if (!b.empty() && b.back() == ':') b.pop_back();
-        current = &messages[b];
-      } else if (tag == "SG_" && current && (is >> a)) {
-        current->push_back(a);
-      } else if (!tag.empty() && tag != "SG_") {
-        current = nullptr;
-      }
+    const DbcParseResult p = DbcDatabase::parse_file(cfg_.can.dbc);
+    if (!p.db) {
+      for (const auto& e : p.errors) add(mark_of("can.dbc"), "key 'can.dbc': " + e);
+      return;
     }
+    std::unordered_map<std::string, std::vector<std::string>> messages;
+    for (const auto& m : p.db->messages()) {
+      auto& names = messages[m.name];
+      for (const auto& s : m.signals) names.push_back(s.name);
+    }
+    std::set<const std::string*> refused;
+    for (std::size_t q = 0; q < kCanQuantityCount; ++q) {
+      const auto& m = cfg_.can.signals[q];
+      const std::string* e = m.mapped() ? p.affecting(m.message, m.signal) : nullptr;
+      if (e == nullptr) continue;
+      const std::string key = "can.signals." + std::string(can_quantity_name(q)) + ".signal";
+      add(mark_of(key), key, m.signal, "a signal the DBC parser can load (" + *e + ")");
+      refused.insert(e);
+    }
+    for (const auto& e : p.errors)
+      if (refused.count(&e) == 0) r_.warnings.push_back(e);
     const std::string dbc_name = std::filesystem::path(cfg_.can.dbc).filename().string();
     for (std::size_t q = 0; q < kCanQuantityCount; ++q) {
       const auto& m = cfg_.can.signals[q];
       if (!m.mapped() || m.signal.empty()) continue;
       const std::string base = "can.signals." + std::string(can_quantity_name(q));
+      if (p.affecting(m.message, m.signal) != nullptr) continue;  // named above
       auto it = messages.find(m.message);
       if (it == messages.end()) {
         std::vector<std::string> names;

@@ -102,7 +102,7 @@ void CrankDecoder::clear_tooth_corrections() noexcept { corr_.fill(0.0); }
 void CrankDecoder::reset_sync(SyncState to) noexcept {
   state_ = to;
   cam_.set_known(false);
-  gap_.reset();
+  gap_.reset(to == SyncState::kLostSync);
   pattern_.restart();
   u1_ = u2_ = 0.0;
   period_ns_ = 0;

@@ -2,9 +2,12 @@
 // DBC (Vector CAN database) parser and signal decoding. Parsing is load-time (allocates, reports errors with
 // file:line); decoding (DbcSignal::decode / raw) is real-time safe.
 // Understood: VERSION, NS_ (block skipped), BS_, BU_, BO_, SG_ (Intel @1 / Motorola @0, +/- sign, factor,
-// offset, [min|max], "unit", receivers, multiplexor M and multiplexed mN), CM_ (BU_/BO_/SG_ comments kept),
-// VAL_ (value tables kept), VAL_TABLE_, BA_DEF_, BA_DEF_DEF_, BA_, BA_DEF_REL_, SIG_VALTYPE_, ... (ignored
-// safely). Unknown keywords are skipped with a warning, never fatal.
+// offset, [min|max], "unit", receivers, multiplexor M, multiplexed mN, extended mNM), CM_ (BU_/BO_/SG_
+// comments kept), VAL_ (value tables kept), SIG_VALTYPE_ (IEEE float32/float64 signals), SG_MUL_VAL_
+// (extended multiplexing ranges); VAL_TABLE_, BA_DEF_, BA_DEF_DEF_, BA_, BA_DEF_REL_, ... (ignored safely).
+// Unknown keywords are skipped with a warning. Files as vehicles ship them: a bad statement is reported once
+// ("file:line: what was expected") and skipped, the rest of the file loads; DbcParseResult::affecting() says
+// whether a given signal was taken out by one of those errors (the daemon refuses only then).
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -17,6 +20,8 @@ namespace torqued {
 
 struct DbcSignal {
   enum class Mux : std::uint8_t { kPlain = 0, kMultiplexor = 1, kMultiplexed = 2 };
+  /// SIG_VALTYPE_: 0 integer, 1 IEEE 754 float32 (length 32), 2 IEEE 754 float64 (length 64).
+  enum class ValueType : std::uint8_t { kInteger = 0, kFloat32 = 1, kFloat64 = 2 };
 
   std::string name;
   std::uint16_t start_bit = 0;  ///< as written in the DBC (Motorola: MSB position in sawtooth numbering)
@@ -30,19 +35,31 @@ struct DbcSignal {
   std::string unit;
   std::vector<std::string> receivers;
   Mux mux = Mux::kPlain;
-  std::uint32_t mux_value = 0;  ///< for kMultiplexed: value of the multiplexor selecting this signal
+  std::uint32_t mux_value = 0;    ///< for kMultiplexed: value of the multiplexor selecting this signal
+  bool also_multiplexor = false;  ///< m<n>M: multiplexed and itself a multiplexor (extended multiplexing)
+  int mux_parent = -1;  ///< for kMultiplexed: index (in the message) of the multiplexor selecting this signal
+  /// SG_MUL_VAL_ ranges of the parent's raw value selecting this signal (empty: raw == mux_value).
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> mux_ranges;
+  ValueType value_type = ValueType::kInteger;
   std::string comment;
   std::vector<std::pair<std::int64_t, std::string>> value_table;  ///< VAL_ entries
 
   /// Smallest payload length (bytes) that holds the signal.
   [[nodiscard]] std::size_t bytes_needed() const noexcept;
-  /// Raw integer (sign-extended when is_signed). Precondition: len >= bytes_needed(). Real-time safe.
+  /// Raw integer (sign-extended when is_signed; an unsigned 64-bit raw with bit 63 set comes out as its
+  /// two's-complement bit pattern: use raw_bits() for the value). Precondition: len >= bytes_needed().
+  /// Real-time safe.
   [[nodiscard]] std::int64_t raw(const std::uint8_t* data, std::size_t len) const noexcept;
-  /// The same, bit by bit (the DBC definition, written out): reference for tests and the > 8-byte case.
+  /// The raw bits, zero-extended (the exact value of an unsigned signal). Real-time safe.
+  [[nodiscard]] std::uint64_t raw_bits(const std::uint8_t* data, std::size_t len) const noexcept;
+  /// The same as raw(), bit by bit (the DBC definition, written out): reference for tests, > 8-byte case.
   [[nodiscard]] std::int64_t raw_bitwise(const std::uint8_t* data, std::size_t len) const noexcept;
+  /// Raw value as a number: signed or unsigned integer (exact up to 2^53, then rounded once), or the IEEE
+  /// float the bits hold (SIG_VALTYPE_). Real-time safe.
+  [[nodiscard]] double raw_value(const std::uint8_t* data, std::size_t len) const noexcept;
   /// Physical value = raw × factor + offset. Real-time safe.
   [[nodiscard]] double decode(const std::uint8_t* data, std::size_t len) const noexcept {
-    return static_cast<double>(raw(data, len)) * factor + offset;
+    return raw_value(data, len) * factor + offset;
   }
   [[nodiscard]] bool has_range() const noexcept { return !(min == 0.0 && max == 0.0); }
   /// Value-table text for a raw value, or nullptr.
@@ -57,10 +74,11 @@ struct DbcMessage {
   std::string transmitter;
   std::string comment;
   std::vector<DbcSignal> signals;
-  int multiplexor = -1;  ///< index into signals of the multiplexor, -1 if none
+  int multiplexor = -1;  ///< index into signals of the (top-level) multiplexor, -1 if none
 
   [[nodiscard]] const DbcSignal* find(std::string_view signal_name) const noexcept;
-  /// Whether a multiplexed signal is present in this payload (always true for plain signals).
+  /// Whether a multiplexed signal is present in this payload (always true for plain signals); with extended
+  /// multiplexing, every multiplexor up the chain must be present and select it.
   [[nodiscard]] bool signal_present(const DbcSignal& s, const std::uint8_t* data,
                                     std::size_t len) const noexcept;
 };
@@ -87,11 +105,24 @@ class DbcDatabase {
   std::vector<DbcMessage> messages_;
 };
 
-/// Result of parsing: the database (when no error) plus every error and warning as "file:line: message".
+/// What one skipped statement took out: a whole message (signal empty) or one signal.
+struct DbcSkip {
+  std::size_t error = 0;  ///< index into DbcParseResult::errors
+  std::string message;
+  std::string signal;
+};
+
+/// Result of parsing: the database (whenever the text could be read; bad statements are skipped) plus every
+/// error (one per skipped statement) and warning as "file:line: message".
 struct DbcParseResult {
   std::optional<DbcDatabase> db;
   std::vector<std::string> errors;
   std::vector<std::string> warnings;
+  std::vector<DbcSkip> skipped;
+
+  /// The error that took out message.signal (or all of the message), or nullptr when it loaded intact.
+  [[nodiscard]] const std::string* affecting(std::string_view message,
+                                             std::string_view signal) const noexcept;
 };
 
 }  // namespace torqued

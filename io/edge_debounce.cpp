@@ -16,11 +16,17 @@ EdgeDebounce::Result EdgeDebounce::on_edge(std::int64_t t_ns, bool active,
     pending_t_ns_ = t_ns;
     return r;
   }
+  if (!has_pending_) {
+    have_inactive_ = true;
+    last_inactive_t_ns_ = t_ns;
+    return Result::kNone;
+  }
+  has_pending_ = false;
+  // A narrow pulse is dropped whole: its closing edge is not the last opposite edge either (else the next
+  // real tooth, coming soon after a noise pulse, would fail the narrow-gap test above and be lost too).
+  if (t_ns - pending_t_ns_ < min_pulse_ns_) return Result::kGlitch;
   have_inactive_ = true;
   last_inactive_t_ns_ = t_ns;
-  if (!has_pending_) return Result::kNone;
-  has_pending_ = false;
-  if (t_ns - pending_t_ns_ < min_pulse_ns_) return Result::kGlitch;
   tooth_t_ns = pending_t_ns_;
   return Result::kTooth;
 }

@@ -48,7 +48,8 @@ std::string GapSync::init_identification(const WheelTables& w, const DecoderPara
   return {};
 }
 
-void GapSync::reset() noexcept {
+void GapSync::reset(bool after_loss) noexcept {
+  after_loss_ = after_loss;
   ref_period_ns_ = 0;
   ref_prev_ns_ = 0;
   ref_provisional_ = false;
@@ -143,8 +144,13 @@ GapSync::Step GapSync::on_gap_candidate(std::int64_t period, double r, const Whe
   // the first one; multi-gap wheels need the tooth counts between their last gaps. Without a previous gap
   // the teeth counted before this one must fit (half a revolution at least, no more than a revolution), else
   // noise would sync on any long period.
-  const bool single_ok =
-      num_gaps_ == 1 && hist_len_ == 0 && run_before_gap >= w.teeth / 2 && run_before_gap < w.teeth;
+  // After a sync loss the signal has been seen to be this wheel: a gap with kResyncRunBeforeGap clean teeth
+  // before it identifies the position again, whatever counts the noise left in the history (a burst just
+  // before a gap would otherwise cost a revolution, and miscounted gap-to-gap counts would keep matching
+  // from ever succeeding).
+  const bool single_ok = num_gaps_ == 1 && run_before_gap < w.teeth &&
+                         (after_loss_ ? run_before_gap >= std::min(w.teeth / 2, kResyncRunBeforeGap)
+                                      : hist_len_ == 0 && run_before_gap >= w.teeth / 2);
   const int need = single_ok ? 0 : history_needed_;
   if (hist_len_ < need) return Step::kOther;
   match_ = match_gap(need, r, w, p);

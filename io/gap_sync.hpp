@@ -18,6 +18,8 @@ struct DecoderStats;
 class GapSync {
  public:
   static constexpr int kMaxGaps = 16;
+  /// After a sync loss: clean tooth periods a single-gap wheel's gap needs before it to resync.
+  static constexpr int kResyncRunBeforeGap = 4;
 
   enum class Step : std::uint8_t {
     kNoise,       ///< runt period: reject the edge
@@ -39,8 +41,9 @@ class GapSync {
   /// After kIdentified: the tooth (within a revolution) that closed the identified gap.
   [[nodiscard]] int identified_tooth() const noexcept { return gap_tooth_[static_cast<std::size_t>(match_)]; }
 
-  /// Forgets the reference period and the gap history: the next period starts a new search.
-  void reset() noexcept;
+  /// Forgets the reference period and the gap history: the next period starts a new search. after_loss: the
+  /// search follows a sync loss (the position was known before), not the first start.
+  void reset(bool after_loss = false) noexcept;
 
  private:
   Step on_gap_candidate(std::int64_t period_ns, double r, const WheelTables& w, const DecoderParams& p,
@@ -65,9 +68,10 @@ class GapSync {
   int since_gap_ = -1;                ///< teeth since the last gap candidate (-1: no gap seen yet)
   std::array<int, kMaxGaps> hist_{};  ///< teeth counts between recent gap candidates (newest last)
   int hist_len_ = 0;
-  int normal_run_ = 0;  ///< consecutive normal periods
-  int gap_run_ = 0;     ///< consecutive gap candidates
-  int match_ = 0;       ///< gap identified by the last kIdentified
+  int normal_run_ = 0;       ///< consecutive normal periods
+  int gap_run_ = 0;          ///< consecutive gap candidates
+  int match_ = 0;            ///< gap identified by the last kIdentified
+  bool after_loss_ = false;  ///< searching again after a sync loss
 };
 
 }  // namespace torqued

@@ -43,13 +43,39 @@ constexpr NamedWheel kCatalogue[] = {
      4,
      "Mitsubishi 4B11: 17 teeth, 1 missing, 16 teeth, 2 missing. Published as 36-2-1; the "
      "rotation order was inverted ({17,2,16,1}) in rusEFI too before its fix."},
-    {"36-2-2",
+    {"36-2-2-16-16",
      36,
      {16, 2, 16, 2},
      4,
      "two 2-tooth gaps 180 deg apart: 16 teeth, 2 missing, 16 teeth, 2 missing. Symmetric: the crank alone "
-     "gives "
-     "the position only modulo 180 deg, so the decoder refuses it (needs a cam-resolved half turn)."},
+     "gives the position only modulo 180 deg, so the decoder refuses it (needs a cam-resolved half turn)."},
+    {"36-2-2-17-15",
+     36,
+     {17, 2, 15, 2},
+     4,
+     "Jeep/Chrysler EVD 36-2-2: 17 teeth, 2 missing, 15 teeth, 2 missing (gaps 160 and 200 deg apart, so the "
+     "crank alone gives the position). Tooth counts as a user's capture of the wheel shows them (the gaps "
+     "after 17 and 15 teeth); no published tooth list was found to check them against."},
+    {"jeep-evd", 36, {17, 2, 15, 2}, 4, "alias of 36-2-2-17-15"},
+    {"bosch-60-2",
+     60,
+     {58, 2},
+     2,
+     "alias of 60-2: the Bosch VR crank wheel (60 positions, 2 consecutive missing), rusEFI's and "
+     "speeduino's 'missing tooth' 60-2."},
+    {"ford-edis-36-1",
+     36,
+     {35, 1},
+     2,
+     "alias of 36-1: the Ford EDIS crank wheel (36 positions, 1 missing), speeduino's 'missing tooth' "
+     "36-1."},
+    {"toyota-36-2",
+     36,
+     {34, 2},
+     2,
+     "alias of 36-2: Toyota 1ZZ/2ZZ/2AR/2ZR four-cylinder crank wheel (rusEFI's 'Toyota 36-2' discussion: "
+     "the "
+     "same 36-2 at the same angle on these engines)."},
     {"36-2-2-2",
      36,
      {13, 2, 16, 2, 1, 2},
@@ -141,7 +167,25 @@ std::string known_wheel_names() {
   return s;
 }
 
+namespace {
+/// Names that several production wheels go by: refused, with the catalogue names to choose from.
+struct AmbiguousName {
+  const char* name;
+  const char* candidates;
+};
+constexpr AmbiguousName kAmbiguous[] = {
+    {"36-2-2",
+     "36-2-2-16-16 (two gaps 180 deg apart, symmetric) or 36-2-2-17-15 / jeep-evd (Jeep/Chrysler EVD, gaps "
+     "after 17 and 15 teeth); torque-decode --detect-wheel CAPTURE shows which one a capture is"},
+};
+}  // namespace
+
 bool wheel_from_name(std::string_view name, WheelGeometry& wheel, std::string* error) {
+  for (const AmbiguousName& a : kAmbiguous) {
+    if (name != a.name) continue;
+    if (error) *error = "wheel '" + std::string(name) + "' is ambiguous: " + a.candidates;
+    return false;
+  }
   for (const NamedWheel& w : kCatalogue) {
     if (name == w.name) return wheel_from_runs(w.positions, w.runs, w.n_runs, wheel, error);
   }

@@ -161,12 +161,24 @@ std::optional<DbcDatabase> load_dbc(const Config& config, std::string* error,
                                     std::vector<std::string>* warnings) {
   if (config.can.dbc.empty()) return std::nullopt;
   DbcParseResult r = DbcDatabase::parse_file(config.can.dbc);
-  if (warnings) *warnings = std::move(r.warnings);
-  if (!r.errors.empty()) {
-    std::string all;
+  // A bad statement skips itself only: refuse when it took out a signal the configuration maps.
+  std::string all;
+  for (std::size_t q = 0; q < kCanQuantityCount && r.db; ++q) {
+    const SignalMapping& m = config.can.signals[q];
+    if (!m.mapped()) continue;
+    if (const std::string* e = r.affecting(m.message, m.signal))
+      all += (all.empty() ? "" : "\n") + std::string("can.signals.") + std::string(can_quantity_name(q)) +
+             ": " + m.message + "." + m.signal + " is unusable: " + *e;
+  }
+  if (!r.db)
     for (const auto& e : r.errors) all += (all.empty() ? "" : "\n") + e;
+  if (!all.empty()) {
     set(error, all);
     return std::nullopt;
+  }
+  if (warnings) {
+    *warnings = std::move(r.errors);  // skipped statements that no mapped signal needs
+    warnings->insert(warnings->end(), r.warnings.begin(), r.warnings.end());
   }
   return std::move(r.db);
 }

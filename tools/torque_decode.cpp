@@ -6,6 +6,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cinttypes>
 #include <cmath>
@@ -16,6 +17,7 @@
 #include <numbers>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "backend_factory.hpp"
 #include "candump_source.hpp"
@@ -25,6 +27,7 @@
 #include "dbc.hpp"
 #include "edge_file_source.hpp"
 #include "replay_merger.hpp"
+#include "wheel_detect.hpp"
 #include "wheel_names.hpp"
 
 #ifndef TORQUED_DECODE_PLOT_SCRIPT
@@ -37,8 +40,8 @@ using namespace torqued;
 
 struct Options {
   std::string edges, can, dbc, config, wheel = "60-2", format = "csv", crank = "crank", cam = "cam";
-  std::string out_teeth, out_can, first_row = "levels", out_revs, plot,
-                                  plot_script = TORQUED_DECODE_PLOT_SCRIPT;
+  std::string detect_wheel, out_teeth, out_can, first_row = "levels", out_revs, plot,
+                                                plot_script = TORQUED_DECODE_PLOT_SCRIPT;
   double can_offset_s = 0.0;
   bool can_offset_given = false;
   bool falling = false, quiet = false, revs = false, transitions = false;
@@ -76,6 +79,33 @@ std::string events_text(std::uint32_t e) {
   if (e & kToothResynced) add("resync");
   if (e & kToothGap) add("gap");
   return s;
+}
+
+/// One RFC 4180 field: quoted (with '"' doubled) when it holds a comma, a quote or a line break.
+void csv_field(std::FILE* f, std::string_view v) {
+  if (v.find_first_of(",\"\r\n") == std::string_view::npos) {
+    std::fwrite(v.data(), 1, v.size(), f);
+    return;
+  }
+  std::fputc('"', f);
+  for (const char c : v) {
+    if (c == '"') std::fputc('"', f);
+    std::fputc(c, f);
+  }
+  std::fputc('"', f);
+}
+
+/// A signal's value at full precision: the exact integer when the signal is an unscaled integer, else the
+/// shortest text that reads back as the same double.
+std::string value_text(const DbcSignal& s, const std::uint8_t* data, std::size_t len) {
+  char buf[40];
+  std::to_chars_result r{};
+  if (s.value_type == DbcSignal::ValueType::kInteger && s.factor == 1.0 && s.offset == 0.0)
+    r = s.is_signed ? std::to_chars(buf, buf + sizeof buf, s.raw(data, len))
+                    : std::to_chars(buf, buf + sizeof buf, s.raw_bits(data, len));
+  else
+    r = std::to_chars(buf, buf + sizeof buf, s.decode(data, len));
+  return std::string(buf, r.ptr);
 }
 
 /// Buffered CSV file (large stdio buffer; nothing is flushed per line).
@@ -155,6 +185,9 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("--can", o.can, "candump -l log");
   app.add_option("--dbc", o.dbc, "DBC file to decode the CAN frames");
   app.add_option("--wheel", o.wheel, "crank wheel: " + known_wheel_names());
+  app.add_option("--detect-wheel", o.detect_wheel,
+                 "read an unknown wheel off this edge capture (crank column --crank, --falling): gap "
+                 "structure, matching catalogue entries, tooth_angles_deg to paste, speed range");
   app.add_flag("--falling", o.falling, "teeth are marked by falling crank edges");
   app.add_option("--crank", o.crank, "crank column name in the edge CSV");
   app.add_option("--cam", o.cam, "cam column name in the edge CSV (\"\" = none)");
@@ -256,10 +289,27 @@ int open_from_options(const Options& o, Inputs& in) {
   }
   if (!o.dbc.empty()) {
     DbcParseResult r = DbcDatabase::parse_file(o.dbc);
-    if (!r.errors.empty()) in.err = r.errors.front();
+    if (!r.db) return fail(1, r.errors.empty() ? o.dbc + ": cannot read" : r.errors.front());
+    for (const auto& e : r.errors) std::fprintf(stderr, "torque-decode: %s\n", e.c_str());  // each skipped
     in.dbc = std::move(r.db);
   }
   return 0;
+}
+
+/// --detect-wheel: the marking crank edges of the capture, then the wheel they show.
+int detect_wheel_main(Options o) {
+  o.edges = o.detect_wheel;
+  o.cam = "";  // the crank edges only
+  std::string err;
+  auto src = open_edge_file(o, err);
+  if (!err.empty()) return fail(1, err);
+  std::vector<std::int64_t> teeth;
+  EdgeEvent e;
+  while (src->next(e) == SourceStatus::kOk)
+    if (e.channel == kCrankChannel && (e.level != 0) != o.falling) teeth.push_back(e.t_ns);
+  const WheelDetection d = detect_wheel(teeth);
+  std::fputs(describe(d).c_str(), d.error.empty() ? stdout : stderr);
+  return d.error.empty() ? 0 : 1;
 }
 
 /// The decoding loop's outputs and counters.
@@ -317,11 +367,19 @@ void on_frame(const CanFrame& f, const std::optional<DbcDatabase>& dbc, Decoding
     }
     if (!m->signal_present(s, f.data.data(), f.len)) continue;
     if (d.can_csv.f != nullptr) {
-      const std::int64_t raw = s.raw(f.data.data(), f.len);
-      const std::string* label = s.value_name(raw);
-      std::fprintf(d.can_csv.f, "%" PRId64 ",%.6f,%u,0x%X,%s,%s,%.10g,%s,%s\n", f.t_ns, f.t_ns * 1e-9, f.bus,
-                   f.id, m->name.c_str(), s.name.c_str(), s.decode(f.data.data(), f.len), s.unit.c_str(),
-                   label ? label->c_str() : "");
+      const std::string* label = s.value_name(s.raw(f.data.data(), f.len));
+      std::FILE* out = d.can_csv.f;
+      std::fprintf(out, "%" PRId64 ",%.6f,%u,0x%X,", f.t_ns, f.t_ns * 1e-9, f.bus, f.id);
+      for (const std::string_view v : {std::string_view(m->name), std::string_view(s.name)}) {
+        csv_field(out, v);
+        std::fputc(',', out);
+      }
+      std::fputs(value_text(s, f.data.data(), f.len).c_str(), out);
+      std::fputc(',', out);
+      csv_field(out, s.unit);
+      std::fputc(',', out);
+      csv_field(out, label ? *label : std::string_view{});
+      std::fputc('\n', out);
     }
   }
   bad ? ++d.frames_bad_dlc : ++d.frames_decoded;
@@ -422,6 +480,7 @@ int main(int argc, char** argv) {
   TORQUED_CLI_PARSE(app, argc, argv);
   o.can_offset_given = app.count("--can-offset") > 0;
 
+  if (!o.detect_wheel.empty()) return detect_wheel_main(o);
   Inputs in;
   in.can_offset_ns = static_cast<std::int64_t>(std::llround(o.can_offset_s * 1e9));
   if (const int rc = o.config.empty() ? open_from_options(o, in) : open_from_config(o, in); rc != 0)

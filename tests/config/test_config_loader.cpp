@@ -114,6 +114,11 @@ const BadCase kBad[] = {
      "dbc_signal_typo.yaml:6:38: key 'can.signals.map.signal': found 'MAPP', expected a signal of message "
      "ENGINE_1 in test.dbc (MAP)",
      2},
+    {"dbc_skipped_signal",
+     "dbc_skipped_signal.yaml:7:38: key 'can.signals.map.signal': found 'MAP', expected a signal the DBC "
+     "parser "
+     "can load (",
+     1},
     {"e_machine_ratio_zero",
      "e_machine_ratio_zero.yaml:5:12: key 'can.e_machine.ratio': found '0', expected a finite number (range "
      "(0, 100])",
@@ -257,6 +262,20 @@ TEST(ConfigLoader, MissingFileIsAClearError) {
   ASSERT_EQ(r.errors.size(), 1u);
   EXPECT_NE(r.errors[0].find("no_such_config.yaml: cannot open configuration file"), std::string::npos)
       << r.errors[0];
+}
+
+TEST(ConfigLoader, CheckRunsTheDaemonsDbcParser) {
+  // GIVEN a DBC whose mapped signal's line is broken and which has another bad line nothing maps
+  const LoadResult r = load_config(kDir + "bad/dbc_skipped_signal.yaml");
+  // THEN the mapped signal is an error naming the DBC's file:line and what was expected; the other is a
+  // warning
+  ASSERT_EQ(r.errors.size(), 1u) << joined(r.errors);
+  EXPECT_NE(r.errors[0].find("vehicle_defects.dbc:6: signal ENGINE_1.MAP: expected '[<min>|<max>]'"),
+            std::string::npos)
+      << r.errors[0];
+  EXPECT_NE(joined(r.warnings).find("vehicle_defects.dbc:9: message name '2ND_MESSAGE' starts with a digit"),
+            std::string::npos)
+      << joined(r.warnings);
 }
 
 TEST(ConfigLoader, FileChecksCanBeSkipped) {

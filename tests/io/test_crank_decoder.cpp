@@ -493,7 +493,7 @@ TEST(WheelNames, CatalogueEntriesAreValidAndUnknownNamesListThem) {
       ASSERT_TRUE(wheel_from_name(n.name, crank_only, &err));
       EXPECT_FALSE(CrankDecoder(crank_only, DecoderParams{}).valid()) << n.name;
     }
-    if (std::string(n.name) == "36-2-2") {  // symmetric: refused with a reason, never a silent non-sync
+    if (std::string(n.name) == "36-2-2-16-16") {  // symmetric: refused with a reason, never a silent non-sync
       EXPECT_FALSE(dec.valid());
       EXPECT_NE(dec.error().find("symmetric"), std::string::npos) << dec.error();
     } else {
@@ -508,6 +508,53 @@ TEST(WheelNames, CatalogueEntriesAreValidAndUnknownNamesListThem) {
   EXPECT_NE(err.find("arctic-cat"), std::string::npos) << err;
   ASSERT_TRUE(wheel_from_name("60-2", w, &err));
   EXPECT_EQ(w.teeth(), 58);
+  // A name several production wheels go by is refused with the candidates
+  EXPECT_FALSE(wheel_from_name("36-2-2", w, &err));
+  EXPECT_NE(err.find("ambiguous: 36-2-2-16-16"), std::string::npos) << err;
+  EXPECT_NE(err.find("36-2-2-17-15"), std::string::npos) << err;
+  // Maker aliases are the same wheels as their N-M names
+  for (const auto& [alias, nm] : {std::pair{"bosch-60-2", "60-2"}, std::pair{"ford-edis-36-1", "36-1"},
+                                  std::pair{"toyota-36-2", "36-2"}}) {
+    WheelGeometry a, b;
+    ASSERT_TRUE(wheel_from_name(alias, a, &err)) << err;
+    ASSERT_TRUE(wheel_from_name(nm, b, &err)) << err;
+    ASSERT_EQ(a.teeth(), b.teeth()) << alias;
+    for (int i = 0; i < a.teeth(); ++i)
+      EXPECT_NEAR(a.tooth_angles_deg[static_cast<std::size_t>(i)], 360.0 * i / b.positions, 1e-9) << alias;
+  }
+}
+
+TEST(WheelNames, JeepEvdDecodesWithZeroLossesFromTheFirstIdentifyingGap) {
+  // GIVEN the Jeep/Chrysler EVD 36-2-2 (gaps after 17 and 15 teeth) cranking then running, by name
+  WheelGeometry w;
+  DecoderParams p;
+  std::string err;
+  ASSERT_TRUE(trigger_from_name("jeep-evd", w, p, &err)) << err;
+  p.use_cam = false;
+  CrankDecoder dec(w, p);
+  ASSERT_TRUE(dec.valid()) << dec.error();
+  test::SynthOptions o;
+  o.wheel = test::wheel_runs(36, {17, 2, 15, 2});
+  o.rpm0 = 300.0;
+  o.rpm1 = 3000.0;
+  o.duration_s = 2.0;
+  o.ripple = 0.1;
+  o.cam = false;
+  const test::SynthOutput s = test::synthesize(o);
+  ToothEvent t;
+  int synced = 0, wrong = 0;
+  std::size_t k = 0;
+  for (const auto& e : s.edges) {
+    if (!dec.on_edge(e, t) || t.sync != SyncState::kSynced) continue;
+    while (k < s.teeth.size() && s.teeth[k].t_ns < t.t_ns) ++k;
+    ++synced;
+    if (k == s.teeth.size() || s.teeth[k].tooth720 % 32 != t.tooth % 32) ++wrong;
+  }
+  // THEN one sync, no loss, every synced tooth has its true index
+  EXPECT_EQ(dec.stats().syncs, 1u);
+  EXPECT_EQ(dec.stats().sync_losses, 0u);
+  EXPECT_EQ(wrong, 0);
+  EXPECT_GT(synced, 32 * 20);
 }
 
 }  // namespace

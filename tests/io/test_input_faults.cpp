@@ -84,7 +84,7 @@ BO_ 256 ENGINE_1: 8 ECU
 
 TEST(DbcFaults, AValueTableEntryBeyondInt64IsAnErrorNotUndefinedBehaviour) {
   // Fuzzing found VAL_ 1e308 cast to int64 (UB). fuzz/corpus/dbc/val_1e308.dbc is the same input.
-  for (const char* v : {"1e308", "-1e19", "9223372036854775808"}) {
+  for (const char* v : {"1e308", "-1e19", "18446744073709551616"}) {  // 2^64: past unsigned 64-bit too
     const std::string text = std::string(kDbc) + "VAL_ 256 MAP " + v + " \"huge\" ;\n";
     const DbcParseResult r = DbcDatabase::parse_string(text, "t.dbc");
     ASSERT_EQ(r.errors.size(), 1u) << v;

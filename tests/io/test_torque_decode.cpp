@@ -90,6 +90,41 @@ TEST(TorqueDecode, CanLogWithDbc) {
   EXPECT_NE(csv.find("EngineSpeed,0,rpm,Stopped\n"), std::string::npos) << csv;
 }
 
+TEST(TorqueDecode, CanCsvIsRfc4180WithFullPrecision) {
+  // GIVEN labels and a unit with commas and quotes, a 56-bit unscaled value, a scaled one and a 64-bit
+  // unsigned value with bit 63 set, and a bad DBC line elsewhere (reported, the rest decodes)
+  test::TempFile dbc(
+      "BO_ 256 M: 8 ECU\n SG_ Big : 0|56@1+ (1,0) [0|0] \"\" X\n SG_ Scaled : 56|8@1+ (0.1,0) [0|0] "
+      "\"m,s\" X\nBO_ 257 U: 8 ECU\n SG_ U64 : 0|64@1+ (1,0) [0|0] \"5\\\" pipe\" X\n"
+      "BO_ 258 9BAD: 8 ECU\nVAL_ 256 Scaled 3 \"a, b\" ;\n",
+      ".dbc");
+  test::TempFile log("(1.000000) can0 100#FFFFFFFFFFFFFF03\n(2.000000) can0 101#0100000000000080\n");
+  test::TempFile out("", ".csv");
+  const ToolRun r = run("--can " + log.path() + " --dbc " + dbc.path() + " --out-can " + out.path());
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find(dbc.path() + ":6: message name '9BAD'"), std::string::npos) << r.out;
+  const std::string csv = slurp(out.path());
+  // THEN 2^56-1 exactly, 0.3 as the shortest text of the double 3 x 0.1, quoted fields with doubled quotes
+  EXPECT_NE(csv.find(",0x100,M,Big,72057594037927935,,\n"), std::string::npos) << csv;
+  EXPECT_NE(csv.find(",0x100,M,Scaled,0.30000000000000004,\"m,s\",\"a, b\"\n"), std::string::npos) << csv;
+  // (the DBC string 5\" pipe keeps its backslash, as the parser stores strings)
+  EXPECT_NE(csv.find(",0x101,U,U64,9223372036854775809,\"5\\\"\" pipe\",\n"), std::string::npos) << csv;
+}
+
+TEST(TorqueDecode, DetectWheelOnARealCapture) {
+  // GIVEN the arctic-cat capture (tests/data/captures/rusefi) and no wheel name
+  const ToolRun r = run("--detect-wheel " + std::string(TORQUED_SOURCE_DIR) +
+                        "/tests/data/captures/rusefi/arctic-cat.csv --crank 'Channel 1'");
+  // THEN the gap structure, its catalogue entry and the angles to paste
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("wheel: 24 positions, 21 teeth; runs (teeth, missing): 11, 1, 10, 2"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("catalogue: arctic-cat"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("tooth_angles_deg: [0, 15, 30,"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("15 revolutions"), std::string::npos) << r.out;
+}
+
 TEST(TorqueDecode, UsageErrors) {
   EXPECT_NE(run("").status, 0);
   const ToolRun bad_wheel = run("--edges /dev/null --wheel 60");

@@ -121,6 +121,32 @@ TEST(BackendFactory, DbcAndSignalBindingErrors) {
   EXPECT_NE(err.find(bad.path() + ":2:"), std::string::npos) << err;
 }
 
+TEST(BackendFactory, ADbcDefectRefusesOnlyWhenItTakesOutAMappedSignal) {
+  // GIVEN a DBC with a message whose name starts with a digit (its 3 signals go with it) and a good message
+  test::TempFile dbc(
+      "BO_ 256 E1: 8 ECU\n SG_ MAP : 0|16@1+ (0.01,0) [0|655.35] \"kPa\" X\nBO_ 300 3RD: 8 ECU\n"
+      " SG_ A : 0|8@1+ (1,0) [0|0] \"\" X\n SG_ B : 8|8@1+ (1,0) [0|0] \"\" X\n SG_ C : 16|8@1+ (1,0) [0|0] "
+      "\"\" X\n",
+      ".dbc");
+  Config c = default_config();
+  c.can.dbc = dbc.path();
+  c.can.signals[static_cast<std::size_t>(Quantity::kMap)] = {"E1", "MAP", 100};
+  std::string err;
+  std::vector<std::string> warnings;
+  // THEN mapping the good message loads, the defect is one warning with its file:line
+  auto db = load_dbc(c, &err, &warnings);
+  ASSERT_TRUE(db.has_value()) << err;
+  ASSERT_EQ(warnings.size(), 1u) << ::testing::PrintToString(warnings);
+  EXPECT_NE(warnings[0].find(dbc.path() + ":3: message name '3RD' starts with a digit"), std::string::npos)
+      << warnings[0];
+  // AND mapping a signal of the bad message refuses, naming the quantity and the DBC line once
+  c.can.signals[static_cast<std::size_t>(Quantity::kMaf)] = {"3RD", "B", 100};
+  err.clear();
+  EXPECT_FALSE(load_dbc(c, &err).has_value());
+  EXPECT_NE(err.find("can.signals.maf: 3RD.B is unusable: " + dbc.path() + ":3:"), std::string::npos) << err;
+  EXPECT_EQ(err.find('\n'), std::string::npos) << err;
+}
+
 TEST(BackendFactory, DemoRecordingEndToEnd) {
   if (!std::ifstream(kRoot + "/data/demo/edges.csv")) GTEST_SKIP() << "no data/demo recording";
   LoadResult lr = load_config(kRoot + "/config/demo.yaml");
