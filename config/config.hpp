@@ -70,6 +70,10 @@ struct CanInputConfig {
 struct InputsConfig {
   EdgeInputConfig edges;
   CanInputConfig can;
+  /// File inputs (io/time_sanity.hpp): a record more than this ahead of the previous one starts a candidate
+  /// run; it is dropped as an outlier unless time_rebase_records records in step follow it (s).
+  double max_time_jump_s = 10.0;
+  int time_rebase_records = 8;  ///< records in step after a jump that prove a genuine clock jump (re-base)
 };
 
 /// Where a quantity comes from: DBC message + signal. Empty message = not mapped (estimators see it invalid).
