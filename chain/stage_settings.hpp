@@ -44,6 +44,9 @@ struct StageSettings {
       2;  ///< publish per-tooth Kalman/Fourier T_ind every n-th tooth (0 = never)
   std::int64_t edge_timeout_ns = 500'000'000;  ///< no crank edge for this long: STATUS_EDGE_TIMEOUT
   std::int64_t status_period_ns = 1'000'000'000;
+  /// Fast replay: across a silent stretch of the input (a genuine clock jump) only this much recording time
+  /// of time-triggered output is written (inputs.max_time_jump_s).
+  std::int64_t max_input_gap_ns = 10'000'000'000;
   dds::DdsSettings dds;
 };
 

@@ -70,6 +70,10 @@ struct CanInputConfig {
 struct InputsConfig {
   EdgeInputConfig edges;
   CanInputConfig can;
+  /// File inputs (io/time_sanity.hpp): a record more than this ahead of the previous one starts a candidate
+  /// run; it is dropped as an outlier unless time_rebase_records records in step follow it (s).
+  double max_time_jump_s = 10.0;
+  int time_rebase_records = 8;  ///< records in step after a jump that prove a genuine clock jump (re-base)
 };
 
 /// Where a quantity comes from: DBC message + signal. Empty message = not mapped (estimators see it invalid).
@@ -124,6 +128,12 @@ struct EstimatorsConfig {
   EstimatorToggle<FrictionParams> friction;
   EstimatorToggle<CylinderParams> cylinder;
   EstimatorToggle<ToothLearnParams> tooth_learn;
+  /// YAML estimators.tooth_learn.max_correction_deg: largest |correction| a stored tooth table may hold
+  /// (deg); a larger one is a corrupt file, refused at load (learned/state_store.cpp) and relearned. Physics,
+  /// not the simulator: ISO 1328-1's coarsest accuracy grade (12) allows a cumulative pitch deviation F_p of
+  /// about 0.28 mm on a 60-tooth module-3 wheel (r = 90 mm), 0.18 deg; flywheel runout limits of about 0.08
+  /// mm add 0.05 deg. 0.5 deg leaves margin for learning noise, 6x below half a 60-tooth pitch (3 deg).
+  double tooth_max_correction_deg = 0.5;
   FuelTorqueParams fuel;  ///< fuel-based indicated torque (learned efficiency; no-load brake torque)
   double default_oil_temp_c = 90.0;  ///< friction law's oil temperature until OilTemp arrives on CAN (°C)
 };

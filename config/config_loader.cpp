@@ -510,6 +510,18 @@ std::optional<std::string> check_fourier_stability(const FourierParams& p, const
   return std::nullopt;
 }
 
+bool valid_topic_prefix(std::string_view prefix) {
+  // Cyclone DDS accepts topic names of letters, digits, '_' and '/', not starting with a digit; the daemon's
+  // names are "<prefix>/<Type>" (idl/qos.hpp), so the prefix obeys the same rule.
+  if (!prefix.empty() && prefix.front() >= '0' && prefix.front() <= '9') return false;
+  for (const char ch : prefix) {
+    const bool ok = (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') ||
+                    ch == '_' || ch == '/';
+    if (!ok) return false;
+  }
+  return true;
+}
+
 std::vector<ConfigProblem> check_config_physics(const Config& c) {
   std::vector<ConfigProblem> out;
   const auto& e = c.engine;
@@ -609,6 +621,11 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
     out.push_back({"inputs.can.interface", "", "a SocketCAN interface name (backend socketcan)"});
   if (c.wheel.crank_channel.empty()) out.push_back({"wheel.crank_channel", "", "a channel name"});
   if (c.can.e_machine.sign == 0) out.push_back({"can.e_machine.sign", "0", "+1 or -1"});
+  if (!valid_topic_prefix(c.dds.topic_prefix))
+    out.push_back(
+        {"dds.topic_prefix", c.dds.topic_prefix,
+         "letters, digits, '_' and '/' only, not starting with a digit (DDS topic names: Cyclone DDS "
+         "refuses any other character when the daemon creates its topics)"});
   const bool em_mapped = c.can.signals[kCanEmTorque].mapped();
   if (c.can.signals[kCanEmSoleLoad].mapped() && !em_mapped)
     out.push_back(

@@ -213,6 +213,14 @@ void add_inputs(std::vector<SchemaEntry>& t) {
   t.push_back(boolean("inputs.can.fd", TQ_REF(bool, inputs.can.fd), "accept CAN FD frames"));
   t.push_back(number("inputs.can.time_offset_s", TQ_REF(double, inputs.can.time_offset_s),
                      closed(-1e10, 1e10), "s", "added to CAN timestamps to put them on the edge clock"));
+  t.push_back(
+      number("inputs.max_time_jump_s", TQ_REF(double, inputs.max_time_jump_s), closed(0.001, 1e6), "s",
+             "file inputs: an edge or frame this far ahead of the previous one is dropped as an outlier "
+             "(file:line in the log) unless inputs.time_rebase_records records in step follow it"));
+  t.push_back(integer("inputs.time_rebase_records", TQ_REF(int, inputs.time_rebase_records), closed(1, 32),
+                      "",
+                      "file inputs: records in step after a time jump that make it a genuine clock jump "
+                      "(re-based, nothing dropped)"));
 }
 
 void add_can(std::vector<SchemaEntry>& t) {
@@ -389,7 +397,9 @@ void add_rest(std::vector<SchemaEntry>& t) {
       "replay.mode", TQ_REF(ReplayMode, replay.mode),
       {{"fast", ReplayMode::kFast}, {"paced", ReplayMode::kPaced}},
       "file replay as fast as possible (deterministic) or keeping the recording's timing"));
-  t.push_back(number("replay.speed", TQ_REF(double, replay.speed), positive(1000.0), "x",
+  // Lower bound: a speed like 1e-300 made every due time infinite (undefined conversion, then a paced replay
+  // running flat out); 0.001 is a 20 s recording in 5.6 h.
+  t.push_back(number("replay.speed", TQ_REF(double, replay.speed), closed(0.001, 1000.0), "x",
                      "paced replay speed factor"));
   t.push_back(
       boolean("replay.exit_when_done", TQ_REF(bool, replay.exit_when_done),

@@ -398,6 +398,9 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          "less than this");
   TQ_BOOL("tooth_learn.enabled", tooth_learn.enabled, "apply the per-tooth angle correction table");
   TQ_BOOL("tooth_learn.learn", tooth_learn.params.learn, "learn per-tooth corrections while running");
+  TQ_NUM("tooth_learn.max_correction_deg", tooth_max_correction_deg, open_closed(0.0, 5.0), "deg",
+         "largest per-tooth correction a stored table may hold (realistic machining: ISO 1328-1 grade 12 "
+         "pitch deviation ~0.2 deg); a table beyond it is refused at load and relearned");
   TQ_INT("tooth_learn.min_cycles", tooth_learn.params.min_cycles, closed(1, 100000), "cycles",
          "cycles averaged before the table is used");
   TQ_INT("tooth_learn.fit_harmonics", tooth_learn.params.fit_harmonics, closed(1, 128), "",

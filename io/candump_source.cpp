@@ -15,7 +15,7 @@ bool valid_fd_len(int n) noexcept {
 }  // namespace
 
 CandumpSource::CandumpSource(std::string path, CandumpOptions options)
-    : path_(std::move(path)), opt_(options) {
+    : path_(std::move(path)), opt_(options), sanity_(opt_.time) {
   messages_.reserve(kMaxMessages);
   ok_ = reader_.open(path_);
   if (!ok_) error_ = reader_.error();
@@ -96,12 +96,25 @@ const char* CandumpSource::parse_line(std::string_view line, CanFrame& out,
 
 SourceStatus CandumpSource::next(CanFrame& out) noexcept {
   if (!ok_) return SourceStatus::kError;
+  auto note_drop = [&](const TimeDrop& d) { note_time_drop(d, path_, stats_, messages_, error_); };
   std::string_view line;
-  while (reader_.next(line)) {
+  for (;;) {
+    if (sanity_.pop(out)) {
+      ++stats_.records;
+      return SourceStatus::kOk;
+    }
+    if (eof_) return finish_lines(reader_, path_, stats_, error_);
+    if (!reader_.next(line)) {
+      eof_ = true;
+      sanity_.finish();
+      sanity_.drain_drops(note_drop);
+      stats_.time_rebases = sanity_.rebases();
+      continue;
+    }
     stats_.lines = reader_.line_number();
     if (line.empty() || line.front() == '#') continue;
     std::string_view bus;
-    const char* err = parse_line(line, out, bus);
+    const char* err = parse_line(line, frame_, bus);
     if (err != nullptr) {
       if (*err == '\0') {  // remote frame
         ++rtr_frames_;
@@ -118,25 +131,29 @@ SourceStatus CandumpSource::next(CanFrame& out) noexcept {
       }
       continue;
     }
-    int b = 0;
-    while (b < buses_ && std::string_view(bus_names_[static_cast<std::size_t>(b)].data()) != bus) ++b;
-    if (b == buses_) {
-      if (buses_ < kMaxBuses) {
-        auto& slot = bus_names_[static_cast<std::size_t>(buses_++)];
-        const std::size_t n = std::min(bus.size(), slot.size() - 1);
-        std::memcpy(slot.data(), bus.data(), n);
-        slot[n] = '\0';
-      } else {
-        b = kMaxBuses - 1;  // more interfaces than we track: share the last index
-      }
-    }
-    out.bus = static_cast<std::uint8_t>(b);
-    out.t_ns += opt_.time_offset_ns;
+    frame_.bus = bus_index(bus);
+    frame_.t_ns += opt_.time_offset_ns;
     stats_.bytes = reader_.bytes();
-    ++stats_.records;
-    return SourceStatus::kOk;
+    sanity_.push(frame_, frame_.t_ns, reader_.line_number());
+    sanity_.drain_drops(note_drop);
   }
-  return finish_lines(reader_, path_, stats_, error_);
+}
+
+/// Index of an interface name, registered on first sight (more than kMaxBuses share the last index).
+std::uint8_t CandumpSource::bus_index(std::string_view bus) noexcept {
+  int b = 0;
+  while (b < buses_ && std::string_view(bus_names_[static_cast<std::size_t>(b)].data()) != bus) ++b;
+  if (b == buses_) {
+    if (buses_ < kMaxBuses) {
+      auto& slot = bus_names_[static_cast<std::size_t>(buses_++)];
+      const std::size_t n = std::min(bus.size(), slot.size() - 1);
+      std::memcpy(slot.data(), bus.data(), n);
+      slot[n] = '\0';
+    } else {
+      b = kMaxBuses - 1;  // more interfaces than we track: share the last index
+    }
+  }
+  return static_cast<std::uint8_t>(b);
 }
 
 }  // namespace torqued

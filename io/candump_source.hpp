@@ -13,11 +13,13 @@
 
 #include "line_reader.hpp"
 #include "source.hpp"
+#include "time_sanity.hpp"
 
 namespace torqued {
 
 struct CandumpOptions {
   std::int64_t time_offset_ns = 0;  ///< added to every timestamp (config inputs.can.time_offset_s)
+  TimeSanityOptions time;           ///< outliers and clock jumps (io/time_sanity.hpp)
 };
 
 class CandumpSource final : public CanSource {
@@ -42,8 +44,13 @@ class CandumpSource final : public CanSource {
   static const char* parse_line(std::string_view line, CanFrame& out, std::string_view& bus_name) noexcept;
 
  private:
+  std::uint8_t bus_index(std::string_view bus) noexcept;
+
   std::string path_;
   CandumpOptions opt_;
+  CanFrame frame_{};
+  TimeSanity<CanFrame> sanity_;
+  bool eof_ = false;
   LineReader reader_;
   bool ok_ = false;
   static constexpr int kMaxBuses = 8;

@@ -174,7 +174,7 @@ void note(std::vector<std::string>& messages, std::string& error, const std::str
 }  // namespace
 
 EdgeCsvSource::EdgeCsvSource(std::string path, EdgeCsvOptions options)
-    : path_(std::move(path)), opt_(std::move(options)) {
+    : path_(std::move(path)), opt_(std::move(options)), sanity_(opt_.time) {
   messages_.reserve(kMaxMessages + 2);
   if (!reader_.open(path_)) {
     error_ = reader_.error();
@@ -323,15 +323,20 @@ bool EdgeCsvSource::parse_row(std::string_view line, std::int64_t& t, int& crank
   return true;
 }
 
+/// One edge into the time sanity check; records dropped for their time are counted and named.
+void EdgeCsvSource::push_event(const EdgeEvent& e) noexcept {
+  sanity_.push(e, e.t_ns, reader_.line_number());
+  sanity_.drain_drops([&](const TimeDrop& d) { note_time_drop(d, path_, stats_, messages_, error_); });
+}
+
 SourceStatus EdgeCsvSource::next(EdgeEvent& out) noexcept {
   if (!ok_) return SourceStatus::kError;
   for (;;) {
-    if (pending_i_ < pending_n_) {
-      out = pending_[static_cast<std::size_t>(pending_i_++)];
+    if (sanity_.pop(out)) {
       ++stats_.records;
       return SourceStatus::kOk;
     }
-    pending_i_ = pending_n_ = 0;
+    if (eof_) return finish();
     std::int64_t t = 0;
     int crank = -1, cam = -1;
     // Fast path straight from the reader's buffer (no line search); anything else through next(line).
@@ -344,7 +349,13 @@ SourceStatus EdgeCsvSource::next(EdgeEvent& out) noexcept {
       reader_.consume_line(len + 1);
     } else {
       std::string_view line;
-      if (!reader_.next(line)) return finish();
+      if (!reader_.next(line)) {
+        eof_ = true;
+        sanity_.finish();
+        sanity_.drain_drops([&](const TimeDrop& d) { note_time_drop(d, path_, stats_, messages_, error_); });
+        stats_.time_rebases = sanity_.rebases();
+        continue;
+      }
       const std::size_t n = parse_row_fast(line.data(), line.size(), t, crank, cam);
       if ((n == 0 || n != line.size()) && !parse_row(line, t, crank, cam)) continue;
     }
@@ -355,11 +366,6 @@ SourceStatus EdgeCsvSource::next(EdgeEvent& out) noexcept {
     if (time_scale_div_ != 1) [[unlikely]]
       t /= time_scale_div_;
     t += opt_.time_offset_ns;
-    if (!initial_ && t < last_t_ns_) {
-      bad_line("time goes backwards");
-      continue;
-    }
-    last_t_ns_ = t;
     ++data_rows_;
     if (initial_) {
       initial_ = false;
@@ -370,30 +376,19 @@ SourceStatus EdgeCsvSource::next(EdgeEvent& out) noexcept {
       }
       level_ = {0, 0};  // kEdgesFromLow: compared with all-low below
     }
-    // A row is normally one edge: it goes straight to `out` (through pending_, the event was stored and read
-    // back at once); the second edge of a row with both channels changing waits in pending_.
+    // The levels follow every row, also one whose time is then dropped (a corrupt time costs that row's edge
+    // only: the next row's edge is still seen). Crank first when both channels change.
     const bool crank_edge = crank != level_[0];
     const bool cam_edge = cam >= 0 && cam != level_[1];
     if (crank_edge) level_[0] = static_cast<std::uint8_t>(crank);
     if (cam_edge) level_[1] = static_cast<std::uint8_t>(cam);
-    if (crank_edge) {
-      out = EdgeEvent{t, opt_.crank_channel, level_[0]};
-      if (cam_edge) {
-        pending_[0] = EdgeEvent{t, opt_.cam_channel, level_[1]};
-        pending_n_ = 1;
-      }
-    } else if (cam_edge) {
-      out = EdgeEvent{t, opt_.cam_channel, level_[1]};
-    } else {
-      continue;  // no level changed
-    }
-    ++stats_.records;
-    return SourceStatus::kOk;
+    if (crank_edge) push_event(EdgeEvent{t, opt_.crank_channel, level_[0]});
+    if (cam_edge) push_event(EdgeEvent{t, opt_.cam_channel, level_[1]});
   }
 }
 
 EdgeListSource::EdgeListSource(std::string path, EdgeListOptions options)
-    : path_(std::move(path)), opt_(options) {
+    : path_(std::move(path)), opt_(options), sanity_(opt_.time) {
   messages_.reserve(kMaxMessages);
   ok_ = reader_.open(path_);
   if (!ok_) error_ = reader_.error();
@@ -403,8 +398,21 @@ std::string EdgeListSource::describe() const { return "edge-list " + path_; }
 
 SourceStatus EdgeListSource::next(EdgeEvent& out) noexcept {
   if (!ok_) return SourceStatus::kError;
+  auto note_drop = [&](const TimeDrop& d) { note_time_drop(d, path_, stats_, messages_, error_); };
   std::string_view line;
-  while (reader_.next(line)) {
+  for (;;) {
+    if (sanity_.pop(out)) {
+      ++stats_.records;
+      return SourceStatus::kOk;
+    }
+    if (eof_) return finish_lines(reader_, path_, stats_, error_);
+    if (!reader_.next(line)) {
+      eof_ = true;
+      sanity_.finish();
+      sanity_.drain_drops(note_drop);
+      stats_.time_rebases = sanity_.rebases();
+      continue;
+    }
     stats_.bytes = reader_.bytes();
     stats_.lines = reader_.line_number();
     const char* p = line.data();
@@ -424,11 +432,10 @@ SourceStatus EdgeListSource::next(EdgeEvent& out) noexcept {
       }
       continue;
     }
-    out = EdgeEvent{t + opt_.time_offset_ns, opt_.channel, opt_.level};
-    ++stats_.records;
-    return SourceStatus::kOk;
+    t += opt_.time_offset_ns;
+    sanity_.push(EdgeEvent{t, opt_.channel, opt_.level}, t, reader_.line_number());
+    sanity_.drain_drops(note_drop);
   }
-  return finish_lines(reader_, path_, stats_, error_);
 }
 
 }  // namespace torqued

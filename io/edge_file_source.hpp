@@ -18,6 +18,7 @@
 
 #include "line_reader.hpp"
 #include "source.hpp"
+#include "time_sanity.hpp"
 
 namespace torqued {
 
@@ -39,6 +40,7 @@ struct EdgeCsvOptions {
   std::uint8_t crank_channel = 0;   ///< EdgeEvent::channel given to crank edges
   std::uint8_t cam_channel = 1;     ///< EdgeEvent::channel given to cam edges
   std::int64_t time_offset_ns = 0;  ///< added to every time
+  TimeSanityOptions time;           ///< outliers and clock jumps (io/time_sanity.hpp)
 };
 
 class EdgeCsvSource final : public EdgeSource {
@@ -64,9 +66,12 @@ class EdgeCsvSource final : public EdgeSource {
   bool parse_row(std::string_view line, std::int64_t& t, int& crank, int& cam) noexcept;
   bool resolve_columns(std::string_view first_line);
   SourceStatus finish() noexcept;
+  void push_event(const EdgeEvent& e) noexcept;
 
   std::string path_;
   EdgeCsvOptions opt_;
+  TimeSanity<EdgeEvent> sanity_;
+  bool eof_ = false;
   LineReader reader_;
   bool ok_ = false;
   bool initial_ = true;  ///< next data row is the first one (see EdgeCsvFirstRow)
@@ -78,9 +83,6 @@ class EdgeCsvSource final : public EdgeSource {
   std::uint64_t data_rows_ = 0;
   int crank_col_ = -1, cam_col_ = -1, columns_ = 0;
   std::array<std::uint8_t, 2> level_{};
-  std::array<EdgeEvent, 2> pending_{};
-  int pending_n_ = 0, pending_i_ = 0;
-  std::int64_t last_t_ns_ = 0;
   std::int64_t time_scale_div_ = 1;  ///< header time unit: [s] 1, [ms] 1e3, [us] 1e6, [ns] 1e9
   SourceStats stats_;
   std::string error_;
@@ -91,6 +93,7 @@ struct EdgeListOptions {
   std::uint8_t channel = 0;  ///< channel given to every edge
   std::uint8_t level = 1;    ///< level given to every edge (1: the wheel's rising edges)
   std::int64_t time_offset_ns = 0;
+  TimeSanityOptions time;  ///< outliers and clock jumps (io/time_sanity.hpp)
 };
 
 class EdgeListSource final : public EdgeSource {
@@ -108,6 +111,8 @@ class EdgeListSource final : public EdgeSource {
  private:
   std::string path_;
   EdgeListOptions opt_;
+  TimeSanity<EdgeEvent> sanity_;
+  bool eof_ = false;
   LineReader reader_;
   bool ok_ = false;
   SourceStats stats_;

@@ -42,6 +42,10 @@ struct SourceStats {
   std::uint64_t bytes = 0;    ///< input bytes consumed (file backends)
   std::uint64_t lines = 0;    ///< input lines read (file backends)
   std::uint64_t reopens = 0;  ///< live backends: times the device was reopened after an error
+  /// File backends (io/time_sanity.hpp): records dropped for their time (behind the time base, or an outlier
+  /// far ahead of it); each is also a bad line, named file:line in input_messages().
+  std::uint64_t time_outliers = 0;
+  std::uint64_t time_rebases = 0;  ///< genuine clock jumps adopted (a run of records in step after the jump)
 };
 
 /// End of a line-based file source: final byte and line counts; kError with `error` = "<path>: read error:

@@ -1,6 +1,7 @@
 #include "state_store.hpp"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -88,6 +89,12 @@ double max_abs_friction(const FrictionParams& params, const std::array<double, 4
 }
 
 bool read_file(const std::string& path, std::string* text, std::string* error) {
+  // Only a regular file: a FIFO (or a device) in its place would block the start-up in open()/read().
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
+    if (error) *error = path + ": not a regular file (a FIFO, device or directory is never read as state)";
+    return false;
+  }
   std::ifstream f(path, std::ios::binary);
   if (!f) {
     if (error) *error = path + ": cannot open (" + std::strerror(errno) + ")";
@@ -113,7 +120,12 @@ StateContext state_context_from(const Config& cfg) {
                 cfg.dds.engine_id, e.cylinders, e.bore_m, e.stroke_m, w.positions, w.missing, w.teeth());
   ctx.identity = buf;
   ctx.teeth = w.teeth();
-  ctx.max_tooth_corr_rad = w.positions > 0 ? 0.5 * 2.0 * std::numbers::pi / w.positions : 0.0;
+  // The tighter of half a tooth pitch (the decoder's own limit) and realistic machining
+  // (estimators.tooth_learn.max_correction_deg).
+  ctx.max_tooth_corr_rad = w.positions > 0
+                               ? std::min(0.5 * 2.0 * std::numbers::pi / w.positions,
+                                          cfg.estimators.tooth_max_correction_deg * std::numbers::pi / 180.0)
+                               : 0.0;
   ctx.friction = cfg.estimators.friction.params;
   const double vd = e.cylinders * std::numbers::pi / 4.0 * e.bore_m * e.bore_m * e.stroke_m;
   ctx.max_friction_nm = std::max(kMaxFrictionMepPa * vd / (4.0 * std::numbers::pi),
@@ -277,7 +289,8 @@ bool check_teeth(const LearnedState& s, const StateContext& ctx, std::string* wh
   for (std::size_t i = 0; i < t.size(); ++i)
     if (!(std::abs(t[i]) < ctx.max_tooth_corr_rad)) {
       *what = "tooth correction " + std::to_string(i) + " = " + fmt("%g", t[i]) +
-              " rad is not within half a tooth pitch (" + fmt("%g", ctx.max_tooth_corr_rad) + " rad)";
+              " rad is beyond the bound " + fmt("%g", ctx.max_tooth_corr_rad) +
+              " rad (estimators.tooth_learn.max_correction_deg, at most half a tooth pitch)";
       return false;
     }
   return true;

@@ -61,7 +61,7 @@ struct Config;
 struct StateContext {
   std::string identity;           ///< engine and wheel this daemon runs (identity line)
   int teeth = 0;                  ///< expected number of tooth corrections (real teeth of the wheel)
-  double max_tooth_corr_rad = 0;  ///< |correction| < half a tooth pitch (the decoder's own limit)
+  double max_tooth_corr_rad = 0;  ///< |correction| < min(half a tooth pitch, tooth_learn.max_correction_deg)
   FrictionParams friction;        ///< law (sign) and speed range the coefficients are evaluated over
   double max_friction_nm = 0;  ///< |T_fric| bound over n in [0, friction.max_rpm], t_oil in [-40, 200] degC
   /// Upper bound of the gross indicated efficiency: the air-standard Otto cycle at the configured compression

@@ -35,8 +35,8 @@ class ReplayClock {
     const std::int64_t base =
         anchor_mono_.load(std::memory_order_relaxed) + shift_.load(std::memory_order_relaxed);
     if (fast_) return base;
-    return base + static_cast<std::int64_t>(
-                      static_cast<double>(rec_ns - anchor_rec_.load(std::memory_order_relaxed)) / speed_);
+    return sat_add(base,
+                   to_ns(static_cast<double>(rec_ns - anchor_rec_.load(std::memory_order_relaxed)) / speed_));
   }
 
   /// Recording time (ns) that is due at monotonic time mono_ns (frozen at the pause while paused).
@@ -45,8 +45,7 @@ class ReplayClock {
     if (fast_) return std::numeric_limits<std::int64_t>::max() / 2;
     const std::int64_t el =
         mono_ns - anchor_mono_.load(std::memory_order_relaxed) - shift_.load(std::memory_order_relaxed);
-    return anchor_rec_.load(std::memory_order_relaxed) +
-           static_cast<std::int64_t>(static_cast<double>(el) * speed_);
+    return sat_add(anchor_rec_.load(std::memory_order_relaxed), to_ns(static_cast<double>(el) * speed_));
   }
 
   void pause(std::int64_t mono_ns) noexcept {
@@ -63,6 +62,21 @@ class ReplayClock {
   [[nodiscard]] bool paused() const noexcept { return paused_.load(std::memory_order_acquire); }
 
  private:
+  /// A due time that does not fit (a tiny speed: 1 s / 1e-300) saturates instead of an undefined conversion
+  /// (config replay.speed is bounded to >= 0.001 for that reason; this keeps any caller defined).
+  static std::int64_t to_ns(double v) noexcept {
+    constexpr double kMax = 9.2e18;  // below INT64_MAX, exactly representable
+    if (!(v < kMax)) return v != v ? 0 : static_cast<std::int64_t>(kMax);
+    if (!(v > -kMax)) return -static_cast<std::int64_t>(kMax);
+    return static_cast<std::int64_t>(v);
+  }
+  static std::int64_t sat_add(std::int64_t a, std::int64_t b) noexcept {
+    std::int64_t r = 0;
+    if (__builtin_add_overflow(a, b, &r))
+      return b > 0 ? std::numeric_limits<std::int64_t>::max() : std::numeric_limits<std::int64_t>::min();
+    return r;
+  }
+
   double speed_;
   bool fast_;
   std::atomic<bool> anchored_{false}, paused_{false};

@@ -1,5 +1,6 @@
 #include "backend_factory.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "can_encoder.hpp"
@@ -47,6 +48,13 @@ CanEncoderConfig can_encoder_config(const Config& config) noexcept {
   return e;
 }
 
+TimeSanityOptions time_sanity_options(const Config& config) noexcept {
+  TimeSanityOptions t;
+  t.max_jump_ns = static_cast<std::int64_t>(std::llround(config.inputs.max_time_jump_s * 1e9));
+  t.rebase_after = static_cast<std::uint32_t>(std::max(1, config.inputs.time_rebase_records));
+  return t;
+}
+
 std::int64_t can_time_offset_ns(const Config& config) noexcept {
   return static_cast<std::int64_t>(std::llround(config.inputs.can.time_offset_s * 1e9));
 }
@@ -70,6 +78,7 @@ std::unique_ptr<EdgeSource> make_edge_source(const Config& config, std::string* 
         o.cam_column = config.wheel.cam_channel;
         o.crank_channel = kCrankChannel;
         o.cam_channel = kCamChannel;
+        o.time = time_sanity_options(config);
         auto src = std::make_unique<EdgeCsvSource>(in.path, o);
         if (!src->ok()) {
           set(error, "inputs.edges: " + src->last_error());
@@ -80,6 +89,7 @@ std::unique_ptr<EdgeSource> make_edge_source(const Config& config, std::string* 
       EdgeListOptions o;
       o.channel = kCrankChannel;
       o.level = config.wheel.geometry.rising_edge ? 1 : 0;
+      o.time = time_sanity_options(config);
       auto src = std::make_unique<EdgeListSource>(in.path, o);
       if (!src->ok()) {
         set(error, "inputs.edges: " + src->last_error());
@@ -116,7 +126,9 @@ std::unique_ptr<EdgeSource> make_edge_source(const Config& config, std::string* 
         }
         can = std::move(sock);
       } else {
-        auto file = std::make_unique<CandumpSource>(config.inputs.can.path);
+        CandumpOptions co;
+        co.time = time_sanity_options(config);
+        auto file = std::make_unique<CandumpSource>(config.inputs.can.path, co);
         if (!file->ok()) {
           set(error, "inputs.edges (can_encoder): " + file->last_error());
           return nullptr;
@@ -149,7 +161,9 @@ std::unique_ptr<CanSource> make_can_source(const Config& config, std::string* er
     return sock;
   }
   if (in.path.empty()) return nullptr;
-  auto src = std::make_unique<CandumpSource>(in.path);
+  CandumpOptions co;
+  co.time = time_sanity_options(config);
+  auto src = std::make_unique<CandumpSource>(in.path, co);
   if (!src->ok()) {
     set(error, "inputs.can: " + src->last_error());
     return nullptr;

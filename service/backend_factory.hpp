@@ -16,6 +16,7 @@
 #include "dbc.hpp"
 #include "signal_store.hpp"
 #include "source.hpp"
+#include "time_sanity.hpp"
 
 namespace torqued {
 
@@ -34,6 +35,8 @@ inline constexpr std::uint8_t kCamChannel = 1;
 
 /// inputs.can.time_offset_s in ns (rounded).
 [[nodiscard]] std::int64_t can_time_offset_ns(const Config& config) noexcept;
+/// Time sanity of the file sources (inputs.max_time_jump_s, inputs.time_rebase_records).
+[[nodiscard]] TimeSanityOptions time_sanity_options(const Config& config) noexcept;
 
 /// Decoder parameters from the config with the factory's channel indices and cam settings filled in.
 [[nodiscard]] DecoderParams decoder_params(const Config& config) noexcept;

@@ -70,6 +70,13 @@ RuntimeCounters replay_counters(const AngleChain& chain, const ReplayMerger& mer
   return c;
 }
 
+/// Moves a periodic due time `next` (period `period`) forward by whole periods so that at most `max_gap` of
+/// recording time lies between it and t.
+void skip_gap(std::int64_t& next, std::int64_t t, std::int64_t max_gap, std::int64_t period) noexcept {
+  if (period <= 0 || max_gap <= 0 || t - next <= max_gap) return;
+  next += (t - max_gap - next) / period * period;
+}
+
 }  // namespace
 
 ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSource* can,
@@ -118,6 +125,10 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
       next_tick = t + time.step_ns();
       next_status = t + s.status_period_ns;
     }
+    // Output is bounded by what the input can produce: across a silent stretch longer than
+    // max_input_gap_ns (a re-based clock jump) only its last max_input_gap_ns is stepped and reported.
+    skip_gap(next_tick, t, s.max_input_gap_ns, time.step_ns());
+    skip_gap(next_status, t, s.max_input_gap_ns, s.status_period_ns);
     // Time-triggered steps that are due before this record (the 1 kHz timer of the paced mode).
     while (next_tick <= t) {
       time.step(next_tick, 0);

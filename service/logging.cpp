@@ -8,6 +8,7 @@
 
 #include <cstdlib>
 #include <string>
+#include <string_view>
 
 namespace torqued::logging {
 namespace {
@@ -24,12 +25,40 @@ class PriorityFlag final : public spdlog::custom_flag_formatter {
   }
 };
 
+/// `%Q` → the message with control characters escaped: text from input files (a DBC name, a CSV line) can
+/// hold an ESC sequence that would repaint a terminal, or a newline that would forge a second journal entry.
+/// "\n", "\r", "\t" and "\xNN" (other bytes below 0x20, and 0x7f) instead; everything else is copied.
+class EscapedMessage final : public spdlog::custom_flag_formatter {
+ public:
+  void format(const spdlog::details::log_msg& msg, const std::tm&, spdlog::memory_buf_t& dest) override {
+    static constexpr char kHex[] = "0123456789abcdef";
+    for (const char ch : std::string_view(msg.payload.data(), msg.payload.size())) {
+      const auto c = static_cast<unsigned char>(ch);
+      if (c >= 0x20 && c != 0x7f) {
+        dest.push_back(ch);
+        continue;
+      }
+      const char* named = c == '\n' ? "\\n" : c == '\r' ? "\\r" : c == '\t' ? "\\t" : nullptr;
+      if (named != nullptr) {
+        dest.append(named, named + 2);
+      } else {
+        const char esc[4] = {'\\', 'x', kHex[c >> 4], kHex[c & 15]};
+        dest.append(esc, esc + 4);
+      }
+    }
+  }
+  [[nodiscard]] std::unique_ptr<custom_flag_formatter> clone() const override {
+    return spdlog::details::make_unique<EscapedMessage>();
+  }
+};
+
 std::unique_ptr<spdlog::formatter> make_formatter(Style style) {
   auto f = std::make_unique<spdlog::pattern_formatter>();
+  f->add_flag<EscapedMessage>('Q');
   if (style == Style::kJournal) {
-    f->add_flag<PriorityFlag>('*').set_pattern("%*%v");
+    f->add_flag<PriorityFlag>('*').set_pattern("%*%Q");
   } else {
-    f->set_pattern("%H:%M:%S.%e %^%-5l%$ %v");
+    f->set_pattern("%H:%M:%S.%e %^%-5l%$ %Q");
   }
   return f;
 }

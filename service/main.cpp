@@ -9,12 +9,14 @@
 #include <cstdio>
 #include <iostream>
 #include <string>
+#include <vector>
 
 #include "cam_check.hpp"
 #include "config_loader.hpp"
 #include "config_schema.hpp"
 #include "daemon_run.hpp"
 #include "logging.hpp"
+#include "startup_checks.hpp"
 
 #ifndef TORQUED_VERSION
 #define TORQUED_VERSION "0.0.0"
@@ -31,6 +33,12 @@ int check_config(const std::string& path, bool check_files) {
     return 1;
   }
   const auto& c = *r.config;
+  if (const auto refusals = check_files ? torqued::startup_problems(c) : std::vector<std::string>{};
+      !refusals.empty()) {  // what the daemon refuses at start beyond the loader (service/startup_checks.hpp)
+    for (const auto& e : refusals) std::cerr << e << "\n";
+    std::cerr << path << ": " << refusals.size() << " error(s): the daemon would refuse to start\n";
+    return 1;
+  }
   std::cout << path << ": OK (" << c.engine.cylinders << " cylinders, wheel "
             << (c.wheel.geometry.tooth_count > 0
                     ? std::to_string(c.wheel.geometry.tooth_count) + " listed teeth"

@@ -72,6 +72,7 @@ StageSettings stage_settings_from(const Config& cfg) {
   s.tooth_estimator_decimation = cfg.dds.tooth_estimator_decimation;
   s.edge_timeout_ns = static_cast<std::int64_t>(std::llround(cfg.inputs.edges.timeout_s * 1e9));
   s.status_period_ns = static_cast<std::int64_t>(std::llround(cfg.dds.status_period_s * 1e9));
+  s.max_input_gap_ns = static_cast<std::int64_t>(std::llround(cfg.inputs.max_time_jump_s * 1e9));
   s.tooth_learn = cfg.estimators.tooth_learn.params;
   s.tooth_learn_enabled = cfg.estimators.tooth_learn.enabled && cfg.estimators.tooth_learn.params.learn;
   s.dds.domain_id = static_cast<std::uint32_t>(cfg.dds.domain_id);

@@ -44,6 +44,7 @@ struct Options {
   int period_ms = 100;
   double duration_s = 0, idle_exit_s = 0;
   bool until_done = false;
+  dash::HubOptions hub;  ///< caps and time-outs (--max-clients, --max-subscriptions, --engine-expiry)
 };
 
 dds::TopicQos to_qos(const TopicQos& q) {
@@ -211,10 +212,13 @@ void Subscriber::summary() const {
                  i + 1 < dds::kTopicCount ? "," : "\n");
   std::fprintf(
       stderr,
-      "torque-dash: web clients %llu, websocket messages sent %llu, dropped (slow clients) %llu; in-cycle "
-      "samples without a crank angle %llu%s%s\n",
-      static_cast<unsigned long long>(h.clients_total), static_cast<unsigned long long>(h.messages_sent),
-      static_cast<unsigned long long>(h.messages_dropped), static_cast<unsigned long long>(h.unplaced),
+      "torque-dash: web clients %llu (refused %llu), websocket messages sent %llu, dropped (slow clients) "
+      "%llu, subscriptions refused %llu, silent engines expired %llu; in-cycle samples without a crank angle "
+      "%llu%s%s\n",
+      static_cast<unsigned long long>(h.clients_total), static_cast<unsigned long long>(h.clients_refused),
+      static_cast<unsigned long long>(h.messages_sent), static_cast<unsigned long long>(h.messages_dropped),
+      static_cast<unsigned long long>(h.subscriptions_refused),
+      static_cast<unsigned long long>(h.engines_expired), static_cast<unsigned long long>(h.unplaced),
       mcap_ ? "; MCAP messages " : "", mcap_ ? std::to_string(mcap_->messages()).c_str() : "");
 }
 
@@ -244,6 +248,13 @@ int main(int argc, char** argv) {
   app.add_option("--idle-exit", o.idle_exit_s,
                  "exit when no sample arrived for this many seconds (after the first)");
   app.add_flag("--until-done", o.until_done, "exit when the daemon's status reports the end of its replay");
+  app.add_option("--max-clients", o.hub.max_clients, "WebSocket clients at once (more are refused)")
+      ->check(CLI::Range(1, 1000));
+  app.add_option("--max-subscriptions", o.hub.max_subscriptions, "Foxglove subscriptions per client")
+      ->check(CLI::Range(1, 10000));
+  app.add_option("--engine-expiry-ms", o.hub.engine_expiry_ms,
+                 "an engine id silent this long leaves the dashboard (ms)")
+      ->check(CLI::Range(100, 3600000));
   CLI11_PARSE(app, argc, argv);
 
   struct sigaction sa {};
@@ -253,7 +264,7 @@ int main(int argc, char** argv) {
   signal(SIGPIPE, SIG_IGN);
   try {
     const auto [settings, geometry] = settings_from(o);
-    dash::HubOptions ho;
+    dash::HubOptions ho = o.hub;
     ho.listen = o.listen;
     ho.www_dir = o.www;
     ho.js_dir = o.js_dir;

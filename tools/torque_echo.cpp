@@ -16,6 +16,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <map>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -103,6 +104,7 @@ struct Options {
   bool exit_on_lost = false;
   double idle_exit_s = 0.0;
   bool quiet = false;
+  bool fail_on_gaps = false;  ///< exit 5 when a sequence gap was seen
 };
 
 template <class T>
@@ -185,10 +187,35 @@ class Echo {
       std::fprintf(stderr, "torque-echo: %llu samples received%s\n",
                    static_cast<unsigned long long>(received_),
                    done_ ? " (daemon reported end of replay)" : "");
-    return 0;
+    const std::uint64_t gaps = report_gaps();
+    return o_.fail_on_gaps && gaps > 0 ? 5 : 0;
   }
 
  private:
+  /// Samples lost between two received ones of the same instance (engine, and method for EstimatorTorque):
+  /// the writer's seq counts per instance, so a jump of k means k - 1 samples never arrived (a stalled
+  /// subscriber whose history overflowed, a lossy network). Said at exit per topic, even with --quiet.
+  template <class T>
+  void count_gap(const T& s, dds::Topic t) {
+    int instance = 0;
+    if constexpr (std::is_same_v<T, torque_EstimatorTorque>) instance = s.method;
+    std::uint64_t& last = last_seq_[{static_cast<int>(t) * 256 + instance, s.engine_id}];
+    if (last != 0 && s.seq > last + 1) gaps_[static_cast<std::size_t>(t)] += s.seq - last - 1;
+    if (s.seq > last) last = s.seq;
+  }
+  std::uint64_t report_gaps() const {
+    std::uint64_t total = 0;
+    for (int i = 0; i < dds::kTopicCount; ++i) {
+      const std::uint64_t g = gaps_[static_cast<std::size_t>(i)];
+      total += g;
+      if (g > 0)
+        std::fprintf(stderr, "torque-echo: %s: %llu samples missing (sequence gaps)\n",
+                     settings_.topic_name(static_cast<dds::Topic>(i)).c_str(),
+                     static_cast<unsigned long long>(g));
+    }
+    return total;
+  }
+
   template <class T>
   void make(Reader<T>& r, dds::Topic t) {
     if (r.reader != 0) return;
@@ -260,6 +287,7 @@ class Echo {
       for (int i = 0; i < n; ++i) {
         if (!r.info[static_cast<std::size_t>(i)].valid_data) continue;
         const T& s = r.buf[static_cast<std::size_t>(i)];
+        count_gap(s, t);
         if constexpr (std::is_same_v<T, torque_DaemonStatus>) {
           if (s.flags & torque_STATUS_REPLAY_DONE) done_ = true;
           if (!print_status_) continue;
@@ -313,6 +341,8 @@ class Echo {
   bool done_ = false;
   bool lost_ = false;
   std::uint64_t received_ = 0;
+  std::map<std::pair<int, std::uint16_t>, std::uint64_t> last_seq_;  ///< (topic*256 + method, engine) -> seq
+  std::array<std::uint64_t, dds::kTopicCount> gaps_{};               ///< missing samples per topic
   std::string line_;
   std::string shm_topics_, net_topics_;  ///< " name name ...": readers on shared memory / on the network path
 };
@@ -353,10 +383,13 @@ int main(int argc, char** argv) {
   app.add_option("--idle-exit", o.idle_exit_s,
                  "exit when no sample arrived for this many seconds (after the first)");
   app.add_flag("--quiet,-q", o.quiet, "no summary line on stderr");
+  app.add_flag("--fail-on-gaps", o.fail_on_gaps,
+               "exit 5 when samples were missing (sequence gaps per topic are reported at exit in any case)");
   app.footer(
       "Exit status: 0 done (signal, --count, --duration, --idle-exit or --until-done); 1 DDS error or "
       "invalid --config; 2 command-line error (unknown option, bad value); 3 the daemon's writers are gone "
-      "(--exit-on-lost); 4 --require-shm and a reader is not on shared memory.");
+      "(--exit-on-lost); 4 --require-shm and a reader is not on shared memory; 5 --fail-on-gaps and samples "
+      "were missing (sequence gaps).");
   TORQUED_CLI_PARSE(app, argc, argv);
   o.domain_given = domain->count() > 0;
   o.prefix_given = prefix->count() > 0;

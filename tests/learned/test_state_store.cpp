@@ -2,12 +2,15 @@
 // files set aside (never overwritten), backup, off-thread saves, and kill -9 in the middle of saves.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <filesystem>
 #include <fstream>
+#include <future>
+#include <numbers>
 #include <random>
 #include <sstream>
 #include <thread>
@@ -121,6 +124,46 @@ TEST_F(StateStore, OneChangedCharacterFailsTheChecksum) {
   std::string err;
   EXPECT_FALSE(load_state(path_, &err).has_value());
   EXPECT_NE(err.find("checksum mismatch"), std::string::npos) << err;
+}
+
+// Hostile state (the finding: tooth corrections at 0.95 x the old bound, half a tooth pitch = 2.85 deg, with
+// a valid checksum, loaded, and 356/356 cycles published quality 0 with a fused error of 10.4 N m RMS against
+// 0.52). The bound is now realistic machining (estimators.tooth_learn.max_correction_deg, 0.5 deg by
+// default).
+TEST_F(StateStore, ToothCorrectionsBeyondRealisticMachiningAreRefused) {
+  const double deg = std::numbers::pi / 180.0;
+  LearnedState s = good();
+  for (std::size_t i = 0; i < s.tooth_corrections_rad.size(); ++i)
+    s.tooth_corrections_rad[i] = (i % 2 ? 2.85 : -2.85) * deg;
+  std::string err;
+  EXPECT_FALSE(check_state(s, ctx_, "x", &err));
+  EXPECT_NE(err.find("tooth correction 0"), std::string::npos) << err;
+  EXPECT_NE(err.find("max_correction_deg"), std::string::npos) << err;
+  for (double& c : s.tooth_corrections_rad) c *= 0.3 / 2.85;  // 0.3 deg: a coarse but real wheel
+  EXPECT_TRUE(check_state(s, ctx_, "x", &err)) << err;
+  Config loose;  // the bound is configurable (at most half a tooth pitch)
+  loose.estimators.tooth_max_correction_deg = 3.0;
+  for (double& c : s.tooth_corrections_rad) c *= 2.85 / 0.3;
+  EXPECT_TRUE(check_state(s, state_context_from(loose), "x", &err)) << err;
+}
+
+// Hostile file system (the finding: a FIFO as the state file blocked the start-up in open()). It is refused
+// at once as not a regular file.
+TEST_F(StateStore, FifoInPlaceOfTheStateFileIsRefusedWithoutBlocking) {
+  fs::create_directories(fs::path(path_).parent_path());
+  ASSERT_EQ(::mkfifo(path_.c_str(), 0600), 0);
+  auto result = std::async(std::launch::async, [&] {
+    std::string err;
+    const bool loaded = load_state(path_, &err).has_value();
+    return std::pair{loaded, err};
+  });
+  if (result.wait_for(std::chrono::seconds(5)) != std::future_status::ready) {
+    std::ofstream unblock(path_);  // let the blocked reader finish before failing
+    FAIL() << "load_state blocked on a FIFO";
+  }
+  const auto [loaded, err] = result.get();
+  EXPECT_FALSE(loaded);
+  EXPECT_NE(err.find("not a regular file"), std::string::npos) << err;
 }
 
 TEST_F(StateStore, ValuesOutsidePhysicalBoundsAreRejectedEvenWithAValidChecksum) {

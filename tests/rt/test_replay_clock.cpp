@@ -63,3 +63,20 @@ TEST(ReplayClock, PauseFreezesRecordingTimeAndResumeShiftsDueTimes) {
 
 }  // namespace
 }  // namespace torqued
+
+namespace torqued {
+namespace {
+// Hostile configuration (replay.speed 1e-300, before the schema bounded it): (t - anchor) / speed was +inf
+// and its conversion to int64 undefined (UBSan; on x86 INT64_MIN: every due time in the past, the paced
+// replay ran flat out with ring drops). The due time now saturates: never due.
+TEST(ReplayClock, TinySpeedSaturatesInsteadOfOverflowing) {
+  ReplayClock c(1e-300);
+  c.anchor(0, 1000);
+  EXPECT_EQ(c.due_mono_ns(0), 1000);
+  EXPECT_GT(c.due_mono_ns(1'000'000'000), std::int64_t{9'000'000'000'000'000'000});
+  ReplayClock fast_clock(1e300);
+  fast_clock.anchor(1'000'000'000, 0);
+  EXPECT_GT(fast_clock.rec_at(1'000'000'000), std::int64_t{9'000'000'000'000'000'000});
+}
+}  // namespace
+}  // namespace torqued

@@ -160,5 +160,49 @@ TEST_F(FastReplayTest, CleanInputsHaveNoProblems) {
   EXPECT_TRUE(run_fast_replay(s, &src, nullptr, 0, nullptr, sink).input_problems.empty());
 }
 
+// Hostile input (the finding: one edge line at t = 100000 s became "now": 76 % of the later edges were
+// rejected and fast replay wrote 40 M time-method samples, 2 GB, to fill the gap). GIVEN the same capture
+// with one flipped digit THEN the replay loses that one edge, names its line, and writes as many samples as
+// the clean capture (within 1 %).
+TEST_F(FastReplayTest, FlippedDigitCostsOneEdgeAndNoExtraOutput) {
+  StageSettings s;
+  auto run = [&](const std::string& path, NullSink& sink) {
+    EdgeCsvSource src(path, {});
+    return run_fast_replay(s, &src, nullptr, 0, nullptr, sink);
+  };
+  NullSink clean_sink, bad_sink;
+  const ReplayResult clean = run(edges_, clean_sink);
+  const std::string bad = (dir_ / "flipped.csv").string();
+  fs::copy_file(edges_, bad);
+  ASSERT_TRUE(test::corrupt_edge_csv_time(bad, 3000, "100000"));
+  const ReplayResult r = run(bad, bad_sink);
+  EXPECT_EQ(r.counters.edges + 1, clean.counters.edges);
+  EXPECT_EQ(r.counters.source_drops, 1u);
+  EXPECT_EQ(r.counters.sync_losses, 0u);
+  EXPECT_NEAR(static_cast<double>(r.samples), static_cast<double>(clean.samples), 0.01 * clean.samples);
+  EXPECT_LT(r.last_t_ns, 3'000'000'000);
+  ASSERT_EQ(r.input_problems.size(), 1u);
+  EXPECT_NE(r.input_problems[0].find(":3000: time 100000."), std::string::npos) << r.input_problems[0];
+}
+
+// A genuine clock jump (the capture resumes an hour later) is adopted without losing an edge, and the output
+// across the silent hour is bounded by max_input_gap_ns (10 s) instead of an hour of 1 kHz time steps.
+TEST_F(FastReplayTest, GenuineClockJumpKeepsEveryEdgeAndBoundsTheOutput) {
+  StageSettings s;
+  const std::string jump = (dir_ / "jump.csv").string();
+  fs::copy_file(edges_, jump);
+  ASSERT_TRUE(test::corrupt_edge_csv_time(jump, 3000, "", 3600.0));
+  NullSink clean_sink, jump_sink;
+  EdgeCsvSource a(edges_, {}), b(jump, {});
+  const ReplayResult clean = run_fast_replay(s, &a, nullptr, 0, nullptr, clean_sink);
+  const ReplayResult r = run_fast_replay(s, &b, nullptr, 0, nullptr, jump_sink);
+  EXPECT_EQ(r.counters.edges, clean.counters.edges);
+  EXPECT_EQ(r.counters.source_drops, 0u);
+  EXPECT_GT(r.last_t_ns, 3600'000'000'000);
+  // 10 s of extra time steps at most (10 000 steps / decimation 10 for each time method, status samples):
+  // about 3800 samples here, not the 1.4 M of 3600 s.
+  EXPECT_LT(r.samples, clean.samples + 5000) << clean.samples;
+}
+
 }  // namespace
 }  // namespace torqued

@@ -35,6 +35,21 @@ TEST(Logging, TerminalStyleIsHumanReadable) {
   EXPECT_NE(s.find("info  i"), std::string::npos) << s;
 }
 
+// Hostile input (the finding: log lines quoted raw control characters from input files): an ESC sequence
+// and a newline in a message are escaped, one message stays one line.
+TEST(Logging, ControlCharactersFromInputsAreEscaped) {
+  for (const Style style : {Style::kJournal, Style::kTerminal}) {
+    std::ostringstream os;
+    auto logger = make_logger("t", style, std::make_shared<spdlog::sinks::ostream_sink_mt>(os));
+    logger->warn("bad line: '{}'", std::string("a\x1b[2Jb\nforged\x7f\tc"));
+    const std::string s = os.str();
+    EXPECT_EQ(s.find('\x1b'), std::string::npos) << s;
+    EXPECT_EQ(s.find('\x7f'), std::string::npos) << s;
+    EXPECT_NE(s.find("'a\\x1b[2Jb\\nforged\\x7f\\tc'"), std::string::npos) << s;
+    EXPECT_EQ(s.find('\n'), s.size() - 1) << "one message, one line: " << s;
+  }
+}
+
 TEST(Logging, UnderSystemdTheJournalStyleIsDetected) {
   ::setenv("JOURNAL_STREAM", "8:12345", 1);
   EXPECT_EQ(detect_style(), Style::kJournal);

@@ -142,5 +142,31 @@ TEST_P(PacedEqualsFast, SameAngleChainValuesAndAboutOneWakeUpPerTooth) {
 
 INSTANTIATE_TEST_SUITE_P(Debounce, PacedEqualsFast, ::testing::Values(0.0, 20.0));
 
+// Hostile input (the finding: a paced replay with one edge at t = 100000 s waited for that edge, its status
+// failed for the rest of the run; one daemon sat 25 minutes). GIVEN the capture with one flipped digit, paced
+// at 5x THEN the input ends within the 10 s the run allows, one edge is dropped and the decoder never lost
+// sync.
+TEST(PacedHostileInput, FlippedDigitDoesNotStallThePacedReplay) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("torqued_paced_flip_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const std::string path = (dir / "edges.csv").string();
+  ASSERT_GT(test::write_edge_csv(path, test::WheelRun{2000.0, 2000.0, 1.0}), 500);
+  StageSettings s;
+  std::uint64_t clean_edges = 0;
+  {
+    EdgeCsvSource src(path, {});
+    VectorSink fast;
+    clean_edges = run_fast_replay(s, &src, nullptr, 0, nullptr, fast).counters.edges;
+  }
+  ASSERT_TRUE(test::corrupt_edge_csv_time(path, 1000, "100000"));
+  const PacedRun paced = run_paced(path, s, 5.0);
+  EXPECT_EQ(paced.counters.edges + 1, clean_edges);
+  EXPECT_EQ(paced.counters.source_drops, 1u);
+  EXPECT_EQ(paced.counters.sync_losses, 0u);
+  EXPECT_TRUE(paced.counters.synced);
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace torqued

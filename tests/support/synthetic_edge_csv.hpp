@@ -3,6 +3,8 @@
 // a constant or linearly ramping speed, from the shared sensor simulator (synthetic_wheel.hpp). Tooth 0 is
 // 10° after the capture starts; the cam is high from 100° to 460° after tooth 0. The truth (speed) is exact.
 #include <cstdio>
+#include <fstream>
+#include <sstream>
 #include <string>
 
 #include "synthetic_wheel.hpp"
@@ -36,6 +38,34 @@ inline int write_edge_csv(const std::string& path, const WheelRun& run) {
   }
   std::fclose(f);
   return static_cast<int>(out.teeth.size());
+}
+
+/// Hostile input: replaces the integer part of the time on line `line` (1-based) of a text file with
+/// `seconds` ("100000": one flipped digit far ahead of the capture), or adds `shift_s` to every time from
+/// that line on when `shift_s` != 0 (a genuine clock jump). Returns false when the file has no such line.
+inline bool corrupt_edge_csv_time(const std::string& path, int line, const std::string& seconds,
+                                  double shift_s = 0.0) {
+  std::ifstream in(path);
+  std::string out, l;
+  int n = 0;
+  bool done = false;
+  while (std::getline(in, l)) {
+    ++n;
+    const auto dot = l.find('.');
+    if (n == line && shift_s == 0.0 && dot != std::string::npos) {
+      l = seconds + l.substr(dot);
+      done = true;
+    } else if (n >= line && shift_s != 0.0 && dot != std::string::npos) {
+      char buf[48];
+      std::snprintf(buf, sizeof buf, "%.9f", std::stod(l.substr(0, l.find(','))) + shift_s);
+      l = buf + l.substr(l.find(','));
+      done = true;
+    }
+    out += l + "\n";
+  }
+  in.close();
+  std::ofstream(path, std::ios::trunc) << out;
+  return done;
 }
 
 }  // namespace torqued::test

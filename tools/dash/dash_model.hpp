@@ -110,6 +110,8 @@ class Model {
   void add(const torque_CylinderTorque& s);
   void add(const torque_CrankState& s);
   void add(const torque_DaemonStatus& s);
+  /// Drops an engine id (it went silent): its slot is free for another; cursors must forget it too.
+  void forget(std::uint16_t engine_id) { engines_.erase(engine_id); }
 
   /// JSON message with everything after `c` (and advances it); "" when there is nothing new. A fresh cursor
   /// gets the whole rings plus the page's static data (geometry, the method registry: methods_json()) as

@@ -1,0 +1,42 @@
+#include "time_sanity.hpp"
+
+#include <cinttypes>
+#include <cstdio>
+
+namespace torqued {
+namespace {
+constexpr std::size_t kMaxMessages = 20;
+
+/// Nanoseconds as seconds with 9 decimals ("-0.000500000").
+std::string seconds(std::int64_t ns) {
+  char buf[40];
+  const std::uint64_t a = ns < 0 ? 0 - static_cast<std::uint64_t>(ns) : static_cast<std::uint64_t>(ns);
+  std::snprintf(buf, sizeof buf, "%s%" PRIu64 ".%09" PRIu64, ns < 0 ? "-" : "", a / 1'000'000'000u,
+                a % 1'000'000'000u);
+  return buf;
+}
+}  // namespace
+
+std::string describe_time_drop(const TimeDrop& d, const std::string& path) {
+  std::string s = path + ":" + std::to_string(d.line) + ": ";
+  if (d.backwards)
+    return s + "time goes backwards (" + seconds(d.t_ns) + " s after " + seconds(d.base_ns) + " s): dropped";
+  return s + "time " + seconds(d.t_ns) + " s is " + seconds(d.t_ns - d.base_ns) + " s off the time base (" +
+         seconds(d.base_ns) +
+         " s) and too few records follow it in step (inputs.max_time_jump_s, inputs.time_rebase_records): "
+         "dropped as an outlier";
+}
+
+void note_time_drop(const TimeDrop& d, const std::string& path, SourceStats& stats,
+                    std::vector<std::string>& messages, std::string& error) noexcept {
+  ++stats.bad_lines;
+  ++stats.time_outliers;
+  if (messages.size() >= kMaxMessages) return;
+  try {
+    messages.push_back(describe_time_drop(d, path));
+    error = messages.back();
+  } catch (...) {  // out of memory while formatting: the counts are in stats
+  }
+}
+
+}  // namespace torqued
