@@ -43,7 +43,7 @@ TEST_P(InCycleFreshStart, KalmanWithinFivePercentOfPeakToPeakAndOneDegreeWithout
   EXPECT_LE(std::abs(r.kalman.lag_deg), 1.0);
 }
 
-// The I6 report engines are not asserted here: with the simulator's TRUE wheel their Kalman reads 6.3-6.6 %
+// The I6 report engines are not asserted here: with the simulator's TRUE wheel their Kalman reads 6.4-6.6 %
 // (rep_i6_60) and 4.5-4.6 % (rep_i6_36), so what is left there is not the wheel.
 INSTANTIATE_TEST_SUITE_P(ReportEngines, InCycleFreshStart,
                          ::testing::Values("rep_i4_60", "rep_i4_36", "rep_i3_60", "rep_i3_36"));
