@@ -429,6 +429,14 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          open_closed(0.0, 100.0), "",
          "an order from the speed law is identified only when its intercept's standard error is below this "
          "fraction of the RMS of the learned higher wheel orders");
+  TQ_BOOL("tooth_learn.firing_load_law", tooth_learn.params.firing_load_law,
+          "an order nothing else identifies is learned from every firing cycle (no fuel cut-off, no two "
+          "cycles at the same load): intercept of its per-cycle coefficient against (MAP/100 kPa)/speed^2 "
+          "(the engine's ripple scales with the load over the speed squared, the wheel's does not)");
+  TQ_NUM("tooth_learn.firing_law_min_load_spread", tooth_learn.params.firing_law_min_load_spread,
+         closed(0.0, 1.0), "",
+         "the firing orders' load law is used only when this share of the variance of (MAP/100 kPa)/speed^2 "
+         "over its cycles is not explained by 1/speed^2 (1 - r^2): loads that vary apart from the speed");
 }
 
 }  // namespace torqued::schema_detail

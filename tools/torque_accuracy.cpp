@@ -13,6 +13,7 @@
 #include "cli_exit.hpp"
 #include "cylinder_eval.hpp"
 #include "daemon_bed.hpp"
+#include "incycle_bed.hpp"
 #include "pipeline_eval.hpp"
 #include "recording_eval.hpp"
 
@@ -183,6 +184,39 @@ int run_bed_fuel(bool all, bool short_run, const torqued::eval::EvalOptions& bas
     }
     std::printf("%-11s | %s | %9s | %s |\n", k == 1 ? "REPORT all" : "TUNING all", fuel_cells(p.one).c_str(),
                 "", fuel_cells(p.never).c_str());
+  }
+  return 0;
+}
+
+/// In-cycle torque from a fresh start without any fuel cut-off (incycle_bed.hpp).
+int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& base) {
+  std::printf(
+      "in-cycle indicated torque from a FRESH start, no fuel cut-off (%s firing recording: dyno plateaus\n"
+      "1500-3200 rpm, 40-88 kPa; tooth learner empty at start, learning on the recording, its table applied "
+      "at "
+      "each\n"
+      "cycle end). Scored over the steady parts of the last two plateaus (1500, 2200 rpm): RMS %% of the "
+      "mean "
+      "per-cycle\n"
+      "p2p, bias %%, lag deg (+: behind). ready: when the table was first applied; edge: residual of the "
+      "final "
+      "table vs\n"
+      "the true wheel (deg RMS); orders: per-rev order 1.. of the fit (h held, o overrun, O overrun-speeds, "
+      "s "
+      "speeds,\n"
+      "f firing).\n",
+      short_run ? "20 s" : "60 s");
+  std::printf("%-11s | %-18s | %-18s | %6s | %7s | %6s | %-6s %s\n", "engine", "kalman % bias lag",
+              "fourier % bias lag", "ready", "edge", "cycles", "orders", "quality");
+  for (const auto& e : torqued::sim::unseen_engines()) {
+    if (!all && !e.report) continue;
+    const auto r = torqued::eval::evaluate_incycle_fresh(e, base, short_run);
+    std::printf("%-11s | %5.1f %+5.1f %+5.1f | %5.1f %+5.1f %+5.1f | %5.1fs | %7.4f | %6llu | %-6s %s\n",
+                r.engine.c_str(), r.kalman.rms_pct_p2p, r.kalman.bias_pct_p2p, r.kalman.lag_deg,
+                r.fourier.rms_pct_p2p, r.fourier.bias_pct_p2p, r.fourier.lag_deg, r.ready_at_s,
+                r.tooth_edge_resid_deg, static_cast<unsigned long long>(r.cycles_used), r.orders.c_str(),
+                torqued::to_string(r.quality));
+    std::fflush(stdout);
   }
   return 0;
 }
@@ -436,6 +470,11 @@ int main(int argc, char** argv) {
          "with the machine torque bound (sole load) and a control run with it unbound")
       ->check(CLI::PositiveNumber);
   bool bed_fuel = false;
+  bool bed_incycle = false;
+  app.add_flag(
+      "--bed-incycle", bed_incycle,
+      "with --bed unseen: in-cycle Kalman/Fourier torque from a fresh start without any fuel cut-off "
+      "(tooth learner empty at start; --true-tooth-errors / --raw-teeth for the floor / no table)");
   app.add_flag(
       "--bed-fuel", bed_fuel,
       "with --bed unseen: the fuel model without a load signal, taught at one operating point and never "
@@ -457,6 +496,10 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 100));
   torqued::ToothLearnParams learn;
   app.add_option("--fit-harmonics", learn.fit_harmonics, "tooth learner: harmonics of the per-cycle fit");
+  bool no_firing_law = false;
+  app.add_flag(
+      "--no-firing-load-law", no_firing_law,
+      "tooth learner: orders are not learned from the firing cycles' load law (the learner before it)");
   app.add_option("--speed-weight-exp", learn.speed_weight_exp,
                  "tooth learner: residuals weighted by speed^p");
   torqued::KalmanParams kalman;
@@ -485,6 +528,7 @@ int main(int argc, char** argv) {
       "command-line error (unknown option, bad value, file that does not exist) or --config refused / its "
       "inputs cannot be opened.");
   TORQUED_CLI_PARSE(app, argc, argv);
+  learn.firing_load_law = !no_firing_law;
   if (!rec.config_path.empty()) {
     if (rec.out_dir.empty()) rec.out_dir = "accuracy-out";
     return torqued::eval::run_recording(rec);
@@ -508,6 +552,17 @@ int main(int argc, char** argv) {
     torqued::eval::EvalOptions bo;
     bo.skip_cycles = skip;
     if (bed_fuel) return run_bed_fuel(bed_all, bed_short, bo, csv_dir);
+    if (bed_incycle) {
+      bo.tooth_table = raw_teeth    ? torqued::eval::ToothTable::kNone
+                       : true_teeth ? torqued::eval::ToothTable::kTrue
+                                    : torqued::eval::ToothTable::kLearned;
+      bo.tooth_learn = learn;
+      kalman.gas_model = !no_gas_model;
+      fourier.gas_model = !no_gas_model;
+      bo.base.kalman = kalman;
+      bo.base.fourier = fourier;
+      return run_bed_incycle(bed_all, bed_short, bo);
+    }
     if (bed_motoring) return run_bed_motoring(bed_all, bed_short, bo, bed_machine > 0.0 ? bed_machine : 1.0);
     if (bed_machine > 0.0) return run_bed_e_machine(bed_all, bed_short, bo, bed_machine);
     return run_bed(bed_all, bed_short, bo);

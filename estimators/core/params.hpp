@@ -271,6 +271,13 @@ struct ToothLearnParams {
       0.05;  ///< variance check: an order is identified only when the standard error of its
              ///< intercept (from the scatter of the cycles about the 1/speed² law) is below
              ///< this fraction of the RMS of the learned higher orders of the wheel (-)
+  bool firing_load_law =
+      true;  ///< an order nothing else identifies is learned from ALL steady firing cycles
+             ///< (any load): intercept against u = (MAP/100 kPa)/ω̄² (ToothOrderSource::kFiring)
+  double firing_law_min_load_spread =
+      0.05;  ///< the firing orders' load law [1, u, x] (x = 1/ω̄²) is used only when this share of the
+             ///< variance of u is not explained by x (1 − r²): loads that vary apart from the speed. At
+             ///< one load u ∝ x and the law loses the speed drift the same-load slots model (-)
 };
 
 }  // namespace torqued

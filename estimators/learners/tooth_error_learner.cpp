@@ -17,6 +17,22 @@ const char* to_string(ToothOrderSource s) noexcept {
       return "overrun-speeds";
     case ToothOrderSource::kSpeeds:
       return "speeds";
+    case ToothOrderSource::kFiring:
+      return "firing";
+  }
+  return "?";
+}
+
+const char* to_string(ToothLearnQuality q) noexcept {
+  switch (q) {
+    case ToothLearnQuality::kNone:
+      return "none";
+    case ToothLearnQuality::kHighOrders:
+      return "high-orders";
+    case ToothLearnQuality::kFiring:
+      return "firing";
+    case ToothLearnQuality::kSpeedLaws:
+      return "speed-laws";
   }
   return "?";
 }
@@ -33,6 +49,7 @@ double width_ratio_of(double z) noexcept { return 1.0 / std::sqrt(std::max(1.0 -
 double z_of_width_ratio(double ratio) noexcept { return 0.5 * (1.0 - 1.0 / (ratio * ratio)); }
 constexpr double kRpm = std::numbers::pi / 30.0;
 constexpr double kRefSpeed = 100.0;  ///< x = (ω_ref/ω̄)² keeps the regression sums O(1) (rad/s)
+constexpr double kRefMap = 1e5;      ///< u = (MAP/p_ref)·x of the load law (Pa)
 }  // namespace
 
 ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGeometry& wheel,
@@ -93,6 +110,10 @@ ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGe
   sbb_.assign(slot_cols, 0.0);
   cb_.assign(nbs, 0.0);
   cxb_.assign(nbs, 0.0);
+  fb_.assign(nbs, 0.0);
+  fxb_.assign(nbs, 0.0);
+  ffb_.assign(nbs, 0.0);
+  fbb_.assign(nbs, 0.0);
   low_coef_.assign(nbs, 0.0);
   imp_coef_.assign(nbs, 0.0);
   const auto ts = static_cast<std::size_t>(table_.teeth);
@@ -109,6 +130,8 @@ void ToothErrorLearner::reset() noexcept {
   std::fill(sxb_.begin(), sxb_.end(), 0.0);
   std::fill(sfb_.begin(), sfb_.end(), 0.0);
   std::fill(sbb_.begin(), sbb_.end(), 0.0);
+  fire_ = LoadSlot{};
+  for (auto* v : {&fb_, &fxb_, &ffb_, &fbb_}) std::fill(v->begin(), v->end(), 0.0);
   std::fill(cb_.begin(), cb_.end(), 0.0);
   std::fill(cxb_.begin(), cxb_.end(), 0.0);
   std::fill(imp_coef_.begin(), imp_coef_.end(), 0.0);
@@ -118,6 +141,7 @@ void ToothErrorLearner::reset() noexcept {
     id.source = ToothOrderSource::kHeld;
     id.cycles = 0.0;
     id.edge_amplitude_rad = 0.0;
+    id.firing_se_frac = -1.0;
   }
   std::fill(eps_.begin(), eps_.end(), 0.0);
   std::fill(eps_import_.begin(), eps_import_.end(), 0.0);
@@ -132,6 +156,14 @@ void ToothErrorLearner::reset() noexcept {
 }
 
 bool ToothErrorLearner::ready() const noexcept { return n_ + import_weight_ >= params_.min_cycles; }
+
+ToothLearnQuality ToothErrorLearner::quality() const noexcept {
+  if (!ready()) return ToothLearnQuality::kNone;
+  if (!low_orders_ok_) return ToothLearnQuality::kHighOrders;
+  for (const auto& id : ids_)
+    if (id.source == ToothOrderSource::kFiring) return ToothLearnQuality::kFiring;
+  return ToothLearnQuality::kSpeedLaws;
+}
 
 void ToothErrorLearner::update(const ToothSample& s) noexcept {
   const int kk = table_.samples;
@@ -302,12 +334,67 @@ void ToothErrorLearner::regress(double omega) noexcept {
   sl.sxf += x * f;
   sl.sff += f * f;
   const auto off = static_cast<std::size_t>(s) * static_cast<std::size_t>(nb_);
+  // Load law over every steady firing cycle: β = a + b·u + c·x, u = (MAP/p_ref)·x. The cylinder pressures
+  // scale with MAP (compression from MAP at IVC, combustion with the charge), the pumping strokes' ripple
+  // with p_exh − MAP, so the engine's ripple is (b·MAP + c)/ω̄²; the wheel's part a is neither (non-firing
+  // orders: [1, u], an imbalance scales with the load). A ripple ∝ u·ln x (the same-load law's drift) in
+  // place of x left the I4's firing orders 0.02-0.03° off (in-cycle lag 2-2.6°) on the bed's tuning engines.
+  const double u = sl.map_pa / kRefMap * x;
+  const double g = x;
+  fire_.n += 1.0;
+  fire_.sx += u;
+  fire_.sxx += u * u;
+  fire_.sf += g;
+  fire_.sxf += u * g;
+  fire_.sff += g * g;
   for (std::size_t j = 0; j < static_cast<std::size_t>(nb_); ++j) {
-    sb_[off + j] += coef_[j];
-    sxb_[off + j] += x * coef_[j];
-    sfb_[off + j] += f * coef_[j];
-    sbb_[off + j] += coef_[j] * coef_[j];
+    const double b = coef_[j];
+    sb_[off + j] += b;
+    sxb_[off + j] += x * b;
+    sfb_[off + j] += f * b;
+    sbb_[off + j] += b * b;
+    fb_[j] += b;
+    fxb_[j] += u * b;
+    ffb_[j] += g * b;
+    fbb_[j] += b * b;
   }
+}
+
+bool ToothErrorLearner::law_intercept(const LoadSlot& sl, const double* sb, const double* sxb,
+                                      const double* sfb, const double* sbb, std::size_t j0, bool firing,
+                                      double* v, double* var) const noexcept {
+  constexpr double kMinSlotCycles = 6.0;  // at least twice the 3 parameters of the quadratic law
+  const double spread = params_.min_speed_spread_frac;
+  const double m00 = sl.n, m01 = sl.sx, m02 = sl.sf, m11 = sl.sxx, m12 = sl.sxf, m22 = sl.sff;
+  const double vx = sl.n * sl.sxx - sl.sx * sl.sx;
+  const double det =
+      m00 * (m11 * m22 - m12 * m12) - m01 * (m01 * m22 - m12 * m02) + m02 * (m01 * m12 - m11 * m02);
+  const double params = firing ? 3.0 : 2.0;
+  const bool speeds_spread = vx > spread * spread * sl.sx * sl.sx;
+  const bool usable = sl.n >= kMinSlotCycles && sl.n > params + 1.0 && speeds_spread &&
+                      (!firing || std::abs(det) > 1e-12 * sl.n);
+  if (!usable) return false;
+  double rss = 0.0;
+  for (std::size_t c = 0; c < 2; ++c) {
+    const std::size_t j = j0 + c;
+    const double r0 = sb[j], r1 = sxb[j], r2 = sfb[j];
+    if (firing) {
+      v[c] = (r0 * (m11 * m22 - m12 * m12) - m01 * (r1 * m22 - m12 * r2) + m02 * (r1 * m12 - m11 * r2)) / det;
+      const double g =
+          (m00 * (r1 * m22 - m12 * r2) - r0 * (m01 * m22 - m12 * m02) + m02 * (m01 * r2 - r1 * m02)) / det;
+      const double e =
+          (m00 * (m11 * r2 - r1 * m12) - m01 * (m01 * r2 - r1 * m02) + r0 * (m01 * m12 - m11 * m02)) / det;
+      rss += sbb[j] - v[c] * r0 - g * r1 - e * r2;
+    } else {
+      v[c] = (sl.sxx * r0 - sl.sx * r1) / vx;
+      const double g = (sl.n * r1 - sl.sx * r0) / vx;
+      rss += sbb[j] - v[c] * r0 - g * r1;
+    }
+  }
+  const double s2 = std::max(rss, 0.0) / (2.0 * (sl.n - params));
+  const double m_inv00 = firing ? (m11 * m22 - m12 * m12) / det : sl.sxx / vx;
+  *var = std::max(s2 * m_inv00, 1e-30);
+  return true;
 }
 
 // Per slot: β_j = β_j0 + γ_j x (non-firing: only an imbalance, small enough for the linear law) or + η_j x ln
@@ -316,45 +403,16 @@ void ToothErrorLearner::regress(double omega) noexcept {
 // Needs min_cycles_per_slot cycles and a spread of speeds: 1σ of x above min_speed_spread_frac of its mean.
 bool ToothErrorLearner::slot_intercept(std::size_t j0, bool firing, double* v, double* var,
                                        double* cycles) const noexcept {
-  constexpr double kMinSlotCycles = 6.0;  // at least twice the 3 parameters of the quadratic law
-  const double spread = params_.min_speed_spread_frac;
   double w_sum = 0.0, acc[2] = {0.0, 0.0}, n_sum = 0.0;
   for (std::size_t s = 0; s < slots_.size(); ++s) {
-    const LoadSlot& sl = slots_[s];
-    const double m00 = sl.n, m01 = sl.sx, m02 = sl.sf, m11 = sl.sxx, m12 = sl.sxf, m22 = sl.sff;
-    const double vx = sl.n * sl.sxx - sl.sx * sl.sx;
-    const double det =
-        m00 * (m11 * m22 - m12 * m12) - m01 * (m01 * m22 - m12 * m02) + m02 * (m01 * m12 - m11 * m02);
-    const double params = firing ? 3.0 : 2.0;
-    const bool speeds_spread = vx > spread * spread * sl.sx * sl.sx;
-    const bool slot_usable = sl.n >= kMinSlotCycles && sl.n > params + 1.0 && speeds_spread &&
-                             (!firing || std::abs(det) > 1e-12 * sl.n);
-    if (!slot_usable) continue;
-    double a[2], rss = 0.0;
-    for (std::size_t c = 0; c < 2; ++c) {
-      const std::size_t j = s * static_cast<std::size_t>(nb_) + j0 + c;
-      const double r0 = sb_[j], r1 = sxb_[j], r2 = sfb_[j];
-      if (firing) {
-        a[c] =
-            (r0 * (m11 * m22 - m12 * m12) - m01 * (r1 * m22 - m12 * r2) + m02 * (r1 * m12 - m11 * r2)) / det;
-        const double g =
-            (m00 * (r1 * m22 - m12 * r2) - r0 * (m01 * m22 - m12 * m02) + m02 * (m01 * r2 - r1 * m02)) / det;
-        const double e =
-            (m00 * (m11 * r2 - r1 * m12) - m01 * (m01 * r2 - r1 * m02) + r0 * (m01 * m12 - m11 * m02)) / det;
-        rss += sbb_[j] - a[c] * r0 - g * r1 - e * r2;
-      } else {
-        a[c] = (sl.sxx * r0 - sl.sx * r1) / vx;
-        const double g = (sl.n * r1 - sl.sx * r0) / vx;
-        rss += sbb_[j] - a[c] * r0 - g * r1;
-      }
-    }
-    const double s2 = std::max(rss, 0.0) / (2.0 * (sl.n - params));
-    const double m_inv00 = firing ? (m11 * m22 - m12 * m12) / det : sl.sxx / vx;
-    const double var_a = std::max(s2 * m_inv00, 1e-30);
+    const std::size_t off = s * static_cast<std::size_t>(nb_);
+    double a[2], var_a = 0.0;
+    if (!law_intercept(slots_[s], &sb_[off], &sxb_[off], &sfb_[off], &sbb_[off], j0, firing, a, &var_a))
+      continue;
     w_sum += 1.0 / var_a;
     acc[0] += a[0] / var_a;
     acc[1] += a[1] / var_a;
-    n_sum += sl.n;
+    n_sum += slots_[s].n;
   }
   if (w_sum <= 0.0) return false;
   v[0] = acc[0] / w_sum;
@@ -371,6 +429,14 @@ void ToothErrorLearner::identify_orders(double* low, double hf_rms) noexcept {
   const double vcx = nc_ * cxx_ - cx_ * cx_;
   const double spread = params_.min_speed_spread_frac;
   const bool ov_speeds = ov_mean && vcx > spread * spread * cx_ * cx_;
+  // The firing orders' load law [1, u, x] needs loads that vary apart from the speed: at one load (or a load
+  // tied to the speed) u ∝ x and the law is [1, x] without the speed drift the same-load slots model.
+  const LoadSlot& fl = fire_;
+  const double suu = fl.sxx - fl.sx * fl.sx / std::max(fl.n, 1.0);
+  const double sxx = fl.sff - fl.sf * fl.sf / std::max(fl.n, 1.0);
+  const double sux = fl.sxf - fl.sx * fl.sf / std::max(fl.n, 1.0);
+  const bool fire_loads_vary =
+      suu > 0.0 && sxx > 0.0 && 1.0 - sux * sux / (suu * sxx) >= params_.firing_law_min_load_spread;
   for (std::size_t q = 0; q < ids_.size(); ++q) {
     ToothOrderId& id = ids_[q];
     const auto j0 = static_cast<std::size_t>(2 * id.order * 2);  // harmonic h = 2·order → columns 2h, 2h + 1
@@ -380,12 +446,23 @@ void ToothErrorLearner::identify_orders(double* low, double hf_rms) noexcept {
     // Variance check: the intercept's standard error (per column) small against the wheel's higher orders.
     const bool speeds = learn && slot_intercept(j0, id.firing, sv, &var, &cycles) &&
                         std::sqrt(var) <= params_.max_low_order_se_frac * hf_rms;
+    // Load law over all firing cycles: the convergence measure is reported whether or not it is used.
+    double fv[2] = {0.0, 0.0}, fvar = 0.0;
+    const bool fire_fit =
+        learn && params_.firing_load_law &&
+        law_intercept(fire_, fb_.data(), fxb_.data(), ffb_.data(), fbb_.data(), j0, id.firing, fv, &fvar);
+    id.firing_se_frac = fire_fit && hf_rms > 0.0 ? std::sqrt(fvar) / hf_rms : -1.0;
+    const bool fire_ok = fire_fit && std::sqrt(fvar) <= params_.max_low_order_se_frac * hf_rms &&
+                         (!id.firing || fire_loads_vary);
     if (!id.firing && ov_mean) {
       id.source = ToothOrderSource::kOverrun;
       id.cycles = nc_;
     } else if (id.firing && ov_speeds) {
       id.source = ToothOrderSource::kOverrunSpeeds;
       id.cycles = nc_;
+    } else if (fire_ok) {  // ahead of the same-load slots: all cycles, no load slot with a few cycles only
+      id.source = ToothOrderSource::kFiring;
+      id.cycles = fire_.n;
     } else if (speeds) {
       id.source = ToothOrderSource::kSpeeds;
       id.cycles = cycles;
@@ -401,6 +478,9 @@ void ToothErrorLearner::identify_orders(double* low, double hf_rms) noexcept {
           break;
         case ToothOrderSource::kSpeeds:
           v = sv[j - j0];
+          break;
+        case ToothOrderSource::kFiring:
+          v = fv[j - j0];
           break;
         case ToothOrderSource::kHeld:
           v = imp_coef_[j];
@@ -424,7 +504,8 @@ void ToothErrorLearner::recompute() noexcept {
   // the width error holds little at the low orders (a few % of its RMS). A larger part means the ripple did
   // not follow 1/ω̄² (mixed loads, a coast-down with falling MAP, transients): hold those orders instead.
   const auto regressed = [](ToothOrderSource src) {
-    return src == ToothOrderSource::kSpeeds || src == ToothOrderSource::kOverrunSpeeds;
+    return src == ToothOrderSource::kSpeeds || src == ToothOrderSource::kOverrunSpeeds ||
+           src == ToothOrderSource::kFiring;
   };
   double hf_ss = 0.0, sp_ss = 0.0;
   const double wsum = wsum_ > 0.0 ? wsum_ : 1.0;

@@ -35,6 +35,14 @@
 //    (min_speed_spread_frac); the slots' intercepts are combined by inverse variance (the variance from the
 //    cycles' scatter about the 1/ω̄² law) and the order is identified only when that standard error is small
 //    against the wheel's higher orders (max_low_order_se_frac): the variance check;
+//  - "firing" needs neither a cut-off nor two cycles at one load: every steady firing cycle with a MAP enters
+//    one regression of the coefficient on u = (MAP/p_ref)/ω̄² and x = 1/ω̄² (non-firing orders: u only). The
+//    cylinder pressures scale with MAP (compression from MAP at IVC, combustion with the charge), the pumping
+//    strokes with p_exh − MAP, so the engine's ripple is (b·MAP + c)/ω̄² at any load and speed, the wheel's
+//    intercept is not; cycles at a few speeds and loads identify it (the variance check as above). Taken
+//    after the overrun laws and before the same-load slots (all cycles in one law instead of a few per slot);
+//    its standard error / high-order RMS is reported per order (firing_se_frac) as the convergence measure,
+//    quality() says what the table rests on;
 //  - an order nothing identifies is held: the imported (persisted) table's value, or zero.
 // order_ids() reports per order how it was identified, from how many cycles, and its edge amplitude.
 // The table is absolute (nominal widths, measured times), so the decoder may apply it to its output without
@@ -59,6 +67,8 @@ enum class ToothOrderSource : std::uint8_t {
   kOverrunSpeeds =
       2,        ///< firing order: intercept of the 1/ω̄² regression over cut-off cycles at several speeds
   kSpeeds = 3,  ///< intercept of the 1/ω̄² (+ x·ln x) regression over firing cycles at several speeds
+  kFiring = 4,  ///< intercept of the load law over ALL firing cycles (any load, several speeds and loads):
+                ///< no fuel cut-off and no two cycles at the same load needed
 };
 [[nodiscard]] const char* to_string(ToothOrderSource s) noexcept;
 
@@ -69,7 +79,19 @@ struct ToothOrderId {
   ToothOrderSource source = ToothOrderSource::kHeld;
   double cycles = 0.0;              ///< cycles behind the value used
   double edge_amplitude_rad = 0.0;  ///< amplitude of this order in the edge-angle table (rad)
+  /// Convergence of the firing-cycle load law for this order: standard error of its intercept / RMS of the
+  /// learned higher orders (the variance check takes it at ≤ max_low_order_se_frac); < 0: not estimable yet.
+  double firing_se_frac = -1.0;
 };
+
+/// What the tooth table rests on, worst order first (ToothErrorLearner::quality()).
+enum class ToothLearnQuality : std::uint8_t {
+  kNone = 0,        ///< not ready: fewer than min_cycles cycles (the observers say kNotConverged)
+  kHighOrders = 1,  ///< ready, but some per-revolution order inside the fit is held (imported value or 0)
+  kFiring = 2,      ///< every order identified, at least one only by the firing-cycle load law
+  kSpeedLaws = 3,   ///< every order identified, from same-load speed laws or overrun, none by the load law
+};
+[[nodiscard]] const char* to_string(ToothLearnQuality q) noexcept;
 
 struct ToothLearnStats {
   std::uint64_t cycles_used = 0;    ///< cycles accumulated
@@ -106,6 +128,8 @@ class ToothErrorLearner {
   /// Per-order identification (orders 1 .. fit_harmonics/2 per revolution).
   [[nodiscard]] std::span<const ToothOrderId> order_ids() const noexcept { return ids_; }
   [[nodiscard]] const ToothLearnStats& stats() const noexcept { return stats_; }
+  /// What the table rests on now (the weakest order decides).
+  [[nodiscard]] ToothLearnQuality quality() const noexcept;
   [[nodiscard]] int teeth() const noexcept { return table_.teeth; }
 
   /// True width / nominal width of physical tooth p (period ending at tooth p), 1 when not ready.
@@ -159,6 +183,14 @@ class ToothErrorLearner {
   };
   std::array<LoadSlot, kLoadSlots> slots_{};
   std::vector<double> sb_, sxb_, sfb_, sbb_;  ///< [slot * nb_ + j]
+  /// Load law over every steady firing cycle: the slot sums with x replaced by u = (MAP/p_ref)·x and f by x
+  /// (β = a + b·u + c·x: the engine's ripple (b·MAP + c)/ω̄², the wheel's a neither).
+  LoadSlot fire_{};
+  std::vector<double> fb_, fxb_, ffb_, fbb_;  ///< [j]
+  /// Intercept of columns j0, j0 + 1 of one regression (slot sums sl; column sums at off); false when the
+  /// slot cannot identify them. Writes the intercepts and their variance.
+  bool law_intercept(const LoadSlot& sl, const double* sb, const double* sxb, const double* sfb,
+                     const double* sbb, std::size_t j0, bool firing, double* v, double* var) const noexcept;
   double map_pa_ = 0.0;
   bool map_valid_ = false;
   double cycle_map_sum_ = 0.0, cycle_map_min_ = 0.0, cycle_map_max_ = 0.0;

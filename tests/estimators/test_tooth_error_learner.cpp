@@ -207,7 +207,10 @@ namespace torqued {
 namespace {
 
 /// Steady synthetic runs of one wheel, each at (rpm, peak pressure) with its MAP given to the learner.
-void feed_runs(ToothErrorLearner& learner, std::initializer_list<std::pair<double, double>> runs) {
+/// Returns the wheel's true edge errors (rad per physical tooth).
+std::vector<double> feed_runs(ToothErrorLearner& learner,
+                              std::initializer_list<std::pair<double, double>> runs) {
+  std::vector<double> err;
   for (const auto& [rpm, bar] : runs) {
     test::SyntheticSpec sp;
     sp.rpm = rpm;
@@ -215,26 +218,87 @@ void feed_runs(ToothErrorLearner& learner, std::initializer_list<std::pair<doubl
     sp.cycles = 10;
     sp.noise_seed = static_cast<std::uint64_t>(rpm + 7.0 * bar);
     learner.set_map(1e3 * bar, true);  // the MAP that goes with this load
-    for (const auto& s : test::make_synthetic(sp).samples) learner.update(s);
+    const auto run = test::make_synthetic(sp);
+    err = run.edge_error_rad;
+    for (const auto& s : run.samples) learner.update(s);
   }
+  return err;
 }
 
-TEST(ToothErrorLearner, LowOrdersAreHeldWhenTheLoadChangesWithSpeed) {
-  // GIVEN a vehicle-like run: the load rises with the speed, so each load is seen at one speed only (a
-  // regression across these loads would read the load's ripple as a speed-independent wheel error)
+/// RMS (deg) of the learned edge corrections against the true edge errors, their mean difference removed.
+double edge_residual_deg(const ToothErrorLearner& learner, const std::vector<double>& err) {
+  std::vector<double> edge(static_cast<std::size_t>(learner.teeth()));
+  learner.edge_corrections(edge);
+  double mean = 0.0, ss = 0.0;
+  for (std::size_t p = 0; p < edge.size(); ++p) mean += (edge[p] - err[p]) / static_cast<double>(edge.size());
+  for (std::size_t p = 0; p < edge.size(); ++p) ss += (edge[p] - err[p] - mean) * (edge[p] - err[p] - mean);
+  return std::sqrt(ss / static_cast<double>(edge.size())) / kDeg;
+}
+
+// GIVEN a vehicle-like run without any fuel cut-off: the load rises with the speed, so each load is seen at
+// one speed only (no two cycles at the same load).
+constexpr std::initializer_list<std::pair<double, double>> kLoadRisesWithSpeed = {
+    {1000.0, 20.0}, {2000.0, 30.0}, {3000.0, 40.0}, {4000.0, 50.0}};
+
+// GIVEN a bench or vehicle run without any fuel cut-off whose loads vary apart from the speed, again never
+// two speeds at one load.
+constexpr std::initializer_list<std::pair<double, double>> kLoadsApartFromSpeed = {
+    {1000.0, 20.0}, {1500.0, 50.0}, {2000.0, 30.0}, {3000.0, 45.0}, {4000.0, 25.0}};
+
+TEST(ToothErrorLearner, LearnsEveryOrderFromFiringCyclesWithoutCutOffOrASecondSpeedAtOneLoad) {
   ToothErrorLearner learner(EngineGeometry{}, WheelGeometry{}, ToothLearnParams{});
-  feed_runs(learner, {{1000.0, 20.0}, {2000.0, 30.0}, {3000.0, 40.0}, {4000.0, 50.0}});
+  EXPECT_EQ(learner.quality(), ToothLearnQuality::kNone);
+  const std::vector<double> err = feed_runs(learner, kLoadsApartFromSpeed);
+  // THEN the firing cycles' load law (ripple (b·MAP + c)/speed², the wheel's intercept) identifies every
+  // per-revolution order, with its convergence measure below the variance check's 5 %
+  EXPECT_TRUE(learner.low_orders_learned());
+  EXPECT_EQ(learner.quality(), ToothLearnQuality::kFiring);
+  EXPECT_EQ(learner.stats().cycles_cutoff, 0u);
+  for (const ToothOrderId& id : learner.order_ids()) {
+    EXPECT_EQ(id.source, ToothOrderSource::kFiring) << id.order;
+    EXPECT_GE(id.firing_se_frac, 0.0) << id.order;
+    EXPECT_LE(id.firing_se_frac, 0.05) << id.order;
+  }
+  // AND the edge angles are learned to a few thousandths of a degree (the wheel: 0.05° per edge), against
+  // 0.0303° when these orders are held (the learner before the load law, firing_load_law: false)
+  ToothLearnParams old;
+  old.firing_load_law = false;
+  ToothErrorLearner held(EngineGeometry{}, WheelGeometry{}, old);
+  (void)feed_runs(held, kLoadsApartFromSpeed);
+  const double learned = edge_residual_deg(learner, err), before = edge_residual_deg(held, err);
+  std::printf("edge residual: %.4f deg with the load law, %.4f deg with the orders held\n", learned, before);
+  EXPECT_LT(learned, 0.004);
+  EXPECT_LT(learned, 0.5 * before);
+}
+
+TEST(ToothErrorLearner, WhereTheLoadRisesWithTheSpeedOnlyTheNonFiringOrdersComeFromTheLoadLaw) {
+  ToothErrorLearner learner(EngineGeometry{}, WheelGeometry{}, ToothLearnParams{});
+  (void)feed_runs(learner, kLoadRisesWithSpeed);
+  // THEN the firing orders are held (u ∝ x: the load law cannot tell the load's ripple from the speed drift),
+  // the non-firing ones (no engine ripple but an imbalance's, ∝ the load) are learned
+  for (const ToothOrderId& id : learner.order_ids()) {
+    EXPECT_EQ(id.source, id.firing ? ToothOrderSource::kHeld : ToothOrderSource::kFiring) << id.order;
+  }
+  EXPECT_EQ(learner.quality(), ToothLearnQuality::kHighOrders);
+}
+
+TEST(ToothErrorLearner, WithoutTheLoadLawLowOrdersAreHeldUntilOneLoadIsSeenAtSeveralSpeeds) {
+  ToothLearnParams p;
+  p.firing_load_law = false;
+  ToothErrorLearner learner(EngineGeometry{}, WheelGeometry{}, p);
+  (void)feed_runs(learner, kLoadRisesWithSpeed);
   // THEN the table is usable (higher orders) but no per-revolution order is identified: each is held at the
   // imported table, here none (zero)
   EXPECT_TRUE(learner.ready());
   EXPECT_FALSE(learner.low_orders_learned());
+  EXPECT_EQ(learner.quality(), ToothLearnQuality::kHighOrders);
   ASSERT_FALSE(learner.order_ids().empty());
   for (const ToothOrderId& id : learner.order_ids()) {
     EXPECT_EQ(id.source, ToothOrderSource::kHeld) << id.order;
     EXPECT_EQ(id.edge_amplitude_rad, 0.0) << id.order;
   }
   // WHEN one of those loads is then also run at other speeds
-  feed_runs(learner, {{1500.0, 50.0}, {2500.0, 50.0}, {3500.0, 50.0}});
+  (void)feed_runs(learner, {{1500.0, 50.0}, {2500.0, 50.0}, {3500.0, 50.0}});
   // THEN that load slot identifies the orders from its speeds (the variance check passes: the synthetic
   // ripple follows the 1/speed² law exactly)
   for (const ToothOrderId& id : learner.order_ids()) {
@@ -244,6 +308,7 @@ TEST(ToothErrorLearner, LowOrdersAreHeldWhenTheLoadChangesWithSpeed) {
     EXPECT_LE(id.cycles, 40.0) << id.order;  // only the 50-bar slot's cycles
   }
   EXPECT_TRUE(learner.low_orders_learned());
+  EXPECT_EQ(learner.quality(), ToothLearnQuality::kSpeedLaws);
 }
 
 }  // namespace

@@ -22,51 +22,6 @@ sim::Scenario steady(const std::string& name, double rpm, double map_kpa, std::u
   return s;
 }
 
-/// In-cycle accuracy (RMS in % of the mean per-cycle peak-to-peak of truth, lag by cross-correlation).
-InCycleStats incycle_stats(const std::vector<double>& est, const std::vector<double>& truth,
-                           const std::vector<int>& cycle, double step_deg) {
-  InCycleStats a;
-  const std::size_t n = std::min(est.size(), truth.size());
-  if (n < 100) return a;
-  double se = 0.0, me = 0.0, mt = 0.0, p2p_sum = 0.0;
-  int p2p_n = 0;
-  double mn = truth[0], mx = truth[0];
-  for (std::size_t i = 0; i < n; ++i) {
-    if (i > 0 && cycle[i] != cycle[i - 1]) {
-      p2p_sum += mx - mn;
-      ++p2p_n;
-      mn = mx = truth[i];
-    }
-    mn = std::min(mn, truth[i]);
-    mx = std::max(mx, truth[i]);
-    se += (est[i] - truth[i]) * (est[i] - truth[i]);
-    me += est[i] / static_cast<double>(n);
-    mt += truth[i] / static_cast<double>(n);
-  }
-  const double p2p = p2p_n > 0 ? p2p_sum / p2p_n : mx - mn;
-  a.n = static_cast<int>(n);
-  a.rms_pct_p2p = 100.0 * std::sqrt(se / static_cast<double>(n)) / p2p;
-  a.bias_pct_p2p = 100.0 * (me - mt) / p2p;
-  constexpr int kMaxShift = 12;
-  std::array<double, 2 * kMaxShift + 1> cc{};
-  for (int s = -kMaxShift; s <= kMaxShift; ++s) {
-    double acc = 0.0;
-    for (std::size_t i = kMaxShift; i + kMaxShift < n; ++i)
-      acc += (est[i] - me) * (truth[static_cast<std::size_t>(static_cast<long>(i) - s)] - mt);
-    cc[static_cast<std::size_t>(s + kMaxShift)] = acc;
-  }
-  const auto best = std::max_element(cc.begin(), cc.end()) - cc.begin();
-  double frac = 0.0;
-  if (best > 0 && best < static_cast<long>(cc.size()) - 1) {
-    const double y0 = cc[static_cast<std::size_t>(best - 1)], y1 = cc[static_cast<std::size_t>(best)],
-                 y2 = cc[static_cast<std::size_t>(best + 1)];
-    const double den = y0 - 2 * y1 + y2;
-    if (den != 0.0) frac = 0.5 * (y0 - y2) / den;
-  }
-  a.lag_deg = (static_cast<double>(best - kMaxShift) + frac) * step_deg;
-  return a;
-}
-
 /// Runs the angle pipeline with the learned tooth table and compares its per-tooth Kalman and Fourier
 /// indicated torque (where valid, after `skip_cycles`) with the true indicated torque at the edge each refers
 /// to.
@@ -119,6 +74,50 @@ void evaluate_incycle(const sim::Scenario& sc, const sim::SimOutput& out, const 
 }
 
 }  // namespace
+
+InCycleStats incycle_stats(const std::vector<double>& est, const std::vector<double>& truth,
+                           const std::vector<int>& cycle, double step_deg) {
+  InCycleStats a;
+  const std::size_t n = std::min(est.size(), truth.size());
+  if (n < 100) return a;
+  double se = 0.0, me = 0.0, mt = 0.0, p2p_sum = 0.0;
+  int p2p_n = 0;
+  double mn = truth[0], mx = truth[0];
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i > 0 && cycle[i] != cycle[i - 1]) {
+      p2p_sum += mx - mn;
+      ++p2p_n;
+      mn = mx = truth[i];
+    }
+    mn = std::min(mn, truth[i]);
+    mx = std::max(mx, truth[i]);
+    se += (est[i] - truth[i]) * (est[i] - truth[i]);
+    me += est[i] / static_cast<double>(n);
+    mt += truth[i] / static_cast<double>(n);
+  }
+  const double p2p = p2p_n > 0 ? p2p_sum / p2p_n : mx - mn;
+  a.n = static_cast<int>(n);
+  a.rms_pct_p2p = 100.0 * std::sqrt(se / static_cast<double>(n)) / p2p;
+  a.bias_pct_p2p = 100.0 * (me - mt) / p2p;
+  constexpr int kMaxShift = 12;
+  std::array<double, 2 * kMaxShift + 1> cc{};
+  for (int s = -kMaxShift; s <= kMaxShift; ++s) {
+    double acc = 0.0;
+    for (std::size_t i = kMaxShift; i + kMaxShift < n; ++i)
+      acc += (est[i] - me) * (truth[static_cast<std::size_t>(static_cast<long>(i) - s)] - mt);
+    cc[static_cast<std::size_t>(s + kMaxShift)] = acc;
+  }
+  const auto best = std::max_element(cc.begin(), cc.end()) - cc.begin();
+  double frac = 0.0;
+  if (best > 0 && best < static_cast<long>(cc.size()) - 1) {
+    const double y0 = cc[static_cast<std::size_t>(best - 1)], y1 = cc[static_cast<std::size_t>(best)],
+                 y2 = cc[static_cast<std::size_t>(best + 1)];
+    const double den = y0 - 2 * y1 + y2;
+    if (den != 0.0) frac = 0.5 * (y0 - y2) / den;
+  }
+  a.lag_deg = (static_cast<double>(best - kMaxShift) + frac) * step_deg;
+  return a;
+}
 
 std::array<double, kMaxCylinders> per_cylinder_imbalance(const sim::Scenario& sc, const sim::SimOutput& out,
                                                          const std::vector<double>& width_ratio,

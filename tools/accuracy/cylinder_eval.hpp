@@ -26,6 +26,11 @@ struct InCycleStats {
   double bias_pct_p2p = 0.0;  ///< mean(estimate − truth) / p2p × 100 (the extended-load error, not the shape)
 };
 
+/// In-cycle accuracy of `est` against `truth` (same length, per tooth; `cycle`: the cycle of each sample):
+/// RMS in % of the mean per-cycle peak-to-peak of truth, lag by cross-correlation (`step_deg` per sample).
+[[nodiscard]] InCycleStats incycle_stats(const std::vector<double>& est, const std::vector<double>& truth,
+                                         const std::vector<int>& cycle, double step_deg);
+
 struct CylinderCaseResult {
   std::string group, name;
   int cylinders = 4;

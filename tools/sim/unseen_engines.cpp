@@ -1,6 +1,8 @@
 // The unseen-engines test bed (unseen_engines.hpp; docs/simulator.md §7).
 #include "unseen_engines.hpp"
 
+#include <array>
+
 #include "sim_random.hpp"
 
 namespace torqued::sim {
@@ -157,6 +159,39 @@ Scenario bed_eval_run(const BedEngine& e, bool short_run) {
   s.map_target_kpa = {{0.0, 40.0}, {1.5, 40.0}, {1.7, 60.0},  {3.0, 60.0}, {3.05, 90.0}, {4.0, 90.0},
                       {4.2, 55.0}, {5.5, 55.0}, {5.55, 35.0}, {6.5, 35.0}, {8.0, 35.0},  {8.2, 65.0}};
   s.fuel_cuts = {{6.5, 7.5, 1000.0}};
+  return s;
+}
+
+Scenario bed_firing_start_run(const BedEngine& e, bool short_run,
+                              std::vector<std::pair<double, double>>* steady_s) {
+  Scenario s = e.truth;
+  s.name = e.name + (short_run ? "_firing_start_short" : "_firing_start");
+  s.seed = e.truth.seed;  // the same wheel
+  s.warmup_s = 0.5;
+  const double len = short_run ? 2.0 : 6.0, ramp = short_run ? 0.3 : 0.5;
+  // No two plateaus at the same load (MAP ≥ 5 % apart): nothing compares two speeds at one load.
+  constexpr std::array<std::array<double, 2>, 10> kPlateaus{{{1500, 40},
+                                                             {2000, 62},
+                                                             {2500, 50},
+                                                             {3000, 70},
+                                                             {1800, 80},
+                                                             {2600, 45},
+                                                             {2000, 88},
+                                                             {3200, 58},
+                                                             {1500, 66},
+                                                             {2200, 53}}};
+  s.speed_rpm.clear();
+  s.map_target_kpa.clear();
+  if (steady_s) steady_s->clear();
+  for (std::size_t i = 0; i < kPlateaus.size(); ++i) {
+    const double t0 = len * static_cast<double>(i);
+    s.speed_rpm.push_back({t0 + (i > 0 ? ramp : 0.0), kPlateaus[i][0]});
+    s.speed_rpm.push_back({t0 + len, kPlateaus[i][0]});
+    s.map_target_kpa.push_back({t0 + (i > 0 ? 0.05 : 0.0), kPlateaus[i][1]});
+    s.map_target_kpa.push_back({t0 + len, kPlateaus[i][1]});
+    if (steady_s && i + 2 >= kPlateaus.size()) steady_s->push_back({t0 + ramp + 0.5 * len / 3.0, t0 + len});
+  }
+  s.duration_s = len * static_cast<double>(kPlateaus.size());
   return s;
 }
 

@@ -8,6 +8,7 @@
 // cylinders; 60-2 and 36-1 wheels. Engines are split into "tuning" engines (may be looked at while choosing
 // estimator tunings) and "report" engines (only for the accuracy table). docs/simulator.md §7.
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "engine_sim.hpp"
@@ -48,6 +49,12 @@ struct BedEngine {
 /// closes.
 [[nodiscard]] Scenario bed_hybrid_run(const BedEngine& e, bool short_run = false,
                                       double* t_drive_s = nullptr);
+/// Fresh start without any fuel cut-off (a bench that never overruns, a vehicle's first minute): dyno-held
+/// firing plateaus 1500-3200 rpm at 40-88 kPa (no two at the same load), 6 s each (short: 2 s) with 0.5 s
+/// ramps, the last two at 1500 and 2200 rpm. 60 s (short: 20 s). `steady_s` (may be null): the steady parts
+/// of the last two plateaus, [from, to) in s, where the in-cycle figures are scored.
+[[nodiscard]] Scenario bed_firing_start_run(const BedEngine& e, bool short_run = false,
+                                            std::vector<std::pair<double, double>>* steady_s = nullptr);
 /// Evaluated recording: steady plateaus at several speeds and loads, throttle and load transients, a fuel
 /// cut-off. `short_run`: a 4 s subset (ctest).
 [[nodiscard]] Scenario bed_eval_run(const BedEngine& e, bool short_run = false);

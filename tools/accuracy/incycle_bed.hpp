@@ -1,0 +1,36 @@
+#pragma once
+// In-cycle indicated torque on the unseen-engines bed from a FRESH start without any fuel cut-off (a vehicle
+// at start, a bench that never overruns): the tooth-error learner starts empty and learns on the evaluated
+// recording itself, its table applied to the widths at each cycle end as the daemon's chain does
+// (AngleChain::on_cycle_end → decoder), the in-cycle observers valid once it is ready. Scored: the Kalman and
+// Fourier per-tooth indicated torque against the simulator's truth over the recording's last steady plateaus.
+// Not real-time code.
+#include <string>
+
+#include "cylinder_eval.hpp"
+#include "pipeline_eval.hpp"
+#include "tooth_error_learner.hpp"
+#include "unseen_engines.hpp"
+
+namespace torqued::eval {
+
+struct InCycleBedResult {
+  std::string engine;
+  bool report = false;
+  double duration_s = 0.0;            ///< length of the recording (s from the fresh start)
+  double score_from_s = 0.0;          ///< scored from here to the end (steady plateaus only)
+  InCycleStats kalman, fourier;       ///< scored window
+  double ready_at_s = -1.0;           ///< when the learner's table was first applied (−1: never)
+  double tooth_edge_resid_deg = 0.0;  ///< edge-angle residual of the final table vs the true wheel (deg RMS)
+  std::uint64_t cycles_used = 0, cycles_cutoff = 0;
+  bool low_orders = false;  ///< every per-revolution order inside the fit identified at the end
+  ToothLearnQuality quality = ToothLearnQuality::kNone;  ///< what the final table rests on
+  std::string orders;  ///< per order: source letter (h held, o overrun, O overrun-speeds, s speeds, f firing)
+};
+
+/// `table`: kLearned (fresh learner on the recording, the figure), kTrue (the simulator's wheel: the floor),
+/// kNone (no correction). `short_run`: a 20 s recording instead of 60 s.
+[[nodiscard]] InCycleBedResult evaluate_incycle_fresh(const sim::BedEngine& engine,
+                                                      const EvalOptions& options, bool short_run);
+
+}  // namespace torqued::eval
