@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "table_cache.hpp"
+
 namespace torqued {
 
 namespace {
@@ -50,16 +52,39 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
   const double l0 = std::log(params_.min_rpm * kRpm), l1 = std::log(params_.max_rpm * kRpm);
   for (int b = 0; b < bins; ++b)
     bin_log_speed_[static_cast<std::size_t>(b)] = l0 + (l1 - l0) * b / (bins - 1);
-  if (params_.periodic_gains) {
-    const int sets = params_.gas_model ? kModelMissSet + 1 : kWholeTorqueSet + 1;
-    aps_gain_.assign(static_cast<std::size_t>(sets * bins * kk), Vec::Zero());
+  if (params_.periodic_gains) build_aps_tables(bins);
+  reset();
+}
+
+// Every input of build_aps_set(): the per-tooth model, the noise levels and the speed bins (the code itself
+// is the cache's part of the key: learned/table_store.hpp).
+std::uint64_t ChauvinKalman::aps_key(int sets, int bins) const noexcept {
+  TableKey key;
+  key.add(std::string_view("chauvin-aps 1")).add(kStates).add(table_.samples).add(sets).add(bins);
+  key.add(table_.width_rad).add(a11_).add(b12_).add(acol_).add(bin_log_speed_);
+  key.add(std::span<const double>(qu_)).add(std::span<const double>(sd_));
+  key.add(edge_sd_rad_).add(params_.jitter_s).add(params_.differenced_edge_noise).add(kWhiteFloorFrac);
+  return key.value();
+}
+
+// The APS gain sets (CK §VI), from the table cache when it holds them for these inputs.
+void ChauvinKalman::build_aps_tables(int bins) {
+  const int sets = params_.gas_model ? kModelMissSet + 1 : kWholeTorqueSet + 1;
+  const auto gains = static_cast<std::size_t>(sets * bins * table_.samples);
+  const std::size_t n = gains * static_cast<std::size_t>(kStates);
+  static_assert(sizeof(Vec) == kStates * sizeof(double), "APS gains are copied as packed doubles");
+  aps_gain_.resize(gains);  // filled below, from the cache or by build_aps_set() (which needs zeros)
+  std::vector<double> flat;
+  const bool cached = cached_table("chauvin-aps", aps_key(sets, bins), flat, n, [&](std::vector<double>& t) {
+    std::fill(aps_gain_.begin(), aps_gain_.end(), Vec::Zero());
     for (int set = 0; set < sets; ++set) {
       mode_ = set;
       build_aps_set(set, bins);
     }
     mode_ = kWholeTorqueSet;
-  }
-  reset();
+    t.assign(aps_gain_.front().data(), aps_gain_.front().data() + n);  // Vec is 16 packed doubles
+  });
+  if (cached) std::copy(flat.begin(), flat.end(), aps_gain_.front().data());
 }
 
 double ChauvinKalman::measurement_var(int k, double speed_rad_s) const noexcept {

@@ -119,6 +119,8 @@ class ChauvinKalman {
   void push_edge_time(std::int64_t t_ns) noexcept;
   void push_model(double ripple_nm) noexcept;
   void build_aps_set(int set, int bins);
+  void build_aps_tables(int bins);
+  [[nodiscard]] std::uint64_t aps_key(int sets, int bins) const noexcept;
   void bridge_lost_teeth(int k) noexcept;
   void predict(int k) noexcept;  // x ← A_k x (and P in exact mode)
   /// P0 of a (re)start at tooth k: torque states σ², x1 its measurement noise, edge-error states their

@@ -48,6 +48,10 @@ class FourierObserver {
   [[nodiscard]] static std::optional<std::string> check_stability(const FourierParams& params,
                                                                   const EngineGeometry& engine,
                                                                   const WheelGeometry& wheel);
+  /// check_stability() without its memo of the last answer (the memo holds one key: a hash of every input).
+  [[nodiscard]] static std::optional<std::string> check_stability_uncached(const FourierParams& params,
+                                                                           const EngineGeometry& engine,
+                                                                           const WheelGeometry& wheel);
   /// Spectral radius of Π_k (I + Ξ_k) over one 720° cycle (CF-12): < 1 means the observer error decays.
   [[nodiscard]] static double cycle_spectral_radius(const FourierParams& params, const EngineGeometry& engine,
                                                     const WheelGeometry& wheel);

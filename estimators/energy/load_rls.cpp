@@ -7,6 +7,7 @@
 
 #include "crank_kinematics.hpp"
 #include "cycle_energy.hpp"
+#include "table_cache.hpp"
 
 namespace torqued {
 
@@ -97,7 +98,6 @@ Weights ripple_weights(const AngleTerms& t, const EnergiesParams& prm, double bu
 LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const EnergiesParams& params)
     : engine_(engine), params_(params), kappa_(params.polytropic_kappa) {
   const CrankKinematics kin(engine);
-  const int n = engine.cylinders;
   v_c_ = kin.clearance_volume_m3();
   v_ivc_ = kin.volume((540.0 + params.ivc_abdc_deg) * kDeg);
   std::vector<double> e1, w1;
@@ -110,6 +110,39 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
     center[static_cast<std::size_t>(k)] =
         wrap4pi(e - 0.5 * w1[static_cast<std::size_t>(k % t)] - engine.tdc_offset_rad);
   }
+  const std::uint64_t key = tables_key(center);
+  std::vector<double> flat;
+  const bool cached = cached_table("load-rls", key, flat, 0, [&](std::vector<double>& tab) {
+    build_tables(kin, center);
+    pack_tables(tab);
+  });
+  if (cached && !unpack_tables(flat)) build_tables(kin, center);  // cannot happen with a checked cache
+  open_.assign(windows_tab_.size(), 0);
+  ke_first_.assign(windows_tab_.size(), 0.0);
+  w2_first_.assign(windows_tab_.size(), 0.0);
+  reset();
+}
+
+// Every input of build_tables(): the engine (kinematics, firing positions), the tooth-period centres, the
+// pressure model's parameters and the windows (the code itself is the cache's part of the key).
+std::uint64_t LoadRls::tables_key(const std::vector<double>& center) const noexcept {
+  const EngineGeometry& e = engine_;
+  const EnergiesParams& p = params_;
+  TableKey key;
+  key.add(std::string_view("load-rls 1")).add(kMaxCylinders).add(kCentroids).add(samples_).add(center);
+  key.add(e);
+  key.add(p.window_start_btdc_deg).add(p.window_end_btdc_deg).add(p.polytropic_kappa).add(p.ivc_abdc_deg);
+  key.add(p.evo_atdc_deg).add(p.blowdown_end_atdc_deg).add(p.exhaust_pressure_pa).add(p.ivc_pressure_factor);
+  key.add(p.rls_window_shifts).add(p.burn_centroid_atdc_deg).add(p.burn_duration_deg);
+  return key.value();
+}
+
+// The closure coefficients, the windows' gas-work integrals and the ripple tables (precomputed, see the
+// header's rule 3).
+void LoadRls::build_tables(const CrankKinematics& kin, const std::vector<double>& center) {
+  const EnergiesParams& params = params_;
+  const int n = engine_.cylinders;
+  windows_tab_.clear();
   window_first_of_.assign(static_cast<std::size_t>(samples_), -1);
   window_last_of_.assign(static_cast<std::size_t>(samples_), -1);
   const double step = 0.05 * kDeg;
@@ -199,10 +232,83 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
     }
   }
   build_ripple(center);
-  open_.assign(windows_tab_.size(), 0);
-  ke_first_.assign(windows_tab_.size(), 0.0);
-  w2_first_.assign(windows_tab_.size(), 0.0);
-  reset();
+}
+
+// The tables as one array of doubles for the table cache (integers are exact in a double): the closure
+// coefficients, the ripple tables, then each window.
+namespace {
+constexpr std::size_t kWindowFields = 13 + kMaxCylinders;
+}  // namespace
+
+void LoadRls::pack_tables(std::vector<double>& t) const {
+  t.clear();
+  t.push_back(static_cast<double>(windows_tab_.size()));
+  t.insert(t.end(), cyc_map_.begin(), cyc_map_.end());
+  t.insert(t.end(), cyc_p3_.begin(), cyc_p3_.end());
+  t.insert(t.end(), {cyc_exh_, rip_cm_, rip_cp_, rip_ce_});
+  t.insert(t.end(), rip_map_.begin(), rip_map_.end());
+  t.insert(t.end(), rip_const_.begin(), rip_const_.end());
+  t.insert(t.end(), rip_p3_.begin(), rip_p3_.end());
+  for (int k = 0; k < samples_; ++k) {
+    t.push_back(window_first_of_[static_cast<std::size_t>(k)]);
+    t.push_back(window_last_of_[static_cast<std::size_t>(k)]);
+  }
+  for (const Window& w : windows_tab_) {
+    t.insert(t.end(), {static_cast<double>(w.first), static_cast<double>(w.last), w.c_first, w.c_last, w.span,
+                       w.j_first, w.j_last, w.k_map, w.k_exh, w.k_cc, static_cast<double>(w.position),
+                       w.closes_group ? 1.0 : 0.0});
+    t.insert(t.end(), w.k_p3.begin(), w.k_p3.end());
+    t.push_back(0.0);  // spare: keeps kWindowFields a round count
+  }
+}
+
+bool LoadRls::unpack_tables(const std::vector<double>& t) {
+  const auto ks = static_cast<std::size_t>(samples_);
+  const std::size_t head = 1 + 2 * kCentroids + 4 + ks * (2 + kMaxCylinders) + 2 * ks;
+  if (t.size() < head) return false;
+  const double nw = t[0];
+  if (!(nw >= 0.0) || t.size() != head + static_cast<std::size_t>(nw) * kWindowFields) return false;
+  auto it = t.begin() + 1;
+  auto take = [&it](auto& dst) {
+    std::copy(it, it + static_cast<std::ptrdiff_t>(dst.size()), dst.begin());
+    it += static_cast<std::ptrdiff_t>(dst.size());
+  };
+  take(cyc_map_);
+  take(cyc_p3_);
+  cyc_exh_ = *it++;
+  rip_cm_ = *it++;
+  rip_cp_ = *it++;
+  rip_ce_ = *it++;
+  rip_map_.resize(ks);
+  rip_const_.resize(ks);
+  rip_p3_.resize(ks * kMaxCylinders);
+  take(rip_map_);
+  take(rip_const_);
+  take(rip_p3_);
+  window_first_of_.resize(ks);
+  window_last_of_.resize(ks);
+  for (std::size_t k = 0; k < ks; ++k) {
+    window_first_of_[k] = static_cast<int>(*it++);
+    window_last_of_[k] = static_cast<int>(*it++);
+  }
+  windows_tab_.assign(static_cast<std::size_t>(nw), Window{});
+  for (Window& w : windows_tab_) {
+    w.first = static_cast<int>(it[0]);
+    w.last = static_cast<int>(it[1]);
+    w.c_first = it[2];
+    w.c_last = it[3];
+    w.span = it[4];
+    w.j_first = it[5];
+    w.j_last = it[6];
+    w.k_map = it[7];
+    w.k_exh = it[8];
+    w.k_cc = it[9];
+    w.position = static_cast<int>(it[10]);
+    w.closes_group = it[11] != 0.0;
+    std::copy(it + 12, it + 12 + kMaxCylinders, w.k_p3.begin());
+    it += static_cast<std::ptrdiff_t>(kWindowFields);
+  }
+  return true;
 }
 
 // Per-sample gas-torque ripple tables: the pressure model's work over [c_k, c_{k+1}] per unit of
