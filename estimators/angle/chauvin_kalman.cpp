@@ -26,6 +26,7 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
   a11_.resize(static_cast<std::size_t>(kk));
   b12_.resize(static_cast<std::size_t>(kk));
   acol_.resize(static_cast<std::size_t>(kk));
+  qgain_.resize(static_cast<std::size_t>(kk));
   for (int k = 0; k < kk; ++k) {
     const auto i = static_cast<std::size_t>(k);
     const auto n = static_cast<std::size_t>((k + 1) % kk);
@@ -33,6 +34,7 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
     a11_[i] = table_.j_center[i] / table_.j_center[n];
     b12_[i] = 2.0 * table_.step_rad[i] / table_.j_center[n];
     acol_[i] = std::exp(-params_.delta * table_.step_rad[i]);  // pole of h(z) (CK-18)
+    qgain_[i] = std::pow(1.0 - acol_[i], 4);                   // (1−a)⁴ of the noise input (CK-18)
   }
   // Q from the stationary variance of x2 under h(z) at the nominal step: for x(n+1) = 2a x(n) − a² x(n−1) +
   // (1−a)² u, var x = (1−a)⁴ q (1+a²)/(1−a²)³  →  q = σ² (1−a²)³ / ((1−a)⁴ (1+a²)). Two σ: the whole net
@@ -141,8 +143,7 @@ ChauvinKalman::Mat ChauvinKalman::initial_covariance(int k, double speed_rad_s) 
 }
 
 void ChauvinKalman::add_process_noise(int k, double speed_rad_s, Mat& p) const noexcept {
-  p(kTorqueState, kTorqueState) +=
-      std::pow(1.0 - acol_[static_cast<std::size_t>(k)], 4) * qu_[static_cast<std::size_t>(mode_)];
+  p(kTorqueState, kTorqueState) += qgain_[static_cast<std::size_t>(k)] * qu_[static_cast<std::size_t>(mode_)];
   p(kNoiseNow, kNoiseNow) += edge_state_var(speed_rad_s);  // the next edge's error, fresh
 }
 
@@ -188,10 +189,20 @@ void ChauvinKalman::riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) c
   const double s = pc(kSpeedSqState) + h * (pc(kNoisePrev) - pc(kNoiseNow)) + measurement_var(k, speed_rad_s);
   gain = pc / s;
   // (CK-13): P_{k+1} = A (P − K S Kᵀ) Aᵀ + B Q Bᵀ.
-  const Mat post = p - gain * gain.transpose() * s;
+  // P − K S Kᵀ column by column ((K_i K_j) S: the same values as the dense expression, no temporaries).
+  Mat post;
+  for (int j = 0; j < kStates; ++j) post.col(j) = p.col(j) - (gain * gain(j)) * s;
   p = propagate(k, post);
   add_process_noise(k, speed_rad_s, p);
-  p = 0.5 * (p + p.transpose()).eval();  // keep symmetric (docs/conventions.md habit 12)
+  // Keep symmetric (docs/conventions.md habit 12): ½(P + Pᵀ) element by element over one triangle (the same
+  // values as the dense expression, half the work and no temporary; the diagonal is unchanged by it).
+  for (int j = 1; j < kStates; ++j) {
+    for (int i = 0; i < j; ++i) {
+      const double v = 0.5 * (p(i, j) + p(j, i));
+      p(i, j) = v;
+      p(j, i) = v;
+    }
+  }
 }
 
 ChauvinKalman::Vec ChauvinKalman::periodic_gain(int k, double speed_rad_s) const noexcept {

@@ -135,6 +135,7 @@ class ChauvinKalman {
   KalmanParams params_;
   ToothAngleTable table_;
   std::vector<double> a11_, b12_, acol_;  ///< per tooth: J_k/J_{k+1}, 2Δ_k/J_{k+1}, a = e^{−δΔ_k}
+  std::vector<double> qgain_;             ///< per tooth: (1 − a)⁴
   std::array<double, 2> qu_{};  ///< variance of u (N m)²: [0] whole net torque, [1] the gas model's miss
   std::array<double, 2> sd_{};  ///< the matching stationary 1σ of x2 (P0)
   int mode_ = kWholeTorqueSet;  ///< which of the two the current tooth uses (kModelMissSet: gas model valid)
