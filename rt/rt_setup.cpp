@@ -73,6 +73,15 @@ MemoryUse read_memory_use() noexcept {
       m.locked = static_cast<std::size_t>(kb) * 1024;
   }
   std::fclose(f);
+  // Resident memory of the locked mappings (Linux ≥ 4.14); VmLck alone counts reserved address space.
+  if (std::FILE* r = std::fopen("/proc/self/smaps_rollup", "re")) {
+    while (std::fgets(line, sizeof line, r)) {
+      unsigned long long kb = 0;
+      if (std::sscanf(line, "Locked: %llu kB", &kb) == 1)
+        m.locked_resident = static_cast<std::size_t>(kb) * 1024;
+    }
+    std::fclose(r);
+  }
   return m;
 }
 
