@@ -3,6 +3,7 @@
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
+#include <sys/resource.h>
 
 #include <cerrno>
 #include <cstdio>
@@ -83,6 +84,22 @@ MemoryUse read_memory_use() noexcept {
     std::fclose(r);
   }
   return m;
+}
+
+ThreadUsage read_thread_usage() noexcept {
+  ThreadUsage u;
+  rusage r{};
+  if (getrusage(RUSAGE_THREAD, &r) != 0) return u;
+  u.minor_faults = r.ru_minflt;
+  u.major_faults = r.ru_majflt;
+  u.voluntary_switches = r.ru_nvcsw;
+  u.forced_switches = r.ru_nivcsw;
+  return u;
+}
+
+ThreadUsage usage_between(const ThreadUsage& from, const ThreadUsage& to) noexcept {
+  return {to.minor_faults - from.minor_faults, to.major_faults - from.major_faults,
+          to.voluntary_switches - from.voluntary_switches, to.forced_switches - from.forced_switches};
 }
 
 void prefault_stack(std::size_t bytes) noexcept {

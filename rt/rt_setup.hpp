@@ -79,6 +79,15 @@ struct MemoryUse {
 /// Reads /proc/self/status and /proc/self/smaps_rollup (not real-time: opens files).
 MemoryUse read_memory_use() noexcept;
 
+/// Page faults and context switches of the calling thread (getrusage RUSAGE_THREAD); not real-time.
+struct ThreadUsage {
+  long minor_faults = 0, major_faults = 0;           ///< ru_minflt, ru_majflt
+  long voluntary_switches = 0, forced_switches = 0;  ///< ru_nvcsw (it waited), ru_nivcsw (preempted)
+};
+ThreadUsage read_thread_usage() noexcept;
+/// What happened between two readings of the same thread.
+ThreadUsage usage_between(const ThreadUsage& from, const ThreadUsage& to) noexcept;
+
 /// Touches `bytes` of the calling thread's stack so later use does not page-fault.
 void prefault_stack(std::size_t bytes = kPrefaultStackBytes) noexcept;
 

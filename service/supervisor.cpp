@@ -316,6 +316,12 @@ int Supervisor::shutdown() {
       c.run_latency_max_ns * 1e-3, c.publisher_polls, c.publisher_poll_misses, c.angle_wakeups,
       static_cast<double>(mem.rss) / 1048576.0, static_cast<double>(mem.peak) / 1048576.0,
       static_cast<double>(mem.locked_resident) / 1048576.0, static_cast<double>(mem.locked) / 1048576.0);
+  std::string threads;
+  for (const auto& t : rt_.thread_usage())
+    threads += fmt::format("{}{} {}/{} {}/{}", threads.empty() ? "" : ", ", t.name, t.use.minor_faults,
+                           t.use.major_faults, t.use.voluntary_switches, t.use.forced_switches);
+  spdlog::info("threads over the run (page faults minor/major, context switches voluntary/preempted): {}",
+               threads.empty() ? "none" : threads);
   return exit_code;
 }
 

@@ -130,7 +130,8 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
   samples_ = 2 * t;
   std::vector<double> center(static_cast<std::size_t>(samples_));
   for (int k = 0; k < samples_; ++k) {
-    const double e = (k / t) * kTwoPi + e1[static_cast<std::size_t>(k % t)];
+    const int rev = k / t;  // whole revolutions before sample k
+    const double e = rev * kTwoPi + e1[static_cast<std::size_t>(k % t)];
     center[static_cast<std::size_t>(k)] =
         wrap4pi(e - 0.5 * w1[static_cast<std::size_t>(k % t)] - engine.tdc_offset_rad);
   }
@@ -175,8 +176,10 @@ void LoadRls::build_tables(const CrankKinematics& kin, const std::vector<double>
   // centroid).
   std::vector<AngleTerms> grid;
   grid.reserve(static_cast<std::size_t>(kFourPi / step) + 2);
-  for (double phi = 0.5 * step; phi < kFourPi; phi += step)
+  for (double phi = 0.5 * step; phi < kFourPi;) {  // the same φ sequence as before (repeated addition)
     grid.push_back(angle_terms(phi, kin, params, v_ivc_, v_c_));
+    phi += step;
+  }
   // Only the first branch of model_weights() depends on the centroid (φ < burn): the products w·dV before
   // and after the burn are formed once per angle; each centroid then adds the same products in the same
   // order as evaluating model_weights() per centroid did (identical sums, a fifth of the work).

@@ -46,7 +46,7 @@ void run(benchmark::State& state, const AnglePipelineConfig& cfg) {
   const Input& in = input();
   AnglePipeline p(cfg);
   std::size_t i = 0;
-  for (auto _ : state) {
+  for (auto _ : state) {  // NOLINT(clang-analyzer-deadcode.DeadStores): Google Benchmark's loop variable
     benchmark::DoNotOptimize(p.on_tooth(in.samples[i], in.sigs[i]));
     if (++i == in.samples.size()) {
       i = 0;
@@ -104,7 +104,7 @@ template <class Method, class Update>
 void run_method(benchmark::State& state, Method& m, Update update) {
   const Input& in = input();
   std::size_t i = 0;
-  for (auto _ : state) {
+  for (auto _ : state) {  // NOLINT(clang-analyzer-deadcode.DeadStores): Google Benchmark's loop variable
     update(m, in.samples[i]);
     benchmark::ClobberMemory();
     if (++i == in.samples.size()) {

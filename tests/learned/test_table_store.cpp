@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -28,7 +30,9 @@ struct TempDir {
   ~TempDir() { fs::remove_all(path); }
 };
 
-bool same_bytes(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+bool same_bytes(double a, double b) {
+  return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b);
+}
 
 TEST(TableStore, StoredTableLoadsWithTheSameBytes) {
   TempDir d;
