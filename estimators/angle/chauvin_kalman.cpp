@@ -246,16 +246,10 @@ void ChauvinKalman::predict(int k) noexcept {
   x_(kSpeedSqState) = x1;
 }
 
-void ChauvinKalman::push_edge_time(std::int64_t t_ns) noexcept {
-  for (int i = kMaxLag; i > 0; --i)
-    edge_t_ns_[static_cast<std::size_t>(i)] = edge_t_ns_[static_cast<std::size_t>(i - 1)];
-  edge_t_ns_[0] = t_ns;
-}
+void ChauvinKalman::push_edge_time(std::int64_t t_ns) noexcept { edge_t_ns_.push(t_ns); }
 
 void ChauvinKalman::push_model(double ripple_nm) noexcept {
-  for (int i = kMaxLag; i > 0; --i)
-    model_[static_cast<std::size_t>(i)] = model_[static_cast<std::size_t>(i - 1)];
-  model_[0] = std::isfinite(ripple_nm) ? ripple_nm : 0.0;
+  model_.push(std::isfinite(ripple_nm) ? ripple_nm : 0.0);
 }
 
 // Teeth lost before tooth k: predicted through (no measurement), or a restart when more than 1/8 of the cycle

@@ -32,6 +32,7 @@
 
 #include "engine_geometry.hpp"
 #include "estimate.hpp"
+#include "lag_ring.hpp"
 #include "params.hpp"
 #include "samples.hpp"
 #include "tooth_preprocessor.hpp"
@@ -154,10 +155,10 @@ class ChauvinKalman {
   double mean_speed_ = 0.0;  ///< running mean speed over ≈ one cycle (rad/s), schedules R / gains
   int expected_tooth_ = -1;
   int teeth_seen_ = 0;
-  std::array<std::int64_t, kMaxLag + 1> edge_t_ns_{};  ///< edge times of the last teeth, [0] = newest
-  double model_next_ = 0.0;                            ///< set_model_torque() for the next tooth
+  LagRing<std::int64_t, kMaxLag + 1> edge_t_ns_;  ///< edge times of the last teeth, [0] = newest
+  double model_next_ = 0.0;                       ///< set_model_torque() for the next tooth
   bool model_next_valid_ = false;
-  std::array<double, kMaxLag + 1> model_{};  ///< model ripple of the last steps, [0] = newest
+  LagRing<double, kMaxLag + 1> model_;  ///< model ripple of the last steps, [0] = newest
   KalmanStats stats_;
 };
 

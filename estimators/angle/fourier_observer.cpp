@@ -191,9 +191,7 @@ void FourierObserver::reset() noexcept {
 }
 
 void FourierObserver::push_model(double ripple_nm) noexcept {
-  for (int i = kMaxLag; i > 0; --i)
-    model_[static_cast<std::size_t>(i)] = model_[static_cast<std::size_t>(i - 1)];
-  model_[0] = std::isfinite(ripple_nm) ? ripple_nm : 0.0;
+  model_.push(std::isfinite(ripple_nm) ? ripple_nm : 0.0);
 }
 
 double FourierObserver::net_torque_at(int k) const noexcept {
@@ -264,9 +262,7 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
   phi_ += table_.step_rad[static_cast<std::size_t>(k)] * (t_model + model_[0] - params_.l_ke * err);
   ++stats_.updates;
   ++teeth_seen_;
-  for (int i = kMaxLag; i > 0; --i)
-    edge_t_ns_[static_cast<std::size_t>(i)] = edge_t_ns_[static_cast<std::size_t>(i - 1)];
-  edge_t_ns_[0] = s.t_ns;
+  edge_t_ns_.push(s.t_ns);
   if (!std::isfinite(phi_) || !std::isfinite(t_net)) {
     ++stats_.resets;
     reset();
