@@ -173,7 +173,7 @@ void TableStore::store(std::string_view kind, std::uint64_t key, std::span<const
   if (!ok) {
     note("table cache: " + std::string(kind) + " computed, not stored in " + dir_ + " (" +
              std::strerror(errno) + ")",
-         true);
+         false);  // a read-only or absent cache directory only costs the next start the computation
     ::unlink(tmp.c_str());
     return;
   }
