@@ -23,7 +23,8 @@ namespace torqued {
 
 class TableStore final : public TableCache {
  public:
-  /// Receives each message as it happens (`warning` true for a file not used or not written).
+  /// Receives each message as it happens (`warning` true for a damaged file; another build's, or a
+  /// directory that cannot be written, is information).
   using Reporter = std::function<void(const std::string& message, bool warning)>;
   /// `dir` is created on the first store (with its parent). `binary_id` 0: this executable's build id.
   /// Without a `reporter` the messages wait for take_messages().
