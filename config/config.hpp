@@ -185,6 +185,7 @@ struct RealtimeConfig {
 struct OutputConfig {
   std::string record_dir;  ///< write estimate CSVs here ("" = no recording), absolute after loading
   std::string state_dir = "/var/lib/torqued";  ///< learned state (friction, tooth corrections)
+  std::string table_dir;  ///< start-up table cache ("" = <state_dir>/tables or the user cache, "off" = none)
 };
 
 struct ReplayConfig {

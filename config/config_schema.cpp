@@ -393,6 +393,11 @@ void add_rest(std::vector<SchemaEntry>& t) {
                    "write estimate CSVs into this directory (\"\" = off); relative to this YAML file", true));
   t.push_back(text("output.state_dir", TQ_REF(std::string, output.state_dir),
                    "learned state (friction, tooth corrections); relative to this YAML file", true));
+  t.push_back(
+      text("output.table_dir", TQ_REF(std::string, output.table_dir),
+           "start-up tables (Kalman periodic gains, load RLS integrals) cached per engine, wheel and "
+           "parameter set (learned/table_store.hpp): \"\" = <state_dir>/tables, without a state "
+           "directory $XDG_CACHE_HOME/torqued or ~/.cache/torqued; \"off\" = computed at every start"));
   t.push_back(choice<ReplayMode>(
       "replay.mode", TQ_REF(ReplayMode, replay.mode),
       {{"fast", ReplayMode::kFast}, {"paced", ReplayMode::kPaced}},

@@ -3,6 +3,7 @@
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
+#include <sys/resource.h>
 
 #include <cerrno>
 #include <cstdio>
@@ -73,7 +74,32 @@ MemoryUse read_memory_use() noexcept {
       m.locked = static_cast<std::size_t>(kb) * 1024;
   }
   std::fclose(f);
+  // Resident memory of the locked mappings (Linux ≥ 4.14); VmLck alone counts reserved address space.
+  if (std::FILE* r = std::fopen("/proc/self/smaps_rollup", "re")) {
+    while (std::fgets(line, sizeof line, r)) {
+      unsigned long long kb = 0;
+      if (std::sscanf(line, "Locked: %llu kB", &kb) == 1)
+        m.locked_resident = static_cast<std::size_t>(kb) * 1024;
+    }
+    std::fclose(r);
+  }
   return m;
+}
+
+ThreadUsage read_thread_usage() noexcept {
+  ThreadUsage u;
+  rusage r{};
+  if (getrusage(RUSAGE_THREAD, &r) != 0) return u;
+  u.minor_faults = r.ru_minflt;
+  u.major_faults = r.ru_majflt;
+  u.voluntary_switches = r.ru_nvcsw;
+  u.forced_switches = r.ru_nivcsw;
+  return u;
+}
+
+ThreadUsage usage_between(const ThreadUsage& from, const ThreadUsage& to) noexcept {
+  return {to.minor_faults - from.minor_faults, to.major_faults - from.major_faults,
+          to.voluntary_switches - from.voluntary_switches, to.forced_switches - from.forced_switches};
 }
 
 void prefault_stack(std::size_t bytes) noexcept {

@@ -67,14 +67,26 @@ RtOutcome set_default_thread_stack(std::size_t bytes = kThreadStackBytes) noexce
 /// Stack size of the calling thread (pthread_getattr_np), 0 when unknown.
 std::size_t current_thread_stack_size() noexcept;
 
-/// The process's memory as the kernel counts it (/proc/self/status), in bytes; 0 when not readable.
+/// The process's memory as the kernel counts it (/proc/self/status, /proc/self/smaps_rollup), in bytes; 0
+/// when not readable.
 struct MemoryUse {
-  std::size_t rss = 0;     ///< VmRSS: resident now
-  std::size_t peak = 0;    ///< VmHWM: peak resident
-  std::size_t locked = 0;  ///< VmLck: locked (mlockall)
+  std::size_t rss = 0;              ///< VmRSS: resident now
+  std::size_t peak = 0;             ///< VmHWM: peak resident
+  std::size_t locked = 0;           ///< VmLck: address space under mlockall, resident or not (glibc's
+                                    ///< reserved malloc arenas count here in full and are not memory)
+  std::size_t locked_resident = 0;  ///< smaps_rollup "Locked:": resident pages of the locked mappings
 };
-/// Reads /proc/self/status (not real-time: opens a file).
+/// Reads /proc/self/status and /proc/self/smaps_rollup (not real-time: opens files).
 MemoryUse read_memory_use() noexcept;
+
+/// Page faults and context switches of the calling thread (getrusage RUSAGE_THREAD); not real-time.
+struct ThreadUsage {
+  long minor_faults = 0, major_faults = 0;           ///< ru_minflt, ru_majflt
+  long voluntary_switches = 0, forced_switches = 0;  ///< ru_nvcsw (it waited), ru_nivcsw (preempted)
+};
+ThreadUsage read_thread_usage() noexcept;
+/// What happened between two readings of the same thread.
+ThreadUsage usage_between(const ThreadUsage& from, const ThreadUsage& to) noexcept;
 
 /// Touches `bytes` of the calling thread's stack so later use does not page-fault.
 void prefault_stack(std::size_t bytes = kPrefaultStackBytes) noexcept;

@@ -29,6 +29,7 @@
 #include "stage_settings.hpp"
 #include "state_store.hpp"
 #include "supervisor.hpp"
+#include "table_store.hpp"
 
 namespace torqued {
 namespace {
@@ -142,6 +143,17 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   // by mlockall.
   if (const RtOutcome st = set_default_thread_stack(); !st.ok) spdlog::warn("thread stacks: {}", st.message);
   if (opt.record_dir) cfg.output.record_dir = *opt.record_dir;
+  // Start-up tables (Kalman gains, load RLS integrals) from the previous run when they match
+  // (table_store.hpp).
+  TableStore tables(
+      table_dir_for(cfg.output.table_dir, opt.state_dir ? *opt.state_dir : cfg.output.state_dir), 0,
+      [](const std::string& m, bool warning) {
+        if (warning)
+          spdlog::warn("{}", m);
+        else
+          spdlog::info("{}", m);
+      });
+  const ScopedTableCache tables_in_use(tables.dir().empty() ? nullptr : &tables);
   const bool fast = opt.mode ? *opt.mode == "fast" : cfg.replay.mode == ReplayMode::kFast;
   RunInputs in = open_inputs(cfg);
   constexpr std::size_t kMaxDbcWarnings = 20;  // then counted

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <cstdio>
 #include <cstring>
 
 #include "angle_stage.hpp"
@@ -77,9 +78,24 @@ void Runtime::start_thread(std::thread& t, const ThreadRt& rt, void (Runtime::*f
     const RtOutcome o = apply_to_current_thread(rt);
     if (!o.ok && o.not_permitted) flags_.fetch_or(torque_STATUS_RT_NOT_PERMITTED, std::memory_order_relaxed);
     if (realtime && opt_.rt_thread_hook) opt_.rt_thread_hook(rt.name, false);
+    const ThreadUsage u0 = read_thread_usage();
     (this->*fn)();
+    const ThreadUsage u1 = read_thread_usage();  // after the loop: not on the real-time path
     if (realtime && opt_.rt_thread_hook) opt_.rt_thread_hook(rt.name, true);
+    if (const int slot = usage_n_.fetch_add(1, std::memory_order_acq_rel); slot < kMaxThreads) {
+      usage_[static_cast<std::size_t>(slot)] = usage_between(u0, u1);
+      std::snprintf(usage_name_[static_cast<std::size_t>(slot)].data(), 16, "%s",
+                    rt.name && rt.name[0] ? rt.name : "thread");
+    }
   });
+}
+
+std::vector<Runtime::ThreadRunUsage> Runtime::thread_usage() const {
+  std::vector<ThreadRunUsage> out;
+  const int n = std::min(usage_n_.load(std::memory_order_acquire), kMaxThreads);
+  for (int i = 0; i < n; ++i)
+    out.push_back({usage_name_[static_cast<std::size_t>(i)].data(), usage_[static_cast<std::size_t>(i)]});
+  return out;
 }
 
 bool Runtime::start() {

@@ -8,6 +8,7 @@
 // The supervisor is the caller's thread (daemon_run.cpp): it polls counters(), pushes status samples with
 // push_status(), pings the watchdog while heartbeats() advance, and stops/drains on signals.
 // Every buffer is allocated in the constructor; the real-time threads never allocate, lock or wait for DDS.
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <functional>
@@ -88,6 +89,13 @@ class Runtime {
   /// stop_and_drain() (the source threads have finished writing them).
   [[nodiscard]] std::vector<std::string> input_problems() const;
   [[nodiscard]] RuntimeCounters counters() const noexcept;
+  /// Page faults and context switches of each runtime thread between its start (after its scheduling and
+  /// stack pre-fault) and its end; complete once the threads have ended (stop_and_drain()).
+  struct ThreadRunUsage {
+    std::string name;
+    ThreadUsage use;
+  };
+  [[nodiscard]] std::vector<ThreadRunUsage> thread_usage() const;
   [[nodiscard]] Heartbeats heartbeats() const noexcept;
   /// Newest edge-clock time processed by the angle stage.
   [[nodiscard]] std::int64_t last_source_t_ns() const noexcept {
@@ -163,6 +171,10 @@ class Runtime {
   std::unique_ptr<TimeStage> time_;
 
   std::thread src_thread_, src2_thread_, angle_thread_, time_thread_, pub_thread_;
+  static constexpr int kMaxThreads = 8;
+  std::array<ThreadUsage, kMaxThreads> usage_{};  ///< written once by each thread as it ends
+  std::array<std::array<char, 16>, kMaxThreads> usage_name_{};
+  std::atomic<int> usage_n_{0};
   std::atomic<bool> stop_sources_{false}, stop_pipelines_{false}, stop_publisher_{false}, stall_{false};
   std::atomic<int> sources_running_{0};
   TunablesMailbox angle_tunables_, time_tunables_;

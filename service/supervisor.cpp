@@ -309,12 +309,19 @@ int Supervisor::shutdown() {
       "stopped: {} edges, {} teeth, {} cycles, {} CAN frames, drops edge/can/out/source {}/{}/{}/{}, "
       "overruns {}, "
       "latency over the run p50/p99/max {:.1f}/{:.1f}/{:.1f} us, publisher pre-wakes {} (timed out {}), "
-      "angle thread wake-ups {}, memory RSS {:.1f} MiB (peak {:.1f}, locked {:.1f})",
+      "angle thread wake-ups {}, memory RSS {:.1f} MiB (peak {:.1f}), locked and resident {:.1f} MiB "
+      "(mlockall address space {:.0f} MiB, mostly reserved malloc arenas, not resident)",
       c.edges, c.teeth, c.cycles, c.can_frames, c.ring_drops_edge, c.ring_drops_can, c.ring_drops_out,
       c.source_drops, c.overruns, c.run_latency_p50_ns * 1e-3, c.run_latency_p99_ns * 1e-3,
       c.run_latency_max_ns * 1e-3, c.publisher_polls, c.publisher_poll_misses, c.angle_wakeups,
       static_cast<double>(mem.rss) / 1048576.0, static_cast<double>(mem.peak) / 1048576.0,
-      static_cast<double>(mem.locked) / 1048576.0);
+      static_cast<double>(mem.locked_resident) / 1048576.0, static_cast<double>(mem.locked) / 1048576.0);
+  std::string threads;
+  for (const auto& t : rt_.thread_usage())
+    threads += fmt::format("{}{} {}/{} {}/{}", threads.empty() ? "" : ", ", t.name, t.use.minor_faults,
+                           t.use.major_faults, t.use.voluntary_switches, t.use.forced_switches);
+  spdlog::info("threads over the run (page faults minor/major, context switches voluntary/preempted): {}",
+               threads.empty() ? "none" : threads);
   return exit_code;
 }
 

@@ -24,6 +24,7 @@
 #include <array>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <string>
@@ -100,12 +101,14 @@ struct TopicLatency {
   std::uint16_t engine_id = 0;  ///< only this engine's samples (others on the domain are counted, not used)
   std::size_t other_engines = 0;
   Stats total, in_daemon, dds;
+  std::vector<std::array<double, 3>> split;  ///< per stamped sample: total, in the daemon, DDS (us), aligned
   std::array<Sample, 64> buf{};
   std::array<void*, 64> ptr{};
   std::array<dds_sample_info_t, 64> info{};
   TopicLatency() {
     for (std::size_t i = 0; i < buf.size(); ++i) ptr[i] = &buf[i];
     for (Stats* st : {&total, &in_daemon, &dds}) st->us.reserve(1 << 18);
+    split.reserve(1 << 18);
   }
   void take(std::int64_t now) {
     const int n = dds_take(reader, ptr.data(), info.data(), buf.size(), buf.size());
@@ -120,10 +123,33 @@ struct TopicLatency {
       if (v.publish_t_ns > 0) {
         in_daemon.add(static_cast<double>(v.publish_t_ns - v.ingest_t_ns) * 1e-3);
         dds.add(static_cast<double>(now - v.publish_t_ns) * 1e-3);
+        split.push_back({total.us.back(), in_daemon.us.back(), dds.us.back()});
       }
     }
   }
 };
+
+/// Which stage owns the tail: over the slowest 0.1 % of the stamped samples (total ≥ its p99.9), the mean
+/// time spent in the daemon (edge -> dds_write) and in DDS (dds_write -> received); the larger one owns it.
+void print_tail_owner(const char* topic, const std::vector<std::array<double, 3>>& split) {
+  if (split.size() < 100) return;
+  std::vector<double> tot;
+  tot.reserve(split.size());
+  for (const auto& v : split) tot.push_back(v[0]);
+  std::sort(tot.begin(), tot.end());
+  const double cut = tot[static_cast<std::size_t>(0.999 * static_cast<double>(tot.size() - 1))];
+  double d = 0, n = 0, k = 0;
+  for (const auto& v : split)
+    if (v[0] >= cut) {
+      d += v[1];
+      n += v[2];
+      ++k;
+    }
+  std::printf(
+      "tail of %s: the %.0f slowest samples (>= %.1f us, p99.9) spent on average %.1f us edge -> dds_write "
+      "and %.1f us dds_write -> received: owned by %s\n",
+      topic, k, cut, d / k, n / k, d >= n ? "the daemon (edge -> dds_write)" : "DDS (dds_write -> received)");
+}
 
 /// Takes CrankState/EngineTorque samples and time-stamps them on arrival (from a listener or a waitset).
 struct Receiver {
@@ -157,7 +183,7 @@ void histogram(const Stats& s, const char* title) {
   double lo = 0;
   for (std::size_t i = 0; i < 14; ++i) {
     const int bar =
-        static_cast<int>(60.0 * static_cast<double>(n[i]) / static_cast<double>(s.us.size()) + 0.5);
+        static_cast<int>(std::lround(60.0 * static_cast<double>(n[i]) / static_cast<double>(s.us.size())));
     if (i < 13)
       std::printf("  %6.0f-%-6.0f %8zu %s\n", lo, edges[i], n[i],
                   std::string(static_cast<std::size_t>(bar), '#').c_str());
@@ -512,6 +538,8 @@ int main(int argc, char** argv) {
   row("tooth edge -> EngineTorque (subscr.)", engine_us);
   row("  edge -> dds_write (in the daemon)", rx.engine.in_daemon);
   row("  dds_write -> received (DDS)", rx.engine.dds);
+  print_tail_owner("CrankState", rx.crank.split);
+  print_tail_owner("EngineTorque", rx.engine.split);
   std::printf("subscriber: %s, %s; its readers on %s\n",
               use_waitset ? "waitset" : "listener (receive thread)",
               sub_prio > 0 ? "SCHED_FIFO requested" : "SCHED_OTHER",
@@ -549,9 +577,10 @@ int main(int argc, char** argv) {
   {  // the daemon's own counters (ring drops, time-thread overruns) from its final log line
     FILE* f = std::fopen(daemon_log.c_str(), "r");
     char line[1024];
-    std::string last, shm_topics;
+    std::string last, shm_topics, threads;
     while (f && std::fgets(line, sizeof line, f)) {
       if (std::strstr(line, "stopped:")) last = line;
+      if (const char* t = std::strstr(line, "threads over the run")) threads = t;
       if (const char* t = std::strstr(line, "DDS shared memory (iceoryx) for:")) shm_topics = t;
     }
     daemon_shm = shm_topics.find("CrankState") != std::string::npos;
@@ -559,6 +588,7 @@ int main(int argc, char** argv) {
     if (last.empty()) keep_logs = true;
     std::printf("daemon: %s", last.empty() ? ("no final counters (see " + daemon_log + ")\n").c_str()
                                            : last.substr(last.find("stopped:")).c_str());
+    if (!threads.empty()) std::printf("daemon: %s", threads.c_str());
   }
   // One line to compare runs (shared memory against the network path): the path is "shm" only when both the
   // daemon's CrankState writer and this subscriber's readers are on shared memory.

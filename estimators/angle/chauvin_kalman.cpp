@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "table_cache.hpp"
+
 namespace torqued {
 
 namespace {
@@ -24,6 +26,7 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
   a11_.resize(static_cast<std::size_t>(kk));
   b12_.resize(static_cast<std::size_t>(kk));
   acol_.resize(static_cast<std::size_t>(kk));
+  qgain_.resize(static_cast<std::size_t>(kk));
   for (int k = 0; k < kk; ++k) {
     const auto i = static_cast<std::size_t>(k);
     const auto n = static_cast<std::size_t>((k + 1) % kk);
@@ -31,6 +34,7 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
     a11_[i] = table_.j_center[i] / table_.j_center[n];
     b12_[i] = 2.0 * table_.step_rad[i] / table_.j_center[n];
     acol_[i] = std::exp(-params_.delta * table_.step_rad[i]);  // pole of h(z) (CK-18)
+    qgain_[i] = std::pow(1.0 - acol_[i], 4);                   // (1−a)⁴ of the noise input (CK-18)
   }
   // Q from the stationary variance of x2 under h(z) at the nominal step: for x(n+1) = 2a x(n) − a² x(n−1) +
   // (1−a)² u, var x = (1−a)⁴ q (1+a²)/(1−a²)³  →  q = σ² (1−a²)³ / ((1−a)⁴ (1+a²)). Two σ: the whole net
@@ -50,16 +54,39 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
   const double l0 = std::log(params_.min_rpm * kRpm), l1 = std::log(params_.max_rpm * kRpm);
   for (int b = 0; b < bins; ++b)
     bin_log_speed_[static_cast<std::size_t>(b)] = l0 + (l1 - l0) * b / (bins - 1);
-  if (params_.periodic_gains) {
-    const int sets = params_.gas_model ? kModelMissSet + 1 : kWholeTorqueSet + 1;
-    aps_gain_.assign(static_cast<std::size_t>(sets * bins * kk), Vec::Zero());
+  if (params_.periodic_gains) build_aps_tables(bins);
+  reset();
+}
+
+// Every input of build_aps_set(): the per-tooth model, the noise levels and the speed bins (the code itself
+// is the cache's part of the key: learned/table_store.hpp).
+std::uint64_t ChauvinKalman::aps_key(int sets, int bins) const noexcept {
+  TableKey key;
+  key.add(std::string_view("chauvin-aps 1")).add(kStates).add(table_.samples).add(sets).add(bins);
+  key.add(table_.width_rad).add(a11_).add(b12_).add(acol_).add(bin_log_speed_);
+  key.add(std::span<const double>(qu_)).add(std::span<const double>(sd_));
+  key.add(edge_sd_rad_).add(params_.jitter_s).add(params_.differenced_edge_noise).add(kWhiteFloorFrac);
+  return key.value();
+}
+
+// The APS gain sets (CK §VI), from the table cache when it holds them for these inputs.
+void ChauvinKalman::build_aps_tables(int bins) {
+  const int sets = params_.gas_model ? kModelMissSet + 1 : kWholeTorqueSet + 1;
+  const auto gains = static_cast<std::size_t>(sets * bins * table_.samples);
+  const std::size_t n = gains * static_cast<std::size_t>(kStates);
+  static_assert(sizeof(Vec) == kStates * sizeof(double), "APS gains are copied as packed doubles");
+  aps_gain_.resize(gains);  // filled below, from the cache or by build_aps_set() (which needs zeros)
+  std::vector<double> flat;
+  const bool cached = cached_table("chauvin-aps", aps_key(sets, bins), flat, n, [&](std::vector<double>& t) {
+    std::fill(aps_gain_.begin(), aps_gain_.end(), Vec::Zero());
     for (int set = 0; set < sets; ++set) {
       mode_ = set;
       build_aps_set(set, bins);
     }
     mode_ = kWholeTorqueSet;
-  }
-  reset();
+    t.assign(aps_gain_.front().data(), aps_gain_.front().data() + n);  // Vec is 16 packed doubles
+  });
+  if (cached) std::copy(flat.begin(), flat.end(), aps_gain_.front().data());
 }
 
 double ChauvinKalman::measurement_var(int k, double speed_rad_s) const noexcept {
@@ -116,8 +143,7 @@ ChauvinKalman::Mat ChauvinKalman::initial_covariance(int k, double speed_rad_s) 
 }
 
 void ChauvinKalman::add_process_noise(int k, double speed_rad_s, Mat& p) const noexcept {
-  p(kTorqueState, kTorqueState) +=
-      std::pow(1.0 - acol_[static_cast<std::size_t>(k)], 4) * qu_[static_cast<std::size_t>(mode_)];
+  p(kTorqueState, kTorqueState) += qgain_[static_cast<std::size_t>(k)] * qu_[static_cast<std::size_t>(mode_)];
   p(kNoiseNow, kNoiseNow) += edge_state_var(speed_rad_s);  // the next edge's error, fresh
 }
 
@@ -163,10 +189,20 @@ void ChauvinKalman::riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) c
   const double s = pc(kSpeedSqState) + h * (pc(kNoisePrev) - pc(kNoiseNow)) + measurement_var(k, speed_rad_s);
   gain = pc / s;
   // (CK-13): P_{k+1} = A (P − K S Kᵀ) Aᵀ + B Q Bᵀ.
-  const Mat post = p - gain * gain.transpose() * s;
+  // P − K S Kᵀ column by column ((K_i K_j) S: the same values as the dense expression, no temporaries).
+  Mat post;
+  for (int j = 0; j < kStates; ++j) post.col(j) = p.col(j) - (gain * gain(j)) * s;
   p = propagate(k, post);
   add_process_noise(k, speed_rad_s, p);
-  p = 0.5 * (p + p.transpose()).eval();  // keep symmetric (docs/conventions.md habit 12)
+  // Keep symmetric (docs/conventions.md habit 12): ½(P + Pᵀ) element by element over one triangle (the same
+  // values as the dense expression, half the work and no temporary; the diagonal is unchanged by it).
+  for (int j = 1; j < kStates; ++j) {
+    for (int i = 0; i < j; ++i) {
+      const double v = 0.5 * (p(i, j) + p(j, i));
+      p(i, j) = v;
+      p(j, i) = v;
+    }
+  }
 }
 
 ChauvinKalman::Vec ChauvinKalman::periodic_gain(int k, double speed_rad_s) const noexcept {
@@ -210,16 +246,10 @@ void ChauvinKalman::predict(int k) noexcept {
   x_(kSpeedSqState) = x1;
 }
 
-void ChauvinKalman::push_edge_time(std::int64_t t_ns) noexcept {
-  for (int i = kMaxLag; i > 0; --i)
-    edge_t_ns_[static_cast<std::size_t>(i)] = edge_t_ns_[static_cast<std::size_t>(i - 1)];
-  edge_t_ns_[0] = t_ns;
-}
+void ChauvinKalman::push_edge_time(std::int64_t t_ns) noexcept { edge_t_ns_.push(t_ns); }
 
 void ChauvinKalman::push_model(double ripple_nm) noexcept {
-  for (int i = kMaxLag; i > 0; --i)
-    model_[static_cast<std::size_t>(i)] = model_[static_cast<std::size_t>(i - 1)];
-  model_[0] = std::isfinite(ripple_nm) ? ripple_nm : 0.0;
+  model_.push(std::isfinite(ripple_nm) ? ripple_nm : 0.0);
 }
 
 // Teeth lost before tooth k: predicted through (no measurement), or a restart when more than 1/8 of the cycle

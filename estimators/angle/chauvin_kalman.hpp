@@ -32,6 +32,7 @@
 
 #include "engine_geometry.hpp"
 #include "estimate.hpp"
+#include "lag_ring.hpp"
 #include "params.hpp"
 #include "samples.hpp"
 #include "tooth_preprocessor.hpp"
@@ -119,6 +120,8 @@ class ChauvinKalman {
   void push_edge_time(std::int64_t t_ns) noexcept;
   void push_model(double ripple_nm) noexcept;
   void build_aps_set(int set, int bins);
+  void build_aps_tables(int bins);
+  [[nodiscard]] std::uint64_t aps_key(int sets, int bins) const noexcept;
   void bridge_lost_teeth(int k) noexcept;
   void predict(int k) noexcept;  // x ← A_k x (and P in exact mode)
   /// P0 of a (re)start at tooth k: torque states σ², x1 its measurement noise, edge-error states their
@@ -133,6 +136,7 @@ class ChauvinKalman {
   KalmanParams params_;
   ToothAngleTable table_;
   std::vector<double> a11_, b12_, acol_;  ///< per tooth: J_k/J_{k+1}, 2Δ_k/J_{k+1}, a = e^{−δΔ_k}
+  std::vector<double> qgain_;             ///< per tooth: (1 − a)⁴
   std::array<double, 2> qu_{};  ///< variance of u (N m)²: [0] whole net torque, [1] the gas model's miss
   std::array<double, 2> sd_{};  ///< the matching stationary 1σ of x2 (P0)
   int mode_ = kWholeTorqueSet;  ///< which of the two the current tooth uses (kModelMissSet: gas model valid)
@@ -151,10 +155,10 @@ class ChauvinKalman {
   double mean_speed_ = 0.0;  ///< running mean speed over ≈ one cycle (rad/s), schedules R / gains
   int expected_tooth_ = -1;
   int teeth_seen_ = 0;
-  std::array<std::int64_t, kMaxLag + 1> edge_t_ns_{};  ///< edge times of the last teeth, [0] = newest
-  double model_next_ = 0.0;                            ///< set_model_torque() for the next tooth
+  LagRing<std::int64_t, kMaxLag + 1> edge_t_ns_;  ///< edge times of the last teeth, [0] = newest
+  double model_next_ = 0.0;                       ///< set_model_torque() for the next tooth
   bool model_next_valid_ = false;
-  std::array<double, kMaxLag + 1> model_{};  ///< model ripple of the last steps, [0] = newest
+  LagRing<double, kMaxLag + 1> model_;  ///< model ripple of the last steps, [0] = newest
   KalmanStats stats_;
 };
 

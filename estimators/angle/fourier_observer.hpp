@@ -17,6 +17,7 @@
 
 #include "engine_geometry.hpp"
 #include "estimate.hpp"
+#include "lag_ring.hpp"
 #include "params.hpp"
 #include "samples.hpp"
 #include "tooth_preprocessor.hpp"
@@ -48,6 +49,10 @@ class FourierObserver {
   [[nodiscard]] static std::optional<std::string> check_stability(const FourierParams& params,
                                                                   const EngineGeometry& engine,
                                                                   const WheelGeometry& wheel);
+  /// check_stability() without its memo of the last answer (the memo holds one key: a hash of every input).
+  [[nodiscard]] static std::optional<std::string> check_stability_uncached(const FourierParams& params,
+                                                                           const EngineGeometry& engine,
+                                                                           const WheelGeometry& wheel);
   /// Spectral radius of Π_k (I + Ξ_k) over one 720° cycle (CF-12): < 1 means the observer error decays.
   [[nodiscard]] static double cycle_spectral_radius(const FourierParams& params, const EngineGeometry& engine,
                                                     const WheelGeometry& wheel);
@@ -101,11 +106,11 @@ class FourierObserver {
   int expected_tooth_ = -1;
   int teeth_seen_ = 0;
   int lag_ = 0;
-  std::array<std::int64_t, kMaxLag + 1> edge_t_ns_{};  ///< edge times of the last teeth, [0] = newest
-  double model_next_ = 0.0;                            ///< set_model_torque() for the next tooth
+  LagRing<std::int64_t, kMaxLag + 1> edge_t_ns_;  ///< edge times of the last teeth, [0] = newest
+  double model_next_ = 0.0;                       ///< set_model_torque() for the next tooth
   bool model_next_valid_ = false;
   bool model_active_ = false;
-  std::array<double, kMaxLag + 1> model_{};  ///< model ripple of the last steps, [0] = newest
+  LagRing<double, kMaxLag + 1> model_;  ///< model ripple of the last steps, [0] = newest
   FourierStats stats_;
 };
 

@@ -1,7 +1,12 @@
 #include "tooth_preprocessor.hpp"
 
 #include <cmath>
+#include <mutex>
 #include <numbers>
+#include <optional>
+#include <utility>
+
+#include "table_cache.hpp"
 
 namespace torqued {
 
@@ -36,6 +41,22 @@ void ToothAngleTable::wheel_edges(const WheelGeometry& wheel, std::vector<double
 }
 
 ToothAngleTable ToothAngleTable::build(const EngineGeometry& engine, const WheelGeometry& wheel) {
+  // Every estimator on the tooth grid builds the same table at start-up: the last one is kept (a copy is
+  // returned, the same bytes as a new build).
+  static std::mutex mu;
+  static std::optional<std::pair<std::uint64_t, ToothAngleTable>> last;
+  const std::uint64_t key = TableKey().add(engine).add(wheel).value();
+  {
+    const std::lock_guard lk(mu);
+    if (last && last->first == key) return last->second;
+  }
+  ToothAngleTable t = build_uncached(engine, wheel);
+  const std::lock_guard lk(mu);
+  last.emplace(key, t);
+  return t;
+}
+
+ToothAngleTable ToothAngleTable::build_uncached(const EngineGeometry& engine, const WheelGeometry& wheel) {
   ToothAngleTable t;
   std::vector<double> e1, w1;
   wheel_edges(wheel, e1, w1);

@@ -32,7 +32,10 @@ struct ToothAngleTable {
   std::vector<double> hdj_edge;   ///< ½J'(e_k) (kg m²/rad)
 
   /// Builds the table; angles relative to cylinder 1's firing TDC are e_k − geometry.tdc_offset_rad.
+  /// Start-up only (allocates; the last table built is kept and returned again for the same geometry).
   static ToothAngleTable build(const EngineGeometry& engine, const WheelGeometry& wheel);
+  /// The same without the memo.
+  static ToothAngleTable build_uncached(const EngineGeometry& engine, const WheelGeometry& wheel);
   /// Nominal edge angles of one revolution (rad, tooth 0 at 0) and the widths ending at them.
   static void wheel_edges(const WheelGeometry& wheel, std::vector<double>& edge_rad,
                           std::vector<double>& width_rad);

@@ -7,6 +7,7 @@
 
 #include "crank_kinematics.hpp"
 #include "cycle_energy.hpp"
+#include "table_cache.hpp"
 
 namespace torqued {
 
@@ -41,6 +42,30 @@ AngleTerms angle_terms(double phi, const CrankKinematics& kin, const EnergiesPar
   t.dvol = kin.dvolume(phi);
   t.ivc_poly = std::pow(v_ivc / v, k);
   t.c_poly = std::pow(v_c / v, k);
+  t.blend = (phi >= evo && phi < bde) ? 0.5 * (1.0 + std::cos(kPi * (phi - evo) / (bde - evo))) : 0.0;
+  return t;
+}
+
+/// angle_terms() with only the volume powers that model_weights(·, burn) (dur = 0) or ripple_weights(·, burn,
+/// dur) (dur > 0) read at φ (the others stay 0): the same values where used, at half the pow() calls.
+AngleTerms angle_terms_for(double phi, const CrankKinematics& kin, const EnergiesParams& prm, double v_ivc,
+                           double v_c, double burn, double dur) noexcept {
+  const double bde = prm.blowdown_end_atdc_deg * kDeg;
+  const double ivc = (540.0 + prm.ivc_abdc_deg) * kDeg;
+  bool need_ivc = phi < burn || phi >= ivc;
+  bool need_c = phi >= burn && phi < bde;
+  if (dur > 0.0) {
+    const double s = phi > kTwoPi ? phi - kFourPi : phi;
+    const double a0 = burn - 0.5 * dur;
+    if (s > a0 && s < a0 + dur) need_ivc = need_c = true;
+  }
+  if (need_ivc && need_c) return angle_terms(phi, kin, prm, v_ivc, v_c);
+  const double evo = prm.evo_atdc_deg * kDeg;
+  AngleTerms t;
+  t.phi = phi;
+  t.dvol = kin.dvolume(phi);
+  if (need_ivc) t.ivc_poly = std::pow(v_ivc / kin.volume(phi), prm.polytropic_kappa);
+  if (need_c) t.c_poly = std::pow(v_c / kin.volume(phi), prm.polytropic_kappa);
   t.blend = (phi >= evo && phi < bde) ? 0.5 * (1.0 + std::cos(kPi * (phi - evo) / (bde - evo))) : 0.0;
   return t;
 }
@@ -97,7 +122,6 @@ Weights ripple_weights(const AngleTerms& t, const EnergiesParams& prm, double bu
 LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const EnergiesParams& params)
     : engine_(engine), params_(params), kappa_(params.polytropic_kappa) {
   const CrankKinematics kin(engine);
-  const int n = engine.cylinders;
   v_c_ = kin.clearance_volume_m3();
   v_ivc_ = kin.volume((540.0 + params.ivc_abdc_deg) * kDeg);
   std::vector<double> e1, w1;
@@ -106,10 +130,44 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
   samples_ = 2 * t;
   std::vector<double> center(static_cast<std::size_t>(samples_));
   for (int k = 0; k < samples_; ++k) {
-    const double e = (k / t) * kTwoPi + e1[static_cast<std::size_t>(k % t)];
+    const int rev = k / t;  // whole revolutions before sample k
+    const double e = rev * kTwoPi + e1[static_cast<std::size_t>(k % t)];
     center[static_cast<std::size_t>(k)] =
         wrap4pi(e - 0.5 * w1[static_cast<std::size_t>(k % t)] - engine.tdc_offset_rad);
   }
+  const std::uint64_t key = tables_key(center);
+  std::vector<double> flat;
+  const bool cached = cached_table("load-rls", key, flat, 0, [&](std::vector<double>& tab) {
+    build_tables(kin, center);
+    pack_tables(tab);
+  });
+  if (cached && !unpack_tables(flat)) build_tables(kin, center);  // cannot happen with a checked cache
+  open_.assign(windows_tab_.size(), 0);
+  ke_first_.assign(windows_tab_.size(), 0.0);
+  w2_first_.assign(windows_tab_.size(), 0.0);
+  reset();
+}
+
+// Every input of build_tables(): the engine (kinematics, firing positions), the tooth-period centres, the
+// pressure model's parameters and the windows (the code itself is the cache's part of the key).
+std::uint64_t LoadRls::tables_key(const std::vector<double>& center) const noexcept {
+  const EngineGeometry& e = engine_;
+  const EnergiesParams& p = params_;
+  TableKey key;
+  key.add(std::string_view("load-rls 1")).add(kMaxCylinders).add(kCentroids).add(samples_).add(center);
+  key.add(e);
+  key.add(p.window_start_btdc_deg).add(p.window_end_btdc_deg).add(p.polytropic_kappa).add(p.ivc_abdc_deg);
+  key.add(p.evo_atdc_deg).add(p.blowdown_end_atdc_deg).add(p.exhaust_pressure_pa).add(p.ivc_pressure_factor);
+  key.add(p.rls_window_shifts).add(p.burn_centroid_atdc_deg).add(p.burn_duration_deg);
+  return key.value();
+}
+
+// The closure coefficients, the windows' gas-work integrals and the ripple tables (precomputed, see the
+// header's rule 3).
+void LoadRls::build_tables(const CrankKinematics& kin, const std::vector<double>& center) {
+  const EnergiesParams& params = params_;
+  const int n = engine_.cylinders;
+  windows_tab_.clear();
   window_first_of_.assign(static_cast<std::size_t>(samples_), -1);
   window_last_of_.assign(static_cast<std::size_t>(samples_), -1);
   const double step = 0.05 * kDeg;
@@ -118,16 +176,29 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
   // centroid).
   std::vector<AngleTerms> grid;
   grid.reserve(static_cast<std::size_t>(kFourPi / step) + 2);
-  for (double phi = 0.5 * step; phi < kFourPi; phi += step)
+  for (double phi = 0.5 * step; phi < kFourPi;) {  // the same φ sequence as before (repeated addition)
     grid.push_back(angle_terms(phi, kin, params, v_ivc_, v_c_));
+    phi += step;
+  }
+  // Only the first branch of model_weights() depends on the centroid (φ < burn): the products w·dV before
+  // and after the burn are formed once per angle; each centroid then adds the same products in the same
+  // order as evaluating model_weights() per centroid did (identical sums, a fifth of the work).
+  std::vector<std::array<double, 4>> prod(grid.size());  // before: map; after: map, exh, p3
+  for (std::size_t i = 0; i < grid.size(); ++i) {
+    const double dv = grid[i].dvol * step;
+    const Weights before = model_weights(grid[i], params, kFourPi);
+    const Weights after = model_weights(grid[i], params, -1.0);
+    prod[i] = {before.map * dv, after.map * dv, after.exh * dv, after.p3 * dv};
+  }
+  const double zero = 0.0;
   for (int ci = 0; ci < kCentroids; ++ci) {
     double cm = 0.0, ce = 0.0, cp = 0.0;
-    for (const AngleTerms& at : grid) {
-      const Weights w = model_weights(at, params, ci * kDeg);
-      const double dv = at.dvol * step;
-      cm += w.map * dv;
-      ce += w.exh * dv;
-      cp += w.p3 * dv;
+    const double burn = ci * kDeg;
+    for (std::size_t i = 0; i < grid.size(); ++i) {
+      const bool pre = grid[i].phi < burn;
+      cm += pre ? prod[i][0] : prod[i][1];
+      ce += pre ? zero * (grid[i].dvol * step) : prod[i][2];
+      cp += pre ? zero * (grid[i].dvol * step) : prod[i][3];
     }
     cyc_map_[static_cast<std::size_t>(ci)] = cm;
     cyc_exh_ = ce;
@@ -171,8 +242,9 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
         for (int i = 0; i < steps; ++i) {
           const double th = win.c_first + (i + 0.5) * h;
           const double phi = wrap4pi(th - phase);
-          const AngleTerms at = angle_terms(phi, kin, params, v_ivc_, v_c_);
-          const Weights w = model_weights(at, params, params.burn_centroid_atdc_deg * kDeg);
+          const double burn = params.burn_centroid_atdc_deg * kDeg;
+          const AngleTerms at = angle_terms_for(phi, kin, params, v_ivc_, v_c_, burn, 0.0);
+          const Weights w = model_weights(at, params, burn);
           const double dv = at.dvol * h;  // dV_j/dθ dθ = A R f(θ − φ_j) dθ (EN-9)
           win.k_map += w.map * dv;
           win.k_exh += w.exh * dv;
@@ -199,10 +271,83 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
     }
   }
   build_ripple(center);
-  open_.assign(windows_tab_.size(), 0);
-  ke_first_.assign(windows_tab_.size(), 0.0);
-  w2_first_.assign(windows_tab_.size(), 0.0);
-  reset();
+}
+
+// The tables as one array of doubles for the table cache (integers are exact in a double): the closure
+// coefficients, the ripple tables, then each window.
+namespace {
+constexpr std::size_t kWindowFields = 13 + kMaxCylinders;
+}  // namespace
+
+void LoadRls::pack_tables(std::vector<double>& t) const {
+  t.clear();
+  t.push_back(static_cast<double>(windows_tab_.size()));
+  t.insert(t.end(), cyc_map_.begin(), cyc_map_.end());
+  t.insert(t.end(), cyc_p3_.begin(), cyc_p3_.end());
+  t.insert(t.end(), {cyc_exh_, rip_cm_, rip_cp_, rip_ce_});
+  t.insert(t.end(), rip_map_.begin(), rip_map_.end());
+  t.insert(t.end(), rip_const_.begin(), rip_const_.end());
+  t.insert(t.end(), rip_p3_.begin(), rip_p3_.end());
+  for (int k = 0; k < samples_; ++k) {
+    t.push_back(window_first_of_[static_cast<std::size_t>(k)]);
+    t.push_back(window_last_of_[static_cast<std::size_t>(k)]);
+  }
+  for (const Window& w : windows_tab_) {
+    t.insert(t.end(), {static_cast<double>(w.first), static_cast<double>(w.last), w.c_first, w.c_last, w.span,
+                       w.j_first, w.j_last, w.k_map, w.k_exh, w.k_cc, static_cast<double>(w.position),
+                       w.closes_group ? 1.0 : 0.0});
+    t.insert(t.end(), w.k_p3.begin(), w.k_p3.end());
+    t.push_back(0.0);  // spare: keeps kWindowFields a round count
+  }
+}
+
+bool LoadRls::unpack_tables(const std::vector<double>& t) {
+  const auto ks = static_cast<std::size_t>(samples_);
+  const std::size_t head = 1 + 2 * kCentroids + 4 + ks * (2 + kMaxCylinders) + 2 * ks;
+  if (t.size() < head) return false;
+  const double nw = t[0];
+  if (!(nw >= 0.0) || t.size() != head + static_cast<std::size_t>(nw) * kWindowFields) return false;
+  auto it = t.begin() + 1;
+  auto take = [&it](auto& dst) {
+    std::copy(it, it + static_cast<std::ptrdiff_t>(dst.size()), dst.begin());
+    it += static_cast<std::ptrdiff_t>(dst.size());
+  };
+  take(cyc_map_);
+  take(cyc_p3_);
+  cyc_exh_ = *it++;
+  rip_cm_ = *it++;
+  rip_cp_ = *it++;
+  rip_ce_ = *it++;
+  rip_map_.resize(ks);
+  rip_const_.resize(ks);
+  rip_p3_.resize(ks * kMaxCylinders);
+  take(rip_map_);
+  take(rip_const_);
+  take(rip_p3_);
+  window_first_of_.resize(ks);
+  window_last_of_.resize(ks);
+  for (std::size_t k = 0; k < ks; ++k) {
+    window_first_of_[k] = static_cast<int>(*it++);
+    window_last_of_[k] = static_cast<int>(*it++);
+  }
+  windows_tab_.assign(static_cast<std::size_t>(nw), Window{});
+  for (Window& w : windows_tab_) {
+    w.first = static_cast<int>(it[0]);
+    w.last = static_cast<int>(it[1]);
+    w.c_first = it[2];
+    w.c_last = it[3];
+    w.span = it[4];
+    w.j_first = it[5];
+    w.j_last = it[6];
+    w.k_map = it[7];
+    w.k_exh = it[8];
+    w.k_cc = it[9];
+    w.position = static_cast<int>(it[10]);
+    w.closes_group = it[11] != 0.0;
+    std::copy(it + 12, it + 12 + kMaxCylinders, w.k_p3.begin());
+    it += static_cast<std::ptrdiff_t>(kWindowFields);
+  }
+  return true;
 }
 
 // Per-sample gas-torque ripple tables: the pressure model's work over [c_k, c_{k+1}] per unit of
@@ -223,7 +368,7 @@ void LoadRls::build_ripple(const std::vector<double>& center) {
   constexpr int kClosureSteps = 720 * 4;  // 0.25° steps over the cycle
   for (int i = 0; i < kClosureSteps; ++i) {
     const double phi = (i + 0.5) * kFourPi / kClosureSteps;
-    const AngleTerms at = angle_terms(phi, kin, params_, v_ivc_, v_c_);
+    const AngleTerms at = angle_terms_for(phi, kin, params_, v_ivc_, v_c_, burn, dur);
     const Weights w = ripple_weights(at, params_, burn, dur);
     const double dv = at.dvol * kFourPi / kClosureSteps;
     rip_cm_ += w.map * dv;
@@ -242,7 +387,7 @@ void LoadRls::build_ripple(const std::vector<double>& center) {
     for (int q = 0; q < n; ++q) {
       for (int i = 0; i < steps; ++i) {
         const double phi = wrap4pi(c0 + (i + 0.5) * h - kFourPi * q / n);
-        const AngleTerms at = angle_terms(phi, kin, params_, v_ivc_, v_c_);
+        const AngleTerms at = angle_terms_for(phi, kin, params_, v_ivc_, v_c_, burn, dur);
         const Weights w = ripple_weights(at, params_, burn, dur);
         const double dv = at.dvol * h;
         tm += w.map * dv;

@@ -54,6 +54,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "crank_kinematics.hpp"
 #include "engine_geometry.hpp"
 #include "estimate.hpp"
 #include "params.hpp"
@@ -128,6 +129,10 @@ class LoadRls {
     bool closes_group = false;                    ///< last window of that firing to close (smallest shift)
   };
   void build_ripple(const std::vector<double>& center);
+  void build_tables(const CrankKinematics& kin, const std::vector<double>& center);
+  [[nodiscard]] std::uint64_t tables_key(const std::vector<double>& center) const noexcept;
+  void pack_tables(std::vector<double>& t) const;
+  bool unpack_tables(const std::vector<double>& t);  ///< false (nothing usable) on a size mismatch
   double rls_step(double y, double phi_a) noexcept;
   void publish(std::int64_t t_ns, double err, const Window& win) noexcept;
   void track(double obs, const Window& win) noexcept;

@@ -2,12 +2,23 @@
 // and its parts. Input: a simulated 3000 rpm steady run with CAN signals precomputed per tooth.
 // Run: build-*/tests/estimators/bench_angle_pipeline --benchmark_repetitions=5
 // --benchmark_report_aggregates_only
+// Per-method cost table (BM_Method_*: one estimator's update per tooth on the same input, nothing else).
+// Instructions per tooth of each method inside the whole pipeline: run the pipeline benchmark under callgrind
+// and divide each update()'s inclusive count by its calls (README, performance section):
+//   valgrind --tool=callgrind --callgrind-out-file=cg.out build/tests/estimators/bench_angle_pipeline
+//     --benchmark_filter='AllMethods_APS$' --benchmark_min_time=0.2
+//   callgrind_annotate --inclusive=yes cg.out | grep -E '::update\(|on_tooth'   (calls: --tree=caller)
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <vector>
 
 #include "angle_pipeline.hpp"
+#include "chauvin_kalman.hpp"
 #include "engine_sim.hpp"
+#include "fourier_observer.hpp"
+#include "load_rls.hpp"
+#include "tooth_preprocessor.hpp"
 
 using namespace torqued;
 
@@ -35,7 +46,7 @@ void run(benchmark::State& state, const AnglePipelineConfig& cfg) {
   const Input& in = input();
   AnglePipeline p(cfg);
   std::size_t i = 0;
-  for (auto _ : state) {
+  for (auto _ : state) {  // NOLINT(clang-analyzer-deadcode.DeadStores): Google Benchmark's loop variable
     benchmark::DoNotOptimize(p.on_tooth(in.samples[i], in.sigs[i]));
     if (++i == in.samples.size()) {
       i = 0;
@@ -72,5 +83,83 @@ static void BM_AnglePipeline_EnergiesChainOnly(benchmark::State& state) {
   run(state, c);
 }
 BENCHMARK(BM_AnglePipeline_EnergiesChainOnly);
+
+static void BM_AnglePipeline_AllMethods_NoKalman(benchmark::State& state) {
+  AnglePipelineConfig c = base();
+  c.run_kalman = false;
+  run(state, c);
+}
+BENCHMARK(BM_AnglePipeline_AllMethods_NoKalman);
+
+static void BM_AnglePipeline_AllMethods_NoFourier(benchmark::State& state) {
+  AnglePipelineConfig c = base();
+  c.run_fourier = false;
+  run(state, c);
+}
+BENCHMARK(BM_AnglePipeline_AllMethods_NoFourier);
+
+namespace {
+/// One method alone: `update(sample)` per tooth on the same input as the pipeline (reset at its end).
+template <class Method, class Update>
+void run_method(benchmark::State& state, Method& m, Update update) {
+  const Input& in = input();
+  std::size_t i = 0;
+  for (auto _ : state) {  // NOLINT(clang-analyzer-deadcode.DeadStores): Google Benchmark's loop variable
+    update(m, in.samples[i]);
+    benchmark::ClobberMemory();
+    if (++i == in.samples.size()) {
+      i = 0;
+      state.PauseTiming();
+      m.reset();
+      state.ResumeTiming();
+    }
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()));
+}
+}  // namespace
+
+static void BM_Method_ToothPreprocessor(benchmark::State& state) {
+  ToothPreprocessor m(base().engine, base().wheel, base().preprocess);
+  run_method(state, m, [](ToothPreprocessor& x, const ToothSample& s) { x.update(s); });
+}
+BENCHMARK(BM_Method_ToothPreprocessor);
+
+static void BM_Method_KalmanAPS(benchmark::State& state) {
+  ChauvinKalman m(base().engine, base().wheel, base().kalman);
+  run_method(state, m, [](ChauvinKalman& x, const ToothSample& s) {
+    x.set_model_torque(0.0, true);  // the gas-model gain set, as in the pipeline once MAP is known
+    x.update(s);
+  });
+}
+BENCHMARK(BM_Method_KalmanAPS);
+
+static void BM_Method_KalmanExactRiccati(benchmark::State& state) {
+  AnglePipelineConfig c = base();
+  c.kalman.periodic_gains = false;
+  ChauvinKalman m(c.engine, c.wheel, c.kalman);
+  run_method(state, m, [](ChauvinKalman& x, const ToothSample& s) {
+    x.set_model_torque(0.0, true);
+    x.update(s);
+  });
+}
+BENCHMARK(BM_Method_KalmanExactRiccati);
+
+static void BM_Method_Fourier(benchmark::State& state) {
+  FourierObserver m(base().engine, base().wheel, base().fourier);
+  run_method(state, m, [](FourierObserver& x, const ToothSample& s) {
+    x.set_model_torque(0.0, true);
+    x.update(s);
+  });
+}
+BENCHMARK(BM_Method_Fourier);
+
+static void BM_Method_LoadRls(benchmark::State& state) {
+  LoadRls m(base().engine, base().wheel, base().energies);
+  const std::array<double, kMaxCylinders> works{};
+  run_method(state, m, [&works](LoadRls& x, const ToothSample& s) {
+    x.update(s, 60e3, true, std::nan(""), works, false);
+  });
+}
+BENCHMARK(BM_Method_LoadRls);
 
 BENCHMARK_MAIN();

@@ -28,7 +28,13 @@ roudi_pid=\$!
 for i in \$(seq 100); do grep -q "RouDi is ready" "$tmp/roudi.log" && break; sleep 0.1; done
 CYCLONEDDS_URI=file://$src/config/cyclonedds-shm.xml $(printf '%q ' "${latency[@]}")
 rc=\$?
+# ddsperf ends without unregistering from RouDi (it dies on a signal at the end of -D); RouDi's process
+# monitor removes such clients after 1.5 s without a heartbeat. Stopping RouDi before that made it abort with
+# POSH__ROUDI_PROCESS_SHUTDOWN_FAILED, so wait for the monitor first.
+sleep 2
 kill -INT \$roudi_pid; wait \$roudi_pid
+roudi_rc=\$?
+if [[ \$roudi_rc != 0 ]]; then echo "RouDi exited with \$roudi_rc:"; tail -20 "$tmp/roudi.log"; fi
 exit \$rc
 EOF
 if [[ $(id -u) == 0 ]]; then
