@@ -185,6 +185,7 @@ int Subscriber::run() {
     total += got;
     const auto now = std::chrono::steady_clock::now();
     if (got) last_data = now;
+    if (mcap_) mcap_->tick(realtime_ns());  // a chunk older than its period goes to the file (kill -9 safe)
     if (mcap_ && !mcap_->ok()) {
       std::fprintf(stderr, "torque-dash: %s: MCAP recording stopped\n", mcap_->error().c_str());
       mcap_.reset();

@@ -16,7 +16,7 @@ trap cleanup EXIT
 die() { echo "FAIL: $*"; for f in "$tmp"/*.log; do echo "--- $f"; tail -20 "$f"; done; exit 1; }
 export CYCLONEDDS_URI="file://$src/config/cyclonedds-loopback.xml"
 export NODE_PATH="$src/tools/dash/node_modules"
-[ -d "$NODE_PATH/playwright-core" ] && [ -d "$NODE_PATH/@foxglove/ws-protocol" ] && [ -d "$NODE_PATH/@mcap/core" ] ||
+[ -d "$NODE_PATH/playwright-core" ] && [ -d "$NODE_PATH/@foxglove/ws-protocol" ] && [ -d "$NODE_PATH/@mcap/core" ] && [ -d "$NODE_PATH/fzstd" ] ||
   die "npm packages missing in $NODE_PATH: run tools/scripts/setup-deps.sh"
 command -v node >/dev/null || die "node not found (tools/scripts/setup-deps.sh)"
 sed -e "s|\.\./data/demo/|$src/data/demo/|" -e "s|dbc: demo.dbc|dbc: $src/config/demo.dbc|" \
