@@ -26,11 +26,16 @@ int main(int argc, char** argv) {
   app.add_option("--zstd-level", opt.zstd_level, "zstd compression level")
       ->check(CLI::Range(1, 19))
       ->capture_default_str();
+  double period_s = static_cast<double>(opt.chunk_period_ns) / 1e9;
+  app.add_option("--chunk-period", period_s, "log time one chunk spans at most (s)")
+      ->check(CLI::Range(0.01, 3600.0))
+      ->capture_default_str();
   app.footer(
       "Exit status: 0 written (the summary line tells what was kept and dropped); 1 the input is not MCAP or "
       "the output cannot be written; 2 command-line error (unknown option, bad value, missing file).");
   TORQUED_CLI_PARSE(app, argc, argv);
   if (no_compression) opt.compression.clear();
+  opt.chunk_period_ns = static_cast<std::uint64_t>(period_s * 1e9);
   if (in == out) {
     std::fprintf(stderr, "torque-mcap-recover: the output must not be the input\n");
     return 2;

@@ -1,5 +1,6 @@
 #include "mcap_writer.hpp"
 
+#include <time.h>
 #include <zstd.h>
 
 #include <algorithm>
@@ -13,6 +14,14 @@ namespace torqued::dash {
 
 using mcap::put_le;
 using mcap::put_str;
+
+namespace {
+std::uint64_t thread_cpu_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<std::uint64_t>(ts.tv_sec) * 1'000'000'000ull + static_cast<std::uint64_t>(ts.tv_nsec);
+}
+}  // namespace
 
 McapWriter::McapWriter(const std::string& path, McapOptions opt) : opt_(std::move(opt)) {
   if (opt_.compression != "zstd" && !opt_.compression.empty()) {
@@ -134,6 +143,7 @@ void McapWriter::tick(std::uint64_t now_ns) {
 
 void McapWriter::flush_chunk() {
   if (chunk_.empty() || !f_ || !error_.empty()) return;
+  const std::uint64_t cpu0 = thread_cpu_ns();
   std::string_view packed = chunk_;
   if (zstd_) {
     packed_.resize(ZSTD_compressBound(chunk_.size()));
@@ -194,6 +204,7 @@ void McapWriter::flush_chunk() {
   // Flushed: a kill -9 after this point keeps the chunk (the page cache holds it).
   if (std::fflush(f_) != 0 && error_.empty())
     error_ = std::string("MCAP write failed: ") + std::strerror(errno);
+  chunk_cpu_ns_ += thread_cpu_ns() - cpu0;
 }
 
 void McapWriter::close() {

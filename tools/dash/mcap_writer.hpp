@@ -10,8 +10,9 @@
 // torque-mcap-recover rewrites such a file with its summary. For torque-dash: one JSON Schema and one channel
 // (message encoding "json") per topic (foxglove.hpp); log_time = receive time (CLOCK_REALTIME ns),
 // publish_time = the sample's publish_t_ns (its source_t_ns when 0: fast replay). Not real-time code:
-// torque-dash calls it from its DDS subscriber thread, which compresses a chunk inline (about 1 ms per 100 kB
-// with zstd level 3 here; docs/dashboard.md). Buffered stdio, flushed per chunk.
+// torque-dash calls it from its DDS subscriber thread (never the daemon's), which compresses each chunk
+// inline (zstd level 1: about 0.3 % of one core at the demo's 1x data rate; docs/dashboard.md). Buffered
+// stdio, flushed per chunk.
 #include <array>
 #include <cstdint>
 #include <cstdio>
@@ -29,7 +30,7 @@ namespace torqued::dash {
 
 struct McapOptions {
   std::string compression = "zstd";  ///< "zstd" or "" (chunks stored uncompressed)
-  int zstd_level = 3;
+  int zstd_level = 1;  ///< level 1: as small as 3-9 on these JSON messages, the cheapest (docs/dashboard.md)
   std::uint64_t chunk_period_ns = 500'000'000;  ///< log time one chunk spans at most
   std::size_t chunk_bytes = 4u << 20;           ///< uncompressed records that close a chunk
   std::string library = "torqued";              ///< the Header's library field
@@ -66,6 +67,8 @@ class McapWriter {
   [[nodiscard]] std::uint64_t messages() const noexcept { return messages_; }
   [[nodiscard]] std::uint64_t chunks() const noexcept { return chunk_index_.size(); }
   [[nodiscard]] std::uint64_t bytes() const noexcept { return offset_; }
+  /// Thread CPU time spent closing chunks (CRC, compression, write, flush), ns.
+  [[nodiscard]] std::uint64_t chunk_cpu_ns() const noexcept { return chunk_cpu_ns_; }
 
  private:
   struct ChannelIndex {
@@ -82,7 +85,7 @@ class McapWriter {
   std::string error_;
   McapOptions opt_;
   ZSTD_CCtx_s* zstd_ = nullptr;
-  std::uint64_t offset_ = 0;
+  std::uint64_t offset_ = 0, chunk_cpu_ns_ = 0;
   std::uint32_t crc_ = 0;  ///< running CRC32: the data section, then the summary section
   std::vector<std::string> schemas_, channels_;
   std::uint64_t messages_ = 0, start_ns_ = 0, end_ns_ = 0;
