@@ -119,6 +119,7 @@ case "$mode" in
       if (s.error) bad.push(`streamed reader: ${s.error}`);
       if (s.done) bad.push("the cut file has its closing magic");
       if (!(s.messages > 1000)) bad.push("too few messages");
+      if (!(s.records.Chunk > 1)) bad.push("not written in chunks");
       if (lost > 1000n) bad.push(`${lost} ms lost (at most 1000 expected)`);
       if (s.seqGaps) bad.push(`${s.seqGaps} seq gaps in the streamed messages`);
       if (f.indexed.error || f.indexed.messages !== s.messages) bad.push(`recovered: ${JSON.stringify(f.indexed)}`);

@@ -108,6 +108,7 @@ std::optional<ChunkView> parse_chunk(std::string_view body) {
 }
 
 std::string decompress_chunk(const ChunkView& c, std::string& out) {
+  if (c.uncompressed_size > (std::uint64_t{1} << 32)) return "chunk larger than 4 GiB (corrupt size field?)";
   out.resize(c.uncompressed_size);
   if (c.compression.empty()) {
     if (c.records.size() != c.uncompressed_size) return "uncompressed chunk size mismatch";
