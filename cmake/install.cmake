@@ -5,6 +5,7 @@
 #   /usr/share/torqued/*.py                   plot scripts (configure with -DTORQUED_SCRIPT_DIR=/usr/share/torqued)
 #   /usr/share/doc/torqued/examples/          alert rules and a Prometheus scrape configuration
 #   /usr/bin/torque-dash, /usr/share/torqued/www/   the dashboard and its page (-DTORQUED_DASH_WWW_DIR=...)
+#   /usr/bin/torque-mcap-recover              rewrites an MCAP recording cut short (kill -9)
 include(GNUInstallDirs)
 install(TARGETS torqued torque-sim torque-echo torque-eval torque-decode torque-canreplay torque-latency
                 torque-accuracy
@@ -17,7 +18,7 @@ install(FILES data/demo/edges.csv data/demo/can.log data/demo/engine.yaml config
         DESTINATION ${CMAKE_INSTALL_DATADIR}/torqued/demo)
 install(PROGRAMS tools/scripts/plot_torque.py tools/scripts/plot_latency.py DESTINATION ${CMAKE_INSTALL_DATADIR}/torqued)
 if(TARGET torque-dash)  # the README names it; built when libcivetweb-dev and nlohmann-json3-dev are there
-  install(TARGETS torque-dash RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+  install(TARGETS torque-dash torque-mcap-recover RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
   install(FILES tools/dash/www/index.html tools/dash/www/dash.js tools/dash/www/dash.css
           DESTINATION ${CMAKE_INSTALL_DATADIR}/torqued/www)
 endif()

@@ -125,6 +125,14 @@ class Subscriber {
   }
   std::uint64_t take(dds::Topic t);
   void summary() const;
+  std::string mcap_stats() const {
+    char b[128];
+    std::snprintf(b, sizeof b, "%llu (%llu chunks, %.3f s CPU writing them)",
+                  static_cast<unsigned long long>(mcap_->messages()),
+                  static_cast<unsigned long long>(mcap_->chunks()),
+                  static_cast<double>(mcap_->chunk_cpu_ns()) / 1e9);
+    return b;
+  }
 
   static constexpr int kBatch = 64;
   const Options& o_;
@@ -186,6 +194,7 @@ int Subscriber::run() {
     total += got;
     const auto now = std::chrono::steady_clock::now();
     if (got) last_data = now;
+    if (mcap_) mcap_->tick(realtime_ns());  // a chunk older than its period goes to the file (kill -9 safe)
     if (mcap_ && !mcap_->ok()) {
       std::fprintf(stderr, "torque-dash: %s: MCAP recording stopped\n", mcap_->error().c_str());
       mcap_.reset();
@@ -219,7 +228,7 @@ void Subscriber::summary() const {
       static_cast<unsigned long long>(h.messages_sent), static_cast<unsigned long long>(h.messages_dropped),
       static_cast<unsigned long long>(h.subscriptions_refused),
       static_cast<unsigned long long>(h.engines_expired), static_cast<unsigned long long>(h.unplaced),
-      mcap_ ? "; MCAP messages " : "", mcap_ ? std::to_string(mcap_->messages()).c_str() : "");
+      mcap_ ? "; MCAP messages " : "", mcap_ ? mcap_stats().c_str() : "");
 }
 
 }  // namespace
@@ -240,7 +249,8 @@ int main(int argc, char** argv) {
   app.add_option("--js-dir", o.js_dir, "Debian's JavaScript directory (chart.js/chart.min.js)");
   app.add_option("--period-ms", o.period_ms, "dashboard update period (ms)")->check(CLI::Range(10, 5000));
   app.add_option("--record-mcap", o.mcap,
-                 "record every topic to this MCAP file (JSON messages, JSON Schema)");
+                 "record every topic to this MCAP file (JSON messages, JSON Schema; zstd chunks of at most "
+                 "0.5 s, indexed; after a kill -9: torque-mcap-recover)");
   app.add_option("--record", o.record_dir,
                  "also record CSV files (torque-echo's format) into this directory");
   app.add_option("--port-file", o.port_file, "write the bound HTTP port to this file once listening");

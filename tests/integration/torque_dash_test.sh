@@ -5,10 +5,11 @@
 #   foxglove  @foxglove/ws-protocol's client subscribes to every channel: schema-valid messages equal to the
 #             daemon's CSV recording, none missing
 #   mcap      --record-mcap read back with @mcap/core: every message equal to the daemon's CSV recording
-# Args: mode torque-dash torqued source-dir artifacts-dir domain-id. Node packages: tools/dash/node_modules
+#   mcap_kill --record-mcap killed with kill -9 mid-replay: streamed reader loses under 1 s; torque-mcap-recover
+# Args: mode torque-dash torqued source-dir artifacts-dir domain-id [torque-mcap-recover]. Node packages: tools/dash/node_modules
 # (tools/scripts/setup-deps.sh).
 set -u
-mode=$1 dash=$2 torqued=$3 src=$4 artifacts=$5 domain=$6
+mode=$1 dash=$2 torqued=$3 src=$4 artifacts=$5 domain=$6 recover=${7:-}
 tmp=$(mktemp -d)
 pids=""
 cleanup() { for p in $pids; do kill "$p" 2>/dev/null; done; rm -rf "$tmp"; }
@@ -16,7 +17,7 @@ trap cleanup EXIT
 die() { echo "FAIL: $*"; for f in "$tmp"/*.log; do echo "--- $f"; tail -20 "$f"; done; exit 1; }
 export CYCLONEDDS_URI="file://$src/config/cyclonedds-loopback.xml"
 export NODE_PATH="$src/tools/dash/node_modules"
-[ -d "$NODE_PATH/playwright-core" ] && [ -d "$NODE_PATH/@foxglove/ws-protocol" ] && [ -d "$NODE_PATH/@mcap/core" ] ||
+[ -d "$NODE_PATH/playwright-core" ] && [ -d "$NODE_PATH/@foxglove/ws-protocol" ] && [ -d "$NODE_PATH/@mcap/core" ] && [ -d "$NODE_PATH/fzstd" ] ||
   die "npm packages missing in $NODE_PATH: run tools/scripts/setup-deps.sh"
 command -v node >/dev/null || die "node not found (tools/scripts/setup-deps.sh)"
 sed -e "s|\.\./data/demo/|$src/data/demo/|" -e "s|dbc: demo.dbc|dbc: $src/config/demo.dbc|" \
@@ -94,6 +95,37 @@ case "$mode" in
     node "$src/tests/integration/dash/mcap_check.cjs" "$tmp/run.mcap" "$tmp/rec" "$tmp/dash.log" > "$tmp/node.log" 2>&1 ||
       die "MCAP checks failed"
     cat "$tmp/node.log" ;;
+  mcap_kill)
+    # kill -9 in the middle of a 1x replay: the file has no summary; the streamed reader reads it up to the last
+    # flushed chunk, which ends less than 1 s before the kill; torque-mcap-recover makes it indexed again.
+    start_dash --record-mcap "$tmp/run.mcap"
+    start_daemon 1
+    i=0; while [ "$(stat -c %s "$tmp/run.mcap" 2>/dev/null || echo 0)" -lt 200000 ]; do
+      i=$((i + 1)); [ $i -gt 300 ] && die "no MCAP data within 30 s"; sleep 0.1; done
+    sleep "$(awk 'BEGIN { srand(); printf "%.2f", 2 + rand() }')"  # at any phase of the chunk period
+    kill_ns=$(date +%s%N); kill -9 "$dash_pid"; wait "$dash_pid" 2>/dev/null
+    kill "$daemon_pid"; wait "$daemon_pid" 2>/dev/null
+    node "$src/tests/integration/dash/mcap_read.cjs" "$tmp/run.mcap" > "$tmp/cut.json" || die "reader failed"
+    "$recover" "$tmp/run.mcap" "$tmp/fixed.mcap" > "$tmp/recover.log" 2>&1 || die "torque-mcap-recover failed"
+    node "$src/tests/integration/dash/mcap_read.cjs" "$tmp/fixed.mcap" > "$tmp/fixed.json" || die "reader failed"
+    cat "$tmp/recover.log"
+    node -e '
+      const [cut, fixed, killNs] = [1, 2, 3].map(i => process.argv[i]);
+      const c = require(cut), f = require(fixed), s = c.stream, lost = (BigInt(killNs) - BigInt(s.lastLogTime)) / 1000000n;
+      console.log(`cut file: indexed reader: ${c.indexed.error || c.indexed.messages + " messages"}`);
+      console.log(`cut file: streamed reader ${s.messages} messages in ${s.records.Chunk} chunks, the last ` +
+                  `${lost} ms before the kill; recovered: indexed reader ${f.indexed.messages} messages`);
+      const bad = [];
+      if (s.error) bad.push(`streamed reader: ${s.error}`);
+      if (s.done) bad.push("the cut file has its closing magic");
+      if (!(s.messages > 1000)) bad.push("too few messages");
+      if (!(s.records.Chunk > 1)) bad.push("not written in chunks");
+      if (lost > 1000n) bad.push(`${lost} ms lost (at most 1000 expected)`);
+      if (s.seqGaps) bad.push(`${s.seqGaps} seq gaps in the streamed messages`);
+      if (f.indexed.error || f.indexed.messages !== s.messages) bad.push(`recovered: ${JSON.stringify(f.indexed)}`);
+      if (bad.length) { console.log("FAIL: " + bad.join("; ")); process.exit(1); }' \
+      "$tmp/cut.json" "$tmp/fixed.json" "$kill_ns" || die "kill -9 checks failed"
+    touch "$tmp/dash.log" ;;
   *) die "unknown mode $mode" ;;
 esac
 grep "torque-dash:" "$tmp/dash.log" | tail -2

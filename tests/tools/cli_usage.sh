@@ -12,7 +12,7 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
 for b in service/torqued tools/torque-sim tools/torque-echo tools/torque-eval tools/torque-decode \
-         tools/torque-canreplay tools/torque-latency tools/torque-accuracy; do
+         tools/torque-canreplay tools/torque-latency tools/torque-accuracy tools/torque-mcap-recover; do
   [[ -x "$build/$b" ]] || continue
   "$build/$b" --help >"$tmp/help" 2>&1 || fail "$b --help exit $?"
   grep -q "Exit status" "$tmp/help" || fail "$b --help does not list its exit statuses"

@@ -16,6 +16,7 @@ PKGS=(
   python3 python3-matplotlib python3-numpy
   debhelper dpkg-dev help2man lintian
   libcivetweb-dev nlohmann-json3-dev libjs-chart.js   # torque-dash (HTTP/WebSocket server, JSON, page plots)
+  libzstd-dev zlib1g-dev   # torque-dash MCAP recordings (zstd chunks, CRC32)
 )
 # Extra packages only the heavier test tiers need (VM for vcan, latency tools, foreign DDS peer, iceoryx RouDi
 # for the shared-memory test, a real Prometheus server scraping the metrics endpoint).

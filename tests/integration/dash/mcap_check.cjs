@@ -1,16 +1,20 @@
-// Reads torque-dash's MCAP recording with the MCAP reference reader (@mcap/core McapStreamReader, which
-// validates the record structure, magic and footer) and compares its messages with the daemon's CSV recording.
+// Reads torque-dash's MCAP recording with the MCAP reference reader (@mcap/core; zstd chunks through fzstd):
+// McapStreamReader (record structure, magic, footer, chunk CRCs) and McapIndexedReader (summary CRC, chunk and
+// message indexes); compares the messages with the daemon's CSV recording.
 // Usage: node mcap_check.cjs FILE.mcap RECORDING_DIR DASH_LOG. Exit 0 = pass.
 'use strict';
 const fs = require('fs');
-const {McapStreamReader} = require('@mcap/core');
+const {McapStreamReader, McapIndexedReader} = require('@mcap/core');
+const fzstd = require('fzstd');
 const {loadRecording, compare, checkSchema, parseDashSummary, accountFor} = require('./compare.cjs');
+const decompressHandlers = {zstd: (buf, size) => fzstd.decompress(buf, new Uint8Array(Number(size)))};
 
 const [file, recDir, dashLog] = process.argv.slice(2);
 const fail = msg => { console.error(`FAIL: ${msg}`); process.exitCode = 1; };
 
-const reader = new McapStreamReader({validateCrcs: true});
-reader.append(new Uint8Array(fs.readFileSync(file)));
+const bytes = new Uint8Array(fs.readFileSync(file));
+const reader = new McapStreamReader({validateCrcs: true, decompressHandlers, includeChunks: true});
+reader.append(bytes);
 const schemas = new Map(), channels = new Map(), types = {}, samples = [];
 let stats = null, schemaErrors = [], lastLogTime = 0n, order = 0;
 const decoder = new TextDecoder();
@@ -50,4 +54,18 @@ if (!(rec.counts.EngineTorque > 1000)) fail(`too few EngineTorque rows (${rec.co
 const cmp = compare(samples, rec, 'mcap');
 if (cmp.problemCount) fail(`${cmp.problemCount} mismatches: ${cmp.problems.join(' | ')}`);
 console.log(`compared with the CSV recording: ${cmp.matched} samples equal`);
-if (!process.exitCode) console.log('mcap: all checks passed');
+
+// The indexed reader: every message through the chunk indexes and message indexes, the summary CRC checked.
+(async () => {
+  const readable = {size: async () => BigInt(bytes.length),
+                    read: async (offset, length) => bytes.subarray(Number(offset), Number(offset + length))};
+  const ix = await McapIndexedReader.Initialize({readable, decompressHandlers});
+  let n = 0;
+  for await (const m of ix.readMessages({validateCrcs: true})) if (m.channelId) ++n;
+  const written = Number((fs.readFileSync(dashLog, 'utf8').match(/MCAP messages (\d+)/) || [])[1]);
+  console.log(`indexed reader: ${n} messages in ${ix.chunkIndexes.length} chunks ` +
+              `(${[...new Set(ix.chunkIndexes.map(c => c.compression))]}); torque-dash wrote ${written}`);
+  if (n !== samples.length || n !== written) fail(`indexed reader ${n}, streamed ${samples.length}, written ${written}`);
+  if (!ix.chunkIndexes.length || ix.chunkIndexes.some(c => c.compression !== 'zstd')) fail('chunks not zstd');
+  if (!process.exitCode) console.log('mcap: all checks passed');
+})().catch(e => fail(`indexed reader: ${e.message || e}`));
