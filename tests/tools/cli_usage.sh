@@ -34,7 +34,7 @@ awk 'BEGIN { print "cycle,t_start_s,t_end_s,t_brake_mean_nm,t_ind_mean_nm";
   fail "unknown estimate column: exit $rc, $(cat "$tmp/err")"
 "$ev" -e "$tmp/missing.csv" -t "$tmp/truth.csv" -c a=b >/dev/null 2>&1; rc=$?
 ((rc == 2)) || fail "torque-eval with a missing file: exit $rc, expected 2"
-out=$("$ev" -e "$tmp/est.csv" -t "$tmp/truth.csv" -c fused_nm=t_brake_mean_nm -c brake_nm=t_brake_mean_nm \
+out=$("$ev" -e "$tmp/est.csv" -t "$tmp/truth.csv" --time-ref end -c fused_nm=t_brake_mean_nm -c brake_nm=t_brake_mean_nm \
       -c fused_nm=t_ind_mean_nm --plot "$tmp/p.png" 2>&1) || fail "torque-eval: $out"
 grep -q "max|err|" <<<"$out" && ! grep -q "MAE(max)" <<<"$out" || fail "accuracy column not named max|err|: $out"
 (($(grep -c "^plot:" <<<"$out") == 1)) || fail "'plot:' not printed exactly once: $out"
