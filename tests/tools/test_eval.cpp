@@ -61,11 +61,13 @@ TEST(EvalMetrics, PhaseLagOfAShiftedWaveform) {
     return 80.0 * std::sin(2 * std::numbers::pi * deg / 180.0) +
            20.0 * std::sin(2 * std::numbers::pi * deg / 90.0 + 0.4);
   };
-  for (double a = 0; a <= 7200; a += 6.0) {
+  for (int k = 0; k <= 1200; ++k) {  // 0..7200 deg by 6
+    const double a = 6.0 * k;
     ta.push_back(a);
     tv.push_back(wave(a));
   }
-  for (double a = 100; a <= 7000; a += 6.0) {
+  for (int k = 0; 100.0 + 6.0 * k <= 7000.0; ++k) {  // 100..7000 deg by 6
+    const double a = 100.0 + 6.0 * k;
     ea.push_back(a);
     ev.push_back(wave(a - 12.0));
     ea2.push_back(a);
