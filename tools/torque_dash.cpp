@@ -26,6 +26,7 @@
 #include "qos.hpp"
 #include "sample.hpp"
 #include "sample_recorder.hpp"
+#include "share_dir.hpp"
 
 namespace {
 volatile sig_atomic_t g_stop = 0;
@@ -38,7 +39,7 @@ struct Options {
   std::optional<std::uint32_t> domain;
   std::optional<std::string> prefix;
   std::string listen = "127.0.0.1:8080";
-  std::string www = TORQUE_DASH_WWW;
+  std::string www = torqued::tools::share_path("www");  // PREFIX/share/torqued/www
   std::string js_dir = "/usr/share/javascript";
   std::string mcap, record_dir, port_file;
   int period_ms = 100;

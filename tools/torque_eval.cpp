@@ -11,10 +11,7 @@
 
 #include "cli_exit.hpp"
 #include "evaluator.hpp"
-
-#ifndef TORQUED_PLOT_SCRIPT
-#define TORQUED_PLOT_SCRIPT "tools/scripts/plot_torque.py"
-#endif
+#include "share_dir.hpp"
 
 namespace {
 
@@ -37,8 +34,8 @@ std::string shell_quote(const std::string& s) {
 
 int main(int argc, char** argv) {
   CLI::App app{"torque-eval: error metrics of a torque estimate against the simulator's ground truth"};
-  std::string est_path, truth_cycle, truth_tooth, plot, plot_script = TORQUED_PLOT_SCRIPT, time_ref = "auto",
-                                                        title;
+  std::string est_path, truth_cycle, truth_tooth, plot,
+      plot_script = torqued::tools::share_path("plot_torque.py"), time_ref = "auto", title;
   std::string misfire;
   std::vector<std::string> columns, where;
   torqued::eval::EvalOptions opt;
@@ -68,7 +65,9 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"auto", "sample", "mid", "end"}));
   app.add_option("--max-lag", opt.max_lag_deg, "phase-lag search range (crank deg)")->capture_default_str();
   app.add_option("--plot", plot, "write a PNG of estimated vs true torque");
-  app.add_option("--plot-script", plot_script, "plot script (run with /usr/bin/python3)")
+  app.add_option(
+         "--plot-script", plot_script,
+         "plot script, run with /usr/bin/python3 (default: in PREFIX/share/torqued next to PREFIX/bin)")
       ->capture_default_str();
   app.add_option("--title", title, "plot title");
   app.footer(
