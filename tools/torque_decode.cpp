@@ -173,10 +173,9 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("--plot", o.plot,
                  "PNG: speed per tooth with gaps, glitches and sync losses marked (python3-matplotlib)");
   app.add_option(
-         "--plot-script", o.plot_script,
-         "plot script, run with /usr/bin/python3 (default: plot_decode.py in PREFIX/share/torqued next "
-         "to this executable's PREFIX/bin)")
-      ->capture_default_str();
+      "--plot-script", o.plot_script,
+      "plot script, run with /usr/bin/python3 (default: plot_decode.py in PREFIX/share/torqued next "
+      "to this executable's PREFIX/bin)");
   app.add_flag("-q,--quiet", o.quiet, "no progress display");
   app.footer(
       "Exit status: 0 done; 1 an input could not be read or parsed, or an output not written; 2 command-line "

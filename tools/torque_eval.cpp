@@ -66,9 +66,8 @@ int main(int argc, char** argv) {
   app.add_option("--max-lag", opt.max_lag_deg, "phase-lag search range (crank deg)")->capture_default_str();
   app.add_option("--plot", plot, "write a PNG of estimated vs true torque");
   app.add_option(
-         "--plot-script", plot_script,
-         "plot script, run with /usr/bin/python3 (default: in PREFIX/share/torqued next to PREFIX/bin)")
-      ->capture_default_str();
+      "--plot-script", plot_script,
+      "plot script, run with /usr/bin/python3 (default: in PREFIX/share/torqued next to PREFIX/bin)");
   app.add_option("--title", title, "plot title");
   app.footer(
       "Exit status: 0 done (table printed, plot written); 1 a CSV could not be read or parsed, a column is "

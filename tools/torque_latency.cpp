@@ -339,9 +339,8 @@ int main(int argc, char** argv) {
       "write a PNG: the latency distributions (tail on a log scale, p50 region as a histogram) next "
       "to cyclictest's, with the targets");
   app.add_option(
-         "--plot-script", plot_script,
-         "plot script, run with /usr/bin/python3 (default: in PREFIX/share/torqued next to PREFIX/bin)")
-      ->capture_default_str();
+      "--plot-script", plot_script,
+      "plot script, run with /usr/bin/python3 (default: in PREFIX/share/torqued next to PREFIX/bin)");
   app.add_option("--title", title, "plot title");
   app.add_option(
          "--daemon-env", daemon_env,
