@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # ctest tools.install_tree (label integration): the installed tree stands alone.
 #   1. `cmake --install` into a throw-away root (DESTDIR, prefix /usr: the package's layout);
-#   2. no installed file names the build or the source directory (no compiled-in build-tree path);
+#   2. no installed file names the build or the source directory (no compiled-in build-tree path), nor does any
+#      tool's --help (the package's man pages are made from it);
 #   3. the installed torque-decode --plot runs its installed plot script (PREFIX/share/torqued/plot_decode.py);
 #   4. the demo's accuracy figure reproduces from the installed files alone (demo.yaml, recording and truth under
 #      /usr/share/torqued/demo): the same torque-eval row as the build tree's README command;
@@ -22,6 +23,10 @@ hits=$(grep -rlF -e "$build" -e "$src" "$root" 2>/dev/null)
 $hits
 $(for f in $hits; do strings "$f" | grep -F -e "$src" | head -3; done)"
 echo "no installed file names $src or $build"
+# The package's man pages are each tool's --help (help2man): no path of the build may show there either.
+for b in "$root"/usr/bin/*; do
+  "$b" --help 2>&1 | grep -qF -e "$build" -e "$src" && fail "$(basename "$b") --help shows a build path"
+done
 
 share=$root/usr/share/torqued
 for f in plot_torque.py plot_latency.py plot_decode.py demo/demo.yaml demo/truth_cycle.csv www/index.html; do
