@@ -24,6 +24,7 @@
 #include <array>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <string>
@@ -153,7 +154,7 @@ void histogram(const Stats& s, const char* title) {
   double lo = 0;
   for (std::size_t i = 0; i < 14; ++i) {
     const int bar =
-        static_cast<int>(60.0 * static_cast<double>(n[i]) / static_cast<double>(s.us.size()) + 0.5);
+        static_cast<int>(std::lround(60.0 * static_cast<double>(n[i]) / static_cast<double>(s.us.size())));
     if (i < 13)
       std::printf("  %6.0f-%-6.0f %8zu %s\n", lo, edges[i], n[i],
                   std::string(static_cast<std::size_t>(bar), '#').c_str());
