@@ -227,7 +227,7 @@ std::string AngleChain::import_state(const LearnedState& st) {
       what += (what.empty() ? "" : ", ") + std::string("inertia scale ") + std::to_string(v[0] * r);
     } else {
       what += std::string(what.empty() ? "" : ", ") + "inertia scale REJECTED (" + std::to_string(v[0] * r) +
-              " x engine.j_rot_kgm2 outside the configured bounds)";
+              " x engine.j_rot_kgm2, not within its configured limits)";
     }
   }
   state_changed_ = !what.empty();

@@ -190,8 +190,9 @@ struct OutputConfig {
 
 struct ReplayConfig {
   ReplayMode mode = ReplayMode::kFast;
-  double speed = 1.0;           ///< paced replay speed factor (2 = twice real time)
-  bool exit_when_done = false;  ///< paced replay: exit once the recording is consumed (= --exit-when-done)
+  double speed = 1.0;  ///< paced replay speed factor (2 = twice real time)
+  /// Paced replay of files that does not loop: exit (0) once the recording is consumed (= --exit-when-done).
+  bool exit_when_done = true;
   bool loop = false;  ///< paced replay of files: start the recording again at its end (io/looping_source.hpp)
 };
 

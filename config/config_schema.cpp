@@ -408,8 +408,9 @@ void add_rest(std::vector<SchemaEntry>& t) {
                      "paced replay speed factor"));
   t.push_back(
       boolean("replay.exit_when_done", TQ_REF(bool, replay.exit_when_done),
-              "paced replay: exit (status 0) once the recording is consumed; else keep running and say so "
-              "(= --exit-when-done)"));
+              "paced replay of files that does not loop (replay.loop false): exit (status 0) once the "
+              "recording is consumed; false: keep running in a steady done state (every DaemonStatus has "
+              "REPLAY_DONE; the ended input does not degrade health). --exit-when-done forces it on"));
   t.push_back(
       boolean("replay.loop", TQ_REF(bool, replay.loop),
               "paced replay of files: start the recording again at its end, times shifted by its length "

@@ -27,7 +27,8 @@ struct RuntimeCounters {
 /// Builds the status sample from the counters (monotonic, whole run) and what changed since `prev` (the
 /// previous status): DROPS and OVERRUNS say "since the previous status" and clear when the condition has
 /// gone; the counters keep the history. Health: DEGRADED while any condition flag is set, FAILED when not
-/// synced and no edges come.
+/// synced and no edges come; once REPLAY_DONE, the ended input's flags (no sync, edge/CAN timeout) do not
+/// count.
 inline dds::AnySample make_status(const RuntimeCounters& c, const RuntimeCounters& prev, std::uint64_t seq,
                                   std::int64_t source_t_ns, std::int64_t uptime_ns) noexcept {
   dds::AnySample a;
@@ -65,11 +66,17 @@ inline dds::AnySample make_status(const RuntimeCounters& c, const RuntimeCounter
   if (dropped(c) > dropped(prev)) s.flags |= torque_STATUS_DROPS;
   if (c.overruns > prev.overruns) s.flags |= torque_STATUS_OVERRUNS;
   s.health = torque_DAEMON_OK;
-  if (s.flags & (torque_STATUS_NO_SYNC | torque_STATUS_CAN_TIMEOUT | torque_STATUS_DROPS |
-                 torque_STATUS_OVERRUNS | torque_STATUS_EDGE_TIMEOUT | torque_STATUS_RT_NOT_PERMITTED |
-                 torque_STATUS_MLOCK_FAILED | torque_STATUS_RECORD_ERROR))
+  // A replay that has consumed its recording is done, not faulty: no sync, no edges and stale CAN are what
+  // its end looks like, and do not degrade health (the flags still say so).
+  const bool done = (s.flags & torque_STATUS_REPLAY_DONE) != 0;
+  const std::uint32_t input_ended =
+      done ? (torque_STATUS_NO_SYNC | torque_STATUS_CAN_TIMEOUT | torque_STATUS_EDGE_TIMEOUT) : 0u;
+  if (s.flags & ~input_ended &
+      (torque_STATUS_NO_SYNC | torque_STATUS_CAN_TIMEOUT | torque_STATUS_DROPS | torque_STATUS_OVERRUNS |
+       torque_STATUS_EDGE_TIMEOUT | torque_STATUS_RT_NOT_PERMITTED | torque_STATUS_MLOCK_FAILED |
+       torque_STATUS_RECORD_ERROR))
     s.health = torque_DAEMON_DEGRADED;
-  if (!c.synced && (s.flags & torque_STATUS_EDGE_TIMEOUT)) s.health = torque_DAEMON_FAILED;
+  if (!done && !c.synced && (s.flags & torque_STATUS_EDGE_TIMEOUT)) s.health = torque_DAEMON_FAILED;
   if (!c.synced) s.validity |= torque_VALIDITY_NO_SYNC;
   return a;
 }

@@ -140,6 +140,9 @@ int main(int argc, char** argv) {
   if (*speed_opt) run.speed = speed;
   if (*record_opt) run.record_dir = record_dir;
   if (*state_opt) run.state_dir = state_dir;
-  if (r.config->replay.exit_when_done) run.exit_when_done = true;  // config twin of --exit-when-done
+  // Config twin of --exit-when-done, for the replays that end: file inputs, not looped (live inputs never
+  // end).
+  const bool file_inputs = r.config->inputs.edges.backend == torqued::EdgeBackend::kFile;
+  if (r.config->replay.exit_when_done && !r.config->replay.loop && file_inputs) run.exit_when_done = true;
   return torqued::run_daemon(*r.config, run);
 }

@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <exception>
+#include <limits>
 
 #include "clocks.hpp"
 #include "signal_store.hpp"
@@ -91,11 +92,13 @@ void status_families(const torque_DaemonStatus& s, bool have, std::vector<Metric
          static_cast<double>(s.publisher_polls));
   single(out, "torqued_publisher_poll_misses_total", "pre-wakes that ended without the edge's samples", C,
          static_cast<double>(s.publisher_poll_misses));
+  // A gauge per statistic (label stat, not quantile: a quantile label belongs to a summary, whose _sum and
+  // _count a status period does not carry; promtool check metrics refuses it on a gauge).
   auto& lat = family(out, "torqued_latency_period_seconds",
                      "ingest -> publish latency over the last status period (DaemonStatus p50/p99/max)", G);
-  add(lat, static_cast<double>(s.latency_p50_ns) * 1e-9, {{"quantile", "0.5"}});
-  add(lat, static_cast<double>(s.latency_p99_ns) * 1e-9, {{"quantile", "0.99"}});
-  add(lat, static_cast<double>(s.latency_max_ns) * 1e-9, {{"quantile", "1"}});
+  add(lat, static_cast<double>(s.latency_p50_ns) * 1e-9, {{"stat", "p50"}});
+  add(lat, static_cast<double>(s.latency_p99_ns) * 1e-9, {{"stat", "p99"}});
+  add(lat, static_cast<double>(s.latency_max_ns) * 1e-9, {{"stat", "max"}});
   single(out, "torqued_uptime_seconds", "time since the pipelines started", G,
          static_cast<double>(s.uptime_ns) * 1e-9);
   single(out, "torqued_source_time_seconds", "newest edge-clock time processed", G,
@@ -105,10 +108,52 @@ void status_families(const torque_DaemonStatus& s, bool have, std::vector<Metric
          have && !(s.flags & torque_STATUS_NO_SYNC) ? 1 : 0);
   auto& flags = family(out, "torqued_status_flag", "DaemonStatus.flags, one series per bit (1 = set)", G);
   for (const auto& [bit, name] : kFlags) add(flags, (s.flags & bit) ? 1 : 0, {{"flag", name}});
+  single(out, "torqued_replay_done",
+         "1 once a replay has consumed its recording (stays 1 until the daemon stops; 0 live or still "
+         "replaying)",
+         G, (s.flags & torque_STATUS_REPLAY_DONE) ? 1 : 0);
   auto& st = family(out, "torqued_sensor_timeout",
                     "1 while that CAN quantity is stale (DaemonStatus.sensor_timeouts)", G);
   for (int q = 0; q < kQuantityCount; ++q)
     add(st, (s.sensor_timeouts >> q) & 1u, {{"signal", quantity_name(static_cast<Quantity>(q))}});
+}
+
+/// Per method: the in-cycle methods (registry flag in_cycle: Kalman, Fourier) are instantaneous torques
+/// within the cycle (hundreds of N m either way of the mean), so they have a family of their own next to the
+/// means.
+template <class Current>
+void estimator_families(const MetricsTap& t, const Current& current, std::vector<MetricFamily>& out) {
+  const auto G = MetricType::Gauge;
+  auto& val =
+      family(out, "torqued_estimator_torque_nm",
+             "last EstimatorTorque.value_nm of the methods giving a mean torque (per cycle, segment or "
+             "time-filtered); NaN: none for 2 s, or health failed",
+             G);
+  auto& inst =
+      family(out, "torqued_estimator_in_cycle_torque_nm",
+             "last EstimatorTorque.value_nm of the in-cycle methods: the instantaneous torque at one "
+             "tooth, not a mean; NaN: none for 2 s, or health failed",
+             G);
+  auto& unc = family(
+      out, "torqued_estimator_uncertainty",
+      "last EstimatorTorque.uncertainty per method (1-sigma N m, or excitation level for adaptive)", G);
+  auto& hl =
+      family(out, "torqued_estimator_health",
+             "last EstimatorTorque.health per method: 0 valid, 1 not "
+             "converged, 2 not excited, 3 stale input, 4 invalid input, 5 no sync, 6 numerical, 7 disabled",
+             G);
+  auto& n = family(out, "torqued_estimator_samples_total", "EstimatorTorque samples per method",
+                   MetricType::Counter);
+  for (int m = 0; m < dds::kMethodCount; ++m) {
+    const auto& x = t.method[static_cast<std::size_t>(m)];
+    const std::uint64_t k = x.samples.load(kRelaxed);
+    if (k == 0) continue;  // method disabled or not producing: no series (absent, not a stale 0)
+    const Labels l{{"method", std::string(dds::kMethods[m].name)}};
+    add(dds::kMethods[m].in_cycle ? inst : val, current(x.value, x.at_ns), l);
+    add(unc, current(x.uncertainty, x.at_ns), l);
+    add(hl, x.health.load(kRelaxed), l);
+    add(n, static_cast<double>(k), l);
+  }
 }
 
 void tap_families(const MetricsTap& t, std::vector<MetricFamily>& out) {
@@ -127,42 +172,29 @@ void tap_families(const MetricsTap& t, std::vector<MetricFamily>& out) {
   h.histogram.sample_sum = static_cast<double>(t.latency_sum_ns.load(kRelaxed)) * 1e-9;
   hist.metric.push_back(std::move(h));
 
-  auto& val = family(out, "torqued_estimator_torque_nm", "last EstimatorTorque.value_nm per method",
-                     MetricType::Gauge);
-  auto& unc = family(out, "torqued_estimator_uncertainty",
-                     "last EstimatorTorque.uncertainty per method (1-sigma N m, "
-                     "or excitation level for adaptive)",
-                     MetricType::Gauge);
-  auto& hl =
-      family(out, "torqued_estimator_health",
-             "last EstimatorTorque.health per method: 0 valid, 1 not "
-             "converged, 2 not excited, 3 stale input, 4 invalid input, 5 no sync, 6 numerical, 7 disabled",
-             MetricType::Gauge);
-  auto& n = family(out, "torqued_estimator_samples_total", "EstimatorTorque samples per method",
-                   MetricType::Counter);
-  for (int m = 0; m < dds::kMethodCount; ++m) {
-    const auto& x = t.method[static_cast<std::size_t>(m)];
-    const std::uint64_t k = x.samples.load(kRelaxed);
-    if (k == 0) continue;  // method disabled or not producing: no series (absent, not a stale 0)
-    const Labels l{{"method", std::string(dds::kMethods[m].name)}};
-    add(val, x.value.load(kRelaxed), l);
-    add(unc, x.uncertainty.load(kRelaxed), l);
-    add(hl, x.health.load(kRelaxed), l);
-    add(n, static_cast<double>(k), l);
-  }
+  const std::int64_t now = realtime_ns();
+  const bool failed = t.failed.load(kRelaxed);
+  // The newest value, or NaN when it is stale or the daemon's health is failed (not a frozen last value).
+  const auto current = [&](const std::atomic<double>& v, const std::atomic<std::int64_t>& at) {
+    return failed || now - at.load(kRelaxed) > kStaleAfterNs ? std::numeric_limits<double>::quiet_NaN()
+                                                             : v.load(kRelaxed);
+  };
+  estimator_families(t, current, out);
   auto& et = family(out, "torqued_engine_torque_nm",
-                    "last EngineTorque per kind (segment|cycle) and quantity", MetricType::Gauge);
+                    "last EngineTorque per kind (segment|cycle) and quantity; NaN: none for 2 s, or health "
+                    "failed",
+                    MetricType::Gauge);
   auto& eq = family(out, "torqued_engine_quality",
                     "last EngineTorque.quality (Health code of the fused estimate)", MetricType::Gauge);
   for (int k = 0; k < kEngineKinds; ++k) {
     const auto& e = t.engine[static_cast<std::size_t>(k)];
     if (e.samples.load(kRelaxed) == 0) continue;
     const std::string kind = k == torque_KIND_CYCLE ? "cycle" : "segment";
-    add(et, e.brake.load(kRelaxed), {{"kind", kind}, {"quantity", "brake"}});
-    add(et, e.indicated.load(kRelaxed), {{"kind", kind}, {"quantity", "indicated"}});
-    add(et, e.friction.load(kRelaxed), {{"kind", kind}, {"quantity", "friction"}});
-    add(et, e.load.load(kRelaxed), {{"kind", kind}, {"quantity", "load"}});
-    add(et, e.fused.load(kRelaxed), {{"kind", kind}, {"quantity", "fused"}});
+    add(et, current(e.brake, e.at_ns), {{"kind", kind}, {"quantity", "brake"}});
+    add(et, current(e.indicated, e.at_ns), {{"kind", kind}, {"quantity", "indicated"}});
+    add(et, current(e.friction, e.at_ns), {{"kind", kind}, {"quantity", "friction"}});
+    add(et, current(e.load, e.at_ns), {{"kind", kind}, {"quantity", "load"}});
+    add(et, current(e.fused, e.at_ns), {{"kind", kind}, {"quantity", "fused"}});
     add(eq, e.quality.load(kRelaxed), {{"kind", kind}});
   }
   single(out, "torqued_crank_sync_state",
@@ -187,8 +219,9 @@ void state_families(const std::string& file, std::vector<MetricFamily>& out) {
 
 void MetricsTap::emit(const dds::AnySample& s) noexcept {
   const std::int64_t ingest = s.visit([](const auto& v) { return v.ingest_t_ns; });
+  const std::int64_t now = realtime_ns();
   if (ingest > 0 && s.topic != dds::Topic::kDaemonStatus) {
-    const std::int64_t lat = realtime_ns() - ingest;
+    const std::int64_t lat = now - ingest;
     const double sec = static_cast<double>(lat) * 1e-9;
     std::size_t b = 0;
     while (b < kLatencyBuckets.size() && sec > kLatencyBuckets[b]) ++b;
@@ -204,6 +237,7 @@ void MetricsTap::emit(const dds::AnySample& s) noexcept {
         m.value.store(e.value_nm, kRelaxed);
         m.uncertainty.store(e.uncertainty, kRelaxed);
         m.health.store(e.health, kRelaxed);
+        m.at_ns.store(now, kRelaxed);
         m.samples.fetch_add(1, kRelaxed);
       }
       break;
@@ -217,11 +251,14 @@ void MetricsTap::emit(const dds::AnySample& s) noexcept {
       x.load.store(e.load_nm, kRelaxed);
       x.fused.store(e.fused_nm, kRelaxed);
       x.quality.store(e.quality, kRelaxed);
+      x.at_ns.store(now, kRelaxed);
       x.samples.fetch_add(1, kRelaxed);
       break;
     }
     case dds::Topic::kDaemonStatus:
       status.store(s.u.status);
+      failed.store(s.u.status.health == torque_DAEMON_FAILED, kRelaxed);
+      if (s.u.status.flags & torque_STATUS_REPLAY_DONE) replay_done.store(true, kRelaxed);
       break;
     case dds::Topic::kCrankState:
       sync_state.store(s.u.crank.sync, kRelaxed);
@@ -300,6 +337,7 @@ std::vector<MetricFamily> MetricsServer::collect() const {
     s = status_;
     have = have_status_;
   }
+  if (tap_.replay_done.load(kRelaxed)) s.flags |= torque_STATUS_REPLAY_DONE;  // a state: kept once seen
   status_families(s, have, out);
   tap_families(tap_, out);
   state_families(state_file_, out);

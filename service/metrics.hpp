@@ -40,6 +40,10 @@ namespace torqued::metrics {
 inline constexpr std::array<double, 12> kLatencyBuckets = {25e-6,  50e-6, 100e-6, 250e-6, 500e-6, 1e-3,
                                                            2.5e-3, 5e-3,  10e-3,  25e-3,  50e-3,  100e-3};
 inline constexpr int kEngineKinds = 2;  ///< KIND_SEGMENT, KIND_CYCLE
+/// A torque gauge without a new sample for this long (wall clock) reads NaN (stale), as does every torque
+/// gauge while the daemon's health is failed: a scrape never shows a frozen last value as current. Two status
+/// periods: the slowest per-cycle output (cranking, ~150 rpm: 0.8 s per cycle) refreshes well within it.
+inline constexpr std::int64_t kStaleAfterNs = 2'000'000'000;
 
 class MetricsTap final : public SampleSink {
  public:
@@ -51,14 +55,19 @@ class MetricsTap final : public SampleSink {
     std::atomic<double> value{0.0}, uncertainty{0.0};
     std::atomic<std::uint32_t> health{0};
     std::atomic<std::uint64_t> samples{0};
+    std::atomic<std::int64_t> at_ns{0};  ///< CLOCK_REALTIME of the newest sample (staleness)
   };
   struct Engine {
     std::atomic<double> brake{0.0}, indicated{0.0}, friction{0.0}, load{0.0}, fused{0.0};
     std::atomic<std::uint32_t> quality{0};
     std::atomic<std::uint64_t> samples{0};
+    std::atomic<std::int64_t> at_ns{0};  ///< CLOCK_REALTIME of the newest sample (staleness)
   };
   std::array<Method, dds::kMethodCount> method;
   std::array<Engine, kEngineKinds> engine;
+  std::atomic<bool> failed{false};  ///< the newest DaemonStatus says health failed
+  std::atomic<bool> replay_done{
+      false};  ///< a DaemonStatus said REPLAY_DONE (stays set: a state, not an event)
   std::atomic<std::int32_t> sync_state{-1};  ///< CrankState.sync of the newest sample (-1: none yet)
   std::atomic<std::uint64_t> crank_samples{0};
   std::array<std::atomic<std::uint64_t>, kLatencyBuckets.size() + 1> latency_bucket{};  ///< not cumulative

@@ -240,8 +240,8 @@ bool Supervisor::tick_once(std::int64_t now) {
   if (now >= next_status_) {
     RuntimeCounters c = rt_.counters();
     const bool done = rt_.input_done();
+    if (done) c.flags |= torque_STATUS_REPLAY_DONE;  // a state: on every status from now on
     if (done && !done_reported_) {
-      c.flags |= torque_STATUS_REPLAY_DONE;
       done_reported_ = true;
       log_input_problems();
       spdlog::info("replay: end of the recording reached{}", opt_.exit_when_done

@@ -19,6 +19,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "cli_exit.hpp"
 #include "config_loader.hpp"
 #include "dash/hub.hpp"
 #include "dash/mcap_writer.hpp"
@@ -26,6 +27,7 @@
 #include "qos.hpp"
 #include "sample.hpp"
 #include "sample_recorder.hpp"
+#include "share_dir.hpp"
 
 namespace {
 volatile sig_atomic_t g_stop = 0;
@@ -38,7 +40,7 @@ struct Options {
   std::optional<std::uint32_t> domain;
   std::optional<std::string> prefix;
   std::string listen = "127.0.0.1:8080";
-  std::string www = TORQUE_DASH_WWW;
+  std::string www = torqued::tools::share_path("www");  // PREFIX/share/torqued/www
   std::string js_dir = "/usr/share/javascript";
   std::string mcap, record_dir, port_file;
   int period_ms = 100;
@@ -243,20 +245,28 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_option("--domain", o.domain, "DDS domain id (overrides the configuration)");
   app.add_option("--prefix", o.prefix, "topic prefix (overrides the configuration)");
-  app.add_option("--listen", o.listen,
-                 "HTTP/WebSocket address:port (loopback by default; port 0 = any free)");
-  app.add_option("--www", o.www, "directory of the page (index.html, dash.js, dash.css)");
-  app.add_option("--js-dir", o.js_dir, "Debian's JavaScript directory (chart.js/chart.min.js)");
-  app.add_option("--period-ms", o.period_ms, "dashboard update period (ms)")->check(CLI::Range(10, 5000));
+  app.add_option("--listen", o.listen, "HTTP/WebSocket address:port (loopback by default; port 0 = any free)")
+      ->capture_default_str();
+  app.add_option("--www", o.www,
+                 "directory of the page (index.html, dash.js, dash.css); default: PREFIX/share/torqued/www "
+                 "next to this executable's PREFIX/bin")
+      ->capture_default_str();
+  app.add_option("--js-dir", o.js_dir, "Debian's JavaScript directory (chart.js/chart.min.js)")
+      ->capture_default_str();
+  app.add_option("--period-ms", o.period_ms, "dashboard update period (ms)")
+      ->capture_default_str()
+      ->check(CLI::Range(10, 5000));
   app.add_option("--record-mcap", o.mcap,
                  "record every topic to this MCAP file (JSON messages, JSON Schema; zstd chunks of at most "
                  "0.5 s, indexed; after a kill -9: torque-mcap-recover)");
   app.add_option("--record", o.record_dir,
                  "also record CSV files (torque-echo's format) into this directory");
   app.add_option("--port-file", o.port_file, "write the bound HTTP port to this file once listening");
-  app.add_option("--duration", o.duration_s, "exit after this many seconds (0 = until signalled)");
+  app.add_option("--duration", o.duration_s, "exit after this many seconds (0 = until signalled)")
+      ->capture_default_str();
   app.add_option("--idle-exit", o.idle_exit_s,
-                 "exit when no sample arrived for this many seconds (after the first)");
+                 "exit when no sample arrived for this many seconds (after the first; 0 = never)")
+      ->capture_default_str();
   app.add_flag("--until-done", o.until_done, "exit when the daemon's status reports the end of its replay");
   app.add_option("--max-clients", o.hub.max_clients, "WebSocket clients at once (more are refused)")
       ->check(CLI::Range(1, 1000));
@@ -265,7 +275,12 @@ int main(int argc, char** argv) {
   app.add_option("--engine-expiry-ms", o.hub.engine_expiry_ms,
                  "an engine id silent this long leaves the dashboard (ms)")
       ->check(CLI::Range(100, 3600000));
-  CLI11_PARSE(app, argc, argv);
+  app.footer(
+      "Exit status: 0 done (signal, --duration, --idle-exit or --until-done); 1 the configuration could not "
+      "be "
+      "read, the address could not be bound, a DDS call failed or the MCAP/CSV recording failed (message on "
+      "stderr); 2 command-line error (unknown option, bad value, file that does not exist).");
+  TORQUED_CLI_PARSE(app, argc, argv);
 
   struct sigaction sa {};
   sa.sa_handler = on_signal;

@@ -27,12 +27,9 @@
 #include "dbc.hpp"
 #include "edge_file_source.hpp"
 #include "replay_merger.hpp"
+#include "share_dir.hpp"
 #include "wheel_detect.hpp"
 #include "wheel_names.hpp"
-
-#ifndef TORQUED_DECODE_PLOT_SCRIPT
-#define TORQUED_DECODE_PLOT_SCRIPT "tools/scripts/plot_decode.py"
-#endif
 
 namespace {
 
@@ -41,7 +38,7 @@ using namespace torqued;
 struct Options {
   std::string edges, can, dbc, config, wheel = "60-2", format = "csv", crank = "crank", cam = "cam";
   std::string detect_wheel, out_teeth, out_can, first_row = "levels", out_revs, plot,
-                                                plot_script = TORQUED_DECODE_PLOT_SCRIPT;
+                                                plot_script = torqued::tools::share_path("plot_decode.py");
   double can_offset_s = 0.0;
   bool can_offset_given = false;
   bool falling = false, quiet = false, revs = false, transitions = false;
@@ -208,8 +205,10 @@ void add_options(CLI::App& app, Options& o) {
   app.add_flag("--transitions", o.transitions, "print every sync-state transition (debug) on stderr");
   app.add_option("--plot", o.plot,
                  "PNG: speed per tooth with gaps, glitches and sync losses marked (python3-matplotlib)");
-  app.add_option("--plot-script", o.plot_script,
-                 "plot script (default: the source tree's tools/scripts/plot_decode.py)");
+  app.add_option(
+      "--plot-script", o.plot_script,
+      "plot script, run with /usr/bin/python3 (default: plot_decode.py in PREFIX/share/torqued next "
+      "to this executable's PREFIX/bin)");
   app.add_flag("-q,--quiet", o.quiet, "no progress display");
   app.footer(
       "Exit status: 0 done; 1 an input could not be read or parsed, or an output not written; 2 command-line "

@@ -141,8 +141,11 @@ class Echo {
       if (all || t == "crank") make(crank_, dds::Topic::kCrankState);
       if (all || t == "status") make(status_, dds::Topic::kDaemonStatus);
     }
-    // --until-done needs the status topic even when it is not printed.
-    if (o.until_done && status_.reader == 0) {
+    // The status topic says when a replay is done: --until-done (or printing the status) exits then, and
+    // otherwise the deadline checks stop (a finished replay publishes nothing: not a missed deadline). Read
+    // even when not printed, except under --require-shm where only what was asked is subscribed.
+    exit_on_done_ = o.until_done || status_.reader != 0;
+    if (status_.reader == 0 && (o.until_done || !o.require_shm)) {
       make(status_, dds::Topic::kDaemonStatus);
       print_status_ = false;
     }
@@ -177,7 +180,7 @@ class Echo {
       const auto now = std::chrono::steady_clock::now();
       if (received_ != before) last_data = now;
       if (o_.count && received_ >= o_.count) break;
-      if (done_) break;
+      if (done_ && exit_on_done_) break;
       if (o_.duration_s > 0 && std::chrono::duration<double>(now - t0).count() >= o_.duration_s) break;
       if (o_.idle_exit_s > 0 && received_ > 0 &&
           std::chrono::duration<double>(now - last_data).count() >= o_.idle_exit_s)
@@ -273,7 +276,7 @@ class Echo {
     }
     dds_requested_deadline_missed_status_t dm{};
     if (dds_get_requested_deadline_missed_status(r.reader, &dm) == DDS_RETCODE_OK &&
-        dm.total_count_change > 0)
+        dm.total_count_change > 0 && !done_)
       std::fprintf(stderr, "torque-echo: %s: deadline missed: no sample within %lld ms (%u times in total)\n",
                    name.c_str(), static_cast<long long>(q.deadline_ms), dm.total_count);
   }
@@ -289,7 +292,13 @@ class Echo {
         const T& s = r.buf[static_cast<std::size_t>(i)];
         count_gap(s, t);
         if constexpr (std::is_same_v<T, torque_DaemonStatus>) {
-          if (s.flags & torque_STATUS_REPLAY_DONE) done_ = true;
+          if ((s.flags & torque_STATUS_REPLAY_DONE) && !done_) {
+            done_ = true;
+            if (!o_.quiet && !exit_on_done_)
+              std::fprintf(stderr,
+                           "torque-echo: the daemon reported the end of its replay: no more samples to come "
+                           "(deadline checks off)\n");
+          }
           if (!print_status_) continue;
         }
         if constexpr (std::is_same_v<T, torque_EngineTorque>) {
@@ -338,7 +347,8 @@ class Echo {
   Reader<torque_DaemonStatus> status_;
   std::array<bool, dds::kTopicCount> header_done_{};
   bool print_status_ = true;
-  bool done_ = false;
+  bool done_ = false;          ///< the daemon's status said REPLAY_DONE (a state: stays)
+  bool exit_on_done_ = false;  ///< --until-done, or the status topic printed: exit when done
   bool lost_ = false;
   std::uint64_t received_ = 0;
   std::map<std::pair<int, std::uint16_t>, std::uint64_t> last_seq_;  ///< (topic*256 + method, engine) -> seq

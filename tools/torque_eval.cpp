@@ -11,10 +11,7 @@
 
 #include "cli_exit.hpp"
 #include "evaluator.hpp"
-
-#ifndef TORQUED_PLOT_SCRIPT
-#define TORQUED_PLOT_SCRIPT "tools/scripts/plot_torque.py"
-#endif
+#include "share_dir.hpp"
 
 namespace {
 
@@ -37,8 +34,8 @@ std::string shell_quote(const std::string& s) {
 
 int main(int argc, char** argv) {
   CLI::App app{"torque-eval: error metrics of a torque estimate against the simulator's ground truth"};
-  std::string est_path, truth_cycle, truth_tooth, plot, plot_script = TORQUED_PLOT_SCRIPT, time_ref = "auto",
-                                                        title;
+  std::string est_path, truth_cycle, truth_tooth, plot,
+      plot_script = torqued::tools::share_path("plot_torque.py"), time_ref = "auto", title;
   std::string misfire;
   std::vector<std::string> columns, where;
   torqued::eval::EvalOptions opt;
@@ -58,17 +55,24 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--misfire", misfire,
                  "estimate misfire bit-mask column (bit i = cylinder i+1) vs truth misfire1..N");
-  app.add_option("--time-ref", time_ref, "estimate time matched to truth cycles: auto|sample|mid|end")
+  app.add_option(
+         "--time-ref", time_ref,
+         "estimate time matched to truth cycles: auto (the midpoint of the window the row describes: "
+         "window_start_t_ns, or from the cycle column; a per-cycle join of rows without either is "
+         "refused unless they come at 12 or more per cycle), sample (t_ns), mid (the window midpoint), "
+         "end (t_ns closes its cycle)")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "sample", "mid", "end"}));
   app.add_option("--max-lag", opt.max_lag_deg, "phase-lag search range (crank deg)")->capture_default_str();
   app.add_option("--plot", plot, "write a PNG of estimated vs true torque");
-  app.add_option("--plot-script", plot_script, "plot script (run with /usr/bin/python3)")
-      ->capture_default_str();
+  app.add_option(
+      "--plot-script", plot_script,
+      "plot script, run with /usr/bin/python3 (default: in PREFIX/share/torqued next to PREFIX/bin)");
   app.add_option("--title", title, "plot title");
   app.footer(
       "Exit status: 0 done (table printed, plot written); 1 a CSV could not be read or parsed, a column is "
-      "not in it (the columns that exist are listed), or the plot failed; 2 command-line error (unknown "
+      "not in it (the columns that exist are listed), a per-cycle join the file cannot place (the message "
+      "says which --time-ref to give), or the plot failed; 2 command-line error (unknown "
       "option, bad value, file that does not exist).");
   TORQUED_CLI_PARSE(app, argc, argv);
 

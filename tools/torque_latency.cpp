@@ -32,16 +32,12 @@
 #include <vector>
 
 #include "cli_exit.hpp"
-
-#ifndef TORQUED_LATENCY_PLOT_SCRIPT
-#define TORQUED_LATENCY_PLOT_SCRIPT "tools/scripts/plot_latency.py"
-#endif
-
 #include "config_loader.hpp"
 #include "dds/dds.h"
 #include "dds/ddsc/dds_loan_api.h"
 #include "dds_from_config.hpp"
 #include "qos.hpp"
+#include "share_dir.hpp"
 #include "topics.hpp"
 
 namespace {
@@ -332,7 +328,7 @@ int main(int argc, char** argv) {
   std::string torqued = "torqued", config;
   bool keep_logs = false;
   std::vector<std::string> daemon_env;
-  std::string plot, plot_script = TORQUED_LATENCY_PLOT_SCRIPT, title;
+  std::string plot, plot_script = torqued::tools::share_path("plot_latency.py"), title;
   double duration_s = 15, speed = 1.0;
   bool stress = false, cyclic = false, ddsperf = false, use_waitset = false;
   int sub_prio = 70, ddsperf_rate_hz = 500, sub_cpu = -1, stress_cpu = -1, cyclic_interval_us = 1000;
@@ -368,8 +364,9 @@ int main(int argc, char** argv) {
       "--plot", plot,
       "write a PNG: the latency distributions (tail on a log scale, p50 region as a histogram) next "
       "to cyclictest's, with the targets");
-  app.add_option("--plot-script", plot_script, "plot script (run with /usr/bin/python3)")
-      ->capture_default_str();
+  app.add_option(
+      "--plot-script", plot_script,
+      "plot script, run with /usr/bin/python3 (default: in PREFIX/share/torqued next to PREFIX/bin)");
   app.add_option("--title", title, "plot title");
   app.add_option(
          "--daemon-env", daemon_env,

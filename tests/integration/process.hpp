@@ -102,6 +102,9 @@ inline std::string write_demo_config(const std::string& dir, const std::string& 
   };
   replace_all("../data/demo/", std::string(TORQUED_SOURCE_DIR) + "/data/demo/");
   replace_all("dbc: demo.dbc", std::string("dbc: ") + TORQUED_SOURCE_DIR + "/config/demo.dbc");
+  // These tests stop the daemon themselves (signals, kill -9, reloads): it keeps running at the end of the
+  // recording instead of exiting there (replay.exit_when_done defaults on; --exit-when-done still forces it).
+  replace_all("  speed: 1.0", "  speed: 1.0\n  exit_when_done: false");
   if (!extra_replace_from.empty()) replace_all(extra_replace_from, extra_replace_to);
   const std::string path = dir + "/torqued.yaml";
   std::ofstream(path) << y;

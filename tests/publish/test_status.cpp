@@ -61,5 +61,22 @@ TEST(DaemonStatus, RecordErrorAndNoSyncDegradeSeqCounts) {
   EXPECT_NE(b.validity & torque_VALIDITY_NO_SYNC, 0u);
 }
 
+TEST(DaemonStatus, ReplayDoneIsNotAFaultButOwnConditionsStillCount) {
+  // GIVEN a replay that consumed its recording: no sync, no edges, CAN stale. THEN health ok (the flags still
+  // say why), where the same counters without REPLAY_DONE say failed; an overrun of its own still degrades.
+  StatusTracker st;
+  RuntimeCounters n;
+  n.flags = torque_STATUS_EDGE_TIMEOUT | torque_STATUS_REPLAY_DONE;
+  n.sensor_timeouts = 1u;
+  const auto a = st.next(n, 0, 0).u.status;
+  EXPECT_EQ(a.health, torque_DAEMON_OK);
+  EXPECT_NE(a.flags & torque_STATUS_NO_SYNC, 0u);
+  EXPECT_NE(a.flags & torque_STATUS_CAN_TIMEOUT, 0u);
+  n.overruns = 1;
+  EXPECT_EQ(st.next(n, 0, 0).u.status.health, torque_DAEMON_DEGRADED);
+  n.flags = torque_STATUS_EDGE_TIMEOUT;
+  EXPECT_EQ(st.next(n, 0, 0).u.status.health, torque_DAEMON_FAILED);
+}
+
 }  // namespace
 }  // namespace torqued

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <vector>
@@ -69,8 +71,11 @@ TEST(Metrics, ExpositionReflectsSamplesAndStatus) {
   EXPECT_TRUE(has_line(t, "torqued_status_flag{flag=\"no_sync\"} 0"));
   EXPECT_TRUE(has_line(t, "torqued_sensor_timeout{signal=\"maf\"} 1"));
   EXPECT_TRUE(has_line(t, "torqued_sensor_timeout{signal=\"map\"} 0"));
-  EXPECT_TRUE(has_line(t, "torqued_latency_period_seconds{quantile=\"0.99\"} 0.00015"));
-  EXPECT_TRUE(has_line(t, "torqued_estimator_torque_nm{method=\"kalman\"} 123.5"));
+  EXPECT_TRUE(has_line(t, "torqued_latency_period_seconds{stat=\"p99\"} 0.00015"));
+  EXPECT_EQ(t.find("quantile="), std::string::npos);  // only a summary may carry quantile labels
+  EXPECT_TRUE(has_line(t, "torqued_estimator_in_cycle_torque_nm{method=\"kalman\"} 123.5"));  // in-cycle
+  EXPECT_EQ(t.find("torqued_estimator_torque_nm{method=\"kalman\"}"), std::string::npos);
+  EXPECT_TRUE(has_line(t, "torqued_replay_done 0"));
   EXPECT_TRUE(has_line(t, "torqued_estimator_uncertainty{method=\"kalman\"} 2.25"));
   EXPECT_TRUE(has_line(t, "torqued_estimator_health{method=\"kalman\"} 1"));
   EXPECT_TRUE(has_line(t, "torqued_estimator_samples_total{method=\"kalman\"} 2"));
@@ -80,6 +85,60 @@ TEST(Metrics, ExpositionReflectsSamplesAndStatus) {
   EXPECT_TRUE(has_line(t, "torqued_publish_latency_seconds_bucket{le=\"2.5e-05\"} 0"));
   EXPECT_TRUE(has_line(t, "torqued_publish_latency_seconds_bucket{le=\"+Inf\"} 2"));
   EXPECT_TRUE(has_line(t, "torqued_learned_state_present 0"));
+}
+
+/// The value of the series `name` (e.g. `torqued_health`) in an exposition; NaN text parses as NaN.
+double value_of(const std::string& text, const std::string& name) {
+  const auto at = text.find("\n" + name + " ");
+  if (at == std::string::npos) return -12345.0;
+  return std::strtod(text.c_str() + at + name.size() + 2, nullptr);
+}
+
+TEST(Metrics, StaleOrFailedTorqueIsNaNAndReplayDoneIsAState) {
+  // GIVEN a fused estimate and a cycle EngineTorque WHEN no new sample came for longer than kStaleAfterNs
+  // (the sample time set back, no waiting) THEN their gauges read NaN; WHEN the daemon's health is failed
+  // THEN fresh values read NaN too. REPLAY_DONE seen once stays 1 in torqued_replay_done and the status flag.
+  CountingSink next;
+  MetricsServer m(next, "");
+  dds::AnySample e;
+  e.topic = dds::Topic::kEstimatorTorque;
+  e.u.estimator.method = torque_METHOD_FUSED;
+  e.u.estimator.value_nm = 112.0;
+  m.sink().emit(e);
+  dds::AnySample g;
+  g.topic = dds::Topic::kEngineTorque;
+  g.u.engine.kind = torque_KIND_CYCLE;
+  g.u.engine.fused_nm = 110.0;
+  m.sink().emit(g);
+  std::string t = "\n" + to_text(m.collect());
+  EXPECT_EQ(value_of(t, "torqued_estimator_torque_nm{method=\"fused\"}"), 112.0) << t;
+  EXPECT_EQ(value_of(t, "torqued_engine_torque_nm{kind=\"cycle\",quantity=\"fused\"}"), 110.0) << t;
+
+  auto& tap = static_cast<MetricsTap&>(m.sink());
+  tap.method[torque_METHOD_FUSED].at_ns.store(realtime_ns() - kStaleAfterNs - 1'000'000);
+  t = "\n" + to_text(m.collect());
+  EXPECT_TRUE(std::isnan(value_of(t, "torqued_estimator_torque_nm{method=\"fused\"}"))) << t;
+  EXPECT_EQ(value_of(t, "torqued_engine_torque_nm{kind=\"cycle\",quantity=\"fused\"}"), 110.0) << t;
+
+  dds::AnySample st;
+  st.topic = dds::Topic::kDaemonStatus;
+  st.u.status.health = torque_DAEMON_FAILED;
+  st.u.status.flags = torque_STATUS_REPLAY_DONE | torque_STATUS_NO_SYNC;
+  m.sink().emit(st);
+  m.sink().emit(e);  // fresh, but the daemon says its outputs are not usable
+  t = "\n" + to_text(m.collect());
+  EXPECT_TRUE(std::isnan(value_of(t, "torqued_estimator_torque_nm{method=\"fused\"}"))) << t;
+  EXPECT_TRUE(std::isnan(value_of(t, "torqued_engine_torque_nm{kind=\"cycle\",quantity=\"fused\"}")));
+  EXPECT_EQ(value_of(t, "torqued_replay_done"), 1.0);
+
+  st.u.status.health = torque_DAEMON_OK;
+  st.u.status.flags = 0;  // a later status without the flag: the replay is still done
+  m.sink().emit(st);
+  m.sink().emit(e);
+  t = "\n" + to_text(m.collect());
+  EXPECT_EQ(value_of(t, "torqued_estimator_torque_nm{method=\"fused\"}"), 112.0) << t;
+  EXPECT_EQ(value_of(t, "torqued_replay_done"), 1.0) << t;
+  EXPECT_EQ(value_of(t, "torqued_status_flag{flag=\"replay_done\"}"), 1.0) << t;
 }
 
 TEST(Metrics, LearnedStateAgeFromFileTime) {

@@ -4,6 +4,7 @@
 #   - torqued without arguments says what to give and exits 2; --config of a missing file exits 2;
 #   - torque-eval: an unknown column lists the columns that exist (exit 1); the table calls max |error| max|err|;
 #   - the plot: one panel per quantity, identical estimates merged, a PNG written;
+#   - torque-dash like the others (exit 2 on a bad option, exit statuses and defaults in --help);
 #   - paced replay reports its end and exits with replay.exit_when_done.
 #   cli_usage.sh BUILD_DIR SOURCE_DIR
 set -uo pipefail
@@ -12,13 +13,19 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }
 for b in service/torqued tools/torque-sim tools/torque-echo tools/torque-eval tools/torque-decode \
-         tools/torque-canreplay tools/torque-latency tools/torque-accuracy tools/torque-mcap-recover; do
+         tools/torque-canreplay tools/torque-latency tools/torque-accuracy tools/torque-dash tools/torque-mcap-recover; do
   [[ -x "$build/$b" ]] || continue
   "$build/$b" --help >"$tmp/help" 2>&1 || fail "$b --help exit $?"
   grep -q "Exit status" "$tmp/help" || fail "$b --help does not list its exit statuses"
   "$build/$b" --no-such-option >/dev/null 2>&1; rc=$?
   ((rc == 2)) || fail "$b --no-such-option: exit $rc, expected 2"
 done
+# torque-dash's --help shows its defaults (address, page directory, period).
+if [[ -x "$build/tools/torque-dash" ]]; then
+  "$build/tools/torque-dash" --help >"$tmp/help" 2>&1
+  grep -q "127.0.0.1:8080" "$tmp/help" && grep -q "share/torqued/www" "$tmp/help" && grep -Eq "period-ms.*=100" "$tmp/help" ||
+    fail "torque-dash --help does not show its defaults: $(cat "$tmp/help")"
+fi
 "$build/service/torqued" >/dev/null 2>"$tmp/err"; rc=$?
 ((rc == 2)) && grep -q "nothing to do: give --config" "$tmp/err" || fail "torqued without arguments: exit $rc, $(head -2 "$tmp/err")"
 "$build/service/torqued" --config "$tmp/missing.yaml" >/dev/null 2>"$tmp/err"; rc=$?
@@ -34,7 +41,7 @@ awk 'BEGIN { print "cycle,t_start_s,t_end_s,t_brake_mean_nm,t_ind_mean_nm";
   fail "unknown estimate column: exit $rc, $(cat "$tmp/err")"
 "$ev" -e "$tmp/missing.csv" -t "$tmp/truth.csv" -c a=b >/dev/null 2>&1; rc=$?
 ((rc == 2)) || fail "torque-eval with a missing file: exit $rc, expected 2"
-out=$("$ev" -e "$tmp/est.csv" -t "$tmp/truth.csv" -c fused_nm=t_brake_mean_nm -c brake_nm=t_brake_mean_nm \
+out=$("$ev" -e "$tmp/est.csv" -t "$tmp/truth.csv" --time-ref end -c fused_nm=t_brake_mean_nm -c brake_nm=t_brake_mean_nm \
       -c fused_nm=t_ind_mean_nm --plot "$tmp/p.png" 2>&1) || fail "torque-eval: $out"
 grep -q "max|err|" <<<"$out" && ! grep -q "MAE(max)" <<<"$out" || fail "accuracy column not named max|err|: $out"
 (($(grep -c "^plot:" <<<"$out") == 1)) || fail "'plot:' not printed exactly once: $out"

@@ -61,11 +61,13 @@ TEST(EvalMetrics, PhaseLagOfAShiftedWaveform) {
     return 80.0 * std::sin(2 * std::numbers::pi * deg / 180.0) +
            20.0 * std::sin(2 * std::numbers::pi * deg / 90.0 + 0.4);
   };
-  for (double a = 0; a <= 7200; a += 6.0) {
+  for (int k = 0; k <= 1200; ++k) {  // 0..7200 deg by 6
+    const double a = 6.0 * k;
     ta.push_back(a);
     tv.push_back(wave(a));
   }
-  for (double a = 100; a <= 7000; a += 6.0) {
+  for (int k = 0; 100.0 + 6.0 * k <= 7000.0; ++k) {  // 100..7000 deg by 6
+    const double a = 100.0 + 6.0 * k;
     ea.push_back(a);
     ev.push_back(wave(a - 12.0));
     ea2.push_back(a);
@@ -154,10 +156,72 @@ TEST(EvalJoin, SampleTimeWithoutWindowUsesTheCycleContainingIt) {
   const CsvTable est = table("t_ns,v\n30000000,1\n90000000,2\n150000000,3\n", "est.csv");
   EvalReport r;
   std::string error;
-  ASSERT_TRUE(evaluate(est, cycle_truth(), {{"v", "t_brake_mean_nm"}}, EvalOptions{}, r, error)) << error;
+  EvalOptions opt;
+  opt.time_ref = TimeRef::kSample;
+  ASSERT_TRUE(evaluate(est, cycle_truth(), {{"v", "t_brake_mean_nm"}}, opt, r, error)) << error;
   // cycles 0,1,2 → truth 100,101,102; errors -99 each.
   EXPECT_NEAR(r.pairs[0].stats.bias, -99.0, 1e-9);
   EXPECT_EQ(r.pairs[0].stats.n, 3u);
+}
+
+TEST(EvalJoin, AutoRefusesPerCycleRowsWithoutAWindow) {
+  // GIVEN one row per cycle stamped at the cycle end, with neither window_start_t_ns nor a cycle column.
+  // THEN --time-ref auto neither joins each row with the next cycle nor guesses: it refuses, naming the
+  // options.
+  const CsvTable est =
+      table("t_ns,v,misfire_mask\n60000000,100,0\n120000000,101,0\n180000000,102,0\n", "est.csv");
+  EvalReport r;
+  std::string error;
+  EXPECT_FALSE(evaluate(est, cycle_truth(), {{"v", "t_brake_mean_nm"}}, EvalOptions{}, r, error));
+  EXPECT_NE(error.find("est.csv: the per-cycle join of v needs the window"), std::string::npos) << error;
+  EXPECT_NE(error.find("--time-ref end"), std::string::npos) << error;
+  EvalOptions opt;
+  opt.misfire_col = "misfire_mask";
+  EXPECT_FALSE(evaluate(est, cycle_truth(), {}, opt, r, error));
+  EXPECT_NE(error.find("--misfire needs the window"), std::string::npos) << error;
+}
+
+TEST(EvalJoin, AutoJoinsPerToothRowsWithoutAWindowAtTheirTime) {
+  // Instantaneous rows (20 per 60 ms cycle) need no window: each joins the cycle containing its time.
+  std::ostringstream os;
+  os << "t_ns,v\n";
+  for (int k = 0; k < 200; ++k) os << k * 3000000LL + 1000000LL << "," << 100 + k / 20 << "\n";
+  EvalReport r;
+  std::string error;
+  ASSERT_TRUE(evaluate(table(os.str(), "est.csv"), cycle_truth(), {{"v", "t_brake_mean_nm"}}, EvalOptions{},
+                       r, error))
+      << error;
+  EXPECT_EQ(r.pairs[0].stats.n, 200u);
+  EXPECT_NEAR(r.pairs[0].stats.rms, 0.0, 1e-12);
+}
+
+TEST(EvalJoin, CycleColumnGivesTheWindowOfRowsWithoutWindowStart) {
+  // GIVEN cylinder_torque.csv-like rows: cycle n closes 6 ms after the truth's cycle n (the daemon's cycle
+  // boundary lags the truth's), a misfire flagged in cycles 4 (cyl 2) and 7 (cyl 1), as the truth says.
+  // THEN auto joins each row on the window from the previous cycle's row: 8 of 9 rows joined exactly (the
+  // first row has no window), 2 true misfires, 2 detected, 0 false alarms. The sample time would join the
+  // next cycle.
+  std::ostringstream os;
+  os << "t_ns,engine_id,cycle,v,misfire_mask\n";
+  for (int c = 0; c < 9; ++c)
+    os << (c + 1) * 60000000LL + 6000000LL << ",1," << c << "," << 100 + c << ","
+       << (c == 4 ? 0b0010 : (c == 7 ? 0b0001 : 0)) << "\n";
+  const CsvTable est = table(os.str(), "cylinder_torque.csv");
+  EvalOptions opt;
+  opt.misfire_col = "misfire_mask";
+  EvalReport r;
+  std::string error;
+  ASSERT_TRUE(evaluate(est, cycle_truth(), {{"v", "t_brake_mean_nm"}}, opt, r, error)) << error;
+  EXPECT_EQ(r.pairs[0].stats.n, 8u);
+  EXPECT_NEAR(r.pairs[0].stats.rms, 0.0, 1e-12);
+  ASSERT_TRUE(r.misfire.has_value());
+  EXPECT_EQ(r.misfire->true_misfires, 2u);
+  EXPECT_EQ(r.misfire->detected, 2u);
+  EXPECT_EQ(r.misfire->false_alarms, 0u);
+  opt.time_ref = TimeRef::kSample;
+  ASSERT_TRUE(evaluate(est, cycle_truth(), {{"v", "t_brake_mean_nm"}}, opt, r, error)) << error;
+  EXPECT_EQ(r.misfire->detected, 0u);
+  EXPECT_EQ(r.misfire->false_alarms, 2u);
 }
 
 TEST(EvalJoin, EndTimeRefStepsBackHalfACycle) {

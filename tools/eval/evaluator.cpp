@@ -41,10 +41,12 @@ std::string fmt(double v, int prec = 3) {
 /// count.
 struct Joined {
   const CsvTable& est;
-  std::vector<double> t;          ///< estimate time on the edge clock (s)
+  std::vector<double> t;    ///< estimate time on the edge clock (s)
+  std::vector<double> ws;   ///< start of the window each row describes (s; NaN: unknown); empty: none
+  bool ws_derived = false;  ///< ws from the cycle column (the previous cycle's row), not window_start_t_ns
   std::vector<std::size_t> rows;  ///< rows kept by --where/--from/--to
   TimeRef ref = TimeRef::kSample;
-  int c_ws = -1;                  ///< window_start_t_ns column
+  bool ref_guessed = false;       ///< --time-ref auto fell back to the sample time (no window in the file)
   const CsvTable* cyc = nullptr;  ///< truth cycles
   std::vector<double> c_t0, c_t1, c_num;
   const CsvTable* tooth = nullptr;  ///< truth teeth
@@ -57,9 +59,12 @@ struct Joined {
     if (!cyc) return -1;
     double tq = t[i];
     if (ref == TimeRef::kMid) {
-      const double ws = est.col(c_ws)[i] * 1e-9;
-      if (std::isfinite(ws) && ws >= 0.0 && ws < t[i])
-        tq = 0.5 * (ws + t[i]);  // else: no window, sample time
+      const double w = ws[i];
+      if (std::isfinite(w) && w >= 0.0 && w < t[i])
+        tq = 0.5 * (w + t[i]);
+      else if (ws_derived)
+        return -1;  // the first cycle of a record: where its window starts is not in the file
+      // else: a row without a window (window_start_t_ns not before t_ns): its sample time
     }
     if (ref == TimeRef::kEnd) {
       // The row closes a cycle whose boundaries need not match the truth's: step back half a cycle.
@@ -72,6 +77,47 @@ struct Joined {
   }
 };
 
+/// Window starts of a record with a cycle column and no window_start_t_ns (cylinder_torque.csv): cycle n of
+/// an engine starts where that engine's row(s) of cycle n-1 end (the last such row before it in the file).
+std::vector<double> windows_from_cycles(const CsvTable& est, const std::vector<double>& t, int c_cycle) {
+  const int c_engine = est.column("engine_id");
+  std::map<std::pair<double, double>, double> end_of;  // (engine, cycle) -> t of its last row so far
+  std::vector<double> ws(t.size(), std::nan(""));
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    const double engine = c_engine >= 0 ? est.col(c_engine)[i] : 0.0;
+    const double cycle = est.col(c_cycle)[i];
+    if (!std::isfinite(cycle) || !std::isfinite(t[i])) continue;
+    const auto prev = end_of.find({engine, cycle - 1.0});
+    if (prev != end_of.end()) ws[i] = prev->second;
+    end_of[{engine, cycle}] = t[i];
+  }
+  return ws;
+}
+
+/// The time reference: the window the row describes when the file says it (window_start_t_ns, else the cycle
+/// column), else the sample time (checked in refuse_guessed_join before a per-cycle join).
+bool resolve_time_ref(Joined& j, TimeRef asked, std::string& error) {
+  const CsvTable& est = j.est;
+  const int c_ws = est.column("window_start_t_ns"), c_cycle = est.column("cycle");
+  if (c_ws >= 0) {
+    j.ws.resize(est.rows());
+    for (std::size_t i = 0; i < est.rows(); ++i) j.ws[i] = est.col(c_ws)[i] * 1e-9;
+  } else if (c_cycle >= 0) {
+    j.ws = windows_from_cycles(est, j.t, c_cycle);
+    j.ws_derived = true;
+  }
+  j.ref = asked;
+  if (asked == TimeRef::kAuto) {
+    j.ref = j.ws.empty() ? TimeRef::kSample : TimeRef::kMid;
+    j.ref_guessed = j.ws.empty();
+  }
+  if (j.ref == TimeRef::kMid && j.ws.empty()) {
+    error = est.path + ": --time-ref mid needs a window_start_t_ns or a cycle column";
+    return false;
+  }
+  return true;
+}
+
 bool join_times(Joined& j, const EvalOptions& opt, std::string& error) {
   const CsvTable& est = j.est;
   const int c_tns = est.column("t_ns"), c_ts = est.column("t_s");
@@ -82,13 +128,7 @@ bool join_times(Joined& j, const EvalOptions& opt, std::string& error) {
   j.t.resize(est.rows());
   for (std::size_t i = 0; i < est.rows(); ++i)
     j.t[i] = c_tns >= 0 ? est.col(c_tns)[i] * 1e-9 : est.col(c_ts)[i];
-  j.c_ws = est.column("window_start_t_ns");
-  j.ref = opt.time_ref;
-  if (j.ref == TimeRef::kAuto) j.ref = j.c_ws >= 0 ? TimeRef::kMid : TimeRef::kSample;
-  if (j.ref == TimeRef::kMid && j.c_ws < 0) {
-    error = est.path + ": --time-ref mid needs a window_start_t_ns column";
-    return false;
-  }
+  if (!resolve_time_ref(j, opt.time_ref, error)) return false;
   std::vector<std::pair<int, double>> where;
   for (const auto& [name, value] : opt.where) {
     const int c = est.column(name);
@@ -104,6 +144,31 @@ bool join_times(Joined& j, const EvalOptions& opt, std::string& error) {
     for (const auto& [c, v] : where) keep = keep && est.col(c)[i] == v;
     if (keep) j.rows.push_back(i);
   }
+  return true;
+}
+
+/// A per-cycle join at the sample time is right for instantaneous values (per tooth: dozens of rows per
+/// cycle) and wrong for values that average a window closing at t_ns (per cycle or per segment: a window that
+/// ends at a cycle boundary would be credited to the next cycle). Without a window in the file, --time-ref
+/// auto refuses the latter instead of guessing.
+bool refuse_guessed_join(const Joined& j, const std::string& what, std::string& error) {
+  if (!j.ref_guessed || !j.cyc) return false;
+  std::map<long, std::size_t> per_cycle;
+  for (std::size_t i : j.rows) {
+    const long c = j.cycle_of(i);
+    if (c >= 0) ++per_cycle[c];
+  }
+  std::size_t n = 0;
+  for (const auto& [c, k] : per_cycle) n += k;
+  constexpr double kMinInstantRowsPerCycle = 12.0;  // a tooth wheel has more; 8 cylinders' segments fewer
+  const double rate =
+      per_cycle.empty() ? 0.0 : static_cast<double>(n) / static_cast<double>(per_cycle.size());
+  if (per_cycle.empty() || rate >= kMinInstantRowsPerCycle) return false;
+  error =
+      j.est.path + ": " + what + " needs the window each row describes, and the file has neither " +
+      "window_start_t_ns nor a cycle column (" + fmt(rate, 1) +
+      " rows per truth cycle: per-cycle or per-segment values). Say what t_ns is: --time-ref end (the row " +
+      "closes its cycle) or --time-ref sample (an instantaneous value)";
   return true;
 }
 
@@ -188,6 +253,7 @@ bool evaluate_pair(const Joined& j, const PairSpec& p, const EvalOptions& opt, P
     return false;
   }
   r.per_cycle = cc >= 0;
+  if (r.per_cycle && refuse_guessed_join(j, "the per-cycle join of " + p.est_col, error)) return false;
   std::map<long, std::pair<double, double>> est_sum, truth_sum;  // cycle → (sum, count) in time order
   std::vector<double> est_angle;
   for (std::size_t i : j.rows) {
@@ -242,6 +308,7 @@ bool evaluate_misfire(const Joined& j, const std::string& col, EvalReport& repor
     error = j.cyc->path + ": no misfire1.. columns";
     return false;
   }
+  if (refuse_guessed_join(j, "--misfire", error)) return false;
   std::map<long, std::uint32_t> masks;  // OR of the masks of the rows in each truth cycle
   for (std::size_t i : j.rows) {
     const long c = j.cycle_of(i);

@@ -3,7 +3,8 @@
 // (truth_cycle.csv: cycle,t_start_s,t_end_s,...; truth_tooth.csv: t_s,tooth,angle720_deg,...) and computes
 // the metrics of metrics.hpp per column pair.
 //   per-cycle join: the truth column is in truth_cycle.csv → the cycle whose [t_start, t_end) contains the
-//                   estimate time (the window midpoint when the estimate has window_start_t_ns, see TimeRef);
+//                   midpoint of the window the row describes (window_start_t_ns, or from the cycle column;
+//                   see TimeRef); a join the file cannot place (no window, few rows per cycle) is refused;
 //   per-tooth join: the truth column is in truth_tooth.csv → linear interpolation at the estimate time.
 #include <limits>
 #include <optional>
@@ -30,9 +31,10 @@ struct PairSpec {
 
 /// Which time of an estimate row is matched against the truth cycles.
 enum class TimeRef {
-  kAuto,    ///< window midpoint if the estimate has window_start_t_ns (0 <= start < t), else the sample time
+  kAuto,    ///< kMid when the file gives windows, else kSample for per-tooth rows (per-cycle rows: refused)
   kSample,  ///< t_ns as is
-  kMid,     ///< (window_start_t_ns + t_ns)/2
+  kMid,     ///< window midpoint: (window_start_t_ns + t_ns)/2, or without that column (cylinder_torque.csv)
+            ///< the window from the end of the same engine's previous cycle (cycle column) to t_ns
   kEnd,     ///< t_ns closes its cycle (e.g. cylinder_torque.csv): matched at t_ns minus half a truth cycle
 };
 

@@ -45,6 +45,11 @@ async function readValues(page) {
     page.on('pageerror', e => errors.push(String(e)));
     page.on('console', m => { if (m.type() === 'error') errors.push(m.text()); });
     await page.goto(url);
+    // Before the replay starts: connected, but no sample yet -> "waiting for data" and its banner, not "live".
+    await page.waitForFunction(() => document.getElementById('conn').textContent === 'waiting for data' &&
+                                     !document.getElementById('waiting').hidden, null, {timeout: 20000})
+      .then(() => console.log('before data: badge "waiting for data", banner shown'),
+            () => fail('before data: no "waiting for data" badge and banner within 20 s'));
     if (readyFile) require('fs').writeFileSync(readyFile, 'loaded\n');
     // Live values appear: a crank speed and a fused torque within 20 s.
     await page.waitForFunction(() => Number.parseFloat(document.getElementById('fused').textContent) === 
@@ -59,6 +64,7 @@ async function readValues(page) {
     console.log(`charts: speed ${b.speedPoints} pts, torque ${b.torquePoints}, in-cycle ${b.incycleSets} sets ` +
                 `${b.incyclePoints} pts, TDC marks ${b.tdc}, cylinder bars ${b.bars}, status rows ${b.statusRows}`);
     if (b.conn !== 'live') fail(`connection badge "${b.conn}"`);
+    if (!(await page.evaluate(() => document.getElementById('waiting').hidden))) fail('"waiting for data" still shown');
     if (!(b.t > a.t + 1.0)) fail(`edge-clock time did not advance by > 1 s in 2.5 s of a paced replay (${a.t} -> ${b.t})`);
     if (!(b.cycle > a.cycle)) fail(`cycle counter did not advance (${a.cycle} -> ${b.cycle})`);
     if (!(b.samples > a.samples)) fail('no new samples');

@@ -270,13 +270,26 @@ function scheduleDraw() {
   setTimeout(() => { dirty = false; draw(); }, 200);  // at most 5 redraws per second whatever the data rate
 }
 
+// "live" only once a sample arrived: until then the badge and a banner say the page waits for data (a page
+// with empty charts and a green badge would look like a daemon estimating nothing).
+let seenData = false;
+function showConnected(conn) {
+  conn.textContent = seenData ? 'live' : 'waiting for data';
+  conn.className = seenData ? 'badge ok' : 'badge warn';
+  document.getElementById('waiting').hidden = seenData;
+}
+
 function connect() {
   const ws = new WebSocket(`ws://${location.host}/ws`);
   const conn = document.getElementById('conn');
-  ws.onopen = () => { conn.textContent = 'live'; conn.className = 'badge ok'; };
+  ws.onopen = () => showConnected(conn);
   ws.onclose = () => { conn.textContent = 'disconnected: retrying'; conn.className = 'badge bad';
                        setTimeout(connect, 1000); };
-  ws.onmessage = ev => { ingest(JSON.parse(ev.data)); scheduleDraw(); };
+  ws.onmessage = ev => {
+    ingest(JSON.parse(ev.data));
+    if (!seenData && samples > 0) { seenData = true; showConnected(conn); }
+    scheduleDraw();
+  };
 }
 
 document.getElementById('engine').addEventListener('change', ev => { selected = Number(ev.target.value); draw(); });
