@@ -7,7 +7,9 @@ and misfire lines. Each such pair is run in page order (/tmp/ paths moved to one
 a block may use what an earlier one recorded; in the source tree) and the
 printed rows compared, in order, field by field: a figure matches when the measured value rounds to it (to the
 page's last digit; tests/tools/readme_figures.py has the rule). The README has its own checker (readme_figures.py).
-Usage: docs_figures.py BUILD_DIR SOURCE_DIR. Exit 0 all match; 1 a figure differs or a command failed; 2 usage.
+Usage: docs_figures.py BUILD_DIR SOURCE_DIR [--update]. Exit 0 all match; 1 a figure differs or a command failed;
+2 usage. --update rewrites each printed row of the pages with the line the command prints now (commit it saying
+why the figures moved).
 """
 import glob
 import os
@@ -64,7 +66,41 @@ def run_block(name, cmds, want, build, src, tmp):
             rf.check(f"{name} row {k + 1} ({label}) field {i + 1}", w, float(g))
 
 
+def printed_lines(text):
+    """The lines of `text` that figures() reads, in order."""
+    return [ln for ln in text.splitlines() if ROW.match(ln) or MISFIRE.match(ln)]
+
+
+def update_page(path, build, src):
+    """Rewrites the printed rows of every figure block of one page with what its commands print now."""
+    with open(path, encoding="utf-8") as f:
+        page = f.read()
+    pat = re.compile(r"(```sh\n((?:(?!```).)*)```\n```\n)((?:(?!```).)*)(```)", re.S)
+    with tempfile.TemporaryDirectory(prefix="docs_figures_") as tmp:
+        def repl(m):
+            cmds, printed = m.group(2), m.group(3)
+            if not figures(printed):
+                return m.group(0)
+            lines = cmds.replace("\\\n", " ").splitlines()
+            out = []
+            for c in [c.split("#")[0].strip() for c in lines if c.strip().startswith("build/")]:
+                argv = [a.replace("/tmp/", tmp + "/") for a in shlex.split(c)]
+                argv[0] = os.path.join(build, os.path.relpath(argv[0], "build"))
+                out += printed_lines(rf.run(argv, src))
+            it = iter(out)
+            new = [next(it, ln) if (ROW.match(ln) or MISFIRE.match(ln)) else ln for ln in printed.split("\n")]
+            return m.group(1) + "\n".join(new) + m.group(4)
+        page = pat.sub(repl, page)
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(page)
+
+
 def main():
+    if len(sys.argv) == 4 and sys.argv[3] == "--update":
+        build, src = os.path.abspath(sys.argv[1]), os.path.abspath(sys.argv[2])
+        for path in sorted(glob.glob(os.path.join(src, "docs", "*.md"))):
+            update_page(path, build, src)
+        return 0
     if len(sys.argv) != 3:
         print(__doc__, file=sys.stderr)
         return 2
