@@ -4,6 +4,44 @@
 
 namespace torqued {
 
+double TorqueFusion::disagreement_scale(const FusionInput& in, std::uint8_t used, double mean) noexcept {
+  // The Particle Data Group's scale factor for inconsistent measurements (Review of Particle Physics,
+  // "Introduction: averaging"): S = √(χ² / (n − 1)), χ² = Σ (x_i − x̄)² / σ_i², applied when S > 1. Blended
+  // sources farther apart than their claimed 1σ say so: at least one of those claims is too small there (a
+  // chain whose 1σ was measured at other operating points).
+  double chi2 = 0.0;
+  int n = 0;
+  for (int i = 0; i < kFusionSources; ++i) {
+    if (!((used >> i) & 1u)) continue;
+    const FusionSource& s = in.src[static_cast<std::size_t>(i)];
+    const double d = (s.brake_nm - mean) / s.sd_nm;
+    chi2 += d * d;
+    ++n;
+  }
+  return n > 1 && chi2 > n - 1 ? std::sqrt(chi2 / (n - 1)) : 1.0;
+}
+
+double TorqueFusion::witness_scale(const FusionInput& in, const std::array<bool, kFusionSources>& usable,
+                                   int primary) const noexcept {
+  // Without the energy balance the leader is the source claiming the smallest 1σ, and each claim was measured
+  // at the references' operating points only. The other usable sources within the gate are witnesses: when
+  // they sit farther from the leader than the claims allow (χ² of the differences over n − 1 above 1), the
+  // leader's 1σ takes the same PDG scale factor.
+  const FusionSource& p = in.src[static_cast<std::size_t>(primary)];
+  double chi2 = 0.0;
+  int n = 0;
+  for (int i = 0; i < kFusionSources; ++i) {
+    const FusionSource& s = in.src[static_cast<std::size_t>(i)];
+    if (i == primary || !usable[static_cast<std::size_t>(i)]) continue;
+    const double v = p.sd_nm * p.sd_nm + s.sd_nm * s.sd_nm;
+    const double d2 = (s.brake_nm - p.brake_nm) * (s.brake_nm - p.brake_nm);
+    if (d2 > params_.gate_sigma * params_.gate_sigma * v) continue;  // outside the gate: not a witness
+    chi2 += d2 / v;
+    ++n;
+  }
+  return n > 0 && chi2 > n ? std::sqrt(chi2 / n) : 1.0;
+}
+
 const FusedTorque& TorqueFusion::update(const FusionInput& in) noexcept {
   FusedTorque o;
   o.t_ns = in.t_ns;
@@ -58,7 +96,8 @@ const FusedTorque& TorqueFusion::update(const FusionInput& in) noexcept {
     }
   }
   o.brake_nm = xsum / wsum;
-  o.sd_nm = std::sqrt(1.0 / wsum);
+  o.sd_nm = std::sqrt(1.0 / wsum) * disagreement_scale(in, o.used_mask, o.brake_nm);
+  if (primary > 0 && !params_.blend) o.sd_nm *= witness_scale(in, usable, primary);
   o.primary = static_cast<FusionSourceId>(primary);
   switch (o.primary) {
     case FusionSourceId::kEnergyCan:

@@ -11,7 +11,10 @@
 //       kExternal    any other estimate handed in (e.g. the time-domain UIO)
 //  3. With `blend`, every other usable source whose difference from the primary is within gate_sigma·√(σp² +
 //  σi²) is
-//     blended with inverse-variance weights; otherwise the primary is used alone.
+//     blended with inverse-variance weights; otherwise the primary is used alone. The blend's 1σ is scaled by
+//     the PDG factor √(χ²/(n−1)) when its sources disagree beyond their claimed 1σ (disagreement_scale).
+//     Without blending and without the energy balance, the leader's 1σ takes the same factor from its
+//     disagreement with the other usable sources within the gate (witness_scale).
 //  4. Quality: kFull (primary uses CAN and crank), kCrankOnly (CAN lost or not needed: crank-only primary,
 //  `can_lost`
 //     says which), kDegraded (only model-based sources), kPriorOnly (the primary rests on priors only: the
@@ -93,6 +96,13 @@ class TorqueFusion {
   [[nodiscard]] const FusedTorque& estimate() const noexcept { return out_; }
 
  private:
+  /// Without blending and without the energy balance: the PDG factor (≥ 1) of the leader's disagreement with
+  /// the other usable sources within the gate.
+  [[nodiscard]] double witness_scale(const FusionInput& in, const std::array<bool, kFusionSources>& usable,
+                                     int primary) const noexcept;
+  /// PDG scale factor (≥ 1) of the blend of the sources in `used` around `mean`.
+  [[nodiscard]] static double disagreement_scale(const FusionInput& in, std::uint8_t used,
+                                                 double mean) noexcept;
   FusionParams params_;
   FusedTorque out_;
   bool have_good_ = false;
