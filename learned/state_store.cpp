@@ -710,8 +710,8 @@ void StateSaver::run(const std::shared_ptr<Shared>& sh) {
   std::unique_lock lk(sh->m);
   for (;;) {
     sh->cv.wait(lk, [&] { return sh->stop || sh->queued.has_value(); });
-    if (!sh->queued) return;  // stop, nothing queued
-    LearnedState s = std::move(*sh->queued);
+    if (!sh->queued) return;       // stop, nothing queued
+    LearnedState s = *sh->queued;  // trivially copyable: a copy
     sh->queued.reset();
     sh->busy = true;
     lk.unlock();
@@ -728,7 +728,7 @@ void StateSaver::run(const std::shared_ptr<Shared>& sh) {
 void StateSaver::submit(LearnedState s) {
   {
     std::lock_guard lk(sh_->m);
-    sh_->queued = std::move(s);
+    sh_->queued = s;
   }
   sh_->cv.notify_all();
 }
