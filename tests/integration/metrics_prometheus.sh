@@ -18,7 +18,7 @@ free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",
 mport=$(free_port) pport=$(free_port)
 
 sed -e "s#\.\./data/demo#$src/data/demo#" -e "s#dbc: demo.dbc#dbc: $src/config/demo.dbc#" \
-    -e "s#speed: 1.0#speed: 2.0#" "$src/config/demo.yaml" >"$tmp/torqued.yaml"
+    -e "s#speed: 1.0#speed: 2.0\n  exit_when_done: false#" "$src/config/demo.yaml" >"$tmp/torqued.yaml"
 printf 'metrics:\n  enabled: true\n  address: "127.0.0.1:%s"\n' "$mport" >>"$tmp/torqued.yaml"
 "$exe" --check-config "$tmp/torqued.yaml" || fail "test configuration refused"
 cp "$src/systemd/torqued-alerts.yml" "$tmp/"
