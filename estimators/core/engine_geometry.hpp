@@ -19,7 +19,10 @@ struct EngineGeometry {
   double rod_m = 0.1450;                           ///< connecting-rod length l (m)
   double compression_ratio = 10.5;                 ///< r_c (-): a spec-sheet value the configuration gives
                                                    ///< (engine.compression_ratio); 10.5 is only a typical
-                                                   ///< port-injected gasoline engine's, not a tuning value
+                                                   ///< port-injected gasoline engine's, not a tuning value:
+                                                   ///< geometry (physics). The simulator's demo engine shares
+                                                   ///< this struct; every estimator gets r_c from the config
+                                                   ///< (the bed's engines draw 9.5-12 and write it there)
   double j_rot_kgm2 = 0.16;                        ///< rotating inertia incl. flywheel and dyno side (kg m^2)
   double m_osc_kg = 0.55;                          ///< oscillating mass per cylinder (piston + 1/3 rod) (kg)
   double tdc_offset_rad =
