@@ -66,4 +66,21 @@ TEST(DashModel, PlacesOnlyInCycleMethodsOfTheRegistry) {
   EXPECT_NEAR(v.incycle.at(v.incycle.first()).angle_deg, 1.1 * 180.0 / 3.141592653589793, 1e-9);
 }
 
+TEST(DashModel, StatusCarriesTheFuelModelsLearnedCells) {
+  // GIVEN a status whose fuel model rests on 42 references, learned in two speed x MAP cells
+  dash::Model m;
+  torque_DaemonStatus s{};
+  s.engine_id = 1;
+  s.fuel_references = 42;
+  s.fuel_cells = (1u << (4 * 1 + 2)) | (1u << (4 * 2 + 3));  // 1500-2500 rpm x 60-80 kPa, 2500-3500 x >= 80
+  m.add(s);
+  dash::Cursor c;
+  const auto j = nlohmann::json::parse(m.delta(c));
+  // THEN the page gets both (it draws the cells grid from the bit mask)
+  ASSERT_TRUE(j.contains("engines")) << j.dump();
+  const auto& st = j["engines"]["1"]["status"];
+  EXPECT_EQ(st["fuel_references"].get<int>(), 42);
+  EXPECT_EQ(st["fuel_cells"].get<int>(), (1 << 6) | (1 << 11));
+}
+
 }  // namespace

@@ -51,6 +51,8 @@ void append_status(std::string& out, const torque_DaemonStatus& s) {
                                                             {"source_drops", s.source_drops},
                                                             {"overruns", s.overruns},
                                                             {"sensor_timeouts", s.sensor_timeouts},
+                                                            {"fuel_references", s.fuel_references},
+                                                            {"fuel_cells", s.fuel_cells},
                                                             {"seq", s.seq}};
   for (const auto& [name, v] : counters) {
     out += ",\"";

@@ -29,6 +29,8 @@ async function readValues(page) {
       tdc: (chart('c-incycle').$tdc || []).length,
       bars: chart('c-cyl').data.datasets[0].data.length,
       statusRows: document.querySelectorAll('#status-table tr').length,
+      fuelCells: document.querySelectorAll('#cells-table td').length,
+      fuelRefs: document.getElementById('fuel-refs').textContent,
     };
   });
 }
@@ -78,6 +80,8 @@ async function readValues(page) {
     // Legend labels are the registry's (idl/methods.hpp, sent in the snapshot), not method ids.
     if (!b.incycleLabels.every(l => /^(Kalman|Fourier) /.test(l))) fail(`in-cycle labels ${b.incycleLabels}`);
     if (b.tdc !== 4) fail(`expected 4 TDC marks (4 cylinders), got ${b.tdc}`);
+    // The fuel model's learned speed x MAP cells: a 4 x 4 grid and its reference count.
+    if (b.fuelCells !== 16 || !/^\d+/.test(b.fuelRefs)) fail(`fuel model cells ${b.fuelCells}, references "${b.fuelRefs}"`);
     if (b.bars !== 4) fail(`expected 4 cylinder bars, got ${b.bars}`);
     if (!['OK', 'DEGRADED'].includes(b.health)) fail(`daemon health "${b.health}"`);
     if (b.statusRows < 3) fail('status table empty');

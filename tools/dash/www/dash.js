@@ -245,6 +245,24 @@ function drawStatus(st) {
   for (let i = 0; i < rows.length; i += 3)
     html += '<tr>' + rows.slice(i, i + 3).map(r => `<td>${r[0]}</td><td><b>${r[1]}</b></td>`).join('') + '</tr>';
   document.querySelector('#status-table tbody').innerHTML = html;
+  drawCells(s);
+}
+
+// The fuel model's learned speed x MAP cells (DaemonStatus.fuel_cells, bit 4*s+m) and its reference count: which
+// operating points the fused brake torque rests on a learned model, which on its prior.
+const SPEED_BANDS = ['< 1500', '1500-2500', '2500-3500', '>= 3500'], MAP_BANDS = ['< 40', '40-60', '60-80', '>= 80'];
+function drawCells(s) {
+  setText('fuel-refs', s.fuel_references === 0 ? '0 (prior only)' : s.fuel_references);
+  let html = '<tr><th>MAP (kPa) / speed (rpm)</th>' + SPEED_BANDS.map(b => `<th>${b}</th>`).join('') + '</tr>';
+  for (let m = MAP_BANDS.length - 1; m >= 0; --m) {
+    html += `<tr><th>${MAP_BANDS[m]}</th>`;
+    for (let sp = 0; sp < SPEED_BANDS.length; ++sp) {
+      const learned = (s.fuel_cells >> (4 * sp + m)) & 1;
+      html += `<td class="${learned ? 'cell-on' : 'cell-off'}">${learned ? 'learned' : 'prior'}</td>`;
+    }
+    html += '</tr>';
+  }
+  document.querySelector('#cells-table tbody').innerHTML = html;
 }
 
 function draw() {
