@@ -320,7 +320,7 @@ double AnglePipeline::friction_sd_nm(double fric) const noexcept {
   // Until learned over speed (motoring) the law is the generic correlation, whose spread across engines is
   // ≈ ±40 % (an idle correction fixes it near idle only). Learned: never below the 1σ its load references
   // shared (FrictionLearner::reference_sd_nm).
-  if (!friction_.speed_law_learned()) return cfg_.friction.prior_rel_sd * std::fabs(fric);
+  if (!friction_.speed_law_learned()) return friction_.prior_level_sd() * std::fabs(fric);
   return std::max(cfg_.friction.learned_sd_nm, friction_.reference_sd_nm());
 }
 
@@ -439,10 +439,14 @@ bool AnglePipeline::idle_observation_allowed(const SegmentEnergy& seg, const Cyc
                                              bool cycle_end) const noexcept {
   const int n = cfg_.engine.cylinders;
   const FrictionParams& f = cfg_.friction;
+  // "No load" beyond the accessories: on a vehicle (a clutch or neutral flag mapped) the driveline-open load
+  // is the accessory prior, which the observation subtracts like any known load.
+  const bool vehicle = cfg_.load_ref.sole_flag_bound || cfg_.load_ref.neutral_bound;
+  const double acc = vehicle && ref.kind != ReferenceKind::kLoadSignal ? cfg_.load_ref.accessory_nm : 0.0;
   return cycle_end && fired_segments_ > n && since_cut_segments_ > f.idle_after_cut_cycles * n && ref.ok &&
          rls.health == Health::kValid && rls.uncertainty < f.idle_max_rls_sd_nm &&
          idle_steady_cycles_ >= f.idle_steady_cycles && rpm < cfg_.energies.idle_max_rpm &&
-         std::fabs(seg.cycle_load_mean_nm) < cfg_.energies.idle_max_load_nm;
+         std::fabs(seg.cycle_load_mean_nm - acc) < cfg_.energies.idle_max_load_nm;
 }
 
 bool AnglePipeline::fuel_reference_allowed(const CycleReference& ref, const EngineSignals& sig,
@@ -500,7 +504,8 @@ void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bo
   // correction). The learner rejects observations far from the established idle level (no collapse on one bad
   // input).
   if (idle_observation_allowed(seg, ref, o.load_rls, rpm, o.cycle_end)) {
-    friction_.observe_idle(rpm, oil_c_, o.load_rls.torque_nm - seg.cycle_load_mean_nm);
+    friction_.observe_idle(rpm, oil_c_, o.load_rls.torque_nm - seg.cycle_load_mean_nm,
+                           std::hypot(ref.sd_nm, o.load_rls.uncertainty));
   }
   // Crank-only references: the energy balance with the measured load is the truth the crank-only chains are
   // scored against (fuel-model efficiency; measured 1σ of the compression-window chain).

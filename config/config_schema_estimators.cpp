@@ -247,6 +247,11 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("friction.max_load_change_nm", friction.params.max_load_change_nm, open_closed(0.0, 1e4), "N m",
          "skip observations while the measured load moves more than this per segment");
   TQ_BOOL(
+      "friction.idle_scales_prior", friction.params.idle_scales_prior,
+      "until friction is learned over speed (fuel cut-off with a known load), steady idle with a known load "
+      "(neutral, the machine alone) scales the whole generic prior law, whose spread across engines is "
+      "mostly its level (docs/angle_pipeline.md)");
+  TQ_BOOL(
       "friction.learn_at_idle", friction.params.learn_at_idle,
       "learn a local idle correction of the law from the steady-idle friction (off: only C4 learns at idle)");
   TQ_INT("friction.idle_steady_cycles", friction.params.idle_steady_cycles, closed(1, 100000), "cycles",

@@ -46,6 +46,32 @@ void FrictionLearner::reset() noexcept {
   gated_sign_ = 0.0;
   cover_ = CoverageScale{};
   ref_sd_nm_ = 0.0;
+  level_ = 1.0;
+  level_ratio_ = 0.0;
+  level_info_ = 0.0;
+}
+
+double FrictionLearner::prior_level_sd() const noexcept {
+  const double s0 = params_.prior_rel_sd;
+  if (!level_active() || !(level_info_ > 0.0) || !(s0 > 0.0)) return s0;
+  return 1.0 / std::sqrt(1.0 / (s0 * s0) + level_info_);
+}
+
+void FrictionLearner::update_level(double speed_rpm, double oil_temp_c, double friction_nm,
+                                   double obs_sd_nm) noexcept {
+  const double nk = speed_rpm / kS2;
+  const double law =
+      params_.sign * std::exp(c4_ * oil_temp_c) * (theta_[0] + theta_[1] * nk + theta_[2] * nk * nk);
+  const double s0 = params_.prior_rel_sd;
+  if (!(law > 0.0) || !(s0 > 0.0)) return;
+  // Running mean of the ratios; the observation's 1σ is shared by every idle cycle: counted once.
+  level_ratio_ += (friction_nm / law - level_ratio_) / static_cast<double>(n_idle_);
+  const double sd = (obs_sd_nm > 0.0 ? obs_sd_nm : params_.learned_sd_nm) / law;
+  level_info_ = 1.0 / (sd * sd);
+  const double i0 = 1.0 / (s0 * s0);
+  const double f =
+      params_.idle_max_correction_frac;  // the idle evidence moves idle friction at most this much
+  level_ = std::clamp((i0 + level_info_ * level_ratio_) / (i0 + level_info_), 1.0 - f, 1.0 + f);
 }
 
 bool FrictionLearner::gate_rejects(double err, double law_var) noexcept {
@@ -88,6 +114,10 @@ bool FrictionLearner::observe_motoring(double speed_rpm, double oil_temp_c, doub
     ++n_rejected_;
     return false;
   }
+  if (level_active() && level_ != 1.0) {  // the first motoring observation: the RLS continues from s · prior
+    for (double& t : theta_) t *= level_;
+    level_ = 1.0;
+  }
   const double y_hat = phi[0] * theta_[0] + phi[1] * theta_[1] + phi[2] * theta_[2];
   const double err = friction_nm - y_hat;
   if (gate_rejects(err, phi[0] * pphi[0] + phi[1] * pphi[1] + phi[2] * pphi[2])) {
@@ -128,7 +158,8 @@ bool FrictionLearner::observe_motoring(double speed_rpm, double oil_temp_c, doub
   return true;
 }
 
-bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double friction_nm) noexcept {
+bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double friction_nm,
+                                   double obs_sd_nm) noexcept {
   if (!params_.learn) return false;
   if (!std::isfinite(speed_rpm) || !std::isfinite(oil_temp_c) || !std::isfinite(friction_nm) ||
       !(friction_nm > 0.0)) {
@@ -144,14 +175,19 @@ bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double f
     return false;
   }
   ++n_idle_;
+  if (level_active()) update_level(speed_rpm, oil_temp_c, friction_nm, obs_sd_nm);
   if (params_.learn_at_idle) {
     // Local correction: running mean of (observed − law) over the idle observations (gain 1/n, floor 0.1),
     // bounded to ±idle_max_correction_frac of the law at idle.
     const double g = std::max(0.1, 1.0 / static_cast<double>(n_idle_ + idle_prior_n_));
     idle_rpm_ = idle_rpm_ > 0.0 ? idle_rpm_ + g * (speed_rpm - idle_rpm_) : speed_rpm;
+    // Bounded so that idle friction stays within ±idle_max_correction_frac of the unscaled law (with the
+    // prior level: level and correction together).
     const double law = law_nm(speed_rpm, oil_temp_c);
-    const double bound = params_.idle_max_correction_frac * std::fabs(law);
-    idle_corr_nm_ = std::clamp(idle_corr_nm_ + g * ((friction_nm - law) - idle_corr_nm_), -bound, bound);
+    const double law0 = std::fabs(law / prior_level());
+    const double f = params_.idle_max_correction_frac;
+    idle_corr_nm_ = std::clamp(idle_corr_nm_ + g * ((friction_nm - law) - idle_corr_nm_),
+                               std::min(0.0, (1.0 - f) * law0 - law), std::max(0.0, (1.0 + f) * law0 - law));
   }
   const double ln = std::log(friction_nm);
   if (!have_idle_ref_) {
@@ -179,7 +215,8 @@ bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double f
 
 double FrictionLearner::law_nm(double speed_rpm, double oil_temp_c) const noexcept {
   const double nk = speed_rpm / kS2;
-  return params_.sign * std::exp(c4_ * oil_temp_c) * (theta_[0] + theta_[1] * nk + theta_[2] * nk * nk);
+  return prior_level() * params_.sign * std::exp(c4_ * oil_temp_c) *
+         (theta_[0] + theta_[1] * nk + theta_[2] * nk * nk);
 }
 
 double FrictionLearner::friction_nm(double speed_rpm, double oil_temp_c) const noexcept {

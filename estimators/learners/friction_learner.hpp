@@ -19,6 +19,15 @@
 //    mean), applied fully at and below the idle speed and faded linearly to 0 at idle_fade_rpm. It is not
 //    persisted (the four coefficients are); it is relearned after idle_steady_cycles of steady idle in each
 //    run.
+//  - Prior level at idle (idle_scales_prior): until the law is learned over speed (no motoring observation,
+//    nothing imported) it is the generic correlation, whose spread across engines is mostly its level (±40 %
+//    of the whole curve, prior_rel_sd), not its shape. A steady-idle observation with a known load (neutral,
+//    the machine alone) then measures that level: s = T_idle / law(n_idle), combined with the prior s = 1 ±
+//    prior_rel_sd by inverse variances (scalar Bayesian update). The observation's 1σ (its load reference's
+//    and the RLS load's) is shared by every idle cycle (an accessory prior does not average out), so it is
+//    counted once: the level's 1σ never goes below it. The law is scaled by s everywhere; the first motoring
+//    observation folds s into the coefficients, from where the RLS continues. Not persisted (like the idle
+//    correction, relearned at idle in each run).
 // Coefficients can be exported and imported for persistence across restarts (the daemon writes them
 // atomically).
 #include <array>
@@ -61,7 +70,15 @@ class FrictionLearner {
 
   /// Idle observation: friction torque equals the indicated torque (no load). Learns C4 from oil-temperature
   /// differences. Returns false when rejected. Real-time safe.
-  bool observe_idle(double speed_rpm, double oil_temp_c, double friction_nm) noexcept;
+  /// `obs_sd_nm`: the observation's 1σ (its load reference's and the RLS load's; 0: learned_sd_nm), which
+  /// weighs the prior level update (see above).
+  bool observe_idle(double speed_rpm, double oil_temp_c, double friction_nm, double obs_sd_nm = 0.0) noexcept;
+
+  /// Level s of the generic law learned at idle (1: none), while the law is not learned over speed.
+  [[nodiscard]] double prior_level() const noexcept { return level_active() ? level_ : 1.0; }
+  /// 1σ of the law's level as a fraction: prior_rel_sd before any idle observation, the posterior after;
+  /// while the law is not learned over speed this is the friction's claimed relative 1σ.
+  [[nodiscard]] double prior_level_sd() const noexcept;
 
   /// T_fric (N m) at the given speed and oil temperature (law + faded idle correction). Real-time safe (one
   /// exp()).
@@ -127,6 +144,14 @@ class FrictionLearner {
   double idle_rpm_ = 0.0;           ///< speed of the idle observations (rpm), 0: none yet
   std::uint64_t idle_prior_n_ = 0;  ///< weight (observations) of an imported idle correction
   bool imported_ = false;
+  double level_ = 1.0;  ///< prior level s learned at idle (law = s · coefficients while level_active())
+  double level_ratio_ = 0.0;  ///< running mean of T_idle / law_unscaled(n_idle) over the idle observations
+  double level_info_ = 0.0;   ///< information (1/σ²) of s, 0: none beyond the prior
+  /// The law is still the generic prior (nothing learned over speed, nothing imported) and may be scaled.
+  [[nodiscard]] bool level_active() const noexcept {
+    return params_.idle_scales_prior && !imported_ && n_motoring_ == 0;
+  }
+  void update_level(double speed_rpm, double oil_temp_c, double friction_nm, double obs_sd_nm) noexcept;
   CoverageScale cover_;     ///< motoring residual scale (sd 0: none measured)
   double ref_sd_nm_ = 0.0;  ///< smallest 1σ of the references learned from (N m), 0: none
   std::uint64_t n_motoring_ = 0, n_idle_ = 0, n_rejected_ = 0;

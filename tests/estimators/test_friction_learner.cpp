@@ -267,3 +267,38 @@ TEST(FrictionLearner, ClaimedSigmaNeverGoesBelowTheSharedErrorOfItsLoadReference
   EXPECT_NEAR(restarted.motoring_sd_nm(), std::max(0.5, p.learned_sd_nm), 1e-9);
   EXPECT_FALSE(restarted.import_reference_sd(-1.0));
 }
+
+TEST(FrictionLearner, SteadyIdleScalesTheGenericPriorUntilTheLawIsLearnedOverSpeed) {
+  // GIVEN the generic prior of a 1.6 l engine whose friction is 1.3 x that correlation at every speed (within
+  // the correlation's ±40 % spread across engines: its level, not its shape)
+  FrictionParams p;
+  p.c = torqued::generic_friction_prior(1.6e-3, p.sign);
+  FrictionLearner fl(p);
+  FrictionParams p_off = p;
+  p_off.idle_scales_prior = false;
+  FrictionLearner off(p_off);
+  const double prior3000 = fl.friction_nm(3000.0, 90.0), prior800 = fl.friction_nm(800.0, 90.0);
+  const double true3000 = 1.3 * prior3000, true800 = 1.3 * prior800;
+  EXPECT_NEAR(fl.prior_level_sd(), p.prior_rel_sd, 1e-12);
+  // WHEN steady idle in neutral reports the idle friction with a 2 N m 1 sigma (accessory prior ⊕ RLS load),
+  // the accessory error shared by every cycle (here +0.8 N m on all of them)
+  for (int k = 0; k < 20; ++k) {
+    EXPECT_TRUE(fl.observe_idle(800.0, 90.0, true800 + 0.8, 2.0));
+    EXPECT_TRUE(off.observe_idle(800.0, 90.0, true800 + 0.8, 2.0));
+  }
+  // THEN the whole law moves to the idle level: at 3000 rpm within 5 % (the prior was 23 % off), with a
+  // claimed 1 sigma that covers the error and is not below one observation's (it does not average out)
+  const double est3000 = fl.friction_nm(3000.0, 90.0);
+  EXPECT_NEAR(est3000, true3000, 0.05 * true3000);
+  EXPECT_GT(fl.prior_level(), 1.2);
+  EXPECT_LT(fl.prior_level_sd(), p.prior_rel_sd);
+  EXPECT_GE(fl.prior_level_sd() * fl.prior_level() * prior800, 0.9 * 2.0 / std::sqrt(2.0));
+  EXPECT_LE(std::fabs(est3000 - true3000), fl.prior_level_sd() * est3000);
+  EXPECT_FALSE(fl.speed_law_learned());  // the speed law is still the prior's shape
+  // AND with idle_scales_prior off only the local idle correction moves (3000 rpm unchanged)
+  EXPECT_DOUBLE_EQ(off.friction_nm(3000.0, 90.0), prior3000);
+  // WHEN a coast-down is then observed, the RLS continues from the scaled law (no jump back to the prior)
+  EXPECT_TRUE(fl.observe_motoring(2500.0, 90.0, 1.3 * fl.law_nm(2500.0, 90.0) / fl.prior_level(), 4.0));
+  EXPECT_DOUBLE_EQ(fl.prior_level(), 1.0);
+  EXPECT_NEAR(fl.friction_nm(3000.0, 90.0), true3000, 0.05 * true3000);
+}
