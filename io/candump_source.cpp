@@ -99,18 +99,9 @@ SourceStatus CandumpSource::next(CanFrame& out) noexcept {
   auto note_drop = [&](const TimeDrop& d) { note_time_drop(d, path_, stats_, messages_, error_); };
   std::string_view line;
   for (;;) {
-    if (sanity_.pop(out)) {
-      ++stats_.records;
-      return SourceStatus::kOk;
-    }
-    if (eof_) return finish_lines(reader_, path_, stats_, error_);
-    if (!reader_.next(line)) {
-      eof_ = true;
-      sanity_.finish();
-      sanity_.drain_drops(note_drop);
-      stats_.time_rebases = sanity_.rebases();
-      continue;
-    }
+    const LineStep step = next_line_or_record(sanity_, reader_, eof_, stats_, out, line, note_drop);
+    if (step == LineStep::kRecord) return SourceStatus::kOk;
+    if (step == LineStep::kEnd) return finish_lines(reader_, path_, stats_, error_);
     stats_.lines = reader_.line_number();
     if (line.empty() || line.front() == '#') continue;
     std::string_view bus;

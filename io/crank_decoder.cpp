@@ -9,6 +9,12 @@ namespace torqued {
 namespace {
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr double kDegToRad = std::numbers::pi / 180.0;
+/// After a noise edge (synced), this many accepted teeth are judged as inside a noise burst.
+constexpr int kBurstTeeth = 4;
+/// In a noise burst, a period shorter than this fraction of the running tooth period (median of the last
+/// three) is a glitch: a real tooth period does not shorten by a fifth against the three before it while the
+/// signal is noisy enough to tell (outside bursts the wider runt_fraction / sync_ratio_min windows apply).
+constexpr double kBurstToothRatioMin = 0.8;
 }  // namespace
 
 const char* to_string(SyncLossReason r) noexcept {
@@ -104,7 +110,8 @@ void CrankDecoder::reset_sync(SyncState to) noexcept {
   cam_.set_known(false);
   gap_.reset(to == SyncState::kLostSync);
   pattern_.restart();
-  u1_ = u2_ = 0.0;
+  u1_ = u2_ = u3_ = 0.0;
+  burst_teeth_ = 0;
   period_ns_ = 0;
 }
 
@@ -215,6 +222,7 @@ bool CrankDecoder::restart_after_stall(std::int64_t t_ns, ToothEvent& out) noexc
 }
 
 void CrankDecoder::reject_noise() noexcept {
+  if (state_ == SyncState::kSynced) burst_teeth_ = kBurstTeeth;
   ++stats_.noise_edges;
   ++stats_.rejected_edges;
   pending_flags_ |= kToothNoiseRejected;
@@ -265,7 +273,8 @@ void CrankDecoder::enter_synced(std::int64_t t_ns, std::int64_t period, int idx,
   const double w = wheel_.width_of(tooth_);
   last_width_rad_ = w;
   u1_ = static_cast<double>(period) / w;
-  u2_ = 0.0;
+  u2_ = u3_ = 0.0;
+  burst_teeth_ = 0;
   last_t_ns_ = t_ns;
   pending_flags_ |= flags | (stats_.syncs > 1 ? kToothResynced : 0u);
   emit(t_ns, idx, w, period, out);
@@ -301,14 +310,22 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   const double trend = u2_ > 0.0 ? clamp_trend(u1_ / u2_, params_.max_trend) : 1.0;
   const double q_flat = static_cast<double>(period) / (u1_ * w);
   const double q_trend = q_flat / trend;
+  // In a noise burst (a noise edge rejected within the last kBurstTeeth teeth) the last period and the trend
+  // may come from a glitch taken for the tooth it preceded; the running period (median of the last three)
+  // cannot. There an edge well short of the running period is a glitch too (counted as noise), and a period
+  // that fits the running one is a tooth: so no glitch of the burst is counted as one more tooth (that
+  // shifted every index after it until the next gap, each glitch shortening the prediction for the next).
+  const bool burst = burst_teeth_ > 0;
+  const double q_run = static_cast<double>(period) / (running_u() * w);
   // Noise: earlier than runt_fraction of a one-pitch period (also at a gap: a tooth where the gap should be
   // is a missing gap, not noise).
-  if (static_cast<double>(period) < params_.runt_fraction * u1_ * wheel_.pitch_rad * std::min(trend, 1.0)) {
+  if (static_cast<double>(period) < params_.runt_fraction * u1_ * wheel_.pitch_rad * std::min(trend, 1.0) ||
+      (burst && q_run < kBurstToothRatioMin)) {
     reject_noise();
     return false;
   }
   auto in_window = [&](double q) { return q >= params_.sync_ratio_min && q <= params_.sync_ratio_max; };
-  const bool normal = in_window(q_flat) || in_window(q_trend);
+  const bool normal = in_window(q_flat) || in_window(q_trend) || (burst && in_window(q_run));
   const double q = std::max(q_flat, q_trend) > params_.sync_ratio_max ? std::min(q_flat, q_trend) : q_trend;
   int advance = 1;
   const bool gap_tooth = w > 1.5 * wheel_.pitch_rad;
@@ -318,7 +335,8 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   // slowdown and must not be explained by a lost tooth (that would shift every index after it). A period
   // inside the normal window is never a lost tooth.
   const double speed_rpm = last_width_rad_ / (static_cast<double>(period_ns_) * 1e-9) * (60.0 / kTwoPi);
-  const bool lost_possible = !normal && speed_rpm >= params_.lost_tooth_min_rpm &&
+  // In a noise burst the speed and q come from edges a glitch may have stood in for: no lost-tooth guess.
+  const bool lost_possible = !normal && !burst && speed_rpm >= params_.lost_tooth_min_rpm &&
                              q_lost >= params_.lost_tooth_min_ratio && q > std::sqrt(q_lost) &&
                              q >= q_lost * params_.sync_ratio_min && q <= q_lost * params_.sync_ratio_max;
   if (lost_possible) {
@@ -367,8 +385,10 @@ void CrankDecoder::accept_tooth(std::int64_t t_ns, std::int64_t period, int i, d
   tooth_ = i;
   period_ns_ = period;
   last_width_rad_ = w;
+  u3_ = u2_;
   u2_ = u1_;
   u1_ = static_cast<double>(period) / w;
+  if (burst_teeth_ > 0) --burst_teeth_;
   last_t_ns_ = t_ns;
   const int t = wheel_.teeth;
   const int idx = rev_ * t + i;

@@ -16,6 +16,7 @@
 // lost sync with a reason. 720° phase: a cam edge whose estimated crank angle falls into
 // [cam_window_start_deg, cam_window_end_deg) (angles in 0..720 from tooth 0 of the cycle's first revolution)
 // fixes which revolution we are in.
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <span>
@@ -194,6 +195,12 @@ class CrankDecoder {
   void accept_tooth(std::int64_t t_ns, std::int64_t period_ns, int i, double w, int advance, bool gap_tooth,
                     ToothEvent& out) noexcept;
   void reject_noise() noexcept;
+  /// Synced: the running tooth period (ns/rad), the median of the last three normalised periods (u1_ before
+  /// three are known). A glitch accepted as a tooth drags u1_ and the trend; it cannot drag the median.
+  [[nodiscard]] double running_u() const noexcept {
+    if (u2_ <= 0.0 || u3_ <= 0.0) return u1_;
+    return std::max(std::min(u1_, u2_), std::min(std::max(u1_, u2_), u3_));
+  }
   void lose_sync(SyncLossReason reason, std::int64_t t_ns) noexcept;
   void reset_sync(SyncState to) noexcept;
   void emit_unsynced(std::int64_t t_ns, SyncState s, ToothEvent& out) noexcept;
@@ -228,7 +235,9 @@ class CrankDecoder {
   std::int64_t period_ns_ = 0;   ///< last accepted period
   double last_width_rad_ = 0.0;  ///< nominal width of the last accepted period (synced)
   double u1_ = 0.0, u2_ = 0.0;   ///< synced: last two periods per radian of true width (ns/rad); 0 = unknown
-  int lost_this_rev_ = 0;        ///< synced: teeth interpolated in this revolution
+  double u3_ = 0.0;              ///< synced: the one before u2_ (running_u(); 0 = unknown)
+  int burst_teeth_ = 0;    ///< synced: teeth still judged as in a noise burst (a noise edge was rejected)
+  int lost_this_rev_ = 0;  ///< synced: teeth interpolated in this revolution
   std::uint32_t pending_flags_ = 0;  ///< ToothEvent::events for the next tooth event
   DecoderStats stats_;
   DecoderEventLog* events_ = nullptr;

@@ -20,6 +20,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "source.hpp"
@@ -172,5 +173,34 @@ class TimeSanity {
   std::size_t drops_n_ = 0;
   std::uint64_t outliers_ = 0, backwards_ = 0, rebases_ = 0;
 };
+
+/// What a line-based file source's next() does after next_line_or_record().
+enum class LineStep : std::uint8_t {
+  kRecord,  ///< `out` holds a record the time sanity check released (counted in stats.records)
+  kEnd,     ///< input finished and every held record handed out: return finish_lines(...)
+  kLine,    ///< `line` holds the next input line to parse
+};
+
+/// The common head of a line-based file source's next() (candump log, bare edge list): hands out the records
+/// the time sanity check released, else reads the next line; at the end of the input it finishes the check
+/// first (its drops through note_drop(const TimeDrop&), the re-base count into stats), so the records it
+/// still held come out before kEnd. Real-time safe (Reader: LineReader).
+template <class Rec, class Reader, class NoteDrop>
+[[nodiscard]] LineStep next_line_or_record(TimeSanity<Rec>& sanity, Reader& reader, bool& eof,
+                                           SourceStats& stats, Rec& out, std::string_view& line,
+                                           NoteDrop&& note_drop) noexcept {
+  for (;;) {
+    if (sanity.pop(out)) {
+      ++stats.records;
+      return LineStep::kRecord;
+    }
+    if (eof) return LineStep::kEnd;
+    if (reader.next(line)) return LineStep::kLine;
+    eof = true;
+    sanity.finish();
+    sanity.drain_drops(note_drop);
+    stats.time_rebases = sanity.rebases();
+  }
+}
 
 }  // namespace torqued

@@ -78,8 +78,11 @@ std::string events_text(std::uint32_t e) {
   return s;
 }
 
-/// One RFC 4180 field: quoted (with '"' doubled) when it holds a comma, a quote or a line break.
+/// One RFC 4180 field: quoted (with '"' doubled) when it holds a comma, a quote or a line break. An empty
+/// field writes nothing: an empty std::string_view{} has a null data(), which fwrite must not be given (its
+/// pointer argument is declared non-null; UBSan stops there).
 void csv_field(std::FILE* f, std::string_view v) {
+  if (v.empty()) return;
   if (v.find_first_of(",\"\r\n") == std::string_view::npos) {
     std::fwrite(v.data(), 1, v.size(), f);
     return;

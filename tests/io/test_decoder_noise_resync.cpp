@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <iterator>
 #include <random>
 #include <vector>
 
@@ -91,6 +92,7 @@ TEST(DecoderNoiseResync, ResyncsAtTheFirstGapWithCleanTeethBeforeItAfterEachBurs
   p.use_cam = false;
   const Outcome o = decode(n, p);
   EXPECT_EQ(o.wrong_outside_bursts, 0);
+  int kept = 0;
   for (const Burst& b : n.bursts) {
     // The first gap (tooth 0) after the burst with kResyncRunBeforeGap clean teeth between the burst and it.
     std::int64_t gap_ns = -1;
@@ -110,12 +112,63 @@ TEST(DecoderNoiseResync, ResyncsAtTheFirstGapWithCleanTeethBeforeItAfterEachBurs
         back = t.t_ns;
         break;
       }
-    // THEN synced again at that gap: within one revolution (240 ms at 250 rpm) and 4 teeth of the burst
-    EXPECT_EQ(back, gap_ns) << "burst at " << b.start_ns * 1e-9 << " s: synced again at " << back * 1e-9
-                            << " s, the gap was at " << gap_ns * 1e-9 << " s";
+    // A burst whose glitches the synced tracking rejected (one of the five) keeps sync throughout; the others
+    // lose it.
+    const bool lost = std::any_of(o.teeth.begin(), o.teeth.end(), [&](const ToothEvent& t) {
+      return t.t_ns >= b.start_ns && t.t_ns < back && t.sync != SyncState::kSynced;
+    });
+    // THEN, when sync was lost, synced again at that gap: within one revolution (240 ms at 250 rpm) and 4
+    // teeth of the burst
+    if (lost)
+      EXPECT_EQ(back, gap_ns) << "burst at " << b.start_ns * 1e-9 << " s: synced again at " << back * 1e-9
+                              << " s, the gap was at " << gap_ns * 1e-9 << " s";
+    else
+      EXPECT_LT(back, gap_ns);
+    kept += lost ? 0 : 1;
     EXPECT_LE(back - b.end_ns, static_cast<std::int64_t>(60e9 / 250.0 * (1.0 + 4.0 / 36.0)));
   }
+  EXPECT_EQ(kept, 1);
   EXPECT_EQ(o.stats.syncs, o.stats.sync_losses + 1);
+}
+
+/// Index (within the revolution) of the true tooth nearest in time to t.
+int nearest_true_tooth(const test::SynthOutput& clean, std::int64_t t) {
+  const auto it = std::lower_bound(clean.teeth.begin(), clean.teeth.end(), t,
+                                   [](const test::SynthTooth& x, std::int64_t v) { return x.t_ns < v; });
+  if (it == clean.teeth.end()) return clean.teeth.back().tooth720 % kTeeth;
+  if (it == clean.teeth.begin() || it->t_ns - t <= t - std::prev(it)->t_ns) return it->tooth720 % kTeeth;
+  return std::prev(it)->tooth720 % kTeeth;
+}
+
+TEST(DecoderNoiseResync, NoGlitchCountedAsAToothWhileSynced) {
+  // GIVEN the noisy cranking capture and no pulse-width filter
+  const Noisy n = noisy_cranking();
+  DecoderParams p;
+  p.use_cam = false;
+  const Outcome o = decode(n, p);
+  // THEN every tooth reported as synced, inside the bursts too, carries the index of the true tooth nearest
+  // in time: a glitch edge may stand in for the tooth it precedes (it cannot be told from it when it comes),
+  // but it is never counted as a tooth of its own (which would shift every index after it until the next
+  // gap). Before the running period (io/crank_decoder.cpp), 13 synced teeth here carried a wrong index. Left
+  // out: the tooth at which the gap search resyncs; inside a burst it can take a glitch-made gap (once here,
+  // at 2.079 s; the next tooth loses that sync again): the syncing search's plausibility, not the synced
+  // tracking.
+  int synced_in_bursts = 0, wrong = 0;
+  for (const auto& t : o.teeth) {
+    if (t.sync != SyncState::kSynced) continue;
+    synced_in_bursts += std::any_of(n.bursts.begin(), n.bursts.end(), [&](const Burst& b) {
+      return t.t_ns >= b.start_ns && t.t_ns <= b.end_ns;
+    });
+    // (the tooth of a (re)sync is the gap search's verdict, not the synced tracking's: left out, see below)
+    if ((t.events & kToothResynced) == 0 && t.tooth % kTeeth != nearest_true_tooth(n.clean, t.t_ns)) {
+      ++wrong;
+      ADD_FAILURE() << "synced tooth " << t.tooth % kTeeth << " at " << t.t_ns * 1e-9
+                    << " s, the true one is " << nearest_true_tooth(n.clean, t.t_ns);
+    }
+  }
+  EXPECT_EQ(wrong, 0);
+  EXPECT_GT(synced_in_bursts, 0);  // the decoder stays synced through part of the bursts
+  EXPECT_GT(o.stats.noise_edges, 0u);
 }
 
 TEST(DecoderNoiseResync, ThePulseWidthFilterRejectsTheBurstsWhole) {

@@ -14,6 +14,7 @@ PKGS=(
   can-utils iproute2
   clang libclang-rt-dev openssl clang-format clang-tidy   # clang-format, clang-tidy: tools/scripts/lint.sh
   python3 python3-matplotlib python3-numpy
+  python3-canmatrix   # tests/io/dbc_canmatrix_diff.py: the DBC differential test (opt-in where missing)
   debhelper dpkg-dev help2man lintian
   libcivetweb-dev nlohmann-json3-dev libjs-chart.js   # torque-dash (HTTP/WebSocket server, JSON, page plots)
   libzstd-dev zlib1g-dev   # torque-dash MCAP recordings (zstd chunks, CRC32)
