@@ -69,6 +69,7 @@ function ingest(msg) {
     if (e.status) st.status = e.status;
     if (e.crank) st.crank = e.crank;
     st.unplaced = e.unplaced;
+    st.outOfRange = e.out_of_range || 0;
     samples += e.torque.length + e.incycle.length;
   }
 }
@@ -275,6 +276,8 @@ function draw() {
   const tLast = Math.max(lastSeg ? lastSeg.t : 0, lastCyc ? lastCyc.t : 0);
   setText('last-t', fmt(tLast, 3));
   setText('unplaced', st.unplaced);
+  setText('out-of-range', st.outOfRange);  // a foreign or corrupt writer's absurd values: counted, red
+  document.getElementById('out-of-range').className = st.outOfRange > 0 ? 'badge bad' : 'badge ok';
   drawTimeCharts(st); drawInCycle(st); drawCylinders(st); drawStatus(st);
 }
 
