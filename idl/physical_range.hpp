@@ -2,11 +2,12 @@
 // Physical range of an engine's torque, for the project's subscribers (torque-echo, torque-dash): a sample
 // outside it (a foreign plain-DDS writer's fused 1e9 N m with quality 0, a corrupt peer) is flagged, not
 // shown as if it were a reading. Bounds from the configured geometry only:
-//  - cycle and segment means (EngineTorque; the mean-value methods of EstimatorTorque): |T| ≤ MEP·V_d/(4π)
+//  - cycle and segment means (EngineTorque; the per-cycle methods of EstimatorTorque): |T| ≤ MEP·V_d/(4π)
 //    (four-stroke: one power stroke per cylinder per 720°) with MEP = 50 bar, above the brake MEP of any
 //    production engine (the most boosted diesels reach about 30 bar, Heywood, Internal Combustion Engine
 //    Fundamentals, 2nd ed., §2.7) and the bound of a learned friction MEP (learned/state_store.hpp);
-//  - instantaneous (the in-cycle methods): |T| ≤ n_cyl · p_max · A_piston · r_crank with p_max = 300 bar,
+//  - instantaneous (the in-cycle and time-domain methods): |T| ≤ n_cyl · p_max · A_piston · r_crank with
+//  p_max = 300 bar,
 //    above the peak firing pressure of heavy-duty diesels (about 250 bar): every cylinder pushing its whole
 //    peak force on the full crank arm.
 // A bound of 0 (no engine configured) checks finiteness only.
@@ -43,9 +44,12 @@ inline bool in_range(const torque_EngineTorque& s, const TorqueRange& r) noexcep
   return true;
 }
 
-/// An EstimatorTorque value within the bound of its method (in-cycle: instantaneous, else mean).
+/// An EstimatorTorque value within the bound of its method: per segment/cycle methods the mean bound, the
+/// others (in-cycle, time domain, unknown ids) the instantaneous one.
 inline bool in_range(const torque_EstimatorTorque& s, const TorqueRange& r) noexcept {
-  return torque_in_range(s.value_nm, is_in_cycle(s.method) ? r.instant_nm : r.mean_nm);
+  const MethodInfo* m = method_info(s.method);
+  const bool mean = m != nullptr && m->domain == MethodDomain::kPerCycle;
+  return torque_in_range(s.value_nm, mean ? r.mean_nm : r.instant_nm);
 }
 
 }  // namespace torqued::dds
