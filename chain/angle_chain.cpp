@@ -137,6 +137,17 @@ void AngleChain::emit_segment(const ToothEvent& te) noexcept {
 // Feedback (1): the learned tooth table goes to the decoder at each cycle boundary.
 void AngleChain::on_cycle_end() noexcept {
   ++cycles_;
+  if (learner_ && learner_->import_distrusted() && !import_distrust_applied_) {
+    // The engine contradicted the imported table: the decoder drops it, the angle-domain observers say
+    // "not converged" until the fresh table is ready (below, at a later cycle end), the state no longer holds
+    // it.
+    import_distrust_applied_ = true;
+    const auto n = static_cast<std::size_t>(learner_->teeth());
+    std::fill(corr_.begin(), corr_.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
+    (void)decoder_.set_tooth_corrections(std::span<const double>(corr_.data(), n));
+    corr_n_ = 0;
+    if (pipeline_) pipeline_->set_wheel_learned(false);
+  }
   if (learner_ && learner_->ready()) {
     const int n = learner_->teeth();
     learner_->edge_corrections(std::span<double>(corr_.data(), static_cast<std::size_t>(n)));

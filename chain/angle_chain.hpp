@@ -103,6 +103,10 @@ class AngleChain {
   [[nodiscard]] ChainStatus status() const noexcept;
   [[nodiscard]] const AnglePipeline* pipeline() const noexcept { return pipeline_.get(); }
   [[nodiscard]] const ToothErrorLearner* learner() const noexcept { return learner_.get(); }
+  /// Imported tooth tables the running engine contradicted (discarded and relearned; 0 or 1 per run).
+  [[nodiscard]] std::uint64_t tooth_tables_distrusted() const noexcept {
+    return learner_ ? learner_->stats().tables_distrusted : 0;
+  }
   /// CAN frames too short for a bound signal, one line per signal naming the first such frame (empty: none).
   /// Not real-time: call after the chain stopped.
   [[nodiscard]] std::vector<std::string> describe_bad_frames() const {
@@ -139,6 +143,7 @@ class AngleChain {
   std::unique_ptr<ToothErrorLearner> learner_;
   std::string error_;
 
+  bool import_distrust_applied_ = false;
   std::uint64_t cycles_ = 0;
   std::int64_t last_t_ns_ = 0;
   std::int64_t prev_tooth_t_ns_ = -1;

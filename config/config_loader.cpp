@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <numbers>
 #include <set>
 #include <sstream>
@@ -153,7 +154,7 @@ class Loader {
     check_wheel_keys();
     check_metrics_address();
     check_files();
-    for (const auto& p : check_config_physics(cfg_)) {
+    for (const auto& p : options_.check_physics ? check_config_physics(cfg_) : std::vector<ConfigProblem>{}) {
       if (failed_.count(p.key)) continue;  // already reported as a bad value
       if (present(p.key))
         add(mark_of(p.key), p.key, p.found, p.expected);
@@ -189,14 +190,28 @@ class Loader {
   bool present(const std::string& key) const { return values_.count(key) != 0; }
   bool failed(const std::string& key) const { return failed_.count(key) != 0; }
 
-  std::vector<std::string> children_of(const std::string& prefix) const {
-    std::set<std::string> names;
-    const std::string p = prefix.empty() ? "" : prefix + ".";
-    for (const auto& e : config_schema()) {
-      if (e.key.compare(0, p.size(), p) != 0) continue;
-      names.insert(e.key.substr(p.size(), e.key.find('.', p.size()) - p.size()));
-    }
-    return {names.begin(), names.end()};
+  /// Names directly under a section ("" = the top level), sorted; from an index built once.
+  static const std::vector<std::string>& children_of(const std::string& prefix) {
+    static const std::map<std::string, std::vector<std::string>> index = [] {
+      std::map<std::string, std::set<std::string>> names;
+      for (const auto& e : config_schema()) {
+        std::size_t start = 0;
+        for (;;) {
+          const std::size_t dot = e.key.find('.', start);
+          const std::string parent = start == 0 ? "" : e.key.substr(0, start - 1);
+          names[parent].insert(
+              e.key.substr(start, dot == std::string::npos ? std::string::npos : dot - start));
+          if (dot == std::string::npos) break;
+          start = dot + 1;
+        }
+      }
+      std::map<std::string, std::vector<std::string>> m;
+      for (const auto& [k, v] : names) m.emplace(k, std::vector<std::string>(v.begin(), v.end()));
+      return m;
+    }();
+    static const std::vector<std::string> none;
+    const auto it = index.find(prefix);
+    return it == index.end() ? none : it->second;
   }
 
   std::string suggestion(const std::string& prefix, const std::string& leaf) const {

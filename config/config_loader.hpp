@@ -20,6 +20,9 @@ struct LoadResult {
 struct LoadOptions {
   bool check_files =
       true;  ///< require the input files named in the config to exist (off: validate for another machine)
+  /// run check_config_physics() (observer stability: eigenvalues over a cycle, milliseconds per new set of
+  /// gains); off only where a caller samples it (the config fuzz target runs it on 1 input in 64)
+  bool check_physics = true;
 };
 
 /// Load and validate a YAML configuration file. Never throws.

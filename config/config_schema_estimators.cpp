@@ -442,6 +442,16 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          closed(0.0, 1.0), "",
          "the firing orders' load law is used only when this share of the variance of (MAP/100 kPa)/speed^2 "
          "over its cycles is not explained by 1/speed^2 (1 - r^2): loads that vary apart from the speed");
+  TQ_INT("tooth_learn.distrust_min_cycles", tooth_learn.params.distrust_min_cycles, closed(1, 100000),
+         "cycles",
+         "fresh cycles after which an imported (stored) table is checked against the per-tooth evidence of "
+         "this run");
+  TQ_NUM("tooth_learn.distrust_gate_sigma", tooth_learn.params.distrust_gate_sigma, open_closed(0.0, 1e3), "",
+         "an imported table is discarded and relearned when its RMS per-tooth width disagreement with "
+         "this run's evidence exceeds this many standard errors of that evidence (and distrust_floor_deg)");
+  TQ_NUM("tooth_learn.distrust_floor_deg", tooth_learn.params.distrust_floor_deg, closed(0.0, 5.0), "deg",
+         "... and exceeds this RMS width disagreement (well below the ~0.18 deg cumulative pitch deviation "
+         "of ISO 1328-1 grade 12)");
 }
 
 }  // namespace torqued::schema_detail

@@ -6,8 +6,13 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
+#include <condition_variable>
 #include <cstring>
 #include <filesystem>
+#include <memory>
+#include <mutex>
+#include <thread>
 
 #include "topic_format.hpp"
 
@@ -168,6 +173,45 @@ void SampleRecorder::fail(int i, const char* what, int err) {
     error_ = std::string(what) + " error in " + dir_ + "/" + kFileNames[static_cast<std::size_t>(i)] + ": " +
              std::strerror(err) + " (recording stopped; rows from here on are not recorded)";
   write_failed_.store(true, std::memory_order_release);
+}
+
+std::vector<std::string> SampleRecorder::flush_sync_within(double timeout_s) {
+  // Shared with the fsync threads, which may outlive this call (and this recorder) on a stuck disk.
+  struct Pending {
+    std::mutex m;
+    std::condition_variable cv;
+    std::array<int, kFiles> state{};  ///< 0 not started / no file, 1 running, 2 done
+    std::array<int, kFiles> err{};
+  };
+  auto p = std::make_shared<Pending>();
+  std::vector<std::thread> threads;
+  for (int i = 0; i < kFiles; ++i) {
+    write_out(i);
+    const int fd = files_[static_cast<std::size_t>(i)].fd;
+    if (fd < 0 || write_failed_.load(std::memory_order_relaxed)) continue;
+    p->state[static_cast<std::size_t>(i)] = 1;
+    threads.emplace_back([p, fd, i] {
+      const int e = ::fsync(fd) != 0 ? errno : 0;
+      const std::lock_guard<std::mutex> lk(p->m);
+      p->state[static_cast<std::size_t>(i)] = 2;
+      p->err[static_cast<std::size_t>(i)] = e;
+      p->cv.notify_all();
+    });
+  }
+  std::unique_lock<std::mutex> lk(p->m);
+  const auto all_done = [&p] {
+    return std::none_of(p->state.begin(), p->state.end(), [](int s) { return s == 1; });
+  };
+  (void)p->cv.wait_for(lk, std::chrono::duration<double>(std::max(timeout_s, 0.0)), all_done);
+  std::vector<std::string> pending;
+  for (int i = 0; i < kFiles; ++i) {
+    const auto ii = static_cast<std::size_t>(i);
+    if (p->state[ii] == 1) pending.emplace_back(kFileNames[ii]);
+    if (p->state[ii] == 2 && p->err[ii] != 0) fail(i, "fsync", p->err[ii]);
+  }
+  lk.unlock();
+  for (auto& t : threads) t.detach();  // done ones have ended or are ending; stuck ones finish on their own
+  return pending;
 }
 
 void SampleRecorder::flush(bool sync) {

@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "sample.hpp"
 
@@ -47,6 +48,11 @@ class SampleRecorder {
   void record(const AnySample& s, std::uint16_t engine_id);
   /// Writes the buffers to the files; with sync also fsync()s them.
   void flush(bool sync = false);
+  /// At stop: writes the buffers, then fsync()s the files in parallel (one thread each) and waits at most
+  /// timeout_s. Returns the names of the files whose fsync had not returned by then (their rows are written
+  /// but not known to be on disk; the threads are left to finish on their own). A failed fsync counts as
+  /// write_failed() as in flush(true). Not real-time.
+  std::vector<std::string> flush_sync_within(double timeout_s);
   [[nodiscard]] std::uint64_t rows() const noexcept { return rows_; }
 
   static constexpr std::int64_t kFlushPeriodNs = 250'000'000;

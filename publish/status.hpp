@@ -16,7 +16,10 @@ struct RuntimeCounters {
   std::uint64_t publisher_polls = 0, publisher_poll_misses = 0;
   std::uint64_t rejected_edges = 0, cam_phase_errors = 0;  ///< decoder: glitches rejected, cam disagreements
   std::uint32_t fuel_references = 0;  ///< references the fuel model rests on (0: prior only)
-  std::uint16_t fuel_cells = 0;  ///< learned speed × MAP cells of the fuel model (FuelTorque::learned_cells)
+  std::uint16_t fuel_cells = 0;
+  /// Imported tooth tables the running engine contradicted (discarded, relearned); not in DaemonStatus.
+  std::uint64_t tooth_tables_distrusted =
+      0;  ///< learned speed × MAP cells of the fuel model (FuelTorque::learned_cells)
   /// Paced replay / live: times the angle thread slept (one wake-up each); not in DaemonStatus (no field).
   std::uint64_t angle_wakeups = 0;
   std::uint32_t flags = 0;            ///< torque_STATUS_*

@@ -84,6 +84,10 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
     spdlog::debug("decoder: {} more transitions not logged", r.transitions.not_kept);
   if (!spath.empty()) {
     spdlog::info("learned state applied at start: {}", r.imported.empty() ? "nothing" : r.imported);
+    if (r.counters.tooth_tables_distrusted > 0)
+      spdlog::warn(
+          "learned state: the imported tooth table disagreed with this engine's teeth and was "
+          "discarded (relearned from this run)");
     std::string serr;
     st.saved_at_t_ns = r.last_t_ns;
     st.identity = sctx.identity;  // the chain's state is this configuration's engine and wheel

@@ -58,6 +58,7 @@ RuntimeCounters replay_counters(const AngleChain& chain, const ReplayMerger& mer
   c.rejected_edges = ds.rejected_edges;
   c.cam_phase_errors = ds.cam_phase_errors;
   c.cycles = chain.cycles();
+  c.tooth_tables_distrusted = chain.tooth_tables_distrusted();
   if (const AnglePipeline* p = chain.pipeline()) {
     c.fuel_references = p->fuel_model().state().references;
     c.fuel_cells = p->fuel_model().learned_cells();

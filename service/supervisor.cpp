@@ -5,9 +5,14 @@
 #include <systemd/sd-daemon.h>
 #include <time.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cinttypes>
 #include <cstdlib>
 #include <memory>
+#include <string>
+#include <thread>
+#include <vector>
 
 #include "angle_stage.hpp"
 #include "clocks.hpp"
@@ -287,18 +292,49 @@ void Supervisor::save() {
 int Supervisor::shutdown() {
   int exit_code = 0;
   sd_notify(0, "STOPPING=1\nSTATUS=draining");
-  if (!rt_.stop_and_drain(static_cast<std::int64_t>(opt_.drain_timeout_s * 1e9))) {
-    spdlog::warn("drain did not finish within {} s", opt_.drain_timeout_s);
+  // One budget for the whole stop (drain, last state save, recording fsyncs), three quarters of
+  // drain_timeout_s: the rest is left for the logs and the exit (systemd's stop timeout must not kill the
+  // daemon mid-write). The recording's fsyncs run in parallel with the state save.
+  const auto t0 = std::chrono::steady_clock::now();
+  const double budget_s = 0.75 * opt_.drain_timeout_s;
+  const auto left_s = [&] {
+    return std::max(0.0,
+                    budget_s - std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  };
+  if (!rt_.stop_and_drain(static_cast<std::int64_t>(budget_s * 1e9))) {
+    spdlog::warn("drain did not finish within {} s", budget_s);
     exit_code = 1;
   }
   log_input_problems();
   for (const auto& b : rt_.angle_stage().chain().describe_bad_frames()) spdlog::warn("can: {}", b);
   save();
-  if (saver_ && !saver_->finish(opt_.drain_timeout_s))
-    spdlog::warn("learned state: the last save did not finish");
+  bool saved = true;
+  std::vector<std::string> unsynced;
+  if (saver_) {
+    std::thread rec_sync;
+    if (recorder_)
+      rec_sync =
+          std::thread([this, &unsynced, &left_s] { unsynced = recorder_->flush_sync_within(left_s()); });
+    saved = saver_->finish(left_s());
+    if (rec_sync.joinable()) rec_sync.join();
+  } else if (recorder_) {
+    unsynced = recorder_->flush_sync_within(left_s());
+  }
+  if (!saved)
+    spdlog::warn(
+        "learned state: the last save did not finish within the stop budget ({:.2f} s): the file on "
+        "disk is the previous complete one",
+        budget_s);
   if (saver_)
     for (const auto& e : saver_->take_errors()) spdlog::warn("learned state not saved: {}", e);
-  if (recorder_) recorder_->flush(true);
+  if (!unsynced.empty()) {
+    std::string names;
+    for (const auto& n : unsynced) names += (names.empty() ? "" : ", ") + n;
+    spdlog::warn(
+        "recording: fsync of {} not finished within the stop budget ({:.2f} s): their last rows are "
+        "written but may not be on disk",
+        names, budget_s);
+  }
   if (recorder_ && recorder_->write_failed()) {
     spdlog::error("recording: {}; {} rows not recorded", recorder_->error(), recorder_->rows_dropped());
     exit_code = 3;

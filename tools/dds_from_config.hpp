@@ -7,6 +7,7 @@
 
 #include "config.hpp"
 #include "config_loader.hpp"
+#include "physical_range.hpp"
 #include "qos.hpp"
 
 namespace torqued::tools {
@@ -36,6 +37,15 @@ inline dds::DdsSettings dds_settings_from_file(const std::string& path) {
     throw std::runtime_error(msg);
   }
   return dds_settings_from(*r.config);
+}
+
+/// Physical torque range of the configuration's engine (dds/physical_range.hpp).
+inline dds::TorqueRange torque_range_from_file(const std::string& path) {
+  LoadOptions lo;
+  lo.check_files = false;
+  const LoadResult r = load_config(path, lo);
+  if (!r.ok()) return {};
+  return dds::torque_range(r.config->engine.cylinders, r.config->engine.bore_m, r.config->engine.stroke_m);
 }
 
 }  // namespace torqued::tools

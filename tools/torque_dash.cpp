@@ -75,6 +75,7 @@ std::pair<dds::DdsSettings, dash::Geometry> settings_from(const Options& o) {
     for (int k = 0; k < c.engine.cylinders && k < 8; ++k)
       g.firing_order[static_cast<std::size_t>(k)] = c.engine.firing_order[static_cast<std::size_t>(k)];
     g.tdc_offset_deg = c.engine.tdc_offset_rad * 180.0 / 3.14159265358979323846;
+    g.range = dds::torque_range(c.engine.cylinders, c.engine.bore_m, c.engine.stroke_m);
   }
   if (o.domain) s.domain_id = *o.domain;
   if (o.prefix) s.topic_prefix = *o.prefix;

@@ -104,7 +104,8 @@ struct Options {
   bool exit_on_lost = false;
   double idle_exit_s = 0.0;
   bool quiet = false;
-  bool fail_on_gaps = false;  ///< exit 5 when a sequence gap was seen
+  bool fail_on_gaps = false;   ///< exit 5 when a sequence gap was seen
+  bool fail_on_range = false;  ///< exit 6 when a sample was outside the configured engine's physical range
 };
 
 template <class T>
@@ -119,7 +120,10 @@ struct Reader {
 class Echo {
  public:
   explicit Echo(const Options& o) : o_(o) {
-    if (!o.config.empty()) settings_ = tools::dds_settings_from_file(o.config);
+    if (!o.config.empty()) {
+      settings_ = tools::dds_settings_from_file(o.config);
+      range_ = tools::torque_range_from_file(o.config);
+    }
     if (o.config.empty() || o.domain_given) settings_.domain_id = o.domain;
     if (o.config.empty() || o.prefix_given) settings_.topic_prefix = o.prefix;
     // No deadline requested: what iceoryx can carry, and what matches a writer offering none.
@@ -191,7 +195,9 @@ class Echo {
                    static_cast<unsigned long long>(received_),
                    done_ ? " (daemon reported end of replay)" : "");
     const std::uint64_t gaps = report_gaps();
-    return o_.fail_on_gaps && gaps > 0 ? 5 : 0;
+    const std::uint64_t bad = report_out_of_range();
+    if (o_.fail_on_gaps && gaps > 0) return 5;
+    return o_.fail_on_range && bad > 0 ? 6 : 0;
   }
 
  private:
@@ -205,6 +211,40 @@ class Echo {
     std::uint64_t& last = last_seq_[{static_cast<int>(t) * 256 + instance, s.engine_id}];
     if (last != 0 && s.seq > last + 1) gaps_[static_cast<std::size_t>(t)] += s.seq - last - 1;
     if (s.seq > last) last = s.seq;
+  }
+  /// Samples outside the physical range of the configured engine (dds/physical_range.hpp): counted per
+  /// topic, the first one of each topic said at once, their table rows marked "OUT OF RANGE".
+  template <class T>
+  bool check_range(const T& s, dds::Topic t) {
+    if constexpr (std::is_same_v<T, torque_EngineTorque> || std::is_same_v<T, torque_EstimatorTorque>) {
+      if (dds::in_range(s, range_)) return true;
+      if (out_of_range_[static_cast<std::size_t>(t)]++ == 0) {
+        double v = 0.0;
+        if constexpr (std::is_same_v<T, torque_EngineTorque>)
+          v = s.fused_nm;
+        else
+          v = s.value_nm;
+        std::fprintf(stderr,
+                     "torque-echo: %s: engine %u sent a torque outside the physical range of the configured "
+                     "engine (|T| <= %.0f N m mean, %.0f N m instantaneous; e.g. %g N m): flagged\n",
+                     settings_.topic_name(t).c_str(), unsigned{s.engine_id}, range_.mean_nm,
+                     range_.instant_nm, v);
+      }
+      return false;
+    }
+    return true;
+  }
+  std::uint64_t report_out_of_range() const {
+    std::uint64_t total = 0;
+    for (int i = 0; i < dds::kTopicCount; ++i) {
+      const std::uint64_t n = out_of_range_[static_cast<std::size_t>(i)];
+      total += n;
+      if (n > 0)
+        std::fprintf(stderr, "torque-echo: %s: %llu samples outside the engine's physical range\n",
+                     settings_.topic_name(static_cast<dds::Topic>(i)).c_str(),
+                     static_cast<unsigned long long>(n));
+    }
+    return total;
   }
   std::uint64_t report_gaps() const {
     std::uint64_t total = 0;
@@ -291,6 +331,7 @@ class Echo {
         if (!r.info[static_cast<std::size_t>(i)].valid_data) continue;
         const T& s = r.buf[static_cast<std::size_t>(i)];
         count_gap(s, t);
+        const bool plausible = check_range(s, t);
         if constexpr (std::is_same_v<T, torque_DaemonStatus>) {
           if ((s.flags & torque_STATUS_REPLAY_DONE) && !done_) {
             done_ = true;
@@ -330,6 +371,8 @@ class Echo {
             append_engine_row(line_, s);
           else
             dds::append_table_row(line_, s);
+          if (!plausible && !line_.empty() && line_.back() == '\n')
+            line_.insert(line_.size() - 1, "  OUT OF RANGE");
         }
         std::fwrite(line_.data(), 1, line_.size(), stdout);
       }
@@ -353,6 +396,8 @@ class Echo {
   std::uint64_t received_ = 0;
   std::map<std::pair<int, std::uint16_t>, std::uint64_t> last_seq_;  ///< (topic*256 + method, engine) -> seq
   std::array<std::uint64_t, dds::kTopicCount> gaps_{};               ///< missing samples per topic
+  std::array<std::uint64_t, dds::kTopicCount> out_of_range_{};       ///< implausible samples per topic
+  dds::TorqueRange range_{};  ///< from --config's engine (none: finiteness only)
   std::string line_;
   std::string shm_topics_, net_topics_;  ///< " name name ...": readers on shared memory / on the network path
 };
@@ -395,11 +440,16 @@ int main(int argc, char** argv) {
   app.add_flag("--quiet,-q", o.quiet, "no summary line on stderr");
   app.add_flag("--fail-on-gaps", o.fail_on_gaps,
                "exit 5 when samples were missing (sequence gaps per topic are reported at exit in any case)");
+  app.add_flag(
+      "--fail-on-range", o.fail_on_range,
+      "exit 6 when a torque was outside the physical range of the --config's engine (such samples are "
+      "counted at exit and their table rows marked OUT OF RANGE in any case)");
   app.footer(
       "Exit status: 0 done (signal, --count, --duration, --idle-exit or --until-done); 1 DDS error or "
       "invalid --config; 2 command-line error (unknown option, bad value); 3 the daemon's writers are gone "
       "(--exit-on-lost); 4 --require-shm and a reader is not on shared memory; 5 --fail-on-gaps and samples "
-      "were missing (sequence gaps).");
+      "were missing (sequence gaps); 6 --fail-on-range and a torque was outside the engine's physical "
+      "range.");
   TORQUED_CLI_PARSE(app, argc, argv);
   o.domain_given = domain->count() > 0;
   o.prefix_given = prefix->count() > 0;

@@ -280,6 +280,15 @@ struct ToothLearnParams {
       0.05;  ///< the firing orders' load law [1, u, x] (x = 1/ω̄²) is used only when this share of the
              ///< variance of u is not explained by x (1 − r²): loads that vary apart from the speed. At
              ///< one load u ∝ x and the law loses the speed drift the same-load slots model (-)
+  // An imported (persisted) table is checked against what the engine shows: the fresh per-tooth residual
+  // above the fit's orders (the part a table holds per tooth, learned independently of the import) against
+  // the imported table's part there. Disagreeing beyond both gates, the import is discarded and relearned.
+  int distrust_min_cycles = 10;      ///< fresh cycles before the check (cycles)
+  double distrust_gate_sigma = 4.0;  ///< RMS disagreement beyond this many standard errors of the fresh
+                                     ///< mean (from the cycles' scatter) (-)
+  double distrust_floor_deg =
+      0.05;  ///< and beyond this RMS width disagreement (deg): well below the
+             ///< 0.18 deg cumulative pitch deviation of ISO 1328-1 grade 12 (60 teeth)
 };
 
 }  // namespace torqued

@@ -102,6 +102,7 @@ ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGe
       pinv_[static_cast<std::size_t>(j) * ks + static_cast<std::size_t>(k)] = g(j, k);
   z_.assign(ks, 0.0);
   resid_sum_.assign(ks, 0.0);
+  resid_sq_.assign(ks, 0.0);
   coef_.assign(nbs, 0.0);
   const std::size_t slot_cols = static_cast<std::size_t>(kLoadSlots) * nbs;
   sb_.assign(slot_cols, 0.0);
@@ -125,6 +126,10 @@ ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGe
 
 void ToothErrorLearner::reset() noexcept {
   std::fill(resid_sum_.begin(), resid_sum_.end(), 0.0);
+  std::fill(resid_sq_.begin(), resid_sq_.end(), 0.0);
+  w2sum_ = 0.0;
+  distrusted_ = false;
+  check_ = ToothImportCheck{};
   slots_ = {};
   std::fill(sb_.begin(), sb_.end(), 0.0);
   std::fill(sxb_.begin(), sxb_.end(), 0.0);
@@ -243,9 +248,12 @@ void ToothErrorLearner::finish_cycle() noexcept {
     const double* b = &basis_[k * static_cast<std::size_t>(nb_)];
     double fit = 0.0;
     for (int j = 0; j < nb_; ++j) fit += b[j] * coef_[static_cast<std::size_t>(j)];
-    resid_sum_[k] += wgt * (z_[k] - fit);
+    const double r = z_[k] - fit;
+    resid_sum_[k] += wgt * r;
+    resid_sq_[k] += wgt * r * r;
   }
   wsum_ += wgt;
+  w2sum_ += wgt * wgt;
   n_ += 1.0;
   ++stats_.cycles_used;
   if (cycle_cutoff_) ++stats_.cycles_cutoff;
@@ -491,9 +499,56 @@ void ToothErrorLearner::identify_orders(double* low, double hf_rms) noexcept {
   }
 }
 
+// The imported table against the fresh evidence, per physical tooth above the fit's orders (the part the
+// per-cycle fit cannot absorb, learned from this run's cycles only): the fresh weighted mean residual
+// h_p = ½(m_p + m_{p+T}) and its standard error from the cycles' weighted scatter (effective count
+// (Σw)²/Σw²), against the imported table's z minus its projection on the per-revolution columns. Both as
+// width errors (× nominal width, rad), means removed (the constant column is not compared). A disagreement
+// beyond distrust_gate_sigma standard errors AND distrust_floor_deg (RMS over the teeth) discards the import.
+void ToothErrorLearner::check_import() noexcept {
+  if (import_weight_ <= 0.0 || n_ < params_.distrust_min_cycles || wsum_ <= 0.0 || w2sum_ <= 0.0) return;
+  const int t = table_.teeth;
+  const auto nbs = static_cast<std::size_t>(nb_);
+  const double n_eff = wsum_ * wsum_ / w2sum_;
+  double d_sum = 0.0, d_ss = 0.0, se_ss = 0.0;
+  for (int p = 0; p < t; ++p) {
+    const auto i = static_cast<std::size_t>(p);
+    double h = 0.0, var = 0.0;
+    for (int rev = 0; rev < 2; ++rev) {
+      const auto k = static_cast<std::size_t>(p + rev * t);
+      const double m = resid_sum_[k] / wsum_;
+      h += 0.5 * m;
+      var += 0.25 * std::max(resid_sq_[k] / wsum_ - m * m, 0.0) / n_eff;
+    }
+    const double* b = &basis_[i * nbs];
+    double lo_imp = 0.0;
+    for (std::size_t j = 2; j < nbs; ++j)
+      if (col_per_rev_[j] != 0) lo_imp += b[j] * imp_coef_[j];
+    const double w = table_.width_rad[i];
+    const double d = (h - (eps_import_[i] - lo_imp)) * w;
+    d_sum += d;
+    d_ss += d * d;
+    se_ss += var * w * w;
+  }
+  const double tt = static_cast<double>(t);
+  check_.disagreement_rad = std::sqrt(std::max(d_ss / tt - (d_sum / tt) * (d_sum / tt), 0.0));
+  check_.se_rad = std::sqrt(se_ss / tt);
+  check_.cycles = n_;
+  const double floor_rad = params_.distrust_floor_deg * std::numbers::pi / 180.0;
+  if (check_.disagreement_rad <= params_.distrust_gate_sigma * check_.se_rad ||
+      check_.disagreement_rad <= floor_rad)
+    return;
+  distrusted_ = true;
+  ++stats_.tables_distrusted;
+  import_weight_ = 0.0;
+  std::fill(eps_import_.begin(), eps_import_.end(), 0.0);
+  std::fill(imp_coef_.begin(), imp_coef_.end(), 0.0);
+}
+
 void ToothErrorLearner::recompute() noexcept {
   const int t = table_.teeth;
   const auto nbs = static_cast<std::size_t>(nb_);
+  check_import();  // before the held orders take the imported values
   std::fill(low_coef_.begin(), low_coef_.end(), 0.0);
   const double wsum0 = wsum_ > 0.0 ? wsum_ : 1.0;
   double hf_ms = 0.0;  // mean square of the learned higher orders per sample (the variance check's scale)

@@ -98,7 +98,16 @@ struct ToothLearnStats {
   std::uint64_t cycles_cutoff = 0;  ///< of which in fuel cut-off
   std::uint64_t cycles_overrun =
       0;  ///< clean cut-off cycles (whole cycle and the previous one cut) used as overrun
-  std::uint64_t cycles_rejected = 0;  ///< incomplete (lost/invalid teeth), unsteady or out of speed range
+  std::uint64_t cycles_rejected = 0;    ///< incomplete (lost/invalid teeth), unsteady or out of speed range
+  std::uint64_t tables_distrusted = 0;  ///< imported tables the engine contradicted (discarded, relearned)
+};
+
+/// Imported table against the fresh evidence (ToothErrorLearner::import_check()): RMS over the teeth of the
+/// width disagreement above the fit's orders and of its standard error from the cycles' scatter (rad).
+struct ToothImportCheck {
+  double disagreement_rad = 0.0;
+  double se_rad = 0.0;
+  double cycles = 0.0;  ///< fresh cycles behind the comparison
 };
 
 class ToothErrorLearner {
@@ -140,6 +149,11 @@ class ToothErrorLearner {
   /// This is the table CrankDecoder::set_tooth_corrections() takes and the daemon persists. out.size() =
   /// teeth().
   void edge_corrections(std::span<double> out_rad) const noexcept;
+  /// The imported table was contradicted by the engine (ToothLearnParams::distrust_*): it is discarded and
+  /// the table is the fresh one (ready() again once min_cycles fresh cycles are in). Stays set until reset().
+  [[nodiscard]] bool import_distrusted() const noexcept { return distrusted_; }
+  /// Last comparison of the imported table with the fresh evidence (cycles 0: none yet).
+  [[nodiscard]] const ToothImportCheck& import_check() const noexcept { return check_; }
   /// Restore a persisted table (edge corrections, rad) with the weight of `weight_cycles` learned cycles;
   /// learning continues and blends with it. Returns false if the size does not match.
   bool import_table(std::span<const double> edge_rad, int weight_cycles) noexcept;
@@ -154,6 +168,7 @@ class ToothErrorLearner {
   bool slot_intercept(std::size_t j0, bool firing, double* v, double* var, double* cycles) const noexcept;
   void recompute() noexcept;
   void identify_orders(double* low_coef, double hf_rms) noexcept;
+  void check_import() noexcept;
 
   ToothLearnParams params_;
   ToothAngleTable table_;
@@ -175,7 +190,9 @@ class ToothErrorLearner {
   bool prev_all_cutoff_ = false;   ///< the previous complete cycle was all cut-off
   // accumulators
   std::vector<double> resid_sum_;  ///< Σ residual per 720° sample
-  std::vector<double> coef_;       ///< scratch: coefficients of the last cycle
+  std::vector<double> resid_sq_;  ///< Σ weight · residual² per 720° sample (scatter for the import check)
+  double w2sum_ = 0.0;            ///< Σ weight² (effective cycle count (Σw)²/Σw²)
+  std::vector<double> coef_;      ///< scratch: coefficients of the last cycle
   /// Speed-law sums of one load slot (x = (ω_ref/ω̄)², f = x·ln x); per column j at [j]: Σβ, Σxβ, Σfβ, Σβ².
   struct LoadSlot {
     double map_pa = 0.0;                                                  ///< the slot's load (0: free)
@@ -206,6 +223,8 @@ class ToothErrorLearner {
   std::vector<double> eps_;  ///< wheel part of z per physical tooth, ½(1 − ρ⁻²) for the width ratio ρ
   std::vector<double> eps_import_;  ///< imported prior, in the same (z) domain
   double import_weight_ = 0.0;
+  bool distrusted_ = false;
+  ToothImportCheck check_{};
   std::vector<double> ratio_;  ///< (1 − 2·eps)^−½ normalised so that Σ ratio·w = 2π
   bool low_orders_ok_ = false;
   ToothLearnStats stats_;

@@ -6,7 +6,9 @@
 // (config/demo_vehicle.yaml).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -117,6 +119,114 @@ TEST(LearnedStateChain, FileRoundTripGivesIdenticalOutputsOnTheSecondReplay) {
   // stay).
   ASSERT_TRUE(file.out.fuel);
   EXPECT_GE(file.out.fuel->references, parsed->fuel->references);
+}
+
+/// Per tooth the in-cycle Kalman value (NaN unless its health is valid: the in-cycle quality the daemon
+/// publishes as METHOD_KALMAN health); per segment whether it was valid at the segment's last tooth.
+struct QualityTap final : AngleChainSink {
+  std::vector<double> kalman;
+  std::vector<int> incycle_valid;
+  int last_valid = 0;
+  void on_tooth(const ChainTooth& t) noexcept override {
+    last_valid = t.estimates != nullptr && t.estimates->kalman_ind.health == Health::kValid ? 1 : 0;
+    kalman.push_back(last_valid != 0 ? t.estimates->kalman_ind.torque_nm : std::nan(""));
+  }
+  void on_segment(const ChainSegment&) noexcept override { incycle_valid.push_back(last_valid); }
+};
+
+struct QualityRun {
+  ReplayResult r;
+  LearnedState out;
+  QualityTap tap;
+};
+
+void replay_quality(const std::string& config, const LearnedState* in, QualityRun& run) {
+  const LoadResult lr = load_config(config);
+  ASSERT_TRUE(lr.config.has_value()) << config;
+  RunInputs inputs = open_inputs(*lr.config);
+  ASSERT_TRUE(inputs.ok()) << inputs.error;
+  NoSink sink;
+  if (in) run.out = *in;
+  run.r = run_fast_replay(inputs.settings, inputs.edges.get(), inputs.can.get(), inputs.can_offset_ns,
+                          inputs.dbc_ptr(), sink, nullptr, &run.out, &run.tap);
+}
+
+/// RMS of a − b over the entries from `from` on where both are valid (finite).
+double rms_diff(const std::vector<double>& a, const std::vector<double>& b, std::size_t from) {
+  double ss = 0.0;
+  std::size_t n = 0;
+  for (std::size_t i = from; i < a.size() && i < b.size(); ++i) {
+    if (!std::isfinite(a[i]) || !std::isfinite(b[i])) continue;
+    ss += (a[i] - b[i]) * (a[i] - b[i]);
+    ++n;
+  }
+  return n > 0 ? std::sqrt(ss / static_cast<double>(n)) : 1e300;
+}
+
+TEST(LearnedStateChain, ImportedToothTableTheEngineContradictsIsDistrustedAndRelearned) {
+  // GIVEN the demo's clean learned tooth table and a plausible corrupt one: every correction at 0.9 x the
+  // bound the state check enforces (alternating in sign per tooth with a pseudo-random size of 0.6 .. 1),
+  // written as a state file with a valid checksum, which parses and passes check_state.
+  const std::string cfg = kDir + "demo.yaml";
+  QualityRun fresh, clean, corrupt;
+  replay_quality(cfg, nullptr, fresh);
+  ASSERT_TRUE(fresh.r.learned);
+  ASSERT_EQ(fresh.out.tooth_corrections_rad.size(), 58u);
+  const LoadResult lr = load_config(cfg);
+  ASSERT_TRUE(lr.config);
+  const StateContext ctx = state_context_from(*lr.config);
+  LearnedState bad;
+  bad.identity = ctx.identity;
+  bad.tooth_corrections_rad.assign(58, 0.0);
+  std::uint32_t lcg = 12345u;
+  for (std::size_t p = 1; p < 58; ++p) {
+    lcg = lcg * 1664525u + 1013904223u;
+    const double u = 0.6 + 0.4 * static_cast<double>(lcg >> 8) / 16777216.0;
+    bad.tooth_corrections_rad[p] = (p % 2 == 0 ? 0.9 : -0.9) * u * ctx.max_tooth_corr_rad;
+  }
+  std::string err;
+  const auto parsed = parse_state(serialize_state(bad, ctx.identity), "corrupt", &err);
+  ASSERT_TRUE(parsed) << err;
+  ASSERT_TRUE(check_state(*parsed, ctx, "corrupt", &err)) << err;
+  LearnedState clean_teeth;  // the clean table alone, the same comparison for the clean case
+  clean_teeth.tooth_corrections_rad = fresh.out.tooth_corrections_rad;
+  // WHEN the demo is replayed from each
+  replay_quality(cfg, &clean_teeth, clean);
+  replay_quality(cfg, &*parsed, corrupt);
+  EXPECT_NE(corrupt.r.imported.find("58 tooth corrections"), std::string::npos) << corrupt.r.imported;
+  const std::size_t n = fresh.tap.incycle_valid.size();
+  ASSERT_GT(n, 200u);
+  ASSERT_EQ(corrupt.tap.incycle_valid.size(), n);
+  const std::size_t teeth = fresh.tap.kalman.size();
+  ASSERT_EQ(corrupt.tap.kalman.size(), teeth);
+  ASSERT_EQ(clean.tap.kalman.size(), teeth);
+  // THEN the clean table is kept (no false alarm),
+  EXPECT_EQ(clean.r.counters.tooth_tables_distrusted, 0u);
+  // AND the corrupt one is flagged within the check's cycles: the in-cycle quality goes to "not converged"
+  // (relearning) at a segment within the first 20 cycles (4 segments each) and is valid again later,
+  EXPECT_EQ(corrupt.r.counters.tooth_tables_distrusted, 1u);
+  std::size_t flagged_at = n;
+  for (std::size_t i = 1; i < n && flagged_at == n; ++i)
+    if (corrupt.tap.incycle_valid[i - 1] == 1 && corrupt.tap.incycle_valid[i] == 0) flagged_at = i;
+  EXPECT_LT(flagged_at, 4u * 20u + 8u) << "segment at which the in-cycle quality dropped";
+  std::printf("in-cycle quality dropped at segment %zu of %zu\n", flagged_at, n);
+  EXPECT_EQ(corrupt.tap.incycle_valid[n - 1], 1);
+  // AND the in-cycle Kalman torque over the second half returns to the fresh run's (15.9 N m RMS against
+  // the tooth truth, docs/daemon.md; the corrupt table kept gave 58 N m), as close as the clean table's run
+  // (which differs from the fresh one by its head start only).
+  const double d_corrupt = rms_diff(corrupt.tap.kalman, fresh.tap.kalman, teeth / 2);
+  const double d_clean = rms_diff(clean.tap.kalman, fresh.tap.kalman, teeth / 2);
+  std::printf(
+      "in-cycle Kalman RMS vs the fresh run, second half: corrupt table %.4f N m, clean table %.4f N m\n",
+      d_corrupt, d_clean);
+  EXPECT_LT(d_corrupt, std::max(2.0, 2.0 * d_clean));
+  // AND the state saved at the end no longer holds the corrupt table (the relearned one, or none).
+  ASSERT_EQ(corrupt.out.tooth_corrections_rad.size(), fresh.out.tooth_corrections_rad.size());
+  double max_dev = 0.0;
+  for (std::size_t p = 0; p < 58; ++p)
+    max_dev = std::max(max_dev,
+                       std::abs(corrupt.out.tooth_corrections_rad[p] - fresh.out.tooth_corrections_rad[p]));
+  EXPECT_LT(max_dev, 0.1 * ctx.max_tooth_corr_rad);
 }
 
 TEST(LearnedStateChain, OutOfBoundsFuelModelIsRejected) {

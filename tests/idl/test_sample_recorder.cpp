@@ -9,6 +9,8 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "sample_recorder.hpp"
 
@@ -110,6 +112,19 @@ TEST_F(RecorderFullDisk, RowsReachTheFileWithoutAnExplicitFlushAtEachStatusRow) 
   rec.record(st);  // once per status period (1 s by default): every buffer goes to its file
   const std::string text = slurp(dir_ / "estimator_torque.csv");
   EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 3) << text;
+}
+
+TEST_F(RecorderFullDisk, BoundedSyncAtStopWritesEveryBufferAndReportsNothingPendingOnAQuickDisk) {
+  SampleRecorder rec(dir_.string());
+  rec.record(estimator(1));
+  rec.record(crank(1));
+  const std::vector<std::string> pending = rec.flush_sync_within(30.0);  // a bound, not an expected time
+  EXPECT_TRUE(pending.empty()) << pending.front();
+  EXPECT_FALSE(rec.write_failed());
+  const std::string est = slurp(dir_ / "estimator_torque.csv");
+  const std::string cr = slurp(dir_ / "crank_state.csv");
+  EXPECT_EQ(std::count(est.begin(), est.end(), '\n'), 2) << est;
+  EXPECT_EQ(std::count(cr.begin(), cr.end(), '\n'), 2) << cr;
 }
 
 }  // namespace

@@ -113,10 +113,18 @@ TEST(DashHostilePeers, SilentEnginesExpire) {
   HubOptions o;
   o.engine_expiry_ms = 300;
   auto hub = start_hub(o);
+  test::WsClient page(hub->port(), "/ws", "");  // a dashboard page: told which engines expired
+  ASSERT_TRUE(page.ok());
   for (std::uint16_t e = 100; e < 116; ++e) hub->on_sample(engine_sample(e, 1), now_ns());  // 16 foreign ids
   hub->on_sample(engine_sample(7, 1), now_ns());  // the real engine: no slot left
   EXPECT_EQ(test::http_get(hub->port(), "/api/snapshot", 3000ms).find("\"7\":{"), std::string::npos);
-  std::this_thread::sleep_for(800ms);  // the foreign ids fall silent and expire
+  std::string expired;
+  page.read_frames(800ms, [&](int op, const std::string& p) {  // the foreign ids fall silent and expire
+    if (op == 1 && p.find("\"expired\":[") != std::string::npos) expired += p;
+  });
+  // The page drops them from its engine list (www/dash.js expire()): the hub says which ones.
+  EXPECT_NE(expired.find("100,101,102"), std::string::npos) << expired;
+  EXPECT_NE(expired.find("115]"), std::string::npos) << expired;
   hub->on_sample(engine_sample(7, 2), now_ns());
   const std::string snap = test::http_get(hub->port(), "/api/snapshot", 3000ms);
   EXPECT_NE(snap.find("\"7\":{"), std::string::npos) << snap.substr(0, 300);

@@ -83,4 +83,32 @@ TEST(DashModel, StatusCarriesTheFuelModelsLearnedCells) {
   EXPECT_EQ(st["fuel_cells"].get<int>(), (1 << 6) | (1 << 11));
 }
 
+TEST(DashModel, TorqueOutsideTheEnginesPhysicalRangeIsCountedNotPlotted) {
+  // The demo engine (4 x 82.5 mm x 86 mm, 1.84 l): mean |T| <= 50 bar x Vd / 4 pi = 732 N m, instantaneous
+  // <= 4 x 300 bar x piston area x half the stroke = 27.6 kN m (idl/physical_range.hpp).
+  dash::Geometry g;
+  g.range = dds::torque_range(4, 0.0825, 0.086);
+  EXPECT_NEAR(g.range.mean_nm,
+              50e5 * 4 * 3.141592653589793 / 4 * 0.0825 * 0.0825 * 0.086 / (4 * 3.141592653589793), 1e-9);
+  dash::Model m({}, g);
+  torque_EngineTorque e{};
+  e.engine_id = 1;
+  e.kind = torque_KIND_CYCLE;
+  e.fused_nm = e.brake_nm = 1e9;  // a foreign plain-DDS writer's value, quality 0
+  m.add(e);
+  e.fused_nm = e.brake_nm = 80.0;
+  m.add(e);
+  m.add(estimate(torque_METHOD_KALMAN, 1'000'000));  // in-cycle 104 N m: plausible (waits for its anchor)
+  torque_EstimatorTorque k = estimate(torque_METHOD_KALMAN, 1'100'000);
+  k.value_nm = -1e7;  // beyond any instantaneous torque of this engine
+  m.add(k);
+  const dash::EngineView& v = m.engines().at(1);
+  EXPECT_EQ(v.out_of_range, 2u);
+  EXPECT_EQ(v.torque.total(), 1u) << "only the plausible EngineTorque is plotted";
+  EXPECT_EQ(v.pending.size(), 1u);
+  dash::Cursor c;
+  const auto j = nlohmann::json::parse(m.delta(c));
+  EXPECT_EQ(j["engines"]["1"]["out_of_range"], 2);
+}
+
 }  // namespace

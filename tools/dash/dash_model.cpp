@@ -183,6 +183,10 @@ EngineView* Model::view(std::uint16_t engine_id) {
 void Model::add(const torque_EngineTorque& s) {
   EngineView* v = view(s.engine_id);
   if (!v) return;
+  if (!dds::in_range(s, geometry_.range)) {  // a foreign or corrupt writer: flagged, not plotted
+    ++v->out_of_range;
+    return;
+  }
   v->torque.push(TorquePoint{seconds(s.source_t_ns), s.speed_rad_s * kRadSToRpm, s.brake_nm, s.indicated_nm,
                              s.fused_nm, s.cycle, s.validity, s.kind, s.cylinder, s.quality});
 }
@@ -191,6 +195,10 @@ void Model::add(const torque_EstimatorTorque& s) {
   if (!dds::is_in_cycle(s.method)) return;  // the registry's instantaneous methods only
   EngineView* v = view(s.engine_id);
   if (!v) return;
+  if (!dds::in_range(s, geometry_.range)) {
+    ++v->out_of_range;
+    return;
+  }
   if (v->pending.size() >= limits_.pending) {  // no anchors arrive (CrankState not published): oldest go
     v->pending.erase(v->pending.begin());
     ++v->unplaced;
@@ -302,7 +310,8 @@ void Model::append_engine(std::string& out, std::uint16_t id, const EngineView& 
     append_cylinder(out += ",\"cylinder\":", v.cylinder, v);
   if (v.have_status && c.status != v.status_version) append_status(out += ",\"status\":", v.status);
   if (v.have_crank && c.crank != v.crank_version) append_crank(out += ",\"crank\":", v.crank);
-  out += ",\"unplaced\":" + std::to_string(v.unplaced) + '}';
+  out += ",\"unplaced\":" + std::to_string(v.unplaced) +
+         ",\"out_of_range\":" + std::to_string(v.out_of_range) + '}';
   c = Cursor::PerEngine{v.torque.total(), v.incycle.total(), v.cylinder_version, v.status_version,
                         v.crank_version};
 }

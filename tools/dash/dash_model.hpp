@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "methods.hpp"
+#include "physical_range.hpp"
 #include "topics.hpp"
 
 namespace torqued::dash {
@@ -83,7 +84,8 @@ struct EngineView {
   std::array<double, 8> last_misfire_t_s{-1, -1, -1, -1, -1, -1, -1, -1};  ///< edge clock of the latest (s)
   std::uint64_t incycle_cycle = 0;
   double last_angle_deg = -1;
-  std::uint64_t unplaced = 0;  ///< in-cycle samples dropped: no anchor around their time, or pending full
+  std::uint64_t unplaced = 0;      ///< in-cycle samples dropped: no anchor around their time, or pending full
+  std::uint64_t out_of_range = 0;  ///< samples outside the engine's physical range (not plotted, counted)
 };
 
 /// Cursor of one page into the model: what it has already been sent.
@@ -100,6 +102,7 @@ struct Geometry {
   int cylinders = 0;                  ///< 0 = unknown (no TDC marks)
   std::array<int, 8> firing_order{};  ///< 1-based cylinder numbers
   double tdc_offset_deg = 0;          ///< crank angle of cylinder 1 firing TDC after tooth 0
+  dds::TorqueRange range{};  ///< physical torque range (physical_range.hpp): samples outside are not plotted
 };
 
 class Model {

@@ -279,9 +279,11 @@ std::string Hub::clients_json() {
 }
 
 /// Engines whose samples stopped (receive time older than engine_expiry_ms) leave the model and the pages'
-/// cursors: foreign or retired engine ids cannot hold the dashboard's slots forever.
+/// cursors: foreign or retired engine ids cannot hold the dashboard's slots forever. The pages are told too
+/// ({"engines":{},"expired":[ids]}): they drop the engine from their list and charts.
 void Hub::expire_engines(std::uint64_t now_ns) {
   const std::uint64_t after = static_cast<std::uint64_t>(o_.engine_expiry_ms) * 1'000'000u;
+  std::string ids;
   for (auto it = engine_seen_ns_.begin(); it != engine_seen_ns_.end();) {
     if (now_ns <= it->second || now_ns - it->second <= after) {
       ++it;
@@ -290,8 +292,13 @@ void Hub::expire_engines(std::uint64_t now_ns) {
     model_.forget(it->first);
     for (auto& [conn, c] : clients_) c->cursor.engines.erase(it->first);
     ++stats_.engines_expired;
+    ids += (ids.empty() ? "" : ",") + std::to_string(it->first);
     it = engine_seen_ns_.erase(it);
   }
+  if (ids.empty()) return;
+  const std::string msg = R"({"engines":{},"expired":[)" + ids + "]}";
+  for (auto& [conn, c] : clients_)
+    if (!c->foxglove) push(*c, Out{false, msg});
 }
 
 /// Every period: the dashboard pages' deltas (a page whose last delta is still queued gets none: its cursor

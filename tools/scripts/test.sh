@@ -46,7 +46,7 @@ fi
 
 # ---- fuzzing: a short bounded run of every libFuzzer target (clang build in build-fuzz) ----
 if [[ "${TORQUED_SKIP_FUZZ:-0}" != "1" ]]; then
-  echo "== fuzz (5 s per target) =="
+  echo "== fuzz (5 s per target; fuzz_config: 100 000 inputs) =="
   if tools/scripts/fuzz.sh "${TORQUED_FUZZ_SECONDS:-5}" build-fuzz | tee build/fuzz.txt; then :; else status=1; fi
   summary+=("[fuzz] $(tail -1 build/fuzz.txt)")
 fi

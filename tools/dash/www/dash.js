@@ -35,7 +35,22 @@ function engineState(id) {
 }
 function pushBounded(a, items, keep) { a.push(...items); if (a.length > keep) a.splice(0, a.length - keep); }
 
+// Engines the server expired (silent for its engine expiry): off the list and the charts; the selection moves to
+// the first engine left.
+function expire(ids) {
+  const sel = document.getElementById('engine');
+  for (const id of ids) {
+    engines.delete(id);
+    for (const o of [...sel.options]) if (Number(o.value) === id) o.remove();
+  }
+  if (selected !== null && !engines.has(selected)) {
+    selected = engines.size > 0 ? engines.keys().next().value : null;
+    if (selected !== null) sel.value = selected;
+  }
+}
+
 function ingest(msg) {
+  if (msg.expired) expire(msg.expired);
   if (msg.geometry) geometry = msg.geometry;
   if (msg.methods) methods = msg.methods;
   for (const [key, e] of Object.entries(msg.engines)) {
@@ -54,6 +69,7 @@ function ingest(msg) {
     if (e.status) st.status = e.status;
     if (e.crank) st.crank = e.crank;
     st.unplaced = e.unplaced;
+    st.outOfRange = e.out_of_range || 0;
     samples += e.torque.length + e.incycle.length;
   }
 }
@@ -278,6 +294,8 @@ function draw() {
   const tLast = Math.max(lastSeg ? lastSeg.t : 0, lastCyc ? lastCyc.t : 0);
   setText('last-t', fmt(tLast, 3));
   setText('unplaced', st.unplaced);
+  setText('out-of-range', st.outOfRange);  // a foreign or corrupt writer's absurd values: counted, red
+  document.getElementById('out-of-range').className = st.outOfRange > 0 ? 'badge bad' : 'badge ok';
   drawTimeCharts(st); drawInCycle(st); drawCylinders(st); drawStatus(st);
 }
 
