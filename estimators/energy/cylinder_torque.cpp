@@ -71,6 +71,8 @@ void CylinderTorque::reset() noexcept {
   motored_known_ = false;
   cut_cycles_ = 0;
   after_cut_ = prev_combusting_ = false;
+  level_j_ = 0.0;
+  level_known_ = prev_last_misfire_ = false;
   noisy_ = true;
   share_var_ = params_.share_noise_prior * params_.share_noise_prior;
   cycles_ = 0;
@@ -115,7 +117,7 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
     o.imbalance_filtered_pct = out_.imbalance_filtered_pct;
     o.imbalance_sd_pct = out_.imbalance_sd_pct;
     out_ = o;
-    prev_combusting_ = false;
+    prev_combusting_ = prev_last_misfire_ = false;
     return true;
   }
   const double mean_w = sum / n;
@@ -126,8 +128,13 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
   // Firing level of the cycle: the largest median of the others (robust to two misfires in one cycle), in
   // combustion work: at idle after a cut-off the pumping loss makes a firing segment's net work ≈ 0 while its
   // combustion (and what a misfire removes) is the whole step up from the motored level.
+  // Anchored: the running firing level L applies where some segment still fires at its usual level.
+  constexpr double kAnchor = 0.8;
+  bool anchored = false;
+  for (int m = 0; m < n && level_known_; ++m)
+    anchored = anchored || comb_[static_cast<std::size_t>(m)] >= kAnchor * level_j_;
   double fired_level_j = -1e300;
-  for (int m = 0; m < n; ++m) fired_level_j = std::max(fired_level_j, median_of_others(comb_, n, m));
+  for (int m = 0; m < n; ++m) fired_level_j = std::max(fired_level_j, reference_j(n, m, anchored));
   const bool low_load = fired_level_j / seg_rad <= params_.min_mean_nm;
   const bool noisy = update_noisy(sigma_j, fired_level_j);
   // Resume after a cut-off: the caller's fired flags come back only some cycles after the injections (they
@@ -148,18 +155,34 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
     o.torque_nm[ci] = work_[mi] / kFourPi;
     o.imbalance_pct[ci] = (work_[mi] - mean_w) / scale * 100.0;
     // Misfire: compare with the median of the other cylinders (robust to a second misfire in the same cycle).
-    const double med = median_of_others(comb_, n, m);
+    const double med = reference_j(n, m, anchored);
     // and, once the cycle-to-cycle noise of the shares is known, a deficit beyond misfire_sigma·σ (high
     // speed: jitter makes single segments swing; a missing combustion is a deficit of ~100 % of the mean)
     const bool beyond_noise = med - comb_[mi] > params_.misfire_sigma * sigma_j;
     const bool fired = fired_[mi] || resumed;
-    const bool below = comb_[mi] < params_.misfire_threshold * med;
-    if (fired && below) ++candidates;
+    // the segment after a misfire lacks that cylinder's expansion tail: a lower threshold there
+    const bool after =
+        m == 0 ? prev_last_misfire_ : o.misfire[static_cast<std::size_t>(engine_.firing_order[mi - 1] - 1)];
+    const double threshold = params_.misfire_threshold * (after ? params_.misfire_after_factor : 1.0);
+    const bool below = comb_[mi] < threshold * med;
+    // a segment below the ordinary threshold is a candidate (kept out of the noise, the level and the
+    // imbalance) even where the lower threshold after a misfire does not flag it
+    if (fired && comb_[mi] < params_.misfire_threshold * med) ++candidates;
     if (decide && fired && med / seg_rad > params_.min_mean_nm && below && beyond_noise) {
       o.misfire[ci] = true;
       ++o.misfire_count;
       ++misfires_;
     }
+  }
+  prev_last_misfire_ = o.misfire[static_cast<std::size_t>(engine_.firing_order[n - 1] - 1)];
+  // Running firing level from cycles decided without any candidate (a clean firing cycle).
+  constexpr double kLevelFilter = 0.2;  // EMA weight per clean cycle (≈ 5-cycle memory, as W_mot)
+  if (decide && candidates == 0) {
+    const double lv = median_of_others(comb_, n, -1);
+    level_j_ = level_known_ ? level_j_ + kLevelFilter * (lv - level_j_) : lv;
+    level_known_ = true;
+  } else if (o.detection == MisfireDetection::kOverrun) {
+    level_known_ = false;  // the level after a cut-off is learned anew
   }
   update_filtered_imbalance(o, candidates, cycle_dt_s);
   o.imbalance_filtered_pct = ema_;
@@ -169,6 +192,11 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
   prev_combusting_ = all_combusting(n, seg_rad);
   track_overrun(any_fired, median_of_others(work_, n, -1));
   return true;
+}
+
+double CylinderTorque::reference_j(int n, int m, bool anchored) const noexcept {
+  const double med = median_of_others(comb_, n, m);
+  return anchored && med < params_.misfire_threshold * level_j_ ? level_j_ : med;
 }
 
 // Every segment combusted: each one's combustion work is at least misfire_threshold × the firing level and

@@ -19,6 +19,14 @@
 //                 while the engine fires (no fuel cut-off) and the reference exceeds min_mean_nm
 //                 (segment-mean torque), and the deficit med − C_m exceeds misfire_sigma × the running
 //                 cycle-to-cycle noise of the shares (× the share scale)
+//                 The reference is the running firing level L (EMA of the cycle's median combustion work
+//                 over cycles decided without candidates) instead where the median of the others is
+//                 itself below threshold · L while some segment of the cycle still fires at ≥ 0.8 L: two
+//                 misfires in one cycle of an I3 (or three of an I6) pull the median down to a misfire's
+//                 level. The same level keeps the low-load and noise gates from reading such a cycle as
+//                 idle. The segment right after a decided misfire (the next firing position, across the
+//                 cycle end too) misses the misfired cylinder's expansion tail (EVO 120-160° ATDC reaches
+//                 into it): its threshold is misfire_threshold × misfire_after_factor
 //   W_mot       = the motored level, a segment's work without combustion (pumping + compression loss, ≤ 0):
 //                 the median segment work of steady fuel cut-off cycles, filtered; 0 until a cut-off was
 //                 seen. At idle after a cut-off (closed throttle) the pumping loss makes a firing segment's
@@ -99,6 +107,8 @@ class CylinderTorque {
   /// Noise state from the segment noise σ (J) and the cycle's firing level (J); real-time safe.
   bool update_noisy(double sigma_j, double fired_level_j) noexcept;
   static Health health_of(MisfireDetection d) noexcept;
+  /// Reference of position m: the median of the others, or L where that median is pulled down (see above).
+  [[nodiscard]] double reference_j(int n, int m, bool anchored) const noexcept;
   EngineGeometry engine_;
   CylinderParams params_;
   std::array<double, kMaxCylinders> work_{};
@@ -117,8 +127,12 @@ class CylinderTorque {
   bool motored_known_ = false;  ///< W_mot measured (else 0)
   int cut_cycles_ = 0;          ///< consecutive cycles with no segment flagged fired
   bool after_cut_ = false;      ///< a steady cut-off was seen and no cycle since was flagged fired throughout
-  bool prev_combusting_ = false;  ///< the previous cycle combusted in every segment (all_combusting)
-  double w_floor_j_ = 0.0;        ///< share floor (J)
+  bool prev_combusting_ = false;
+  double level_j_ = 0.0;            ///< L: running firing level, median combustion work of clean cycles (J)
+  bool level_known_ = false;        ///< L measured
+  bool prev_last_misfire_ = false;  ///< the last firing position of the previous cycle was a misfire  ///<
+                                    ///< the previous cycle combusted in every segment (all_combusting)
+  double w_floor_j_ = 0.0;          ///< share floor (J)
   std::uint32_t cycles_ = 0;
   std::int64_t prev_cycle_t_ns_ = 0;  ///< time of the previous cycle's end (ns), 0 before the first
   std::uint64_t misfires_ = 0;
