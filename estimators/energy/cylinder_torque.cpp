@@ -185,13 +185,62 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
     level_known_ = false;  // the level after a cut-off is learned anew
   }
   update_filtered_imbalance(o, candidates, cycle_dt_s);
-  o.imbalance_filtered_pct = ema_;
+  o.imbalance_filtered_pct = despilled();
   o.imbalance_sd_pct = ema_cycles_ > 0 ? 100.0 * std::sqrt(ema_var_) : 0.0;
   o.health = health_of(o.detection);
   out_ = o;
   prev_combusting_ = all_combusting(n, seg_rad);
   track_overrun(any_fired, median_of_others(work_, n, -1));
   return true;
+}
+
+// d_m = (1 − s)·c_m + s·c_{m−1} around the cycle, solved by the fixed point c_m = (d_m − s·c_{m−1})/(1 − s):
+// a contraction of ratio s/(1 − s) ≤ 2/3, 60 sweeps leave < 1e-10 of the pattern.
+std::array<double, kMaxCylinders> CylinderTorque::despilled() const noexcept {
+  if (spill_ <= 0.0) return ema_;
+  const int n = engine_.cylinders;
+  const auto cyl = [this](int m) {
+    return static_cast<std::size_t>(engine_.firing_order[static_cast<std::size_t>(m)] - 1);
+  };
+  std::array<double, kMaxCylinders> c = ema_;
+  constexpr int kSweeps = 60;
+  for (int it = 0; it < kSweeps; ++it) {
+    for (int m = 0; m < n; ++m)
+      c[cyl(m)] = (ema_[cyl(m)] - spill_ * c[cyl((m + n - 1) % n)]) / (1.0 - spill_);
+  }
+  return c;
+}
+
+double expansion_spill(const EngineGeometry& g, double segment_end_atdc_deg, double window_deg,
+                       double window_after_deg, double taper, double centroid_atdc_deg,
+                       double evo_atdc_deg) noexcept {
+  constexpr double kGamma = 1.3;
+  constexpr int kSteps = 2000;
+  const double deg = std::numbers::pi / 180.0;
+  const double lam = g.crank_radius_m() / g.rod_m;
+  const double half_cr = 0.5 * (g.compression_ratio - 1.0);
+  const auto volume = [&](double th_deg) {  // V / V_c
+    const double t = th_deg * deg, sn = lam * std::sin(t);
+    return 1.0 + half_cr * ((1.0 - std::cos(t)) + (1.0 - std::sqrt(1.0 - sn * sn)) / lam);
+  };
+  // share of the window's weight before angle a (relative to the boundary): the KE average at the
+  // boundary counts the work done before a with that share
+  const double lo = window_after_deg - window_deg, t = std::clamp(taper, 0.0, 1.0);
+  const auto cdf = [&](double a) {
+    const double x = std::clamp((a - lo) / window_deg, 0.0, 1.0);
+    const double y = 2.0 * x - 1.0;
+    return (x - t * (y * y * y + 1.0) / 6.0) / (1.0 - t / 3.0);
+  };
+  if (!(evo_atdc_deg > centroid_atdc_deg) || !(window_deg > 0.0)) return 0.0;
+  double total = 0.0, spill = 0.0;
+  const double h = (evo_atdc_deg - centroid_atdc_deg) / kSteps;
+  for (int i = 0; i < kSteps; ++i) {
+    const double th = centroid_atdc_deg + (i + 0.5) * h;
+    const double dw = std::pow(volume(th), -kGamma) * (volume(th + 0.5 * h) - volume(th - 0.5 * h));
+    total += dw;
+    spill += dw * cdf(th - segment_end_atdc_deg);  // the share after the boundary: the next segment's
+  }
+  return total > 0.0 ? spill / total : 0.0;
 }
 
 double CylinderTorque::reference_j(int n, int m, bool anchored) const noexcept {

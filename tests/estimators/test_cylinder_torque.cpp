@@ -108,6 +108,40 @@ TEST(CylinderTorque, SegmentAfterAMisfireMissingItsExpansionTailIsNotAMisfire) {
   EXPECT_TRUE(ct.cycle().misfire[3]);
 }
 
+TEST(CylinderTorque, ExpansionSpillOfAnI6IsTakenOutOfTheImbalanceAndAnI4HasNone) {
+  // GIVEN the default energies windows (boundary 20° before TDC, a 60° parabola KE window ending 15° after
+  // it, EVO 130° ATDC, burn centroid 10° ATDC)
+  EngineGeometry i4;
+  EngineGeometry i6 = i4;
+  i6.cylinders = 6;
+  i6.firing_order = {1, 5, 3, 6, 2, 4, 0, 0};
+  const auto spill = [](const EngineGeometry& g) {
+    return torqued::expansion_spill(g, -20.0 + 720.0 / g.cylinders, 60.0, 15.0, 1.0, 10.0, 130.0);
+  };
+  // THEN an I4's boundary (160° ATDC) hands on almost nothing, an I6's (100° ATDC) a tenth to a fifth
+  EXPECT_LT(spill(i4), 0.01);
+  EXPECT_GT(spill(i6), 0.1);
+  EXPECT_LT(spill(i6), 0.2);
+  // AND WHEN an I6's cylinder 5 (position 1) is 12 % weak and its segment hands s of its deficit to
+  // position 2 THEN the filtered imbalance is the cylinders' own (±0.05 pp; without the spill taken out
+  // position 2 reads +0.2 %, 1.8 pp off)
+  CylinderTorque ct(i6, CylinderParams{});
+  ct.set_spill(0.15);
+  const std::array<double, 6> own{1.0, 0.88, 1.0, 1.0, 1.0, 1.0};
+  for (int k = 0; k < 60; ++k) {
+    for (int m = 0; m < 6; ++m) {
+      const double w = 200.0 * ((1.0 - 0.15) * own[static_cast<std::size_t>(m)] +
+                                0.15 * own[static_cast<std::size_t>((m + 5) % 6)]);
+      ct.on_segment(1000 + m, m, w, true, true);
+    }
+  }
+  const auto& imb = ct.cycle().imbalance_filtered_pct;
+  const double mean = (5.0 + 0.88) / 6.0;
+  EXPECT_NEAR(imb[4], 100.0 * (0.88 / mean - 1.0), 0.05);  // cylinder 5: −10.2 %
+  EXPECT_NEAR(imb[2], 100.0 * (1.0 / mean - 1.0), 0.05);   // cylinder 3, next in the firing order: +2.0 %
+  EXPECT_NEAR(imb[0], 100.0 * (1.0 / mean - 1.0), 0.05);
+}
+
 TEST(CylinderTorque, NoMisfireDecisionInFuelCutOffOrWithInvalidSegments) {
   EngineGeometry g;
   CylinderTorque ct(g, CylinderParams{});
