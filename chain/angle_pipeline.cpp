@@ -70,6 +70,13 @@ AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
   // CF-14: refuse unstable Fourier gains (the config loader reports the reason; here the method is just off).
   fourier_ok_ =
       config.run_fourier && !FourierObserver::check_stability(config.fourier, config.engine, config.wheel);
+  // The per-cylinder segments' end boundary hands part of a cylinder's expansion to the next segment where
+  // it lies before EVO (I6: 120° segments): the published imbalance takes it out (cylinder_torque.hpp).
+  const EnergiesParams& en = config.energies;
+  cyl_.set_spill(expansion_spill(
+      config.engine, en.segment_offset_deg + 720.0 / std::max(config.engine.cylinders, 1),
+      en.cylinder_window_deg > 0.0 ? en.cylinder_window_deg : en.energy_window_deg,
+      0.5 * en.energy_window_deg, en.cylinder_window_taper, en.burn_centroid_atdc_deg, en.evo_atdc_deg));
   reset();
 }
 

@@ -296,6 +296,9 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          "off)");
   TQ_NUM("cylinder.share_noise_prior", cylinder.params.share_noise_prior, closed(0.0, 10.0), "",
          "share noise sigma (fraction of the mean) assumed until measured");
+  TQ_NUM("cylinder.misfire_after_factor", cylinder.params.misfire_after_factor, closed(0.0, 1.0), "",
+         "the segment right after a misfire misses the misfired cylinder's expansion tail: its misfire "
+         "threshold is misfire_threshold x this");
   TQ_NUM("cylinder.share_floor_imep_bar", cylinder.params.share_floor_imep_bar, open_closed(0.0, 100.0),
          "bar", "imbalance shares relative to max(cycle-mean work, this IMEP x swept volume per cylinder)");
   TQ_NUM("fusion.max_can_age_s", fusion.max_can_age_s, open_closed(0.0, 60.0), "s",

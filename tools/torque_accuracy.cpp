@@ -14,6 +14,7 @@
 #include "cylinder_eval.hpp"
 #include "daemon_bed.hpp"
 #include "incycle_bed.hpp"
+#include "misfire_bed.hpp"
 #include "pipeline_eval.hpp"
 #include "recording_eval.hpp"
 
@@ -217,6 +218,29 @@ int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& 
                 r.tooth_edge_resid_deg, static_cast<unsigned long long>(r.cycles_used), r.orders.c_str(),
                 torqued::to_string(r.quality));
     std::fflush(stdout);
+  }
+  return 0;
+}
+
+/// Misfire found/true/false and per-cylinder imbalance from idle to 6000 rpm (misfire_bed.hpp).
+int run_bed_misfire(bool all, const torqued::eval::EvalOptions& base) {
+  std::printf(
+      "misfire and imbalance on the unseen engines: idle 800 rpm (idle controller, declutched), mid "
+      "2500 rpm\n60 kPa, high 6000 rpm 80 kPa, each with 2 single misfires, a pair in one cycle and one "
+      "cylinder in 2 cycles\nrunning; weak: one cylinder at 85 %% fuel, 2200 rpm 60 kPa. found/true/false "
+      "per cylinder and cycle; active:\ncycles where detection was possible; imbalance: filtered - true "
+      "(pp, RMS over the cylinders / max).\n");
+  std::printf("%-11s | %-6s | %5s | %-15s | %6s | %-13s\n", "engine", "regime", "rpm", "found/true/false",
+              "active", "imbalance pp");
+  for (const auto& e : torqued::sim::unseen_engines()) {
+    if (!all && !e.report) continue;
+    for (const std::string& regime : torqued::eval::misfire_bed_regimes()) {
+      const auto r = torqued::eval::evaluate_misfire_bed(e, regime, base);
+      std::printf("%-11s | %-6s | %5.0f | %4d %4d %5d  | %5.0f%% | %5.2f %5.2f\n", r.engine.c_str(),
+                  r.regime.c_str(), r.mean_rpm, r.found, r.truth, r.false_alarms, r.detection_active_pct,
+                  r.imbalance_rms_pp, r.imbalance_max_pp);
+      std::fflush(stdout);
+    }
   }
   return 0;
 }
@@ -471,6 +495,10 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   bool bed_fuel = false;
   bool bed_incycle = false;
+  bool bed_misfire = false;
+  app.add_flag("--bed-misfire", bed_misfire,
+               "with --bed unseen: misfire found/true/false at idle, 2500 and 6000 rpm (single and paired) "
+               "and the per-cylinder imbalance of an engine with one weak cylinder");
   app.add_flag(
       "--bed-incycle", bed_incycle,
       "with --bed unseen: in-cycle Kalman/Fourier torque from a fresh start without any fuel cut-off "
@@ -552,6 +580,7 @@ int main(int argc, char** argv) {
     torqued::eval::EvalOptions bo;
     bo.skip_cycles = skip;
     if (bed_fuel) return run_bed_fuel(bed_all, bed_short, bo, csv_dir);
+    if (bed_misfire) return run_bed_misfire(bed_all, bo);
     if (bed_incycle) {
       bo.tooth_table = raw_teeth    ? torqued::eval::ToothTable::kNone
                        : true_teeth ? torqued::eval::ToothTable::kTrue

@@ -228,6 +228,10 @@ struct CylinderParams {
   double share_noise_prior = 0.15;  ///< share noise σ (fraction of the mean) assumed until measured: with
                                     ///< misfire_sigma 4 a misfire needs a 60 % deficit at first (a missing
                                     ///< combustion is ~100 %) (-)
+  double misfire_after_factor =
+      0.5;  ///< the segment right after a misfire misses the misfired cylinder's expansion tail (EVO at
+            ///< 120-160° ATDC reaches into the next segment: up to half of a firing segment's work on an
+            ///< I6's 120° segments): its misfire threshold is misfire_threshold × this (-)
   double share_floor_imep_bar =
       0.5;  ///< imbalance shares are relative to max(cycle-mean work, this IMEP × swept
             ///< volume per cylinder): below any firing idle (1-2 bar net IMEP), so a small

@@ -71,6 +71,8 @@ void CylinderTorque::reset() noexcept {
   motored_known_ = false;
   cut_cycles_ = 0;
   after_cut_ = prev_combusting_ = false;
+  level_j_ = 0.0;
+  level_known_ = prev_last_misfire_ = false;
   noisy_ = true;
   share_var_ = params_.share_noise_prior * params_.share_noise_prior;
   cycles_ = 0;
@@ -115,7 +117,7 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
     o.imbalance_filtered_pct = out_.imbalance_filtered_pct;
     o.imbalance_sd_pct = out_.imbalance_sd_pct;
     out_ = o;
-    prev_combusting_ = false;
+    prev_combusting_ = prev_last_misfire_ = false;
     return true;
   }
   const double mean_w = sum / n;
@@ -126,8 +128,13 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
   // Firing level of the cycle: the largest median of the others (robust to two misfires in one cycle), in
   // combustion work: at idle after a cut-off the pumping loss makes a firing segment's net work ≈ 0 while its
   // combustion (and what a misfire removes) is the whole step up from the motored level.
+  // Anchored: the running firing level L applies where some segment still fires at its usual level.
+  constexpr double kAnchor = 0.8;
+  bool anchored = false;
+  for (int m = 0; m < n && level_known_; ++m)
+    anchored = anchored || comb_[static_cast<std::size_t>(m)] >= kAnchor * level_j_;
   double fired_level_j = -1e300;
-  for (int m = 0; m < n; ++m) fired_level_j = std::max(fired_level_j, median_of_others(comb_, n, m));
+  for (int m = 0; m < n; ++m) fired_level_j = std::max(fired_level_j, reference_j(n, m, anchored));
   const bool low_load = fired_level_j / seg_rad <= params_.min_mean_nm;
   const bool noisy = update_noisy(sigma_j, fired_level_j);
   // Resume after a cut-off: the caller's fired flags come back only some cycles after the injections (they
@@ -148,27 +155,97 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
     o.torque_nm[ci] = work_[mi] / kFourPi;
     o.imbalance_pct[ci] = (work_[mi] - mean_w) / scale * 100.0;
     // Misfire: compare with the median of the other cylinders (robust to a second misfire in the same cycle).
-    const double med = median_of_others(comb_, n, m);
+    const double med = reference_j(n, m, anchored);
     // and, once the cycle-to-cycle noise of the shares is known, a deficit beyond misfire_sigma·σ (high
     // speed: jitter makes single segments swing; a missing combustion is a deficit of ~100 % of the mean)
     const bool beyond_noise = med - comb_[mi] > params_.misfire_sigma * sigma_j;
     const bool fired = fired_[mi] || resumed;
-    const bool below = comb_[mi] < params_.misfire_threshold * med;
-    if (fired && below) ++candidates;
+    // the segment after a misfire lacks that cylinder's expansion tail: a lower threshold there
+    const bool after =
+        m == 0 ? prev_last_misfire_ : o.misfire[static_cast<std::size_t>(engine_.firing_order[mi - 1] - 1)];
+    const double threshold = params_.misfire_threshold * (after ? params_.misfire_after_factor : 1.0);
+    const bool below = comb_[mi] < threshold * med;
+    // a segment below the ordinary threshold is a candidate (kept out of the noise, the level and the
+    // imbalance) even where the lower threshold after a misfire does not flag it
+    if (fired && comb_[mi] < params_.misfire_threshold * med) ++candidates;
     if (decide && fired && med / seg_rad > params_.min_mean_nm && below && beyond_noise) {
       o.misfire[ci] = true;
       ++o.misfire_count;
       ++misfires_;
     }
   }
+  prev_last_misfire_ = o.misfire[static_cast<std::size_t>(engine_.firing_order[n - 1] - 1)];
+  // Running firing level from cycles decided without any candidate (a clean firing cycle).
+  constexpr double kLevelFilter = 0.2;  // EMA weight per clean cycle (≈ 5-cycle memory, as W_mot)
+  if (decide && candidates == 0) {
+    const double lv = median_of_others(comb_, n, -1);
+    level_j_ = level_known_ ? level_j_ + kLevelFilter * (lv - level_j_) : lv;
+    level_known_ = true;
+  } else if (o.detection == MisfireDetection::kOverrun) {
+    level_known_ = false;  // the level after a cut-off is learned anew
+  }
   update_filtered_imbalance(o, candidates, cycle_dt_s);
-  o.imbalance_filtered_pct = ema_;
+  o.imbalance_filtered_pct = despilled();
   o.imbalance_sd_pct = ema_cycles_ > 0 ? 100.0 * std::sqrt(ema_var_) : 0.0;
   o.health = health_of(o.detection);
   out_ = o;
   prev_combusting_ = all_combusting(n, seg_rad);
   track_overrun(any_fired, median_of_others(work_, n, -1));
   return true;
+}
+
+// d_m = (1 − s)·c_m + s·c_{m−1} around the cycle, solved by the fixed point c_m = (d_m − s·c_{m−1})/(1 − s):
+// a contraction of ratio s/(1 − s) ≤ 2/3, 60 sweeps leave < 1e-10 of the pattern.
+std::array<double, kMaxCylinders> CylinderTorque::despilled() const noexcept {
+  if (spill_ <= 0.0) return ema_;
+  const int n = engine_.cylinders;
+  const auto cyl = [this](int m) {
+    return static_cast<std::size_t>(engine_.firing_order[static_cast<std::size_t>(m)] - 1);
+  };
+  std::array<double, kMaxCylinders> c = ema_;
+  constexpr int kSweeps = 60;
+  for (int it = 0; it < kSweeps; ++it) {
+    for (int m = 0; m < n; ++m)
+      c[cyl(m)] = (ema_[cyl(m)] - spill_ * c[cyl((m + n - 1) % n)]) / (1.0 - spill_);
+  }
+  return c;
+}
+
+double expansion_spill(const EngineGeometry& g, double segment_end_atdc_deg, double window_deg,
+                       double window_after_deg, double taper, double centroid_atdc_deg,
+                       double evo_atdc_deg) noexcept {
+  constexpr double kGamma = 1.3;
+  constexpr int kSteps = 2000;
+  const double deg = std::numbers::pi / 180.0;
+  const double lam = g.crank_radius_m() / g.rod_m;
+  const double half_cr = 0.5 * (g.compression_ratio - 1.0);
+  const auto volume = [&](double th_deg) {  // V / V_c
+    const double t = th_deg * deg, sn = lam * std::sin(t);
+    return 1.0 + half_cr * ((1.0 - std::cos(t)) + (1.0 - std::sqrt(1.0 - sn * sn)) / lam);
+  };
+  // share of the window's weight before angle a (relative to the boundary): the KE average at the
+  // boundary counts the work done before a with that share
+  const double lo = window_after_deg - window_deg, t = std::clamp(taper, 0.0, 1.0);
+  const auto cdf = [&](double a) {
+    const double x = std::clamp((a - lo) / window_deg, 0.0, 1.0);
+    const double y = 2.0 * x - 1.0;
+    return (x - t * (y * y * y + 1.0) / 6.0) / (1.0 - t / 3.0);
+  };
+  if (!(evo_atdc_deg > centroid_atdc_deg) || !(window_deg > 0.0)) return 0.0;
+  double total = 0.0, spill = 0.0;
+  const double h = (evo_atdc_deg - centroid_atdc_deg) / kSteps;
+  for (int i = 0; i < kSteps; ++i) {
+    const double th = centroid_atdc_deg + (i + 0.5) * h;
+    const double dw = std::pow(volume(th), -kGamma) * (volume(th + 0.5 * h) - volume(th - 0.5 * h));
+    total += dw;
+    spill += dw * cdf(th - segment_end_atdc_deg);  // the share after the boundary: the next segment's
+  }
+  return total > 0.0 ? spill / total : 0.0;
+}
+
+double CylinderTorque::reference_j(int n, int m, bool anchored) const noexcept {
+  const double med = median_of_others(comb_, n, m);
+  return anchored && med < params_.misfire_threshold * level_j_ ? level_j_ : med;
 }
 
 // Every segment combusted: each one's combustion work is at least misfire_threshold × the firing level and

@@ -19,6 +19,14 @@
 //                 while the engine fires (no fuel cut-off) and the reference exceeds min_mean_nm
 //                 (segment-mean torque), and the deficit med − C_m exceeds misfire_sigma × the running
 //                 cycle-to-cycle noise of the shares (× the share scale)
+//                 The reference is the running firing level L (EMA of the cycle's median combustion work
+//                 over cycles decided without candidates) instead where the median of the others is
+//                 itself below threshold · L while some segment of the cycle still fires at ≥ 0.8 L: two
+//                 misfires in one cycle of an I3 (or three of an I6) pull the median down to a misfire's
+//                 level. The same level keeps the low-load and noise gates from reading such a cycle as
+//                 idle. The segment right after a decided misfire (the next firing position, across the
+//                 cycle end too) misses the misfired cylinder's expansion tail (EVO 120-160° ATDC reaches
+//                 into it): its threshold is misfire_threshold × misfire_after_factor
 //   W_mot       = the motored level, a segment's work without combustion (pumping + compression loss, ≤ 0):
 //                 the median segment work of steady fuel cut-off cycles, filtered; 0 until a cut-off was
 //                 seen. At idle after a cut-off (closed throttle) the pumping loss makes a firing segment's
@@ -44,6 +52,18 @@
 #include "params.hpp"
 
 namespace torqued {
+
+/// Expansion spill: the fraction of a cylinder's combustion work that its segment's end boundary hands to the
+/// next segment (beyond the papers). Polytropic expansion (γ = 1.3, textbook) from the burn centroid
+/// `centroid_atdc_deg` to the exhaust valve opening `evo_atdc_deg`, dW = p dV ∝ V^−γ dV (crank-slider
+/// volume, the geometry's compression ratio), each angle's work attributed to the next segment by the share
+/// of the boundary's kinetic-energy window (`window_deg` long, ending `window_after_deg` after the boundary,
+/// weights 1 − taper·(2x − 1)²) that lies before it. `segment_end_atdc_deg`: the boundary after a cylinder's
+/// TDC. 0 where the window starts after EVO (an I4's or I3's segments: 160°/220° ATDC); ≈ 0.1 on an I6's
+/// 120° segments (boundary at 100° ATDC). Not real-time code (construction only).
+[[nodiscard]] double expansion_spill(const EngineGeometry& engine, double segment_end_atdc_deg,
+                                     double window_deg, double window_after_deg, double taper,
+                                     double centroid_atdc_deg, double evo_atdc_deg) noexcept;
 
 /// Why misfire detection is (not) active this cycle.
 enum class MisfireDetection : std::uint8_t {
@@ -88,6 +108,15 @@ class CylinderTorque {
   /// call).
   void set_wheel_learned(bool learned) noexcept { wheel_learned_ = learned; }
   [[nodiscard]] std::uint64_t misfires() const noexcept { return misfires_; }
+  /// Expansion spill s (expansion_spill(), clamped to [0, 0.4]): the published filtered imbalance is the
+  /// pattern of the cylinders' own work, d_m = (1 − s)·c_m + s·c_{m−1} (m in firing order) solved for c.
+  /// A spill below 0.01 is taken as 0: it would move the pattern by under 1 % of a neighbour's deviation
+  /// (0.1 pp next to a 10 % weak cylinder), below the pattern's noise (an I4's 160° boundary: 0.002).
+  void set_spill(double s) noexcept {
+    constexpr double kMinSpill = 0.01, kMaxSpill = 0.4;
+    spill_ = s >= kMinSpill ? (s < kMaxSpill ? s : kMaxSpill) : 0.0;
+  }
+  [[nodiscard]] double spill() const noexcept { return spill_; }
 
  private:
   /// Motored level: learns the segment work of steady fuel cut-off cycles, tracks the resume after one.
@@ -99,6 +128,8 @@ class CylinderTorque {
   /// Noise state from the segment noise σ (J) and the cycle's firing level (J); real-time safe.
   bool update_noisy(double sigma_j, double fired_level_j) noexcept;
   static Health health_of(MisfireDetection d) noexcept;
+  /// Reference of position m: the median of the others, or L where that median is pulled down (see above).
+  [[nodiscard]] double reference_j(int n, int m, bool anchored) const noexcept;
   EngineGeometry engine_;
   CylinderParams params_;
   std::array<double, kMaxCylinders> work_{};
@@ -117,8 +148,15 @@ class CylinderTorque {
   bool motored_known_ = false;  ///< W_mot measured (else 0)
   int cut_cycles_ = 0;          ///< consecutive cycles with no segment flagged fired
   bool after_cut_ = false;      ///< a steady cut-off was seen and no cycle since was flagged fired throughout
-  bool prev_combusting_ = false;  ///< the previous cycle combusted in every segment (all_combusting)
-  double w_floor_j_ = 0.0;        ///< share floor (J)
+  bool prev_combusting_ = false;
+  double level_j_ = 0.0;            ///< L: running firing level, median combustion work of clean cycles (J)
+  bool level_known_ = false;        ///< L measured
+  bool prev_last_misfire_ = false;  ///< the last firing position of the previous cycle was a misfire  ///<
+                                    ///< the previous cycle combusted in every segment (all_combusting)
+  double w_floor_j_ = 0.0;          ///< share floor (J)
+  double spill_ = 0.0;              ///< expansion spill s (set_spill)
+  /// The filtered pattern of the cylinders' own work: ema_ with the spill taken out (real-time safe).
+  [[nodiscard]] std::array<double, kMaxCylinders> despilled() const noexcept;
   std::uint32_t cycles_ = 0;
   std::int64_t prev_cycle_t_ns_ = 0;  ///< time of the previous cycle's end (ns), 0 before the first
   std::uint64_t misfires_ = 0;

@@ -61,6 +61,87 @@ TEST(CylinderTorque, FlagsMisfiresIncludingTwoInOneCycle) {
   EXPECT_EQ(ct.cycle().misfire_count, 0);
 }
 
+TEST(CylinderTorque, TwoOfThreeMisfiringAtIdleAreFoundAgainstTheRunningFiringLevel) {
+  // GIVEN an I3 at idle level: 40 J per segment (segment mean 9.5 N m, above min_mean_nm = 5) over clean
+  // cycles, so the running firing level is known
+  EngineGeometry g;
+  g.cylinders = 3;
+  g.firing_order = {1, 2, 3, 0, 0, 0, 0, 0};
+  CylinderTorque ct(g, CylinderParams{});
+  const auto cycle = [&ct](double a, double b, double c) {
+    ct.on_segment(1, 0, a, true, true);
+    ct.on_segment(2, 1, b, true, true);
+    return ct.on_segment(3, 2, c, true, true);
+  };
+  for (int i = 0; i < 25; ++i) ASSERT_TRUE(cycle(40.0, 40.0, 40.0));
+  // WHEN cylinders 2 and 3 misfire in one cycle (the median of the others is then (40 − 10)/2 = 15 J, a
+  // segment mean of 3.6 N m: read as low load before, no decision)
+  ASSERT_TRUE(cycle(40.0, -10.0, -10.0));
+  // THEN both are found against the running level, the firing cylinder is not
+  EXPECT_EQ(ct.cycle().detection, torqued::MisfireDetection::kActive);
+  EXPECT_FALSE(ct.cycle().misfire[0]);
+  EXPECT_TRUE(ct.cycle().misfire[1]);
+  EXPECT_TRUE(ct.cycle().misfire[2]);
+  // AND a whole cycle at the lower level (a load step, nothing at the usual level) is not a misfire
+  ASSERT_TRUE(cycle(15.0, 15.0, 15.0));
+  EXPECT_EQ(ct.cycle().misfire_count, 0);
+}
+
+TEST(CylinderTorque, SegmentAfterAMisfireMissingItsExpansionTailIsNotAMisfire) {
+  // GIVEN an I4 firing at 300 J per segment
+  EngineGeometry g;  // firing order 1-3-4-2
+  CylinderTorque ct(g, CylinderParams{});
+  for (int i = 0; i < 25; ++i) ASSERT_TRUE(feed(ct, {300.0, 300.0, 300.0, 300.0}));
+  // WHEN position 2 misfires and the next segment lacks its expansion tail (140 J: 0.47 of the others)
+  ASSERT_TRUE(feed(ct, {300.0, 300.0, -40.0, 140.0}));
+  // THEN the misfire is found and the next segment is not flagged (misfire_after_factor)
+  EXPECT_TRUE(ct.cycle().misfire[3]);
+  EXPECT_FALSE(ct.cycle().misfire[1]);
+  // AND the same across the cycle end: the last position misfires, the first of the next cycle is short
+  ASSERT_TRUE(feed(ct, {300.0, 300.0, 300.0, -40.0}));
+  EXPECT_TRUE(ct.cycle().misfire[1]);
+  ASSERT_TRUE(feed(ct, {140.0, 300.0, 300.0, 300.0}));
+  EXPECT_EQ(ct.cycle().misfire_count, 0);
+  // AND two consecutive misfires are both found (a misfire reads at or below the motored level)
+  ASSERT_TRUE(feed(ct, {300.0, -40.0, -40.0, 300.0}));
+  EXPECT_TRUE(ct.cycle().misfire[2]);
+  EXPECT_TRUE(ct.cycle().misfire[3]);
+}
+
+TEST(CylinderTorque, ExpansionSpillOfAnI6IsTakenOutOfTheImbalanceAndAnI4HasNone) {
+  // GIVEN the default energies windows (boundary 20° before TDC, a 60° parabola KE window ending 15° after
+  // it, EVO 130° ATDC, burn centroid 10° ATDC)
+  EngineGeometry i4;
+  EngineGeometry i6 = i4;
+  i6.cylinders = 6;
+  i6.firing_order = {1, 5, 3, 6, 2, 4, 0, 0};
+  const auto spill = [](const EngineGeometry& g) {
+    return torqued::expansion_spill(g, -20.0 + 720.0 / g.cylinders, 60.0, 15.0, 1.0, 10.0, 130.0);
+  };
+  // THEN an I4's boundary (160° ATDC) hands on almost nothing, an I6's (100° ATDC) a tenth to a fifth
+  EXPECT_LT(spill(i4), 0.01);
+  EXPECT_GT(spill(i6), 0.1);
+  EXPECT_LT(spill(i6), 0.2);
+  // AND WHEN an I6's cylinder 5 (position 1) is 12 % weak and its segment hands s of its deficit to
+  // position 2 THEN the filtered imbalance is the cylinders' own (±0.05 pp; without the spill taken out
+  // position 2 reads +0.2 %, 1.8 pp off)
+  CylinderTorque ct(i6, CylinderParams{});
+  ct.set_spill(0.15);
+  const std::array<double, 6> own{1.0, 0.88, 1.0, 1.0, 1.0, 1.0};
+  for (int k = 0; k < 60; ++k) {
+    for (int m = 0; m < 6; ++m) {
+      const double w = 200.0 * ((1.0 - 0.15) * own[static_cast<std::size_t>(m)] +
+                                0.15 * own[static_cast<std::size_t>((m + 5) % 6)]);
+      ct.on_segment(1000 + m, m, w, true, true);
+    }
+  }
+  const auto& imb = ct.cycle().imbalance_filtered_pct;
+  const double mean = (5.0 + 0.88) / 6.0;
+  EXPECT_NEAR(imb[4], 100.0 * (0.88 / mean - 1.0), 0.05);  // cylinder 5: −10.2 %
+  EXPECT_NEAR(imb[2], 100.0 * (1.0 / mean - 1.0), 0.05);   // cylinder 3, next in the firing order: +2.0 %
+  EXPECT_NEAR(imb[0], 100.0 * (1.0 / mean - 1.0), 0.05);
+}
+
 TEST(CylinderTorque, NoMisfireDecisionInFuelCutOffOrWithInvalidSegments) {
   EngineGeometry g;
   CylinderTorque ct(g, CylinderParams{});
