@@ -413,6 +413,10 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          "cycles averaged before the table is used");
   TQ_INT("tooth_learn.fit_harmonics", tooth_learn.params.fit_harmonics, closed(1, 128), "",
          "harmonics of the per-cycle speed fit");
+  TQ_INT(
+      "tooth_learn.solve_every_cycles", tooth_learn.params.solve_every_cycles, closed(1, 1000), "cycles",
+      "solve the table every this many learned cycles (and when it becomes ready, and at each fuel cut-off "
+      "cycle); the other cycles only accumulate their fit");
   TQ_NUM("tooth_learn.max_accel_frac", tooth_learn.params.max_accel_frac, open_closed(0.0, 1.0), "",
          "skip cycles whose speed changes more than this fraction");
   TQ_NUM("tooth_learn.min_rpm", tooth_learn.params.min_rpm, closed(0.0, 20000.0), "rpm",

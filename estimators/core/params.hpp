@@ -255,6 +255,9 @@ struct ToothLearnParams {
   int fit_harmonics = 12;  ///< per-cycle smooth fit of the speed waveform: harmonics of the 720° cycle (-).
                            ///< 12, not 8: the firing order 6/rev (I4) was left to the per-tooth residual,
                            ///< which then held the engine ripple of that order
+  int solve_every_cycles = 8;    ///< the table (orders, residual, width ratios) is solved every this many
+                                 ///< learned cycles (and at the cycle that makes it ready and at each fuel
+                                 ///< cut-off cycle); the other cycles only accumulate their fit (cycles)
   double max_accel_frac = 0.05;  ///< skip cycles whose speed changes by more than this fraction (-)
   double min_rpm = 600.0;        ///< learn only above this speed (rpm)
   double max_rpm = 7000.0;       ///< and below this one (rpm)

@@ -46,7 +46,11 @@
 //  - an order nothing identifies is held: the imported (persisted) table's value, or zero.
 // order_ids() reports per order how it was identified, from how many cycles, and its edge amplitude.
 // The table is absolute (nominal widths, measured times), so the decoder may apply it to its output without
-// disturbing learning. Real-time safe update(); the table is recomputed at each cycle end (O(teeth·H)).
+// disturbing learning. Real-time safe update(). Each complete cycle costs its fit (O(teeth·H)) and the sums
+// it enters; the table (orders, residual per tooth, width ratios) is solved from those sums every
+// solve_every_cycles cycles, at the cycle that makes it ready and at fuel cut-off cycles. The residual sum
+// is linear in the cycles, Σw·r = Σw·z − B·G·Σw·z, formed at the solve: the per-cycle fit is needed for the
+// per-revolution columns only.
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -140,6 +144,8 @@ class ToothErrorLearner {
   /// What the table rests on now (the weakest order decides).
   [[nodiscard]] ToothLearnQuality quality() const noexcept;
   [[nodiscard]] int teeth() const noexcept { return table_.teeth; }
+  /// Solve the table now from every cycle accumulated so far (update() does it every solve_every_cycles).
+  void solve() noexcept;
 
   /// True width / nominal width of physical tooth p (period ending at tooth p), 1 when not ready.
   [[nodiscard]] double width_ratio(int p) const noexcept;
@@ -167,6 +173,8 @@ class ToothErrorLearner {
   /// returns false when no slot identifies them. Writes the intercepts, the combined variance and cycles.
   bool slot_intercept(std::size_t j0, bool firing, double* v, double* var, double* cycles) const noexcept;
   void recompute() noexcept;
+  void form_residual_sums() noexcept;
+  void accumulate_import_scatter(double wgt) noexcept;
   void identify_orders(double* low_coef, double hf_rms) noexcept;
   void check_import() noexcept;
 
@@ -175,9 +183,10 @@ class ToothErrorLearner {
   int nb_ = 0;                 ///< fit columns 2H + 2
   std::vector<double> basis_;  ///< B[k * nb_ + j] at period centres c_k
   std::vector<double> trend_;  ///< (c_k − 2π)/2π: linear speed trend, removed with the measured rev times
-  std::vector<int> col_per_rev_;  ///< 1 where column j is an even cycle harmonic (can hold wheel error)
-  std::vector<int> col_firing_;   ///< 1 where column j is a firing harmonic (multiple of n_cyl per cycle)
-  std::vector<double> pinv_;      ///< G = (BᵀB)⁻¹Bᵀ, [j * K + k]
+  std::vector<int> col_per_rev_;   ///< 1 where column j is an even cycle harmonic (can hold wheel error)
+  std::vector<int> col_firing_;    ///< 1 where column j is a firing harmonic (multiple of n_cyl per cycle)
+  std::vector<int> per_rev_cols_;  ///< the columns j ≥ 2 with col_per_rev_[j], ascending
+  std::vector<double> pinv_;       ///< G = (BᵀB)⁻¹Bᵀ, [j * K + k]
   // current cycle
   std::vector<double> z_;  ///< z_k of the cycle being collected
   int next_tooth_ = -1;
@@ -189,9 +198,13 @@ class ToothErrorLearner {
   bool cycle_all_cutoff_ = false;  ///< every tooth of the cycle in cut-off
   bool prev_all_cutoff_ = false;   ///< the previous complete cycle was all cut-off
   // accumulators
-  std::vector<double> resid_sum_;  ///< Σ residual per 720° sample
+  std::vector<double> resid_sum_;  ///< Σ weighted residual per 720° sample (formed by recompute())
   std::vector<double> resid_sq_;  ///< Σ weight · residual² per 720° sample (scatter for the import check)
   double w2sum_ = 0.0;            ///< Σ weight² (effective cycle count (Σw)²/Σw²)
+  std::vector<double> zw_sum_;    ///< Σ wgt·z_k per 720° sample over the cycles
+  std::vector<double> cw_sum_;    ///< scratch of the solve: Σ wgt·β_j = G·Σ wgt·z per fit column
+  int since_solve_ = 0;           ///< cycles accumulated since the last solve
+  bool solved_ready_ = false;     ///< the last solve saw ready()
   std::vector<double> coef_;      ///< scratch: coefficients of the last cycle
   /// Speed-law sums of one load slot (x = (ω_ref/ω̄)², f = x·ln x); per column j at [j]: Σβ, Σxβ, Σfβ, Σβ².
   struct LoadSlot {

@@ -18,6 +18,7 @@
 #include "engine_sim.hpp"
 #include "fourier_observer.hpp"
 #include "load_rls.hpp"
+#include "tooth_error_learner.hpp"
 #include "tooth_preprocessor.hpp"
 
 using namespace torqued;
@@ -161,5 +162,16 @@ static void BM_Method_LoadRls(benchmark::State& state) {
   });
 }
 BENCHMARK(BM_Method_LoadRls);
+
+// The daemon's chain runs the tooth-error learner beside the pipeline (chain/angle_chain.cpp): per tooth it
+// stores the tooth's energy; per cycle it fits the cycle and adds to its sums; every solve_every_cycles the
+// table is solved (Arg: solve_every_cycles; 1 = the former per-cycle solve).
+static void BM_Method_ToothErrorLearner(benchmark::State& state) {
+  ToothLearnParams p;
+  p.solve_every_cycles = static_cast<int>(state.range(0));
+  ToothErrorLearner m(base().engine, base().wheel, p);
+  run_method(state, m, [](ToothErrorLearner& x, const ToothSample& s) { x.update(s); });
+}
+BENCHMARK(BM_Method_ToothErrorLearner)->Arg(1)->Arg(ToothLearnParams{}.solve_every_cycles);
 
 BENCHMARK_MAIN();

@@ -21,9 +21,11 @@ namespace {
 constexpr double kDeg = std::numbers::pi / 180.0;
 
 /// GIVEN one wheel (seeded 0.05° errors) run steadily at 1000..4000 rpm and two loads, 10 cycles each.
-ToothErrorLearner learn(std::vector<double>& edge_error_rad, std::size_t* allocations = nullptr) {
+ToothErrorLearner learn(std::vector<double>& edge_error_rad, std::size_t* allocations = nullptr,
+                        int solve_every_cycles = ToothLearnParams{}.solve_every_cycles) {
   ToothLearnParams p;
   p.min_cycles = 40;
+  p.solve_every_cycles = solve_every_cycles;
   p.fit_harmonics = 16;  // the synthetic torque waveform is speed-independent: the multi-speed separation of
   p.learn_low_orders = true;  // the low orders holds exactly here (on the simulator the defaults are better)
   ToothErrorLearner learner(EngineGeometry{}, WheelGeometry{}, p);
@@ -140,6 +142,42 @@ TEST(ToothErrorLearner, ExportImportRoundTrip) {
     EXPECT_NEAR(restored.width_ratio(p), learner.width_ratio(p), 1e-12);
   const std::vector<double> wrong(10, 0.0);
   EXPECT_FALSE(restored.import_table(wrong, 10));
+}
+
+// The per-cycle work only adds to sums; the table is a function of those sums, so solving it every 8 cycles
+// (and once at the end) gives the table of solving it every cycle, and the first usable table is solved at
+// the cycle that makes it ready.
+TEST(ToothErrorLearner, SolvingEveryEighthCycleGivesThePerCycleTable) {
+  std::vector<double> err;
+  const auto every = learn(err, nullptr, 1);
+  auto eighth = learn(err, nullptr, 8);
+  eighth.solve();
+  ASSERT_TRUE(every.ready());
+  EXPECT_EQ(eighth.low_orders_learned(), every.low_orders_learned());
+  for (int p = 0; p < every.teeth(); ++p)
+    EXPECT_NEAR(eighth.width_ratio(p), every.width_ratio(p), 1e-12) << p;
+  for (std::size_t q = 0; q < every.order_ids().size(); ++q)
+    EXPECT_EQ(eighth.order_ids()[q].source, every.order_ids()[q].source) << q;
+
+  ToothLearnParams p1, p8;
+  p1.min_cycles = p8.min_cycles = 5;
+  p1.solve_every_cycles = 1;
+  p8.solve_every_cycles = 8;
+  ToothErrorLearner a(EngineGeometry{}, WheelGeometry{}, p1), b(EngineGeometry{}, WheelGeometry{}, p8);
+  test::SyntheticSpec sp;
+  sp.cycles = 12;
+  const auto run = test::make_synthetic(sp);
+  bool compared = false;
+  for (const auto& s : run.samples) {
+    a.update(s);
+    b.update(s);
+    ASSERT_EQ(a.ready(), b.ready());
+    if (a.ready() && !compared) {  // the first usable table: solved at once in both
+      compared = true;
+      for (int p = 0; p < a.teeth(); ++p) EXPECT_NEAR(b.width_ratio(p), a.width_ratio(p), 1e-12) << p;
+    }
+  }
+  EXPECT_TRUE(compared);
 }
 
 TEST(ToothErrorLearner, NotReadyBeforeMinCyclesAndRejectsUnsteadyCycles) {
