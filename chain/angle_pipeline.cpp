@@ -512,6 +512,7 @@ void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bo
   // input).
   if (idle_observation_allowed(seg, ref, o.load_rls, rpm, o.cycle_end)) {
     friction_.observe_idle(rpm, oil_c_, o.load_rls.torque_nm - seg.cycle_load_mean_nm,
+                           ref.kind != ReferenceKind::kLoadSignal,
                            std::hypot(ref.sd_nm, o.load_rls.uncertainty));
   }
   // Crank-only references: the energy balance with the measured load is the truth the crank-only chains are

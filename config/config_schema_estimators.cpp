@@ -248,9 +248,9 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          "skip observations while the measured load moves more than this per segment");
   TQ_BOOL(
       "friction.idle_scales_prior", friction.params.idle_scales_prior,
-      "until friction is learned over speed (fuel cut-off with a known load), steady idle with a known load "
-      "(neutral, the machine alone) scales the whole generic prior law, whose spread across engines is "
-      "mostly its level (docs/angle_pipeline.md)");
+      "until friction is learned over speed (fuel cut-off with a known load), steady idle with a vehicle's "
+      "known load (neutral, the machine alone; not a load signal) scales the whole generic prior law, whose "
+      "spread across engines is mostly its level (docs/angle_pipeline.md)");
   TQ_BOOL(
       "friction.learn_at_idle", friction.params.learn_at_idle,
       "learn a local idle correction of the law from the steady-idle friction (off: only C4 learns at idle)");

@@ -158,7 +158,7 @@ bool FrictionLearner::observe_motoring(double speed_rpm, double oil_temp_c, doub
   return true;
 }
 
-bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double friction_nm,
+bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double friction_nm, bool scale_prior,
                                    double obs_sd_nm) noexcept {
   if (!params_.learn) return false;
   if (!std::isfinite(speed_rpm) || !std::isfinite(oil_temp_c) || !std::isfinite(friction_nm) ||
@@ -175,7 +175,7 @@ bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double f
     return false;
   }
   ++n_idle_;
-  if (level_active()) update_level(speed_rpm, oil_temp_c, friction_nm, obs_sd_nm);
+  if (scale_prior && level_active()) update_level(speed_rpm, oil_temp_c, friction_nm, obs_sd_nm);
   if (params_.learn_at_idle) {
     // Local correction: running mean of (observed − law) over the idle observations (gain 1/n, floor 0.1),
     // bounded to ±idle_max_correction_frac of the law at idle.

@@ -70,9 +70,12 @@ class FrictionLearner {
 
   /// Idle observation: friction torque equals the indicated torque (no load). Learns C4 from oil-temperature
   /// differences. Returns false when rejected. Real-time safe.
-  /// `obs_sd_nm`: the observation's 1σ (its load reference's and the RLS load's; 0: learned_sd_nm), which
-  /// weighs the prior level update (see above).
-  bool observe_idle(double speed_rpm, double oil_temp_c, double friction_nm, double obs_sd_nm = 0.0) noexcept;
+  /// `scale_prior`: the observation may scale the prior law's level (see above; the pipeline passes true for
+  /// a vehicle's references, whose idle may be all it gets, and false with a load signal, whose coast-downs
+  /// teach the whole law: the dynamometer case stays as it was). `obs_sd_nm`: its 1σ (its load reference's
+  /// and the RLS load's; 0: learned_sd_nm), which weighs that update.
+  bool observe_idle(double speed_rpm, double oil_temp_c, double friction_nm, bool scale_prior = false,
+                    double obs_sd_nm = 0.0) noexcept;
 
   /// Level s of the generic law learned at idle (1: none), while the law is not learned over speed.
   [[nodiscard]] double prior_level() const noexcept { return level_active() ? level_ : 1.0; }

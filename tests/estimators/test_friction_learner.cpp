@@ -283,8 +283,8 @@ TEST(FrictionLearner, SteadyIdleScalesTheGenericPriorUntilTheLawIsLearnedOverSpe
   // WHEN steady idle in neutral reports the idle friction with a 2 N m 1 sigma (accessory prior ⊕ RLS load),
   // the accessory error shared by every cycle (here +0.8 N m on all of them)
   for (int k = 0; k < 20; ++k) {
-    EXPECT_TRUE(fl.observe_idle(800.0, 90.0, true800 + 0.8, 2.0));
-    EXPECT_TRUE(off.observe_idle(800.0, 90.0, true800 + 0.8, 2.0));
+    EXPECT_TRUE(fl.observe_idle(800.0, 90.0, true800 + 0.8, /*scale_prior=*/true, 2.0));
+    EXPECT_TRUE(off.observe_idle(800.0, 90.0, true800 + 0.8, /*scale_prior=*/true, 2.0));
   }
   // THEN the whole law moves to the idle level: at 3000 rpm within 5 % (the prior was 23 % off), with a
   // claimed 1 sigma that covers the error and is not below one observation's (it does not average out)
