@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include "alloc_counter.hpp"
 #include "friction_learner.hpp"
@@ -16,6 +17,16 @@ namespace {
 // The simulator's law: the paper's coefficients as a positive loss (sign = −1).
 double true_friction(double rpm, double oil_c) {
   return -(-23.86 + 2.45e-3 * rpm - 5.20e-6 * rpm * rpm) * std::exp(-4.67e-3 * oil_c);
+}
+// from, from + step, ... while not past `stop` (falling: > stop; rising: <= stop); counted in integers.
+std::vector<double> sweep(double from, double stop, double step) {
+  std::vector<double> v;
+  for (int i = 0;; ++i) {
+    const double x = from + i * step;
+    if (step < 0.0 ? !(x > stop) : !(x <= stop)) break;
+    v.push_back(x);
+  }
+  return v;
 }
 }  // namespace
 
@@ -55,7 +66,7 @@ TEST(FrictionLearner, ClaimedSigmaOfAMotoringBalanceIsItsResidualScaleOnceLearne
     return acc - 6.0;
   };
   for (int run = 0; run < 4; ++run)
-    for (double rpm = 3000.0; rpm > 1100.0; rpm -= 15.0)
+    for (double rpm : sweep(3000.0, 1100.0, -15.0))
       (void)fl.observe_motoring(rpm, 90.0, true_friction(rpm, 90.0) + 0.4 * gauss());
   // THEN the claimed 1σ of a balance in cut-off is the residuals' scale (0.4 N m within 25 %), not 2 N m
   EXPECT_NEAR(fl.motoring_sd_nm(), 0.4, 0.1);
@@ -76,7 +87,7 @@ TEST(FrictionLearner, LearnsC4FromIdleAtTwoOilTemperatures) {
   p.c[3] = 0.0;  // wrong oil dependence
   FrictionLearner fl(p);
   // Idle friction at 800 rpm while the oil warms 40 -> 90 °C.
-  for (double oil = 40.0; oil <= 90.0; oil += 5.0) fl.observe_idle(800.0, oil, true_friction(800.0, oil));
+  for (double oil : sweep(40.0, 90.0, 5.0)) fl.observe_idle(800.0, oil, true_friction(800.0, oil));
   EXPECT_NEAR(fl.coefficients()[3], -4.67e-3, 0.3e-3);
 }
 
@@ -94,8 +105,7 @@ TEST(FrictionLearner, ExportImportRoundTripSurvivesRestart) {
   FrictionParams p;
   p.c = {0.0, 0.0, 0.0, -4.67e-3};
   FrictionLearner a(p);
-  for (double rpm = 3000.0; rpm > 1100.0; rpm -= 20.0)
-    a.observe_motoring(rpm, 90.0, true_friction(rpm, 90.0));
+  for (double rpm : sweep(3000.0, 1100.0, -20.0)) a.observe_motoring(rpm, 90.0, true_friction(rpm, 90.0));
   const auto c = a.coefficients();
   FrictionLearner b(p);  // "restart"
   ASSERT_TRUE(b.import_coefficients(c));
@@ -124,7 +134,7 @@ TEST(FrictionLearner, IdleCorrectionIsLocalAndLeavesTheMotoringRangeAlone) {
   p_off.learn_at_idle = false;
   FrictionLearner no_corr(p_off);
   for (FrictionLearner* l : {&fl, &no_corr}) {
-    for (double rpm = 3000.0; rpm > 1100.0; rpm -= 15.0)
+    for (double rpm : sweep(3000.0, 1100.0, -15.0))
       EXPECT_TRUE(l->observe_motoring(rpm, 90.0, true_friction(rpm, 90.0)));
   }
   const double law800 = fl.friction_nm(800.0, 90.0), law1200 = fl.friction_nm(1200.0, 90.0);
@@ -154,8 +164,7 @@ TEST(FrictionLearner, PersistedIdleCorrectionIsRestoredAndRefinedNotReplaced) {
   FrictionParams p;
   p.c = {0.0, 0.0, 0.0, -4.67e-3};
   FrictionLearner fl(p);
-  for (double rpm = 3000.0; rpm > 1100.0; rpm -= 15.0)
-    fl.observe_motoring(rpm, 90.0, true_friction(rpm, 90.0));
+  for (double rpm : sweep(3000.0, 1100.0, -15.0)) fl.observe_motoring(rpm, 90.0, true_friction(rpm, 90.0));
   const double idle_true = true_friction(800.0, 90.0) + 1.5;
   for (int k = 0; k < 30; ++k) fl.observe_idle(800.0, 90.0, idle_true);
   // WHEN a restarted learner imports the coefficients and then the idle correction (the daemon's order)
