@@ -204,7 +204,7 @@ struct FrictionParams {
   double min_rpm = 500.0;             ///< observations accepted between min_rpm ..
   double max_rpm = 7000.0;            ///< .. and max_rpm (rpm)
   bool idle_scales_prior = true;      ///< until learned over speed, steady idle with a known load scales the
-                                  ///< whole generic law (its spread across engines is mostly its level)
+                                      ///< whole generic law (its spread across engines is mostly its level)
   bool learn_at_idle = true;    ///< learn a local idle correction from the steady-idle friction (RLS load at
                                 ///< zero load) below the motoring range (off: idle only learns C4)
   int idle_steady_cycles = 10;  ///< idle observations only after this many cycles of steady idle (-)
