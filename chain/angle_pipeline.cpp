@@ -105,6 +105,9 @@ void AnglePipeline::reset() noexcept {
   have_prev_ = false;
   cut_segments_ = fired_segments_ = 0;
   since_cut_segments_ = 1 << 30;  // no fuel cut-off seen yet
+  coast_fired_ = CoastFired{};
+  free_coast_ = coast_idle_ = false;
+  coast_resume_rpm_ = coast_resume_map_pa_ = 0.0;
   idle_steady_cycles_ = 0;
   prev_cycle_rpm_ = 0.0;
   brake_var_ = cfg_.fusion.can_load_sd_nm * cfg_.fusion.can_load_sd_nm;
@@ -198,7 +201,12 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   // load signal alone. A stale machine value makes the net load unknown, as a stale load signal does. On a
   // vehicle the clutch / neutral flags decide whether anything fixes the load (classify_load,
   // load_reference.hpp).
-  const LoadReference lref = classify_load(cfg_.e_machine, cfg_.load_ref, sig);
+  LoadReference lref = classify_load(cfg_.e_machine, cfg_.load_ref, sig);
+  if (free_coast_) {
+    const double map_pa = can_fresh && sig.map_valid ? sig.map_pa : held_map_pa_;
+    free_coast_reference(can_fresh && sig.fuel_cutoff_valid && sig.fuel_cutoff, speed * kRadSToRpm, map_pa,
+                         lref);
+  }
   const NetLoad& net = lref.net;
   const bool load_ok = can_fresh && net.known;
   track_reference(lref, load_ok);
@@ -435,6 +443,84 @@ CycleReference AnglePipeline::cycle_reference(const SegmentEnergy& seg) const no
   return r;
 }
 
+bool AnglePipeline::free_coast_allowed() const noexcept {
+  const LoadReferenceParams& p = cfg_.load_ref;
+  return p.free_coast && !p.sole_flag_bound && !p.neutral_bound && !cfg_.e_machine.bound;
+}
+
+// Per tooth while a free coast-down holds: the load is the accessories' (prior and 1σ) while the fuel stays
+// cut and nothing else fixes the load. When the fuel comes back the coast goes on as idle (the engine settles
+// to idle speed with the throttle closed: a driver who coasted out of gear and stops): it ends at the first
+// sign of a driveline closing or a driver driving off, the speed rising above both idle and the speed the
+// fuel resumed at, or MAP rising free_coast_idle_map_rise_pa above its value then.
+void AnglePipeline::free_coast_reference(bool cut_now, double rpm, double map_pa,
+                                         LoadReference& lref) noexcept {
+  if (lref.kind != ReferenceKind::kNone) {
+    free_coast_ = coast_idle_ = false;
+    return;
+  }
+  if (cut_now) {
+    coast_idle_ = false;
+  } else if (!coast_idle_) {
+    coast_idle_ = true;
+    coast_resume_rpm_ = rpm;
+    coast_resume_map_pa_ = map_pa;
+  } else if ((rpm > coast_resume_rpm_ && rpm > cfg_.energies.idle_max_rpm) ||
+             map_pa > coast_resume_map_pa_ + cfg_.load_ref.free_coast_idle_map_rise_pa) {
+    free_coast_ = coast_idle_ = false;
+    return;
+  }
+  lref.kind = ReferenceKind::kFreeCoast;
+  lref.net.torque_nm = cfg_.load_ref.accessory_nm;
+  lref.net.known = true;
+  lref.sd_nm = cfg_.load_ref.accessory_sd_nm;
+}
+
+// A free coast-down recognised from the crank and the fuel alone, with no clutch / neutral flag
+// (docs/angle_pipeline.md "Free coast-down without a flag"). In a fuel cut-off the balance J θ̈ = T_mot −
+// T_fric − T_net teaches friction only where T_net is known; with the clutch open it is the accessories'.
+// Coupled in gear, the vehicle's inertia referred to the crank (J_v ≥ 2 J in any gear: m r_w² / i² against
+// 0.1-0.3 kg m²) takes its share of every torque change: the step of J θ̈ at cut-off entry is ≤ J / (J + J_v)
+// ≤ 0.33 of the indicated torque lost, and the coast's deceleration far below the free engine's (T_mot −
+// T_fric − T_acc). Hard braking in a low gear can match that deceleration, but not the step at the same
+// instant as well. Both ratios are checked at the first cycle wholly in cut-off, the deceleration at every
+// cut-off cycle after it.
+void AnglePipeline::detect_free_coast(const FuelWindow& fw, double dke_nm, const CycleOutput& o) noexcept {
+  if (!o.cycle_end) return;
+  const int n = cfg_.engine.cylinders;
+  const LoadReferenceParams& p = cfg_.load_ref;
+  const double rpm = o.speed_mean_rad_s * kRadSToRpm;
+  if (coast_fired_.age < (1 << 20)) ++coast_fired_.age;
+  if (!free_coast_allowed() || !fw.valid || !have_map_) {
+    free_coast_ = false;
+    return;
+  }
+  if (fw.fired == n && fw.cut == 0) {  // a fully fired cycle: the level before a cut-off
+    coast_fired_.dke_nm = dke_nm;
+    coast_fired_.t_ind_nm = fuel_.estimate(o.t_ns, fw.fuel_kg, fw.map_fired_pa, rpm).torque_nm;
+    coast_fired_.age = 0;
+    free_coast_ = free_coast_ && coast_idle_;  // a coast's idle ends on the per-tooth tests
+    return;
+  }
+  if (fw.fired != 0 || fw.cut != n) return;  // the entry window: wait for a cycle wholly in cut-off
+  const double t_mot = rls_.motored_torque_nm(fw.map_cut_pa);
+  const double free_nm = t_mot - friction_.friction_nm(rpm, oil_c_) - p.accessory_nm;
+  const double q = free_nm < -1.0 ? dke_nm / free_nm : 0.0;
+  const bool decel_ok = q >= p.free_coast_decel_min && q <= p.free_coast_decel_max;
+  if (free_coast_) {
+    free_coast_ = decel_ok;
+    return;
+  }
+  if (coast_fired_.age > 2) return;  // only at cut-off entry
+  coast_fired_.age = 1 << 20;        // one decision per entry
+  const double drop = coast_fired_.t_ind_nm - t_mot;
+  const double step = drop > 1.0 ? (coast_fired_.dke_nm - dke_nm) / drop : 0.0;
+  if (decel_ok && step >= p.free_coast_step_min && step <= p.free_coast_step_max) {
+    free_coast_ = true;
+    ++stats_.free_coasts;
+  }
+}
+
 bool AnglePipeline::motoring_observation_allowed(const CycleReference& ref, const EngineSignals& sig,
                                                  bool load_steady) const noexcept {
   // Fuel cut-off for the whole 720° window plus one segment for the CAN flag's delay.
@@ -449,7 +535,8 @@ bool AnglePipeline::idle_observation_allowed(const SegmentEnergy& seg, const Cyc
   // "No load" beyond the accessories: on a vehicle (a clutch or neutral flag mapped) the driveline-open load
   // is the accessory prior, which the observation subtracts like any known load.
   const bool vehicle = cfg_.load_ref.sole_flag_bound || cfg_.load_ref.neutral_bound;
-  const double acc = vehicle && ref.kind != ReferenceKind::kLoadSignal ? cfg_.load_ref.accessory_nm : 0.0;
+  const bool acc_acts = vehicle || ref.kind == ReferenceKind::kFreeCoast;
+  const double acc = acc_acts && ref.kind != ReferenceKind::kLoadSignal ? cfg_.load_ref.accessory_nm : 0.0;
   return cycle_end && fired_segments_ > n && since_cut_segments_ > f.idle_after_cut_cycles * n && ref.ok &&
          rls.health == Health::kValid && rls.uncertainty < f.idle_max_rls_sd_nm &&
          idle_steady_cycles_ >= f.idle_steady_cycles && rpm < cfg_.energies.idle_max_rpm &&
@@ -652,9 +739,12 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
   const double dke_nm = inertia_.applied_scale() * dke_spec_nm;
   // The fuel window of this segment's 720° (FuelAngleWindow), read once for the balance and the learners.
   const FuelWindow fw = fuel_window(seg);
+  const CycleReference ref = cycle_reference(seg);
+  o.reference = ref.ok ? ref.kind : ReferenceKind::kNone;
   cycle_balance(seg, sig, can_fresh, dke_nm, fw, o);
   learn(seg, sig, can_fresh, dke_nm, fw, o);
   learn_inertia(seg, can_fresh, dke_spec_nm, fw, o);
+  detect_free_coast(fw, dke_nm, o);
   fuse(seg, sig, o);
   cycle_ = o;
 }

@@ -107,6 +107,8 @@ struct CycleOutput {
   TorqueEstimate indicated_crank;  ///< Δ(½Jθ̇²)/4π + RLS extended load (N m), crank only
   TorqueEstimate load_rls;         ///< RLS extended load T_load + T_fric (N m)
   TorqueEstimate indicated_eso;    ///< ESO (N m)
+  ReferenceKind reference =
+      ReferenceKind::kNone;  ///< what fixed the window's load (kNone: nothing, or mixed)
   FusedTorque fused;
   CylinderCycle cylinders;
 };
@@ -121,6 +123,7 @@ struct AnglePipelineStats {
   std::uint64_t friction_observations = 0;
   std::uint64_t inertia_observations = 0;  ///< cycle pairs the inertia learner learned from
   std::uint64_t misfires = 0;
+  std::uint64_t free_coasts = 0;  ///< fuel cut-offs recognised as a free coast-down (detect_free_coast)
 };
 
 class AnglePipeline {
@@ -231,6 +234,19 @@ class AnglePipeline {
     double dke_spec_nm = 0.0, load_nm = 0.0, rpm = 0.0, fuel_kg = 0.0, map_pa = 0.0;
   };
   InertiaPoint prev_inertia_{};
+  /// Free coast-down without a flag (detect_free_coast): the last fully fired cycle, and whether the current
+  /// fuel cut-off was recognised as the engine coasting alone.
+  struct CoastFired {
+    double dke_nm = 0.0, t_ind_nm = 0.0;
+    int age = 1 << 20;  ///< cycle ends since it
+  };
+  CoastFired coast_fired_{};
+  bool free_coast_ = false;
+  void detect_free_coast(const FuelWindow& fw, double dke_nm, const CycleOutput& o) noexcept;
+  [[nodiscard]] bool free_coast_allowed() const noexcept;
+  void free_coast_reference(bool cut_now, double rpm, double map_pa, LoadReference& lref) noexcept;
+  bool coast_idle_ = false;  ///< the free coast goes on as idle (fuel back on)
+  double coast_resume_rpm_ = 0.0, coast_resume_map_pa_ = 0.0;  ///< speed and MAP when the fuel came back
   IndicatedEso eso_;
   FuelTorque fuel_;
   TorqueEstimate fuel_ind_{};  ///< model-based indicated torque of the window: fuel model, motored in cut-off

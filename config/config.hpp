@@ -98,6 +98,12 @@ struct LoadReferenceConfig {
   double accessory_nm = 3.0;     ///< prior mean of the accessories' torque with the driveline open (N m)
   double accessory_sd_nm = 2.0;  ///< its 1σ (N m)
   double fuel_max_sd_nm = 3.0;   ///< the fuel model learns only from references at most this uncertain (N m)
+  bool free_coast = true;        ///< recognise a free coast-down (clutch open) without a flag
+  double free_coast_step_min = 0.6;  ///< its deceleration step at cut-off entry / modelled ΔT_ind (-)
+  double free_coast_step_max = 1.6;
+  double free_coast_decel_min = 0.55;  ///< its J θ̈ / free engine's (T_motored − friction − accessories)
+  double free_coast_decel_max = 1.8;
+  double free_coast_idle_map_rise_kpa = 10.0;  ///< the coast's idle ends when MAP rises this much (kPa)
 };
 
 struct CanSignalsConfig {

@@ -280,6 +280,33 @@ void add_can(std::vector<SchemaEntry>& t) {
   t.push_back(number("can.load_reference.fuel_max_sd_nm", TQ_REF(double, can.load_reference.fuel_max_sd_nm),
                      positive(1e3), "N m",
                      "the fuel model learns only from load references at most this uncertain (1 sigma)"));
+  // Free coast-down without a flag (chain/angle_pipeline.cpp detect_free_coast; docs/angle_pipeline.md).
+  t.push_back(boolean(
+      "can.load_reference.free_coast", TQ_REF(bool, can.load_reference.free_coast),
+      "with no clutch / neutral / machine flag and no load signal: recognise a fuel cut-off in which the "
+      "engine coasts alone (clutch open) from the crank and the fuel, and learn friction from it with the "
+      "accessory prior as its load"));
+  t.push_back(
+      number("can.load_reference.free_coast_step_min", TQ_REF(double, can.load_reference.free_coast_step_min),
+             closed(0.0, 10.0), "-",
+             "smallest step of the crank's deceleration torque at cut-off entry, as a fraction of the "
+             "modelled indicated-torque drop, for a free coast (in gear the vehicle's inertia, >= 2 "
+             "engine inertias in any gear, makes it <= 0.33)"));
+  t.push_back(number("can.load_reference.free_coast_step_max",
+                     TQ_REF(double, can.load_reference.free_coast_step_max), closed(0.0, 10.0), "-",
+                     "largest such step (the fuel prior's and friction's error allowed above 1)"));
+  t.push_back(number("can.load_reference.free_coast_decel_min",
+                     TQ_REF(double, can.load_reference.free_coast_decel_min), closed(0.0, 10.0), "-",
+                     "smallest ratio of a free coast's deceleration torque (J theta'') to the free engine's "
+                     "(motored torque - prior friction - accessories), checked every cut-off cycle"));
+  t.push_back(number("can.load_reference.free_coast_decel_max",
+                     TQ_REF(double, can.load_reference.free_coast_decel_max), closed(0.0, 10.0), "-",
+                     "largest such ratio (the friction prior's spread across engines allowed)"));
+  t.push_back(
+      number("can.load_reference.free_coast_idle_map_rise_kpa",
+             TQ_REF(double, can.load_reference.free_coast_idle_map_rise_kpa), closed(0.0, 200.0), "kPa",
+             "a free coast that ends in idle stays a reference (clutch still open) until MAP rises this "
+             "much above its value when the fuel came back, or the speed above idle"));
 }
 
 void add_topic_qos(std::vector<SchemaEntry>& t, const std::string& name, Ref<TopicQos> ref) {

@@ -61,6 +61,12 @@ StageSettings stage_settings_from(const Config& cfg) {
   s.angle.load_ref.accessory_nm = cfg.can.load_reference.accessory_nm;
   s.angle.load_ref.accessory_sd_nm = cfg.can.load_reference.accessory_sd_nm;
   s.angle.load_ref.fuel_max_sd_nm = cfg.can.load_reference.fuel_max_sd_nm;
+  s.angle.load_ref.free_coast = cfg.can.load_reference.free_coast;
+  s.angle.load_ref.free_coast_step_min = cfg.can.load_reference.free_coast_step_min;
+  s.angle.load_ref.free_coast_step_max = cfg.can.load_reference.free_coast_step_max;
+  s.angle.load_ref.free_coast_decel_min = cfg.can.load_reference.free_coast_decel_min;
+  s.angle.load_ref.free_coast_decel_max = cfg.can.load_reference.free_coast_decel_max;
+  s.angle.load_ref.free_coast_idle_map_rise_pa = 1e3 * cfg.can.load_reference.free_coast_idle_map_rise_kpa;
   s.angle_enabled = cfg.estimators.energies.enabled;
   s.angle.preprocess = cfg.estimators.preprocess;
   s.angle.kalman = cfg.estimators.kalman.params;

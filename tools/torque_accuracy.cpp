@@ -287,7 +287,9 @@ void print_vehicle_bed_header(const torqued::eval::DaemonBedOptions& opt) {
       "of cycles whose fused brake was published, then its\n"
       "RMS / max |error| and RMS / RMS true over those (brake scores the chain's brake on every cycle).\n"
       "(a) vehicle/noflag: idle in neutral, driving, overrun in gear, neutral coast-down, no clutch signal,\n"
-      "    fresh state (vehicle/neutral: the same with the clutch flag mapped as can.signals.neutral).\n"
+      "    fresh state (vehicle/neutral: the same with the clutch flag mapped as can.signals.neutral);\n"
+      "    ... 2nd: a second drive, the same recording from the state the first drive left (no flag: what\n"
+      "    the free coast-down recognised from the crank and the fuel, and the idle after it, taught).\n"
       "(b) hybrid/open: standstill charging at 3 points, clutch open (em_sole_load flag mapped), fresh "
       "state;\n"
       "    hybrid/drive: driving after it (clutch closed, boost, generation, overrun in gear); "
@@ -319,7 +321,7 @@ void print_vehicle_bed_summary(const std::map<std::string, Pool>& pools) {
   };
   const auto verdict = [](bool ok) { return ok ? "met" : "NOT met"; };
   const Pool a = get("vehicle/noflag"), b = get("hybrid/drive"), c = get("one-point/map"),
-             n = get("never/map");
+             n = get("never/map"), a2 = get("vehicle/noflag 2nd");
   const auto pc = [](int k, int m) { return m > 0 ? 100.0 * k / m : 0.0; };
   std::printf("Targets:\n");
   std::printf(
@@ -328,7 +330,8 @@ void print_vehicle_bed_summary(const std::map<std::string, Pool>& pools) {
   std::printf("  (c) one point, the whole map (fused) within 8 %% or 5 N m: %.0f %% of cycles: %s\n",
               pc(c.fused.loose, c.fused.n), verdict(pc(c.fused.loose, c.fused.n) >= 95.0));
   for (const auto& [name, p] :
-       {std::pair{"(a) never taught, vehicle", a}, std::pair{"    never taught, map", n}}) {
+       {std::pair{"(a) never taught, vehicle", a}, std::pair{"    never taught, map", n},
+        std::pair{"    no flag, 2nd drive", a2}}) {
     const double pub = pc(p.published, p.cycles), cov = pc(p.fused.covered, p.fused.n);
     std::printf("  %s: published %.0f %% (>= 95), RMS %.1f %% (<= 12), 1 sigma covers %.0f %% (60-76): %s\n",
                 name, pub, rel(p.fused), cov,
@@ -366,6 +369,10 @@ int run_vehicle_bed(bool all, const torqued::eval::DaemonBedOptions& opt) {
       pool_add(p.brake, w.brake);
       pool_add(p.fused, w.fused);
     }
+    std::printf(
+        "%-10s vehicle/noflag: %d cycles taken as a free coast-down (no flag), %d of them with the "
+        "clutch closed\n",
+        b.engine.c_str(), b.free_coast_cycles, b.free_coast_wrong);
     std::fflush(stdout);
   }
   print_vehicle_bed_summary(pools);

@@ -7,7 +7,10 @@
 //   (can.signals.em_sole_load,
 //                  or the static can.e_machine.sole_load on a bench): T_net = T_acc − T_em,crank
 //   kNeutral       clutch open / neutral without a machine (can.signals.neutral): T_net = T_acc (−
-//   T_em,crank) kNone          nothing fixes the load (clutch closed, no load signal): nothing may be learned
+//   T_em,crank)
+//   kFreeCoast     no flag mapped: a fuel cut-off the crank shows to be a free coast-down (clutch open;
+//                  AnglePipeline::detect_free_coast): T_net = T_acc
+//   kNone          nothing fixes the load (clutch closed, no load signal): nothing may be learned
 // T_acc is the accessories' torque (alternator, pumps): unknown on a vehicle, a prior with its own 1σ
 // (can.load_reference.*). A bench (the static sole_load, no flag signal mapped) has no accessories. Each kind
 // carries its 1σ to the balances and learners (AnglePipeline::cycle_reference). Header only, real-time safe.
@@ -19,7 +22,7 @@
 
 namespace torqued {
 
-enum class ReferenceKind : std::uint8_t { kNone = 0, kLoadSignal, kEMachineSole, kNeutral };
+enum class ReferenceKind : std::uint8_t { kNone = 0, kLoadSignal, kEMachineSole, kNeutral, kFreeCoast };
 
 [[nodiscard]] constexpr const char* reference_kind_name(ReferenceKind k) noexcept {
   switch (k) {
@@ -29,6 +32,8 @@ enum class ReferenceKind : std::uint8_t { kNone = 0, kLoadSignal, kEMachineSole,
       return "e_machine_sole";
     case ReferenceKind::kNeutral:
       return "neutral";
+    case ReferenceKind::kFreeCoast:
+      return "free_coast";
     case ReferenceKind::kNone:
       break;
   }
@@ -43,6 +48,14 @@ struct LoadReferenceParams {
   double accessory_sd_nm = 2.0;  ///< its 1σ (N m)
   double load_sd_nm = 0.5;       ///< 1σ of a measured load / machine torque (set from fusion.can_load_sd_nm)
   double fuel_max_sd_nm = 3.0;   ///< the fuel model learns only from references at most this uncertain (N m)
+  /// Free coast-down recognised from the crank and the fuel alone (AnglePipeline::detect_free_coast): no
+  /// flag mapped, no machine, no load signal.
+  bool free_coast = true;
+  double free_coast_step_min = 0.6;  ///< crank's deceleration step at cut-off entry / modelled ΔT_ind (-)
+  double free_coast_step_max = 1.6;
+  double free_coast_decel_min = 0.55;  ///< coast's J θ̈ / (T_motored − friction − accessories) (-)
+  double free_coast_decel_max = 1.8;
+  double free_coast_idle_map_rise_pa = 10e3;  ///< the coast's idle ends when MAP rises this much (Pa)
 };
 
 /// The load at one instant: the net load of fold_e_machine plus what fixes it and how well.

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <numbers>
+#include <tuple>
 #include <vector>
 
 #include "config_loader.hpp"
@@ -25,9 +26,10 @@ struct NoSink final : SampleSink {
 /// One cycle-end record of the chain.
 struct Row {
   double t0_s = 0.0, t1_s = 0.0;
-  TorqueEstimate brake, indicated, friction;
+  TorqueEstimate brake, indicated, friction, indicated_crank;
   double fused = 0.0, fused_sd = 0.0;
   bool fused_valid = false;
+  ReferenceKind reference = ReferenceKind::kNone;
 };
 
 struct Tap final : AngleChainSink {
@@ -42,6 +44,8 @@ struct Tap final : AngleChainSink {
     r.brake = o.brake;
     r.indicated = o.indicated;
     r.friction = o.friction;
+    r.indicated_crank = o.indicated_crank;
+    r.reference = o.reference;
     r.fused = o.fused.brake_nm;
     r.fused_sd = o.fused.sd_nm;
     r.fused_valid = o.fused.quality != FusionQuality::kInvalid;
@@ -102,7 +106,7 @@ DaemonBedRun score(const std::vector<Row>& rows, const sim::SimOutput& out, int 
   DaemonBedRun r;
   std::string text =
       "t_s,transient,brake_true_nm,brake_nm,brake_sd_nm,indicated_true_nm,indicated_nm,indicated_sd_nm,"
-      "friction_true_nm,friction_nm,fused_nm,fused_sd_nm\n";
+      "friction_true_nm,friction_nm,fused_nm,fused_sd_nm,indicated_crank_nm,indicated_crank_sd_nm\n";
   double prev_true = 0.0, prev_rpm = 0.0;
   bool have_prev = false;
   int hold = 0;
@@ -126,10 +130,10 @@ DaemonBedRun score(const std::vector<Row>& rows, const sim::SimOutput& out, int 
     add(r.friction, x.friction.torque_nm, w.fric, x.friction.uncertainty, transient, 0.10);
     if (x.fused_valid) add(r.fused, x.fused, w.brake, x.fused_sd, transient);
     char line[320];
-    std::snprintf(line, sizeof line, "%.6f,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f\n", x.t1_s,
-                  transient ? 1 : 0, w.brake, x.brake.torque_nm, x.brake.uncertainty, w.ind,
+    std::snprintf(line, sizeof line, "%.6f,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f\n",
+                  x.t1_s, transient ? 1 : 0, w.brake, x.brake.torque_nm, x.brake.uncertainty, w.ind,
                   x.indicated.torque_nm, x.indicated.uncertainty, w.fric, x.friction.torque_nm, x.fused,
-                  x.fused_sd);
+                  x.fused_sd, x.indicated_crank.torque_nm, x.indicated_crank.uncertainty);
     text += line;
   }
   sim::write_text_file(csv, text);
@@ -222,6 +226,35 @@ std::string replaced(std::string s, const std::string& from, const std::string& 
   if (p != std::string::npos) s.replace(p, from.size(), to);
   return s;
 }
+/// Cycles the chain took as a free coast-down (no flag), and of them those where the simulator's clutch was
+/// closed at either end of the window (a wrong one: the vehicle's load taken for the accessories').
+void count_free_coast(const std::vector<Row>& rows, const sim::Scenario& sc, VehicleBedResult& r) {
+  for (const Row& x : rows) {
+    if (x.reference != ReferenceKind::kFreeCoast) continue;
+    ++r.free_coast_cycles;
+    if (sim::evaluate(sc.vehicle.clutch_closed, x.t0_s, 1.0) > 0.5 ||
+        sim::evaluate(sc.vehicle.clutch_closed, x.t1_s, 1.0) > 0.5)
+      ++r.free_coast_wrong;
+  }
+}
+/// A second drive of the same vehicle: the same recording from the state the first left (saved and restored
+/// as the daemon does), with no flag (what the free coast-down and its idle taught) and with the neutral
+/// flag.
+bool second_drives(const fs::path& vd, const sim::SimOutput& ve_out, const DaemonBedOptions& opt,
+                   VehicleBedResult& r, std::string& error) {
+  for (const auto& [yaml, label, csv] :
+       {std::tuple{"torqued_noflag.yaml", "vehicle/noflag 2nd", "cycles_noflag_2nd.csv"},
+        std::tuple{"torqued_neutral.yaml", "vehicle/neutral 2nd", "cycles_neutral_2nd.csv"}}) {
+    LearnedState st;
+    Tap first, second;
+    if (!replay(vd / yaml, nullptr, &st, first, nullptr, error) ||
+        !replay(vd / yaml, &st, nullptr, second, nullptr, error))
+      return false;
+    r.runs.push_back({label, score(second.rows, ve_out, opt.skip_cycles, vd / csv)});
+  }
+  return true;
+}
+
 /// (c): a learning run with the load signal at one operating point (plus an overrun and idle), its state
 /// saved and restored as the daemon does; then the map recording without its load signal from that state
 /// (one-point/map) and from a fresh state (never/map).
@@ -289,6 +322,8 @@ bool evaluate_vehicle_bed_engine(const sim::BedEngine& e, const DaemonBedOptions
       return false;
     r.runs.push_back({"vehicle/noflag", score(n.rows, ve_out, opt.skip_cycles, vd / "cycles_noflag.csv")});
     r.runs.push_back({"vehicle/neutral", score(f.rows, ve_out, opt.skip_cycles, vd / "cycles_neutral.csv")});
+    count_free_coast(n.rows, ve, r);
+    if (!second_drives(vd, ve_out, opt, r, error)) return false;
     if (!one_point_runs(e, opt, dir, r, error)) return false;
   } catch (const std::exception& ex) {
     error = e.name + ": " + ex.what();

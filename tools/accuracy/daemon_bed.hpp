@@ -58,6 +58,8 @@ struct VehicleBedRun {
 struct VehicleBedResult {
   std::string engine;
   std::vector<VehicleBedRun> runs;
+  int free_coast_cycles = 0;  ///< vehicle/noflag: cycles taken as a free coast-down (no flag)
+  int free_coast_wrong = 0;   ///< of them, with the simulator's clutch closed at either end of the window
 };
 /// Labels: (b) hybrid/open (standstill charging, clutch flag mapped), hybrid/drive (driving after it),
 /// hybrid/drive static-false and static-true (can.e_machine.sole_load without the flag: the behaviour before
