@@ -5,6 +5,7 @@
 // --bed-e-machine 2 [--bed-motoring].
 #include <gtest/gtest.h>
 
+#include "bed_engine.hpp"
 #include "pipeline_eval.hpp"
 #include "unseen_engines.hpp"
 
@@ -12,11 +13,7 @@ namespace eval = torqued::eval;
 namespace sim = torqued::sim;
 
 namespace {
-const sim::BedEngine& engine(const std::string& name) {
-  const sim::BedEngine* e = sim::unseen_engine(name);
-  if (e == nullptr) throw std::invalid_argument(name);
-  return *e;
-}
+const sim::BedEngine& engine(const std::string& name) { return torqued::test::bed_engine(name); }
 eval::EvalOptions options() {
   eval::EvalOptions o;
   o.skip_cycles = 6;

@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "bed_engine.hpp"
 #include "misfire_bed.hpp"
 #include "unseen_engines.hpp"
 
@@ -15,11 +16,7 @@ namespace eval = torqued::eval;
 namespace sim = torqued::sim;
 
 namespace {
-const sim::BedEngine& engine(const std::string& name) {
-  const sim::BedEngine* e = sim::unseen_engine(name);
-  if (e == nullptr) throw std::invalid_argument(name);
-  return *e;
-}
+const sim::BedEngine& engine(const std::string& name) { return torqued::test::bed_engine(name); }
 
 eval::MisfireBedRow run(const char* name, const char* regime) {
   eval::MisfireBedRow r = eval::evaluate_misfire_bed(engine(name), regime, eval::EvalOptions{});
