@@ -160,8 +160,9 @@ void AngleChain::on_cycle_end() noexcept {
 }
 
 bool AngleChain::friction_learned() const noexcept {
-  if (!pipeline_ || pipeline_->friction().health() != Health::kValid) return false;
+  if (!pipeline_) return false;
   const FrictionLearner& f = pipeline_->friction();
+  if (f.health() != Health::kValid && !f.speed_law_learned()) return false;
   return friction_imported_ || f.motoring_observations() + f.idle_observations() > 0;
 }
 

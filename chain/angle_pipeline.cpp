@@ -508,7 +508,14 @@ void AnglePipeline::detect_free_coast(const FuelWindow& fw, double dke_nm, const
   const double q = free_nm < -1.0 ? dke_nm / free_nm : 0.0;
   const bool decel_ok = q >= p.free_coast_decel_min && q <= p.free_coast_decel_max;
   if (free_coast_) {
-    free_coast_ = decel_ok;
+    // A free coast's deceleration torque (friction and pumping) moves a few per cent from one cycle to the
+    // next; a speed-held dynamometer or a driveline taking up its share after the cut-off changes it far
+    // more. Ended here, the window is no reference either (the kind's count restarts).
+    const bool smooth = std::fabs(dke_nm - coast_fired_.coast_dke_nm) <=
+                        p.free_coast_decel_change * std::fabs(coast_fired_.coast_dke_nm);
+    coast_fired_.coast_dke_nm = dke_nm;
+    free_coast_ = decel_ok && smooth;
+    if (!free_coast_ && ref_kind_ == ReferenceKind::kFreeCoast) ref_teeth_ = 0;
     return;
   }
   if (coast_fired_.age > 2) return;  // only at cut-off entry
@@ -517,6 +524,7 @@ void AnglePipeline::detect_free_coast(const FuelWindow& fw, double dke_nm, const
   const double step = drop > 1.0 ? (coast_fired_.dke_nm - dke_nm) / drop : 0.0;
   if (decel_ok && step >= p.free_coast_step_min && step <= p.free_coast_step_max) {
     free_coast_ = true;
+    coast_fired_.coast_dke_nm = dke_nm;
     ++stats_.free_coasts;
   }
 }
@@ -668,9 +676,14 @@ void AnglePipeline::fuse(const SegmentEnergy& seg, const EngineSignals& sig, Cyc
   c.health = worst(o.load_rls.health, fric_h);
   c.uses_can = false;
   c.newest_input_ns = seg.t_ns;
-  // Without the load signal a compression-window chain that disagrees with the fuel model is not offered: its
-  // claimed 1σ was measured at the references' operating points only (crank_agrees_with_fuel).
-  if (o.brake_energy.health != Health::kValid && !crank_agrees_with_fuel(o)) c.health = Health::kNotConverged;
+  // Without the load signal the compression-window chain is offered only where its claimed 1σ was measured:
+  // in an operating cell the references reached (they teach the fuel model's cells too), and agreeing with
+  // the fuel model (crank_agrees_with_fuel). Elsewhere its gas model can be far off while the 1σ measured at
+  // a few references (idle after a coast-down, say) claims a fraction of a newton-metre.
+  const bool cell_measured =
+      (fuel_.learned_cells() >> FuelTorque::cell_of(o.speed_mean_rad_s * kRadSToRpm, held_map_pa_)) & 1u;
+  if (o.brake_energy.health != Health::kValid && (!cell_measured || !crank_agrees_with_fuel(o)))
+    c.health = Health::kNotConverged;
   // Model-based slot: the learned fuel model when valid, else the ESO; without a load signal the fuel model
   // before it measured its residuals (fuel_model_slot).
   FusionSource& z = fin.src[static_cast<std::size_t>(FusionSourceId::kEso)];
@@ -742,9 +755,9 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
   const CycleReference ref = cycle_reference(seg);
   o.reference = ref.ok ? ref.kind : ReferenceKind::kNone;
   cycle_balance(seg, sig, can_fresh, dke_nm, fw, o);
+  detect_free_coast(fw, dke_nm, o);  // before learning: its tests use the friction law the window began with
   learn(seg, sig, can_fresh, dke_nm, fw, o);
   learn_inertia(seg, can_fresh, dke_spec_nm, fw, o);
-  detect_free_coast(fw, dke_nm, o);
   fuse(seg, sig, o);
   cycle_ = o;
 }

@@ -238,7 +238,8 @@ class AnglePipeline {
   /// fuel cut-off was recognised as the engine coasting alone.
   struct CoastFired {
     double dke_nm = 0.0, t_ind_nm = 0.0;
-    int age = 1 << 20;  ///< cycle ends since it
+    int age = 1 << 20;          ///< cycle ends since it
+    double coast_dke_nm = 0.0;  ///< the last cut-off cycle's deceleration torque while a free coast holds
   };
   CoastFired coast_fired_{};
   bool free_coast_ = false;

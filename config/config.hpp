@@ -103,6 +103,7 @@ struct LoadReferenceConfig {
   double free_coast_step_max = 1.6;
   double free_coast_decel_min = 0.55;  ///< its J θ̈ / free engine's (T_motored − friction − accessories)
   double free_coast_decel_max = 1.8;
+  double free_coast_decel_change = 0.15;       ///< largest change of a free coast's J θ̈ between cycles (-)
   double free_coast_idle_map_rise_kpa = 10.0;  ///< the coast's idle ends when MAP rises this much (kPa)
 };
 

@@ -303,6 +303,12 @@ void add_can(std::vector<SchemaEntry>& t) {
                      TQ_REF(double, can.load_reference.free_coast_decel_max), closed(0.0, 10.0), "-",
                      "largest such ratio (the friction prior's spread across engines allowed)"));
   t.push_back(
+      number("can.load_reference.free_coast_decel_change",
+             TQ_REF(double, can.load_reference.free_coast_decel_change), closed(0.0, 10.0), "-",
+             "largest change of a free coast's deceleration torque from one cycle to the next, as a "
+             "fraction of it (friction and pumping move a few per cent per cycle; a dynamometer holding "
+             "speed, or a driveline taking up its share, far more): beyond it the coast ends"));
+  t.push_back(
       number("can.load_reference.free_coast_idle_map_rise_kpa",
              TQ_REF(double, can.load_reference.free_coast_idle_map_rise_kpa), closed(0.0, 200.0), "kPa",
              "a free coast that ends in idle stays a reference (clutch still open) until MAP rises this "

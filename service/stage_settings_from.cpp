@@ -66,6 +66,7 @@ StageSettings stage_settings_from(const Config& cfg) {
   s.angle.load_ref.free_coast_step_max = cfg.can.load_reference.free_coast_step_max;
   s.angle.load_ref.free_coast_decel_min = cfg.can.load_reference.free_coast_decel_min;
   s.angle.load_ref.free_coast_decel_max = cfg.can.load_reference.free_coast_decel_max;
+  s.angle.load_ref.free_coast_decel_change = cfg.can.load_reference.free_coast_decel_change;
   s.angle.load_ref.free_coast_idle_map_rise_pa = 1e3 * cfg.can.load_reference.free_coast_idle_map_rise_kpa;
   s.angle_enabled = cfg.estimators.energies.enabled;
   s.angle.preprocess = cfg.estimators.preprocess;

@@ -55,6 +55,7 @@ struct LoadReferenceParams {
   double free_coast_step_max = 1.6;
   double free_coast_decel_min = 0.55;  ///< coast's J θ̈ / (T_motored − friction − accessories) (-)
   double free_coast_decel_max = 1.8;
+  double free_coast_decel_change = 0.15;  ///< largest change of J θ̈ from one coast cycle to the next (-)
   double free_coast_idle_map_rise_pa = 10e3;  ///< the coast's idle ends when MAP rises this much (Pa)
 };
 

@@ -251,6 +251,7 @@ bool second_drives(const fs::path& vd, const sim::SimOutput& ve_out, const Daemo
         !replay(vd / yaml, &st, nullptr, second, nullptr, error))
       return false;
     r.runs.push_back({label, score(second.rows, ve_out, opt.skip_cycles, vd / csv)});
+    if (std::string(yaml) == "torqued_noflag.yaml") r.noflag_saved_friction = st.friction.has_value();
   }
   return true;
 }

@@ -60,6 +60,7 @@ struct VehicleBedResult {
   std::vector<VehicleBedRun> runs;
   int free_coast_cycles = 0;  ///< vehicle/noflag: cycles taken as a free coast-down (no flag)
   int free_coast_wrong = 0;   ///< of them, with the simulator's clutch closed at either end of the window
+  bool noflag_saved_friction = false;  ///< the state vehicle/noflag left holds a friction law
 };
 /// Labels: (b) hybrid/open (standstill charging, clutch flag mapped), hybrid/drive (driving after it),
 /// hybrid/drive static-false and static-true (can.e_machine.sole_load without the flag: the behaviour before
