@@ -53,8 +53,8 @@ Noisy make(const Case& c) {
   n.edges = n.clean.edges;
   std::mt19937 rng(c.seed);
   std::uniform_real_distribution<double> jitter(0.0, n.rev_s);
-
-  for (double at = 1.0 * n.rev_s; at < o.duration_s - 2.0 * n.rev_s; at += 3.0 * n.rev_s) {
+  for (int b = 0; (1.0 + 3.0 * b) * n.rev_s < o.duration_s - 2.0 * n.rev_s; ++b) {
+    const double at = (1.0 + 3.0 * b) * n.rev_s;
     const auto start = static_cast<std::int64_t>((at + jitter(rng)) * 1e9);
     const std::int64_t span = 30'000'000, width = 40'000;
     std::uniform_int_distribution<std::int64_t> when(start, start + span);
