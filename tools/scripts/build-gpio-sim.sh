@@ -49,10 +49,10 @@ for p in "$headers" "linux-source-$series"; do
   q=$(dpkg-query -W -f='${Status} ${Version}' "$p" 2>/dev/null || true)
   [[ "$q" == "install ok installed $ver" ]] || need+=("$p=$ver")
 done
+SUDO=""
+[[ $(id -u) -eq 0 ]] || SUDO="sudo"
 if ((${#need[@]})); then
   echo "build-gpio-sim: installing ${need[*]}"
-  SUDO=""
-  [[ $(id -u) -eq 0 ]] || SUDO="sudo"
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null ||
     die "apt-get install ${need[*]} failed"
 fi
@@ -76,8 +76,9 @@ grep -q 'generic_handle_irq(irqnum);' "$m/irq_sim.c" ||
   die "irq_sim.c of $ver does not contain the expected handle_simple_irq(irq_to_desc(irqnum)) line"
 printf 'obj-m := gpio-sim.o\ngpio-sim-y := gpio-sim-main.o irq_sim.o\n' >"$m/Kbuild"
 make -C "$kdir" M="$m" modules >"$work/make.log" 2>&1 || { tail -20 "$work/make.log" >&2; die "module build failed"; }
-mkdir -p "$dest"
-cp "$m/gpio-sim.ko" "$dest/gpio-sim.ko"
-echo "$ver" >"$dest/version"
-echo "$stamp" >"$dest/.stamp"
+echo "$ver" >"$m/version"
+echo "$stamp" >"$m/.stamp"
+S=""
+mkdir -p "$dest" 2>/dev/null && [[ -w "$dest" ]] || S=$SUDO   # /var/cache needs root
+$S mkdir -p "$dest" && $S cp "$m/gpio-sim.ko" "$m/version" "$m/.stamp" "$dest/" || die "cannot write $dest"
 echo "build-gpio-sim: $dest/gpio-sim.ko (kernel $krel, $ver)"
