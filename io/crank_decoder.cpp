@@ -9,12 +9,6 @@ namespace torqued {
 namespace {
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr double kDegToRad = std::numbers::pi / 180.0;
-/// After a noise edge (synced), this many accepted teeth are judged as inside a noise burst.
-constexpr int kBurstTeeth = 4;
-/// In a noise burst, a period shorter than this fraction of the running tooth period (median of the last
-/// three) is a glitch: a real tooth period does not shorten by a fifth against the three before it while the
-/// signal is noisy enough to tell (outside bursts the wider runt_fraction / sync_ratio_min windows apply).
-constexpr double kBurstToothRatioMin = 0.8;
 }  // namespace
 
 const char* to_string(SyncLossReason r) noexcept {
@@ -222,7 +216,7 @@ bool CrankDecoder::restart_after_stall(std::int64_t t_ns, ToothEvent& out) noexc
 }
 
 void CrankDecoder::reject_noise() noexcept {
-  if (state_ == SyncState::kSynced) burst_teeth_ = kBurstTeeth;
+  if (state_ == SyncState::kSynced) burst_teeth_ = params_.burst_teeth;
   ++stats_.noise_edges;
   ++stats_.rejected_edges;
   pending_flags_ |= kToothNoiseRejected;
@@ -310,17 +304,19 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   const double trend = u2_ > 0.0 ? clamp_trend(u1_ / u2_, params_.max_trend) : 1.0;
   const double q_flat = static_cast<double>(period) / (u1_ * w);
   const double q_trend = q_flat / trend;
-  // In a noise burst (a noise edge rejected within the last kBurstTeeth teeth) the last period and the trend
+  // In a noise burst (a noise edge rejected within the last burst_teeth teeth) the last period and the trend
   // may come from a glitch taken for the tooth it preceded; the running period (median of the last three)
-  // cannot. There an edge well short of the running period is a glitch too (counted as noise), and a period
-  // that fits the running one is a tooth: so no glitch of the burst is counted as one more tooth (that
+  // cannot. There an edge well short of the running period (burst_tooth_ratio_min: a real tooth period does
+  // not shorten by a fifth against the three before it while the signal is noisy enough to tell; outside
+  // bursts the wider runt_fraction / sync_ratio_min windows apply) is a glitch too (counted as noise), and a
+  // period that fits the running one is a tooth: so no glitch of the burst is counted as one more tooth (that
   // shifted every index after it until the next gap, each glitch shortening the prediction for the next).
   const bool burst = burst_teeth_ > 0;
   const double q_run = static_cast<double>(period) / (running_u() * w);
   // Noise: earlier than runt_fraction of a one-pitch period (also at a gap: a tooth where the gap should be
   // is a missing gap, not noise).
   if (static_cast<double>(period) < params_.runt_fraction * u1_ * wheel_.pitch_rad * std::min(trend, 1.0) ||
-      (burst && q_run < kBurstToothRatioMin)) {
+      (burst && q_run < params_.burst_tooth_ratio_min)) {
     reject_noise();
     return false;
   }

@@ -66,6 +66,12 @@ struct DecoderParams {
   /// Debounce: a tooth edge followed by the opposite crank edge within this time is a glitch pulse, not a
   /// tooth (µs; 0 = off). When on, each tooth is reported at its own time once the opposite edge confirms it.
   double min_pulse_us = 0.0;
+  /// Noise bursts. Synced: after a noise edge, this many accepted teeth are judged as inside a burst (-).
+  int burst_teeth = 4;
+  /// In a burst a period shorter than this fraction of the running tooth period (median of the last three) is
+  /// a glitch (synced); resyncing after a sync loss, the clean run before a gap (GapSync::kResyncRunBeforeGap
+  /// periods) must lie within [x, 1/x] of its median and the gap must fit that median (-).
+  double burst_tooth_ratio_min = 0.8;
   double lost_tooth_min_ratio = 1.5;  ///< lost-tooth hypothesis only where it makes q at least this large (-)
   int max_lost_teeth_per_rev = 2;     ///< more lost teeth than this in one revolution -> lost sync
   double max_trend =

@@ -103,6 +103,7 @@ GapSync::Step GapSync::on_period(std::int64_t period, const WheelTables& w, cons
       ref_period_ns_ = period;
     }
   }
+  if (normal) run_[static_cast<std::size_t>(normal_run_ % kResyncRunBeforeGap)] = period;
   normal_run_ = normal ? normal_run_ + 1 : 0;
   if (normal && since_gap_ >= 0 && ++since_gap_ > max_count_ + 1) {
     // No gap where one had to be: the last candidate was not a gap.
@@ -130,6 +131,7 @@ GapSync::Step GapSync::on_gap_candidate(std::int64_t period, double r, const Whe
   ++stats.gaps;
   ref_prev_ns_ = 0;  // the trend does not carry across a gap
   const int run_before_gap = normal_run_;
+  normal_run_after_gap_check_ = normal_run_;
   normal_run_ = 0;
   if (since_gap_ >= 0) {
     if (hist_len_ == kMaxGaps) {
@@ -154,7 +156,30 @@ GapSync::Step GapSync::on_gap_candidate(std::int64_t period, double r, const Whe
   const int need = single_ok ? 0 : history_needed_;
   if (hist_len_ < need) return Step::kOther;
   match_ = match_gap(need, r, w, p);
-  return match_ < 0 ? Step::kOther : Step::kIdentified;
+  if (match_ < 0) return Step::kOther;
+  // Resyncing (noise just cost the sync): inside a burst a glitch can shorten the reference period so that a
+  // normal tooth period looks like the gap. The clean run before the gap must be one steady tooth period and
+  // the gap must be the matched gap's width in units of it (not of the last period alone).
+  if (after_loss_ &&
+      !run_fits_gap(static_cast<double>(period) /
+                        (w.width_of(gap_tooth_[static_cast<std::size_t>(match_)]) / w.pitch_rad),
+                    p))
+    return Step::kOther;
+  return Step::kIdentified;
+}
+
+// The last kResyncRunBeforeGap normal periods (all of them must be there) lie within [x, 1/x] of their median
+// (x = burst_tooth_ratio_min), and gap_over_pitch (the gap period divided by its nominal width in pitches)
+// is within [gap_ratio_min, gap_ratio_max] of that median.
+bool GapSync::run_fits_gap(double gap_over_pitch, const DecoderParams& p) const noexcept {
+  if (normal_run_after_gap_check_ < kResyncRunBeforeGap) return false;
+  std::array<std::int64_t, kResyncRunBeforeGap> v = run_;
+  std::sort(v.begin(), v.end());
+  const double med = 0.5 * static_cast<double>(v[(v.size() - 1) / 2] + v[v.size() / 2]);
+  const double x = p.burst_tooth_ratio_min;
+  if (static_cast<double>(v.front()) < x * med || static_cast<double>(v.back()) * x > med) return false;
+  const double g = gap_over_pitch / med;
+  return g >= x && g * x <= 1.0;
 }
 
 // The one gap of the wheel whose recent history (need counts) and nominal ratio fit; -1 if none or several.

@@ -51,6 +51,7 @@ class GapSync {
   [[nodiscard]] int match_gap(int need, double r, const WheelTables& w,
                               const DecoderParams& p) const noexcept;
   void restart_reference(std::int64_t period_ns) noexcept;
+  [[nodiscard]] bool run_fits_gap(double gap_over_pitch, const DecoderParams& p) const noexcept;
 
   // Wheel tables (built once).
   int num_gaps_ = 0;
@@ -68,10 +69,12 @@ class GapSync {
   int since_gap_ = -1;                ///< teeth since the last gap candidate (-1: no gap seen yet)
   std::array<int, kMaxGaps> hist_{};  ///< teeth counts between recent gap candidates (newest last)
   int hist_len_ = 0;
-  int normal_run_ = 0;       ///< consecutive normal periods
-  int gap_run_ = 0;          ///< consecutive gap candidates
-  int match_ = 0;            ///< gap identified by the last kIdentified
-  bool after_loss_ = false;  ///< searching again after a sync loss
+  int normal_run_ = 0;                                   ///< consecutive normal periods
+  std::array<std::int64_t, kResyncRunBeforeGap> run_{};  ///< the last normal periods (ring)
+  int normal_run_after_gap_check_ = 0;  ///< normal_run_ before the gap candidate being judged
+  int gap_run_ = 0;                     ///< consecutive gap candidates
+  int match_ = 0;                       ///< gap identified by the last kIdentified
+  bool after_loss_ = false;             ///< searching again after a sync loss
 };
 
 }  // namespace torqued

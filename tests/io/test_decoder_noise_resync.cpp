@@ -149,18 +149,16 @@ TEST(DecoderNoiseResync, NoGlitchCountedAsAToothWhileSynced) {
   // THEN every tooth reported as synced, inside the bursts too, carries the index of the true tooth nearest
   // in time: a glitch edge may stand in for the tooth it precedes (it cannot be told from it when it comes),
   // but it is never counted as a tooth of its own (which would shift every index after it until the next
-  // gap). Before the running period (io/crank_decoder.cpp), 13 synced teeth here carried a wrong index. Left
-  // out: the tooth at which the gap search resyncs; inside a burst it can take a glitch-made gap (once here,
-  // at 2.079 s; the next tooth loses that sync again): the syncing search's plausibility, not the synced
-  // tracking.
+  // gap). Before the running period (io/crank_decoder.cpp), 13 synced teeth here carried a wrong index. The
+  // tooth at which the gap search resyncs counts too: before the resync guard (io/gap_sync.cpp, run_fits_gap)
+  // it took a glitch-made gap inside a burst once here (tooth 0 at 2.079 s, the true one 10).
   int synced_in_bursts = 0, wrong = 0;
   for (const auto& t : o.teeth) {
     if (t.sync != SyncState::kSynced) continue;
     synced_in_bursts += std::any_of(n.bursts.begin(), n.bursts.end(), [&](const Burst& b) {
       return t.t_ns >= b.start_ns && t.t_ns <= b.end_ns;
     });
-    // (the tooth of a (re)sync is the gap search's verdict, not the synced tracking's: left out, see below)
-    if ((t.events & kToothResynced) == 0 && t.tooth % kTeeth != nearest_true_tooth(n.clean, t.t_ns)) {
+    if (t.tooth % kTeeth != nearest_true_tooth(n.clean, t.t_ns)) {
       ++wrong;
       ADD_FAILURE() << "synced tooth " << t.tooth % kTeeth << " at " << t.t_ns * 1e-9
                     << " s, the true one is " << nearest_true_tooth(n.clean, t.t_ns);

@@ -184,6 +184,7 @@ trap cleanup EXIT
 {
   echo "export PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin"
   echo "export HOME=/tmp TORQUED_VM=1 TORQUED_VM_OUT=/tmp/vm-out"
+  printf 'export TORQUED_VM_MODULES=%q\n' "$moddir"   # the guest kernel's module tree (host path, seen over 9p)
   printf 'cd %q || exit 126\n' "$workdir"
   printf 'exec'; printf ' %q' "$@"; printf '\n'
 } >"$tmp/run.sh"

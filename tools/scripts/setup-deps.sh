@@ -48,8 +48,17 @@ npm_deps() {
   fi
 }
 
+# gpio-sim.ko for the test VM's kernel (tests/vm: the GPIO check), built from Debian's kernel source by
+# tools/scripts/build-gpio-sim.sh; a failure is reported and leaves that one check skipping.
+gpio_sim() {
+  [[ "${TORQUED_DEPS_FULL:-1}" == "1" ]] || return 0
+  bash "$(dirname "${BASH_SOURCE[0]}")/build-gpio-sim.sh" ||
+    echo "setup-deps: WARNING: gpio-sim.ko not built (the VM check vm_gpio will skip); see the message above" >&2
+}
+
 if ((${#missing[@]} == 0)); then
   npm_deps
+  gpio_sim
   exit 0
 fi
 
@@ -60,4 +69,5 @@ export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
 $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 npm_deps
+gpio_sim
 echo "setup-deps: done"

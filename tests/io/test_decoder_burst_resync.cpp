@@ -1,0 +1,171 @@
+// Resync inside noise bursts: noise bursts between clean revolutions (60-2 and 36-2 wheels, cranking with a
+// compression ripple and idle; the tests' sensor simulator, tests/support/synthetic_wheel.hpp; many burst
+// placements from fixed seeds). While the decoder is SYNCING inside a burst, its gap search must not take a
+// gap that the glitches made (a short glitch period as the reference, then a normal tooth period looks like
+// the gap): every synced tooth, the tooth of each (re)sync included, carries the index of the true tooth
+// nearest in time (a glitch may stand in for the tooth it precedes), and after each burst the decoder is
+// synced again within one revolution of the burst's end.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <cstdio>
+#include <iterator>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "crank_decoder.hpp"
+#include "synthetic_wheel.hpp"
+
+namespace torqued {
+namespace {
+
+struct Burst {
+  std::int64_t start_ns, end_ns;
+};
+
+struct Case {
+  int positions, missing;
+  double rpm0, rpm1, ripple;
+  unsigned seed;
+};
+
+struct Noisy {
+  test::SynthOutput clean;
+  std::vector<EdgeEvent> edges;
+  std::vector<Burst> bursts;
+  double rev_s = 0;  ///< longest revolution time of the run (at the lower speed, ripple included)
+};
+
+/// 5 s of the wheel; a burst every 3 revolutions (from the second one on, placed at random within a
+/// revolution): 12 pulses 40 µs wide at random times within 30 ms (as in test_decoder_noise_resync.cpp).
+Noisy make(const Case& c) {
+  test::SynthOptions o;
+  o.wheel = test::wheel_nm(c.positions, c.missing);
+  o.rpm0 = c.rpm0;
+  o.rpm1 = c.rpm1;
+  o.duration_s = 5.0;
+  o.ripple = c.ripple;
+  o.ripple_order = 2.0;
+  o.cam = false;
+  Noisy n{test::synthesize(o), {}, {}, 60.0 / std::min(c.rpm0, c.rpm1) / (1.0 - c.ripple)};
+  n.edges = n.clean.edges;
+  std::mt19937 rng(c.seed);
+  std::uniform_real_distribution<double> jitter(0.0, n.rev_s);
+  for (int b = 0; (1.0 + 3.0 * b) * n.rev_s < o.duration_s - 2.0 * n.rev_s; ++b) {
+    const double at = (1.0 + 3.0 * b) * n.rev_s;
+    const auto start = static_cast<std::int64_t>((at + jitter(rng)) * 1e9);
+    const std::int64_t span = 30'000'000, width = 40'000;
+    std::uniform_int_distribution<std::int64_t> when(start, start + span);
+    for (int k = 0; k < 12; ++k) {
+      const std::int64_t t = when(rng);
+      n.edges.push_back(EdgeEvent{t, 0, 1});
+      n.edges.push_back(EdgeEvent{t + width, 0, 0});
+    }
+    n.bursts.push_back({start, start + span + width});
+  }
+  std::stable_sort(n.edges.begin(), n.edges.end(),
+                   [](const EdgeEvent& a, const EdgeEvent& b) { return a.t_ns < b.t_ns; });
+  return n;
+}
+
+/// Index (within the revolution) of the true tooth nearest in time to t.
+int nearest_true_tooth(const test::SynthOutput& clean, std::int64_t t, int teeth) {
+  const auto it = std::lower_bound(clean.teeth.begin(), clean.teeth.end(), t,
+                                   [](const test::SynthTooth& x, std::int64_t v) { return x.t_ns < v; });
+  if (it == clean.teeth.end()) return clean.teeth.back().tooth720 % teeth;
+  if (it == clean.teeth.begin() || it->t_ns - t <= t - std::prev(it)->t_ns) return it->tooth720 % teeth;
+  return std::prev(it)->tooth720 % teeth;
+}
+
+struct Result {
+  int wrong = 0;                 ///< synced teeth with a wrong index
+  int wrong_after_bad_sync = 0;  ///< ... that follow a (re)sync at a wrong index (same sync)
+  int wrong_resync = 0;          ///< ... of which the tooth of a (re)sync
+  int late = 0;                  ///< bursts after which sync came back later than one revolution
+  int bursts = 0;
+  std::string first_wrong;
+};
+
+Result run(const Case& c, const DecoderParams& p) {
+  const Noisy n = make(c);
+  const int teeth = c.positions - c.missing;
+  CrankDecoder dec(test::wheel_nm(c.positions, c.missing), p);
+  EXPECT_TRUE(dec.valid()) << dec.error();
+  Result r;
+  std::vector<ToothEvent> out;
+  ToothEvent t;
+  bool bad_sync = false;
+  for (const auto& e : n.edges) {
+    if (!dec.on_edge(e, t)) continue;
+    out.push_back(t);
+    if (t.sync != SyncState::kSynced) {
+      bad_sync = false;
+      continue;
+    }
+    const bool ok = t.tooth % teeth == nearest_true_tooth(n.clean, t.t_ns, teeth);
+    if (t.events & kToothResynced) bad_sync = !ok;
+    if (ok) continue;
+    ++r.wrong;
+    if (bad_sync && !(t.events & kToothResynced)) ++r.wrong_after_bad_sync;
+    if (t.events & kToothResynced) ++r.wrong_resync;
+    if (r.first_wrong.empty())
+      r.first_wrong = "tooth " + std::to_string(t.tooth % teeth) + " at " + std::to_string(t.t_ns * 1e-9) +
+                      " s (true " + std::to_string(nearest_true_tooth(n.clean, t.t_ns, teeth)) + ")";
+  }
+  for (const Burst& b : n.bursts) {
+    ++r.bursts;
+    const auto back = std::find_if(out.begin(), out.end(), [&](const ToothEvent& x) {
+      return x.t_ns > b.end_ns && x.sync == SyncState::kSynced;
+    });
+    if (back == out.end() || back->t_ns - b.end_ns > static_cast<std::int64_t>(n.rev_s * 1e9)) ++r.late;
+  }
+  return r;
+}
+
+std::vector<Case> cases() {
+  std::vector<Case> v;
+  for (unsigned seed = 1; seed <= 6; ++seed) {
+    v.push_back({60, 2, 250.0, 320.0, 0.25, seed});  // cranking
+    v.push_back({36, 2, 250.0, 320.0, 0.25, seed});
+    v.push_back({60, 2, 800.0, 800.0, 0.05, seed});  // idle
+    v.push_back({36, 2, 800.0, 800.0, 0.05, seed});
+  }
+  return v;
+}
+
+TEST(DecoderBurstResync, NoResyncOnAGlitchMadeGapAndResyncWithinOneRevolution) {
+  DecoderParams p;
+  p.use_cam = false;
+  int wrong = 0, wrong_resync = 0, after = 0, late = 0, bursts = 0;
+  for (const Case& c : cases()) {
+    const Result r = run(c, p);
+    wrong += r.wrong;
+    wrong_resync += r.wrong_resync;
+    after += r.wrong_after_bad_sync;
+    late += r.late;
+    bursts += r.bursts;
+    EXPECT_EQ(r.wrong_resync + r.wrong_after_bad_sync, 0)
+        << c.positions << "-" << c.missing << " at " << c.rpm0 << " rpm, seed " << c.seed << ": "
+        << r.first_wrong;
+  }
+  std::printf(
+      "info: %d bursts; resync teeth with a wrong index %d, teeth after such a resync %d; synced teeth "
+      "with a wrong index in all %d; bursts resynced later than one revolution %d\n",
+      bursts, wrong_resync, after, wrong, late);
+  // Before the gap search checked the clean run before the gap (io/gap_sync.cpp, run_fits_gap), these cases
+  // had 56 resyncs at a glitch-made gap (wrong index) and 795 teeth decoded on from them.
+  EXPECT_EQ(wrong_resync, 0);
+  EXPECT_EQ(after, 0);
+  // Resync within one revolution of a burst's end: the first gap after it with a steady run before it. The
+  // stricter resync waits for the next gap where the gap after the burst was squeezed or its run was not
+  // steady: 11 of 312 bursts here (9 before the check, when a glitch-made gap often came sooner). Bounded,
+  // not zero.
+  EXPECT_LE(late, 12) << "of " << bursts;
+  // Left: synced teeth with a wrong index while the synced tracking takes glitches in a burst for teeth (in
+  // all, not only after a resync; the synced tracking's limit, not the gap search's).
+}
+
+}  // namespace
+}  // namespace torqued

@@ -1,0 +1,383 @@
+// GPIO check, run inside the test VM (tests/vm/vm_gpio.sh loads gpio-sim.ko and creates the chip first):
+// a 60-2 crank wheel is played on line 0 of a gpio-sim chip (a real kernel GPIO chip: gpiolib, the character
+// device, line events from the chip's interrupt) by writing "pull-up"/"pull-down" to the line's sysfs `pull`
+// attribute at the wheel's edge times; the daemon's backend (GpioEdgeSource, libgpiod v1) receives the
+// kernel's line events and the crank decoder decodes them.
+//   vm_gpio_check --chip LABEL|gpiochipN --pull /sys/devices/platform/gpio-sim.N/gpiochipM/sim_gpio0/pull
+//                 [--revs 6] [--rpm-min 1500] [--rpm-max 6000] [--slow X (0 = measure)] [--budget-s 240]
+// Speed profile: rpm-min for the first sixth of the revolutions, a linear ramp to rpm-max over the next half,
+// rpm-max for the rest. One edge in flight at a time (see play()); the wheel runs in slow motion by the
+// factor the VM's measured edge round trip needs (calibrate(); 1 where the machine keeps up, ~100-1000 under
+// TCG), and the decoder's absolute-time settings are stretched by the same factor. So the assertions hold
+// whatever the timing: every edge arrives (none lost or invented, levels as written), kernel timestamps
+// increase and none precedes the write that caused it, tooth periods agree with the written ones, every tooth
+// is counted, the decoder syncs within two revolutions and every synced tooth has the written tooth's index.
+// Prints "PASS ..." / "FAIL ..." / "info: ..." lines; exit code 0 only if every assertion held.
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "crank_decoder.hpp"
+#include "gpio_source.hpp"
+
+namespace torqued {
+namespace {
+
+constexpr int kPositions = 60;  // 60-2: positions 0..57 carry teeth, 58 and 59 are the gap
+constexpr int kTeeth = 58;
+int g_failures = 0;
+
+void check(bool ok, const std::string& what) {
+  std::printf("%s %s\n", ok ? "PASS" : "FAIL", what.c_str());
+  std::fflush(stdout);
+  if (!ok) ++g_failures;
+}
+
+std::string arg(int argc, char** argv, const char* name, const char* def) {
+  for (int i = 1; i + 1 < argc; ++i) {
+    if (std::strcmp(argv[i], name) == 0) return argv[i + 1];
+  }
+  return def;
+}
+
+std::int64_t mono_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+/// One edge to write: time after the start (ns), level, and for rising edges the tooth number (0..57).
+struct PlannedEdge {
+  std::int64_t t_ns = 0;
+  int level = 0;
+  int tooth = -1;
+};
+
+/// The 60-2 wheel at the speed profile: rising edge at each tooth's start, falling edge half a pitch later.
+std::vector<PlannedEdge> plan_wheel(int revs, double rpm_min, double rpm_max) {
+  std::vector<PlannedEdge> plan;
+  double t = 1e-3;  // s
+  const double hold = revs / 6.0, ramp = revs / 2.0;
+  for (int r = 0; r < revs; ++r) {
+    for (int p = 0; p < kPositions; ++p) {
+      const double x = r + static_cast<double>(p) / kPositions;
+      const double f = std::clamp((x - hold) / ramp, 0.0, 1.0);
+      const double pitch_s = 60.0 / ((rpm_min + f * (rpm_max - rpm_min)) * kPositions);
+      if (p < kTeeth) {
+        plan.push_back({static_cast<std::int64_t>(t * 1e9), 1, p});
+        plan.push_back({static_cast<std::int64_t>((t + pitch_s / 2) * 1e9), 0, -1});
+      }
+      t += pitch_s;
+    }
+  }
+  return plan;
+}
+
+/// Writes the plan to the line's pull attribute; written[k] = monotonic time just before write k. At most one
+/// edge in flight: write k waits until the reader has received edge k-1 (`received`), because gpio-sim raises
+/// its interrupt through irq_sim, which merges interrupts still pending, and the v1 uAPI reads the line's
+/// level in the interrupt thread: a second level change before the first was handled would be lost or
+/// mislabelled. When the wait makes a write late, the rest of the schedule slides by that much (later periods
+/// keep their planned lengths; the late period is longer, as written).
+struct Handshake {
+  std::mutex m;
+  std::condition_variable cv;
+  std::size_t received = 0;
+  void set(std::size_t n) {
+    {
+      const std::lock_guard<std::mutex> lock(m);
+      received = n;
+    }
+    cv.notify_one();
+  }
+  void wait_for(std::size_t n) {  // blocks (no spinning: under emulation a spinning vCPU starves the other)
+    std::unique_lock<std::mutex> lock(m);
+    cv.wait_for(lock, std::chrono::seconds(5), [&] { return received >= n; });
+  }
+};
+
+void play(int fd, const std::vector<PlannedEdge>& plan, std::vector<std::int64_t>& written, Handshake& hs,
+          double slow, std::atomic<bool>& failed) {
+  std::int64_t t0 = mono_ns() + 20'000'000;
+  for (std::size_t k = 0; k < plan.size(); ++k) {
+    hs.wait_for(k);
+    const auto planned = static_cast<std::int64_t>(static_cast<double>(plan[k].t_ns) * slow);
+    const std::int64_t now = mono_ns();
+    if (now > t0 + planned) t0 = now - planned;  // late: slide the schedule
+    const std::int64_t due = t0 + planned;
+    const timespec ts{static_cast<time_t>(due / 1'000'000'000), static_cast<long>(due % 1'000'000'000)};
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+    }
+    const char* v = plan[k].level ? "pull-up" : "pull-down";
+    written[k] = mono_ns();
+    if (pwrite(fd, v, std::strlen(v), 0) < 0) {
+      std::printf("info: write %zu (%s) failed: %s\n", k, v, std::strerror(errno));
+      failed = true;
+      return;
+    }
+  }
+}
+
+struct Received {
+  std::vector<EdgeEvent> edges;
+  std::vector<ToothEvent> teeth;
+  DecoderStats dec;
+  SourceStats src;
+};
+
+Received receive(GpioEdgeSource& src, const std::atomic<bool>& done, std::size_t expected, Handshake& hs,
+                 const DecoderParams& params) {
+  Received r;
+  r.edges.reserve(expected);
+  r.teeth.reserve(expected);
+  CrankDecoder dec(WheelGeometry{}, params);
+  EdgeEvent e;
+  ToothEvent t;
+  std::int64_t quiet_since = mono_ns();
+  for (;;) {
+    const SourceStatus s = src.next(e);
+    if (s == SourceStatus::kOk) {
+      r.edges.push_back(e);
+      hs.set(r.edges.size());
+      if (dec.on_edge(e, t)) r.teeth.push_back(t);
+      quiet_since = mono_ns();
+      if (r.edges.size() == expected && done.load()) break;
+    } else if (s == SourceStatus::kWouldBlock) {
+      if (done.load() && mono_ns() - quiet_since > 2'000'000'000) break;
+    } else {
+      break;
+    }
+  }
+  r.dec = dec.stats();
+  r.src = src.stats();
+  return r;
+}
+
+void check_edges(const std::vector<PlannedEdge>& plan, const std::vector<std::int64_t>& written,
+                 const Received& r) {
+  check(r.edges.size() == plan.size(), "gpio: " + std::to_string(r.edges.size()) + " line events for " +
+                                           std::to_string(plan.size()) + " level changes written");
+  check(r.src.dropped == 0,
+        "gpio: no edge lost in the kernel FIFO (dropped " + std::to_string(r.src.dropped) + ")");
+  const std::size_t n = std::min(r.edges.size(), plan.size());
+  std::size_t wrong_level = 0, not_increasing = 0, before_write = 0;
+  std::int64_t max_delay = 0;
+  std::vector<std::int64_t> delay;
+  delay.reserve(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    if (r.edges[k].level != plan[k].level) ++wrong_level;
+    if (k > 0 && r.edges[k].t_ns <= r.edges[k - 1].t_ns) ++not_increasing;
+    if (r.edges[k].t_ns < written[k]) ++before_write;
+    max_delay = std::max(max_delay, r.edges[k].t_ns - written[k]);
+    delay.push_back(r.edges[k].t_ns - written[k]);
+  }
+  std::sort(delay.begin(), delay.end());
+  if (!delay.empty())
+    std::printf("info: delay write -> kernel timestamp: median %.1f us, 90 %% %.1f us, 99 %% %.1f us\n",
+                static_cast<double>(delay[delay.size() / 2]) * 1e-3,
+                static_cast<double>(delay[delay.size() * 9 / 10]) * 1e-3,
+                static_cast<double>(delay[delay.size() * 99 / 100]) * 1e-3);
+  check(wrong_level == 0,
+        "gpio: every event has the written level (" + std::to_string(wrong_level) + " wrong)");
+  check(not_increasing == 0,
+        "gpio: kernel timestamps strictly increasing (" + std::to_string(not_increasing) + " not)");
+  check(before_write == 0,
+        "gpio: no timestamp before its write (" + std::to_string(before_write) + " earlier)");
+  std::printf("info: largest delay write -> kernel timestamp %.3f ms\n",
+              static_cast<double>(max_delay) * 1e-6);
+}
+
+/// Rising-to-rising periods: kernel timestamps against the writer's clock, per tooth; the median ratio must
+/// be near 1 and the sum over all teeth (the run's duration) must agree within 5 %.
+void check_periods(const std::vector<PlannedEdge>& plan, const std::vector<std::int64_t>& written,
+                   const Received& r, double slow) {
+  const auto top_pitch_ns = static_cast<double>(plan[plan.size() - 2].t_ns - plan[plan.size() - 4].t_ns);
+  std::vector<double> ratio;
+  std::int64_t sum_kernel = 0, sum_written = 0, min_period = INT64_MAX;
+  std::size_t prev = SIZE_MAX;
+  const std::size_t n = std::min(r.edges.size(), plan.size());
+  for (std::size_t k = 0; k < n; ++k) {
+    if (plan[k].level != 1) continue;
+    if (prev != SIZE_MAX) {
+      const std::int64_t pk = r.edges[k].t_ns - r.edges[prev].t_ns, pw = written[k] - written[prev];
+      ratio.push_back(static_cast<double>(pk) / static_cast<double>(std::max<std::int64_t>(pw, 1)));
+      sum_kernel += pk;
+      sum_written += pw;
+      min_period = std::min(min_period, pk);
+    }
+    prev = k;
+  }
+  if (ratio.empty()) {
+    check(false, "gpio: no tooth periods to compare");
+    return;
+  }
+  std::nth_element(ratio.begin(), ratio.begin() + static_cast<std::ptrdiff_t>(ratio.size() / 2), ratio.end());
+  const double med = ratio[ratio.size() / 2];
+  const double total =
+      static_cast<double>(sum_kernel) / static_cast<double>(std::max<std::int64_t>(sum_written, 1));
+  char buf[200];
+  std::snprintf(buf, sizeof buf,
+                "gpio: tooth periods plausible: median kernel/written %.3f (0.8 .. 1.25), total %.4f", med,
+                total);
+  check(med > 0.8 && med < 1.25 && std::fabs(total - 1.0) < 0.05, buf);
+  std::printf(
+      "info: run %.3f s planned, %.3f s written; shortest tooth period %.1f ms (top speed's %.3f ms "
+      "x slow motion %.1f = %.1f ms)\n",
+      static_cast<double>(plan.back().t_ns) * 1e-9,
+      static_cast<double>(written.back() - written.front()) * 1e-9, static_cast<double>(min_period) * 1e-6,
+      top_pitch_ns * 1e-6, slow, top_pitch_ns * slow * 1e-6);
+}
+
+/// The decoder on the writer's own clock (the times of the writes): what the kernel's timestamps should give.
+DecoderStats decode_written(const std::vector<PlannedEdge>& plan, const std::vector<std::int64_t>& written,
+                            const DecoderParams& params) {
+  CrankDecoder dec(WheelGeometry{}, params);
+  ToothEvent t;
+  for (std::size_t k = 0; k < plan.size(); ++k)
+    dec.on_edge(EdgeEvent{written[k], 0, static_cast<std::uint8_t>(plan[k].level)}, t);
+  return dec.stats();
+}
+
+/// Decoder: every tooth edge reached it, sync within two revolutions, every synced tooth has the written
+/// tooth's index, and no more sync losses than the same decoder has on the writer's clock (a VM stall can
+/// make a written period itself irregular; the kernel path must add nothing to that).
+void check_decoder(const std::vector<PlannedEdge>& plan, const Received& r, const DecoderStats& ref,
+                   double slow) {
+  const auto rising = static_cast<std::uint64_t>(
+      std::count_if(plan.begin(), plan.end(), [](const PlannedEdge& p) { return p.level == 1; }));
+  // The first rising edge only starts the first period: every later one is a tooth or a rejected runt.
+  check(r.dec.teeth + r.dec.noise_edges == rising - 1,
+        "gpio: decoder got " + std::to_string(r.dec.teeth) + " teeth + " + std::to_string(r.dec.noise_edges) +
+            " runts of " + std::to_string(rising - 1) + " tooth edges (writer's clock: " +
+            std::to_string(ref.teeth) + " + " + std::to_string(ref.noise_edges) + ")");
+  check(r.dec.syncs >= 1 && r.dec.sync_losses <= ref.sync_losses,
+        "gpio: decoder synced (" + std::to_string(r.dec.syncs) + " syncs, " +
+            std::to_string(r.dec.sync_losses) + " losses, last: " + to_string(r.dec.last_loss_reason) +
+            "; on the writer's clock " + std::to_string(ref.sync_losses) + " losses)");
+  std::size_t first_synced = SIZE_MAX, wrong = 0, synced = 0, m = 0, k_tooth = 0;
+  double max_rpm = 0;
+  for (const PlannedEdge& p : plan) {
+    if (p.level != 1) continue;
+    if (m++ == 0) continue;
+    if (k_tooth >= r.teeth.size() || 2 * (m - 1) >= r.edges.size()) break;
+    const ToothEvent& t = r.teeth[k_tooth];
+    if (t.source_t_ns != r.edges[2 * (m - 1)].t_ns) continue;  // rejected as a runt: no tooth event
+    ++k_tooth;
+    if (t.sync != SyncState::kSynced) continue;
+    ++synced;
+    if (first_synced == SIZE_MAX) first_synced = m - 1;
+    if (t.tooth % kTeeth != p.tooth) ++wrong;
+    max_rpm = std::max(max_rpm, t.speed_rad_s * 60.0 / (2.0 * M_PI));
+  }
+  check(first_synced < 2 * kTeeth, "gpio: synced at rising edge " + std::to_string(first_synced) +
+                                       " of the run (within two revolutions: < " +
+                                       std::to_string(2 * kTeeth) + ")");
+  check(synced > 0 && wrong == 0, "gpio: every synced tooth has the written tooth's index (" +
+                                      std::to_string(wrong) + " of " + std::to_string(synced) + " wrong)");
+  std::printf(
+      "info: decoder: %llu teeth, %zu synced, %llu lost teeth interpolated; top speed seen %.1f rpm (x "
+      "slow motion = %.0f rpm of the wheel)\n",
+      static_cast<unsigned long long>(r.dec.teeth), synced, static_cast<unsigned long long>(r.dec.lost_teeth),
+      max_rpm, max_rpm * slow);
+}
+
+DecoderParams slow_params(double slow) {
+  DecoderParams params;
+  params.stall_timeout_ns = static_cast<std::int64_t>(static_cast<double>(params.stall_timeout_ns) * slow);
+  params.lost_tooth_min_rpm /= slow;
+  return params;
+}
+
+/// Plays `plan` (times stretched by `slow`) while receiving and decoding it.
+/// The decoder's two absolute-time settings are stretched with it (the rest of its logic is ratios of
+/// periods).
+Received play_and_receive(GpioEdgeSource& src, int fd, const std::vector<PlannedEdge>& plan, double slow,
+                          std::vector<std::int64_t>& written) {
+  written.assign(plan.size(), 0);
+  std::atomic<bool> done{false}, failed{false};
+  Handshake hs;
+  const DecoderParams params = slow_params(slow);
+  std::thread writer([&] {
+    play(fd, plan, written, hs, slow, failed);
+    done = true;
+  });
+  Received r = receive(src, done, plan.size(), hs, params);
+  writer.join();
+  check(!failed, "gpio: every level change written");
+  return r;
+}
+
+/// Slow motion: the VM's round trip per edge (write -> interrupt -> line event -> reader) is measured on 64
+/// edges written back to back; the wheel is played that many times slower that its shortest edge spacing
+/// is 3x the 90th percentile of the round trip (1 = real time, e.g. under KVM or on hardware).
+double calibrate(GpioEdgeSource& src, int fd, double min_spacing_ns, double planned_s, double budget_s) {
+  std::vector<PlannedEdge> burst(64);
+  for (std::size_t k = 0; k < burst.size(); ++k) burst[k].level = k % 2 == 0 ? 1 : 0;
+  std::vector<std::int64_t> written;
+  const Received r = play_and_receive(src, fd, burst, 1.0, written);
+  std::vector<std::int64_t> rtt;
+  for (std::size_t k = 1; k < written.size(); ++k) rtt.push_back(written[k] - written[k - 1]);
+  std::sort(rtt.begin(), rtt.end());
+  const double p90 = static_cast<double>(rtt[rtt.size() * 9 / 10]);
+  check(r.edges.size() == burst.size(), "gpio: calibration burst: " + std::to_string(r.edges.size()) +
+                                            " events for " + std::to_string(burst.size()) + " writes");
+  double slow = std::max(1.0, 3.0 * p90 / min_spacing_ns);
+  if (slow * planned_s > budget_s) {
+    std::printf("info: slow motion %.0fx would take %.0f s: capped at %.0f s (writes may run late)\n", slow,
+                slow * planned_s, budget_s);
+    slow = std::max(1.0, budget_s / planned_s);
+  }
+  std::printf(
+      "info: round trip per edge: median %.1f us, 90 %% %.1f us -> wheel played %.1fx slower than real\n",
+      static_cast<double>(rtt[rtt.size() / 2]) * 1e-3, p90 * 1e-3, slow);
+  return slow;
+}
+
+int run(int argc, char** argv) {
+  const std::string pull = arg(argc, argv, "--pull", "");
+  const int revs = std::stoi(arg(argc, argv, "--revs", "6"));
+  const double rpm_min = std::stod(arg(argc, argv, "--rpm-min", "1500"));
+  const double budget_s = std::stod(arg(argc, argv, "--budget-s", "240"));
+  const double rpm_max = std::stod(arg(argc, argv, "--rpm-max", "6000"));
+  const double slow_arg = std::stod(arg(argc, argv, "--slow", "0"));  // 0 = calibrate
+  GpioConfig cfg;
+  cfg.chip = arg(argc, argv, "--chip", "torqued-crank");
+  cfg.crank_line = 0;
+  cfg.to_realtime = false;  // compare with the writer's CLOCK_MONOTONIC (the default adds a fixed offset)
+  GpioEdgeSource src(cfg);
+  check(src.ok(), "gpio: GpioEdgeSource on " + src.describe() + " " + src.last_error());
+  const int fd = ::open(pull.c_str(), O_WRONLY | O_CLOEXEC);
+  check(fd >= 0, "gpio: opened " + pull + (fd < 0 ? std::string(": ") + std::strerror(errno) : ""));
+  if (!src.ok() || fd < 0) return 1;
+
+  const std::vector<PlannedEdge> plan = plan_wheel(revs, rpm_min, rpm_max);
+  double min_spacing = 1e18;
+  for (std::size_t k = 1; k < plan.size(); ++k)
+    min_spacing = std::min(min_spacing, static_cast<double>(plan[k].t_ns - plan[k - 1].t_ns));
+  const double planned_s = static_cast<double>(plan.back().t_ns) * 1e-9;
+  const double slow = slow_arg > 0 ? slow_arg : calibrate(src, fd, min_spacing, planned_s, budget_s);
+  std::vector<std::int64_t> written;
+  const Received r = play_and_receive(src, fd, plan, slow, written);
+  ::close(fd);
+  check_edges(plan, written, r);
+  check_periods(plan, written, r, slow);
+  check_decoder(plan, r, decode_written(plan, written, slow_params(slow)), slow);
+  return g_failures == 0 ? 0 : 1;
+}
+
+}  // namespace
+}  // namespace torqued
+
+int main(int argc, char** argv) { return torqued::run(argc, argv); }
