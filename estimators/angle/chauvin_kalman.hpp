@@ -117,6 +117,8 @@ class ChauvinKalman {
   [[nodiscard]] double edge_state_var(double speed_rad_s) const noexcept;
 
  private:
+  /// periodic_gain() written into `gain` (the per-tooth path: no temporary).
+  void periodic_gain_into(int k, double speed_rad_s, Vec& gain) const noexcept;
   void push_edge_time(std::int64_t t_ns) noexcept;
   void push_model(double ripple_nm) noexcept;
   void build_aps_set(int set, int bins);
