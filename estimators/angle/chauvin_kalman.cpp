@@ -126,7 +126,7 @@ void ChauvinKalman::build_aps_set(int set, int bins) {
     for (int cycle = 0; cycle < 500 && change > 1e-12; ++cycle) {
       change = 0.0;
       for (int k = 0; k < kk; ++k) {
-        riccati_step(k, w, p, g);
+        riccati_step_symmetric(k, w, p, g);  // P stays bit-symmetric: P0 is diagonal
         Vec& slot = aps_gain_[static_cast<std::size_t>((set * bins + b) * kk + k)];
         const double scale = std::max(1e-300, g.cwiseAbs().maxCoeff());
         change = std::max(change, (g - slot).cwiseAbs().maxCoeff() / scale);
@@ -208,6 +208,47 @@ void ChauvinKalman::riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) c
       p(j, i) = v;
     }
   }
+}
+
+void ChauvinKalman::riccati_step_symmetric(int k, double speed_rad_s, Mat& p, Vec& gain) const noexcept {
+  // riccati_step() with A P Aᵀ written out for a symmetric P. Rows 2…13 and 15 of A_k copy one state (the lag
+  // register, v_k → v_{k−1}), row 14 is zero and only rows 0 and 1 combine two: A post Aᵀ is post shifted by
+  // one state in both indices, except rows and columns 0 and 1, which are m0 = (A post) row 0 and m1 = row 1
+  // (each the same sum of the same two products as in propagate()). The product of a copy row and a
+  // combining row comes out equal from both sides, so of the ½(P + Pᵀ) only the (0, 1) entry changes
+  // anything. A third of riccati_step()'s instructions; same bits for a bit-symmetric P.
+  const double h = edge_coupling(k);
+  const Vec pc = p.col(kSpeedSqState) + h * (p.col(kNoisePrev) - p.col(kNoiseNow));
+  const double s = pc(kSpeedSqState) + h * (pc(kNoisePrev) - pc(kNoiseNow)) + measurement_var(k, speed_rad_s);
+  gain = pc / s;
+  Mat post;
+  for (int j = 0; j < kStates; ++j) post.col(j) = p.col(j) - (gain * gain(j)) * s;
+  const auto i = static_cast<std::size_t>(k);
+  const double a = acol_[i];
+  const double r00 = a11_[i], r01 = b12_[i], r11 = 2.0 * a, r12 = -a * a;
+  const Vec m0 = r00 * post.col(kSpeedSqState) + r01 * post.col(kTorqueState);  // post symmetric: rows = cols
+  const Vec m1 = r11 * post.col(kTorqueState) + r12 * post.col(kTorquePrevState);
+  constexpr int kLags = kTorqueLastState - kTorquePrevState + 1;  // the copy rows 2…13
+  p.block<kLags, kLags>(kTorquePrevState, kTorquePrevState) =
+      post.block<kLags, kLags>(kTorqueState, kTorqueState);
+  p.block<kLags, 1>(kTorquePrevState, kNoisePrev) = post.block<kLags, 1>(kTorqueState, kNoiseNow);
+  p.block<1, kLags>(kNoisePrev, kTorquePrevState) = post.block<1, kLags>(kNoiseNow, kTorqueState);
+  p(kNoisePrev, kNoisePrev) = post(kNoiseNow, kNoiseNow);
+  p.row(kNoiseNow).setZero();
+  p.col(kNoiseNow).setZero();
+  for (const int r : {kSpeedSqState, kTorqueState}) {
+    const Vec& m = r == kSpeedSqState ? m0 : m1;
+    p.block<kLags, 1>(kTorquePrevState, r) = m.segment<kLags>(kTorqueState);
+    p.block<1, kLags>(r, kTorquePrevState) = m.segment<kLags>(kTorqueState).transpose();
+    p(kNoisePrev, r) = m(kNoiseNow);
+    p(r, kNoisePrev) = m(kNoiseNow);
+  }
+  p(kSpeedSqState, kSpeedSqState) = r00 * m0(kSpeedSqState) + r01 * m0(kTorqueState);
+  p(kTorqueState, kTorqueState) = r11 * m1(kTorqueState) + r12 * m1(kTorquePrevState);
+  const double v01 = r11 * m0(kTorqueState) + r12 * m0(kTorquePrevState);  // (A post Aᵀ)(0, 1)
+  const double v10 = r00 * m1(kSpeedSqState) + r01 * m1(kTorqueState);     // (A post Aᵀ)(1, 0)
+  add_process_noise(k, speed_rad_s, p);
+  p(kSpeedSqState, kTorqueState) = p(kTorqueState, kSpeedSqState) = 0.5 * (v01 + v10);
 }
 
 ChauvinKalman::Vec ChauvinKalman::periodic_gain(int k, double speed_rad_s) const noexcept {
