@@ -221,19 +221,25 @@ void ChauvinKalman::riccati_step_symmetric(int k, double speed_rad_s, Mat& p, Ve
   const Vec pc = p.col(kSpeedSqState) + h * (p.col(kNoisePrev) - p.col(kNoiseNow));
   const double s = pc(kSpeedSqState) + h * (pc(kNoisePrev) - pc(kNoiseNow)) + measurement_var(k, speed_rad_s);
   gain = pc / s;
-  Mat post;
-  for (int j = 0; j < kStates; ++j) post.col(j) = p.col(j) - (gain * gain(j)) * s;
+  // Columns of post = P − K S Kᵀ (its entries as in riccati_step(), (K_i K_j) S) that A post Aᵀ reads outside
+  // the shifted block; that block is then written in place, highest column first (column j − 1 is read before
+  // it is overwritten), without a temporary matrix.
+  const Vec post0 = p.col(kSpeedSqState) - (gain * gain(kSpeedSqState)) * s;
+  const Vec post1 = p.col(kTorqueState) - (gain * gain(kTorqueState)) * s;
+  const Vec post2 = p.col(kTorquePrevState) - (gain * gain(kTorquePrevState)) * s;
+  const Vec post14 = p.col(kNoiseNow) - (gain * gain(kNoiseNow)) * s;
   const auto i = static_cast<std::size_t>(k);
   const double a = acol_[i];
   const double r00 = a11_[i], r01 = b12_[i], r11 = 2.0 * a, r12 = -a * a;
-  const Vec m0 = r00 * post.col(kSpeedSqState) + r01 * post.col(kTorqueState);  // post symmetric: rows = cols
-  const Vec m1 = r11 * post.col(kTorqueState) + r12 * post.col(kTorquePrevState);
+  const Vec m0 = r00 * post0 + r01 * post1;  // post symmetric: rows = columns
+  const Vec m1 = r11 * post1 + r12 * post2;
   constexpr int kLags = kTorqueLastState - kTorquePrevState + 1;  // the copy rows 2…13
-  p.block<kLags, kLags>(kTorquePrevState, kTorquePrevState) =
-      post.block<kLags, kLags>(kTorqueState, kTorqueState);
-  p.block<kLags, 1>(kTorquePrevState, kNoisePrev) = post.block<kLags, 1>(kTorqueState, kNoiseNow);
-  p.block<1, kLags>(kNoisePrev, kTorquePrevState) = post.block<1, kLags>(kNoiseNow, kTorqueState);
-  p(kNoisePrev, kNoisePrev) = post(kNoiseNow, kNoiseNow);
+  for (int j = kTorqueLastState; j >= kTorquePrevState; --j)
+    p.block<kLags, 1>(kTorquePrevState, j) =
+        p.block<kLags, 1>(kTorqueState, j - 1) - (gain.segment<kLags>(kTorqueState) * gain(j - 1)) * s;
+  p.block<kLags, 1>(kTorquePrevState, kNoisePrev) = post14.segment<kLags>(kTorqueState);
+  p.block<1, kLags>(kNoisePrev, kTorquePrevState) = post14.segment<kLags>(kTorqueState).transpose();
+  p(kNoisePrev, kNoisePrev) = post14(kNoiseNow);
   p.row(kNoiseNow).setZero();
   p.col(kNoiseNow).setZero();
   for (const int r : {kSpeedSqState, kTorqueState}) {
