@@ -79,19 +79,16 @@ void ChauvinKalman::build_aps_tables(int bins) {
   const int sets = params_.gas_model ? kModelMissSet + 1 : kWholeTorqueSet + 1;
   const auto gains = static_cast<std::size_t>(sets * bins * table_.samples);
   const std::size_t n = gains * static_cast<std::size_t>(kStates);
-  static_assert(sizeof(Vec) == kStates * sizeof(double), "APS gains are copied as packed doubles");
-  aps_gain_.resize(gains);  // filled below, from the cache or by build_aps_set() (which needs zeros)
-  std::vector<double> flat;
-  const bool cached = cached_table("chauvin-aps", aps_key(sets, bins), flat, n, [&](std::vector<double>& t) {
-    std::fill(aps_gain_.begin(), aps_gain_.end(), Vec::Zero());
+  // The gains live in the cache's own array (kStates doubles per gain): read from the cache they are moved
+  // in, computed they are stored from where they were built (no copy of the ≈ 1 MB table either way).
+  cached_table("chauvin-aps", aps_key(sets, bins), aps_gain_, n, [&](std::vector<double>& t) {
+    t.assign(n, 0.0);  // build_aps_set() compares each gain with the previous cycle's (zeros at first)
     for (int set = 0; set < sets; ++set) {
       mode_ = set;
       build_aps_set(set, bins);
     }
     mode_ = kWholeTorqueSet;
-    t.assign(aps_gain_.front().data(), aps_gain_.front().data() + n);  // Vec is 16 packed doubles
   });
-  if (cached) std::copy(flat.begin(), flat.end(), aps_gain_.front().data());
 }
 
 double ChauvinKalman::measurement_var(int k, double speed_rad_s) const noexcept {
@@ -127,7 +124,7 @@ void ChauvinKalman::build_aps_set(int set, int bins) {
       change = 0.0;
       for (int k = 0; k < kk; ++k) {
         riccati_step_symmetric(k, w, p, g);  // P stays bit-symmetric: P0 is diagonal
-        Vec& slot = aps_gain_[static_cast<std::size_t>((set * bins + b) * kk + k)];
+        Eigen::Map<Vec> slot = aps_gain(static_cast<std::size_t>((set * bins + b) * kk + k));
         const double scale = std::max(1e-300, g.cwiseAbs().maxCoeff());
         change = std::max(change, (g - slot).cwiseAbs().maxCoeff() / scale);
         slot = g;
@@ -272,8 +269,8 @@ void ChauvinKalman::periodic_gain_into(int k, double speed_rad_s, Vec& gain) con
   const int b = static_cast<int>(pos);
   const double t = pos - b;
   const int base = mode_ * bins;
-  gain = (1.0 - t) * aps_gain_[static_cast<std::size_t>((base + b) * kk + k)] +
-         t * aps_gain_[static_cast<std::size_t>((base + b + 1) * kk + k)];
+  gain = (1.0 - t) * aps_gain(static_cast<std::size_t>((base + b) * kk + k)) +
+         t * aps_gain(static_cast<std::size_t>((base + b + 1) * kk + k));
 }
 
 void ChauvinKalman::reset() noexcept {

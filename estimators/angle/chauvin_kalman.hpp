@@ -146,7 +146,13 @@ class ChauvinKalman {
   std::array<double, 2> sd_{};  ///< the matching stationary 1σ of x2 (P0)
   int mode_ = kWholeTorqueSet;  ///< which of the two the current tooth uses (kModelMissSet: gas model valid)
   std::vector<double> bin_log_speed_;  ///< ln ω of each APS speed bin
-  std::vector<Vec> aps_gain_;          ///< [(set * bins + bin) * K + k]
+  std::vector<double> aps_gain_;       ///< kStates doubles per gain [(set * bins + bin) * K + k]
+  [[nodiscard]] Eigen::Map<Vec> aps_gain(std::size_t i) noexcept {
+    return Eigen::Map<Vec>(&aps_gain_[i * kStates]);
+  }
+  [[nodiscard]] Eigen::Map<const Vec> aps_gain(std::size_t i) const noexcept {
+    return Eigen::Map<const Vec>(&aps_gain_[i * kStates]);
+  }
   double edge_sd_rad_ = 0.0;
 
   Vec x_ = Vec::Zero();
