@@ -82,7 +82,8 @@ void ChauvinKalman::build_aps_tables(int bins) {
   // The gains live in the cache's own array (kStates doubles per gain): read from the cache they are moved
   // in, computed they are stored from where they were built (no copy of the ≈ 1 MB table either way).
   cached_table("chauvin-aps", aps_key(sets, bins), aps_gain_, n, [&](std::vector<double>& t) {
-    t.assign(n, 0.0);  // build_aps_set() compares each gain with the previous cycle's (zeros at first)
+    t.clear();
+    t.reserve(n);  // build_aps_set() appends each gain in its first cycle (no zero-fill of ≈ 1 MB first)
     for (int set = 0; set < sets; ++set) {
       mode_ = set;
       build_aps_set(set, bins);
@@ -124,10 +125,18 @@ void ChauvinKalman::build_aps_set(int set, int bins) {
       change = 0.0;
       for (int k = 0; k < kk; ++k) {
         riccati_step_symmetric(k, w, p, g);  // P stays bit-symmetric: P0 is diagonal
-        Eigen::Map<Vec> slot = aps_gain(static_cast<std::size_t>((set * bins + b) * kk + k));
-        const double scale = std::max(1e-300, g.cwiseAbs().maxCoeff());
-        change = std::max(change, (g - slot).cwiseAbs().maxCoeff() / scale);
-        slot = g;
+        const auto slot_index = static_cast<std::size_t>((set * bins + b) * kk + k);
+        if (!(change > 1e-12)) {  // once a gain of this cycle moved, the cycle is not the last: skip the rest
+          const double scale = std::max(1e-300, g.cwiseAbs().maxCoeff());
+          // The first cycle compares with zeros (the slot is appended below, not zero-filled first).
+          const double moved =
+              cycle == 0 ? g.cwiseAbs().maxCoeff() : (g - aps_gain(slot_index)).cwiseAbs().maxCoeff();
+          change = std::max(change, moved / scale);
+        }
+        if (cycle == 0)  // slots are appended in index order: set, bin, tooth
+          aps_gain_.insert(aps_gain_.end(), g.data(), g.data() + kStates);
+        else
+          aps_gain(slot_index) = g;
       }
     }
   }
