@@ -8,8 +8,8 @@
 //   valgrind --tool=callgrind --callgrind-out-file=cg.out build/tests/estimators/bench_angle_pipeline
 //     --benchmark_filter='AllMethods_APS$' --benchmark_min_time=0.2
 //   callgrind_annotate --inclusive=yes cg.out | grep -E '::update\(|on_tooth'   (calls: --tree=caller)
-// Per-method cost on this input (3000 rpm, all methods, APS; callgrind instructions per tooth, inclusive / calls;
-// CPU ns alone from BM_Method_* on the 2-vCPU VM at load 7; README.md, performance section):
+// Per-method cost on this input (3000 rpm, all methods, APS): callgrind instructions per tooth (inclusive /
+// calls), CPU ns alone from BM_Method_* on the 2-vCPU VM at load 7 (README.md, performance section):
 //   method                      instructions (before → now)   CPU ns alone (before → now)
 //   ChauvinKalman::update       527 → 457                     82 → 55-59
 //   FourierObserver::update     500 → 477                     35-38 → 35-37
