@@ -2,7 +2,6 @@
 
 #include <signal.h>
 #include <spdlog/spdlog.h>
-#include <systemd/sd-daemon.h>
 #include <time.h>
 
 #include <algorithm>
@@ -26,6 +25,7 @@
 #include "rt_setup.hpp"
 #include "runtime.hpp"
 #include "sample_recorder.hpp"
+#include "sd_notify.hpp"
 #include "stage_settings.hpp"
 #include "state_store.hpp"
 #include "supervisor.hpp"
@@ -67,7 +67,7 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
   sa.sa_handler = on_fast_signal;
   sigaction(SIGTERM, &sa, nullptr);
   sigaction(SIGINT, &sa, nullptr);
-  sd_notify(0, "READY=1\nSTATUS=fast replay running");
+  sd_notify_state("READY=1\nSTATUS=fast replay running");
   // Learned state as in the service: loaded at start, saved at the end (--state-dir / output.state_dir).
   const std::string spath = state_path(cfg, opt);
   const StateContext sctx = state_context_from(cfg);

@@ -2,7 +2,6 @@
 
 #include <signal.h>
 #include <spdlog/spdlog.h>
-#include <systemd/sd-daemon.h>
 #include <time.h>
 
 #include <algorithm>
@@ -22,6 +21,7 @@
 #include "logging.hpp"
 #include "rt_setup.hpp"
 #include "runtime.hpp"
+#include "sd_notify.hpp"
 #include "stage_settings_from.hpp"
 #include "status.hpp"
 
@@ -121,10 +121,10 @@ void reload(const std::string& path, Config& current, StageSettings& settings, R
 }
 
 void notify_status(const RuntimeCounters& c, double uptime_s) {
-  sd_notifyf(
-      0, "STATUS=%s; uptime %.0f s; edges %" PRIu64 " cycles %" PRIu64 " drops %" PRIu64 " overruns %" PRIu64,
-      c.synced ? "synced" : "not synced", uptime_s, c.edges, c.cycles,
-      c.ring_drops_edge + c.ring_drops_can + c.ring_drops_out, c.overruns);
+  sd_notify_statef("STATUS=%s; uptime %.0f s; edges %" PRIu64 " cycles %" PRIu64 " drops %" PRIu64
+                   " overruns %" PRIu64,
+                   c.synced ? "synced" : "not synced", uptime_s, c.edges, c.cycles,
+                   c.ring_drops_edge + c.ring_drops_can + c.ring_drops_out, c.overruns);
 }
 
 class Supervisor {
@@ -149,9 +149,9 @@ class Supervisor {
         break;
       }
       if (sig == SIGHUP) {
-        sd_notify(0, "RELOADING=1");
+        sd_notify_state("RELOADING=1");
         reload(opt_.config_path, cfg_, s_, rt_);
-        sd_notify(0, "READY=1");
+        sd_notify_state("READY=1");
       }
       if (!tick_once(mono_ns())) break;
     }
@@ -219,8 +219,8 @@ bool Supervisor::start() {
   const char* test_stall = std::getenv("TORQUED_TEST_STALL_AFTER_S");  // test-only hook (watchdog test)
   stall_after_s_ = test_stall ? std::atof(test_stall) : -1.0;
   std::uint64_t wd_usec = 0;
-  watchdog_ = sd_watchdog_enabled(0, &wd_usec) > 0 && wd_usec > 0;
-  sd_notifyf(0, "READY=1\nSTATUS=running (%s)", ro_.replay ? "paced replay" : "live");
+  watchdog_ = sd_watchdog_usec(&wd_usec) > 0 && wd_usec > 0;
+  sd_notify_statef("READY=1\nSTATUS=running (%s)", ro_.replay ? "paced replay" : "live");
   spdlog::info("running ({}), watchdog {}", ro_.replay ? "paced replay" : "live",
                watchdog_ ? std::to_string(wd_usec / 1000) + " ms" : std::string("off"));
   t0_ = mono_ns();
@@ -272,7 +272,7 @@ void Supervisor::ping_watchdog(std::int64_t now) {
   if (!watchdog_ || now < next_ping_) return;
   const Heartbeats hb = rt_.heartbeats();
   if (hb.angle != last_hb_.angle && hb.time != last_hb_.time && hb.publisher != last_hb_.publisher) {
-    sd_notify(0, "WATCHDOG=1");
+    sd_notify_state("WATCHDOG=1");
     last_hb_ = hb;
   }
   next_ping_ = now + ping_period_;
@@ -291,7 +291,7 @@ void Supervisor::save() {
 
 int Supervisor::shutdown() {
   int exit_code = 0;
-  sd_notify(0, "STOPPING=1\nSTATUS=draining");
+  sd_notify_state("STOPPING=1\nSTATUS=draining");
   // One budget for the whole stop (drain, last state save, recording fsyncs), three quarters of
   // drain_timeout_s: the rest is left for the logs and the exit (systemd's stop timeout must not kill the
   // daemon mid-write). The recording's fsyncs run in parallel with the state save.

@@ -15,6 +15,11 @@ constexpr double kRpm = std::numbers::pi / 30.0;
 /// MA(1) model leaves out (timestamp quantisation, a non-white part of the tooth-table residual), and it
 /// keeps the innovation variance away from zero.
 constexpr double kWhiteFloorFrac = 1e-2;
+
+/// v.allFinite() with one vectorised sum on the usual path: a sum of finite values is finite unless it
+/// overflows (then every element is checked), and any infinite or NaN element makes the sum non-finite.
+/// Eigen's allFinite() tests the 16 elements one by one with a branch each (a seventh of an update).
+bool all_finite(const ChauvinKalman::Vec& v) noexcept { return std::isfinite(v.sum()) || v.allFinite(); }
 }  // namespace
 
 ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& wheel,
@@ -74,19 +79,17 @@ void ChauvinKalman::build_aps_tables(int bins) {
   const int sets = params_.gas_model ? kModelMissSet + 1 : kWholeTorqueSet + 1;
   const auto gains = static_cast<std::size_t>(sets * bins * table_.samples);
   const std::size_t n = gains * static_cast<std::size_t>(kStates);
-  static_assert(sizeof(Vec) == kStates * sizeof(double), "APS gains are copied as packed doubles");
-  aps_gain_.resize(gains);  // filled below, from the cache or by build_aps_set() (which needs zeros)
-  std::vector<double> flat;
-  const bool cached = cached_table("chauvin-aps", aps_key(sets, bins), flat, n, [&](std::vector<double>& t) {
-    std::fill(aps_gain_.begin(), aps_gain_.end(), Vec::Zero());
+  // The gains live in the cache's own array (kStates doubles per gain): read from the cache they are moved
+  // in, computed they are stored from where they were built (no copy of the ≈ 1 MB table either way).
+  cached_table("chauvin-aps", aps_key(sets, bins), aps_gain_, n, [&](std::vector<double>& t) {
+    t.clear();
+    t.reserve(n);  // build_aps_set() appends each gain in its first cycle (no zero-fill of ≈ 1 MB first)
     for (int set = 0; set < sets; ++set) {
       mode_ = set;
       build_aps_set(set, bins);
     }
     mode_ = kWholeTorqueSet;
-    t.assign(aps_gain_.front().data(), aps_gain_.front().data() + n);  // Vec is 16 packed doubles
   });
-  if (cached) std::copy(flat.begin(), flat.end(), aps_gain_.front().data());
 }
 
 double ChauvinKalman::measurement_var(int k, double speed_rad_s) const noexcept {
@@ -121,11 +124,19 @@ void ChauvinKalman::build_aps_set(int set, int bins) {
     for (int cycle = 0; cycle < 500 && change > 1e-12; ++cycle) {
       change = 0.0;
       for (int k = 0; k < kk; ++k) {
-        riccati_step(k, w, p, g);
-        Vec& slot = aps_gain_[static_cast<std::size_t>((set * bins + b) * kk + k)];
-        const double scale = std::max(1e-300, g.cwiseAbs().maxCoeff());
-        change = std::max(change, (g - slot).cwiseAbs().maxCoeff() / scale);
-        slot = g;
+        riccati_step_symmetric(k, w, p, g);  // P stays bit-symmetric: P0 is diagonal
+        const auto slot_index = static_cast<std::size_t>((set * bins + b) * kk + k);
+        if (!(change > 1e-12)) {  // once a gain of this cycle moved, the cycle is not the last: skip the rest
+          const double scale = std::max(1e-300, g.cwiseAbs().maxCoeff());
+          // The first cycle compares with zeros (the slot is appended below, not zero-filled first).
+          const double moved =
+              cycle == 0 ? g.cwiseAbs().maxCoeff() : (g - aps_gain(slot_index)).cwiseAbs().maxCoeff();
+          change = std::max(change, moved / scale);
+        }
+        if (cycle == 0)  // slots are appended in index order: set, bin, tooth
+          aps_gain_.insert(aps_gain_.end(), g.data(), g.data() + kStates);
+        else
+          aps_gain(slot_index) = g;
       }
     }
   }
@@ -205,7 +216,60 @@ void ChauvinKalman::riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) c
   }
 }
 
+void ChauvinKalman::riccati_step_symmetric(int k, double speed_rad_s, Mat& p, Vec& gain) const noexcept {
+  // riccati_step() with A P Aᵀ written out for a symmetric P. Rows 2…13 and 15 of A_k copy one state (the lag
+  // register, v_k → v_{k−1}), row 14 is zero and only rows 0 and 1 combine two: A post Aᵀ is post shifted by
+  // one state in both indices, except rows and columns 0 and 1, which are m0 = (A post) row 0 and m1 = row 1
+  // (each the same sum of the same two products as in propagate()). The product of a copy row and a
+  // combining row comes out equal from both sides, so of the ½(P + Pᵀ) only the (0, 1) entry changes
+  // anything. A third of riccati_step()'s instructions; same bits for a bit-symmetric P.
+  const double h = edge_coupling(k);
+  const Vec pc = p.col(kSpeedSqState) + h * (p.col(kNoisePrev) - p.col(kNoiseNow));
+  const double s = pc(kSpeedSqState) + h * (pc(kNoisePrev) - pc(kNoiseNow)) + measurement_var(k, speed_rad_s);
+  gain = pc / s;
+  // Columns of post = P − K S Kᵀ (its entries as in riccati_step(), (K_i K_j) S) that A post Aᵀ reads outside
+  // the shifted block; that block is then written in place, highest column first (column j − 1 is read before
+  // it is overwritten), without a temporary matrix.
+  const Vec post0 = p.col(kSpeedSqState) - (gain * gain(kSpeedSqState)) * s;
+  const Vec post1 = p.col(kTorqueState) - (gain * gain(kTorqueState)) * s;
+  const Vec post2 = p.col(kTorquePrevState) - (gain * gain(kTorquePrevState)) * s;
+  const Vec post14 = p.col(kNoiseNow) - (gain * gain(kNoiseNow)) * s;
+  const auto i = static_cast<std::size_t>(k);
+  const double a = acol_[i];
+  const double r00 = a11_[i], r01 = b12_[i], r11 = 2.0 * a, r12 = -a * a;
+  const Vec m0 = r00 * post0 + r01 * post1;  // post symmetric: rows = columns
+  const Vec m1 = r11 * post1 + r12 * post2;
+  constexpr int kLags = kTorqueLastState - kTorquePrevState + 1;  // the copy rows 2…13
+  for (int j = kTorqueLastState; j >= kTorquePrevState; --j)
+    p.block<kLags, 1>(kTorquePrevState, j) =
+        p.block<kLags, 1>(kTorqueState, j - 1) - (gain.segment<kLags>(kTorqueState) * gain(j - 1)) * s;
+  p.block<kLags, 1>(kTorquePrevState, kNoisePrev) = post14.segment<kLags>(kTorqueState);
+  p.block<1, kLags>(kNoisePrev, kTorquePrevState) = post14.segment<kLags>(kTorqueState).transpose();
+  p(kNoisePrev, kNoisePrev) = post14(kNoiseNow);
+  p.row(kNoiseNow).setZero();
+  p.col(kNoiseNow).setZero();
+  for (const int r : {kSpeedSqState, kTorqueState}) {
+    const Vec& m = r == kSpeedSqState ? m0 : m1;
+    p.block<kLags, 1>(kTorquePrevState, r) = m.segment<kLags>(kTorqueState);
+    p.block<1, kLags>(r, kTorquePrevState) = m.segment<kLags>(kTorqueState).transpose();
+    p(kNoisePrev, r) = m(kNoiseNow);
+    p(r, kNoisePrev) = m(kNoiseNow);
+  }
+  p(kSpeedSqState, kSpeedSqState) = r00 * m0(kSpeedSqState) + r01 * m0(kTorqueState);
+  p(kTorqueState, kTorqueState) = r11 * m1(kTorqueState) + r12 * m1(kTorquePrevState);
+  const double v01 = r11 * m0(kTorqueState) + r12 * m0(kTorquePrevState);  // (A post Aᵀ)(0, 1)
+  const double v10 = r00 * m1(kSpeedSqState) + r01 * m1(kTorqueState);     // (A post Aᵀ)(1, 0)
+  add_process_noise(k, speed_rad_s, p);
+  p(kSpeedSqState, kTorqueState) = p(kTorqueState, kSpeedSqState) = 0.5 * (v01 + v10);
+}
+
 ChauvinKalman::Vec ChauvinKalman::periodic_gain(int k, double speed_rad_s) const noexcept {
+  Vec g;
+  periodic_gain_into(k, speed_rad_s, g);
+  return g;
+}
+
+void ChauvinKalman::periodic_gain_into(int k, double speed_rad_s, Vec& gain) const noexcept {
   const int kk = table_.samples;
   const int bins = static_cast<int>(bin_log_speed_.size());
   const double l = std::log(std::max(speed_rad_s, 1e-3));
@@ -214,8 +278,8 @@ ChauvinKalman::Vec ChauvinKalman::periodic_gain(int k, double speed_rad_s) const
   const int b = static_cast<int>(pos);
   const double t = pos - b;
   const int base = mode_ * bins;
-  return (1.0 - t) * aps_gain_[static_cast<std::size_t>((base + b) * kk + k)] +
-         t * aps_gain_[static_cast<std::size_t>((base + b + 1) * kk + k)];
+  gain = (1.0 - t) * aps_gain(static_cast<std::size_t>((base + b) * kk + k)) +
+         t * aps_gain(static_cast<std::size_t>((base + b + 1) * kk + k));
 }
 
 void ChauvinKalman::reset() noexcept {
@@ -298,12 +362,12 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
   mean_speed_ += (omega - mean_speed_) / kk;
   mode_ = params_.gas_model && model_next_valid_ ? kModelMissSet : kWholeTorqueSet;
   push_model(model_next_valid_ ? model_next_ : 0.0);
-  Vec gain;
+  Vec& gain = last_gain_;  // the gain is built where it is kept (no per-tooth copy of 16 doubles)
   double out_var = 0.0;
   const int o = kTorqueState + params_.smoother_lag;  // x2(k−d): the smoothed output state
   const double h = edge_coupling(k);
   if (params_.periodic_gains) {
-    gain = periodic_gain(k, mean_speed_);
+    periodic_gain_into(k, mean_speed_, gain);
   } else {
     Mat pn = p_;
     riccati_step(k, mean_speed_, pn, gain);
@@ -314,14 +378,13 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
   }
   // (CK-11) split into measurement update and prediction: x̂_{k|k} = x̂_{k|k−1} + K (y − C x̂_{k|k−1}).
   x_ += gain * (y - x_(kSpeedSqState) - h * (x_(kNoisePrev) - x_(kNoiseNow)));
-  last_gain_ = gain;
   push_edge_time(s.t_ns);
   ++teeth_seen_;
   ++stats_.updates;
   // With APS gains P is only set at a (re)start (checked there): 64 checks per tooth were a third of
   // update().
   if (!params_.periodic_gains) p_finite_ = p_.allFinite();
-  if (!x_.allFinite() || !p_finite_) {
+  if (!all_finite(x_) || !p_finite_) {
     ++stats_.resets;
     reset();
     est_.health = Health::kNumerical;
@@ -329,11 +392,11 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
   }
   est_.torque_nm = x_(o) + model_[static_cast<std::size_t>(params_.smoother_lag)] + load_star_nm_;
   est_.t_ns = edge_t_ns_[static_cast<std::size_t>(params_.smoother_lag)];
-  est_.uncertainty = std::sqrt(std::max(0.0, out_var));
-  est_tooth_ = (k - params_.smoother_lag + kk) % kk;
+  est_.uncertainty = out_var > 0.0 ? std::sqrt(out_var) : 0.0;  // APS: 0 without a call
+  est_tooth_ = k >= params_.smoother_lag ? k - params_.smoother_lag : k - params_.smoother_lag + kk;
   est_.health = (teeth_seen_ >= kk && wheel_learned_) ? Health::kValid : Health::kNotConverged;
   predict(k);
-  expected_tooth_ = (k + 1) % kk;
+  expected_tooth_ = k + 1 == kk ? 0 : k + 1;
   return true;
 }
 

@@ -108,6 +108,9 @@ class ChauvinKalman {
   /// One exact Riccati step (CK-12/13) for tooth k at speed ω: returns the filter gain and advances P in
   /// place.
   void riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) const noexcept;
+  /// riccati_step() for a bit-symmetric P (as every P of the APS iteration is), bit for bit the same result,
+  /// a third of the work (the sparsity of A_k and the symmetry written out).
+  void riccati_step_symmetric(int k, double speed_rad_s, Mat& p, Vec& gain) const noexcept;
   /// White measurement noise variance R_k at speed ω ((rad/s)^4): the whole edge noise, or (differenced) its
   /// floor.
   [[nodiscard]] double measurement_var(int k, double speed_rad_s) const noexcept;
@@ -117,6 +120,8 @@ class ChauvinKalman {
   [[nodiscard]] double edge_state_var(double speed_rad_s) const noexcept;
 
  private:
+  /// periodic_gain() written into `gain` (the per-tooth path: no temporary).
+  void periodic_gain_into(int k, double speed_rad_s, Vec& gain) const noexcept;
   void push_edge_time(std::int64_t t_ns) noexcept;
   void push_model(double ripple_nm) noexcept;
   void build_aps_set(int set, int bins);
@@ -141,7 +146,13 @@ class ChauvinKalman {
   std::array<double, 2> sd_{};  ///< the matching stationary 1σ of x2 (P0)
   int mode_ = kWholeTorqueSet;  ///< which of the two the current tooth uses (kModelMissSet: gas model valid)
   std::vector<double> bin_log_speed_;  ///< ln ω of each APS speed bin
-  std::vector<Vec> aps_gain_;          ///< [(set * bins + bin) * K + k]
+  std::vector<double> aps_gain_;       ///< kStates doubles per gain [(set * bins + bin) * K + k]
+  [[nodiscard]] Eigen::Map<Vec> aps_gain(std::size_t i) noexcept {
+    return Eigen::Map<Vec>(&aps_gain_[i * kStates]);
+  }
+  [[nodiscard]] Eigen::Map<const Vec> aps_gain(std::size_t i) const noexcept {
+    return Eigen::Map<const Vec>(&aps_gain_[i * kStates]);
+  }
   double edge_sd_rad_ = 0.0;
 
   Vec x_ = Vec::Zero();

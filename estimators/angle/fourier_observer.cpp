@@ -44,6 +44,25 @@ void basis_row(double alpha, int nc, double* f) {
   }
 }
 
+/// The per-tooth pass over the coefficients c (CF-8) with the basis rows f (tooth k) and fo (tooth k_out):
+/// returns {Σ c_j f_j before the update, Σ c_j fo_j after it}. Restrict-qualified parameters (c is not a
+/// basis row or the gains): the compiler keeps c_j and f_j in registers and drops its run-time overlap
+/// checks; the operations and their order are those of the loop it replaces (identical bits).
+std::pair<double, double> coefficient_pass(double* __restrict c, const double* __restrict f,
+                                           const double* __restrict fo, const double* __restrict g, int nc,
+                                           double d, double err) noexcept {
+  double t_model = 0.0, t_net = 0.0;
+  for (int j = 0; j < nc; ++j) {
+    const double c0 = c[j];
+    const double fj = f[j];
+    t_model += c0 * fj;
+    const double cn = c0 - d * g[j] * fj * err;
+    c[j] = cn;
+    t_net += cn * fo[j];
+  }
+  return {t_model, t_net};
+}
+
 }  // namespace
 
 FourierObserver::FourierObserver(const EngineGeometry& engine, const WheelGeometry& wheel,
@@ -67,12 +86,24 @@ FourierObserver::FourierObserver(const EngineGeometry& engine, const WheelGeomet
   reset();
 }
 
-double FourierObserver::cycle_spectral_radius(const FourierParams& params, const EngineGeometry& engine,
-                                              const WheelGeometry& wheel) {
+namespace {
+using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+/// r0 += a rj and rj −= b p0 element by element (rj read before its update, as in the row expressions).
+void row_step(double* __restrict r0, double* __restrict rj, const double* __restrict p0, int n, double a,
+              double b) noexcept {
+  for (int i = 0; i < n; ++i) {
+    r0[i] += a * rj[i];
+    rj[i] -= b * p0[i];
+  }
+}
+
+/// Π_k (I + Ξ_k) over one 720° cycle (CF-12): the observer's error transition.
+RowMajor cycle_transition(const FourierParams& params, const EngineGeometry& engine,
+                          const WheelGeometry& wheel) {
   const ToothAngleTable t = ToothAngleTable::build(engine, wheel);
   const int nc = 2 * params.harmonics + 1;
   const int n = nc + 1;
-  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   RowMajor phi = RowMajor::Identity(n, n);  // row operations below: contiguous rows
   Eigen::RowVectorXd row0(n);
   std::vector<double> fb(static_cast<std::size_t>(nc));
@@ -86,13 +117,37 @@ double FourierObserver::cycle_spectral_radius(const FourierParams& params, const
     basis_row(alpha, nc, fb.data());
     for (int j = 0; j < nc; ++j) {
       const double f = fb[static_cast<std::size_t>(j)];
-      row0 += (d * f) * phi.row(1 + j);
-      phi.row(1 + j) -= (d * gain_of(params, j) * f) * phi.row(0);
+      // row0 += (d f) Φ_{1+j}; Φ_{1+j} −= (d l_j f) Φ_0: one pass over plain rows (Eigen's dynamic-size row
+      // expressions were two thirds of the check's instructions), the same operations.
+      row_step(row0.data(), phi.row(1 + j).data(), phi.row(0).data(), n, d * f, d * gain_of(params, j) * f);
     }
     phi.row(0) = row0;
   }
-  const Eigen::EigenSolver<Eigen::MatrixXd> es(Eigen::MatrixXd(phi), false);
+  return phi;
+}
+}  // namespace
+
+double FourierObserver::cycle_spectral_radius(const FourierParams& params, const EngineGeometry& engine,
+                                              const WheelGeometry& wheel) {
+  const Eigen::EigenSolver<Eigen::MatrixXd> es(Eigen::MatrixXd(cycle_transition(params, engine, wheel)),
+                                               false);
   return es.eigenvalues().cwiseAbs().maxCoeff();
+}
+
+bool FourierObserver::cycle_contracts(const FourierParams& params, const EngineGeometry& engine,
+                                      const WheelGeometry& wheel) {
+  // ρ(Φ)^m = ρ(Φ^m) ≤ ‖Φ^m‖ for any induced norm: ‖Φ^m‖∞ < 1 proves ρ < 1 without an eigen-solver (which was
+  // most of the start-up's stability check, run twice). Φ, Φ², Φ⁴, … up to Φ^1024; the bound ½ leaves a wide
+  // margin for rounding. False: not shown this way (the caller computes ρ).
+  constexpr int kSquarings = 10;
+  constexpr double kBound = 0.5;
+  RowMajor m = cycle_transition(params, engine, wheel);
+  for (int i = 0;; ++i) {
+    const double norm = m.cwiseAbs().rowwise().sum().maxCoeff();
+    if (norm < kBound) return true;
+    if (i == kSquarings || !std::isfinite(norm)) return false;
+    m = (m * m).eval();
+  }
 }
 
 namespace {
@@ -161,7 +216,8 @@ std::optional<std::string> FourierObserver::check_stability_uncached(const Fouri
       return why.str();
     }
   }
-  const double rho = cycle_spectral_radius(params, engine, wheel);
+  const double rho =
+      cycle_contracts(params, engine, wheel) ? 0.0 : cycle_spectral_radius(params, engine, wheel);
   if (!(rho < 1.0)) {
     why << "fourier gains give an unstable observer over one cycle: spectral radius of the error transition "
         << rho << " >= 1 (lower fourier.harmonics or l_ref; keep l_ke * dalpha well below 2)";
@@ -240,7 +296,7 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
   const double err = phi_ - phi_meas;  // (CF-8): L_n (ŷ_n − y_n) = Δα [L_ke, l_j f_j]ᵀ (φ̂ − ½ J y)
   // Torque at e_k reaches the energy error only at later teeth: evaluating the waveform `lag` teeth back with
   // the newest coefficients is a fixed-lag smoother (beyond the paper).
-  const int k_out = (k - lag_ + kk) % kk;
+  const int k_out = k >= lag_ ? k - lag_ : k - lag_ + kk;  // (k − lag) mod K without a division
   // One pass over the coefficients: the model torque at e_k with the coefficients before this tooth, their
   // update (CF-8), and the output torque at e_{k_out} with the updated ones. Same operations in the same
   // order as net_torque_at(k), the update loop, net_torque_at(k_out) one after the other (identical bits),
@@ -248,16 +304,9 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
   // dominated).
   model_active_ = params_.gas_model && model_next_valid_;
   const std::array<double, kMaxCoeffs>& gains = model_active_ ? lm_ : l_;  // model valid: model_l_ref
-  const double* f = &basis_[static_cast<std::size_t>(k * nc_)];
-  const double* fo = &basis_[static_cast<std::size_t>(k_out * nc_)];
-  double t_model = 0.0, t_net = 0.0;
-  for (int j = 0; j < nc_; ++j) {
-    const auto i = static_cast<std::size_t>(j);
-    t_model += c_[i] * f[j];
-    const double c = c_[i] - d * gains[i] * f[j] * err;
-    c_[i] = c;
-    t_net += c * fo[j];
-  }
+  const auto [t_model, t_net] =
+      coefficient_pass(c_.data(), &basis_[static_cast<std::size_t>(k * nc_)],
+                       &basis_[static_cast<std::size_t>(k_out * nc_)], gains.data(), nc_, d, err);
   push_model(model_next_valid_ ? model_next_ : 0.0);
   phi_ += table_.step_rad[static_cast<std::size_t>(k)] * (t_model + model_[0] - params_.l_ke * err);
   ++stats_.updates;
@@ -274,7 +323,7 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
   est_.uncertainty = 0.0;
   est_tooth_ = k_out;
   est_.health = (teeth_seen_ >= 2 * kk && wheel_learned_) ? Health::kValid : Health::kNotConverged;
-  expected_tooth_ = (k + 1) % kk;
+  expected_tooth_ = k + 1 == kk ? 0 : k + 1;
   return true;
 }
 

@@ -56,6 +56,10 @@ class FourierObserver {
   /// Spectral radius of Π_k (I + Ξ_k) over one 720° cycle (CF-12): < 1 means the observer error decays.
   [[nodiscard]] static double cycle_spectral_radius(const FourierParams& params, const EngineGeometry& engine,
                                                     const WheelGeometry& wheel);
+  /// Whether ‖Φ^m‖∞ < ½ for m = 1, 2, 4, …, 1024 (Φ: that cycle transition), which proves ρ(Φ) < 1 without
+  /// an eigen-solver; false means not shown this way (check_stability then computes ρ). Start-up only.
+  [[nodiscard]] static bool cycle_contracts(const FourierParams& params, const EngineGeometry& engine,
+                                            const WheelGeometry& wheel);
 
   void reset() noexcept;
   /// Extended load T*_load = T_load + T_fric (N m), added to give T̂_ind (CF eq. (1)). Default 0.

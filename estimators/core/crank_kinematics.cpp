@@ -44,6 +44,14 @@ double CrankKinematics::g(double theta) const noexcept {
 
 double CrankKinematics::volume(double theta) const noexcept { return vc_ + area_ * travel(theta); }
 
+void CrankKinematics::volume_and_dvolume(double theta, double& volume_m3,
+                                         double& dvolume_m3_rad) const noexcept {
+  const double s = std::sin(theta);
+  const double root = std::sqrt(1.0 - lambda_ * lambda_ * s * s);  // the root of travel() and of f()
+  volume_m3 = vc_ + area_ * (r_ * (1.0 - std::cos(theta)) + geometry_.rod_m * (1.0 - root));
+  dvolume_m3_rad = area_ * r_ * (s + lambda_ * std::sin(2.0 * theta) / (2.0 * root));
+}
+
 double CrankKinematics::phase(int cyl) const noexcept { return phase_[static_cast<std::size_t>(cyl - 1)]; }
 
 double CrankKinematics::local_angle(double theta720, int cyl) const noexcept {

@@ -23,6 +23,9 @@ class CrankKinematics {
   [[nodiscard]] double volume(double theta) const noexcept;
   /// dV/dθ = A R f(θ) (m^3/rad).
   [[nodiscard]] double dvolume(double theta) const noexcept { return area_ * r_ * f(theta); }
+  /// volume(θ) and dvolume(θ) together, sharing sin θ and the root (the same values bit for bit; start-up
+  /// tables call both at every angle).
+  void volume_and_dvolume(double theta, double& volume_m3, double& dvolume_m3_rad) const noexcept;
   /// Firing phase φ_j of cylinder `cyl` (1-based) in rad within [0, 4π): from the firing order position.
   [[nodiscard]] double phase(int cyl) const noexcept;
   /// Crank angle relative to cylinder `cyl`'s firing TDC, wrapped to [0, 4π). `theta720` is angle after cyl-1

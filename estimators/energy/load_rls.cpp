@@ -35,11 +35,11 @@ AngleTerms angle_terms(double phi, const CrankKinematics& kin, const EnergiesPar
                        double v_c) noexcept {
   const double evo = prm.evo_atdc_deg * kDeg;
   const double bde = prm.blowdown_end_atdc_deg * kDeg;
-  const double v = kin.volume(phi);
+  double v = 0.0;
   const double k = prm.polytropic_kappa;
   AngleTerms t;
   t.phi = phi;
-  t.dvol = kin.dvolume(phi);
+  kin.volume_and_dvolume(phi, v, t.dvol);
   t.ivc_poly = std::pow(v_ivc / v, k);
   t.c_poly = std::pow(v_c / v, k);
   t.blend = (phi >= evo && phi < bde) ? 0.5 * (1.0 + std::cos(kPi * (phi - evo) / (bde - evo))) : 0.0;
@@ -63,9 +63,14 @@ AngleTerms angle_terms_for(double phi, const CrankKinematics& kin, const Energie
   const double evo = prm.evo_atdc_deg * kDeg;
   AngleTerms t;
   t.phi = phi;
-  t.dvol = kin.dvolume(phi);
-  if (need_ivc) t.ivc_poly = std::pow(v_ivc / kin.volume(phi), prm.polytropic_kappa);
-  if (need_c) t.c_poly = std::pow(v_c / kin.volume(phi), prm.polytropic_kappa);
+  if (need_ivc || need_c) {
+    double v = 0.0;
+    kin.volume_and_dvolume(phi, v, t.dvol);
+    if (need_ivc) t.ivc_poly = std::pow(v_ivc / v, prm.polytropic_kappa);
+    if (need_c) t.c_poly = std::pow(v_c / v, prm.polytropic_kappa);
+  } else {
+    t.dvol = kin.dvolume(phi);
+  }
   t.blend = (phi >= evo && phi < bde) ? 0.5 * (1.0 + std::cos(kPi * (phi - evo) / (bde - evo))) : 0.0;
   return t;
 }
@@ -190,16 +195,28 @@ void LoadRls::build_tables(const CrankKinematics& kin, const std::vector<double>
     const Weights after = model_weights(grid[i], params, -1.0);
     prod[i] = {before.map * dv, after.map * dv, after.exh * dv, after.p3 * dv};
   }
+  // The grid's φ increase, so "before the burn" is a prefix [0, ib): each sum runs over the prefix, then over
+  // the rest, in the same order and with the same terms as one loop choosing per angle (no choice per angle).
+  // The p_exh closure is the last centroid's (as the per-centroid loop left it): summed for that one only.
   const double zero = 0.0;
+  std::size_t ib = 0;
   for (int ci = 0; ci < kCentroids; ++ci) {
-    double cm = 0.0, ce = 0.0, cp = 0.0;
     const double burn = ci * kDeg;
-    for (std::size_t i = 0; i < grid.size(); ++i) {
-      const bool pre = grid[i].phi < burn;
-      cm += pre ? prod[i][0] : prod[i][1];
-      ce += pre ? zero * (grid[i].dvol * step) : prod[i][2];
-      cp += pre ? zero * (grid[i].dvol * step) : prod[i][3];
+    while (ib < grid.size() && grid[ib].phi < burn) ++ib;  // burn grows with ci
+    const bool last = ci == kCentroids - 1;
+    double cm = 0.0, ce = 0.0, cp = 0.0;
+    for (std::size_t i = 0; i < ib; ++i) {
+      const double none = zero * (grid[i].dvol * step);
+      cm += prod[i][0];
+      cp += none;
+      if (last) ce += none;
     }
+    for (std::size_t i = ib; i < grid.size(); ++i) {
+      cm += prod[i][1];
+      cp += prod[i][3];
+    }
+    if (last)
+      for (std::size_t i = ib; i < grid.size(); ++i) ce += prod[i][2];
     cyc_map_[static_cast<std::size_t>(ci)] = cm;
     cyc_exh_ = ce;
     cyc_p3_[static_cast<std::size_t>(ci)] = cp;

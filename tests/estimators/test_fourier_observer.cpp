@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <utility>
+#include <vector>
 
 #include "alloc_counter.hpp"
 #include "fourier_observer.hpp"
@@ -58,6 +60,29 @@ TEST(FourierObserver, DefaultGainsPassTheStabilityCheck) {
   const auto why = FourierObserver::check_stability(FourierParams{}, EngineGeometry{}, WheelGeometry{});
   EXPECT_FALSE(why.has_value()) << *why;
   EXPECT_LT(FourierObserver::cycle_spectral_radius(FourierParams{}, EngineGeometry{}, WheelGeometry{}), 1.0);
+}
+
+TEST(FourierObserver, ContractionProofAgreesWithTheSpectralRadius) {
+  // GIVEN stable gain sets (defaults on the 60-2 and 36-1 wheels, the gas model's l_ref) and the unstable
+  // n_h = 24 set: the norm of a power of the cycle transition proves ρ < 1 only where the eigen-solver finds
+  // ρ < 1 (the start-up check's shortcut never accepts what the spectral radius refuses)
+  WheelGeometry w36;
+  w36.positions = 36;
+  w36.missing = 1;
+  FourierParams model = FourierParams{};
+  model.l_ref = model.model_l_ref;
+  FourierParams unstable;
+  unstable.harmonics = 24;
+  unstable.l_ke = 4.0;
+  unstable.l_a0 = 0.2;
+  unstable.l_ref = 0.05;
+  const std::vector<std::pair<FourierParams, WheelGeometry>> cases = {
+      {FourierParams{}, WheelGeometry{}}, {FourierParams{}, w36}, {model, WheelGeometry{}}, {unstable, {}}};
+  for (const auto& [p, w] : cases) {
+    const double rho = FourierObserver::cycle_spectral_radius(p, EngineGeometry{}, w);
+    const bool proved = FourierObserver::cycle_contracts(p, EngineGeometry{}, w);
+    EXPECT_EQ(proved, rho < 1.0) << "n_h " << p.harmonics << ", l_ref " << p.l_ref << ", rho " << rho;
+  }
 }
 
 TEST(FourierObserver, RefusesGainsBreakingCf14WithTheReason) {
