@@ -62,7 +62,8 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
 // is the cache's part of the key: learned/table_store.hpp).
 std::uint64_t ChauvinKalman::aps_key(int sets, int bins) const noexcept {
   TableKey key;
-  key.add(std::string_view("chauvin-aps 1")).add(kStates).add(table_.samples).add(sets).add(bins);
+  key.add(std::string_view("chauvin-aps 2")).add(kStates).add(table_.samples).add(sets).add(bins);
+  key.add(params_.smoother_lag);  // the output state whose posterior variance is tabulated
   key.add(table_.width_rad).add(a11_).add(b12_).add(acol_).add(bin_log_speed_);
   key.add(std::span<const double>(qu_)).add(std::span<const double>(sd_));
   key.add(edge_sd_rad_).add(params_.jitter_s).add(params_.differenced_edge_noise).add(kWhiteFloorFrac);
@@ -76,17 +77,23 @@ void ChauvinKalman::build_aps_tables(int bins) {
   const std::size_t n = gains * static_cast<std::size_t>(kStates);
   static_assert(sizeof(Vec) == kStates * sizeof(double), "APS gains are copied as packed doubles");
   aps_gain_.resize(gains);  // filled below, from the cache or by build_aps_set() (which needs zeros)
-  std::vector<double> flat;
-  const bool cached = cached_table("chauvin-aps", aps_key(sets, bins), flat, n, [&](std::vector<double>& t) {
-    std::fill(aps_gain_.begin(), aps_gain_.end(), Vec::Zero());
-    for (int set = 0; set < sets; ++set) {
-      mode_ = set;
-      build_aps_set(set, bins);
-    }
-    mode_ = kWholeTorqueSet;
-    t.assign(aps_gain_.front().data(), aps_gain_.front().data() + n);  // Vec is 16 packed doubles
-  });
-  if (cached) std::copy(flat.begin(), flat.end(), aps_gain_.front().data());
+  aps_var_.resize(gains);
+  std::vector<double> flat;  // the gains, then the output variances
+  const bool cached =
+      cached_table("chauvin-aps", aps_key(sets, bins), flat, n + gains, [&](std::vector<double>& t) {
+        std::fill(aps_gain_.begin(), aps_gain_.end(), Vec::Zero());
+        for (int set = 0; set < sets; ++set) {
+          mode_ = set;
+          build_aps_set(set, bins);
+        }
+        mode_ = kWholeTorqueSet;
+        t.assign(aps_gain_.front().data(), aps_gain_.front().data() + n);  // Vec is 16 packed doubles
+        t.insert(t.end(), aps_var_.begin(), aps_var_.end());
+      });
+  if (cached) {
+    std::copy(flat.begin(), flat.begin() + static_cast<std::ptrdiff_t>(n), aps_gain_.front().data());
+    std::copy(flat.begin() + static_cast<std::ptrdiff_t>(n), flat.end(), aps_var_.begin());
+  }
 }
 
 double ChauvinKalman::measurement_var(int k, double speed_rad_s) const noexcept {
@@ -113,6 +120,9 @@ double ChauvinKalman::edge_state_var(double speed_rad_s) const noexcept {
 // One APS gain set (mode_ = set selects its Q): per speed bin, the periodic Riccati solution's gains.
 void ChauvinKalman::build_aps_set(int set, int bins) {
   const int kk = table_.samples;
+  const int o = kTorqueState + params_.smoother_lag;
+  std::vector<double> h(static_cast<std::size_t>(kk));
+  for (int k = 0; k < kk; ++k) h[static_cast<std::size_t>(k)] = edge_coupling(k);
   for (int b = 0; b < bins; ++b) {
     const double w = std::exp(bin_log_speed_[static_cast<std::size_t>(b)]);
     Mat p = initial_covariance(0, w);
@@ -121,8 +131,13 @@ void ChauvinKalman::build_aps_set(int set, int bins) {
     for (int cycle = 0; cycle < 500 && change > 1e-12; ++cycle) {
       change = 0.0;
       for (int k = 0; k < kk; ++k) {
+        const auto at = static_cast<std::size_t>((set * bins + b) * kk + k);
+        const double prior_oo = p(o, o),
+                     pc_o = p(o, kSpeedSqState) +
+                            h[static_cast<std::size_t>(k)] * (p(o, kNoisePrev) - p(o, kNoiseNow));
         riccati_step(k, w, p, g);
-        Vec& slot = aps_gain_[static_cast<std::size_t>((set * bins + b) * kk + k)];
+        aps_var_[at] = prior_oo - g(o) * pc_o;  // posterior variance of the output state x2(k−d | k)
+        Vec& slot = aps_gain_[at];
         const double scale = std::max(1e-300, g.cwiseAbs().maxCoeff());
         change = std::max(change, (g - slot).cwiseAbs().maxCoeff() / scale);
         slot = g;
@@ -205,17 +220,26 @@ void ChauvinKalman::riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) c
   }
 }
 
-ChauvinKalman::Vec ChauvinKalman::periodic_gain(int k, double speed_rad_s) const noexcept {
+ChauvinKalman::BinPos ChauvinKalman::bin_pos(int k, double speed_rad_s) const noexcept {
   const int kk = table_.samples;
   const int bins = static_cast<int>(bin_log_speed_.size());
   const double l = std::log(std::max(speed_rad_s, 1e-3));
   double pos = (l - bin_log_speed_.front()) / (bin_log_speed_.back() - bin_log_speed_.front()) * (bins - 1);
   pos = std::clamp(pos, 0.0, static_cast<double>(bins - 1) - 1e-12);
   const int b = static_cast<int>(pos);
-  const double t = pos - b;
   const int base = mode_ * bins;
-  return (1.0 - t) * aps_gain_[static_cast<std::size_t>((base + b) * kk + k)] +
-         t * aps_gain_[static_cast<std::size_t>((base + b + 1) * kk + k)];
+  return {static_cast<std::size_t>((base + b) * kk + k), static_cast<std::size_t>((base + b + 1) * kk + k),
+          pos - b};
+}
+
+ChauvinKalman::Vec ChauvinKalman::periodic_gain(int k, double speed_rad_s) const noexcept {
+  const BinPos at = bin_pos(k, speed_rad_s);
+  return (1.0 - at.t) * aps_gain_[at.lo] + at.t * aps_gain_[at.hi];
+}
+
+double ChauvinKalman::periodic_output_var(int k, double speed_rad_s) const noexcept {
+  const BinPos at = bin_pos(k, speed_rad_s);
+  return (1.0 - at.t) * aps_var_[at.lo] + at.t * aps_var_[at.hi];
 }
 
 void ChauvinKalman::reset() noexcept {
@@ -304,6 +328,7 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
   const double h = edge_coupling(k);
   if (params_.periodic_gains) {
     gain = periodic_gain(k, mean_speed_);
+    out_var = periodic_output_var(k, mean_speed_);  // the periodic Riccati solution's, as the gain
   } else {
     Mat pn = p_;
     riccati_step(k, mean_speed_, pn, gain);
