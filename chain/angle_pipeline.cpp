@@ -94,6 +94,9 @@ void AnglePipeline::reset() noexcept {
   kalman_.reset();
   fourier_.reset();
   load_star_nm_ = 0.0;
+  cut_flag_ = false;
+  works_since_fuel_change_ = ~0u;
+  have_fired_p3_ = false;
   // The friction and inertia learners keep what they learned (persisted state); call their reset() to forget.
   prev_inertia_ = InertiaPoint{};
   tooth_ = ToothOutput{};
@@ -171,7 +174,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   for (int m = 0; m < cfg_.engine.cylinders; ++m)
     works_ok = works_ok && cyl_work_ok_[static_cast<std::size_t>(m)];
   const double ripple =
-      cfg_.kalman.gas_model || cfg_.fourier.gas_model ? gas_ripple_nm(s.tooth, works_ok) : 0.0;
+      cfg_.kalman.gas_model || cfg_.fourier.gas_model ? observer_ripple_nm(s, sig, works_ok) : 0.0;
   if (cfg_.run_kalman) {
     kalman_.set_extended_load(load_star_nm_);
     kalman_.set_model_torque(cfg_.kalman.gas_model ? ripple : 0.0, have_map_);
@@ -239,6 +242,31 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   return ready;
 }
 
+// Fuel-state change rule (docs/angle_estimators.md, "Through transients and a fuel cut-off"): the gas model's
+// p3 per firing position comes from that position's last measured work, so for up to a cycle after the ECU's
+// cut-off flag changes it describes the other fuel state. Until every position has a work measured since the
+// change: in cut-off the motored p3 (no combustion, known from MAP alone); after the exit the p3 each
+// position had when the cut-off began (its combustion before it), instead of the motored works of the cut-off
+// cycles.
+double AnglePipeline::observer_ripple_nm(const ToothSample& s, const EngineSignals& sig,
+                                         bool works_ok) noexcept {
+  const bool fresh = static_cast<double>(s.t_ns - sig.t_ns) * 1e-9 <= cfg_.fusion.max_can_age_s;
+  if (fresh && sig.fuel_cutoff_valid && sig.fuel_cutoff != cut_flag_) {
+    cut_flag_ = sig.fuel_cutoff;
+    works_since_fuel_change_ = 0;
+    if (cut_flag_) {  // entering: the firing positions' p3 as last measured, the prior for when fuel returns
+      have_fired_p3_ = works_ok && have_map_;
+      if (have_fired_p3_) rls_.ripple_p3(held_map_pa_, cyl_work_j_, works_ok, fired_p3_);
+    }
+  }
+  if (!have_map_) return 0.0;
+  const std::uint32_t all = (1u << static_cast<unsigned>(cfg_.engine.cylinders)) - 1u;
+  if ((works_since_fuel_change_ & all) == all) return gas_ripple_nm(s.tooth, works_ok);
+  if (cut_flag_) return gas_ripple_nm(s.tooth, false);  // motored p3 at every position
+  return have_fired_p3_ ? rls_.gas_ripple_nm(s.tooth, held_map_pa_, fired_p3_)
+                        : gas_ripple_nm(s.tooth, works_ok);
+}
+
 // ---------------------------------------------------------------------------------------------------------------------
 // Per segment (named steps and named gates, docs/conventions.md habit 13).
 
@@ -287,6 +315,7 @@ void AnglePipeline::segment_work(const SegmentEnergy& seg, const EngineSignals& 
   cyl_work_j_[pos] =
       seg_ok ? work : cyl_work_j_[pos];  // the segment holds this cylinder's whole-cycle net work (RLS input)
   cyl_work_ok_[pos] = seg_ok;
+  if (seg_ok) works_since_fuel_change_ |= 1u << pos;
   EsoInput ein;
   ein.t_ns = seg.t_ns;
   ein.ke_j = seg.ke_j;
