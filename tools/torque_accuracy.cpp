@@ -225,12 +225,13 @@ int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& 
 /// In-cycle torque through transients and a fuel cut-off entry/exit after a fresh start (incycle_bed.hpp).
 int run_bed_incycle_regimes(bool all, const torqued::eval::EvalOptions& base) {
   std::printf(
-      "\nin-cycle indicated torque through TRANSIENTS (7 s: throttle steps 53-85-35-75-45 kPa, speed ramps "
-      "2200-3200-1800-2600\nrpm) and a FUEL CUT-OFF entry/exit (2600 rpm, closed throttle, dragged to 1800 "
-      "rpm, "
-      "1.5 s; scored from 0.2 s\nbefore entry to 1.5 s after exit), after the 20 s fresh start above (tooth "
-      "table learned on the recording).\nRMS %% of p2p, lag deg, cover: Kalman teeth within its claimed 1 "
-      "sigma (%%).\n");
+      "\nin-cycle indicated torque after the 20 s fresh start (tooth table learned on the recording), then "
+      "bed_eval_run:\nTRANSIENTS (20.5-27 s: speed ramps 1500-3500 rpm, throttle steps 35-90 kPa) and a FUEL "
+      "CUT-OFF at 3500 rpm\n(closed throttle, dyno dragging towards 2500 rpm, 1 s) scored from 0.2 s before "
+      "its "
+      "entry to 2.5 s after its exit.\nRMS %% of p2p, lag deg, cover: Kalman teeth within its claimed 1 "
+      "sigma "
+      "(%%); slow: RMS of the per-cycle mean\nerror, worst1s: worst RMS over 1 s (%% of p2p).\n");
   std::printf("%-11s | %-9s | %-20s | %-11s | %-13s\n", "engine", "regime", "kalman % lag cover",
               "slow worst1s", "fourier % lag");
   for (const auto& e : torqued::sim::unseen_engines()) {
