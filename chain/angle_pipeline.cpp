@@ -175,8 +175,16 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
     works_ok = works_ok && cyl_work_ok_[static_cast<std::size_t>(m)];
   const double ripple =
       cfg_.kalman.gas_model || cfg_.fourier.gas_model ? observer_ripple_nm(s, sig, works_ok) : 0.0;
+  const bool can_fresh = static_cast<double>(s.t_ns - sig.t_ns) * 1e-9 <= cfg_.fusion.max_can_age_s;
+  // Hybrid input: the machine's torque is a known part of the load (e_machine.hpp); not bound, this is the
+  // load signal alone. A stale machine value makes the net load unknown, as a stale load signal does. On a
+  // vehicle the clutch / neutral flags decide whether anything fixes the load (classify_load,
+  // load_reference.hpp).
+  const LoadReference lref = classify_load(cfg_.e_machine, cfg_.load_ref, sig);
+  const NetLoad& net = lref.net;
+  const bool load_ok = can_fresh && net.known;
   if (cfg_.run_kalman) {
-    kalman_.set_extended_load(load_star_nm_);
+    kalman_.set_extended_load(observer_load_star_nm(net.torque_nm, load_ok));
     kalman_.set_model_torque(cfg_.kalman.gas_model ? ripple : 0.0, have_map_);
     kalman_.update(s);
     copy_estimate(tooth_.kalman_ind, kalman_.estimate());
@@ -196,14 +204,6 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   have_prev_ = true;
 
   if (sig.oil_temp_valid && std::isfinite(sig.oil_temp_c)) oil_c_ = sig.oil_temp_c;
-  const bool can_fresh = static_cast<double>(s.t_ns - sig.t_ns) * 1e-9 <= cfg_.fusion.max_can_age_s;
-  // Hybrid input: the machine's torque is a known part of the load (e_machine.hpp); not bound, this is the
-  // load signal alone. A stale machine value makes the net load unknown, as a stale load signal does. On a
-  // vehicle the clutch / neutral flags decide whether anything fixes the load (classify_load,
-  // load_reference.hpp).
-  const LoadReference lref = classify_load(cfg_.e_machine, cfg_.load_ref, sig);
-  const NetLoad& net = lref.net;
-  const bool load_ok = can_fresh && net.known;
   track_reference(lref, load_ok);
   machine_motoring_ =
       can_fresh && net.em_valid && net.em_crank_nm > 0.0 && sig.fuel_mass_valid && !(sig.fuel_mass_kg > 0.0);
@@ -240,6 +240,15 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   if (cyl_done) cylinder_segment(cyl_energy_.segment(), cyl_work_j, cyl_ok);
   stats_.sequence_breaks += energy_.breaks() - breaks_before;
   return ready;
+}
+
+// The Kalman's extended load T*_load (docs/angle_estimators.md, "Through transients and a fuel cut-off"):
+// with a fresh load signal, this tooth's net load plus the friction law at this tooth's speed, T_load(t) +
+// T_fric(ω̄), instead of the last segment's cycle mean (up to a cycle behind through speed and load steps);
+// without one, the segment's estimate (load_star_nm_).
+double AnglePipeline::observer_load_star_nm(double net_load_nm, bool load_ok) const noexcept {
+  if (!load_ok || !std::isfinite(net_load_nm)) return load_star_nm_;
+  return net_load_nm + friction_.friction_nm(tooth_.speed_lp_rad_s * kRadSToRpm, oil_c_);
 }
 
 // Fuel-state change rule (docs/angle_estimators.md, "Through transients and a fuel cut-off"): the gas model's

@@ -238,6 +238,8 @@ class AnglePipeline {
   /// the events whose work lies in it (FuelAngleWindow).
   FuelAngleWindow fuel_win_;
   [[nodiscard]] FuelWindow fuel_window(const SegmentEnergy& seg) const noexcept;
+  /// The extended load handed to the in-cycle Kalman at this tooth (N m).
+  [[nodiscard]] double observer_load_star_nm(double net_load_nm, bool load_ok) const noexcept;
   /// The gas ripple handed to the in-cycle observers, with the fuel-state change rule (updates cut_flag_).
   [[nodiscard]] double observer_ripple_nm(const ToothSample& s, const EngineSignals& sig,
                                           bool works_ok) noexcept;
