@@ -94,6 +94,9 @@ void AnglePipeline::reset() noexcept {
   kalman_.reset();
   fourier_.reset();
   load_star_nm_ = 0.0;
+  cut_flag_ = false;
+  works_since_fuel_change_ = ~0u;
+  have_fired_p3_ = false;
   // The friction and inertia learners keep what they learned (persisted state); call their reset() to forget.
   prev_inertia_ = InertiaPoint{};
   tooth_ = ToothOutput{};
@@ -174,9 +177,22 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   for (int m = 0; m < cfg_.engine.cylinders; ++m)
     works_ok = works_ok && cyl_work_ok_[static_cast<std::size_t>(m)];
   const double ripple =
-      cfg_.kalman.gas_model || cfg_.fourier.gas_model ? gas_ripple_nm(s.tooth, works_ok) : 0.0;
+      cfg_.kalman.gas_model || cfg_.fourier.gas_model ? observer_ripple_nm(s, sig, works_ok) : 0.0;
+  const bool can_fresh = static_cast<double>(s.t_ns - sig.t_ns) * 1e-9 <= cfg_.fusion.max_can_age_s;
+  // Hybrid input: the machine's torque is a known part of the load (e_machine.hpp); not bound, this is the
+  // load signal alone. A stale machine value makes the net load unknown, as a stale load signal does. On a
+  // vehicle the clutch / neutral flags decide whether anything fixes the load (classify_load,
+  // load_reference.hpp).
+  LoadReference lref = classify_load(cfg_.e_machine, cfg_.load_ref, sig);
+  if (free_coast_) {
+    const double map_pa = can_fresh && sig.map_valid ? sig.map_pa : held_map_pa_;
+    free_coast_reference(can_fresh && sig.fuel_cutoff_valid && sig.fuel_cutoff, speed * kRadSToRpm, map_pa,
+                         lref);
+  }
+  const NetLoad& net = lref.net;
+  const bool load_ok = can_fresh && net.known;
   if (cfg_.run_kalman) {
-    kalman_.set_extended_load(load_star_nm_);
+    kalman_.set_extended_load(observer_load_star_nm(net.torque_nm, load_ok));
     kalman_.set_model_torque(cfg_.kalman.gas_model ? ripple : 0.0, have_map_);
     kalman_.update(s);
     copy_estimate(tooth_.kalman_ind, kalman_.estimate());
@@ -196,19 +212,6 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   have_prev_ = true;
 
   if (sig.oil_temp_valid && std::isfinite(sig.oil_temp_c)) oil_c_ = sig.oil_temp_c;
-  const bool can_fresh = static_cast<double>(s.t_ns - sig.t_ns) * 1e-9 <= cfg_.fusion.max_can_age_s;
-  // Hybrid input: the machine's torque is a known part of the load (e_machine.hpp); not bound, this is the
-  // load signal alone. A stale machine value makes the net load unknown, as a stale load signal does. On a
-  // vehicle the clutch / neutral flags decide whether anything fixes the load (classify_load,
-  // load_reference.hpp).
-  LoadReference lref = classify_load(cfg_.e_machine, cfg_.load_ref, sig);
-  if (free_coast_) {
-    const double map_pa = can_fresh && sig.map_valid ? sig.map_pa : held_map_pa_;
-    free_coast_reference(can_fresh && sig.fuel_cutoff_valid && sig.fuel_cutoff, speed * kRadSToRpm, map_pa,
-                         lref);
-  }
-  const NetLoad& net = lref.net;
-  const bool load_ok = can_fresh && net.known;
   track_reference(lref, load_ok);
   machine_motoring_ =
       can_fresh && net.em_valid && net.em_crank_nm > 0.0 && sig.fuel_mass_valid && !(sig.fuel_mass_kg > 0.0);
@@ -245,6 +248,40 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   if (cyl_done) cylinder_segment(cyl_energy_.segment(), cyl_work_j, cyl_ok);
   stats_.sequence_breaks += energy_.breaks() - breaks_before;
   return ready;
+}
+
+// The Kalman's extended load T*_load (docs/angle_estimators.md, "Through transients and a fuel cut-off"):
+// with a fresh load signal, this tooth's net load plus the friction law at this tooth's speed, T_load(t) +
+// T_fric(ω̄), instead of the last segment's cycle mean (up to a cycle behind through speed and load steps);
+// without one, the segment's estimate (load_star_nm_).
+double AnglePipeline::observer_load_star_nm(double net_load_nm, bool load_ok) const noexcept {
+  if (!load_ok || !std::isfinite(net_load_nm)) return load_star_nm_;
+  return net_load_nm + friction_.friction_nm(tooth_.speed_lp_rad_s * kRadSToRpm, oil_c_);
+}
+
+// Fuel-state change rule (docs/angle_estimators.md, "Through transients and a fuel cut-off"): the gas model's
+// p3 per firing position comes from that position's last measured work, so for up to a cycle after the ECU's
+// cut-off flag changes it describes the other fuel state. Until every position has a work measured since the
+// change: in cut-off the motored p3 (no combustion, known from MAP alone); after the exit the p3 each
+// position had when the cut-off began (its combustion before it), instead of the motored works of the cut-off
+// cycles.
+double AnglePipeline::observer_ripple_nm(const ToothSample& s, const EngineSignals& sig,
+                                         bool works_ok) noexcept {
+  const bool fresh = static_cast<double>(s.t_ns - sig.t_ns) * 1e-9 <= cfg_.fusion.max_can_age_s;
+  if (fresh && sig.fuel_cutoff_valid && sig.fuel_cutoff != cut_flag_) {
+    cut_flag_ = sig.fuel_cutoff;
+    works_since_fuel_change_ = 0;
+    if (cut_flag_) {  // entering: the firing positions' p3 as last measured, the prior for when fuel returns
+      have_fired_p3_ = works_ok && have_map_;
+      if (have_fired_p3_) rls_.ripple_p3(held_map_pa_, cyl_work_j_, works_ok, fired_p3_);
+    }
+  }
+  if (!have_map_) return 0.0;
+  const std::uint32_t all = (1u << static_cast<unsigned>(cfg_.engine.cylinders)) - 1u;
+  if ((works_since_fuel_change_ & all) == all) return gas_ripple_nm(s.tooth, works_ok);
+  if (cut_flag_) return gas_ripple_nm(s.tooth, false);  // motored p3 at every position
+  return have_fired_p3_ ? rls_.gas_ripple_nm(s.tooth, held_map_pa_, fired_p3_)
+                        : gas_ripple_nm(s.tooth, works_ok);
 }
 
 // ---------------------------------------------------------------------------------------------------------------------
@@ -295,6 +332,7 @@ void AnglePipeline::segment_work(const SegmentEnergy& seg, const EngineSignals& 
   cyl_work_j_[pos] =
       seg_ok ? work : cyl_work_j_[pos];  // the segment holds this cylinder's whole-cycle net work (RLS input)
   cyl_work_ok_[pos] = seg_ok;
+  if (seg_ok) works_since_fuel_change_ |= 1u << pos;
   EsoInput ein;
   ein.t_ns = seg.t_ns;
   ein.ke_j = seg.ke_j;

@@ -255,6 +255,11 @@ class AnglePipeline {
   /// the events whose work lies in it (FuelAngleWindow).
   FuelAngleWindow fuel_win_;
   [[nodiscard]] FuelWindow fuel_window(const SegmentEnergy& seg) const noexcept;
+  /// The extended load handed to the in-cycle Kalman at this tooth (N m).
+  [[nodiscard]] double observer_load_star_nm(double net_load_nm, bool load_ok) const noexcept;
+  /// The gas ripple handed to the in-cycle observers, with the fuel-state change rule (updates cut_flag_).
+  [[nodiscard]] double observer_ripple_nm(const ToothSample& s, const EngineSignals& sig,
+                                          bool works_ok) noexcept;
   double crank_err_var_ =
       0.0;             ///< measured variance of the compression-window chain vs the energy balance (N m²)
   bool fired_ = true;  ///< current segment fires (no fuel cut-off flag, not motored by the machine)
@@ -270,6 +275,13 @@ class AnglePipeline {
   bool wide_done_ = false;     ///< wide_ completed on the current tooth
   bool fourier_ok_ = false;    ///< gains passed check_stability() at construction
   double load_star_nm_ = 0.0;  ///< latest extended load handed to the in-cycle observers (N m)
+  /// Fuel-state change rule of the in-cycle observers' gas model (observer_ripple_nm): the ECU cut-off flag
+  /// at the last tooth, and the firing positions whose work was measured since it last changed (bit per
+  /// position).
+  bool cut_flag_ = false;
+  std::uint32_t works_since_fuel_change_ = ~0u;
+  std::array<double, kMaxCylinders> fired_p3_{};  ///< combustion p3 per position when the cut-off began (Pa)
+  bool have_fired_p3_ = false;
 
   ToothOutput tooth_;
   CycleOutput cycle_;

@@ -222,6 +222,33 @@ int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& 
   return 0;
 }
 
+/// In-cycle torque through transients and a fuel cut-off entry/exit after a fresh start (incycle_bed.hpp).
+int run_bed_incycle_regimes(bool all, const torqued::eval::EvalOptions& base) {
+  std::printf(
+      "\nin-cycle indicated torque after the 20 s fresh start (tooth table learned on the recording), then "
+      "bed_eval_run:\nTRANSIENTS (20.5-27 s: speed ramps 1500-3500 rpm, throttle steps 35-90 kPa) and a FUEL "
+      "CUT-OFF at 3500 rpm\n(closed throttle, dyno dragging towards 2500 rpm, 1 s) scored from 0.2 s before "
+      "its "
+      "entry to 2.5 s after its exit.\nRMS %% of p2p, lag deg, cover: Kalman teeth within its claimed 1 "
+      "sigma "
+      "(%%); slow: RMS of the per-cycle mean\nerror, worst1s: worst RMS over 1 s (%% of p2p).\n");
+  std::printf("%-11s | %-9s | %-20s | %-11s | %-13s\n", "engine", "regime", "kalman % lag cover",
+              "slow worst1s", "fourier % lag");
+  for (const auto& e : torqued::sim::unseen_engines()) {
+    if (!all && !e.report) continue;
+    const auto r = torqued::eval::evaluate_incycle_regimes(e, base);
+    for (int k = 0; k < 2; ++k) {
+      const torqued::eval::InCycleRegime& g = k == 0 ? r.transient : r.cutoff;
+      std::printf("%-11s | %-9s | %5.1f %+5.1f %5.0f%% | %5.1f %5.1f | %5.1f %+5.1f\n", r.engine.c_str(),
+                  k == 0 ? "transient" : "cut-off", g.kalman.rms_pct_p2p, g.kalman.lag_deg,
+                  g.kalman_cover_pct, g.kalman_slow_pct, g.kalman_worst_s_pct, g.fourier.rms_pct_p2p,
+                  g.fourier.lag_deg);
+    }
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
 /// Misfire found/true/false and per-cylinder imbalance from idle to 6000 rpm (misfire_bed.hpp).
 int run_bed_misfire(bool all, const torqued::eval::EvalOptions& base) {
   std::printf(
@@ -509,7 +536,11 @@ int main(int argc, char** argv) {
   app.add_flag(
       "--bed-incycle", bed_incycle,
       "with --bed unseen: in-cycle Kalman/Fourier torque from a fresh start without any fuel cut-off "
-      "(tooth learner empty at start; --true-tooth-errors / --raw-teeth for the floor / no table)");
+      "(tooth learner empty at start; --true-tooth-errors / --raw-teeth for the floor / no table), then "
+      "through transients and a fuel cut-off entry/exit");
+  bool regimes_only = false;
+  app.add_flag("--bed-incycle-regimes", regimes_only,
+               "with --bed unseen: only the transient and fuel cut-off rows of --bed-incycle");
   app.add_flag(
       "--bed-fuel", bed_fuel,
       "with --bed unseen: the fuel model without a load signal, taught at one operating point and never "
@@ -588,7 +619,7 @@ int main(int argc, char** argv) {
     bo.skip_cycles = skip;
     if (bed_fuel) return run_bed_fuel(bed_all, bed_short, bo, csv_dir);
     if (bed_misfire) return run_bed_misfire(bed_all, bo);
-    if (bed_incycle) {
+    if (bed_incycle || regimes_only) {
       bo.tooth_table = raw_teeth    ? torqued::eval::ToothTable::kNone
                        : true_teeth ? torqued::eval::ToothTable::kTrue
                                     : torqued::eval::ToothTable::kLearned;
@@ -597,7 +628,8 @@ int main(int argc, char** argv) {
       fourier.gas_model = !no_gas_model;
       bo.base.kalman = kalman;
       bo.base.fourier = fourier;
-      return run_bed_incycle(bed_all, bed_short, bo);
+      const int rc = regimes_only ? 0 : run_bed_incycle(bed_all, bed_short, bo);
+      return rc != 0 ? rc : run_bed_incycle_regimes(bed_all, bo);
     }
     if (bed_motoring) return run_bed_motoring(bed_all, bed_short, bo, bed_machine > 0.0 ? bed_machine : 1.0);
     if (bed_machine > 0.0) return run_bed_e_machine(bed_all, bed_short, bo, bed_machine);

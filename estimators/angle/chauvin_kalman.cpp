@@ -67,7 +67,8 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
 // is the cache's part of the key: learned/table_store.hpp).
 std::uint64_t ChauvinKalman::aps_key(int sets, int bins) const noexcept {
   TableKey key;
-  key.add(std::string_view("chauvin-aps 1")).add(kStates).add(table_.samples).add(sets).add(bins);
+  key.add(std::string_view("chauvin-aps 2")).add(kStates).add(table_.samples).add(sets).add(bins);
+  key.add(params_.smoother_lag);  // the output state whose posterior variance is tabulated
   key.add(table_.width_rad).add(a11_).add(b12_).add(acol_).add(bin_log_speed_);
   key.add(std::span<const double>(qu_)).add(std::span<const double>(sd_));
   key.add(edge_sd_rad_).add(params_.jitter_s).add(params_.differenced_edge_noise).add(kWhiteFloorFrac);
@@ -79,17 +80,23 @@ void ChauvinKalman::build_aps_tables(int bins) {
   const int sets = params_.gas_model ? kModelMissSet + 1 : kWholeTorqueSet + 1;
   const auto gains = static_cast<std::size_t>(sets * bins * table_.samples);
   const std::size_t n = gains * static_cast<std::size_t>(kStates);
-  // The gains live in the cache's own array (kStates doubles per gain): read from the cache they are moved
-  // in, computed they are stored from where they were built (no copy of the ≈ 1 MB table either way).
-  cached_table("chauvin-aps", aps_key(sets, bins), aps_gain_, n, [&](std::vector<double>& t) {
+  // The gains live in the cache's own array (kStates doubles per gain), then the output variances (one per
+  // gain): read from the cache they are moved in, computed they are stored from where they were built (no
+  // copy of the ≈ 1 MB gain table either way); the variances are split off into aps_var_ after.
+  aps_var_.assign(gains, 0.0);
+  cached_table("chauvin-aps", aps_key(sets, bins), aps_gain_, n + gains, [&](std::vector<double>& t) {
     t.clear();
-    t.reserve(n);  // build_aps_set() appends each gain in its first cycle (no zero-fill of ≈ 1 MB first)
+    t.reserve(n +
+              gains);  // build_aps_set() appends each gain in its first cycle (no zero-fill of ≈ 1 MB first)
     for (int set = 0; set < sets; ++set) {
       mode_ = set;
       build_aps_set(set, bins);
     }
     mode_ = kWholeTorqueSet;
+    t.insert(t.end(), aps_var_.begin(), aps_var_.end());
   });
+  aps_var_.assign(aps_gain_.begin() + static_cast<std::ptrdiff_t>(n), aps_gain_.end());
+  aps_gain_.resize(n);
 }
 
 double ChauvinKalman::measurement_var(int k, double speed_rad_s) const noexcept {
@@ -116,6 +123,9 @@ double ChauvinKalman::edge_state_var(double speed_rad_s) const noexcept {
 // One APS gain set (mode_ = set selects its Q): per speed bin, the periodic Riccati solution's gains.
 void ChauvinKalman::build_aps_set(int set, int bins) {
   const int kk = table_.samples;
+  const int o = kTorqueState + params_.smoother_lag;
+  std::vector<double> h(static_cast<std::size_t>(kk));
+  for (int k = 0; k < kk; ++k) h[static_cast<std::size_t>(k)] = edge_coupling(k);
   for (int b = 0; b < bins; ++b) {
     const double w = std::exp(bin_log_speed_[static_cast<std::size_t>(b)]);
     Mat p = initial_covariance(0, w);
@@ -124,8 +134,12 @@ void ChauvinKalman::build_aps_set(int set, int bins) {
     for (int cycle = 0; cycle < 500 && change > 1e-12; ++cycle) {
       change = 0.0;
       for (int k = 0; k < kk; ++k) {
-        riccati_step_symmetric(k, w, p, g);  // P stays bit-symmetric: P0 is diagonal
         const auto slot_index = static_cast<std::size_t>((set * bins + b) * kk + k);
+        const double prior_oo = p(o, o),
+                     pc_o = p(o, kSpeedSqState) +
+                            h[static_cast<std::size_t>(k)] * (p(o, kNoisePrev) - p(o, kNoiseNow));
+        riccati_step_symmetric(k, w, p, g);             // P stays bit-symmetric: P0 is diagonal
+        aps_var_[slot_index] = prior_oo - g(o) * pc_o;  // posterior variance of the output state x2(k−d | k)
         if (!(change > 1e-12)) {  // once a gain of this cycle moved, the cycle is not the last: skip the rest
           const double scale = std::max(1e-300, g.cwiseAbs().maxCoeff());
           // The first cycle compares with zeros (the slot is appended below, not zero-filled first).
@@ -269,17 +283,26 @@ ChauvinKalman::Vec ChauvinKalman::periodic_gain(int k, double speed_rad_s) const
   return g;
 }
 
-void ChauvinKalman::periodic_gain_into(int k, double speed_rad_s, Vec& gain) const noexcept {
+ChauvinKalman::BinPos ChauvinKalman::bin_pos(int k, double speed_rad_s) const noexcept {
   const int kk = table_.samples;
   const int bins = static_cast<int>(bin_log_speed_.size());
   const double l = std::log(std::max(speed_rad_s, 1e-3));
   double pos = (l - bin_log_speed_.front()) / (bin_log_speed_.back() - bin_log_speed_.front()) * (bins - 1);
   pos = std::clamp(pos, 0.0, static_cast<double>(bins - 1) - 1e-12);
   const int b = static_cast<int>(pos);
-  const double t = pos - b;
   const int base = mode_ * bins;
-  gain = (1.0 - t) * aps_gain(static_cast<std::size_t>((base + b) * kk + k)) +
-         t * aps_gain(static_cast<std::size_t>((base + b + 1) * kk + k));
+  return {static_cast<std::size_t>((base + b) * kk + k), static_cast<std::size_t>((base + b + 1) * kk + k),
+          pos - b};
+}
+
+void ChauvinKalman::periodic_gain_into(int k, double speed_rad_s, Vec& gain) const noexcept {
+  const BinPos at = bin_pos(k, speed_rad_s);
+  gain = (1.0 - at.t) * aps_gain(at.lo) + at.t * aps_gain(at.hi);
+}
+
+double ChauvinKalman::periodic_output_var(int k, double speed_rad_s) const noexcept {
+  const BinPos at = bin_pos(k, speed_rad_s);
+  return (1.0 - at.t) * aps_var_[at.lo] + at.t * aps_var_[at.hi];
 }
 
 void ChauvinKalman::reset() noexcept {
@@ -368,6 +391,7 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
   const double h = edge_coupling(k);
   if (params_.periodic_gains) {
     periodic_gain_into(k, mean_speed_, gain);
+    out_var = periodic_output_var(k, mean_speed_);  // the periodic Riccati solution's, as the gain
   } else {
     Mat pn = p_;
     riccati_step(k, mean_speed_, pn, gain);

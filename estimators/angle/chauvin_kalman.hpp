@@ -105,6 +105,9 @@ class ChauvinKalman {
   [[nodiscard]] const Vec& last_gain() const noexcept { return last_gain_; }
   /// APS filter gain at tooth k for speed ω (interpolated between the precomputed speed bins).
   [[nodiscard]] Vec periodic_gain(int k, double speed_rad_s) const noexcept;
+  /// Posterior variance of the output state x2(k−d | k) ((N m)²) at tooth k for speed ω under the APS gains
+  /// (the periodic Riccati solution's, interpolated as the gains are): the claimed 1σ² of the estimate.
+  [[nodiscard]] double periodic_output_var(int k, double speed_rad_s) const noexcept;
   /// One exact Riccati step (CK-12/13) for tooth k at speed ω: returns the filter gain and advances P in
   /// place.
   void riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) const noexcept;
@@ -122,6 +125,11 @@ class ChauvinKalman {
  private:
   /// periodic_gain() written into `gain` (the per-tooth path: no temporary).
   void periodic_gain_into(int k, double speed_rad_s, Vec& gain) const noexcept;
+  struct BinPos {
+    std::size_t lo, hi;  ///< APS table slots of the two speed bins around ω (current noise set, tooth k)
+    double t;            ///< interpolation weight of `hi`
+  };
+  [[nodiscard]] BinPos bin_pos(int k, double speed_rad_s) const noexcept;
   void push_edge_time(std::int64_t t_ns) noexcept;
   void push_model(double ripple_nm) noexcept;
   void build_aps_set(int set, int bins);
@@ -153,6 +161,7 @@ class ChauvinKalman {
   [[nodiscard]] Eigen::Map<const Vec> aps_gain(std::size_t i) const noexcept {
     return Eigen::Map<const Vec>(&aps_gain_[i * kStates]);
   }
+  std::vector<double> aps_var_;  ///< the same slots: posterior variance of the output state
   double edge_sd_rad_ = 0.0;
 
   Vec x_ = Vec::Zero();

@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "incycle_bed.hpp"
 #include "unseen_engines.hpp"
@@ -46,4 +48,39 @@ TEST_P(InCycleFreshStart, KalmanWithinFivePercentOfPeakToPeakAndOneDegreeWithout
 // The I6 report engines are not asserted here: with the simulator's TRUE wheel their Kalman reads 6.4-6.6 %
 // (rep_i6_60) and 4.5-4.6 % (rep_i6_36), so what is left there is not the wheel.
 INSTANTIATE_TEST_SUITE_P(ReportEngines, InCycleFreshStart,
+                         ::testing::Values("rep_i4_60", "rep_i4_36", "rep_i3_60", "rep_i3_36"));
+
+// Through transients and a fuel cut-off entry/exit after the same fresh start (sim::bed_incycle_regimes_run:
+// the 20 s firing start, then bed_eval_run's speed ramps, throttle steps and fuel cut-off). Full table:
+// build/tools/torque-accuracy --bed unseen --bed-incycle-regimes (--bed-all adds the tuning engines).
+class InCycleRegimes : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(InCycleRegimes, KalmanWithinSixPercentThroughTransientsTenThroughACutOffAndItsSigmaHonest) {
+  const eval::InCycleRegimesResult r =
+      eval::evaluate_incycle_regimes(engine(GetParam()), eval::EvalOptions{});
+  for (const auto& [name, g] : {std::pair{"transient", r.transient}, std::pair{"cut-off", r.cutoff}})
+    std::printf("%s %s: kalman %.1f %% %+.1f deg, cover %.0f %%, slow %.1f %%, worst second %.1f %%\n",
+                r.engine.c_str(), name, g.kalman.rms_pct_p2p, g.kalman.lag_deg, g.kalman_cover_pct,
+                g.kalman_slow_pct, g.kalman_worst_s_pct);
+  ASSERT_TRUE(r.report);
+  ASSERT_GT(r.transient.kalman.n, 1000);
+  ASSERT_GT(r.cutoff.kalman.n, 500);
+  // GIVEN the tooth table learned on the recording (ready within 5 s of the fresh start)
+  EXPECT_GE(r.ready_at_s, 0.0);
+  EXPECT_LE(r.ready_at_s, 5.0);
+  // THEN the in-cycle Kalman is within 6 % of p2p through the speed ramps and throttle steps, within 10 %
+  // from 0.2 s before the cut-off entry to 2.5 s after its exit, both within 1.5° of lag
+  EXPECT_LE(r.transient.kalman.rms_pct_p2p, 6.0);
+  EXPECT_LE(r.cutoff.kalman.rms_pct_p2p, 10.0);
+  EXPECT_LE(std::abs(r.transient.kalman.lag_deg), 1.5);
+  EXPECT_LE(std::abs(r.cutoff.kalman.lag_deg), 1.5);
+  // AND its claimed 1σ holds there: at least 60 % of the teeth within it (0 % before: the APS filter
+  // claimed 0), and not a bound so loose that every tooth is within it
+  for (const eval::InCycleRegime& g : {r.transient, r.cutoff}) {
+    EXPECT_GE(g.kalman_cover_pct, 60.0);
+    EXPECT_LE(g.kalman_cover_pct, 99.0);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(ReportEngines, InCycleRegimes,
                          ::testing::Values("rep_i4_60", "rep_i4_36", "rep_i3_60", "rep_i3_36"));

@@ -107,6 +107,9 @@ TEST(TableStore, KalmanGainsFromTheCacheEqualTheComputedOnes) {
       for (int i = 0; i < ChauvinKalman::kStates; ++i) {
         EXPECT_TRUE(same_bytes(a(i), b(i)) && same_bytes(a(i), c(i))) << k << " " << w << " " << i;
       }
+      const double va = computed.periodic_output_var(k, w), vb = first.periodic_output_var(k, w),
+                   vc = second.periodic_output_var(k, w);
+      EXPECT_TRUE(va > 0.0 && same_bytes(va, vb) && same_bytes(va, vc)) << k << " " << w;
     }
   kp.edge_noise_deg *= 1.0 + 1e-12;  // any input changed: another key, computed again
   const ChauvinKalman other(eng, wheel, kp);

@@ -97,6 +97,7 @@ InCycleStats incycle_stats(const std::vector<double>& est, const std::vector<dou
   }
   const double p2p = p2p_n > 0 ? p2p_sum / p2p_n : mx - mn;
   a.n = static_cast<int>(n);
+  a.p2p_nm = p2p;
   a.rms_pct_p2p = 100.0 * std::sqrt(se / static_cast<double>(n)) / p2p;
   a.bias_pct_p2p = 100.0 * (me - mt) / p2p;
   constexpr int kMaxShift = 12;

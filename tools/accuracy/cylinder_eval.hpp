@@ -24,6 +24,7 @@ struct InCycleStats {
   double rms_pct_p2p = 0.0;  ///< RMS(estimate − truth) / mean per-cycle peak-to-peak of truth × 100
   double lag_deg = 0.0;      ///< estimate behind truth at the cross-correlation maximum (deg)
   double bias_pct_p2p = 0.0;  ///< mean(estimate − truth) / p2p × 100 (the extended-load error, not the shape)
+  double p2p_nm = 0.0;        ///< the mean per-cycle peak-to-peak of truth the percentages divide by (N m)
 };
 
 /// In-cycle accuracy of `est` against `truth` (same length, per tooth; `cycle`: the cycle of each sample):

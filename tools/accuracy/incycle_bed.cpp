@@ -1,5 +1,6 @@
 #include "incycle_bed.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <unordered_map>
@@ -43,18 +44,75 @@ double edge_residual_deg(const sim::SimOutput& out, const std::vector<double>& r
   for (double e : edge) se += (e - mean) * (e - mean);
   return std::sqrt(se / static_cast<double>(teeth)) * 180.0 / std::numbers::pi;
 }
-}  // namespace
+/// One scored window (several [from, to) spans) and what it collected.
+struct Window {
+  std::vector<std::pair<double, double>> spans;
+  std::vector<double> ek, tk, sk, tek, ef, tf;
+  std::vector<int> ck, cf;
+  [[nodiscard]] bool holds(double t) const {
+    for (const auto& [a, b] : spans)
+      if (t >= a && t < b) return true;
+    return false;
+  }
+};
 
-InCycleBedResult evaluate_incycle_fresh(const sim::BedEngine& engine, const EvalOptions& opt,
-                                        bool short_run) {
-  InCycleBedResult r;
-  r.engine = engine.name;
-  r.report = engine.report;
-  std::vector<std::pair<double, double>> steady;
-  const sim::Scenario sc = sim::bed_firing_start_run(engine, short_run, &steady);
-  const sim::SimOutput out = sim::simulate(sc);
-  r.duration_s = sc.duration_s;
-  r.score_from_s = steady.empty() ? 0.0 : steady.front().first;
+/// Share (%) of the samples whose |estimate − truth| is within the claimed 1σ.
+double coverage_pct(const Window& w) {
+  if (w.ek.empty()) return 0.0;
+  std::size_t in = 0;
+  for (std::size_t i = 0; i < w.ek.size(); ++i) in += std::fabs(w.ek[i] - w.tk[i]) <= w.sk[i] ? 1 : 0;
+  return 100.0 * static_cast<double>(in) / static_cast<double>(w.ek.size());
+}
+
+/// RMS over the window's cycles of the per-cycle mean error (the slow, load-like part), and the worst RMS
+/// over 1 s spans, both in % of the window's mean per-cycle p2p (`p2p` from incycle_stats()).
+void slow_and_worst(const Window& w, const InCycleStats& st, InCycleRegime& g) {
+  if (st.n == 0 || w.ek.empty()) return;
+  const double p2p = st.p2p_nm;
+  double s_cyc = 0.0, acc = 0.0;
+  int n_cyc = 0, n_in = 0;
+  for (std::size_t i = 0; i <= w.ek.size(); ++i) {
+    if (i == w.ek.size() || (i > 0 && w.ck[i] != w.ck[i - 1])) {
+      if (n_in > 0) {
+        s_cyc += (acc / n_in) * (acc / n_in);
+        ++n_cyc;
+      }
+      acc = 0.0;
+      n_in = 0;
+      if (i == w.ek.size()) break;
+    }
+    acc += w.ek[i] - w.tk[i];
+    ++n_in;
+  }
+  g.kalman_slow_pct = n_cyc > 0 ? 100.0 * std::sqrt(s_cyc / n_cyc) / p2p : 0.0;
+  double se = 0.0;
+  std::size_t n = 0, start = 0;
+  for (std::size_t i = 0; i <= w.ek.size(); ++i) {
+    if (i == w.ek.size() || w.tek[i] - w.tek[start] >= 1.0) {
+      if (n > 0) g.kalman_worst_s_pct = std::max(g.kalman_worst_s_pct, 100.0 * std::sqrt(se / n) / p2p);
+      se = 0.0;
+      n = 0;
+      start = i;
+      if (i == w.ek.size()) break;
+    }
+    se += (w.ek[i] - w.tk[i]) * (w.ek[i] - w.tk[i]);
+    ++n;
+  }
+}
+
+/// What the learner ended with (table quality, counters, orders, edge residual).
+struct LearnSummary {
+  double ready_at_s = -1.0, edge_resid_deg = 0.0;
+  std::uint64_t cycles_used = 0, cycles_cutoff = 0;
+  bool low_orders = false;
+  ToothLearnQuality quality = ToothLearnQuality::kNone;
+  std::string orders;
+};
+
+/// The daemon's angle chain on `sc` from a fresh start (tooth learner empty, its table applied at each
+/// cycle end), the in-cycle outputs collected into `windows`.
+LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, const sim::SimOutput& out,
+                       const EvalOptions& opt, std::vector<Window>& windows) {
   EvalOptions o = opt;
   o.spec_engine = engine.spec;
   o.friction_prior.reset();  // a fresh daemon: the generic friction correlation from the spec sheet
@@ -74,13 +132,7 @@ InCycleBedResult evaluate_incycle_fresh(const sim::BedEngine& engine, const Eval
   }
   std::unordered_map<std::int64_t, std::size_t> index;
   for (std::size_t i = 0; i < samples.size(); ++i) index[samples[i].t_ns] = i;
-  const auto scored = [&steady](double t) {
-    for (const auto& [a, b] : steady)
-      if (t >= a && t < b) return true;
-    return false;
-  };
-  std::vector<double> ek, tk, ef, tf;
-  std::vector<int> ck, cf;
+  LearnSummary r;
   int prev_tooth = -1;
   for (std::size_t i = 0; i < samples.size() && i < out.teeth.size(); ++i) {
     ToothSample s = samples[i];
@@ -102,29 +154,82 @@ InCycleBedResult evaluate_incycle_fresh(const sim::BedEngine& engine, const Eval
     s.width_rad *= ratio[p];
     pipe.on_tooth(s, sig);
     const ToothOutput& to = pipe.tooth_output();
-    if (to.kalman_ind.health == Health::kValid) {
-      const auto it = index.find(to.kalman_ind.t_ns);
-      if (it != index.end() && scored(static_cast<double>(to.kalman_ind.t_ns) * 1e-9)) {
-        ek.push_back(to.kalman_ind.torque_nm);
-        tk.push_back(out.teeth[it->second].t_ind_nm);
-        ck.push_back(out.teeth[it->second].cycle);
+    for (Window& w : windows) {
+      if (to.kalman_ind.health == Health::kValid) {
+        const auto it = index.find(to.kalman_ind.t_ns);
+        if (it != index.end() && w.holds(static_cast<double>(to.kalman_ind.t_ns) * 1e-9)) {
+          w.ek.push_back(to.kalman_ind.torque_nm);
+          w.tk.push_back(out.teeth[it->second].t_ind_nm);
+          w.ck.push_back(out.teeth[it->second].cycle);
+          w.sk.push_back(to.kalman_ind.uncertainty);
+          w.tek.push_back(static_cast<double>(to.kalman_ind.t_ns) * 1e-9);
+        }
+      }
+      if (to.fourier_ind.health == Health::kValid && w.holds(t_s)) {
+        w.ef.push_back(to.fourier_ind.torque_nm);
+        w.tf.push_back(out.teeth[i].t_ind_nm);
+        w.cf.push_back(out.teeth[i].cycle);
       }
     }
-    if (to.fourier_ind.health == Health::kValid && scored(t_s)) {
-      ef.push_back(to.fourier_ind.torque_nm);
-      tf.push_back(out.teeth[i].t_ind_nm);
-      cf.push_back(out.teeth[i].cycle);
-    }
   }
-  const double step = 360.0 / sc.wheel.positions;
-  r.kalman = incycle_stats(ek, tk, ck, step);
-  r.fourier = incycle_stats(ef, tf, cf, step);
-  r.tooth_edge_resid_deg = edge_residual_deg(out, ratio, nominal);
+  r.edge_resid_deg = edge_residual_deg(out, ratio, nominal);
   r.cycles_used = learner.stats().cycles_used;
   r.cycles_cutoff = learner.stats().cycles_cutoff;
   r.low_orders = learner.low_orders_learned();
   r.quality = learned ? learner.quality() : ToothLearnQuality::kNone;
   for (const ToothOrderId& id : learner.order_ids()) r.orders += order_letter(id.source);
+  return r;
+}
+
+InCycleRegime score(const Window& w, double step_deg) {
+  InCycleRegime g;
+  g.kalman = incycle_stats(w.ek, w.tk, w.ck, step_deg);
+  g.fourier = incycle_stats(w.ef, w.tf, w.cf, step_deg);
+  g.kalman_cover_pct = coverage_pct(w);
+  slow_and_worst(w, g.kalman, g);
+  return g;
+}
+}  // namespace
+
+InCycleBedResult evaluate_incycle_fresh(const sim::BedEngine& engine, const EvalOptions& opt,
+                                        bool short_run) {
+  InCycleBedResult r;
+  r.engine = engine.name;
+  r.report = engine.report;
+  std::vector<Window> windows(1);
+  const sim::Scenario sc = sim::bed_firing_start_run(engine, short_run, &windows[0].spans);
+  const sim::SimOutput out = sim::simulate(sc);
+  r.duration_s = sc.duration_s;
+  r.score_from_s = windows[0].spans.empty() ? 0.0 : windows[0].spans.front().first;
+  const LearnSummary l = run_fresh(engine, sc, out, opt, windows);
+  const InCycleRegime g = score(windows[0], 360.0 / sc.wheel.positions);
+  r.kalman = g.kalman;
+  r.fourier = g.fourier;
+  r.ready_at_s = l.ready_at_s;
+  r.tooth_edge_resid_deg = l.edge_resid_deg;
+  r.cycles_used = l.cycles_used;
+  r.cycles_cutoff = l.cycles_cutoff;
+  r.low_orders = l.low_orders;
+  r.quality = l.quality;
+  r.orders = l.orders;
+  return r;
+}
+
+InCycleRegimesResult evaluate_incycle_regimes(const sim::BedEngine& engine, const EvalOptions& opt) {
+  InCycleRegimesResult r;
+  r.engine = engine.name;
+  r.report = engine.report;
+  std::vector<Window> windows(2);
+  windows[0].spans.resize(1);
+  windows[1].spans.resize(1);
+  const sim::Scenario sc = sim::bed_incycle_regimes_run(engine, &windows[0].spans[0], &windows[1].spans[0]);
+  const sim::SimOutput out = sim::simulate(sc);
+  const LearnSummary l = run_fresh(engine, sc, out, opt, windows);
+  const double step = 360.0 / sc.wheel.positions;
+  r.transient = score(windows[0], step);
+  r.cutoff = score(windows[1], step);
+  r.ready_at_s = l.ready_at_s;
+  r.quality = l.quality;
   return r;
 }
 

@@ -28,9 +28,31 @@ struct InCycleBedResult {
   std::string orders;  ///< per order: source letter (h held, o overrun, O overrun-speeds, s speeds, f firing)
 };
 
+/// One scored regime: the in-cycle Kalman and Fourier figures, and the share of the Kalman's samples within
+/// its claimed 1σ.
+struct InCycleRegime {
+  InCycleStats kalman, fourier;
+  double kalman_cover_pct = 0.0;    ///< |T̂ − T| ≤ claimed 1σ (% of the scored teeth; 68 when honest)
+  double kalman_slow_pct = 0.0;     ///< RMS of the per-cycle mean error (% of p2p): the load-like part
+  double kalman_worst_s_pct = 0.0;  ///< worst RMS over 1 s spans of the window (% of p2p)
+};
+
+/// In-cycle torque through transients and a fuel cut-off entry/exit (sim::bed_incycle_regimes_run): the
+/// same fresh start as evaluate_incycle_fresh(short), then the two regimes, each scored over its window.
+struct InCycleRegimesResult {
+  std::string engine;
+  bool report = false;
+  InCycleRegime transient, cutoff;
+  double ready_at_s = -1.0;
+  ToothLearnQuality quality = ToothLearnQuality::kNone;
+};
+
 /// `table`: kLearned (fresh learner on the recording, the figure), kTrue (the simulator's wheel: the floor),
 /// kNone (no correction). `short_run`: a 20 s recording instead of 60 s.
 [[nodiscard]] InCycleBedResult evaluate_incycle_fresh(const sim::BedEngine& engine,
                                                       const EvalOptions& options, bool short_run);
+/// Transient and cut-off entry/exit regimes after a fresh start (tooth table learned on the recording).
+[[nodiscard]] InCycleRegimesResult evaluate_incycle_regimes(const sim::BedEngine& engine,
+                                                            const EvalOptions& options);
 
 }  // namespace torqued::eval

@@ -195,6 +195,23 @@ Scenario bed_firing_start_run(const BedEngine& e, bool short_run,
   return s;
 }
 
+Scenario bed_incycle_regimes_run(const BedEngine& e, std::pair<double, double>* transient_s,
+                                 std::pair<double, double>* cutoff_s) {
+  Scenario s = bed_firing_start_run(e, true);
+  s.name = e.name + "_incycle_regimes";
+  const double t0 = s.duration_s;  // 20 s: the last plateau (2200 rpm, 53 kPa) ends here
+  const Scenario ev = bed_eval_run(e, false);
+  for (Breakpoint b : ev.speed_rpm) s.speed_rpm.push_back({t0 + 0.5 + b.t_s, b.value});
+  for (Breakpoint b : ev.map_target_kpa) s.map_target_kpa.push_back({t0 + 0.5 + b.t_s, b.value});
+  s.fuel_cuts.clear();
+  for (FuelCut c : ev.fuel_cuts)
+    s.fuel_cuts.push_back({t0 + 0.5 + c.t_start_s, t0 + 0.5 + c.t_end_s, c.resume_rpm});
+  s.duration_s = t0 + 0.5 + ev.duration_s;
+  if (transient_s) *transient_s = {t0 + 0.5, t0 + 0.5 + 6.5};
+  if (cutoff_s) *cutoff_s = {t0 + 0.5 + 6.3, s.duration_s};
+  return s;
+}
+
 Scenario bed_vehicle_run(const BedEngine& e, bool short_run) {
   Scenario s = e.truth;
   s.name = e.name + (short_run ? "_vehicle_short" : "_vehicle");

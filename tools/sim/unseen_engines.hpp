@@ -55,6 +55,13 @@ struct BedEngine {
 /// of the last two plateaus, [from, to) in s, where the in-cycle figures are scored.
 [[nodiscard]] Scenario bed_firing_start_run(const BedEngine& e, bool short_run = false,
                                             std::vector<std::pair<double, double>>* steady_s = nullptr);
+/// In-cycle regimes after a fresh start: bed_firing_start_run(short) (20 s, the tooth learner's recording),
+/// 0.5 s more at its last plateau, then bed_eval_run() (10 s: speed ramps 1500-3500 rpm, throttle steps
+/// 35-90 kPa, a fuel cut-off at 3500 rpm with the dyno dragging the engine towards 2500 rpm, 1 s, and its
+/// exit). `transient_s`: [20.5, 27) s, eval 0-6.5 s (up to the cut-off entry); `cutoff_s`: [26.8, 30.5) s,
+/// 0.2 s before the entry to the end, 2.5 s after the exit.
+[[nodiscard]] Scenario bed_incycle_regimes_run(const BedEngine& e, std::pair<double, double>* transient_s,
+                                               std::pair<double, double>* cutoff_s);
 /// Evaluated recording: steady plateaus at several speeds and loads, throttle and load transients, a fuel
 /// cut-off. `short_run`: a 4 s subset (ctest).
 [[nodiscard]] Scenario bed_eval_run(const BedEngine& e, bool short_run = false);
