@@ -206,8 +206,9 @@ GapSync::Step GapSync::on_gap_candidate(std::int64_t period, double r, const Whe
   // After a sync loss the signal has been seen to be this wheel: a gap with kResyncRunBeforeGap clean teeth
   // before it identifies the position again, whatever counts the noise left in the history (a burst just
   // before a gap would otherwise cost a revolution, and miscounted gap-to-gap counts would keep matching
-  // from ever succeeding).
-  const bool single_ok = num_gaps_ == 1 && run_before_gap < w.teeth &&
+  // from ever succeeding). A glitch inside the gap (the last burst's) splits it into a longer and a normal
+  // period: the run before the next gap then has one period more than a revolution's teeth (w.teeth - 1).
+  const bool single_ok = num_gaps_ == 1 && run_before_gap < w.teeth + (after_loss_ ? 1 : 0) &&
                          (after_loss_ ? run_before_gap >= std::min(w.teeth / 2, kResyncRunBeforeGap)
                                       : hist_len_ == 0 && run_before_gap >= w.teeth / 2);
   const int need = single_ok ? 0 : history_needed_;
