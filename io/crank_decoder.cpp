@@ -231,8 +231,9 @@ bool CrankDecoder::gap_syncing_step(std::int64_t t_ns, std::int64_t period, Toot
   }
   if (step == GapSync::Step::kIdentified) {
     const int tooth = gap_.identified_tooth();
-    if (tooth == 0) rev_ ^= 1;  // keep rev_ meaning "revolution of tooth_"; phase from the cam anyway
-    enter_synced(t_ns, period, rev_ * wheel_.teeth + tooth, kToothGap, out);
+    if (gap_.identified_new_rev())
+      rev_ ^= 1;  // keep rev_ meaning "revolution of tooth_"; phase from the cam anyway
+    enter_synced(t_ns, period, rev_ * wheel_.teeth + tooth, gap_.identified_at_gap() ? kToothGap : 0u, out);
     return true;
   }
   emit_syncing(t_ns, period, step == GapSync::Step::kNormal, out);

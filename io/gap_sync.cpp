@@ -25,6 +25,7 @@ std::string GapSync::find_gaps(const WheelTables& w) {
 std::string GapSync::init_identification(const WheelTables& w, const DecoderParams& p) {
   if (num_gaps_ == 0) return "wheel: no gap (missing tooth) to sync on";
   const int t = w.teeth;
+  teeth_ = t;
   for (int j = 0; j < num_gaps_; ++j) {
     const int prev = gap_tooth_[static_cast<std::size_t>((j + num_gaps_ - 1) % num_gaps_)];
     const int d = (gap_tooth_[static_cast<std::size_t>(j)] - prev + t) % t;
@@ -57,6 +58,9 @@ void GapSync::reset(bool after_loss) noexcept {
   hist_len_ = 0;
   normal_run_ = 0;
   gap_run_ = 0;
+  post_gap_ns_ = 0;
+  post_len_ = 0;
+  identified_after_ = 0;
 }
 
 void GapSync::restart_reference(std::int64_t period_ns) noexcept {
@@ -68,6 +72,50 @@ void GapSync::restart_reference(std::int64_t period_ns) noexcept {
 
 GapSync::Step GapSync::on_period(std::int64_t period, const WheelTables& w, const DecoderParams& p,
                                  DecoderStats& stats) noexcept {
+  const bool pending = post_gap_ns_ > 0;
+  identified_after_ = 0;
+  post_started_ = false;
+  const Step step = classify(period, w, p, stats);
+  if (!pending || post_started_ || step == Step::kIdentified) {
+    if (step == Step::kIdentified) post_gap_ns_ = 0;
+    return step;
+  }
+  return on_post_gap_period(period, step, w, p);
+}
+
+// After a sync loss the gap right after a burst may have too few clean teeth before it (run_fits_gap fails).
+// It is then judged by the kResyncRunBeforeGap periods after it, with the same steadiness test: the decoder
+// syncs a few teeth after that gap instead of waiting a revolution for the next one. Any noise edge or gap
+// edge drops it; any other period counts (a glitch-shortened reference may make the teeth after the gap look
+// like gaps to the search; the steadiness test judges them) unless it is a new candidate, which starts its
+// own wait.
+GapSync::Step GapSync::on_post_gap_period(std::int64_t period, Step step, const WheelTables& w,
+                                          const DecoderParams& p) noexcept {
+  const double nominal = w.width_of(gap_tooth_[0]) / w.pitch_rad;
+  if (step == Step::kNoise) {
+    // Runt against the search's reference; the reference may be the gap itself (rebuilt from it). A period
+    // of at least runt_fraction of the gap's pitch is a tooth: it rebuilds the reference and counts.
+    if (static_cast<double>(period) < p.runt_fraction * static_cast<double>(post_gap_ns_) / nominal) {
+      post_gap_ns_ = 0;
+      return step;
+    }
+    ref_period_ns_ = period;
+    ref_prev_ns_ = 0;
+    ref_provisional_ = false;
+    step = Step::kOther;
+  }
+  post_[static_cast<std::size_t>(post_len_++)] = period;
+  if (post_len_ < kResyncRunBeforeGap) return step;
+  const double gap_over_pitch = static_cast<double>(post_gap_ns_) / nominal;
+  post_gap_ns_ = 0;
+  if (!steady_run_fits(post_, gap_over_pitch, p)) return step;
+  match_ = 0;
+  identified_after_ = kResyncRunBeforeGap;
+  return Step::kIdentified;
+}
+
+GapSync::Step GapSync::classify(std::int64_t period, const WheelTables& w, const DecoderParams& p,
+                                DecoderStats& stats) noexcept {
   bool normal = false;
   if (ref_period_ns_ == 0) {
     // First period after (re)start: it may itself be a gap, so it is only a provisional reference.
@@ -117,6 +165,15 @@ GapSync::Step GapSync::on_period(std::int64_t period, const WheelTables& w, cons
 // the wheel's position, else kOther.
 GapSync::Step GapSync::on_gap_candidate(std::int64_t period, double r, const WheelTables& w,
                                         const DecoderParams& p, DecoderStats& stats) noexcept {
+  if (after_loss_ && num_gaps_ == 1 && 2 * period > post_gap_ns_) {
+    // A candidate to confirm by the run after it unless identified now (also when the reference is rebuilt
+    // below: a glitch-shortened reference makes the true gap look far too long or one gap too many). A tooth
+    // after a waiting gap may look like a gap to the search when the reference was glitch-shortened: it does
+    // not replace the waiting one unless it is more than half as long.
+    post_gap_ns_ = period;
+    post_len_ = 0;
+    post_started_ = true;
+  }
   if (r > p.gap_ratio_max * (w.width_of(gap_tooth_[0]) / w.pitch_rad) * 4.0) {
     restart_reference(period);  // far too slow for any gap: speed collapsed; start over from this period
     return Step::kOther;
@@ -149,8 +206,9 @@ GapSync::Step GapSync::on_gap_candidate(std::int64_t period, double r, const Whe
   // After a sync loss the signal has been seen to be this wheel: a gap with kResyncRunBeforeGap clean teeth
   // before it identifies the position again, whatever counts the noise left in the history (a burst just
   // before a gap would otherwise cost a revolution, and miscounted gap-to-gap counts would keep matching
-  // from ever succeeding).
-  const bool single_ok = num_gaps_ == 1 && run_before_gap < w.teeth &&
+  // from ever succeeding). A glitch inside the gap (the last burst's) splits it into a longer and a normal
+  // period: the run before the next gap then has one period more than a revolution's teeth (w.teeth - 1).
+  const bool single_ok = num_gaps_ == 1 && run_before_gap < w.teeth + (after_loss_ ? 1 : 0) &&
                          (after_loss_ ? run_before_gap >= std::min(w.teeth / 2, kResyncRunBeforeGap)
                                       : hist_len_ == 0 && run_before_gap >= w.teeth / 2);
   const int need = single_ok ? 0 : history_needed_;
@@ -173,7 +231,13 @@ GapSync::Step GapSync::on_gap_candidate(std::int64_t period, double r, const Whe
 // is within [gap_ratio_min, gap_ratio_max] of that median.
 bool GapSync::run_fits_gap(double gap_over_pitch, const DecoderParams& p) const noexcept {
   if (normal_run_after_gap_check_ < kResyncRunBeforeGap) return false;
-  std::array<std::int64_t, kResyncRunBeforeGap> v = run_;
+  return steady_run_fits(run_, gap_over_pitch, p);
+}
+
+// The periods v lie within [x, 1/x] of their median (x = burst_tooth_ratio_min) and gap_over_pitch is within
+// [x, 1/x] of that median.
+bool GapSync::steady_run_fits(std::array<std::int64_t, kResyncRunBeforeGap> v, double gap_over_pitch,
+                              const DecoderParams& p) noexcept {
   std::sort(v.begin(), v.end());
   const double med = 0.5 * static_cast<double>(v[(v.size() - 1) / 2] + v[v.size() / 2]);
   const double x = p.burst_tooth_ratio_min;

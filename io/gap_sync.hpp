@@ -38,20 +38,35 @@ class GapSync {
   /// One period (ns) while syncing. Counts gaps in `stats`.
   Step on_period(std::int64_t period_ns, const WheelTables& w, const DecoderParams& p,
                  DecoderStats& stats) noexcept;
-  /// After kIdentified: the tooth (within a revolution) that closed the identified gap.
-  [[nodiscard]] int identified_tooth() const noexcept { return gap_tooth_[static_cast<std::size_t>(match_)]; }
+  /// After kIdentified: the tooth (within a revolution) of this period: the one that closed the identified
+  /// gap, or (confirmed after the gap, identified_at_gap() false) the kResyncRunBeforeGap-th tooth after it.
+  [[nodiscard]] int identified_tooth() const noexcept {
+    return (gap_tooth_[static_cast<std::size_t>(match_)] + identified_after_) % teeth_;
+  }
+  [[nodiscard]] bool identified_at_gap() const noexcept { return identified_after_ == 0; }
+  /// After kIdentified: true if the revolution changed since the last tooth before the identified gap.
+  [[nodiscard]] bool identified_new_rev() const noexcept {
+    const int g = gap_tooth_[static_cast<std::size_t>(match_)];
+    return g == 0 || g + identified_after_ >= teeth_;
+  }
 
   /// Forgets the reference period and the gap history: the next period starts a new search. after_loss: the
   /// search follows a sync loss (the position was known before), not the first start.
   void reset(bool after_loss = false) noexcept;
 
  private:
+  Step classify(std::int64_t period_ns, const WheelTables& w, const DecoderParams& p,
+                DecoderStats& stats) noexcept;
   Step on_gap_candidate(std::int64_t period_ns, double r, const WheelTables& w, const DecoderParams& p,
                         DecoderStats& stats) noexcept;
   [[nodiscard]] int match_gap(int need, double r, const WheelTables& w,
                               const DecoderParams& p) const noexcept;
   void restart_reference(std::int64_t period_ns) noexcept;
   [[nodiscard]] bool run_fits_gap(double gap_over_pitch, const DecoderParams& p) const noexcept;
+  [[nodiscard]] static bool steady_run_fits(std::array<std::int64_t, kResyncRunBeforeGap> v,
+                                            double gap_over_pitch, const DecoderParams& p) noexcept;
+  Step on_post_gap_period(std::int64_t period_ns, Step step, const WheelTables& w,
+                          const DecoderParams& p) noexcept;
 
   // Wheel tables (built once).
   int num_gaps_ = 0;
@@ -75,6 +90,14 @@ class GapSync {
   int gap_run_ = 0;                     ///< consecutive gap candidates
   int match_ = 0;                       ///< gap identified by the last kIdentified
   bool after_loss_ = false;             ///< searching again after a sync loss
+  int teeth_ = 1;                       ///< teeth per revolution (wheel)
+  int identified_after_ = 0;            ///< kIdentified: teeth after the gap (0: at the gap)
+  // After a sync loss, single-gap wheel: the last gap candidate, confirmed by the clean run after it when the
+  // run before it was too short or not steady (a burst that ended just before the gap).
+  std::int64_t post_gap_ns_ = 0;                          ///< the candidate's period (0: none pending)
+  int post_len_ = 0;                                      ///< periods after it so far
+  bool post_started_ = false;                             ///< this period is a new candidate
+  std::array<std::int64_t, kResyncRunBeforeGap> post_{};  ///< those periods
 };
 
 }  // namespace torqued
