@@ -75,9 +75,13 @@ std::vector<int> gap_spacings(const Decoded& d) {
 }
 
 void print_row(const char* file, const char* wheel, const Decoded& d, const std::string& speed) {
-  std::printf("| %s | %s | %llu | %llu / %.4f s | %llu | %llu | %llu | %s |\n", file, wheel,
-              static_cast<unsigned long long>(d.edges), static_cast<unsigned long long>(d.first_sync_edge),
-              d.first_sync_ns * 1e-9, static_cast<unsigned long long>(d.stats.sync_losses),
+  char sync[64] = "never (no false sync)";
+  if (d.first_sync_ns >= 0)
+    std::snprintf(sync, sizeof sync, "%llu / %.4f s", static_cast<unsigned long long>(d.first_sync_edge),
+                  static_cast<double>(d.first_sync_ns) * 1e-9);
+  std::printf("| %s | %s | %llu | %s | %llu | %llu | %llu | %s |\n", file, wheel,
+              static_cast<unsigned long long>(d.edges), sync,
+              static_cast<unsigned long long>(d.stats.sync_losses),
               static_cast<unsigned long long>(d.stats.noise_edges + d.stats.debounced_edges),
               static_cast<unsigned long long>(d.stats.lost_teeth), speed.c_str());
 }
