@@ -583,6 +583,12 @@ int main(int argc, char** argv) {
                  "with --bed-incycle: the in-cycle gas torque model's burn duration (deg; default "
                  "energies.burn_duration_deg)")
       ->check(CLI::Range(0.0, 180.0));
+  double evo_deg = -1.0;
+  app.add_option(
+         "--evo", evo_deg,
+         "with --bed-incycle: the pressure model's exhaust valve opening (deg after firing TDC; default "
+         "energies.evo_atdc_deg)")
+      ->check(CLI::Range(90.0, 180.0));
   bool no_gas_model = false;
   app.add_flag("--no-gas-model", no_gas_model,
                "Kalman and Fourier observer without the cylinder-pressure model's gas torque ripple as known "
@@ -634,6 +640,7 @@ int main(int argc, char** argv) {
       bo.base.kalman = kalman;
       bo.base.fourier = fourier;
       if (burn_duration_deg >= 0.0) bo.base.energies.burn_duration_deg = burn_duration_deg;
+      if (evo_deg >= 0.0) bo.base.energies.evo_atdc_deg = evo_deg;
       const int rc = regimes_only ? 0 : run_bed_incycle(bed_all, bed_short, bo);
       return rc != 0 ? rc : run_bed_incycle_regimes(bed_all, bo);
     }
