@@ -578,6 +578,17 @@ int main(int argc, char** argv) {
                  "Kalman process noise with the gas model valid: 1 sigma of what the model misses (N m)");
   app.add_option("--kalman-edge-noise", kalman.edge_noise_deg, "Kalman R: edge-angle error (deg)");
   app.add_option("--kalman-jitter", kalman.jitter_s, "Kalman R: timestamp jitter (s)");
+  double burn_duration_deg = -1.0;
+  app.add_option("--burn-duration", burn_duration_deg,
+                 "with --bed-incycle: the in-cycle gas torque model's burn duration (deg; default "
+                 "energies.burn_duration_deg)")
+      ->check(CLI::Range(0.0, 180.0));
+  double evo_deg = -1.0;
+  app.add_option(
+         "--evo", evo_deg,
+         "with --bed-incycle: the pressure model's exhaust valve opening (deg after firing TDC; default "
+         "energies.evo_atdc_deg)")
+      ->check(CLI::Range(90.0, 180.0));
   bool no_gas_model = false;
   app.add_flag("--no-gas-model", no_gas_model,
                "Kalman and Fourier observer without the cylinder-pressure model's gas torque ripple as known "
@@ -628,6 +639,8 @@ int main(int argc, char** argv) {
       fourier.gas_model = !no_gas_model;
       bo.base.kalman = kalman;
       bo.base.fourier = fourier;
+      if (burn_duration_deg >= 0.0) bo.base.energies.burn_duration_deg = burn_duration_deg;
+      if (evo_deg >= 0.0) bo.base.energies.evo_atdc_deg = evo_deg;
       const int rc = regimes_only ? 0 : run_bed_incycle(bed_all, bed_short, bo);
       return rc != 0 ? rc : run_bed_incycle_regimes(bed_all, bo);
     }
