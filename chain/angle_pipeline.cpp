@@ -109,7 +109,7 @@ void AnglePipeline::reset() noexcept {
   cut_segments_ = fired_segments_ = 0;
   since_cut_segments_ = 1 << 30;  // no fuel cut-off seen yet
   coast_fired_ = CoastFired{};
-  free_coast_ = coast_idle_ = false;
+  free_coast_ = coast_idle_ = coast_confirmed_ = false;
   coast_resume_rpm_ = coast_resume_map_pa_ = 0.0;
   idle_steady_cycles_ = 0;
   prev_cycle_rpm_ = 0.0;
@@ -508,6 +508,7 @@ void AnglePipeline::free_coast_reference(bool cut_now, double rpm, double map_pa
     free_coast_ = coast_idle_ = false;
     return;
   }
+  if (!coast_confirmed_) return;  // the load is known once one more cut-off cycle passed the tests
   lref.kind = ReferenceKind::kFreeCoast;
   lref.net.torque_nm = cfg_.load_ref.accessory_nm;
   lref.net.known = true;
@@ -553,6 +554,7 @@ void AnglePipeline::detect_free_coast(const FuelWindow& fw, double dke_nm, const
                         p.free_coast_decel_change * std::fabs(coast_fired_.coast_dke_nm);
     coast_fired_.coast_dke_nm = dke_nm;
     free_coast_ = decel_ok && smooth;
+    coast_confirmed_ = free_coast_;
     if (!free_coast_ && ref_kind_ == ReferenceKind::kFreeCoast) ref_teeth_ = 0;
     return;
   }
@@ -562,6 +564,7 @@ void AnglePipeline::detect_free_coast(const FuelWindow& fw, double dke_nm, const
   const double step = drop > 1.0 ? (coast_fired_.dke_nm - dke_nm) / drop : 0.0;
   if (decel_ok && step >= p.free_coast_step_min && step <= p.free_coast_step_max) {
     free_coast_ = true;
+    coast_confirmed_ = false;
     coast_fired_.coast_dke_nm = dke_nm;
     ++stats_.free_coasts;
   }

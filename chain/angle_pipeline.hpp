@@ -246,6 +246,10 @@ class AnglePipeline {
   void detect_free_coast(const FuelWindow& fw, double dke_nm, const CycleOutput& o) noexcept;
   [[nodiscard]] bool free_coast_allowed() const noexcept;
   void free_coast_reference(bool cut_now, double rpm, double map_pa, LoadReference& lref) noexcept;
+  /// The coast passed the cycle-to-cycle test once: only then is its load known (a speed-held dynamometer
+  /// passes the entry tests and fails the next cycle's: no window of it is published with the accessories'
+  /// load).
+  bool coast_confirmed_ = false;
   bool coast_idle_ = false;  ///< the free coast goes on as idle (fuel back on)
   double coast_resume_rpm_ = 0.0, coast_resume_map_pa_ = 0.0;  ///< speed and MAP when the fuel came back
   IndicatedEso eso_;
