@@ -56,14 +56,7 @@ Noisy make(const Case& c) {
   for (int b = 0; (1.0 + 3.0 * b) * n.rev_s < o.duration_s - 2.0 * n.rev_s; ++b) {
     const double at = (1.0 + 3.0 * b) * n.rev_s;
     const auto start = static_cast<std::int64_t>((at + jitter(rng)) * 1e9);
-    const std::int64_t span = 30'000'000, width = 40'000;
-    std::uniform_int_distribution<std::int64_t> when(start, start + span);
-    for (int k = 0; k < 12; ++k) {
-      const std::int64_t t = when(rng);
-      n.edges.push_back(EdgeEvent{t, 0, 1});
-      n.edges.push_back(EdgeEvent{t + width, 0, 0});
-    }
-    n.bursts.push_back({start, start + span + width});
+    n.bursts.push_back({start, test::add_noise_burst(n.edges, start, rng)});
   }
   std::stable_sort(n.edges.begin(), n.edges.end(),
                    [](const EdgeEvent& a, const EdgeEvent& b) { return a.t_ns < b.t_ns; });

@@ -45,14 +45,7 @@ Noisy noisy_cranking() {
   std::mt19937 rng(29);
   for (const double at_s : {0.70, 1.37, 2.05, 2.61, 3.2}) {
     const auto start = static_cast<std::int64_t>(at_s * 1e9);
-    const std::int64_t span = 30'000'000, width = 40'000;
-    std::uniform_int_distribution<std::int64_t> at(start, start + span);
-    for (int k = 0; k < 12; ++k) {
-      const std::int64_t t = at(rng);
-      n.edges.push_back(EdgeEvent{t, 0, 1});
-      n.edges.push_back(EdgeEvent{t + width, 0, 0});
-    }
-    n.bursts.push_back({start, start + span + width});
+    n.bursts.push_back({start, test::add_noise_burst(n.edges, start, rng)});
   }
   std::stable_sort(n.edges.begin(), n.edges.end(),
                    [](const EdgeEvent& a, const EdgeEvent& b) { return a.t_ns < b.t_ns; });

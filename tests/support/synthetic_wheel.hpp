@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 #include <numbers>
+#include <random>
 #include <vector>
 
 #include "engine_geometry.hpp"
@@ -137,6 +138,19 @@ inline WheelGeometry wheel_runs(int positions, const std::vector<int>& runs) {
   w.tooth_count = n;
   w.missing = positions - n;
   return w;
+}
+
+/// A burst of noise on crank channel 0: 12 pulses of 40 µs at random times within 30 ms of `start_ns`,
+/// appended to `edges` (unsorted). Returns the burst's end (ns). The decoder noise tests share it.
+inline std::int64_t add_noise_burst(std::vector<EdgeEvent>& edges, std::int64_t start_ns, std::mt19937& rng) {
+  const std::int64_t span = 30'000'000, width = 40'000;
+  std::uniform_int_distribution<std::int64_t> at(start_ns, start_ns + span);
+  for (int k = 0; k < 12; ++k) {
+    const std::int64_t t = at(rng);
+    edges.push_back(EdgeEvent{t, 0, 1});
+    edges.push_back(EdgeEvent{t + width, 0, 0});
+  }
+  return start_ns + span + width;
 }
 
 }  // namespace torqued::test
