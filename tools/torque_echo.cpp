@@ -115,6 +115,8 @@ struct Reader {
   std::array<T, kBatch> buf{};
   std::array<void*, kBatch> ptrs{};
   std::array<dds_sample_info_t, kBatch> info{};
+  bool had_writer = false;  ///< a writer was alive on this topic at some point
+  std::uint32_t alive = 0;  ///< writers alive now
 };
 
 class Echo {
@@ -177,6 +179,7 @@ class Echo {
       check_health(crank_, dds::Topic::kCrankState);
       check_health(status_, dds::Topic::kDaemonStatus);
       std::fflush(stdout);
+      update_lost();
       if (o_.exit_on_lost && lost_) {
         std::fprintf(stderr, "torque-echo: the daemon's writers are gone: exiting (--exit-on-lost)\n");
         return 3;
@@ -296,12 +299,14 @@ class Echo {
 
   /// Writer liveliness and deadline of one topic, reported on stderr (reading the statuses resets them).
   template <class T>
-  void check_health(const Reader<T>& r, dds::Topic t) {
+  void check_health(Reader<T>& r, dds::Topic t) {
     if (r.reader == 0) return;
     const std::string name = settings_.topic_name(t);
     const dds::TopicQos& q = settings_.qos[static_cast<std::size_t>(t)];
     dds_liveliness_changed_status_t lc{};
     if (dds_get_liveliness_changed_status(r.reader, &lc) == DDS_RETCODE_OK) {
+      r.alive = lc.alive_count;
+      if (lc.alive_count > 0) r.had_writer = true;
       if (lc.alive_count_change > 0)
         std::fprintf(stderr, "torque-echo: %s: writer alive (%u alive)\n", name.c_str(), lc.alive_count);
       // A writer that stops being alive: its lease expired (the daemon died, hangs or is unreachable) or it
@@ -311,7 +316,6 @@ class Echo {
                      "torque-echo: %s: writer lost liveliness: the daemon stopped, or showed no sign of life "
                      "within its %lld ms lease (died, hung or unreachable); %u alive\n",
                      name.c_str(), static_cast<long long>(q.lease_ms), lc.alive_count);
-        if (lc.alive_count == 0) lost_ = true;
       }
     }
     dds_requested_deadline_missed_status_t dm{};
@@ -319,6 +323,24 @@ class Echo {
         dm.total_count_change > 0 && !done_)
       std::fprintf(stderr, "torque-echo: %s: deadline missed: no sample within %lld ms (%u times in total)\n",
                    name.c_str(), static_cast<long long>(q.deadline_ms), dm.total_count);
+  }
+
+  /// The daemon's writers are gone when every topic that had a live writer has none left. One topic's
+  /// loss alone is not enough: the writers share the daemon's lease, but each reader reports its own
+  /// loss, and they can arrive one wake-up (100 ms) apart; exiting on the first would hide the others.
+  void update_lost() {
+    bool any = false, all_gone = true;
+    const auto one = [&](const auto& r) {
+      if (r.reader == 0 || !r.had_writer) return;
+      any = true;
+      all_gone = all_gone && r.alive == 0;
+    };
+    one(engine_);
+    one(estimator_);
+    one(cylinder_);
+    one(crank_);
+    one(status_);
+    lost_ = any && all_gone;
   }
 
   template <class T>
@@ -433,8 +455,8 @@ int main(int argc, char** argv) {
   app.add_option("--count", o.count, "exit after this many samples");
   app.add_flag("--until-done", o.until_done, "exit when the daemon's status reports the end of its replay");
   app.add_flag("--exit-on-lost", o.exit_on_lost,
-               "exit with status 3 when the daemon's writers are gone (lost liveliness: it died or hangs; or "
-               "it stopped)");
+               "exit with status 3 when the daemon's writers are gone: every subscribed topic that had a "
+               "live writer has lost it (lost liveliness: it died or hangs; or it stopped)");
   app.add_option("--idle-exit", o.idle_exit_s,
                  "exit when no sample arrived for this many seconds (after the first)");
   app.add_flag("--quiet,-q", o.quiet, "no summary line on stderr");

@@ -18,7 +18,11 @@ run_tier() {  # name, build dir, ctest args...
   local log="${dir}/ctest-${name}.log"
   if ctest --test-dir "$dir" -j"$jobs" --output-on-failure --timeout 900 "$@" >"$log" 2>&1; then :; else status=1; fi
   grep -E "tests passed|tests failed" "$log" | tail -1 | sed "s/^/[${name}] /" | tee -a "${root}/build/summary.txt" >/dev/null || true
-  if grep -q "tests failed" "$log"; then sed -n '/The following tests FAILED/,$p' "$log"; fi
+  if grep -q "tests failed" "$log"; then
+    sed -n '/The following tests FAILED/,$p' "$log"
+    # What failed, not only which test: each assertion's line and its message (bounded).
+    grep -E -A8 ': Failure$' "$log" | head -120 || true
+  fi
   summary+=("[${name}] $(grep -E 'tests passed|tests failed' "$log" | tail -1)")
 }
 
