@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <vector>
 
 #include "alloc_counter.hpp"
 #include "angle_pipeline.hpp"
@@ -40,6 +41,25 @@ class AnglePipelineSim : public ::testing::Test {
     EvalOptions o = options();
     o.tooth_table = eval::ToothTable::kTrue;
     return o;
+  }
+  /// The ideal tooth samples of `out` with the simulator's true machining errors in their widths (what the
+  /// wheel really shows: the in-cycle observers' input).
+  static std::vector<ToothSample> samples_with_true_tooth_errors(const sim::SimOutput& out,
+                                                                 const sim::Scenario& sc) {
+    auto samples = sim::ideal_tooth_samples(out, sc);
+    const int teeth = sc.wheel.teeth();
+    for (auto& s : samples) {
+      const int p = s.tooth % teeth;
+      s.width_rad += out.tooth_error_rad[static_cast<std::size_t>(p)] -
+                     out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
+    }
+    return samples;
+  }
+  static AnglePipelineConfig pipeline_config(const sim::Scenario& sc) {
+    AnglePipelineConfig cfg;
+    cfg.engine = sc.engine;
+    cfg.wheel = sc.wheel;
+    return cfg;
   }
   static std::array<double, 4> friction_;
   static std::uint64_t observations_;
@@ -267,17 +287,8 @@ TEST_F(AnglePipelineSim, InCycleKalmanAndFourierFollowTheTrueIndicatedTorque) {
   sim::Scenario sc = sim::scenario_by_name("steady_2000_mid");
   sc.duration_s = 1.5;
   const auto out = sim::simulate(sc);
-  auto samples = sim::ideal_tooth_samples(out, sc);
-  const int teeth = sc.wheel.teeth();
-  for (auto& s : samples) {
-    const int p = s.tooth % teeth;
-    s.width_rad += out.tooth_error_rad[static_cast<std::size_t>(p)] -
-                   out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
-  }
-  AnglePipelineConfig cfg;
-  cfg.engine = sc.engine;
-  cfg.wheel = sc.wheel;
-  AnglePipeline pipe(cfg);
+  const auto samples = samples_with_true_tooth_errors(out, sc);
+  AnglePipeline pipe(pipeline_config(sc));
   pipe.friction().import_coefficients(friction_);
   std::map<std::int64_t, double> truth;  // edge time -> true T_ind
   for (const auto& t : out.teeth) truth[t.t_meas_ns] = t.t_ind_nm;
@@ -321,17 +332,8 @@ TEST_F(AnglePipelineSim, InCycleKalmanCycleMeansFollowAThrottleStepAndASpeedRamp
   sc.map_target_kpa = {{0.0, 45.0}, {0.9, 45.0}, {0.95, 90.0}};
   sc.speed_rpm = {{0.0, 2000.0}, {1.1, 2000.0}, {1.4, 2600.0}};
   const auto out = sim::simulate(sc);
-  auto samples = sim::ideal_tooth_samples(out, sc);
-  const int teeth = sc.wheel.teeth();
-  for (auto& s : samples) {
-    const int p = s.tooth % teeth;
-    s.width_rad += out.tooth_error_rad[static_cast<std::size_t>(p)] -
-                   out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
-  }
-  AnglePipelineConfig cfg;
-  cfg.engine = sc.engine;
-  cfg.wheel = sc.wheel;
-  AnglePipeline pipe(cfg);
+  const auto samples = samples_with_true_tooth_errors(out, sc);
+  AnglePipeline pipe(pipeline_config(sc));
   pipe.friction().import_coefficients(friction_);
   std::map<std::int64_t, std::pair<double, int>> truth;  // edge time -> true T_ind, cycle
   for (const auto& t : out.teeth) truth[t.t_meas_ns] = {t.t_ind_nm, t.cycle};
@@ -351,7 +353,7 @@ TEST_F(AnglePipelineSim, InCycleKalmanCycleMeansFollowAThrottleStepAndASpeedRamp
   double se = 0.0;
   int cycles = 0;
   for (const auto& [c, e] : cycle_err) {
-    if (e.second < teeth) continue;  // whole cycles only
+    if (e.second < sc.wheel.teeth()) continue;  // whole cycles only
     se += (e.first / e.second) * (e.first / e.second);
     ++cycles;
   }

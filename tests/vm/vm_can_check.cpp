@@ -37,6 +37,7 @@
 #include "crank_decoder.hpp"
 #include "edge_file_source.hpp"
 #include "socketcan_source.hpp"
+#include "vm_check.hpp"
 #ifdef TORQUED_HAVE_DBC
 #include "dbc.hpp"
 #endif
@@ -47,20 +48,8 @@ namespace torqued {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-int g_failures = 0;
-
-void check(bool ok, const std::string& what) {
-  std::printf("%s %s\n", ok ? "PASS" : "FAIL", what.c_str());
-  std::fflush(stdout);
-  if (!ok) ++g_failures;
-}
-
-std::string arg(int argc, char** argv, const char* name, const char* def) {
-  for (int i = 2; i + 1 < argc; ++i) {
-    if (std::strcmp(argv[i], name) == 0) return argv[i + 1];
-  }
-  return def;
-}
+using vm::arg;
+using vm::check;
 
 pid_t spawn(const std::vector<std::string>& args) {
   std::vector<char*> av;
@@ -244,7 +233,7 @@ int cmd_frames(int argc, char** argv) {
     }
   }
 #endif
-  return g_failures == 0 ? 0 : 1;
+  return vm::failures() == 0 ? 0 : 1;
 }
 
 struct DecodeSummary {
@@ -325,7 +314,7 @@ int cmd_encoder(int argc, char** argv) {
   check(live.stats.synced_teeth == ref.stats.synced_teeth && live.stats.teeth == ref.stats.teeth,
         "encoder: synced teeth " + std::to_string(live.stats.synced_teeth) + " = file " +
             std::to_string(ref.stats.synced_teeth));
-  return g_failures == 0 ? 0 : 1;
+  return vm::failures() == 0 ? 0 : 1;
 }
 
 int cmd_compare(int argc, char** argv) {
@@ -341,7 +330,7 @@ int cmd_compare(int argc, char** argv) {
   for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) diff += !same_frame(a[i], b[i]);
   check(diff == 0 && bad_b == 0, "compare: frames equal (" + std::to_string(diff) + " differ, " +
                                      std::to_string(bad_b) + " bad lines in the capture)");
-  return g_failures == 0 ? 0 : 1;
+  return vm::failures() == 0 ? 0 : 1;
 }
 
 /// Raw sender with reopen: writes id 0x123 frames carrying a 32-bit counter.
@@ -458,7 +447,7 @@ int cmd_downup(int argc, char** argv) {
         "downup: " + std::to_string(src.link_changes()) + " link state changes counted");
   std::printf("info: sent %u, received %zu, last counter %u, last error '%s'\n", sent.load(), received.load(),
               last_counter.load(), src.last_error().c_str());
-  return g_failures == 0 ? 0 : 1;
+  return vm::failures() == 0 ? 0 : 1;
 }
 
 }  // namespace

@@ -31,26 +31,15 @@
 
 #include "crank_decoder.hpp"
 #include "gpio_source.hpp"
+#include "vm_check.hpp"
 
 namespace torqued {
 namespace {
 
 constexpr int kPositions = 60;  // 60-2: positions 0..57 carry teeth, 58 and 59 are the gap
 constexpr int kTeeth = 58;
-int g_failures = 0;
-
-void check(bool ok, const std::string& what) {
-  std::printf("%s %s\n", ok ? "PASS" : "FAIL", what.c_str());
-  std::fflush(stdout);
-  if (!ok) ++g_failures;
-}
-
-std::string arg(int argc, char** argv, const char* name, const char* def) {
-  for (int i = 1; i + 1 < argc; ++i) {
-    if (std::strcmp(argv[i], name) == 0) return argv[i + 1];
-  }
-  return def;
-}
+using vm::arg;
+using vm::check;
 
 std::int64_t mono_ns() {
   timespec ts{};
@@ -374,7 +363,7 @@ int run(int argc, char** argv) {
   check_edges(plan, written, r);
   check_periods(plan, written, r, slow);
   check_decoder(plan, r, decode_written(plan, written, slow_params(slow)), slow);
-  return g_failures == 0 ? 0 : 1;
+  return vm::failures() == 0 ? 0 : 1;
 }
 
 }  // namespace
