@@ -288,7 +288,7 @@ std::string dpc(const torqued::eval::DaemonBedStats& s) {
 /// Pooled statistics of one run label over the report engines (vehicle bed summary).
 struct Pool {
   int cycles = 0, published = 0;
-  torqued::eval::DaemonBedStats brake, fused;
+  torqued::eval::DaemonBedStats brake, fused, fused_friction_exact, fused_indicated_exact;
 };
 void pool_add(torqued::eval::DaemonBedStats& p, const torqued::eval::DaemonBedStats& s) {
   const auto sq = [](double v, int n) { return v * v * n; };
@@ -364,6 +364,13 @@ void print_vehicle_bed_summary(const std::map<std::string, Pool>& pools) {
                 name, pub, rel(p.fused), cov,
                 verdict(pub >= 95.0 && rel(p.fused) <= 12.0 && cov >= 60.0 && cov <= 76.0));
   }
+  std::printf(
+      "What limits them (diagnostic: the fused RMS with one error taken out: friction exact / indicated "
+      "exact):\n");
+  for (const auto& [name, p] :
+       {std::pair{"vehicle/noflag", a}, std::pair{"never/map", n}, std::pair{"vehicle/noflag 2nd", a2}})
+    std::printf("  %-26s RMS %.1f %%: friction exact %.1f %%, indicated exact %.1f %%\n", name, rel(p.fused),
+                rel(p.fused_friction_exact), rel(p.fused_indicated_exact));
 }
 
 /// --vehicle-bed: (a) a vehicle, (b) a hybrid, (c) one operating point taught, on the bed's engines through
@@ -395,6 +402,8 @@ int run_vehicle_bed(bool all, const torqued::eval::DaemonBedOptions& opt) {
       p.published += w.fused_published;
       pool_add(p.brake, w.brake);
       pool_add(p.fused, w.fused);
+      pool_add(p.fused_friction_exact, w.fused_friction_exact);
+      pool_add(p.fused_indicated_exact, w.fused_indicated_exact);
     }
     std::printf(
         "%-10s vehicle/noflag: %d cycles taken as a free coast-down (no flag), %d of them with the "

@@ -128,7 +128,11 @@ DaemonBedRun score(const std::vector<Row>& rows, const sim::SimOutput& out, int 
     add(r.brake, x.brake.torque_nm, w.brake, x.brake.uncertainty, transient);
     add(r.indicated, x.indicated.torque_nm, w.ind, x.indicated.uncertainty, transient);
     add(r.friction, x.friction.torque_nm, w.fric, x.friction.uncertainty, transient, 0.10);
-    if (x.fused_valid) add(r.fused, x.fused, w.brake, x.fused_sd, transient);
+    if (x.fused_valid) {
+      add(r.fused, x.fused, w.brake, x.fused_sd, transient);
+      add(r.fused_friction_exact, x.fused + (x.friction.torque_nm - w.fric), w.brake, x.fused_sd, transient);
+      add(r.fused_indicated_exact, x.fused - (x.indicated.torque_nm - w.ind), w.brake, x.fused_sd, transient);
+    }
     char line[320];
     std::snprintf(line, sizeof line, "%.6f,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f\n",
                   x.t1_s, transient ? 1 : 0, w.brake, x.brake.torque_nm, x.brake.uncertainty, w.ind,
@@ -137,7 +141,9 @@ DaemonBedRun score(const std::vector<Row>& rows, const sim::SimOutput& out, int 
     text += line;
   }
   sim::write_text_file(csv, text);
-  for (DaemonBedStats* s : {&r.brake, &r.indicated, &r.friction, &r.fused}) finish(*s);
+  for (DaemonBedStats* s :
+       {&r.brake, &r.indicated, &r.friction, &r.fused, &r.fused_friction_exact, &r.fused_indicated_exact})
+    finish(*s);
   return r;
 }
 

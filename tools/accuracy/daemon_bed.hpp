@@ -31,6 +31,10 @@ struct DaemonBedRun {
   int cycles = 0;
   int fused_published = 0;  ///< cycles whose fused brake torque was published (quality not invalid)
   DaemonBedStats brake, indicated, friction, fused;
+  /// What limits the fused value (diagnostic): the fused brake with its friction error taken out (fused +
+  /// friction error: as if the friction law were exact) and with its indicated error taken out (fused −
+  /// indicated error). Exact where the fused value is indicated − friction; else an attribution.
+  DaemonBedStats fused_friction_exact, fused_indicated_exact;
 };
 
 struct DaemonBedResult {
