@@ -176,6 +176,8 @@ bool AngleChain::snapshot(LearnedState& st) const noexcept {
     const CoverageScale& r = f.motoring_residual_scale();
     if (r.sd > 0.0) st.friction_residual = std::array<double, 2>{r.sd, static_cast<double>(r.n)};
     if (f.reference_sd_nm() > 0.0) st.friction_reference_sd = f.reference_sd_nm();
+    if (f.health() != Health::kValid)
+      st.friction_observations = static_cast<double>(f.motoring_observations());
   }
   st.tooth_corrections_rad.assign(corr_.begin(), corr_.begin() + corr_n_);
   if (pipeline_) {
@@ -204,6 +206,10 @@ std::string AngleChain::import_state(const LearnedState& st) {
       what += " and motoring residual scale " + std::to_string((*st.friction_residual)[0]) + " N m";
     if (st.friction_reference_sd && pipeline_->friction().import_reference_sd(*st.friction_reference_sd))
       what += " (references 1 sigma " + std::to_string(*st.friction_reference_sd) + " N m)";
+    if (st.friction_observations &&
+        pipeline_->friction().import_partial(static_cast<std::uint64_t>(*st.friction_observations)))
+      what += " (not converged: " + std::to_string(static_cast<std::uint64_t>(*st.friction_observations)) +
+              " motoring observations)";
   }
   const std::size_t n = st.tooth_corrections_rad.size();
   if (n > 0 && n <= corr_.size()) {

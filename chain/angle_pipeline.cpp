@@ -186,8 +186,10 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   LoadReference lref = classify_load(cfg_.e_machine, cfg_.load_ref, sig);
   if (free_coast_) {
     const double map_pa = can_fresh && sig.map_valid ? sig.map_pa : held_map_pa_;
-    free_coast_reference(can_fresh && sig.fuel_cutoff_valid && sig.fuel_cutoff, speed * kRadSToRpm, map_pa,
-                         lref);
+    // The low-passed speed: the idle tests compare a mean speed, not one tooth's (firing ripple, tooth
+    // errors).
+    free_coast_reference(can_fresh && sig.fuel_cutoff_valid && sig.fuel_cutoff,
+                         tooth_.speed_lp_rad_s * kRadSToRpm, map_pa, lref);
   }
   const NetLoad& net = lref.net;
   const bool load_ok = can_fresh && net.known;
@@ -251,7 +253,8 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
 }
 
 // The Kalman's extended load T*_load (docs/angle_estimators.md, "Through transients and a fuel cut-off"):
-// with a fresh load signal, this tooth's net load plus the friction law at this tooth's speed, T_load(t) +
+// with a known net load on fresh CAN (a load signal, or a vehicle's reference: neutral, the machine alone, a
+// free coast's accessories), this tooth's net load plus the friction law at this tooth's speed, T_load(t) +
 // T_fric(ω̄), instead of the last segment's cycle mean (up to a cycle behind through speed and load steps);
 // without one, the segment's estimate (load_star_nm_).
 double AnglePipeline::observer_load_star_nm(double net_load_nm, bool load_ok) const noexcept {
@@ -483,7 +486,10 @@ CycleReference AnglePipeline::cycle_reference(const SegmentEnergy& seg) const no
 
 bool AnglePipeline::free_coast_allowed() const noexcept {
   const LoadReferenceParams& p = cfg_.load_ref;
-  return p.free_coast && !p.sole_flag_bound && !p.neutral_bound && !cfg_.e_machine.bound;
+  // A mapped load signal measures the load whenever it is fresh; when it times out the load is unknown, and a
+  // dynamometer's cut-off can pass the entry tests: no free coast is taken on a bench.
+  return p.free_coast && !p.sole_flag_bound && !p.neutral_bound && !p.load_signal_bound &&
+         !cfg_.e_machine.bound;
 }
 
 // Per tooth while a free coast-down holds: the load is the accessories' (prior and 1σ) while the fuel stays
@@ -523,28 +529,30 @@ void AnglePipeline::free_coast_reference(bool cut_now, double rpm, double map_pa
 // ≤ 0.33 of the indicated torque lost, and the coast's deceleration far below the free engine's (T_mot −
 // T_fric − T_acc). Hard braking in a low gear can match that deceleration, but not the step at the same
 // instant as well. Both ratios are checked at the first cycle wholly in cut-off, the deceleration at every
-// cut-off cycle after it.
-void AnglePipeline::detect_free_coast(const FuelWindow& fw, double dke_nm, const CycleOutput& o) noexcept {
-  if (!o.cycle_end) return;
+// cut-off cycle after it. Returns true when this window ends a free coast: its load is not known (the caller
+// publishes no energy balance for it).
+bool AnglePipeline::detect_free_coast(const FuelWindow& fw, double dke_nm, const CycleOutput& o) noexcept {
+  if (!o.cycle_end) return false;
   const int n = cfg_.engine.cylinders;
   const LoadReferenceParams& p = cfg_.load_ref;
   const double rpm = o.speed_mean_rad_s * kRadSToRpm;
   if (coast_fired_.age < (1 << 20)) ++coast_fired_.age;
   if (!free_coast_allowed() || !fw.valid || !have_map_) {
+    const bool ended = free_coast_;
     free_coast_ = false;
-    return;
+    return ended;
   }
   if (fw.fired == n && fw.cut == 0) {  // a fully fired cycle: the level before a cut-off
     coast_fired_.dke_nm = dke_nm;
     coast_fired_.t_ind_nm = fuel_.estimate(o.t_ns, fw.fuel_kg, fw.map_fired_pa, rpm).torque_nm;
     coast_fired_.age = 0;
     free_coast_ = free_coast_ && coast_idle_;  // a coast's idle ends on the per-tooth tests
-    return;
+    return false;
   }
-  if (fw.fired != 0 || fw.cut != n) return;  // the entry window: wait for a cycle wholly in cut-off
+  if (fw.fired != 0 || fw.cut != n) return false;  // the entry window: wait for a cycle wholly in cut-off
   const double t_mot = rls_.motored_torque_nm(fw.map_cut_pa);
   const double free_nm = t_mot - friction_.friction_nm(rpm, oil_c_) - p.accessory_nm;
-  const double q = free_nm < -1.0 ? dke_nm / free_nm : 0.0;
+  const double q = free_nm < -kCoastMinTorqueNm ? dke_nm / free_nm : 0.0;
   const bool decel_ok = q >= p.free_coast_decel_min && q <= p.free_coast_decel_max;
   if (free_coast_) {
     // A free coast's deceleration torque (friction and pumping) moves a few per cent from one cycle to the
@@ -556,18 +564,19 @@ void AnglePipeline::detect_free_coast(const FuelWindow& fw, double dke_nm, const
     free_coast_ = decel_ok && smooth;
     coast_confirmed_ = free_coast_;
     if (!free_coast_ && ref_kind_ == ReferenceKind::kFreeCoast) ref_teeth_ = 0;
-    return;
+    return !free_coast_;
   }
-  if (coast_fired_.age > 2) return;  // only at cut-off entry
-  coast_fired_.age = 1 << 20;        // one decision per entry
+  if (coast_fired_.age > kCoastEntryCycles) return false;  // only at cut-off entry
+  coast_fired_.age = 1 << 20;                              // one decision per entry
   const double drop = coast_fired_.t_ind_nm - t_mot;
-  const double step = drop > 1.0 ? (coast_fired_.dke_nm - dke_nm) / drop : 0.0;
+  const double step = drop > kCoastMinTorqueNm ? (coast_fired_.dke_nm - dke_nm) / drop : 0.0;
   if (decel_ok && step >= p.free_coast_step_min && step <= p.free_coast_step_max) {
     free_coast_ = true;
     coast_confirmed_ = false;
     coast_fired_.coast_dke_nm = dke_nm;
     ++stats_.free_coasts;
   }
+  return false;
 }
 
 bool AnglePipeline::motoring_observation_allowed(const CycleReference& ref, const EngineSignals& sig,
@@ -793,13 +802,16 @@ void AnglePipeline::on_segment(const SegmentEnergy& seg, const EngineSignals& si
   const double dke_nm = inertia_.applied_scale() * dke_spec_nm;
   // The fuel window of this segment's 720° (FuelAngleWindow), read once for the balance and the learners.
   const FuelWindow fw = fuel_window(seg);
-  const CycleReference ref = cycle_reference(seg);
+  // Before the balance and learning: its tests use the friction law the window began with, and a window that
+  // ends a free coast (its deceleration changed: a driveline closing, a dynamometer) has no known load.
+  SegmentEnergy s = seg;
+  if (detect_free_coast(fw, dke_nm, o)) s.cycle_load_valid = false;
+  const CycleReference ref = cycle_reference(s);
   o.reference = ref.ok ? ref.kind : ReferenceKind::kNone;
-  cycle_balance(seg, sig, can_fresh, dke_nm, fw, o);
-  detect_free_coast(fw, dke_nm, o);  // before learning: its tests use the friction law the window began with
-  learn(seg, sig, can_fresh, dke_nm, fw, o);
-  learn_inertia(seg, can_fresh, dke_spec_nm, fw, o);
-  fuse(seg, sig, o);
+  cycle_balance(s, sig, can_fresh, dke_nm, fw, o);
+  learn(s, sig, can_fresh, dke_nm, fw, o);
+  learn_inertia(s, can_fresh, dke_spec_nm, fw, o);
+  fuse(s, sig, o);
   cycle_ = o;
 }
 

@@ -243,7 +243,12 @@ class AnglePipeline {
   };
   CoastFired coast_fired_{};
   bool free_coast_ = false;
-  void detect_free_coast(const FuelWindow& fw, double dke_nm, const CycleOutput& o) noexcept;
+  /// True when this window ends a free coast (its load is then not known).
+  bool detect_free_coast(const FuelWindow& fw, double dke_nm, const CycleOutput& o) noexcept;
+  /// Guards of detect_free_coast (not tunables): a torque below this (N m) is too small to form a ratio with;
+  /// the entry decision is taken within so many cycles of the last fully fired one.
+  static constexpr double kCoastMinTorqueNm = 1.0;
+  static constexpr int kCoastEntryCycles = 2;
   [[nodiscard]] bool free_coast_allowed() const noexcept;
   void free_coast_reference(bool cut_now, double rpm, double map_pa, LoadReference& lref) noexcept;
   /// The coast passed the cycle-to-cycle test once: only then is its load known (a speed-held dynamometer

@@ -599,6 +599,13 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
   if (!(c.estimators.kalman.params.min_rpm < c.estimators.kalman.params.max_rpm))
     out.push_back({"estimators.kalman.max_rpm", fmt(c.estimators.kalman.params.max_rpm),
                    "more than min_rpm = " + fmt(c.estimators.kalman.params.min_rpm)});
+  const auto& lr = c.can.load_reference;
+  if (!(lr.free_coast_step_min < lr.free_coast_step_max))
+    out.push_back({"can.load_reference.free_coast_step_max", fmt(lr.free_coast_step_max),
+                   "more than free_coast_step_min = " + fmt(lr.free_coast_step_min)});
+  if (!(lr.free_coast_decel_min < lr.free_coast_decel_max))
+    out.push_back({"can.load_reference.free_coast_decel_max", fmt(lr.free_coast_decel_max),
+                   "more than free_coast_decel_min = " + fmt(lr.free_coast_decel_min)});
   const auto& en = c.estimators.energies.params;
   if (!(en.window_end_btdc_deg < en.window_start_btdc_deg))
     out.push_back({"estimators.energies.window_end_btdc_deg", fmt(en.window_end_btdc_deg),

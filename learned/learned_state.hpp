@@ -140,6 +140,9 @@ struct LearnedState {
   Opt<std::array<double, 2>> friction_idle;      ///< idle correction (N m) and its idle speed (rpm)
   Opt<std::array<double, 2>> friction_residual;  ///< motoring residual scale (N m), its count
   Opt<double> friction_reference_sd;  ///< 1σ of the most certain load reference the law rests on (N m)
+  /// Motoring observations of a law learned from fewer than friction.min_observations (absent: converged or
+  /// imported as converged): restored, the law stays "not converged" until the count is reached.
+  Opt<double> friction_observations;
   FixedVec<double, kMaxToothCorrections> tooth_corrections_rad;  ///< ToothErrorLearner table (empty: none)
   Opt<FuelTorqueState> fuel;           ///< FuelTorque learned efficiency / pumping / covariance
   Opt<double> crank_error_var;         ///< measured crank-only indicated error variance (N m^2)

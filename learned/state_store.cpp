@@ -267,6 +267,14 @@ bool check_friction_reference(const LearnedState& s, const StateContext& ctx, st
   return false;
 }
 
+bool check_friction_observations(const LearnedState& s, const StateContext&, std::string* what) {
+  if (!s.friction) {
+    *what = "a friction observation count without friction coefficients";
+    return false;
+  }
+  return true;
+}
+
 bool check_friction_residual(const LearnedState& s, const StateContext& ctx, std::string* what) {
   const double v = (*s.friction_residual)[0];
   if (!(v > 0.0 && v <= ctx.max_torque_sd_nm))
@@ -359,6 +367,10 @@ const Line kLines[] = {
      "expected the 1 sigma (N m) of the load references the friction law rests on",
      has_opt<&S::friction_reference_sd>, get_reals<&S::friction_reference_sd>,
      set_reals<&S::friction_reference_sd>, check_friction_reference},
+    {"friction_observations", "c", 0,
+     "expected the count of motoring observations a not yet converged friction law rests on",
+     has_opt<&S::friction_observations>, get_reals<&S::friction_observations>,
+     set_reals<&S::friction_observations>, check_friction_observations},
     {"tooth_corrections", "g", kMaxToothCorrections,
      "expected a tooth count and that many finite corrections",
      [](const S& s) { return !s.tooth_corrections_rad.empty(); },

@@ -58,6 +58,8 @@ StageSettings stage_settings_from(const Config& cfg) {
   s.angle.load_ref.sole_flag_bound =
       cfg.can.signals[static_cast<std::size_t>(Quantity::kEmSoleLoad)].mapped();
   s.angle.load_ref.neutral_bound = cfg.can.signals[static_cast<std::size_t>(Quantity::kNeutral)].mapped();
+  s.angle.load_ref.load_signal_bound =
+      cfg.can.signals[static_cast<std::size_t>(Quantity::kLoadTorque)].mapped();
   s.angle.load_ref.accessory_nm = cfg.can.load_reference.accessory_nm;
   s.angle.load_ref.accessory_sd_nm = cfg.can.load_reference.accessory_sd_nm;
   s.angle.load_ref.fuel_max_sd_nm = cfg.can.load_reference.fuel_max_sd_nm;

@@ -42,12 +42,13 @@ enum class ReferenceKind : std::uint8_t { kNone = 0, kLoadSignal, kEMachineSole,
 
 /// How the vehicle's clutch/neutral flags are read (set by the daemon from can.signals / can.load_reference).
 struct LoadReferenceParams {
-  bool sole_flag_bound = false;  ///< can.signals.em_sole_load mapped: it overrides e_machine.sole_load
-  bool neutral_bound = false;    ///< can.signals.neutral mapped
-  double accessory_nm = 3.0;     ///< prior mean of the accessories' torque with the driveline open (N m)
-  double accessory_sd_nm = 2.0;  ///< its 1σ (N m)
-  double load_sd_nm = 0.5;       ///< 1σ of a measured load / machine torque (set from fusion.can_load_sd_nm)
-  double fuel_max_sd_nm = 3.0;   ///< the fuel model learns only from references at most this uncertain (N m)
+  bool sole_flag_bound = false;    ///< can.signals.em_sole_load mapped: it overrides e_machine.sole_load
+  bool neutral_bound = false;      ///< can.signals.neutral mapped
+  bool load_signal_bound = false;  ///< can.signals.load_torque mapped (a dynamometer: no free coast-down)
+  double accessory_nm = 3.0;       ///< prior mean of the accessories' torque with the driveline open (N m)
+  double accessory_sd_nm = 2.0;    ///< its 1σ (N m)
+  double load_sd_nm = 0.5;      ///< 1σ of a measured load / machine torque (set from fusion.can_load_sd_nm)
+  double fuel_max_sd_nm = 3.0;  ///< the fuel model learns only from references at most this uncertain (N m)
   /// Free coast-down recognised from the crank and the fuel alone (AnglePipeline::detect_free_coast): no
   /// flag mapped, no machine, no load signal.
   bool free_coast = true;

@@ -42,6 +42,7 @@ void FrictionLearner::reset() noexcept {
   idle_rpm_ = 0.0;
   idle_prior_n_ = 0;
   n_motoring_ = n_idle_ = n_rejected_ = 0;
+  partial_ = false;
   gated_run_ = 0;
   gated_sign_ = 0.0;
   cover_ = CoverageScale{};
@@ -263,8 +264,15 @@ bool FrictionLearner::import_reference_sd(double sd_nm) noexcept {
   return true;
 }
 
+bool FrictionLearner::import_partial(std::uint64_t n) noexcept {
+  if (!imported_ || n >= static_cast<std::uint64_t>(params_.min_observations)) return false;
+  partial_ = true;
+  n_motoring_ = n;
+  return true;
+}
+
 Health FrictionLearner::health() const noexcept {
-  if (!params_.learn || imported_) return Health::kValid;
+  if (!params_.learn || (imported_ && !partial_)) return Health::kValid;
   return n_motoring_ >= static_cast<std::uint64_t>(params_.min_observations) ? Health::kValid
                                                                              : Health::kNotConverged;
 }

@@ -119,6 +119,10 @@ class FrictionLearner {
   /// Load a persisted residual scale (after import_coefficients, which clears it). Rejects non-finite or
   /// non-positive scales (returns false).
   bool import_motoring_residual_scale(double sd_nm, std::uint32_t n) noexcept;
+  /// The imported law (after import_coefficients) was learned from only `n` motoring observations (fewer than
+  /// min_observations): health() stays kNotConverged until the count, carried on, reaches min_observations.
+  /// False (nothing changed) for a count that already reaches it.
+  bool import_partial(std::uint64_t n) noexcept;
   [[nodiscard]] std::uint64_t motoring_observations() const noexcept { return n_motoring_; }
   [[nodiscard]] std::uint64_t idle_observations() const noexcept { return n_idle_; }
   [[nodiscard]] std::uint64_t rejected() const noexcept { return n_rejected_; }
@@ -147,7 +151,8 @@ class FrictionLearner {
   double idle_rpm_ = 0.0;           ///< speed of the idle observations (rpm), 0: none yet
   std::uint64_t idle_prior_n_ = 0;  ///< weight (observations) of an imported idle correction
   bool imported_ = false;
-  double level_ = 1.0;  ///< prior level s learned at idle (law = s · coefficients while level_active())
+  bool partial_ = false;  ///< the imported law has fewer than min_observations behind it (import_partial)
+  double level_ = 1.0;    ///< prior level s learned at idle (law = s · coefficients while level_active())
   double level_ratio_ = 0.0;  ///< running mean of T_idle / law_unscaled(n_idle) over the idle observations
   double level_info_ = 0.0;   ///< information (1/σ²) of s, 0: none beyond the prior
   /// The law is still the generic prior (nothing learned over speed, nothing imported) and may be scaled.

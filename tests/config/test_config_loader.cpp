@@ -133,6 +133,12 @@ const BadCase kBad[] = {
      "cylinder_window_overlaps.yaml:8:26: key 'estimators.energies.cylinder_window_deg': found '150', "
      "expected less than 720 deg / cylinders = 120 deg",
      1},
+    {"free_coast_band_inverted",
+     "free_coast_band_inverted.yaml:4:3: key 'can.load_reference.free_coast_decel_max': found '1.8' "
+     "(default), "
+     "expected "
+     "more than free_coast_decel_min = 1.9",
+     1},
     {"many_errors",
      "many_errors.yaml:12:10: key 'logging.level': found 'verbose', expected one of "
      "trace|debug|info|warn|error|critical|off",

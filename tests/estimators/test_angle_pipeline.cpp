@@ -353,7 +353,7 @@ TEST_F(AnglePipelineSim, InCycleKalmanCycleMeansFollowAThrottleStepAndASpeedRamp
   double se = 0.0;
   int cycles = 0;
   for (const auto& [c, e] : cycle_err) {
-    if (e.second < sc.wheel.teeth()) continue;  // whole cycles only
+    if (e.second < 2 * sc.wheel.teeth()) continue;  // whole cycles only
     se += (e.first / e.second) * (e.first / e.second);
     ++cycles;
   }

@@ -114,6 +114,35 @@ TEST(FrictionLearner, ExportImportRoundTripSurvivesRestart) {
   EXPECT_FALSE(b.import_coefficients({std::nan(""), 0.0, 0.0, 0.0}));
 }
 
+TEST(FrictionLearner, ALawSavedBeforeItConvergedIsRestoredNotConvergedAndCarriesItsCount) {
+  // GIVEN a law learned from 5 motoring observations (a vehicle's short free coast-down), fewer than
+  // min_observations, saved with its count
+  FrictionParams p;
+  p.c = {0.0, 0.0, 0.0, -4.67e-3};
+  FrictionLearner a(p);
+  for (double rpm : sweep(1500.0, 1400.0, -20.0)) ASSERT_TRUE(a.observe_motoring(rpm, 90.0, 20.0));
+  ASSERT_EQ(a.motoring_observations(), 5u);
+  ASSERT_EQ(a.health(), Health::kNotConverged);
+  // WHEN restored after a restart
+  FrictionLearner b(p);
+  ASSERT_TRUE(b.import_coefficients(a.coefficients()));
+  ASSERT_TRUE(b.import_partial(a.motoring_observations()));
+  // THEN it is still not converged (as in the run that learned it), and converges after the observations
+  // missing to min_observations; a count that already reaches it is no partial law
+  EXPECT_EQ(b.health(), Health::kNotConverged);
+  EXPECT_DOUBLE_EQ(b.friction_nm(1450.0, 90.0), a.friction_nm(1450.0, 90.0));
+  const int missing = p.min_observations - 5;
+  for (int i = 0; i < missing; ++i) {
+    EXPECT_EQ(b.health(), Health::kNotConverged);
+    ASSERT_TRUE(b.observe_motoring(1500.0 - 10.0 * i, 90.0, 20.0));
+  }
+  EXPECT_EQ(b.health(), Health::kValid);
+  FrictionLearner c(p);
+  ASSERT_TRUE(c.import_coefficients(a.coefficients()));
+  EXPECT_FALSE(c.import_partial(static_cast<std::uint64_t>(p.min_observations)));
+  EXPECT_EQ(c.health(), Health::kValid);
+}
+
 TEST(FrictionLearner, UpdateDoesNotAllocate) {
   FrictionLearner fl(FrictionParams{});
   torqued::test::AllocationScope scope;

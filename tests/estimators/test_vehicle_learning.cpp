@@ -89,6 +89,8 @@ TEST(VehicleLearning, OverrunInGearTeachesNothingAndTheOpenClutchFrictionHoldsWh
 /// cut-offs.
 struct CoastCount {
   int open = 0, closed = 0;
+  int balance_closed = 0;  ///< cycles whose energy balance (brake from a known load) was published with the
+                           ///< clutch closed or on the dynamometer: the load was not known there
   std::uint64_t obs_cut = 0;
 };
 
@@ -106,9 +108,10 @@ CoastCount free_coasts(const sim::BedEngine& e, const sim::Scenario& sc) {
     const std::uint64_t before = pipe.stats().friction_observations;
     const std::uint8_t ready = pipe.on_tooth(s, sig);
     if (sig.fuel_cutoff) c.obs_cut += pipe.stats().friction_observations - before;
-    if (!(ready & AnglePipeline::kCycleReady) || pipe.cycle_output().reference != ReferenceKind::kFreeCoast)
-      continue;
+    if (!(ready & AnglePipeline::kCycleReady)) continue;
     const bool closed = !sc.vehicle.present || sim::evaluate(sc.vehicle.clutch_closed, t, 1.0) > 0.5;
+    if (closed && pipe.cycle_output().brake_energy.health == Health::kValid) ++c.balance_closed;
+    if (pipe.cycle_output().reference != ReferenceKind::kFreeCoast) continue;
     ++(closed ? c.closed : c.open);
   }
   return c;
@@ -127,10 +130,12 @@ TEST(VehicleLearning, FreeCoastIsRecognisedWithoutAFlagButNotAnOverrunInGearOrAD
     const CoastCount v = free_coasts(*e, sim::bed_vehicle_run(*e, true));
     EXPECT_GE(v.open, 3) << name;
     EXPECT_EQ(v.closed, 0) << name;
+    EXPECT_EQ(v.balance_closed, 0) << name;
     EXPECT_GT(v.obs_cut, 0u) << name;
     const CoastCount d = free_coasts(*e, sim::bed_eval_run(*e, false));
     EXPECT_EQ(d.open + d.closed, 0) << name;
     EXPECT_EQ(d.obs_cut, 0u) << name;
+    EXPECT_EQ(d.balance_closed, 0) << name;  // no energy balance published without a known load
     std::printf(
         "%s: vehicle %d free-coast cycles (clutch open), %d closed, %llu observations; dynamometer %d, "
         "%llu observations\n",

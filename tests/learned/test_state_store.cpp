@@ -54,6 +54,7 @@ class StateStore : public ::testing::Test {
     s.friction_idle = std::array<double, 2>{1.4999999999999998, 812.25};
     s.friction_residual = std::array<double, 2>{0.31234567890123456, 87.0};
     s.friction_reference_sd = 2.0615528128088303;
+    s.friction_observations = 7.0;
     s.tooth_corrections_rad.assign(58, 0.0);
     s.tooth_corrections_rad[3] = 7.123456789012345e-4 * scale;
     s.inertia = std::array<double, 3>{1.0873456789012345, 4321.5, 0.146722};
@@ -81,6 +82,7 @@ TEST_F(StateStore, RoundTripIsExactForEveryFieldAndPassesTheChecks) {
   EXPECT_EQ(r->friction_idle, s.friction_idle);
   EXPECT_EQ(r->friction_residual, s.friction_residual);
   EXPECT_EQ(r->friction_reference_sd, s.friction_reference_sd);
+  EXPECT_EQ(r->friction_observations, s.friction_observations);
   EXPECT_EQ(r->tooth_corrections_rad, s.tooth_corrections_rad);
   EXPECT_EQ(r->inertia, s.inertia);
   EXPECT_EQ(r->saved_at_t_ns, s.saved_at_t_ns);

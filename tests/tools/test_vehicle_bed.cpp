@@ -96,6 +96,7 @@ TEST_P(VehicleBed, ClutchFlagMakesTheMachineAReferenceAndTheOverrunInGearTeaches
   EXPECT_GE(n2.fused_published, 95 * n2.cycles / 100);
   EXPECT_LT(n2.fused.rms_nm, 0.12 * n2.fused.rms_true_nm + 1.0);
   EXPECT_GE(n2.fused.covered, n2.fused.n / 2);
+  EXPECT_LE(n2.fused.covered, 97 * n2.fused.n / 100);  // and not so wide that it covers every cycle
 
   // (c) Taught at one operating point (load signal at 2500 rpm, an overrun and idle), the map without it:
   // the target, fused within 8 % or 5 N m, on >= 95 % of the cycles (today 100 % on both engines, RMS 1.7 and
