@@ -63,6 +63,9 @@ Noisy make(const Case& c) {
   return n;
 }
 
+std::int64_t time_of(const test::SynthTooth& x) { return x.t_ns; }
+std::int64_t time_of(std::int64_t t) { return t; }
+
 /// Index (within the revolution) of the true tooth nearest in time to t.
 int nearest_true_tooth(const test::SynthOutput& clean, std::int64_t t, int teeth) {
   const auto it = std::lower_bound(clean.teeth.begin(), clean.teeth.end(), t,
@@ -74,6 +77,11 @@ int nearest_true_tooth(const test::SynthOutput& clean, std::int64_t t, int teeth
 
 struct Result {
   int wrong = 0;                 ///< synced teeth with a wrong index
+  int wrong_at_glitch = 0;       ///< ... reported at a glitch edge (the rest are true teeth, index shifted)
+  int wrong_lost = 0;            ///< ... flagged as a recovered lost tooth (advanced by two)
+  int glitch_teeth = 0;          ///< synced teeth reported at a glitch edge (a glitch standing in)
+  int true_rejected = 0;         ///< true teeth rejected as noise while synced
+  int bursts_wrong = 0;          ///< bursts followed by a synced tooth with a wrong index before the next one
   int wrong_after_bad_sync = 0;  ///< ... that follow a (re)sync at a wrong index (same sync)
   int wrong_resync = 0;          ///< ... of which the tooth of a (re)sync
   int late = 0;                  ///< bursts after which sync came back later than one revolution
@@ -90,23 +98,42 @@ Result run(const Case& c, const DecoderParams& p) {
   std::vector<ToothEvent> out;
   ToothEvent t;
   bool bad_sync = false;
+  std::vector<bool> burst_wrong(n.bursts.size(), false);
   for (const auto& e : n.edges) {
-    if (!dec.on_edge(e, t)) continue;
+    const bool true_tooth =
+        e.channel == 0 && e.level == 1 &&
+        std::binary_search(n.clean.teeth.begin(), n.clean.teeth.end(), e.t_ns,
+                           [](const auto& a, const auto& b) { return time_of(a) < time_of(b); });
+    const bool was_synced = dec.state() == SyncState::kSynced;
+    const std::uint64_t noise_before = dec.stats().noise_edges;
+    const bool got = dec.on_edge(e, t);
+    r.true_rejected += true_tooth && was_synced && dec.stats().noise_edges > noise_before;
+    if (!got) continue;
     out.push_back(t);
     if (t.sync != SyncState::kSynced) {
       bad_sync = false;
       continue;
     }
     const bool ok = t.tooth % teeth == nearest_true_tooth(n.clean, t.t_ns, teeth);
+    r.glitch_teeth += !true_tooth;
     if (t.events & kToothResynced) bad_sync = !ok;
     if (ok) continue;
     ++r.wrong;
+    r.wrong_at_glitch += !true_tooth;
+    r.wrong_lost += (t.events & kToothLostRecovered) != 0;
+    for (std::size_t b = n.bursts.size(); b-- > 0;) {
+      if (n.bursts[b].start_ns <= t.t_ns) {
+        burst_wrong[b] = true;
+        break;
+      }
+    }
     if (bad_sync && !(t.events & kToothResynced)) ++r.wrong_after_bad_sync;
     if (t.events & kToothResynced) ++r.wrong_resync;
     if (r.first_wrong.empty())
       r.first_wrong = "tooth " + std::to_string(t.tooth % teeth) + " at " + std::to_string(t.t_ns * 1e-9) +
                       " s (true " + std::to_string(nearest_true_tooth(n.clean, t.t_ns, teeth)) + ")";
   }
+  r.bursts_wrong = static_cast<int>(std::count(burst_wrong.begin(), burst_wrong.end(), true));
   for (const Burst& b : n.bursts) {
     ++r.bursts;
     const auto back = std::find_if(out.begin(), out.end(), [&](const ToothEvent& x) {
@@ -132,8 +159,20 @@ TEST(DecoderBurstResync, NoResyncOnAGlitchMadeGapAndResyncWithinOneRevolution) {
   DecoderParams p;
   p.use_cam = false;
   int wrong = 0, wrong_resync = 0, after = 0, late = 0, bursts = 0;
+  Result all;
   for (const Case& c : cases()) {
     const Result r = run(c, p);
+    all.wrong_at_glitch += r.wrong_at_glitch;
+    all.wrong_lost += r.wrong_lost;
+    all.glitch_teeth += r.glitch_teeth;
+    all.true_rejected += r.true_rejected;
+    all.bursts_wrong += r.bursts_wrong;
+    std::printf(
+        "info: %d-%d at %.0f rpm, seed %u: synced teeth with a wrong index %d (at a glitch edge %d, "
+        "lost-tooth recoveries %d); glitch edges taken as teeth %d; true teeth rejected as noise %d; "
+        "bursts followed by a wrong index %d of %d; late %d\n",
+        c.positions, c.missing, c.rpm0, c.seed, r.wrong, r.wrong_at_glitch, r.wrong_lost, r.glitch_teeth,
+        r.true_rejected, r.bursts_wrong, r.bursts, r.late);
     wrong += r.wrong;
     wrong_resync += r.wrong_resync;
     after += r.wrong_after_bad_sync;
@@ -147,6 +186,11 @@ TEST(DecoderBurstResync, NoResyncOnAGlitchMadeGapAndResyncWithinOneRevolution) {
       "info: %d bursts; resync teeth with a wrong index %d, teeth after such a resync %d; synced teeth "
       "with a wrong index in all %d; bursts resynced later than one revolution %d\n",
       bursts, wrong_resync, after, wrong, late);
+  std::printf(
+      "info: of the %d: %d reported at a glitch edge, %d lost-tooth recoveries, the rest true teeth with a "
+      "shifted index; glitch edges taken as teeth %d; true teeth rejected as noise while synced %d; bursts "
+      "followed by a wrong index %d\n",
+      wrong, all.wrong_at_glitch, all.wrong_lost, all.glitch_teeth, all.true_rejected, all.bursts_wrong);
   // Before the gap search checked the clean run before the gap (io/gap_sync.cpp, run_fits_gap), these cases
   // had 56 resyncs at a glitch-made gap (wrong index) and 795 teeth decoded on from them.
   EXPECT_EQ(wrong_resync, 0);
