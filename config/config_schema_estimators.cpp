@@ -193,6 +193,16 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("energies.burn_duration_deg", energies.params.burn_duration_deg, closed(0.0, 120.0), "deg",
          "in-cycle gas torque model (Kalman known input): heat release spread over this angle around the "
          "burn centroid; 0 = lumped");
+  TQ_NUM("energies.burn_wiebe_a", energies.params.burn_wiebe_a, closed(0.0, 20.0), "",
+         "in-cycle gas torque model: burn shape a Wiebe function with this efficiency parameter a (Heywood "
+         "9.2.1: 5); 0 = raised cosine");
+  TQ_NUM("energies.burn_wiebe_m", energies.params.burn_wiebe_m, closed(0.0, 10.0), "",
+         "in-cycle gas torque model: the Wiebe function's form factor m (Heywood 9.2.1: 2)");
+  TQ_NUM("energies.incycle_compression_kappa", energies.params.incycle_compression_kappa, closed(0.0, 2.0),
+         "", "in-cycle gas torque model: polytropic exponent of compression; 0 = energies.polytropic_kappa");
+  TQ_NUM("energies.incycle_expansion_kappa", energies.params.incycle_expansion_kappa, closed(0.0, 2.0), "",
+         "in-cycle gas torque model: polytropic exponent of the burned gas's expansion (burned-gas gamma "
+         "1.2-1.3, Heywood ch. 4); 0 = energies.polytropic_kappa");
   TQ_NUM("energies.burn_centroid_atdc_deg", energies.params.burn_centroid_atdc_deg, closed(-90.0, 180.0),
          "deg", "heat release lumped here when the spark advance is unknown");
   TQ_NUM("energies.burn_delay_deg", energies.params.burn_delay_deg, closed(0.0, 180.0), "deg",

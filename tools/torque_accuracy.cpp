@@ -598,6 +598,22 @@ int main(int argc, char** argv) {
          "with --bed-incycle: the pressure model's exhaust valve opening (deg after firing TDC; default "
          "energies.evo_atdc_deg)")
       ->check(CLI::Range(90.0, 180.0));
+  double kappa_c = -1.0, kappa_e = -1.0, wiebe_a = -1.0, wiebe_m = -1.0;
+  app.add_option("--kappa-compression", kappa_c,
+                 "with --bed-incycle: the in-cycle gas model's compression exponent (default "
+                 "energies.incycle_compression_kappa)")
+      ->check(CLI::Range(0.0, 2.0));
+  app.add_option("--kappa-expansion", kappa_e,
+                 "with --bed-incycle: the in-cycle gas model's expansion exponent (default "
+                 "energies.incycle_expansion_kappa)")
+      ->check(CLI::Range(0.0, 2.0));
+  app.add_option(
+         "--wiebe-a", wiebe_a,
+         "with --bed-incycle: the in-cycle gas model's burn shape, Wiebe a (0: raised cosine; default "
+         "energies.burn_wiebe_a)")
+      ->check(CLI::Range(0.0, 20.0));
+  app.add_option("--wiebe-m", wiebe_m, "with --bed-incycle: Wiebe m (default energies.burn_wiebe_m)")
+      ->check(CLI::Range(0.0, 10.0));
   bool no_gas_model = false;
   app.add_flag("--no-gas-model", no_gas_model,
                "Kalman and Fourier observer without the cylinder-pressure model's gas torque ripple as known "
@@ -650,6 +666,10 @@ int main(int argc, char** argv) {
       bo.base.fourier = fourier;
       if (burn_duration_deg >= 0.0) bo.base.energies.burn_duration_deg = burn_duration_deg;
       if (evo_deg >= 0.0) bo.base.energies.evo_atdc_deg = evo_deg;
+      if (kappa_c >= 0.0) bo.base.energies.incycle_compression_kappa = kappa_c;
+      if (kappa_e >= 0.0) bo.base.energies.incycle_expansion_kappa = kappa_e;
+      if (wiebe_a >= 0.0) bo.base.energies.burn_wiebe_a = wiebe_a;
+      if (wiebe_m >= 0.0) bo.base.energies.burn_wiebe_m = wiebe_m;
       const int rc = regimes_only ? 0 : run_bed_incycle(bed_all, bed_short, bo);
       return rc != 0 ? rc : run_bed_incycle_regimes(bed_all, bo);
     }

@@ -144,7 +144,15 @@ struct EnergiesParams {
   double burn_duration_deg = 40.0;  ///< in-cycle gas torque model only (Kalman known input): the
                                     ///< heat release spread over this angle around burn_centroid_atdc_deg by
                                     ///< a raised cosine (the RLS closure keeps the lumped burn); 0 = lumped
-  double energy_window_deg = 30.0;  ///< kinetic energy averaged over this window around each boundary (deg)
+  double burn_wiebe_a = 0.0;        ///< in-cycle model only: burn shape a Wiebe function with this efficiency
+                                    ///< parameter a instead of the raised cosine (0 = raised cosine) (-)
+  double burn_wiebe_m = 2.0;        ///< and this form factor m (Heywood §9.2.1: a = 5, m = 2) (-)
+  double incycle_compression_kappa = 0.0;  ///< in-cycle model only: κ of compression (0 = polytropic_kappa)
+  double incycle_expansion_kappa = 0.0;    ///< in-cycle model only: κ of the burned gas's expansion (0 =
+                                           ///< polytropic_kappa). Burned-gas γ is 1.2-1.3 (Heywood ch. 4);
+                                           ///< 1.25 helps the unseen bed, worsens the demo: not the default
+                                           ///< (docs/angle_estimators.md)
+  double energy_window_deg = 30.0;    ///< kinetic energy averaged over this window around each boundary (deg)
   double segment_offset_deg = -20.0;  ///< segment boundary relative to each firing TDC (deg, <0: before TDC)
   double idle_max_rpm = 1100.0;       ///< idle (friction C4 learning) below this mean speed (rpm)
   double idle_max_load_nm = 3.0;      ///< and with |load| below this (N m)

@@ -31,43 +31,68 @@ struct AngleTerms {
   double c_poly = 0.0;    ///< (V_c/V)^κ
   double blend = 0.0;     ///< raised-cosine blowdown blend (only meaningful in [EVO, blowdown end))
 };
+/// Polytropic exponents of the compression (from IVC) and expansion (from the burn centroid) polytropes.
+struct Kappas {
+  double comp = 1.3, exp = 1.3;
+};
+Kappas closure_kappas(const EnergiesParams& prm) noexcept {
+  return {prm.polytropic_kappa, prm.polytropic_kappa};
+}
+/// The in-cycle gas torque model's exponents: energies.incycle_*_kappa, 0 = energies.polytropic_kappa.
+Kappas ripple_kappas(const EnergiesParams& prm) noexcept {
+  return {prm.incycle_compression_kappa > 0.0 ? prm.incycle_compression_kappa : prm.polytropic_kappa,
+          prm.incycle_expansion_kappa > 0.0 ? prm.incycle_expansion_kappa : prm.polytropic_kappa};
+}
 AngleTerms angle_terms(double phi, const CrankKinematics& kin, const EnergiesParams& prm, double v_ivc,
-                       double v_c) noexcept {
+                       double v_c, Kappas kap) noexcept {
   const double evo = prm.evo_atdc_deg * kDeg;
   const double bde = prm.blowdown_end_atdc_deg * kDeg;
   double v = 0.0;
-  const double k = prm.polytropic_kappa;
   AngleTerms t;
   t.phi = phi;
   kin.volume_and_dvolume(phi, v, t.dvol);
-  t.ivc_poly = std::pow(v_ivc / v, k);
-  t.c_poly = std::pow(v_c / v, k);
+  t.ivc_poly = std::pow(v_ivc / v, kap.comp);
+  t.c_poly = std::pow(v_c / v, kap.exp);
   t.blend = (phi >= evo && phi < bde) ? 0.5 * (1.0 + std::cos(kPi * (phi - evo) / (bde - evo))) : 0.0;
   return t;
 }
 
+/// Start of the in-cycle model's burn of duration `dur` whose 50 % burned point is `burn` (rad): half the
+/// duration before it for the raised cosine; for the Wiebe function x_b = 1 − exp(−a u^(m+1)) (Heywood
+/// §9.2.1, eq. (9.23)) the 50 % point is at u50 = (ln 2 / a)^(1/(m+1)) of the duration.
+double burn_start(double burn, double dur, const EnergiesParams& prm) noexcept {
+  if (prm.burn_wiebe_a <= 0.0) return burn - 0.5 * dur;
+  return burn - dur * std::pow(std::numbers::ln2 / prm.burn_wiebe_a, 1.0 / (prm.burn_wiebe_m + 1.0));
+}
+/// Burned fraction `x` into a burn of duration `dur`: raised cosine, or the Wiebe function scaled to reach 1
+/// at its end.
+double burned_fraction(double x, double dur, const EnergiesParams& prm) noexcept {
+  if (prm.burn_wiebe_a <= 0.0) return 0.5 * (1.0 - std::cos(kPi * x / dur));
+  const double a = prm.burn_wiebe_a;
+  return (1.0 - std::exp(-a * std::pow(x / dur, prm.burn_wiebe_m + 1.0))) / (1.0 - std::exp(-a));
+}
 /// angle_terms() with only the volume powers that model_weights(·, burn) (dur = 0) or ripple_weights(·, burn,
 /// dur) (dur > 0) read at φ (the others stay 0): the same values where used, at half the pow() calls.
 AngleTerms angle_terms_for(double phi, const CrankKinematics& kin, const EnergiesParams& prm, double v_ivc,
-                           double v_c, double burn, double dur) noexcept {
+                           double v_c, double burn, double dur, Kappas kap) noexcept {
   const double bde = prm.blowdown_end_atdc_deg * kDeg;
   const double ivc = (540.0 + prm.ivc_abdc_deg) * kDeg;
   bool need_ivc = phi < burn || phi >= ivc;
   bool need_c = phi >= burn && phi < bde;
   if (dur > 0.0) {
     const double s = phi > kTwoPi ? phi - kFourPi : phi;
-    const double a0 = burn - 0.5 * dur;
+    const double a0 = burn_start(burn, dur, prm);
     if (s > a0 && s < a0 + dur) need_ivc = need_c = true;
   }
-  if (need_ivc && need_c) return angle_terms(phi, kin, prm, v_ivc, v_c);
+  if (need_ivc && need_c) return angle_terms(phi, kin, prm, v_ivc, v_c, kap);
   const double evo = prm.evo_atdc_deg * kDeg;
   AngleTerms t;
   t.phi = phi;
   if (need_ivc || need_c) {
     double v = 0.0;
     kin.volume_and_dvolume(phi, v, t.dvol);
-    if (need_ivc) t.ivc_poly = std::pow(v_ivc / v, prm.polytropic_kappa);
-    if (need_c) t.c_poly = std::pow(v_c / v, prm.polytropic_kappa);
+    if (need_ivc) t.ivc_poly = std::pow(v_ivc / v, kap.comp);
+    if (need_c) t.c_poly = std::pow(v_c / v, kap.exp);
   } else {
     t.dvol = kin.dvolume(phi);
   }
@@ -114,9 +139,9 @@ Weights model_weights(const AngleTerms& t, const EnergiesParams& prm, double bur
 /// step in the in-cycle shape, which the Kalman's smooth coloured-noise prior cannot correct.
 Weights ripple_weights(const AngleTerms& t, const EnergiesParams& prm, double burn, double dur) noexcept {
   const double s = t.phi > kTwoPi ? t.phi - kFourPi : t.phi;  // end of compression: negative
-  const double a0 = burn - 0.5 * dur;
+  const double a0 = burn_start(burn, dur, prm);
   if (dur <= 0.0 || s <= a0 || s >= a0 + dur) return model_weights(t, prm, burn);
-  const double xb = 0.5 * (1.0 - std::cos(kPi * (s - a0) / dur));
+  const double xb = burned_fraction(s - a0, dur, prm);
   Weights w;
   w.map = (1.0 - xb) * prm.ivc_pressure_factor * t.ivc_poly;
   w.p3 = xb * t.c_poly;
@@ -129,6 +154,7 @@ LoadRls::LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const
   const CrankKinematics kin(engine);
   v_c_ = kin.clearance_volume_m3();
   v_ivc_ = kin.volume((540.0 + params.ivc_abdc_deg) * kDeg);
+  rip_motored_ = std::pow(v_ivc_ / v_c_, ripple_kappas(params).comp);
   std::vector<double> e1, w1;
   nominal_wheel_edges(wheel, e1, w1);
   const int t = wheel.teeth();
@@ -164,6 +190,7 @@ std::uint64_t LoadRls::tables_key(const std::vector<double>& center) const noexc
   key.add(p.window_start_btdc_deg).add(p.window_end_btdc_deg).add(p.polytropic_kappa).add(p.ivc_abdc_deg);
   key.add(p.evo_atdc_deg).add(p.blowdown_end_atdc_deg).add(p.exhaust_pressure_pa).add(p.ivc_pressure_factor);
   key.add(p.rls_window_shifts).add(p.burn_centroid_atdc_deg).add(p.burn_duration_deg);
+  key.add(p.incycle_compression_kappa).add(p.incycle_expansion_kappa).add(p.burn_wiebe_a).add(p.burn_wiebe_m);
   return key.value();
 }
 
@@ -182,7 +209,7 @@ void LoadRls::build_tables(const CrankKinematics& kin, const std::vector<double>
   std::vector<AngleTerms> grid;
   grid.reserve(static_cast<std::size_t>(kFourPi / step) + 2);
   for (double phi = 0.5 * step; phi < kFourPi;) {  // the same φ sequence as before (repeated addition)
-    grid.push_back(angle_terms(phi, kin, params, v_ivc_, v_c_));
+    grid.push_back(angle_terms(phi, kin, params, v_ivc_, v_c_, closure_kappas(params)));
     phi += step;
   }
   // Only the first branch of model_weights() depends on the centroid (φ < burn): the products w·dV before
@@ -260,7 +287,8 @@ void LoadRls::build_tables(const CrankKinematics& kin, const std::vector<double>
           const double th = win.c_first + (i + 0.5) * h;
           const double phi = wrap4pi(th - phase);
           const double burn = params.burn_centroid_atdc_deg * kDeg;
-          const AngleTerms at = angle_terms_for(phi, kin, params, v_ivc_, v_c_, burn, 0.0);
+          const AngleTerms at =
+              angle_terms_for(phi, kin, params, v_ivc_, v_c_, burn, 0.0, closure_kappas(params));
           const Weights w = model_weights(at, params, burn);
           const double dv = at.dvol * h;  // dV_j/dθ dθ = A R f(θ − φ_j) dθ (EN-9)
           win.k_map += w.map * dv;
@@ -379,13 +407,14 @@ void LoadRls::build_ripple(const std::vector<double>& center) {
   rip_p3_.assign(ks * kMaxCylinders, 0.0);
   const double burn = params_.burn_centroid_atdc_deg * kDeg;
   const double dur = params_.burn_duration_deg * kDeg;
+  const Kappas kap = ripple_kappas(params_);
   // Full-cycle closure of the same model for one cylinder (ripple_p3): ∮p dV per Pa of MAP and of p3, and the
   // p_exh part (J).
   rip_cm_ = rip_cp_ = rip_ce_ = 0.0;
   constexpr int kClosureSteps = 720 * 4;  // 0.25° steps over the cycle
   for (int i = 0; i < kClosureSteps; ++i) {
     const double phi = (i + 0.5) * kFourPi / kClosureSteps;
-    const AngleTerms at = angle_terms_for(phi, kin, params_, v_ivc_, v_c_, burn, dur);
+    const AngleTerms at = angle_terms_for(phi, kin, params_, v_ivc_, v_c_, burn, dur, kap);
     const Weights w = ripple_weights(at, params_, burn, dur);
     const double dv = at.dvol * kFourPi / kClosureSteps;
     rip_cm_ += w.map * dv;
@@ -404,7 +433,7 @@ void LoadRls::build_ripple(const std::vector<double>& center) {
     for (int q = 0; q < n; ++q) {
       for (int i = 0; i < steps; ++i) {
         const double phi = wrap4pi(c0 + (i + 0.5) * h - kFourPi * q / n);
-        const AngleTerms at = angle_terms_for(phi, kin, params_, v_ivc_, v_c_, burn, dur);
+        const AngleTerms at = angle_terms_for(phi, kin, params_, v_ivc_, v_c_, burn, dur, kap);
         const Weights w = ripple_weights(at, params_, burn, dur);
         const double dv = at.dvol * h;
         tm += w.map * dv;
@@ -433,7 +462,8 @@ void LoadRls::ripple_p3(double map_pa, const std::array<double, kMaxCylinders>& 
                         std::array<double, kMaxCylinders>& p3_pa) const noexcept {
   for (int q = 0; q < engine_.cylinders; ++q) {
     const auto qi = static_cast<std::size_t>(q);
-    p3_pa[qi] = works_valid ? (cyl_work_j[qi] - rip_cm_ * map_pa - rip_ce_) / rip_cp_ : motored_p3(map_pa);
+    p3_pa[qi] = works_valid ? (cyl_work_j[qi] - rip_cm_ * map_pa - rip_ce_) / rip_cp_
+                            : params_.ivc_pressure_factor * map_pa * rip_motored_;
   }
 }
 
@@ -569,8 +599,9 @@ double LoadRls::expansion_p3(double work_j, double map_pa, double spark_advance_
 double LoadRls::model_pressure(double local_rad, double map_pa, double p3_pa,
                                double spark_advance_deg) const noexcept {
   const CrankKinematics kin(engine_);
-  const Weights w = model_weights(angle_terms(wrap4pi(local_rad), kin, params_, v_ivc_, v_c_), params_,
-                                  centroid_deg(spark_advance_deg) * kDeg);
+  const Weights w =
+      model_weights(angle_terms(wrap4pi(local_rad), kin, params_, v_ivc_, v_c_, closure_kappas(params_)),
+                    params_, centroid_deg(spark_advance_deg) * kDeg);
   return w.map * map_pa + w.exh * params_.exhaust_pressure_pa + w.p3 * p3_pa;
 }
 

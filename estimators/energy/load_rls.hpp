@@ -151,6 +151,7 @@ class LoadRls {
   std::vector<double> rip_map_, rip_p3_, rip_const_;
   double rip_cm_ = 0.0, rip_cp_ = 1.0, rip_ce_ = 0.0;  ///< the ripple model's full-cycle closure (m³, m³, J)
   double v_ivc_ = 0.0, v_c_ = 0.0;
+  double rip_motored_ = 0.0;  ///< (V_IVC/V_c)^κ of the ripple model's compression: its motored p3 / p_IVC
   double kappa_ = 1.3;
 
   std::vector<std::uint8_t> open_;  ///< per window: first tooth seen, last not yet

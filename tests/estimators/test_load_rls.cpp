@@ -2,6 +2,8 @@
 // simulator.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -160,4 +162,43 @@ TEST(LoadRls, CrankOnlyTracksTheThrottleStepAndKeepsSteadyStateQuiet) {
       EXPECT_LE(on.indicated_crank.max_abs_nm, off.indicated_crank.max_abs_nm + 0.5) << name;
     }
   }
+}
+
+TEST(LoadRls, InCycleModelExponentsAndBurnShapeChangeOnlyTheRipple) {
+  // GIVEN the in-cycle gas model with its exponents set to the common polytrope's (explicitly, or 0 = it),
+  // a burned-gas expansion exponent 1.25 and a Wiebe burn (a = 5, m = 2, Heywood §9.2.1)
+  const EngineGeometry eng;
+  const WheelGeometry wheel;
+  const EnergiesParams common;  // both 0: energies.polytropic_kappa
+  EnergiesParams explicit_common = common;
+  explicit_common.incycle_compression_kappa = common.polytropic_kappa;
+  explicit_common.incycle_expansion_kappa = common.polytropic_kappa;
+  EnergiesParams burned = common;
+  burned.incycle_expansion_kappa = 1.25;
+  EnergiesParams wiebe = common;
+  wiebe.burn_wiebe_a = 5.0;
+  const LoadRls a(eng, wheel, common), b(eng, wheel, explicit_common), c(eng, wheel, burned),
+      d(eng, wheel, wiebe);
+  std::array<double, kMaxCylinders> works{}, pa{}, pb{}, pc{};
+  works.fill(400.0);  // J per cylinder and cycle: ~ 64 N m of a 2 l I4
+  a.ripple_p3(80e3, works, true, pa);
+  b.ripple_p3(80e3, works, true, pb);
+  c.ripple_p3(80e3, works, true, pc);
+  double max_ab = 0.0, max_ac = 0.0, max_ad = 0.0;
+  for (int k = 0; k < 2 * wheel.teeth(); ++k) {
+    const double ra = a.gas_ripple_nm(k, 80e3, pa);
+    max_ab = std::max(max_ab, std::abs(ra - b.gas_ripple_nm(k, 80e3, pb)));
+    max_ac = std::max(max_ac, std::abs(ra - c.gas_ripple_nm(k, 80e3, pc)));
+    max_ad = std::max(max_ad, std::abs(ra - d.gas_ripple_nm(k, 80e3, pa)));
+  }
+  // THEN the neutral values reproduce the common polytrope exactly, the burned-gas exponent and the Wiebe
+  // burn move the ripple by more than 1 N m somewhere (a 64 N m mean torque's ripple is several 100 N m)
+  EXPECT_EQ(max_ab, 0.0);
+  EXPECT_GT(max_ac, 1.0);
+  EXPECT_GT(max_ad, 1.0);
+  EXPECT_NE(pa[0], pc[0]);  // the expansion p3 that closes the same work differs with the exponent
+  // AND the RLS closure (the cycle-mean load's model) keeps energies.polytropic_kappa
+  EXPECT_EQ(a.expansion_p3(400.0, 80e3, 20.0), c.expansion_p3(400.0, 80e3, 20.0));
+  EXPECT_EQ(a.motored_torque_nm(80e3), c.motored_torque_nm(80e3));
+  EXPECT_EQ(a.motored_p3(80e3), c.motored_p3(80e3));
 }
