@@ -103,6 +103,7 @@ void AnglePipeline::reset() noexcept {
   cycle_ = CycleOutput{};
   stats_ = AnglePipelineStats{};
   cyl_work_j_.fill(0.0);
+  ripple_p3_ok_ = false;
   cyl_work_ok_.fill(false);
   oil_c_ = cfg_.default_oil_temp_c;
   have_prev_ = false;
@@ -143,9 +144,15 @@ std::uint8_t AnglePipeline::break_sequence(ToothSample s) noexcept {
 // position has one). 0 without a MAP.
 double AnglePipeline::gas_ripple_nm(int k, bool works_ok) const noexcept {
   if (!have_map_) return 0.0;
-  std::array<double, kMaxCylinders> p3{};
-  rls_.ripple_p3(held_map_pa_, cyl_work_j_, works_ok, p3);
-  return rls_.gas_ripple_nm(k, held_map_pa_, p3);
+  // p3 per position follows the held MAP, the works' validity and a new segment work only: kept between
+  // them, not recomputed (four divisions) per tooth.
+  if (!ripple_p3_ok_ || held_map_pa_ != ripple_p3_map_ || works_ok != ripple_p3_works_) {
+    rls_.ripple_p3(held_map_pa_, cyl_work_j_, works_ok, ripple_p3_);
+    ripple_p3_map_ = held_map_pa_;
+    ripple_p3_works_ = works_ok;
+    ripple_p3_ok_ = true;
+  }
+  return rls_.gas_ripple_nm(k, held_map_pa_, ripple_p3_);
 }
 
 std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& sig) noexcept {
@@ -331,6 +338,7 @@ void AnglePipeline::segment_work(const SegmentEnergy& seg, const EngineSignals& 
   const auto pos = static_cast<std::size_t>(seg.ended_position);
   cyl_work_j_[pos] =
       seg_ok ? work : cyl_work_j_[pos];  // the segment holds this cylinder's whole-cycle net work (RLS input)
+  ripple_p3_ok_ = false;                 // gas_ripple_nm's p3 follow the works
   cyl_work_ok_[pos] = seg_ok;
   if (seg_ok) works_since_fuel_change_ |= 1u << pos;
   EsoInput ein;
