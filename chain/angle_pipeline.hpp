@@ -298,6 +298,8 @@ class AnglePipeline {
   mutable double ripple_p3_map_ = 0.0;
   mutable bool ripple_p3_works_ = false, ripple_p3_ok_ = false;
   std::array<bool, kMaxCylinders> cyl_work_ok_{};
+  bool works_all_ok_ = false;                        ///< all_works_ok(), kept where cyl_work_ok_ changes
+  [[nodiscard]] bool all_works_ok() const noexcept;  ///< every firing position has a measured work
   double oil_c_ = 90.0;
   double prev_speed_ = 0.0, prev_dt_ = 0.0;
   bool have_prev_ = false;
