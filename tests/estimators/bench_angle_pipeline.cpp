@@ -18,7 +18,7 @@
 //   FuelAngleWindow::on_tooth   165
 //   LoadRls::update             146                           22-24
 //   observer_ripple_nm          189 → 102 (next round)
-//   AnglePipeline::on_tooth     2 525 → 2 433; 2 711 → 2 480  225-243 → 217-244; 231-247 → 218-237 (load 9)
+//   AnglePipeline::on_tooth     2 525 → 2 433; 2 711 → 2 460  225-243 → 217-244; 231-247 → 218-237 (load 9)
 #include <benchmark/benchmark.h>
 
 #include <cmath>
