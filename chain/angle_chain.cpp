@@ -83,14 +83,10 @@ void AngleChain::on_tooth(const ToothEvent& te) noexcept {
   ts.synced = synced && prev_tooth_t_ns_ >= 0;
 
   // EngineSignals at this tooth; remember which bound quantities are stale.
-  const EngineSignals sig = store_ ? store_->signals_at(te.t_ns) : EngineSignals{};
+  // The store's cached snapshot and its stale mask (no copy, no per-quantity loop per tooth).
+  static constexpr EngineSignals kNoSignals{};
   std::uint32_t stale = 0;
-  if (store_) {
-    for (int i = 0; i < kSignalCount; ++i) {
-      const auto q = static_cast<Quantity>(i);
-      if (store_->bound(q) && !store_->valid_at(q, te.t_ns)) stale |= 1u << i;
-    }
-  }
+  const EngineSignals& sig = store_ ? store_->snapshot_at(te.t_ns, stale) : kNoSignals;
   stale_mask_ = stale;
 
   if (time_) time_->tooth(ts);  // time chain hand-off: mean speed

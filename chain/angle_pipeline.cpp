@@ -103,7 +103,9 @@ void AnglePipeline::reset() noexcept {
   cycle_ = CycleOutput{};
   stats_ = AnglePipelineStats{};
   cyl_work_j_.fill(0.0);
+  ripple_p3_ok_ = false;
   cyl_work_ok_.fill(false);
+  works_all_ok_ = all_works_ok();
   oil_c_ = cfg_.default_oil_temp_c;
   have_prev_ = false;
   cut_segments_ = fired_segments_ = 0;
@@ -141,11 +143,23 @@ std::uint8_t AnglePipeline::break_sequence(ToothSample s) noexcept {
 // The cylinder-pressure model's gas torque ripple over the step after tooth k (known input of the in-cycle
 // observers): the MAP held from CAN and the last measured works per firing position (motored until every
 // position has one). 0 without a MAP.
+bool AnglePipeline::all_works_ok() const noexcept {
+  bool ok = true;
+  for (int m = 0; m < cfg_.engine.cylinders; ++m) ok = ok && cyl_work_ok_[static_cast<std::size_t>(m)];
+  return ok;
+}
+
 double AnglePipeline::gas_ripple_nm(int k, bool works_ok) const noexcept {
   if (!have_map_) return 0.0;
-  std::array<double, kMaxCylinders> p3{};
-  rls_.ripple_p3(held_map_pa_, cyl_work_j_, works_ok, p3);
-  return rls_.gas_ripple_nm(k, held_map_pa_, p3);
+  // p3 per position follows the held MAP, the works' validity and a new segment work only: kept between
+  // them, not recomputed (four divisions) per tooth.
+  if (!ripple_p3_ok_ || held_map_pa_ != ripple_p3_map_ || works_ok != ripple_p3_works_) {
+    rls_.ripple_p3(held_map_pa_, cyl_work_j_, works_ok, ripple_p3_);
+    ripple_p3_map_ = held_map_pa_;
+    ripple_p3_works_ = works_ok;
+    ripple_p3_ok_ = true;
+  }
+  return rls_.gas_ripple_nm(k, held_map_pa_, ripple_p3_);
 }
 
 std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& sig) noexcept {
@@ -173,9 +187,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   tooth_.valid = have_prev_;
   // In-cycle observers (Chauvin): they estimate the net torque; the extended load turns it into T_ind.
   // Every firing position has a measured work (the gas ripple and the RLS window model use them).
-  bool works_ok = true;
-  for (int m = 0; m < cfg_.engine.cylinders; ++m)
-    works_ok = works_ok && cyl_work_ok_[static_cast<std::size_t>(m)];
+  const bool works_ok = works_all_ok_;  // kept where a work changes, not looped over per tooth
   const double ripple =
       cfg_.kalman.gas_model || cfg_.fourier.gas_model ? observer_ripple_nm(s, sig, works_ok) : 0.0;
   const bool can_fresh = static_cast<double>(s.t_ns - sig.t_ns) * 1e-9 <= cfg_.fusion.max_can_age_s;
@@ -334,7 +346,9 @@ void AnglePipeline::segment_work(const SegmentEnergy& seg, const EngineSignals& 
   const auto pos = static_cast<std::size_t>(seg.ended_position);
   cyl_work_j_[pos] =
       seg_ok ? work : cyl_work_j_[pos];  // the segment holds this cylinder's whole-cycle net work (RLS input)
+  ripple_p3_ok_ = false;                 // gas_ripple_nm's p3 follow the works
   cyl_work_ok_[pos] = seg_ok;
+  works_all_ok_ = all_works_ok();
   if (seg_ok) works_since_fuel_change_ |= 1u << pos;
   EsoInput ein;
   ein.t_ns = seg.t_ns;

@@ -297,7 +297,14 @@ class AnglePipeline {
   AnglePipelineStats stats_;
   FusionSource external_{};
   std::array<double, kMaxCylinders> cyl_work_j_{};  ///< last indicated work per firing position (J)
+  /// gas_ripple_nm()'s p3 per position for the held MAP and works' validity it was computed at; invalid
+  /// (ripple_p3_ok_ false) once a work changes. The pipeline is one thread's.
+  mutable std::array<double, kMaxCylinders> ripple_p3_{};
+  mutable double ripple_p3_map_ = 0.0;
+  mutable bool ripple_p3_works_ = false, ripple_p3_ok_ = false;
   std::array<bool, kMaxCylinders> cyl_work_ok_{};
+  bool works_all_ok_ = false;                        ///< all_works_ok(), kept where cyl_work_ok_ changes
+  [[nodiscard]] bool all_works_ok() const noexcept;  ///< every firing position has a measured work
   double oil_c_ = 90.0;
   double prev_speed_ = 0.0, prev_dt_ = 0.0;
   bool have_prev_ = false;

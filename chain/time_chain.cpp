@@ -23,8 +23,9 @@ void TimeChain::on_frame(const CanFrame& f) noexcept {
 }
 
 const TimePipelineOutput& TimeChain::step(std::int64_t t_ns) noexcept {
-  const EngineSignals sig = store_ ? store_->signals_at(t_ns) : EngineSignals{};
-  return pipeline_.step(t_ns, sig);
+  static constexpr EngineSignals kNoSignals{};
+  std::uint32_t stale = 0;  // the store's cached snapshot, not a copy per step
+  return pipeline_.step(t_ns, store_ ? store_->snapshot_at(t_ns, stale) : kNoSignals);
 }
 
 void TimeChain::set_timeouts(const RuntimeTunables& t) noexcept {

@@ -206,11 +206,20 @@ double SignalStore::age_s(Quantity q, std::int64_t now_ns) const noexcept {
 }
 
 EngineSignals SignalStore::signals_at(std::int64_t now_ns) const noexcept {
+  std::uint32_t stale = 0;
+  return snapshot_at(now_ns, stale);
+}
+
+const EngineSignals& SignalStore::snapshot_at(std::int64_t now_ns, std::uint32_t& stale_mask) const noexcept {
   // Validity only changes with a frame (on_frame), a time-out change, or when now passes t + time-out of a
   // valid quantity; an invalid one stays invalid for a later now. So the snapshot holds for a later now_ns
   // up to the first such time-out.
-  if (cache_ok_ && now_ns >= cache_from_ns_ && now_ns < cache_until_ns_) return cache_;
+  if (cache_ok_ && now_ns >= cache_from_ns_ && now_ns < cache_until_ns_) {
+    stale_mask = cache_stale_;
+    return cache_;
+  }
   EngineSignals s;
+  std::uint32_t stale = 0;
   std::int64_t newest = 0;
   std::int64_t until = std::numeric_limits<std::int64_t>::max();
   auto get = [&](Quantity q, double& value, bool& valid) {
@@ -218,6 +227,7 @@ EngineSignals SignalStore::signals_at(std::int64_t now_ns) const noexcept {
     const auto i = static_cast<std::size_t>(q);
     const SignalValue& v = values_[i];
     if (v.seen) value = v.value;
+    if (bindings_[i].sig != nullptr && !valid) stale |= 1u << i;
     if (valid && v.t_ns > newest) newest = v.t_ns;
     const std::int64_t to = bindings_[i].timeout_ns;  // valid while now - t <= time-out (no overflow below)
     if (valid && (v.t_ns < 0 || to < std::numeric_limits<std::int64_t>::max() - 1 - v.t_ns))
@@ -244,10 +254,12 @@ EngineSignals SignalStore::signals_at(std::int64_t now_ns) const noexcept {
   s.neutral = flag != 0.0;
   s.t_ns = newest;
   cache_ = s;
+  cache_stale_ = stale;
   cache_from_ns_ = now_ns;
   cache_until_ns_ = until;
   cache_ok_ = true;
-  return s;
+  stale_mask = stale;
+  return cache_;
 }
 
 }  // namespace torqued

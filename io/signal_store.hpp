@@ -98,6 +98,9 @@ class SignalStore {
   /// the first time-out of a valid quantity) (per tooth and time step, frames are 10x rarer). Like
   /// on_frame(), not for concurrent use from several threads (each stage owns its store).
   [[nodiscard]] EngineSignals signals_at(std::int64_t now_ns) const noexcept;
+  /// signals_at() without the copy: the cached snapshot (valid until the next call or frame), and in `stale`
+  /// bit i set for each bound quantity i not valid at now_ns (built with the snapshot, not per call).
+  [[nodiscard]] const EngineSignals& snapshot_at(std::int64_t now_ns, std::uint32_t& stale) const noexcept;
   [[nodiscard]] const SignalStoreStats& stats() const noexcept { return stats_; }
   /// One line per bound signal that met frames too short for it, naming the first such frame:
   /// "CAN frame 0x100 (ENGINE_1) at t=12.345678 s: 4 data bytes, ENGINE_1.MAP needs 6 (DBC DLC 8); 17 such
@@ -124,6 +127,7 @@ class SignalStore {
   SignalStoreStats stats_;
   mutable EngineSignals cache_{};  ///< signals_at() result valid for now in [cache_from_ns_, cache_until_ns_)
   mutable std::int64_t cache_from_ns_ = 0, cache_until_ns_ = 0;
+  mutable std::uint32_t cache_stale_ = 0;  ///< bound and not valid, bit per quantity, of cache_
   mutable bool cache_ok_ = false;
 };
 

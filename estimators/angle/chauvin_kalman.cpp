@@ -296,8 +296,14 @@ ChauvinKalman::BinPos ChauvinKalman::bin_pos(int k, double speed_rad_s) const no
 }
 
 void ChauvinKalman::periodic_gain_into(int k, double speed_rad_s, Vec& gain) const noexcept {
+  (void)periodic_gain_var_into(k, speed_rad_s, gain);
+}
+
+// The gain and its output variance from one speed-bin position: one log(ω) per tooth, not two.
+double ChauvinKalman::periodic_gain_var_into(int k, double speed_rad_s, Vec& gain) const noexcept {
   const BinPos at = bin_pos(k, speed_rad_s);
   gain = (1.0 - at.t) * aps_gain(at.lo) + at.t * aps_gain(at.hi);
+  return (1.0 - at.t) * aps_var_[at.lo] + at.t * aps_var_[at.hi];
 }
 
 double ChauvinKalman::periodic_output_var(int k, double speed_rad_s) const noexcept {
@@ -390,8 +396,7 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
   const int o = kTorqueState + params_.smoother_lag;  // x2(k−d): the smoothed output state
   const double h = edge_coupling(k);
   if (params_.periodic_gains) {
-    periodic_gain_into(k, mean_speed_, gain);
-    out_var = periodic_output_var(k, mean_speed_);  // the periodic Riccati solution's, as the gain
+    out_var = periodic_gain_var_into(k, mean_speed_, gain);  // the periodic Riccati solution's variance
   } else {
     Mat pn = p_;
     riccati_step(k, mean_speed_, pn, gain);

@@ -108,6 +108,9 @@ class ChauvinKalman {
   /// Posterior variance of the output state x2(k−d | k) ((N m)²) at tooth k for speed ω under the APS gains
   /// (the periodic Riccati solution's, interpolated as the gains are): the claimed 1σ² of the estimate.
   [[nodiscard]] double periodic_output_var(int k, double speed_rad_s) const noexcept;
+  /// periodic_gain() into `gain` and periodic_output_var() returned, bit for bit, from one speed-bin position
+  /// (the per-tooth path: one log ω, no temporary).
+  double periodic_gain_var_into(int k, double speed_rad_s, Vec& gain) const noexcept;
   /// One exact Riccati step (CK-12/13) for tooth k at speed ω: returns the filter gain and advances P in
   /// place.
   void riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) const noexcept;

@@ -214,9 +214,18 @@ bool FrictionLearner::observe_idle(double speed_rpm, double oil_temp_c, double f
   return true;
 }
 
+double FrictionLearner::oil_factor(double oil_temp_c) const noexcept {
+  const double a = c4_ * oil_temp_c;
+  if (a != oil_exp_arg_) {  // also NaN: computed every time
+    oil_exp_arg_ = a;
+    oil_exp_ = std::exp(a);
+  }
+  return oil_exp_;
+}
+
 double FrictionLearner::law_nm(double speed_rpm, double oil_temp_c) const noexcept {
   const double nk = speed_rpm / kS2;
-  return prior_level() * params_.sign * std::exp(c4_ * oil_temp_c) *
+  return prior_level() * params_.sign * oil_factor(oil_temp_c) *
          (theta_[0] + theta_[1] * nk + theta_[2] * nk * nk);
 }
 

@@ -143,6 +143,11 @@ class FrictionLearner {
   std::array<double, 3> theta_{};  ///< scaled [C1, C2·1000, C3·1e6]
   std::array<double, 9> p_{};      ///< RLS covariance (row-major 3x3)
   double c4_ = 0.0;
+  /// e^{C4 t} of the last law_nm() argument C4·t (one exp per oil temperature or C4 change, not per tooth:
+  /// the per-tooth friction law at a steady oil temperature). The learner is one thread's, as its callers'
+  /// state.
+  mutable double oil_exp_arg_ = 0.0, oil_exp_ = 1.0;
+  [[nodiscard]] double oil_factor(double oil_temp_c) const noexcept;
   double p4_ = 0.0;  ///< C4 RLS covariance
   bool have_idle_ref_ = false;
   double idle_ref_oil_c_ = 0.0;

@@ -153,6 +153,25 @@ bool same_bits(const double* a, const double* b, int n) {
 }
 }  // namespace
 
+TEST(ChauvinKalman, GainAndVarianceFromOneBinPositionAreTheSeparateLookUpsBitForBit) {
+  // GIVEN the default filter (APS gains, both noise sets) at speeds below, inside and above its bins
+  const ChauvinKalman kf(EngineGeometry{}, WheelGeometry{}, KalmanParams{});
+  const int kk = kf.table().samples;
+  for (const double rpm : {300.0, 800.0, 1234.5, 3000.0, 5999.0, 9000.0}) {
+    const double w = rpm * kPi / 30.0;
+    for (int k = 0; k < kk; ++k) {
+      // WHEN the per-tooth path takes the gain and the output variance together
+      ChauvinKalman::Vec g;
+      const double var = kf.periodic_gain_var_into(k, w, g);
+      // THEN both are the separate look-ups' bit patterns
+      const ChauvinKalman::Vec ref = kf.periodic_gain(k, w);
+      const double ref_var = kf.periodic_output_var(k, w);
+      ASSERT_TRUE(same_bits(g.data(), ref.data(), ChauvinKalman::kStates)) << rpm << " rpm, tooth " << k;
+      ASSERT_TRUE(same_bits(&var, &ref_var, 1)) << rpm << " rpm, tooth " << k;
+    }
+  }
+}
+
 TEST(ChauvinKalman, SymmetricRiccatiStepIsTheGeneralStepBitForBit) {
   // GIVEN a bit-symmetric covariance with every entry non-zero (½(M + Mᵀ) of a deterministic pattern), the
   // demo's differenced edge noise, at 800 and 6000 rpm

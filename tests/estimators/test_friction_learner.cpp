@@ -2,7 +2,9 @@
 // persists.
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -339,4 +341,30 @@ TEST(FrictionLearner, SteadyIdleScalesTheGenericPriorUntilTheLawIsLearnedOverSpe
   EXPECT_TRUE(fl.observe_motoring(2500.0, 90.0, 1.3 * fl.law_nm(2500.0, 90.0) / fl.prior_level(), 4.0));
   EXPECT_DOUBLE_EQ(fl.prior_level(), 1.0);
   EXPECT_NEAR(fl.friction_nm(3000.0, 90.0), true3000, 0.05 * true3000);
+}
+
+TEST(FrictionLearner, LawAtARepeatedOilTemperatureIsTheFreshlyComputedLawBitForBit) {
+  // GIVEN a learner whose C4 is being learned from idle while the oil warms (the law's e^{C4 t} is kept for
+  // the last C4 t: a repeated temperature costs no exp)
+  FrictionParams p;
+  p.c[3] = 0.0;
+  FrictionLearner fl(p);
+  int compared = 0;
+  for (double oil : sweep(40.0, 90.0, 5.0)) {
+    (void)fl.law_nm(2500.0, oil);  // kept for this C4, about to change
+    fl.observe_idle(800.0, oil, true_friction(800.0, oil));
+    for (const double t : {oil, oil, oil + 0.5, oil, -10.0, 0.0, 0.0}) {
+      // WHEN the law is asked again at the same or another temperature
+      const double kept = fl.law_nm(2500.0, t);
+      FrictionLearner fresh = fl;
+      (void)fresh.law_nm(2500.0, t + 1.0);  // its kept factor is another temperature's
+      const double computed = fresh.law_nm(2500.0, t);
+      // THEN it is the freshly computed value, also right after C4 changed at the same temperature
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(kept), std::bit_cast<std::uint64_t>(computed))
+          << oil << " " << t;
+      ++compared;
+    }
+  }
+  EXPECT_EQ(compared, 77);
+  EXPECT_LT(fl.coefficients()[3], -1e-3);  // C4 was learned on the way
 }
