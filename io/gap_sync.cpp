@@ -226,9 +226,11 @@ GapSync::Step GapSync::on_gap_candidate(std::int64_t period, double r, const Whe
   return Step::kIdentified;
 }
 
-// The last kResyncRunBeforeGap normal periods (all of them must be there) lie within [x, 1/x] of their median
-// (x = burst_tooth_ratio_min), and gap_over_pitch (the gap period divided by its nominal width in pitches)
-// is within [gap_ratio_min, gap_ratio_max] of that median.
+// The unbroken run of normal periods just before the gap candidate is at least kResyncRunBeforeGap long, its
+// last kResyncRunBeforeGap periods lie within [x, 1/x] of their median (x = burst_tooth_ratio_min), and
+// gap_over_pitch (the gap period divided by its nominal width in pitches) is within [x, 1/x] of that median
+// (steady_run_fits). gap_ratio_min/max are not used here: match_gap applies them to r (gap period over the
+// reference period) against the gap's nominal width.
 bool GapSync::run_fits_gap(double gap_over_pitch, const DecoderParams& p) const noexcept {
   if (normal_run_after_gap_check_ < kResyncRunBeforeGap) return false;
   return steady_run_fits(run_, gap_over_pitch, p);

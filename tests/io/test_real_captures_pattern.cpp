@@ -290,6 +290,14 @@ TEST(RealCapturesPattern, MiataNb2SyncsOnTheCamAndResyncsWithinARevolution) {
   }
   EXPECT_GE(checked, 200);
   EXPECT_EQ(wrong, 0);
+  // The capture's disturbances as counted today (docs/io.md, the table's "noise" and "cam/code errors"
+  // columns and "What differs, and why", NB2), pinned so that a decoder change that moves them fails here and
+  // gets explained there: 13 crank runt edges rejected as noise (earlier than runt_fraction of a pitch), none
+  // debounced, 5 cam edges outside their window / not in the cam pattern, no width-code contradiction.
+  EXPECT_EQ(r.stats.noise_edges, 13u);
+  EXPECT_EQ(r.stats.debounced_edges, 0u);
+  EXPECT_EQ(r.stats.cam_phase_errors, 5u);
+  EXPECT_EQ(r.stats.width_code_errors, 0u);
   // The final burst: the edges at the end of the file less than 5 ms apart.
   std::size_t bi = r.edges.size() - 1;
   while (bi > 0 && r.edges[bi].t_ns - r.edges[bi - 1].t_ns < 5'000'000) --bi;

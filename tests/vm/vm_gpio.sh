@@ -22,6 +22,9 @@ if [ -z "$ver" ] || ! grep -q " $ver " /proc/version; then
   exit 77
 fi
 modules=${TORQUED_VM_MODULES:-$build/vm-cache/kernel/lib/modules/$krel}
+# dmesg holds everything since the VM booted (vm_checks.sh ran other checks before this one): judge only the
+# kernel lines logged from here on.
+dmesg_before=$(dmesg | wc -l)
 if ! grep -q '^configfs ' /proc/modules && ! grep -q configfs /proc/filesystems; then
   busybox insmod "$modules/kernel/fs/configfs/configfs.ko" || { echo "FAIL gpio: insmod configfs.ko"; exit 1; }
 fi
@@ -41,7 +44,8 @@ echo "PASS gpio: chip $chip (label torqued-crank) of $dev is live; line 0 driven
 "$build/tests/vm/vm_gpio_check" --chip torqued-crank --pull "$pull" "$@"
 rc=$?
 echo 0 >"$cfg/live" && rmdir "$cfg/bank0" "$cfg" || { echo "FAIL gpio: removing the chip"; rc=1; }
-if dmesg | grep -q -i 'WARNING:\|BUG:'; then
-  echo "FAIL gpio: kernel warnings:"; dmesg | grep -i -A3 'WARNING:\|BUG:' | head -20; rc=1
+if dmesg | tail -n +$((dmesg_before + 1)) | grep -q -i 'WARNING:\|BUG:'; then
+  echo "FAIL gpio: kernel warnings:"
+  dmesg | tail -n +$((dmesg_before + 1)) | grep -i -A3 'WARNING:\|BUG:' | head -20; rc=1
 fi
 exit $rc
