@@ -185,42 +185,13 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
       kin.valid ? kin.accel_rad_s2 : (have_prev_ ? (speed - prev_speed_) / (0.5 * (s.dt_s + prev_dt_)) : 0.0);
   tooth_.speed_lp_rad_s = kin.valid ? kin.speed_lp_rad_s : speed;
   tooth_.valid = have_prev_;
-  // In-cycle observers (Chauvin): they estimate the net torque; the extended load turns it into T_ind.
-  // Every firing position has a measured work (the gas ripple and the RLS window model use them).
+  // In-cycle observers (Chauvin): feed_incycle_observers. Every firing position has a measured work (the gas
+  // ripple and the RLS window model use them).
   const bool works_ok = works_all_ok_;  // kept where a work changes, not looped over per tooth
-  const double ripple =
-      cfg_.kalman.gas_model || cfg_.fourier.gas_model ? observer_ripple_nm(s, sig, works_ok) : 0.0;
   const bool can_fresh = static_cast<double>(s.t_ns - sig.t_ns) * 1e-9 <= cfg_.fusion.max_can_age_s;
-  // Hybrid input: the machine's torque is a known part of the load (e_machine.hpp); not bound, this is the
-  // load signal alone. A stale machine value makes the net load unknown, as a stale load signal does. On a
-  // vehicle the clutch / neutral flags decide whether anything fixes the load (classify_load,
-  // load_reference.hpp).
-  LoadReference lref = classify_load(cfg_.e_machine, cfg_.load_ref, sig);
-  if (free_coast_) {
-    const double map_pa = can_fresh && sig.map_valid ? sig.map_pa : held_map_pa_;
-    // The low-passed speed: the idle tests compare a mean speed, not one tooth's (firing ripple, tooth
-    // errors).
-    free_coast_reference(can_fresh && sig.fuel_cutoff_valid && sig.fuel_cutoff,
-                         tooth_.speed_lp_rad_s * kRadSToRpm, map_pa, lref);
-  }
+  LoadReference lref;
+  const bool load_ok = feed_incycle_observers(s, sig, works_ok, can_fresh, lref);
   const NetLoad& net = lref.net;
-  const bool load_ok = can_fresh && net.known;
-  if (cfg_.run_kalman) {
-    kalman_.set_extended_load(observer_load_star_nm(net.torque_nm, load_ok));
-    kalman_.set_model_torque(cfg_.kalman.gas_model ? ripple : 0.0, have_map_);
-    kalman_.update(s);
-    copy_estimate(tooth_.kalman_ind, kalman_.estimate());
-  } else {
-    tooth_.kalman_ind.health = Health::kDisabled;
-  }
-  if (fourier_ok_) {
-    fourier_.set_extended_load(load_star_nm_);
-    fourier_.set_model_torque(cfg_.fourier.gas_model ? ripple : 0.0, have_map_);
-    fourier_.update(s);
-    copy_estimate(tooth_.fourier_ind, fourier_.estimate());
-  } else {
-    tooth_.fourier_ind.health = Health::kDisabled;
-  }
   prev_speed_ = speed;
   prev_dt_ = s.dt_s;
   have_prev_ = true;
@@ -262,6 +233,48 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   if (cyl_done) cylinder_segment(cyl_energy_.segment(), cyl_work_j, cyl_ok);
   stats_.sequence_breaks += energy_.breaks() - breaks_before;
   return ready;
+}
+
+// The in-cycle observers' step of on_tooth (Chauvin's Kalman filter and the Fourier observer, see
+// docs/angle_estimators.md): they estimate the net torque, which the extended load turns into T_ind. First
+// this tooth's load reference: on a hybrid the machine's torque is a known part of the load (e_machine.hpp;
+// not bound, this is the load signal alone, and a stale machine value makes the net load unknown as a stale
+// load signal does); on a vehicle the clutch / neutral flags decide whether anything fixes the load
+// (classify_load, load_reference.hpp), and a recognised free coast-down supplies its own reference. Then each
+// enabled observer gets its extended load and gas-model torque and takes the tooth. `lref` receives the
+// reference (the learners track it); returns whether the net load is known on fresh CAN. Real-time safe: no
+// allocation, the same work per tooth as when this was inline in on_tooth.
+bool AnglePipeline::feed_incycle_observers(const ToothSample& s, const EngineSignals& sig, bool works_ok,
+                                           bool can_fresh, LoadReference& lref) noexcept {
+  const double ripple =
+      cfg_.kalman.gas_model || cfg_.fourier.gas_model ? observer_ripple_nm(s, sig, works_ok) : 0.0;
+  lref = classify_load(cfg_.e_machine, cfg_.load_ref, sig);
+  if (free_coast_) {
+    const double map_pa = can_fresh && sig.map_valid ? sig.map_pa : held_map_pa_;
+    // The low-passed speed: the idle tests compare a mean speed, not one tooth's (firing ripple, tooth
+    // errors).
+    free_coast_reference(can_fresh && sig.fuel_cutoff_valid && sig.fuel_cutoff,
+                         tooth_.speed_lp_rad_s * kRadSToRpm, map_pa, lref);
+  }
+  const NetLoad& net = lref.net;
+  const bool load_ok = can_fresh && net.known;
+  if (cfg_.run_kalman) {
+    kalman_.set_extended_load(observer_load_star_nm(net.torque_nm, load_ok));
+    kalman_.set_model_torque(cfg_.kalman.gas_model ? ripple : 0.0, have_map_);
+    kalman_.update(s);
+    copy_estimate(tooth_.kalman_ind, kalman_.estimate());
+  } else {
+    tooth_.kalman_ind.health = Health::kDisabled;
+  }
+  if (fourier_ok_) {
+    fourier_.set_extended_load(load_star_nm_);
+    fourier_.set_model_torque(cfg_.fourier.gas_model ? ripple : 0.0, have_map_);
+    fourier_.update(s);
+    copy_estimate(tooth_.fourier_ind, fourier_.estimate());
+  } else {
+    tooth_.fourier_ind.health = Health::kDisabled;
+  }
+  return load_ok;
 }
 
 // The Kalman's extended load T*_load (docs/angle_estimators.md, "Through transients and a fuel cut-off"):

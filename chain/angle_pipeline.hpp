@@ -264,6 +264,10 @@ class AnglePipeline {
   /// the events whose work lies in it (FuelAngleWindow).
   FuelAngleWindow fuel_win_;
   [[nodiscard]] FuelWindow fuel_window(const SegmentEnergy& seg) const noexcept;
+  /// on_tooth's in-cycle observer step: this tooth's load reference into `lref`, then the Kalman filter and
+  /// the Fourier observer fed; returns whether the net load is known on fresh CAN (see .cpp).
+  [[nodiscard]] bool feed_incycle_observers(const ToothSample& s, const EngineSignals& sig, bool works_ok,
+                                            bool can_fresh, LoadReference& lref) noexcept;
   /// The extended load handed to the in-cycle Kalman at this tooth (N m).
   [[nodiscard]] double observer_load_star_nm(double net_load_nm, bool load_ok) const noexcept;
   /// The gas ripple handed to the in-cycle observers, with the fuel-state change rule (updates cut_flag_).

@@ -466,13 +466,9 @@ int run_bed_daemon(bool all, const torqued::eval::DaemonBedOptions& opt) {
   }
   return rc;
 }
-}  // namespace
 
-int main(int argc, char** argv) {
-  CLI::App app{
-      "Accuracy of the angle pipeline (brake, indicated, fused, crank-only, RLS load, ESO, per-cylinder,\n"
-      "misfire) on the simulator's scenarios. Cells: max |error| N m, max |error| % of truth, % of cycles\n"
-      "within tolerance (3 % or 2 N m steady, 5 % or 3 N m in transients)."};
+/// The command line: main's options with their defaults (the help text shows them).
+struct Args {
   std::vector<std::string> names;
   bool raw_teeth = false, true_teeth = false, paper_prior = false;
   int skip = 12;
@@ -482,236 +478,265 @@ int main(int argc, char** argv) {
   bool cylinders = false;
   int random_engines = 4;
   std::uint64_t random_seed = 15;
-  app.add_option("-s,--scenario", names, "scenario(s); default: all built-in scenarios");
-  app.add_flag("--raw-teeth", raw_teeth, "do not correct tooth widths (nominal wheel)");
-  app.add_flag(
-      "--true-tooth-errors", true_teeth,
-      "correct tooth widths with the simulator's TRUE machining errors instead of the learned table");
-  app.add_flag("--paper-friction", paper_prior,
-               "start friction learning from the paper's coefficients instead of 0");
-  app.add_option("--skip", skip, "cycles skipped at the start of each scenario (convergence)");
-  app.add_option("--can-lost-after", can_lost,
-                 "drop all CAN signals from this time on (s): crank-only fallback");
-  app.add_option("--csv", csv_dir, "write per-cycle comparison CSVs into this directory");
   torqued::eval::RecordingOptions rec;
+  std::string bed_out = "bed-daemon";
+  bool vehicle_bed = false;
+  double vehicle_flag_lag = 0.0;
+  double bed_machine = 0.0;
+  bool bed_motoring = false, bed_fuel = false, bed_incycle = false, bed_misfire = false;
+  bool regimes_only = false;
+  int cylinder_seeds = 1;
+  torqued::ToothLearnParams learn;
+  bool no_firing_law = false;
+  torqued::KalmanParams kalman;
+  torqued::FourierParams fourier;
+  double burn_duration_deg = -1.0, evo_deg = -1.0;
+  double kappa_c = -1.0, kappa_e = -1.0, wiebe_a = -1.0, wiebe_m = -1.0;
+  bool no_gas_model = false;
+};
+
+// The options, in the order the help lists them: scenarios, recording, beds, cylinders, tooth learner and
+// in-cycle observers.
+void add_scenario_options(CLI::App& app, Args& a) {
+  app.add_option("-s,--scenario", a.names, "scenario(s); default: all built-in scenarios");
+  app.add_flag("--raw-teeth", a.raw_teeth, "do not correct tooth widths (nominal wheel)");
+  app.add_flag(
+      "--true-tooth-errors", a.true_teeth,
+      "correct tooth widths with the simulator's TRUE machining errors instead of the learned table");
+  app.add_flag("--paper-friction", a.paper_prior,
+               "start friction learning from the paper's coefficients instead of 0");
+  app.add_option("--skip", a.skip, "cycles skipped at the start of each scenario (convergence)");
+  app.add_option("--can-lost-after", a.can_lost,
+                 "drop all CAN signals from this time on (s): crank-only fallback");
+  app.add_option("--csv", a.csv_dir, "write per-cycle comparison CSVs into this directory");
+}
+
+void add_recording_options(CLI::App& app, Args& a) {
   app.add_option(
-         "--recording", rec.config_path,
+         "--recording", a.rec.config_path,
          "instead of the scenarios: replay the recording a torqued config names through the daemon's own "
          "angle chain; writes its topics (as torqued --replay fast --record) and chain_cycle.csv to --out")
       ->check(CLI::ExistingFile);
-  app.add_option("--out", rec.out_dir, "--recording: output directory")->default_str("accuracy-out");
-  app.add_option("--truth", rec.truth_cycle, "--recording: truth_cycle.csv to evaluate against")
+  app.add_option("--out", a.rec.out_dir, "--recording: output directory")->default_str("accuracy-out");
+  app.add_option("--truth", a.rec.truth_cycle, "--recording: truth_cycle.csv to evaluate against")
       ->check(CLI::ExistingFile);
-  app.add_option("--state-dir", rec.state_dir,
+  app.add_option("--state-dir", a.rec.state_dir,
                  "--recording: learned state loaded at start and saved at the end");
-  app.add_option("--skip-s", rec.skip_s,
+  app.add_option("--skip-s", a.rec.skip_s,
                  "--recording: seconds after the first edge left out of the evaluation");
+}
+
+void add_bed_options(CLI::App& app, Args& a) {
   app.add_option(
-         "--bed", bed,
+         "--bed", a.bed,
          "run a test bed instead of the scenarios: 'unseen' (report engines, ideal teeth into a "
          "copy of "
          "the pipeline) or 'unseen-daemon' (the same engines as recordings through the daemon's chain)")
       ->check(CLI::IsMember({"unseen", "unseen-daemon"}));
-  std::string bed_out = "bed-daemon";
-  app.add_option("--bed-out", bed_out,
+  app.add_option("--bed-out", a.bed_out,
                  "--bed unseen-daemon: directory for the recordings, configs and state files");
-  bool vehicle_bed = false;
   app.add_flag(
-      "--vehicle-bed", vehicle_bed,
+      "--vehicle-bed", a.vehicle_bed,
       "run the vehicle bed: a vehicle (no load signal; clutch flag unmapped / as neutral) and a hybrid "
       "(machine torque and clutch flag on CAN) on the report engines through the daemon's chain "
       "(--bed-out, --bed-short, --bed-all apply)");
-  double vehicle_flag_lag = 0.0;
   app.add_option(
-         "--vehicle-flag-lag", vehicle_flag_lag,
+         "--vehicle-flag-lag", a.vehicle_flag_lag,
          "with --vehicle-bed: the clutch flag on CAN is late by this (s) instead of leading the clutch "
          "(robustness)")
       ->check(CLI::Range(0.0, 10.0));
-  app.add_flag("--bed-all", bed_all, "with --bed: also the tuning engines");
-  app.add_flag("--bed-short", bed_short, "with --bed: the short evaluated recordings (the ctest subset)");
-  double bed_machine = 0.0;
-  bool bed_motoring = false;
+  app.add_flag("--bed-all", a.bed_all, "with --bed: also the tuning engines");
+  app.add_flag("--bed-short", a.bed_short, "with --bed: the short evaluated recordings (the ctest subset)");
   app.add_option(
-         "--bed-e-machine", bed_machine,
+         "--bed-e-machine", a.bed_machine,
          "with --bed unseen: an electric machine of this ratio (machine/crank speed) is the load; brake "
          "with the machine torque bound (sole load) and a control run with it unbound")
       ->check(CLI::PositiveNumber);
-  bool bed_fuel = false;
-  bool bed_incycle = false;
-  bool bed_misfire = false;
-  app.add_flag("--bed-misfire", bed_misfire,
+  app.add_flag("--bed-misfire", a.bed_misfire,
                "with --bed unseen: misfire found/true/false at idle, 2500 and 6000 rpm (single and paired) "
                "and the per-cylinder imbalance of an engine with one weak cylinder");
   app.add_flag(
-      "--bed-incycle", bed_incycle,
+      "--bed-incycle", a.bed_incycle,
       "with --bed unseen: in-cycle Kalman/Fourier torque from a fresh start without any fuel cut-off "
       "(tooth learner empty at start; --true-tooth-errors / --raw-teeth for the floor / no table), then "
       "through transients and a fuel cut-off entry/exit");
-  bool regimes_only = false;
-  app.add_flag("--bed-incycle-regimes", regimes_only,
+  app.add_flag("--bed-incycle-regimes", a.regimes_only,
                "with --bed unseen: only the transient and fuel cut-off rows of --bed-incycle");
   app.add_flag(
-      "--bed-fuel", bed_fuel,
+      "--bed-fuel", a.bed_fuel,
       "with --bed unseen: the fuel model without a load signal, taught at one operating point and never "
       "taught (published share, RMS, 1 sigma coverage)");
   app.add_flag(
-      "--bed-motoring", bed_motoring,
+      "--bed-motoring", a.bed_motoring,
       "with --bed unseen: friction learned from motoring by the machine (ratio --bed-e-machine, default 1) "
       "vs the generic prior");
-  app.add_flag("--cylinders", cylinders,
+}
+
+void add_cylinder_options(CLI::App& app, Args& a) {
+  app.add_flag("--cylinders", a.cylinders,
                "per-cylinder table instead: imbalance error per cylinder and speed, in-cycle RMS and lag, "
                "misfires, on the simulator's scenarios and randomised engines");
-  app.add_option("--random-engines", random_engines, "--cylinders: number of randomised engines");
-  app.add_option("--random-seed", random_seed, "--cylinders: seed of the randomised engines");
-  int cylinder_seeds = 1;
+  app.add_option("--random-engines", a.random_engines, "--cylinders: number of randomised engines");
+  app.add_option("--random-seed", a.random_seed, "--cylinders: seed of the randomised engines");
   app.add_option(
-         "--cylinder-seeds", cylinder_seeds,
+         "--cylinder-seeds", a.cylinder_seeds,
          "--cylinders: balanced rows at >= 2000 rpm also run on this many simulator seeds in all (RMS and "
          "worst of the max imbalance error; 1: the single run only)")
       ->check(CLI::Range(1, 100));
-  torqued::ToothLearnParams learn;
-  app.add_option("--fit-harmonics", learn.fit_harmonics, "tooth learner: harmonics of the per-cycle fit");
-  bool no_firing_law = false;
+}
+
+void add_observer_options(CLI::App& app, Args& a) {
+  app.add_option("--fit-harmonics", a.learn.fit_harmonics, "tooth learner: harmonics of the per-cycle fit");
   app.add_flag(
-      "--no-firing-load-law", no_firing_law,
+      "--no-firing-load-law", a.no_firing_law,
       "tooth learner: orders are not learned from the firing cycles' load law (the learner before it)");
-  app.add_option("--speed-weight-exp", learn.speed_weight_exp,
+  app.add_option("--speed-weight-exp", a.learn.speed_weight_exp,
                  "tooth learner: residuals weighted by speed^p");
-  torqued::KalmanParams kalman;
-  torqued::FourierParams fourier;
-  app.add_option("--kalman-lag", kalman.smoother_lag, "Kalman fixed-lag smoother (teeth)");
-  app.add_option("--kalman-torque-sd", kalman.torque_sd_nm,
+  app.add_option("--kalman-lag", a.kalman.smoother_lag, "Kalman fixed-lag smoother (teeth)");
+  app.add_option("--kalman-torque-sd", a.kalman.torque_sd_nm,
                  "Kalman process noise without the gas model: 1 sigma of the net torque (N m)");
-  app.add_option("--kalman-delta", kalman.delta, "Kalman coloured-noise pole (1/rad)");
-  app.add_option("--kalman-model-torque-sd", kalman.model_torque_sd_nm,
+  app.add_option("--kalman-delta", a.kalman.delta, "Kalman coloured-noise pole (1/rad)");
+  app.add_option("--kalman-model-torque-sd", a.kalman.model_torque_sd_nm,
                  "Kalman process noise with the gas model valid: 1 sigma of what the model misses (N m)");
-  app.add_option("--kalman-edge-noise", kalman.edge_noise_deg, "Kalman R: edge-angle error (deg)");
-  app.add_option("--kalman-jitter", kalman.jitter_s, "Kalman R: timestamp jitter (s)");
-  double burn_duration_deg = -1.0;
-  app.add_option("--burn-duration", burn_duration_deg,
+  app.add_option("--kalman-edge-noise", a.kalman.edge_noise_deg, "Kalman R: edge-angle error (deg)");
+  app.add_option("--kalman-jitter", a.kalman.jitter_s, "Kalman R: timestamp jitter (s)");
+  app.add_option("--burn-duration", a.burn_duration_deg,
                  "with --bed-incycle: the in-cycle gas torque model's burn duration (deg; default "
                  "energies.burn_duration_deg)")
       ->check(CLI::Range(0.0, 180.0));
-  double evo_deg = -1.0;
   app.add_option(
-         "--evo", evo_deg,
+         "--evo", a.evo_deg,
          "with --bed-incycle: the pressure model's exhaust valve opening (deg after firing TDC; default "
          "energies.evo_atdc_deg)")
       ->check(CLI::Range(90.0, 180.0));
-  double kappa_c = -1.0, kappa_e = -1.0, wiebe_a = -1.0, wiebe_m = -1.0;
-  app.add_option("--kappa-compression", kappa_c,
+  app.add_option("--kappa-compression", a.kappa_c,
                  "with --bed-incycle: the in-cycle gas model's compression exponent (default "
                  "energies.incycle_compression_kappa)")
       ->check(CLI::Range(0.0, 2.0));
-  app.add_option("--kappa-expansion", kappa_e,
+  app.add_option("--kappa-expansion", a.kappa_e,
                  "with --bed-incycle: the in-cycle gas model's expansion exponent (default "
                  "energies.incycle_expansion_kappa)")
       ->check(CLI::Range(0.0, 2.0));
   app.add_option(
-         "--wiebe-a", wiebe_a,
+         "--wiebe-a", a.wiebe_a,
          "with --bed-incycle: the in-cycle gas model's burn shape, Wiebe a (0: raised cosine; default "
          "energies.burn_wiebe_a)")
       ->check(CLI::Range(0.0, 20.0));
-  app.add_option("--wiebe-m", wiebe_m, "with --bed-incycle: Wiebe m (default energies.burn_wiebe_m)")
+  app.add_option("--wiebe-m", a.wiebe_m, "with --bed-incycle: Wiebe m (default energies.burn_wiebe_m)")
       ->check(CLI::Range(0.0, 10.0));
-  bool no_gas_model = false;
-  app.add_flag("--no-gas-model", no_gas_model,
+  app.add_flag("--no-gas-model", a.no_gas_model,
                "Kalman and Fourier observer without the cylinder-pressure model's gas torque ripple as known "
                "input (as in the papers)");
-  app.add_option("--fourier-lref", fourier.l_ref, "Fourier observer L_ref");
-  app.add_option("--fourier-lke", fourier.l_ke, "Fourier observer L_ke");
-  app.add_option("--fourier-model-lref", fourier.model_l_ref,
+  app.add_option("--fourier-lref", a.fourier.l_ref, "Fourier observer L_ref");
+  app.add_option("--fourier-lke", a.fourier.l_ke, "Fourier observer L_ke");
+  app.add_option("--fourier-model-lref", a.fourier.model_l_ref,
                  "Fourier observer L_ref with the gas model valid");
-  app.add_option("--fourier-harmonics", fourier.harmonics, "Fourier observer n_h");
-  app.add_option("--fourier-gain-ref-rpm", fourier.gain_ref_rpm,
+  app.add_option("--fourier-harmonics", a.fourier.harmonics, "Fourier observer n_h");
+  app.add_option("--fourier-gain-ref-rpm", a.fourier.gain_ref_rpm,
                  "Fourier observer gain reference speed (rpm)");
-  app.footer(
-      "Exit status: 0 done (tables printed); 1 a recording could not be read or the output not written; 2 "
-      "command-line error (unknown option, bad value, file that does not exist) or --config refused / its "
-      "inputs cannot be opened.");
-  TORQUED_CLI_PARSE(app, argc, argv);
-  learn.firing_load_law = !no_firing_law;
-  if (!rec.config_path.empty()) {
-    if (rec.out_dir.empty()) rec.out_dir = "accuracy-out";
-    return torqued::eval::run_recording(rec);
-  }
-  if (vehicle_bed) {
-    torqued::eval::DaemonBedOptions o;
-    o.out_dir = bed_out == "bed-daemon" ? "bed-vehicle" : bed_out;
-    o.vehicle_flag_lag_s = vehicle_flag_lag;
-    o.short_run = bed_short;
-    o.skip_cycles = skip;
-    return run_vehicle_bed(bed_all, o);
-  }
-  if (bed == "unseen-daemon") {
-    torqued::eval::DaemonBedOptions o;
-    o.out_dir = bed_out;
-    o.short_run = bed_short;
-    o.skip_cycles = skip;
-    return run_bed_daemon(bed_all, o);
-  }
-  if (!bed.empty()) {
-    torqued::eval::EvalOptions bo;
-    bo.skip_cycles = skip;
-    if (bed_fuel) return run_bed_fuel(bed_all, bed_short, bo, csv_dir);
-    if (bed_misfire) return run_bed_misfire(bed_all, bo);
-    if (bed_incycle || regimes_only) {
-      bo.tooth_table = raw_teeth    ? torqued::eval::ToothTable::kNone
-                       : true_teeth ? torqued::eval::ToothTable::kTrue
+}
+
+// --bed unseen: the bed the flags choose (fuel, misfire, in-cycle, motoring, e-machine, else the brake bed).
+int run_unseen_bed(Args& a) {
+  torqued::eval::EvalOptions bo;
+  bo.skip_cycles = a.skip;
+  if (a.bed_fuel) return run_bed_fuel(a.bed_all, a.bed_short, bo, a.csv_dir);
+  if (a.bed_misfire) return run_bed_misfire(a.bed_all, bo);
+  if (a.bed_incycle || a.regimes_only) {
+    bo.tooth_table = a.raw_teeth    ? torqued::eval::ToothTable::kNone
+                     : a.true_teeth ? torqued::eval::ToothTable::kTrue
                                     : torqued::eval::ToothTable::kLearned;
-      bo.tooth_learn = learn;
-      kalman.gas_model = !no_gas_model;
-      fourier.gas_model = !no_gas_model;
-      bo.base.kalman = kalman;
-      bo.base.fourier = fourier;
-      if (burn_duration_deg >= 0.0) bo.base.energies.burn_duration_deg = burn_duration_deg;
-      if (evo_deg >= 0.0) bo.base.energies.evo_atdc_deg = evo_deg;
-      if (kappa_c >= 0.0) bo.base.energies.incycle_compression_kappa = kappa_c;
-      if (kappa_e >= 0.0) bo.base.energies.incycle_expansion_kappa = kappa_e;
-      if (wiebe_a >= 0.0) bo.base.energies.burn_wiebe_a = wiebe_a;
-      if (wiebe_m >= 0.0) bo.base.energies.burn_wiebe_m = wiebe_m;
-      const int rc = regimes_only ? 0 : run_bed_incycle(bed_all, bed_short, bo);
-      return rc != 0 ? rc : run_bed_incycle_regimes(bed_all, bo);
-    }
-    if (bed_motoring) return run_bed_motoring(bed_all, bed_short, bo, bed_machine > 0.0 ? bed_machine : 1.0);
-    if (bed_machine > 0.0) return run_bed_e_machine(bed_all, bed_short, bo, bed_machine);
-    return run_bed(bed_all, bed_short, bo);
+    bo.tooth_learn = a.learn;
+    a.kalman.gas_model = !a.no_gas_model;
+    a.fourier.gas_model = !a.no_gas_model;
+    bo.base.kalman = a.kalman;
+    bo.base.fourier = a.fourier;
+    if (a.burn_duration_deg >= 0.0) bo.base.energies.burn_duration_deg = a.burn_duration_deg;
+    if (a.evo_deg >= 0.0) bo.base.energies.evo_atdc_deg = a.evo_deg;
+    if (a.kappa_c >= 0.0) bo.base.energies.incycle_compression_kappa = a.kappa_c;
+    if (a.kappa_e >= 0.0) bo.base.energies.incycle_expansion_kappa = a.kappa_e;
+    if (a.wiebe_a >= 0.0) bo.base.energies.burn_wiebe_a = a.wiebe_a;
+    if (a.wiebe_m >= 0.0) bo.base.energies.burn_wiebe_m = a.wiebe_m;
+    const int rc = a.regimes_only ? 0 : run_bed_incycle(a.bed_all, a.bed_short, bo);
+    return rc != 0 ? rc : run_bed_incycle_regimes(a.bed_all, bo);
   }
-  if (names.empty() && !cylinders) names = torqued::sim::scenario_names();
+  if (a.bed_motoring)
+    return run_bed_motoring(a.bed_all, a.bed_short, bo, a.bed_machine > 0.0 ? a.bed_machine : 1.0);
+  if (a.bed_machine > 0.0) return run_bed_e_machine(a.bed_all, a.bed_short, bo, a.bed_machine);
+  return run_bed(a.bed_all, a.bed_short, bo);
+}
+
+// --vehicle-bed, --bed unseen-daemon or --bed unseen.
+int run_beds(Args& a) {
+  if (a.vehicle_bed) {
+    torqued::eval::DaemonBedOptions o;
+    o.out_dir = a.bed_out == "bed-daemon" ? "bed-vehicle" : a.bed_out;
+    o.vehicle_flag_lag_s = a.vehicle_flag_lag;
+    o.short_run = a.bed_short;
+    o.skip_cycles = a.skip;
+    return run_vehicle_bed(a.bed_all, o);
+  }
+  if (a.bed == "unseen-daemon") {
+    torqued::eval::DaemonBedOptions o;
+    o.out_dir = a.bed_out;
+    o.short_run = a.bed_short;
+    o.skip_cycles = a.skip;
+    return run_bed_daemon(a.bed_all, o);
+  }
+  return run_unseen_bed(a);
+}
+
+void write_cycles_csv(const std::string& path, const torqued::eval::ScenarioResult& r) {
+  std::ofstream f(path);
+  f << "t_s,transient,speed_rpm,brake_nm,brake_true_nm,indicated_nm,indicated_true_nm,friction_nm,"
+       "friction_true_nm,"
+       "load_rls_nm,load_star_true_nm,indicated_crank_nm,indicated_eso_nm,fused_nm,quality\n";
+  for (const auto& w : r.rows) {
+    f << w.t_s << ',' << w.transient << ',' << w.speed_rpm << ',' << w.brake << ',' << w.brake_true << ','
+      << w.indicated << ',' << w.indicated_true << ',' << w.friction << ',' << w.friction_true << ','
+      << w.load_rls << ',' << w.load_star_true << ',' << w.indicated_crank << ',' << w.indicated_eso << ','
+      << w.fused << ',' << torqued::to_string(w.quality) << '\n';
+  }
+}
+
+// The simulator's scenarios (or --cylinders' table): friction learned first, then one row per scenario.
+int run_scenarios(Args& a) {
+  if (a.names.empty() && !a.cylinders) a.names = torqued::sim::scenario_names();
 
   torqued::eval::EvalOptions opt;
   using torqued::eval::ToothTable;
-  opt.tooth_table = raw_teeth ? ToothTable::kNone : true_teeth ? ToothTable::kTrue : ToothTable::kLearned;
-  opt.skip_cycles = skip;
-  opt.tooth_learn = learn;
-  kalman.gas_model = !no_gas_model;
-  fourier.gas_model = !no_gas_model;
-  opt.base.kalman = kalman;
-  opt.base.fourier = fourier;
-  opt.can_lost_after_s = can_lost;
-  if (paper_prior) opt.friction_prior = torqued::kEnergiesPaperFrictionC;
+  opt.tooth_table = a.raw_teeth ? ToothTable::kNone : a.true_teeth ? ToothTable::kTrue : ToothTable::kLearned;
+  opt.skip_cycles = a.skip;
+  opt.tooth_learn = a.learn;
+  a.kalman.gas_model = !a.no_gas_model;
+  a.fourier.gas_model = !a.no_gas_model;
+  opt.base.kalman = a.kalman;
+  opt.base.fourier = a.fourier;
+  opt.can_lost_after_s = a.can_lost;
+  if (a.paper_prior) opt.friction_prior = torqued::kEnergiesPaperFrictionC;
   const auto fric = torqued::eval::learn_friction(opt);
   std::printf("friction learned on fuel_cut (prior %s): C1=%.3f C2=%.4g C3=%.4g C4=%.4g\n",
-              paper_prior ? "paper" : "zero", fric[0], fric[1], fric[2], fric[3]);
+              a.paper_prior ? "paper" : "zero", fric[0], fric[1], fric[2], fric[3]);
   opt.friction = fric;
   std::printf("tooth table: %s\n",
-              raw_teeth    ? "none (nominal widths)"
-              : true_teeth ? "simulator's true machining errors"
-                           : "learned by ToothErrorLearner on a warm-up recording of the same wheel "
-                             "(1000-4000 rpm plateaus + fuel cut-off, 5 s)");
-  if (cylinders) {
+              a.raw_teeth    ? "none (nominal widths)"
+              : a.true_teeth ? "simulator's true machining errors"
+                             : "learned by ToothErrorLearner on a warm-up recording of the same wheel "
+                               "(1000-4000 rpm plateaus + fuel cut-off, 5 s)");
+  if (a.cylinders) {
     std::vector<torqued::eval::CylinderCaseResult> rows;
-    for (const auto& c : torqued::eval::cylinder_cases(random_engines, random_seed)) {
-      if (!names.empty() && std::find(names.begin(), names.end(), c.scenario.name) == names.end()) continue;
-      rows.push_back(torqued::eval::evaluate_case(c, opt, cylinder_seeds));
-      torqued::eval::print_cylinder_table({rows.back()}, rows.size() == 1, cylinder_seeds > 1);
+    for (const auto& c : torqued::eval::cylinder_cases(a.random_engines, a.random_seed)) {
+      if (!a.names.empty() && std::find(a.names.begin(), a.names.end(), c.scenario.name) == a.names.end())
+        continue;
+      rows.push_back(torqued::eval::evaluate_case(c, opt, a.cylinder_seeds));
+      torqued::eval::print_cylinder_table({rows.back()}, rows.size() == 1, a.cylinder_seeds > 1);
     }
     return 0;
   }
   std::printf("%-16s %5s %4s | %-17s | %-17s | %-17s | %-17s | %-17s | %-17s | %6s | %-14s | %s\n",
               "scenario", "rpm", "cyc", "brake (CAN)", "indicated", "fused", "brake crank-only", "RLS load*",
               "ESO indicated", "imb pp", "tooth ° w/e", "misfire found/true/false");
-  for (const auto& name : names) {
+  for (const auto& name : a.names) {
     const auto sc = torqued::sim::scenario_by_name(name);
     const auto r = torqued::eval::evaluate(sc, opt);
     std::printf("%-16s %5.0f %4d | %s | %s | %s | %s | %s | %s | %6.2f | %.4f/%.3f%s | %d/%d/%d\n",
@@ -721,18 +746,33 @@ int main(int argc, char** argv) {
                 opt.tooth_table == ToothTable::kLearned && !r.tooth_low_orders ? "*" : " ", r.misfires_found,
                 r.misfires_true, r.misfires_false);
     std::fflush(stdout);
-    if (!csv_dir.empty()) {
-      std::ofstream f(csv_dir + "/" + name + "_cycles.csv");
-      f << "t_s,transient,speed_rpm,brake_nm,brake_true_nm,indicated_nm,indicated_true_nm,friction_nm,"
-           "friction_true_nm,"
-           "load_rls_nm,load_star_true_nm,indicated_crank_nm,indicated_eso_nm,fused_nm,quality\n";
-      for (const auto& w : r.rows) {
-        f << w.t_s << ',' << w.transient << ',' << w.speed_rpm << ',' << w.brake << ',' << w.brake_true << ','
-          << w.indicated << ',' << w.indicated_true << ',' << w.friction << ',' << w.friction_true << ','
-          << w.load_rls << ',' << w.load_star_true << ',' << w.indicated_crank << ',' << w.indicated_eso
-          << ',' << w.fused << ',' << torqued::to_string(w.quality) << '\n';
-      }
-    }
+    if (!a.csv_dir.empty()) write_cycles_csv(a.csv_dir + "/" + name + "_cycles.csv", r);
   }
   return 0;
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args a;  // before app, which binds its members
+  CLI::App app{
+      "Accuracy of the angle pipeline (brake, indicated, fused, crank-only, RLS load, ESO, per-cylinder,\n"
+      "misfire) on the simulator's scenarios. Cells: max |error| N m, max |error| % of truth, % of cycles\n"
+      "within tolerance (3 % or 2 N m steady, 5 % or 3 N m in transients)."};
+  add_scenario_options(app, a);
+  add_recording_options(app, a);
+  add_bed_options(app, a);
+  add_cylinder_options(app, a);
+  add_observer_options(app, a);
+  app.footer(
+      "Exit status: 0 done (tables printed); 1 a recording could not be read or the output not written; 2 "
+      "command-line error (unknown option, bad value, file that does not exist) or --config refused / its "
+      "inputs cannot be opened.");
+  TORQUED_CLI_PARSE(app, argc, argv);
+  a.learn.firing_load_law = !a.no_firing_law;
+  if (!a.rec.config_path.empty()) {
+    if (a.rec.out_dir.empty()) a.rec.out_dir = "accuracy-out";
+    return torqued::eval::run_recording(a.rec);
+  }
+  if (a.vehicle_bed || !a.bed.empty()) return run_beds(a);
+  return run_scenarios(a);
 }

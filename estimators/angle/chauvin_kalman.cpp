@@ -86,11 +86,10 @@ void ChauvinKalman::build_aps_tables(int bins) {
   aps_var_.assign(gains, 0.0);
   cached_table("chauvin-aps", aps_key(sets, bins), aps_gain_, n + gains, [&](std::vector<double>& t) {
     t.clear();
-    t.reserve(n +
-              gains);  // build_aps_set() appends each gain in its first cycle (no zero-fill of ≈ 1 MB first)
+    t.reserve(n + gains);  // build_aps_set() appends each gain in its first cycle (no zero-fill of ≈ 1 MB)
     for (int set = 0; set < sets; ++set) {
       mode_ = set;
-      build_aps_set(set, bins);
+      build_aps_set(set, bins, t);
     }
     mode_ = kWholeTorqueSet;
     t.insert(t.end(), aps_var_.begin(), aps_var_.end());
@@ -120,8 +119,10 @@ double ChauvinKalman::edge_state_var(double speed_rad_s) const noexcept {
   return 4.0 * w2 * w2 * (edge_sd_rad_ * edge_sd_rad_ + w2 * params_.jitter_s * params_.jitter_s);
 }
 
-// One APS gain set (mode_ = set selects its Q): per speed bin, the periodic Riccati solution's gains.
-void ChauvinKalman::build_aps_set(int set, int bins) {
+// One APS gain set (mode_ = set selects its Q): per speed bin, the periodic Riccati solution's gains,
+// appended to `out` (which holds the sets before this one, kStates doubles per slot) and their output
+// variances written into aps_var_.
+void ChauvinKalman::build_aps_set(int set, int bins, std::vector<double>& out) {
   const int kk = table_.samples;
   const int o = kTorqueState + params_.smoother_lag;
   std::vector<double> h(static_cast<std::size_t>(kk));
@@ -144,13 +145,14 @@ void ChauvinKalman::build_aps_set(int set, int bins) {
           const double scale = std::max(1e-300, g.cwiseAbs().maxCoeff());
           // The first cycle compares with zeros (the slot is appended below, not zero-filled first).
           const double moved =
-              cycle == 0 ? g.cwiseAbs().maxCoeff() : (g - aps_gain(slot_index)).cwiseAbs().maxCoeff();
+              cycle == 0 ? g.cwiseAbs().maxCoeff()
+                         : (g - Eigen::Map<const Vec>(&out[slot_index * kStates])).cwiseAbs().maxCoeff();
           change = std::max(change, moved / scale);
         }
         if (cycle == 0)  // slots are appended in index order: set, bin, tooth
-          aps_gain_.insert(aps_gain_.end(), g.data(), g.data() + kStates);
+          out.insert(out.end(), g.data(), g.data() + kStates);
         else
-          aps_gain(slot_index) = g;
+          Eigen::Map<Vec>{&out[slot_index * kStates]} = g;
       }
     }
   }

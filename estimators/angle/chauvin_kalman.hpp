@@ -135,7 +135,8 @@ class ChauvinKalman {
   [[nodiscard]] BinPos bin_pos(int k, double speed_rad_s) const noexcept;
   void push_edge_time(std::int64_t t_ns) noexcept;
   void push_model(double ripple_nm) noexcept;
-  void build_aps_set(int set, int bins);
+  /// Appends gain set `set` to `out` (kStates doubles per slot) and writes its variances into aps_var_.
+  void build_aps_set(int set, int bins, std::vector<double>& out);
   void build_aps_tables(int bins);
   [[nodiscard]] std::uint64_t aps_key(int sets, int bins) const noexcept;
   void bridge_lost_teeth(int k) noexcept;
