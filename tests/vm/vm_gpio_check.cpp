@@ -11,8 +11,9 @@
 // TCG), and the decoder's absolute-time settings are stretched by the same factor. So the assertions hold
 // whatever the timing: every edge arrives (none lost or invented, levels as written), kernel timestamps
 // increase and none precedes the write that caused it, tooth periods agree with the written ones, every tooth
-// is counted, the decoder syncs within two revolutions and no synced tooth has a wrong index beyond what the
-// same decoder finds on the writer's own clock (0 when the VM did not stall a write).
+// is counted, and the decoder does no worse than the same decoder on the writer's own clock: sync within two
+// revolutions (or no later than there), no more losses, no more synced teeth with a wrong index (0 when the
+// VM did not stall a write).
 // Prints "PASS ..." / "FAIL ..." / "info: ..." lines; exit code 0 only if every assertion held.
 #include <fcntl.h>
 #include <unistd.h>
@@ -269,10 +270,11 @@ SyncedTeeth synced_teeth(const std::vector<PlannedEdge>& plan, const Received& r
   return st;
 }
 
-/// Decoder: every tooth edge reached it, sync within two revolutions, and no more sync losses and no more
-/// synced teeth with a wrong index than the same decoder has on the writer's clock. A stalled VM can make a
-/// written period itself irregular (a runt the decoder rightly rejects shifts the count until the gap): the
-/// kernel path must add nothing to what the written wheel itself shows; on an undisturbed run both are 0.
+/// Decoder: every tooth edge reached it, sync within two revolutions (or no later than on the writer's
+/// clock), and no more sync losses and no more synced teeth with a wrong index than the same decoder has on
+/// the writer's clock. A stalled VM can make a written period itself irregular (a runt the decoder rightly
+/// rejects shifts the count until the gap): the kernel path must add nothing to what the written wheel itself
+/// shows; on an undisturbed run both are 0.
 void check_decoder(const std::vector<PlannedEdge>& plan, const Received& r, const Received& ref,
                    double slow) {
   const auto rising = static_cast<std::uint64_t>(
@@ -287,9 +289,13 @@ void check_decoder(const std::vector<PlannedEdge>& plan, const Received& r, cons
             std::to_string(r.dec.sync_losses) + " losses, last: " + to_string(r.dec.last_loss_reason) +
             "; on the writer's clock " + std::to_string(ref.dec.sync_losses) + " losses)");
   const SyncedTeeth k = synced_teeth(plan, r), w = synced_teeth(plan, ref);
-  check(k.first < 2 * kTeeth, "gpio: synced at rising edge " + std::to_string(k.first) +
-                                  " of the run (within two revolutions: < " + std::to_string(2 * kTeeth) +
-                                  ")");
+  // Within two revolutions, or no later than on the writer's clock when a stalled write made the written
+  // wheel itself lose the first sync (a run at 191x slow motion: both first synced at edge 116, 2 losses
+  // each).
+  check(k.synced > 0 && (k.first < 2 * kTeeth || k.first <= w.first),
+        "gpio: synced at rising edge " + std::to_string(k.first) + " of the run (within two revolutions: < " +
+            std::to_string(2 * kTeeth) +
+            ", or no later than on the writer's clock: " + std::to_string(w.first) + ")");
   check(k.synced > 0 && k.wrong <= w.wrong,
         "gpio: no synced tooth with a wrong index beyond the written wheel's own (" +
             std::to_string(k.wrong) + " of " + std::to_string(k.synced) + " wrong; on the writer's clock " +
