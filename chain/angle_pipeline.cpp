@@ -647,6 +647,16 @@ bool AnglePipeline::fuel_learning_allowed(const CycleReference& ref, const Engin
          fw.valid && fw.cut == 0 && fw.fired > 0;
 }
 
+double AnglePipeline::accessory_bias_sd_nm(const CycleReference& ref) const noexcept {
+  // The references whose load is the accessories' prior (classify_load, free_coast_reference): its error is
+  // one bias shared by all of them.
+  const LoadReferenceParams& p = cfg_.load_ref;
+  const bool flagged = p.sole_flag_bound || p.neutral_bound;
+  const bool acc = ref.kind == ReferenceKind::kNeutral || ref.kind == ReferenceKind::kFreeCoast ||
+                   (ref.kind == ReferenceKind::kEMachineSole && flagged);
+  return acc ? p.accessory_sd_nm : 0.0;
+}
+
 void AnglePipeline::learn_fuel(const CycleReference& ref, const EngineSignals& sig, bool can_fresh,
                                const FuelWindow& fw, const CycleOutput& o) noexcept {
   if (!fuel_learning_allowed(ref, sig, can_fresh, o.cycle_end, fw)) return;
@@ -654,7 +664,7 @@ void AnglePipeline::learn_fuel(const CycleReference& ref, const EngineSignals& s
   x.fuel_kg = fw.fuel_kg;
   x.map_pa = fw.map_fired_pa;
   const double t_ind_ref = o.brake_energy.torque_nm + o.friction.torque_nm;
-  (void)fuel_.learn(x, t_ind_ref, fuel_.transient_sd_nm(fw, x));
+  (void)fuel_.learn(x, t_ind_ref, fuel_.transient_sd_nm(fw, x), accessory_bias_sd_nm(ref));
 }
 
 void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,
@@ -767,9 +777,12 @@ void AnglePipeline::fuse(const SegmentEnergy& seg, const EngineSignals& sig, Cyc
   if (!fuel_model_slot(o, z)) {
     const bool fuel_ok = fuel_.valid() && fuel_ind_.health == Health::kValid;
     const TorqueEstimate& m = fuel_ok ? fuel_ind_ : o.indicated_eso;
+    // A learned fuel model with a friction law short of friction.min_observations (a vehicle's few coast-down
+    // cycles, restored so): published with the friction's 1σ added, not withheld until more coasts come.
+    const bool fric_partial = fuel_ok && fric_h == Health::kNotConverged;
     z.brake_nm = m.torque_nm - fric;
-    z.sd_nm = fuel_ok ? m.uncertainty : std::hypot(m.uncertainty, fric_sd);
-    z.health = worst(m.health, fric_h);
+    z.sd_nm = fuel_ok && !fric_partial ? m.uncertainty : std::hypot(m.uncertainty, fric_sd);
+    z.health = fric_partial ? m.health : worst(m.health, fric_h);
   }
   z.uses_can = true;
   z.newest_input_ns = sig.t_ns;

@@ -197,12 +197,15 @@ bool set_reals(LearnedState& s, const Nums& v) {
 /// pumping term p_exh V_d/4pi in N m, its covariance P00 P01 P10 P11), residual variance (N m^2), reference
 /// count | 68th percentile of |residual| (N m), its count (added later: read as 0 = not measured yet) | the
 /// word "physics" then the physics model's 4 parameters, its 4 x 4 covariance and the 16 speed x MAP cell
-/// counts (added with the physics model: absent in older files, which FuelTorque::import_state converts).
+/// counts (added with the physics model: absent in older files, which FuelTorque::import_state converts) |
+/// the parameters' cross-covariance with the accessories' shared bias (added later: absent reads as 0, no
+/// driveline-open reference learned yet).
 constexpr const char* kFuelKinds =
     "gggggggu|gu|p"
     "gggg"
     "gggggggggggggggg"
-    "uuuuuuuuuuuuuuuu";
+    "uuuuuuuuuuuuuuuu|"
+    "gggg";
 void fuel_to_numbers(const FuelTorqueState& f, Nums& v) {
   v = {{.x = f.eta_ref}, {.x = f.p_exh_nm},  {.x = f.p2[0]},      {.x = f.p2[1]},    {.x = f.p2[2]},
        {.x = f.p2[3]},   {.x = f.resid_var}, {.n = f.references}, {.x = f.cover.sd}, {.n = f.cover.n}};
@@ -211,6 +214,7 @@ void fuel_to_numbers(const FuelTorqueState& f, Nums& v) {
   for (const double x : f.theta) v.push_back({.x = x});
   for (const double x : f.p) v.push_back({.x = x});
   for (const auto c : f.cells) v.push_back({.n = c});
+  for (const double x : f.pxb) v.push_back({.x = x});
 }
 bool fuel_from_numbers(const Nums& v, FuelTorqueState& f) {
   f.eta_ref = v[0].x;
@@ -228,6 +232,7 @@ bool fuel_from_numbers(const Nums& v, FuelTorqueState& f) {
     if (v[i].n > 0xFFFF) return false;
     c = static_cast<std::uint16_t>(v[i++].n);
   }
+  for (double& x : f.pxb) x = v[i++].x;
   return f.cover.sd >= 0.0;
 }
 

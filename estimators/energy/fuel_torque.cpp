@@ -177,10 +177,12 @@ bool FuelTorque::learn(double fuel_kg, double map_pa, double t_ind_ref) noexcept
   return learn(x, t_ind_ref);
 }
 
-bool FuelTorque::learn(const FuelPoint& x, double t_ind_ref, double extra_sd_nm) noexcept {
+bool FuelTorque::learn(const FuelPoint& x, double t_ind_ref, double extra_sd_nm,
+                       double shared_bias_sd_nm) noexcept {
   if (!std::isfinite(x.fuel_kg) || !std::isfinite(x.map_pa) || !std::isfinite(x.rpm) ||
-      !std::isfinite(t_ind_ref) || !std::isfinite(extra_sd_nm) || !(x.fuel_kg > 0.0) ||
-      (x.spark_valid && !std::isfinite(x.spark_deg)) || (x.lambda_valid && !std::isfinite(x.lambda)))
+      !std::isfinite(t_ind_ref) || !std::isfinite(extra_sd_nm) || !std::isfinite(shared_bias_sd_nm) ||
+      !(x.fuel_kg > 0.0) || (x.spark_valid && !std::isfinite(x.spark_deg)) ||
+      (x.lambda_valid && !std::isfinite(x.lambda)))
     return false;
   const Regressor reg = regressor(x);
   const auto& phi = reg.phi;
@@ -189,24 +191,35 @@ bool FuelTorque::learn(const FuelPoint& x, double t_ind_ref, double extra_sd_nm)
     pred += phi[static_cast<std::size_t>(i)] * st_.theta[static_cast<std::size_t>(i)];
   const double err = t_ind_ref - pred;
   const double r = params_.residual_sd_nm * params_.residual_sd_nm + extra_sd_nm * extra_sd_nm;
+  // The shared bias b (consider parameter, variance vb): the reference is φ·θ − offset + b + noise, so its
+  // a-priori variance holds vb and twice the cross term φ·P_θb.
+  const double vb = shared_bias_sd_nm * shared_bias_sd_nm;
+  const bool biased = vb > 0.0;
+  double phi_pxb = 0.0;
+  for (int i = 0; i < kN; ++i)
+    phi_pxb += phi[static_cast<std::size_t>(i)] * st_.pxb[static_cast<std::size_t>(i)];
+  const double bias_var = biased ? std::max(0.0, 2.0 * phi_pxb + vb) : 0.0;
   // 5σ outlier gate once learned: the residual scale (never below one reference's own noise) plus the
   // parameter uncertainty here (a new operating point far from the references is not an outlier).
   const double pv = param_var(reg);
-  if (valid() && err * err > 25.0 * (std::max(st_.resid_var, r) + pv)) {
+  if (valid() && err * err > 25.0 * (std::max(st_.resid_var, r) + pv + bias_var)) {
     if (!gated_run(err)) return false;
     relearn();  // consistent on one side: what was learned is wrong (or the engine changed)
-    return learn(x, t_ind_ref, extra_sd_nm);
+    return learn(x, t_ind_ref, extra_sd_nm, shared_bias_sd_nm);
   }
   gated_ = 0;
-  std::array<double, kN> pphi{};
-  for (int i = 0; i < kN; ++i)
-    for (int j = 0; j < kN; ++j)
-      pphi[static_cast<std::size_t>(i)] += st_.p[ix(i, j)] * phi[static_cast<std::size_t>(j)];
+  // u = cov(θ, reference) = P φ (+ P_θb for a biased reference).
+  std::array<double, kN> u{};
+  for (int i = 0; i < kN; ++i) {
+    const auto iu = static_cast<std::size_t>(i);
+    for (int j = 0; j < kN; ++j) u[iu] += st_.p[ix(i, j)] * phi[static_cast<std::size_t>(j)];
+    if (biased) u[iu] += st_.pxb[iu];
+  }
   const double lam = params_.forgetting;
-  const double denom = lam * r + pv;
+  const double denom = lam * r + pv + bias_var;
   if (!(denom > 0.0)) return false;
   std::array<double, kN> k{};
-  for (int i = 0; i < kN; ++i) k[static_cast<std::size_t>(i)] = pphi[static_cast<std::size_t>(i)] / denom;
+  for (int i = 0; i < kN; ++i) k[static_cast<std::size_t>(i)] = u[static_cast<std::size_t>(i)] / denom;
   const std::array<double, kN> prior_theta = prior_state().theta;
   for (int i = 0; i < kN; ++i) {
     const auto iu = static_cast<std::size_t>(i);
@@ -218,7 +231,11 @@ bool FuelTorque::learn(const FuelPoint& x, double t_ind_ref, double extra_sd_nm)
   for (int i = 0; i < kN; ++i)
     for (int j = 0; j < kN; ++j)
       st_.p[ix(i, j)] =
-          (st_.p[ix(i, j)] - k[static_cast<std::size_t>(i)] * pphi[static_cast<std::size_t>(j)]) / lam;
+          (st_.p[ix(i, j)] - k[static_cast<std::size_t>(i)] * u[static_cast<std::size_t>(j)]) / lam;
+  // cov(θ, b) after the update: b itself is not estimated (its variance stays the prior's).
+  const double pxb_ref = biased ? phi_pxb + vb : phi_pxb;
+  for (int i = 0; i < kN; ++i)
+    st_.pxb[static_cast<std::size_t>(i)] -= k[static_cast<std::size_t>(i)] * pxb_ref;
   cap_covariance();
   refresh_legacy();
   // Residual variance from the a-priori errors (the gate's scale): EMA until learned, then a running mean
@@ -250,6 +267,7 @@ void FuelTorque::relearn() noexcept {
   // measured again, so the next references move them as freely as the first did. The cell counts stay.
   const FuelTorqueState prior = prior_state();
   st_.p = prior.p;
+  st_.pxb = prior.pxb;
   st_.references = 0;
   st_.resid_var = prior.resid_var;
   st_.cover = prior.cover;
@@ -268,9 +286,11 @@ void FuelTorque::cap_covariance() noexcept {
     const double v = st_.p[ix(i, i)], v0 = prior_sd_[iu] * prior_sd_[iu];
     d[iu] = v > v0 ? std::sqrt(v0 / v) : 1.0;
   }
-  for (int i = 0; i < kN; ++i)
-    for (int j = 0; j < kN; ++j)
-      st_.p[ix(i, j)] *= d[static_cast<std::size_t>(i)] * d[static_cast<std::size_t>(j)];
+  for (int i = 0; i < kN; ++i) {
+    const auto iu = static_cast<std::size_t>(i);
+    for (int j = 0; j < kN; ++j) st_.p[ix(i, j)] *= d[iu] * d[static_cast<std::size_t>(j)];
+    st_.pxb[iu] *= d[iu];  // the augmented [P P_θb; P_θbᵀ vb] scaled by diag(D, 1) stays PSD
+  }
 }
 
 void FuelTorque::observe_coverage(double err) noexcept {
@@ -300,6 +320,7 @@ void pack(const FuelTorqueState& s, std::array<double, kFuelStateDoubles>& v) no
   std::size_t k = 0;
   for (double x : s.theta) v[k++] = x;
   for (double x : s.p) v[k++] = x;
+  for (double x : s.pxb) v[k++] = x;
   v[k++] = s.resid_var;
   v[k++] = static_cast<double>(s.references);
   v[k++] = s.cover.sd;
@@ -316,6 +337,7 @@ FuelTorqueState unpack(const std::array<double, kFuelStateDoubles>& v) noexcept 
   std::size_t k = 0;
   for (double& x : s.theta) x = v[k++];
   for (double& x : s.p) x = v[k++];
+  for (double& x : s.pxb) x = v[k++];
   s.resid_var = v[k++];
   s.references = static_cast<std::uint32_t>(v[k++]);
   s.cover.sd = v[k++];
@@ -355,6 +377,8 @@ bool FuelTorque::import_state(const FuelTorqueState& in) noexcept {
   for (double v : s.theta)
     if (!std::isfinite(v)) return false;
   for (double v : s.p)
+    if (!std::isfinite(v)) return false;
+  for (double v : s.pxb)
     if (!std::isfinite(v)) return false;
   if (!std::isfinite(s.resid_var) || s.resid_var < 0.0) return false;
   if (!std::isfinite(s.cover.sd) || s.cover.sd < 0.0) return false;

@@ -109,7 +109,11 @@ struct FuelPoint {
 struct FuelTorqueState {
   std::array<double, kFuelParams> theta{};            ///< [c0, c1, p_off Pa, k_bp Pa]
   std::array<double, kFuelParams * kFuelParams> p{};  ///< RLS covariance (row-major)
-  double resid_var = 0.0;                             ///< residual variance (N m²): the outlier gate's scale
+  /// Cross-covariance of θ with the one bias the driveline-open references share (the accessories' prior:
+  /// the same error in every such reference, which no count of them averages out), units of θ × N m. A
+  /// Schmidt "consider" term: the bias is not estimated, only carried (FuelTorque::learn).
+  std::array<double, kFuelParams> pxb{};
+  double resid_var = 0.0;  ///< residual variance (N m²): the outlier gate's scale
   std::uint32_t references = 0;
   CoverageScale cover;  ///< 68th percentile of |residual| once learned (N m), sd 0: not yet
   std::array<std::uint16_t, kFuelCells> cells{};  ///< references per speed × MAP cell (saturating)
@@ -121,7 +125,7 @@ struct FuelTorqueState {
   bool physics = true;         ///< false: only the legacy view is known (an older file)
 };
 /// FuelTorqueState as a flat array of doubles (lock-free snapshots).
-inline constexpr int kFuelStateDoubles = kFuelParams + kFuelParams * kFuelParams + 4 + kFuelCells + 7;
+inline constexpr int kFuelStateDoubles = 2 * kFuelParams + kFuelParams * kFuelParams + 4 + kFuelCells + 7;
 void pack(const FuelTorqueState& s, std::array<double, kFuelStateDoubles>& v) noexcept;
 [[nodiscard]] FuelTorqueState unpack(const std::array<double, kFuelStateDoubles>& v) noexcept;
 
@@ -145,9 +149,13 @@ class FuelTorque {
   /// across the window's events (fuel, MAP, a cut-off edge) / events.
   [[nodiscard]] double transient_sd_nm(const FuelWindow& w, const FuelPoint& x) const noexcept;
   /// One reference: true indicated torque `t_ind_ref` (N m) at `x`; `extra_sd_nm` is the reference's own
-  /// extra noise (a transient window's spread). Rejects non-finite input and residuals beyond 5σ (residual
-  /// and parameter uncertainty) once learned. Returns true when learned from.
-  bool learn(const FuelPoint& x, double t_ind_ref, double extra_sd_nm = 0.0) noexcept;
+  /// extra noise (a transient window's spread); `shared_bias_sd_nm` > 0: the reference rests on the
+  /// accessories' prior (driveline open, no measured load), whose error (this 1σ) is the same in every such
+  /// reference: a Schmidt-Kalman consider parameter (Simon 2006, §7.5), so that many of them at one
+  /// operating point (idle) do not claim to fix the map. Rejects non-finite input and residuals beyond 5σ
+  /// (residual and parameter uncertainty) once learned. Returns true when learned from.
+  bool learn(const FuelPoint& x, double t_ind_ref, double extra_sd_nm = 0.0,
+             double shared_bias_sd_nm = 0.0) noexcept;
   bool learn(double fuel_kg, double map_pa, double t_ind_ref) noexcept;
   [[nodiscard]] const FuelTorqueState& state() const noexcept { return st_; }
   /// A saved state; one with only the legacy two-parameter view (physics false) is converted (from_willans).

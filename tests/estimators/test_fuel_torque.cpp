@@ -8,6 +8,7 @@
 #include "fuel_torque.hpp"
 
 using torqued::EngineGeometry;
+using torqued::FuelPoint;
 using torqued::FuelTorque;
 using torqued::FuelTorqueParams;
 using torqued::Health;
@@ -212,4 +213,40 @@ TEST(FuelTorque, PriorIsPublishedWithAWideSigmaThatShrinksWhereReferencesArrive)
   EXPECT_EQ(ft.learned_cells(), 1u << FuelTorque::cell_of(2500.0, 60000.0));
   EXPECT_GT(ft.estimate(0, there).uncertainty, 2.0 * p1.uncertainty);
   EXPECT_FALSE(ft.prior_only());
+}
+
+TEST(FuelTorque, ReferencesSharingOneBiasClaimNoLessThanThatBias) {
+  // GIVEN 300 driveline-open references at one idle point, each off by the same +2.5 N m (the accessories'
+  // prior error, claimed 1σ 2 N m) and ±0.5 N m of noise of their own WHEN one model learns them as sharing
+  // that bias (shared_bias_sd_nm, a consider parameter) and another as independent THEN the first claims at
+  // the idle point a 1σ no smaller than the bias's (and covers its error within 2σ), the second claims about
+  // the noise alone and does not cover its error; away from idle the first claims more than the second.
+  EngineGeometry g;
+  FuelTorque shared(g, measured_only()), independent(g, measured_only());
+  FuelPoint idle;
+  idle.fuel_kg = 7e-6;
+  idle.map_pa = 28000.0;
+  idle.rpm = 800.0;
+  unsigned seed = 11;
+  const double bias = 2.5;
+  for (int k = 0; k < 300; ++k) {
+    const double ref = truth(g, idle.fuel_kg, idle.map_pa) + bias + 0.5 * noise(seed);
+    EXPECT_TRUE(shared.learn(idle, ref, 0.0, 2.0));
+    EXPECT_TRUE(independent.learn(idle, ref));
+  }
+  const double t_idle = truth(g, idle.fuel_kg, idle.map_pa);
+  const auto s_idle = shared.estimate(0, idle), i_idle = independent.estimate(0, idle);
+  EXPECT_GE(s_idle.uncertainty, 1.9);
+  EXPECT_LE(std::fabs(s_idle.torque_nm - t_idle), 2.0 * s_idle.uncertainty);
+  EXPECT_LT(i_idle.uncertainty, 1.0);
+  EXPECT_GT(std::fabs(i_idle.torque_nm - t_idle), 2.0 * i_idle.uncertainty);
+  FuelPoint full = idle;
+  full.fuel_kg = 40e-6;
+  full.map_pa = 95000.0;
+  full.rpm = 2500.0;
+  EXPECT_GT(shared.estimate(0, full).uncertainty, independent.estimate(0, full).uncertainty);
+  // A reference with a measured load (no shared bias) after them still learns, and the carried
+  // cross-covariance stays finite.
+  EXPECT_TRUE(shared.learn(full, truth(g, full.fuel_kg, full.map_pa)));
+  for (const double v : shared.state().pxb) EXPECT_TRUE(std::isfinite(v));
 }

@@ -71,6 +71,7 @@ TEST(StateFormat, APhysicsFuelModelLineRoundTripsExactly) {
   for (std::size_t i = 0; i < f.p.size(); ++i)
     f.p[i] = (i % 5 == 0) ? 1e-3 * static_cast<double>(i + 1) : 0.0;
   for (std::size_t i = 0; i < f.cells.size(); ++i) f.cells[i] = static_cast<std::uint16_t>(i * 4000);
+  f.pxb = {1.5e-3, -2.25e-4, 12.5, -40.25};
   s.fuel = f;
   const std::string text = serialize_state(s, kIdentity);
   EXPECT_NE(text.find(" 321 physics 0.93123456789012"), std::string::npos) << text;
@@ -82,7 +83,18 @@ TEST(StateFormat, APhysicsFuelModelLineRoundTripsExactly) {
   EXPECT_EQ(back->fuel->theta, f.theta);
   EXPECT_EQ(back->fuel->p, f.p);
   EXPECT_EQ(back->fuel->cells, f.cells);
+  EXPECT_EQ(back->fuel->pxb, f.pxb);
   EXPECT_EQ(serialize_state(*back, kIdentity), text);
+  // A physics line written before the shared-bias cross-covariance was added (the line ends after the cell
+  // counts) loads with it 0.
+  const auto fl = text.find("\nfuel_model");
+  std::string line = text.substr(fl + 1, text.find('\n', fl + 1) - fl - 1);
+  for (int k = 0; k < 4; ++k) line.erase(line.rfind(' '));
+  const auto o = parse_state("torqued-state 1\n" + line + "\n", "older", &err);  // version 1: no checksum
+  ASSERT_TRUE(o) << err;
+  ASSERT_TRUE(o->fuel);
+  EXPECT_EQ(o->fuel->cells, f.cells);
+  EXPECT_EQ(o->fuel->pxb, (std::array<double, 4>{}));
   std::string big = text.substr(0, text.find("\nchecksum"));
   big.replace(big.rfind(" 60000"), 6, " 65536");
   EXPECT_FALSE(parse_state(big + "\n", "big", &err)) << "a cell count beyond 16 bits";
