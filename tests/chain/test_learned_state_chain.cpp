@@ -90,6 +90,7 @@ TEST(LearnedStateChain, FileRoundTripGivesIdenticalOutputsOnTheSecondReplay) {
     EXPECT_TRUE(a.physics);
     EXPECT_EQ(a.theta, b.theta);
     EXPECT_EQ(a.p, b.p);
+    EXPECT_EQ(a.pxb, b.pxb);
     EXPECT_EQ(a.cells, b.cells);
     EXPECT_EQ(a.resid_var, b.resid_var);
     EXPECT_EQ(a.references, b.references);
@@ -119,6 +120,58 @@ TEST(LearnedStateChain, FileRoundTripGivesIdenticalOutputsOnTheSecondReplay) {
   // stay).
   ASSERT_TRUE(file.out.fuel);
   EXPECT_GE(file.out.fuel->references, parsed->fuel->references);
+}
+
+/// Per cycle end: whether the fused brake torque was published (valid) and its claimed 1σ.
+struct FusedTap final : AngleChainSink {
+  int cycles = 0, published = 0;
+  double sd_sum = 0.0;
+  void on_tooth(const ChainTooth&) noexcept override {}
+  void on_segment(const ChainSegment& s) noexcept override {
+    if (!s.out->cycle_end) return;
+    ++cycles;
+    if (s.out->fused.health != Health::kValid) return;
+    ++published;
+    sd_sum += s.out->fused.sd_nm;
+  }
+};
+
+FusedTap replay_fused(const std::string& config, const LearnedState& in) {
+  FusedTap tap;
+  const LoadResult lr = load_config(config);
+  EXPECT_TRUE(lr.config.has_value()) << config;
+  if (!lr.config) return tap;
+  RunInputs inputs = open_inputs(*lr.config);
+  EXPECT_TRUE(inputs.ok()) << inputs.error;
+  NoSink sink;
+  LearnedState st = in;
+  (void)run_fast_replay(inputs.settings, inputs.edges.get(), inputs.can.get(), inputs.can_offset_ns,
+                        inputs.dbc_ptr(), sink, nullptr, &st, &tap);
+  return tap;
+}
+
+TEST(LearnedStateChain, ALearnedFuelModelOnAFrictionLawShortOfItsObservationsIsPublishedNotWithheld) {
+  // GIVEN the state a bench run learned (fuel model with its references, friction law), and the same state
+  // whose friction law was saved after fewer motoring observations than friction.min_observations (a
+  // vehicle's few coast-down cycles: restored "not converged")
+  const ReplayRun learn = replay(kDir + "demo.yaml", nullptr);
+  ASSERT_TRUE(learn.r.learned);
+  ASSERT_TRUE(learn.out.fuel && learn.out.friction);
+  ASSERT_GE(learn.out.fuel->references, 30u);
+  LearnedState partial = learn.out;
+  partial.friction_observations = 2.0;
+  // WHEN the vehicle configuration (no load signal) replays from each
+  const FusedTap full = replay_fused(kDir + "demo_vehicle.yaml", learn.out);
+  const FusedTap part = replay_fused(kDir + "demo_vehicle.yaml", partial);
+  // THEN the fused brake torque is published on as many cycles from the partial law (it was withheld on
+  // nearly all of them: the fuel model's slot took the friction's "not converged"), with the friction's 1σ
+  // added to its claim.
+  ASSERT_GT(full.cycles, 300);
+  EXPECT_EQ(part.cycles, full.cycles);
+  EXPECT_GE(full.published, 95 * full.cycles / 100);
+  EXPECT_GE(part.published, 95 * part.cycles / 100);
+  ASSERT_GT(part.published, 0);
+  EXPECT_GT(part.sd_sum / part.published, full.sd_sum / full.published);
 }
 
 /// Per tooth the in-cycle Kalman value (NaN unless its health is valid: the in-cycle quality the daemon
