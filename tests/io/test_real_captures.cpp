@@ -111,6 +111,22 @@ TEST(RealCaptures, NoisyTrigger3NeverSyncsFalsely) {
   print_row("noisy-trigger-3.csv", "36-2 rising", d, "no reference (rusEFI asserts dwell only)");
 }
 
+// noisy-trigger-2: 36-2 crank while cranking, with a near-stall. It runs about 0.6 s at ~370 rpm, then 1.2 s
+// of slow irregular edges (rising periods 12-74 ms), then ~230 rpm from 2.17 s with irregular tooth periods.
+// There, the ratio of consecutive periods ranges 0.18-4.5, where a real gap gives about 3. Such a period
+// looks like a gap (unexpected_gap), and the decoder resyncs. No false sync: whatever is claimed synced has
+// its gaps exactly one revolution (34 teeth) apart.
+TEST(RealCaptures, NoisyTrigger2StallAndJitterNeverSyncFalsely) {
+  const auto d = decode("noisy-trigger-2.csv", "36-2", true, "crank");
+  EXPECT_EQ(d.bad_lines, 0u);  // headerless: "crank" is column 1
+  for (const int n : gap_spacings(d)) EXPECT_EQ(n, 34);
+  EXPECT_GE(gap_spacings(d).size(), 4u);
+  EXPECT_LE(d.stats.syncs, d.stats.sync_losses + 1);
+  EXPECT_GE(d.stats.syncs, 1u);
+  EXPECT_LT(d.first_sync_ns, 700'000'000);  // the first 0.6 s at ~400 rpm is enough
+  print_row("noisy-trigger-2.csv", "36-2 rising", d, "no reference (rusEFI asserts dwell only)");
+}
+
 // arctic-cat: 24-position wheel, 11 teeth, 1 missing, 10 teeth, 2 missing (read off this capture; rusEFI: gap
 // ratios 2 and 3). Both polarities: one sync, no loss, no noise edge.
 TEST(RealCaptures, ArcticCatSyncsOnceAndHolds) {
