@@ -135,9 +135,11 @@ void add_wheel(std::vector<SchemaEntry>& t) {
                       "teeth",
                       "synced: after a noise edge this many teeth count as inside a noise burst (0 = off)"));
   dn("burst_tooth_ratio_min", &DecoderParams::burst_tooth_ratio_min, {0.0, 1.0, true, true},
-     "noise burst: a period below this x the running tooth period is a glitch (synced); resyncing after a "
-     "loss, "
-     "the run before a gap must lie within [x, 1/x] of its median and the gap fit it");
+     "noise burst: a period below this x the running tooth period is a glitch (synced); a synced tooth below "
+     "x of both the running period and the trend prediction is suspect, and the next edge is noise if the "
+     "two "
+     "periods make one tooth within [x, 1/x] of both; resyncing after a loss, the run before a gap must lie "
+     "within [x, 1/x] of its median and the gap fit it");
   dn("lost_tooth_min_ratio", &DecoderParams::lost_tooth_min_ratio, {1.0, 10.0, false, false},
      "lost-tooth hypothesis only above this period ratio");
   dn("max_trend", &DecoderParams::max_trend, {1.0, 10.0, false, false},

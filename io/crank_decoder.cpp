@@ -106,6 +106,7 @@ void CrankDecoder::reset_sync(SyncState to) noexcept {
   pattern_.restart();
   u1_ = u2_ = u3_ = 0.0;
   burst_teeth_ = 0;
+  suspect_period_ns_ = 0;
   period_ns_ = 0;
 }
 
@@ -270,6 +271,7 @@ void CrankDecoder::enter_synced(std::int64_t t_ns, std::int64_t period, int idx,
   u1_ = static_cast<double>(period) / w;
   u2_ = u3_ = 0.0;
   burst_teeth_ = 0;
+  suspect_period_ns_ = 0;
   last_t_ns_ = t_ns;
   pending_flags_ |= flags | (stats_.syncs > 1 ? kToothResynced : 0u);
   emit(t_ns, idx, w, period, out);
@@ -297,6 +299,7 @@ void CrankDecoder::emit_syncing(std::int64_t t_ns, std::int64_t period, bool too
 }
 
 bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEvent& out) noexcept {
+  if (suspect_period_ns_ > 0 && suspect_resolves_as_glitch(period)) return false;
   int i = wheel_.next(tooth_);
   double w = wheel_.width_of(i);
   // Expected period from the last one, scaled by the true widths (constant speed over one tooth), with and
@@ -359,7 +362,45 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
     emit_unsynced(t_ns, SyncState::kLostSync, out);
     return true;
   }
+  // A tooth earlier than both the running period and the trend prediction may be a glitch standing in for the
+  // tooth it precedes (the first edge of a noise burst, before any edge was early enough to be rejected). It
+  // shortens u1_ and the trend, so the true tooth's remainder would pass as the next tooth and shift every
+  // index after it. Held as a suspect: the next edge resolves it (suspect_resolves_as_glitch()).
+  // Only between one-pitch teeth: next to a gap one tooth more or less is not a factor of two in time.
+  const bool suspect = !burst && advance == 1 && u3_ > 0.0 && !gap_tooth &&
+                       wheel_.width_of(i2) < 1.5 * wheel_.pitch_rad &&
+                       q_run < params_.burst_tooth_ratio_min && q_trend < params_.burst_tooth_ratio_min;
+  const double u_pred = u1_ * trend, u_run = running_u();  // expected per radian, from before this tooth
   accept_tooth(t_ns, period, i, w, advance, gap_tooth, out);
+  if (suspect && state_ == SyncState::kSynced) {  // (a pattern check in accept_tooth may have lost sync)
+    suspect_u_ = u_pred;
+    suspect_u_run_ = u_run;
+    suspect_w_ = w;
+    suspect_period_ns_ = period;
+  }
+  return true;
+}
+
+// The edge after a suspect tooth: if the two periods together make the one tooth period expected before the
+// suspect, both from the last period and trend and from the running period (each within
+// [burst_tooth_ratio_min, 1 / burst_tooth_ratio_min]), the suspect was a glitch standing in for this tooth:
+// this edge is noise (the suspect keeps the tooth's index) and the tooth's period is restored. Two true teeth
+// take longer. A speed-up that halves the period within two teeth (the 36-1 stopping engine at 80 % ripple,
+// out of a compression) fits the running period (1.08-1.15) but gives 1.3 times the trend prediction;
+// tooth-to-tooth jitter (real cranking captures, +-20 %) can make the trend prediction fit but not the
+// running period (2).
+bool CrankDecoder::suspect_resolves_as_glitch(std::int64_t period) noexcept {
+  if (suspect_period_ns_ <= 0) return false;
+  const auto combined = static_cast<double>(period + suspect_period_ns_);
+  suspect_period_ns_ = 0;
+  const double r = params_.burst_tooth_ratio_min;
+  const auto fits = [&](double u) {
+    const double q = combined / (u * suspect_w_);
+    return q >= r && q * r <= 1.0;
+  };
+  if (!fits(suspect_u_) || !fits(suspect_u_run_)) return false;
+  u1_ = combined / suspect_w_;
+  reject_noise();
   return true;
 }
 

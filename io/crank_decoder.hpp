@@ -201,6 +201,7 @@ class CrankDecoder {
   void accept_tooth(std::int64_t t_ns, std::int64_t period_ns, int i, double w, int advance, bool gap_tooth,
                     ToothEvent& out) noexcept;
   void reject_noise() noexcept;
+  bool suspect_resolves_as_glitch(std::int64_t period_ns) noexcept;
   /// Synced: the running tooth period (ns/rad), the median of the last three normalised periods (u1_ before
   /// three are known). A glitch accepted as a tooth drags u1_ and the trend; it cannot drag the median.
   [[nodiscard]] double running_u() const noexcept {
@@ -244,6 +245,10 @@ class CrankDecoder {
   double u3_ = 0.0;              ///< synced: the one before u2_ (running_u(); 0 = unknown)
   int burst_teeth_ = 0;    ///< synced: teeth still judged as in a noise burst (a noise edge was rejected)
   int lost_this_rev_ = 0;  ///< synced: teeth interpolated in this revolution
+  /// Synced: the last tooth came early against both the running period and the trend (a glitch standing in?):
+  /// its period (0 = none), width, and the trend-predicted and running periods per radian before it.
+  std::int64_t suspect_period_ns_ = 0;
+  double suspect_w_ = 0.0, suspect_u_ = 0.0, suspect_u_run_ = 0.0;
   std::uint32_t pending_flags_ = 0;  ///< ToothEvent::events for the next tooth event
   DecoderStats stats_;
   DecoderEventLog* events_ = nullptr;

@@ -5,6 +5,7 @@
 // no part.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -149,6 +150,31 @@ TEST(DecoderRegression, QuarterMicrosecondGlitchAtPoint47OfAPeriodKeepsSync) {
   EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
   EXPECT_EQ(r.stats.noise_edges, 1u);
   EXPECT_EQ(r.wrong_index, 0);
+}
+
+// 36-2 at 1000 rpm: one 40 µs glitch pulse at 0.65 of a period while synced, with no noise edge before it
+// (the first edge of a noise burst). The glitch is early enough to be suspect (under burst_tooth_ratio_min of
+// both the running period and the trend prediction) but not a runt, so it stands in for the tooth it
+// precedes. Before the suspect rule (io/crank_decoder.cpp, suspect_resolves_as_glitch) the true tooth's
+// remainder (0.35 of a period, 0.54 of the glitch-shortened one) passed as the next tooth and every index
+// after it was one ahead (DecoderBurstResync's "true teeth with a shifted index").
+TEST(DecoderRegression, GlitchAtTwoThirdsOfAPeriodDoesNotShiftTheIndex) {
+  const WheelGeometry w = runs_wheel(36, {34, 2});
+  Stream s = make_stream(w, 1000.0, 10, [](int, int) { return 0.0; });
+  const double pitch_ns = 60e9 / 1000.0 / 36;
+  std::vector<EdgeEvent> edges = s.edges;
+  const auto g = s.truth[5 * 34 + 20].first + static_cast<std::int64_t>(0.65 * pitch_ns);  // after tooth 20
+  edges.push_back(EdgeEvent{g, 0, 1});
+  edges.push_back(EdgeEvent{g + 40'000, 0, 0});
+  std::stable_sort(edges.begin(), edges.end(),
+                   [](const EdgeEvent& a, const EdgeEvent& b) { return a.t_ns < b.t_ns; });
+  s.edges = edges;
+  const Result r = run(w, DecoderParams{}, s);
+  EXPECT_EQ(r.stats.syncs, 1u);
+  EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
+  EXPECT_EQ(r.stats.noise_edges, 1u);  // the true tooth 21, after the glitch that stood in for it
+  EXPECT_EQ(r.wrong_index, 1);         // the glitch itself (tooth 21 at the glitch's time); nothing after it
+  EXPECT_GT(r.synced, 8 * w.teeth());
 }
 
 // Cranking at 300 rpm on a 36-2 wheel with ±10 % of a period of jitter on every edge (tooth-to-tooth period
