@@ -35,6 +35,9 @@ class FourierObserver {
  public:
   static constexpr int kMaxHarmonics = 24;
   static constexpr int kMaxCoeffs = 2 * kMaxHarmonics + 1;
+  /// Storage per coefficient row, rounded up to a multiple of 4: the per-tooth pass runs four at a time and
+  /// the padding (zero coefficient, basis and gain) adds nothing.
+  static constexpr int kCoeffStride = (kMaxCoeffs + 3) / 4 * 4;
   static constexpr int kMaxLag = 6;
 
   /// Gains must have passed check_stability(); the constructor does not re-check (config loader's job).
@@ -95,11 +98,12 @@ class FourierObserver {
  private:
   FourierParams params_;
   ToothAngleTable table_;
-  int nc_ = 0;                 ///< 2 n_h + 1
-  std::vector<double> basis_;  ///< f_j(e_k) at [k * nc_ + j]
-  std::array<double, kMaxCoeffs> l_{};
-  std::array<double, kMaxCoeffs> lm_{};  ///< the gains with model_l_ref (gas model valid)
-  std::array<double, kMaxCoeffs> c_{};
+  int nc_ = 0;   ///< 2 n_h + 1
+  int ncp_ = 0;  ///< nc_ rounded up to a multiple of 4: the row stride and the per-tooth pass's length
+  std::vector<double> basis_;  ///< f_j(e_k) at [k * ncp_ + j], zero for j ≥ nc_ (16-byte aligned rows)
+  alignas(16) std::array<double, kCoeffStride> l_{};
+  alignas(16) std::array<double, kCoeffStride> lm_{};  ///< the gains with model_l_ref (gas model valid)
+  alignas(16) std::array<double, kCoeffStride> c_{};
   double phi_ = 0.0;
   double mean_speed_ = 0.0;  ///< running mean speed over ≈ one cycle (rad/s), for gain_ref_rpm
   double ref_speed_ = 0.0;   ///< gain_ref_rpm in rad/s (0: off)
