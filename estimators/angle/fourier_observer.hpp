@@ -10,7 +10,9 @@
 //   ĉ_j ← ĉ_j − Δ_k l_j f_j(e_k) e_k,  l_0 = L_a0, l_{2i−1} = l_{2i} = i L_ref (CF §V.B)
 // Basis values are tabulated per tooth at start-up (no trigonometry per tooth).
 #include <array>
+#include <cstddef>
 #include <cstdint>
+#include <new>
 #include <optional>
 #include <string>
 #include <vector>
@@ -23,6 +25,22 @@
 #include "tooth_preprocessor.hpp"
 
 namespace torqued {
+
+/// Allocator of 16-byte aligned storage (the basis rows' pair loads assume it, whatever the allocator in
+/// use).
+template <class T>
+struct Aligned16Allocator {
+  using value_type = T;
+  Aligned16Allocator() = default;
+  template <class U>
+  explicit Aligned16Allocator(const Aligned16Allocator<U>& /*other*/) noexcept {}
+  T* allocate(std::size_t n) { return static_cast<T*>(::operator new (n * sizeof(T), std::align_val_t{16})); }
+  void deallocate(T* p, std::size_t /*n*/) noexcept { ::operator delete (p, std::align_val_t{16}); }
+  template <class U>
+  bool operator==(const Aligned16Allocator<U>& /*other*/) const noexcept {
+    return true;
+  }
+};
 
 struct FourierStats {
   std::uint64_t updates = 0;
@@ -100,7 +118,7 @@ class FourierObserver {
   ToothAngleTable table_;
   int nc_ = 0;   ///< 2 n_h + 1
   int ncp_ = 0;  ///< nc_ rounded up to a multiple of 4: the row stride and the per-tooth pass's length
-  std::vector<double> basis_;  ///< f_j(e_k) at [k * ncp_ + j], zero for j ≥ nc_ (16-byte aligned rows)
+  std::vector<double, Aligned16Allocator<double>> basis_;  ///< f_j(e_k) at [k * ncp_ + j], 0 for j ≥ nc_
   alignas(16) std::array<double, kCoeffStride> l_{};
   alignas(16) std::array<double, kCoeffStride> lm_{};  ///< the gains with model_l_ref (gas model valid)
   alignas(16) std::array<double, kCoeffStride> c_{};
