@@ -59,6 +59,8 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
   const double l0 = std::log(params_.min_rpm * kRpm), l1 = std::log(params_.max_rpm * kRpm);
   for (int b = 0; b < bins; ++b)
     bin_log_speed_[static_cast<std::size_t>(b)] = l0 + (l1 - l0) * b / (bins - 1);
+  bin_scale_ = (bins - 1) / (bin_log_speed_.back() - bin_log_speed_.front());
+  inv_samples_ = 1.0 / table_.samples;
   if (params_.periodic_gains) build_aps_tables(bins);
   reset();
 }
@@ -286,10 +288,13 @@ ChauvinKalman::Vec ChauvinKalman::periodic_gain(int k, double speed_rad_s) const
 }
 
 ChauvinKalman::BinPos ChauvinKalman::bin_pos(int k, double speed_rad_s) const noexcept {
+  return bin_pos_log(k, std::log(std::max(speed_rad_s, 1e-3)));
+}
+
+ChauvinKalman::BinPos ChauvinKalman::bin_pos_log(int k, double l) const noexcept {
   const int kk = table_.samples;
   const int bins = static_cast<int>(bin_log_speed_.size());
-  const double l = std::log(std::max(speed_rad_s, 1e-3));
-  double pos = (l - bin_log_speed_.front()) / (bin_log_speed_.back() - bin_log_speed_.front()) * (bins - 1);
+  double pos = (l - bin_log_speed_.front()) * bin_scale_;
   pos = std::clamp(pos, 0.0, static_cast<double>(bins - 1) - 1e-12);
   const int b = static_cast<int>(pos);
   const int base = mode_ * bins;
@@ -326,6 +331,22 @@ void ChauvinKalman::reset() noexcept {
   teeth_seen_ = 0;
   edge_t_ns_.fill(0);
   model_.fill(0.0);
+}
+
+void ChauvinKalman::advance_mean_speed(double omega) noexcept {
+  const double old = mean_speed_;
+  mean_speed_ += (omega - mean_speed_) * inv_samples_;
+  // ln ω̄ by ln(ω̄/ω̄_old) = ln(1 + u), u = (ω̄ − ω̄_old)/ω̄_old: |u| ≲ 1e-3 per tooth (the mean moves by a
+  // K-th of the in-cycle speed ripple), so four terms leave ≤ |u|⁵/5 ≈ 1e-16 per tooth; exact once per cycle
+  // (and after a restart or a large step) so rounding cannot accumulate. Replaces a std::log per tooth.
+  const double u = (mean_speed_ - old) / old;
+  if (++log_fresh_teeth_ >= table_.samples || !(std::abs(u) < 1e-2) || !(old > 1e-3) ||
+      !(mean_speed_ > 1e-3)) {
+    log_mean_speed_ = std::log(std::max(mean_speed_, 1e-3));
+    log_fresh_teeth_ = 0;
+    return;
+  }
+  log_mean_speed_ += u * (1.0 - u * (0.5 - u * (1.0 / 3.0 - 0.25 * u)));
 }
 
 void ChauvinKalman::predict(int k) noexcept {
@@ -386,11 +407,12 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
     x_.setZero();
     x_(kSpeedSqState) = y;
     mean_speed_ = omega;
+    log_fresh_teeth_ = table_.samples;  // ln ω̄ exact on this tooth
     p_ = initial_covariance(k, omega);
     p_finite_ = p_.allFinite();
     teeth_seen_ = 0;
   }
-  mean_speed_ += (omega - mean_speed_) / kk;
+  advance_mean_speed(omega);
   mode_ = params_.gas_model && model_next_valid_ ? kModelMissSet : kWholeTorqueSet;
   push_model(model_next_valid_ ? model_next_ : 0.0);
   Vec& gain = last_gain_;  // the gain is built where it is kept (no per-tooth copy of 16 doubles)
@@ -398,7 +420,11 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
   const int o = kTorqueState + params_.smoother_lag;  // x2(k−d): the smoothed output state
   const double h = edge_coupling(k);
   if (params_.periodic_gains) {
-    out_var = periodic_gain_var_into(k, mean_speed_, gain);  // the periodic Riccati solution's variance
+    // The periodic Riccati solution's gain and variance at ln ω̄ (as periodic_gain_var_into(k, ω̄) computes
+    // them, with the logarithm kept up to date instead of taken per tooth).
+    const BinPos at = bin_pos_log(k, log_mean_speed_);
+    gain = (1.0 - at.t) * aps_gain(at.lo) + at.t * aps_gain(at.hi);
+    out_var = (1.0 - at.t) * aps_var_[at.lo] + at.t * aps_var_[at.hi];
   } else {
     Mat pn = p_;
     riccati_step(k, mean_speed_, pn, gain);

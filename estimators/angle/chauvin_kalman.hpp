@@ -133,6 +133,11 @@ class ChauvinKalman {
     double t;            ///< interpolation weight of `hi`
   };
   [[nodiscard]] BinPos bin_pos(int k, double speed_rad_s) const noexcept;
+  /// bin_pos() from ln ω (ω already clamped to ≥ 1e-3 rad/s).
+  [[nodiscard]] BinPos bin_pos_log(int k, double log_speed) const noexcept;
+  /// The running mean speed's update and its logarithm for the APS bin (per tooth): ln ω̄ exact at a
+  /// (re)start and once per cycle, in between advanced by ln(1 + u), u = Δω̄/ω̄ (a short series).
+  void advance_mean_speed(double omega) noexcept;
   void push_edge_time(std::int64_t t_ns) noexcept;
   void push_model(double ripple_nm) noexcept;
   /// Appends gain set `set` to `out` (kStates doubles per slot) and writes its variances into aps_var_.
@@ -176,7 +181,11 @@ class ChauvinKalman {
   int est_tooth_ = 0;
   bool wheel_learned_ = true;
   double load_star_nm_ = 0.0;
-  double mean_speed_ = 0.0;  ///< running mean speed over ≈ one cycle (rad/s), schedules R / gains
+  double mean_speed_ = 0.0;      ///< running mean speed over ≈ one cycle (rad/s), schedules R / gains
+  double log_mean_speed_ = 0.0;  ///< ln max(mean_speed_, 1e-3) (APS gains' speed bin)
+  int log_fresh_teeth_ = 0;      ///< teeth since log_mean_speed_ was computed exactly
+  double inv_samples_ = 0.0;     ///< 1 / samples per cycle
+  double bin_scale_ = 0.0;       ///< (bins − 1) / (ln ω_last bin − ln ω_first bin)
   int expected_tooth_ = -1;
   int teeth_seen_ = 0;
   LagRing<std::int64_t, kMaxLag + 1> edge_t_ns_;  ///< edge times of the last teeth, [0] = newest

@@ -44,23 +44,41 @@ void basis_row(double alpha, int nc, double* f) {
   }
 }
 
+/// Two doubles in one register (GCC/Clang vector extension: SSE2 on x86-64, NEON on AArch64).
+using Pair = double __attribute__((vector_size(16)));
+
+/// p is 16-byte aligned (rows of an even number of doubles in 16-byte aligned storage): the loads fold into
+/// the arithmetic.
+inline Pair load_pair(const double* p) noexcept {
+  Pair v;
+  __builtin_memcpy(&v, __builtin_assume_aligned(p, 16), sizeof v);
+  return v;
+}
+
 /// The per-tooth pass over the coefficients c (CF-8) with the basis rows f (tooth k) and fo (tooth k_out):
-/// returns {Σ c_j f_j before the update, Σ c_j fo_j after it}. Restrict-qualified parameters (c is not a
-/// basis row or the gains): the compiler keeps c_j and f_j in registers and drops its run-time overlap
-/// checks; the operations and their order are those of the loop it replaces (identical bits).
+/// returns {Σ c_j f_j before the update, Σ c_j fo_j after it}, c_j ← c_j − de g_j f_j (de = Δ_k e_k). Four
+/// coefficients per step in two registers, each sum kept as four partial sums added at the end: about half
+/// the instructions of the one-at-a-time loop; the sums differ from the sequential ones only by rounding (a
+/// few ulp). n is a multiple of 4 (rows padded with zeros); every pointer is 16-byte aligned.
 std::pair<double, double> coefficient_pass(double* __restrict c, const double* __restrict f,
-                                           const double* __restrict fo, const double* __restrict g, int nc,
-                                           double d, double err) noexcept {
-  double t_model = 0.0, t_net = 0.0;
-  for (int j = 0; j < nc; ++j) {
-    const double c0 = c[j];
-    const double fj = f[j];
-    t_model += c0 * fj;
-    const double cn = c0 - d * g[j] * fj * err;
-    c[j] = cn;
-    t_net += cn * fo[j];
+                                           const double* __restrict fo, const double* __restrict g, int n,
+                                           double de) noexcept {
+  Pair ma = {0.0, 0.0}, mb = ma, na = ma, nb = ma;
+  const Pair dev = {de, de};
+  for (int j = 0; j < n; j += 4) {
+    const Pair c0 = load_pair(c + j), c1 = load_pair(c + j + 2);
+    const Pair f0 = load_pair(f + j), f1 = load_pair(f + j + 2);
+    ma += c0 * f0;
+    mb += c1 * f1;
+    const Pair n0 = c0 - dev * (load_pair(g + j) * f0);
+    const Pair n1 = c1 - dev * (load_pair(g + j + 2) * f1);
+    __builtin_memcpy(__builtin_assume_aligned(c + j, 16), &n0, sizeof n0);
+    __builtin_memcpy(__builtin_assume_aligned(c + j + 2, 16), &n1, sizeof n1);
+    na += n0 * load_pair(fo + j);
+    nb += n1 * load_pair(fo + j + 2);
   }
-  return {t_model, t_net};
+  const Pair m = ma + mb, t = na + nb;
+  return {m[0] + m[1], t[0] + t[1]};
 }
 
 }  // namespace
@@ -70,10 +88,11 @@ FourierObserver::FourierObserver(const EngineGeometry& engine, const WheelGeomet
     : params_(params), table_(ToothAngleTable::build(engine, wheel)) {
   const int nh = std::clamp(params_.harmonics, 1, kMaxHarmonics);  // loader rejects; guard anyway
   nc_ = 2 * nh + 1;
-  basis_.resize(static_cast<std::size_t>(table_.samples * nc_));
+  ncp_ = (nc_ + 3) / 4 * 4;
+  basis_.assign(static_cast<std::size_t>(table_.samples * ncp_), 0.0);
   for (int k = 0; k < table_.samples; ++k) {
     const double alpha = table_.edge_rad[static_cast<std::size_t>(k)] - engine.tdc_offset_rad;
-    for (int j = 0; j < nc_; ++j) basis_[static_cast<std::size_t>(k * nc_ + j)] = basis_of(j, alpha);
+    for (int j = 0; j < nc_; ++j) basis_[static_cast<std::size_t>(k * ncp_ + j)] = basis_of(j, alpha);
   }
   FourierParams model_gains = params_;
   model_gains.l_ref = params_.model_l_ref;
@@ -251,7 +270,7 @@ void FourierObserver::push_model(double ripple_nm) noexcept {
 }
 
 double FourierObserver::net_torque_at(int k) const noexcept {
-  const double* f = &basis_[static_cast<std::size_t>(k * nc_)];
+  const double* f = &basis_[static_cast<std::size_t>(k * ncp_)];
   double t = 0.0;
   for (int j = 0; j < nc_; ++j) t += c_[static_cast<std::size_t>(j)] * f[j];
   return t;
@@ -298,15 +317,12 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
   // the newest coefficients is a fixed-lag smoother (beyond the paper).
   const int k_out = k >= lag_ ? k - lag_ : k - lag_ + kk;  // (k − lag) mod K without a division
   // One pass over the coefficients: the model torque at e_k with the coefficients before this tooth, their
-  // update (CF-8), and the output torque at e_{k_out} with the updated ones. Same operations in the same
-  // order as net_torque_at(k), the update loop, net_torque_at(k_out) one after the other (identical bits),
-  // but the two sums are independent chains of additions that now overlap (per tooth, the sums' latency
-  // dominated).
+  // update (CF-8), and the output torque at e_{k_out} with the updated ones.
   model_active_ = params_.gas_model && model_next_valid_;
-  const std::array<double, kMaxCoeffs>& gains = model_active_ ? lm_ : l_;  // model valid: model_l_ref
+  const std::array<double, kCoeffStride>& gains = model_active_ ? lm_ : l_;  // model valid: model_l_ref
   const auto [t_model, t_net] =
-      coefficient_pass(c_.data(), &basis_[static_cast<std::size_t>(k * nc_)],
-                       &basis_[static_cast<std::size_t>(k_out * nc_)], gains.data(), nc_, d, err);
+      coefficient_pass(c_.data(), &basis_[static_cast<std::size_t>(k * ncp_)],
+                       &basis_[static_cast<std::size_t>(k_out * ncp_)], gains.data(), ncp_, d * err);
   push_model(model_next_valid_ ? model_next_ : 0.0);
   phi_ += table_.step_rad[static_cast<std::size_t>(k)] * (t_model + model_[0] - params_.l_ke * err);
   ++stats_.updates;

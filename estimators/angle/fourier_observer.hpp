@@ -10,7 +10,9 @@
 //   ĉ_j ← ĉ_j − Δ_k l_j f_j(e_k) e_k,  l_0 = L_a0, l_{2i−1} = l_{2i} = i L_ref (CF §V.B)
 // Basis values are tabulated per tooth at start-up (no trigonometry per tooth).
 #include <array>
+#include <cstddef>
 #include <cstdint>
+#include <new>
 #include <optional>
 #include <string>
 #include <vector>
@@ -24,6 +26,22 @@
 
 namespace torqued {
 
+/// Allocator of 16-byte aligned storage (the basis rows' pair loads assume it, whatever the allocator in
+/// use).
+template <class T>
+struct Aligned16Allocator {
+  using value_type = T;
+  Aligned16Allocator() = default;
+  template <class U>
+  explicit Aligned16Allocator(const Aligned16Allocator<U>& /*other*/) noexcept {}
+  T* allocate(std::size_t n) { return static_cast<T*>(::operator new (n * sizeof(T), std::align_val_t{16})); }
+  void deallocate(T* p, std::size_t /*n*/) noexcept { ::operator delete (p, std::align_val_t{16}); }
+  template <class U>
+  bool operator==(const Aligned16Allocator<U>& /*other*/) const noexcept {
+    return true;
+  }
+};
+
 struct FourierStats {
   std::uint64_t updates = 0;
   std::uint64_t rejected = 0;       ///< not synced / invalid sample
@@ -35,6 +53,9 @@ class FourierObserver {
  public:
   static constexpr int kMaxHarmonics = 24;
   static constexpr int kMaxCoeffs = 2 * kMaxHarmonics + 1;
+  /// Storage per coefficient row, rounded up to a multiple of 4: the per-tooth pass runs four at a time and
+  /// the padding (zero coefficient, basis and gain) adds nothing.
+  static constexpr int kCoeffStride = (kMaxCoeffs + 3) / 4 * 4;
   static constexpr int kMaxLag = 6;
 
   /// Gains must have passed check_stability(); the constructor does not re-check (config loader's job).
@@ -95,11 +116,12 @@ class FourierObserver {
  private:
   FourierParams params_;
   ToothAngleTable table_;
-  int nc_ = 0;                 ///< 2 n_h + 1
-  std::vector<double> basis_;  ///< f_j(e_k) at [k * nc_ + j]
-  std::array<double, kMaxCoeffs> l_{};
-  std::array<double, kMaxCoeffs> lm_{};  ///< the gains with model_l_ref (gas model valid)
-  std::array<double, kMaxCoeffs> c_{};
+  int nc_ = 0;   ///< 2 n_h + 1
+  int ncp_ = 0;  ///< nc_ rounded up to a multiple of 4: the row stride and the per-tooth pass's length
+  std::vector<double, Aligned16Allocator<double>> basis_;  ///< f_j(e_k) at [k * ncp_ + j], 0 for j ≥ nc_
+  alignas(16) std::array<double, kCoeffStride> l_{};
+  alignas(16) std::array<double, kCoeffStride> lm_{};  ///< the gains with model_l_ref (gas model valid)
+  alignas(16) std::array<double, kCoeffStride> c_{};
   double phi_ = 0.0;
   double mean_speed_ = 0.0;  ///< running mean speed over ≈ one cycle (rad/s), for gain_ref_rpm
   double ref_speed_ = 0.0;   ///< gain_ref_rpm in rad/s (0: off)

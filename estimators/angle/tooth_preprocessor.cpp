@@ -132,9 +132,11 @@ bool ToothPreprocessor::update(const ToothSample& s) noexcept {
   out_.speed_sq = omega * omega;
   // The period's mean speed belongs to its centre time (second-order accurate).
   const std::int64_t center_ns = s.t_ns - static_cast<std::int64_t>(0.5e9 * s.dt_s);
-  const double rel_sd =
-      0.5 * speed_sq_rel_sd(s.width_rad, omega, params_.edge_noise_deg * kDeg, params_.jitter_s);
-  const double r = (rel_sd * omega) * (rel_sd * omega) + 1e-12;
+  // Measurement variance of θ̇: (½ speed_sq_rel_sd · ω)² = (2σ_a² + 2σ_t²ω²)·(ω/w)² = (2σ_a² + 2σ_t²ω²)/dt²
+  // (the square root and the width division of speed_sq_rel_sd cancel; the same value up to rounding).
+  const double edge_sd = params_.edge_noise_deg * kDeg;
+  const double var_sum = 2.0 * edge_sd * edge_sd + 2.0 * params_.jitter_s * params_.jitter_s * omega * omega;
+  const double r = var_sum / (s.dt_s * s.dt_s) + 1e-12;
   if (!have_prev_) {
     out_.speed_lp_rad_s = omega;
     kf_x_[0] = omega;

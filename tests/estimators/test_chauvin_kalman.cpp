@@ -2,6 +2,7 @@
 // truth, no allocation in update(), other engines and wheels by configuration only.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -170,6 +171,41 @@ TEST(ChauvinKalman, GainAndVarianceFromOneBinPositionAreTheSeparateLookUpsBitFor
       ASSERT_TRUE(same_bits(&var, &ref_var, 1)) << rpm << " rpm, tooth " << k;
     }
   }
+}
+
+TEST(ChauvinKalman, PerToothGainTracksTheMeanSpeedsLogarithmWithoutALogPerTooth) {
+  // GIVEN the default filter (APS gains) on a 60-2 wheel through a sweep 700 → 6500 → 900 rpm over 300 cycles
+  // with a ±6 % in-cycle ripple and a 20 % step down at cycle 150 (the mean speed's log is advanced by a
+  // series between exact logs: this checks it does not drift)
+  ChauvinKalman kf(EngineGeometry{}, WheelGeometry{}, KalmanParams{});
+  const ToothAngleTable& t = kf.table();
+  const int kk = t.samples;
+  const int cycles = 300;
+  double mean = 0.0, worst = 0.0;
+  std::int64_t t_ns = 0;
+  for (int n = 0; n < cycles * kk; ++n) {
+    const int k = n % kk;
+    const double f = static_cast<double>(n) / (cycles * kk);
+    double rpm = f < 0.5 ? 700.0 + 2.0 * f * 5800.0 : 6500.0 - 2.0 * (f - 0.5) * 5600.0;
+    if (n / kk == 150) rpm *= 0.8;
+    const double w = rpm * kPi / 30.0 * (1.0 + 0.06 * std::sin(4.0 * kPi * k / kk));
+    ToothSample s;
+    s.tooth = k;
+    s.synced = true;
+    s.width_rad = t.width_rad[static_cast<std::size_t>(k)];
+    s.dt_s = s.width_rad / w;
+    t_ns += static_cast<std::int64_t>(s.dt_s * 1e9);
+    s.t_ns = t_ns;
+    ASSERT_TRUE(kf.update(s));
+    // WHEN its gain is compared with the look-up at the running mean speed (the same recursion, std::log)
+    const double omega = s.width_rad / s.dt_s;
+    mean = n == 0 ? omega : mean + (omega - mean) * (1.0 / kk);
+    const ChauvinKalman::Vec ref = kf.periodic_gain(k, mean);
+    for (int i = 0; i < ChauvinKalman::kStates; ++i)
+      worst = std::max(worst, std::abs(kf.last_gain()(i) - ref(i)) / (1e-12 + std::abs(ref(i))));
+  }
+  // THEN every gain agrees to 1e-9 relative (a stale or drifting bin position moves gains by ≫ 1e-6)
+  EXPECT_LE(worst, 1e-9);
 }
 
 TEST(ChauvinKalman, SymmetricRiccatiStepIsTheGeneralStepBitForBit) {
