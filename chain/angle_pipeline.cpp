@@ -7,6 +7,11 @@
 namespace torqued {
 
 namespace {
+/// The fuel model's shared-bias 1σ is the accessories' prior's (one source of truth: can.load_reference).
+FuelTorqueParams with_shared_bias(FuelTorqueParams f, const LoadReferenceParams& p) noexcept {
+  f.shared_bias_sd_nm = p.accessory_sd_nm;
+  return f;
+}
 constexpr double kFourPi = 4.0 * std::numbers::pi;
 constexpr double kRadSToRpm = 30.0 / std::numbers::pi;
 /// Misfire decisions only after this many firing cycles (the CAN fuel flag leads the injections that resume).
@@ -59,7 +64,7 @@ AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
       friction_(cfg_.friction),
       inertia_(config.energies.inertia),
       eso_(config.engine, config.energies),
-      fuel_(config.engine, config.fuel),
+      fuel_(config.engine, with_shared_bias(config.fuel, config.load_ref)),
       fuel_win_(config.engine.cylinders, firing_tdcs(config.engine), config.fuel.intake_btdc_deg,
                 config.fuel.work_centroid_atdc_deg, config.fuel.report_window_s),
       cyl_(config.engine, config.cylinder),
@@ -647,14 +652,13 @@ bool AnglePipeline::fuel_learning_allowed(const CycleReference& ref, const Engin
          fw.valid && fw.cut == 0 && fw.fired > 0;
 }
 
-double AnglePipeline::accessory_bias_sd_nm(const CycleReference& ref) const noexcept {
+bool AnglePipeline::rests_on_accessory_prior(const CycleReference& ref) const noexcept {
   // The references whose load is the accessories' prior (classify_load, free_coast_reference): its error is
-  // one bias shared by all of them.
+  // one bias shared by all of them (FuelTorque::learn).
   const LoadReferenceParams& p = cfg_.load_ref;
   const bool flagged = p.sole_flag_bound || p.neutral_bound;
-  const bool acc = ref.kind == ReferenceKind::kNeutral || ref.kind == ReferenceKind::kFreeCoast ||
-                   (ref.kind == ReferenceKind::kEMachineSole && flagged);
-  return acc ? p.accessory_sd_nm : 0.0;
+  return ref.kind == ReferenceKind::kNeutral || ref.kind == ReferenceKind::kFreeCoast ||
+         (ref.kind == ReferenceKind::kEMachineSole && flagged);
 }
 
 void AnglePipeline::learn_fuel(const CycleReference& ref, const EngineSignals& sig, bool can_fresh,
@@ -664,7 +668,7 @@ void AnglePipeline::learn_fuel(const CycleReference& ref, const EngineSignals& s
   x.fuel_kg = fw.fuel_kg;
   x.map_pa = fw.map_fired_pa;
   const double t_ind_ref = o.brake_energy.torque_nm + o.friction.torque_nm;
-  (void)fuel_.learn(x, t_ind_ref, fuel_.transient_sd_nm(fw, x), accessory_bias_sd_nm(ref));
+  (void)fuel_.learn(x, t_ind_ref, fuel_.transient_sd_nm(fw, x), rests_on_accessory_prior(ref));
 }
 
 void AnglePipeline::learn(const SegmentEnergy& seg, const EngineSignals& sig, bool can_fresh, double dke_nm,

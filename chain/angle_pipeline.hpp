@@ -197,7 +197,7 @@ class AnglePipeline {
   [[nodiscard]] bool idle_observation_allowed(const SegmentEnergy& seg, const CycleReference& ref,
                                               const TorqueEstimate& rls, double rpm,
                                               bool cycle_end) const noexcept;
-  [[nodiscard]] double accessory_bias_sd_nm(const CycleReference& ref) const noexcept;
+  [[nodiscard]] bool rests_on_accessory_prior(const CycleReference& ref) const noexcept;
   [[nodiscard]] bool fuel_learning_allowed(const CycleReference& ref, const EngineSignals& sig,
                                            bool can_fresh, bool cycle_end,
                                            const FuelWindow& fw) const noexcept;

@@ -390,7 +390,9 @@ const Line kLines[] = {
      check_teeth},
     {"fuel_model", kFuelKinds, 0,
      "expected efficiency, pumping term (N m), 4 covariance entries, residual variance (N m^2), a reference "
-     "count and optionally the residual scale (N m) and its count",
+     "count and optionally the residual scale (N m) and its count, then \"physics\", 4 parameters, their 4 x "
+     "4 "
+     "covariance, 16 cell counts and optionally 4 cross-covariances with the accessories' shared bias",
      has_opt<&S::fuel>, [](const S& s, Nums& v) { fuel_to_numbers(*s.fuel, v); },
      [](S& s, const Nums& v) {
        FuelTorqueState f;

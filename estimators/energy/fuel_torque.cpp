@@ -1,5 +1,6 @@
 #include "fuel_torque.hpp"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -177,49 +178,59 @@ bool FuelTorque::learn(double fuel_kg, double map_pa, double t_ind_ref) noexcept
   return learn(x, t_ind_ref);
 }
 
-bool FuelTorque::learn(const FuelPoint& x, double t_ind_ref, double extra_sd_nm,
-                       double shared_bias_sd_nm) noexcept {
+bool FuelTorque::learn(const FuelPoint& x, double t_ind_ref, double extra_sd_nm, bool shared_bias) noexcept {
   if (!std::isfinite(x.fuel_kg) || !std::isfinite(x.map_pa) || !std::isfinite(x.rpm) ||
-      !std::isfinite(t_ind_ref) || !std::isfinite(extra_sd_nm) || !std::isfinite(shared_bias_sd_nm) ||
-      !(x.fuel_kg > 0.0) || (x.spark_valid && !std::isfinite(x.spark_deg)) ||
-      (x.lambda_valid && !std::isfinite(x.lambda)))
+      !std::isfinite(t_ind_ref) || !std::isfinite(extra_sd_nm) || !(x.fuel_kg > 0.0) ||
+      (x.spark_valid && !std::isfinite(x.spark_deg)) || (x.lambda_valid && !std::isfinite(x.lambda)))
     return false;
   const Regressor reg = regressor(x);
-  const auto& phi = reg.phi;
   double pred = -reg.offset;
   for (int i = 0; i < kN; ++i)
-    pred += phi[static_cast<std::size_t>(i)] * st_.theta[static_cast<std::size_t>(i)];
+    pred += reg.phi[static_cast<std::size_t>(i)] * st_.theta[static_cast<std::size_t>(i)];
   const double err = t_ind_ref - pred;
   const double r = params_.residual_sd_nm * params_.residual_sd_nm + extra_sd_nm * extra_sd_nm;
   // The shared bias b (consider parameter, variance vb): the reference is φ·θ − offset + b + noise, so its
-  // a-priori variance holds vb and twice the cross term φ·P_θb.
-  const double vb = shared_bias_sd_nm * shared_bias_sd_nm;
-  const bool biased = vb > 0.0;
+  // a-priori variance beyond the noise is φᵀPφ + 2φᵀP_θb + vb (the augmented covariance's quadratic form:
+  // ≥ 0 as a whole, not term by term).
+  const double vb = shared_bias ? params_.shared_bias_sd_nm * params_.shared_bias_sd_nm : 0.0;
   double phi_pxb = 0.0;
   for (int i = 0; i < kN; ++i)
-    phi_pxb += phi[static_cast<std::size_t>(i)] * st_.pxb[static_cast<std::size_t>(i)];
-  const double bias_var = biased ? std::max(0.0, 2.0 * phi_pxb + vb) : 0.0;
+    phi_pxb += reg.phi[static_cast<std::size_t>(i)] * st_.pxb[static_cast<std::size_t>(i)];
+  const double sp = std::max(0.0, param_var(reg) + (shared_bias ? 2.0 * phi_pxb + vb : 0.0));
   // 5σ outlier gate once learned: the residual scale (never below one reference's own noise) plus the
-  // parameter uncertainty here (a new operating point far from the references is not an outlier).
-  const double pv = param_var(reg);
-  if (valid() && err * err > 25.0 * (std::max(st_.resid_var, r) + pv + bias_var)) {
+  // parameter (and shared-bias) uncertainty here (a new operating point far from the references is not an
+  // outlier).
+  if (valid() && err * err > 25.0 * (std::max(st_.resid_var, r) + sp)) {
     if (!gated_run(err)) return false;
     relearn();  // consistent on one side: what was learned is wrong (or the engine changed)
-    return learn(x, t_ind_ref, extra_sd_nm, shared_bias_sd_nm);
+    return learn(x, t_ind_ref, extra_sd_nm, shared_bias);
   }
   gated_ = 0;
-  // u = cov(θ, reference) = P φ (+ P_θb for a biased reference).
-  std::array<double, kN> u{};
+  if (!update(reg.phi, err, r, shared_bias ? vb : -1.0, phi_pxb)) return false;
+  count_reference(x, err, sp);
+  return true;
+}
+
+// RLS with forgetting λ as a Kalman step on P/λ (the stored P is the posterior), the shared bias b carried
+// as a consider parameter (Simon 2006 §7.5): b's variance vb stays, cov(θ, b) is updated. Multiplied through
+// by λ: w = Pφ + λP_θb (biased) or Pφ, K = w / (λ(r + 2φᵀP_θb + vb) + φᵀPφ), P ← (P − K wᵀ)/λ,
+// P_θb ← P_θb − K(φᵀP_θb + vb) (vb = 0 and no P_θb in w for a reference without the bias). vb < 0: no bias.
+bool FuelTorque::update(const std::array<double, kFuelParams>& phi, double err, double r, double vb,
+                        double phi_pxb) noexcept {
+  const bool biased = vb >= 0.0;
+  const double lam = params_.forgetting;
+  std::array<double, kN> w{};
+  double pv = 0.0;
   for (int i = 0; i < kN; ++i) {
     const auto iu = static_cast<std::size_t>(i);
-    for (int j = 0; j < kN; ++j) u[iu] += st_.p[ix(i, j)] * phi[static_cast<std::size_t>(j)];
-    if (biased) u[iu] += st_.pxb[iu];
+    for (int j = 0; j < kN; ++j) w[iu] += st_.p[ix(i, j)] * phi[static_cast<std::size_t>(j)];
+    pv += phi[iu] * w[iu];
+    if (biased) w[iu] += lam * st_.pxb[iu];
   }
-  const double lam = params_.forgetting;
-  const double denom = lam * r + pv + bias_var;
+  const double denom = std::max(0.0, pv + (biased ? lam * (2.0 * phi_pxb + vb) : 0.0)) + lam * r;
   if (!(denom > 0.0)) return false;
   std::array<double, kN> k{};
-  for (int i = 0; i < kN; ++i) k[static_cast<std::size_t>(i)] = u[static_cast<std::size_t>(i)] / denom;
+  for (int i = 0; i < kN; ++i) k[static_cast<std::size_t>(i)] = w[static_cast<std::size_t>(i)] / denom;
   const std::array<double, kN> prior_theta = prior_state().theta;
   for (int i = 0; i < kN; ++i) {
     const auto iu = static_cast<std::size_t>(i);
@@ -231,13 +242,16 @@ bool FuelTorque::learn(const FuelPoint& x, double t_ind_ref, double extra_sd_nm,
   for (int i = 0; i < kN; ++i)
     for (int j = 0; j < kN; ++j)
       st_.p[ix(i, j)] =
-          (st_.p[ix(i, j)] - k[static_cast<std::size_t>(i)] * u[static_cast<std::size_t>(j)]) / lam;
-  // cov(θ, b) after the update: b itself is not estimated (its variance stays the prior's).
-  const double pxb_ref = biased ? phi_pxb + vb : phi_pxb;
+          (st_.p[ix(i, j)] - k[static_cast<std::size_t>(i)] * w[static_cast<std::size_t>(j)]) / lam;
+  const double pxb_ref = phi_pxb + (biased ? vb : 0.0);
   for (int i = 0; i < kN; ++i)
     st_.pxb[static_cast<std::size_t>(i)] -= k[static_cast<std::size_t>(i)] * pxb_ref;
   cap_covariance();
   refresh_legacy();
+  return true;
+}
+
+void FuelTorque::count_reference(const FuelPoint& x, double err, double sp) noexcept {
   // Residual variance from the a-priori errors (the gate's scale): EMA until learned, then a running mean
   // over every reference since (weight 1/k floored at sd_ema), as the claimed scale (CoverageScale).
   const bool was_valid = valid();
@@ -246,13 +260,13 @@ bool FuelTorque::learn(const FuelPoint& x, double t_ind_ref, double extra_sd_nm,
   if (c < 0xFFFF) ++c;
   const double kn = static_cast<double>(st_.references) - params_.min_references;
   const double w = was_valid && kn >= 1.0 ? std::max(1.0 / kn, params_.sd_ema) : params_.sd_ema;
-  // The a-priori error holds the parameter uncertainty here (variance pv), which the claimed 1σ adds on its
-  // own (estimate()): the residual scales take the error shrunk by √(s² / (s² + pv)), s the current scale.
+  // The a-priori error holds the parameter (and shared-bias) uncertainty here (variance sp), which the
+  // claimed 1σ adds on its own (estimate()): the residual scales take the error shrunk by √(s² / (s² + sp)),
+  // s the current scale.
   const double s2 = st_.cover.sd > 0.0 ? st_.cover.sd * st_.cover.sd : st_.resid_var;
-  const double e_res = s2 > 0.0 ? err * std::sqrt(s2 / (s2 + pv)) : err;
+  const double e_res = s2 > 0.0 ? err * std::sqrt(s2 / (s2 + sp)) : err;
   st_.resid_var += w * (e_res * e_res - st_.resid_var);
   if (was_valid) observe_coverage(e_res);
-  return true;
 }
 
 bool FuelTorque::gated_run(double err) noexcept {
@@ -384,8 +398,27 @@ bool FuelTorque::import_state(const FuelTorqueState& in) noexcept {
   if (!std::isfinite(s.cover.sd) || s.cover.sd < 0.0) return false;
   st_ = s;
   cap_covariance();
+  bound_shared_bias();
   refresh_legacy();
   return true;
+}
+
+void FuelTorque::bound_shared_bias() noexcept {
+  // The augmented covariance [P P_θb; P_θbᵀ vb] must stay positive semi-definite: P_θbᵀ P⁻¹ P_θb ≤ vb. A file
+  // learned with a larger accessory 1σ than configured now (or none) can break it: P_θb is scaled back onto
+  // the bound (zero when no bias is configured).
+  const double vb = params_.shared_bias_sd_nm * params_.shared_bias_sd_nm;
+  Eigen::Matrix4d p;
+  Eigen::Vector4d c;
+  for (int i = 0; i < kN; ++i) {
+    c(i) = st_.pxb[static_cast<std::size_t>(i)];
+    for (int j = 0; j < kN; ++j) p(i, j) = st_.p[ix(i, j)];
+  }
+  if (c.isZero()) return;
+  const Eigen::LDLT<Eigen::Matrix4d> ldlt(p);
+  const double q = ldlt.info() == Eigen::Success ? c.dot(ldlt.solve(c)) : -1.0;
+  const double f = !(vb > 0.0) || !(q >= 0.0) || !std::isfinite(q) ? 0.0 : q > vb ? std::sqrt(vb / q) : 1.0;
+  for (double& x : st_.pxb) x *= f;
 }
 
 }  // namespace torqued

@@ -92,6 +92,9 @@ struct FuelTorqueParams {
   double transient_sd_scale =
       0.25;                  ///< claimed 1σ added per N m of model-torque spread across the window (-)
   double sd_floor_nm = 0.1;  ///< the coverage-calibrated residual scale never claims less (N m)
+  /// 1σ of the bias the driveline-open references share (N m): AnglePipeline sets it from
+  /// can.load_reference.accessory_sd_nm (the accessories' prior), not a tunable of its own.
+  double shared_bias_sd_nm = 2.0;
 };
 
 /// Operating point of one fuel-model evaluation (CAN values at the window's intake events, cycle speed).
@@ -149,13 +152,13 @@ class FuelTorque {
   /// across the window's events (fuel, MAP, a cut-off edge) / events.
   [[nodiscard]] double transient_sd_nm(const FuelWindow& w, const FuelPoint& x) const noexcept;
   /// One reference: true indicated torque `t_ind_ref` (N m) at `x`; `extra_sd_nm` is the reference's own
-  /// extra noise (a transient window's spread); `shared_bias_sd_nm` > 0: the reference rests on the
-  /// accessories' prior (driveline open, no measured load), whose error (this 1σ) is the same in every such
-  /// reference: a Schmidt-Kalman consider parameter (Simon 2006, §7.5), so that many of them at one
-  /// operating point (idle) do not claim to fix the map. Rejects non-finite input and residuals beyond 5σ
-  /// (residual and parameter uncertainty) once learned. Returns true when learned from.
+  /// extra noise (a transient window's spread); `shared_bias`: the reference rests on the accessories' prior
+  /// (driveline open, no measured load), whose error (1σ shared_bias_sd_nm) is the same in every such
+  /// reference: a Schmidt-Kalman consider parameter (Simon 2006, §7.5), so that many of them at one operating
+  /// point (idle) do not claim to fix the map. Rejects non-finite input and residuals beyond 5σ (residual,
+  /// parameter and shared-bias uncertainty) once learned. Returns true when learned from.
   bool learn(const FuelPoint& x, double t_ind_ref, double extra_sd_nm = 0.0,
-             double shared_bias_sd_nm = 0.0) noexcept;
+             bool shared_bias = false) noexcept;
   bool learn(double fuel_kg, double map_pa, double t_ind_ref) noexcept;
   [[nodiscard]] const FuelTorqueState& state() const noexcept { return st_; }
   /// A saved state; one with only the legacy two-parameter view (physics false) is converted (from_willans).
@@ -189,6 +192,10 @@ class FuelTorque {
   [[nodiscard]] double param_var(const Regressor& r) const noexcept;
   [[nodiscard]] double residual_var(const Regressor& r) const noexcept;
   void cap_covariance() noexcept;
+  bool update(const std::array<double, kFuelParams>& phi, double err, double r, double vb,
+              double phi_pxb) noexcept;
+  void count_reference(const FuelPoint& x, double err, double sp) noexcept;
+  void bound_shared_bias() noexcept;
   void refresh_legacy() noexcept;
   void observe_coverage(double err) noexcept;
   /// Counts a gated reference; true when gate_reaccept of them in a row fell on the same side.

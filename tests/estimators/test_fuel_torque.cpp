@@ -2,6 +2,7 @@
 // pumping with a flow-dependent back-pressure) with four learned parameters and their priors.
 #include <gtest/gtest.h>
 
+#include <Eigen/Dense>
 #include <cmath>
 #include <numbers>
 
@@ -231,7 +232,7 @@ TEST(FuelTorque, ReferencesSharingOneBiasClaimNoLessThanThatBias) {
   const double bias = 2.5;
   for (int k = 0; k < 300; ++k) {
     const double ref = truth(g, idle.fuel_kg, idle.map_pa) + bias + 0.5 * noise(seed);
-    EXPECT_TRUE(shared.learn(idle, ref, 0.0, 2.0));
+    EXPECT_TRUE(shared.learn(idle, ref, 0.0, true));
     EXPECT_TRUE(independent.learn(idle, ref));
   }
   const double t_idle = truth(g, idle.fuel_kg, idle.map_pa);
@@ -245,8 +246,50 @@ TEST(FuelTorque, ReferencesSharingOneBiasClaimNoLessThanThatBias) {
   full.map_pa = 95000.0;
   full.rpm = 2500.0;
   EXPECT_GT(shared.estimate(0, full).uncertainty, independent.estimate(0, full).uncertainty);
+  // The measured residual scale keeps the references' own noise (the bias's variance is not taken out of
+  // their a-priori errors as if it were the parameters').
+  EXPECT_GT(shared.state().cover.sd, 0.5 * independent.state().cover.sd);
   // A reference with a measured load (no shared bias) after them still learns, and the carried
   // cross-covariance stays finite.
   EXPECT_TRUE(shared.learn(full, truth(g, full.fuel_kg, full.map_pa)));
   for (const double v : shared.state().pxb) EXPECT_TRUE(std::isfinite(v));
+}
+
+TEST(FuelTorque, ARestoredSharedBiasCrossCovarianceIsBoundedByTheConfiguredBias) {
+  // GIVEN a model that learned driveline-open references with the accessories' 1σ at 2 N m WHEN its state is
+  // restored where the configured 1σ is 0.5 N m, or 0 THEN the augmented covariance stays positive
+  // semi-definite: P_θbᵀ P⁻¹ P_θb ≤ σ_b² (zero without a bias).
+  EngineGeometry g;
+  FuelTorque learned(g, measured_only());
+  FuelPoint idle;
+  idle.fuel_kg = 7e-6;
+  idle.map_pa = 28000.0;
+  idle.rpm = 800.0;
+  for (int k = 0; k < 100; ++k) {
+    idle.rpm = 800.0 + 10.0 * (k % 7);
+    ASSERT_TRUE(learned.learn(idle, truth(g, idle.fuel_kg, idle.map_pa) + 2.0, 0.0, true));
+  }
+  const auto quad = [](const torqued::FuelTorqueState& s) {
+    Eigen::Matrix4d p;
+    Eigen::Vector4d c;
+    for (int i = 0; i < 4; ++i) {
+      c(i) = s.pxb[static_cast<std::size_t>(i)];
+      for (int j = 0; j < 4; ++j) p(i, j) = s.p[static_cast<std::size_t>(4 * i + j)];
+    }
+    return c.dot(p.ldlt().solve(c));
+  };
+  ASSERT_GT(quad(learned.state()), 0.25 * 1.01) << "the learned cross-covariance exceeds what 0.5 N m allows";
+  FuelTorqueParams narrow = measured_only();
+  narrow.shared_bias_sd_nm = 0.5;
+  FuelTorque a(g, narrow);
+  ASSERT_TRUE(a.import_state(learned.state()));
+  EXPECT_LE(quad(a.state()), 0.25 * (1.0 + 1e-9));
+  FuelTorqueParams none = measured_only();
+  none.shared_bias_sd_nm = 0.0;
+  FuelTorque b(g, none);
+  ASSERT_TRUE(b.import_state(learned.state()));
+  for (const double v : b.state().pxb) EXPECT_EQ(v, 0.0);
+  FuelTorque same(g, measured_only());
+  ASSERT_TRUE(same.import_state(learned.state()));
+  EXPECT_EQ(same.state().pxb, learned.state().pxb) << "within the bound: restored as saved";
 }
