@@ -331,7 +331,7 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   // In a noise burst the speed and q come from edges a glitch may have stood in for: no lost-tooth guess,
   // unless an edge rejected in this period was tooth i after all (held_tooth_time: the half-rate lock).
   const double w2 = wheel_.width_of(i2);
-  const std::int64_t held_t = burst ? held_tooth_time(t_ns, w, w2, u1_ * trend) : 0;
+  const std::int64_t held_t = burst ? held_tooth_time(t_ns, w, w2, u1_ * std::min(trend, 1.0)) : 0;
   const bool held_tooth = held_t > 0;
   const bool lost_possible = !normal && !burst && speed_rpm >= params_.lost_tooth_min_rpm &&
                              q_lost >= params_.lost_tooth_min_ratio && q > std::sqrt(q_lost) &&
