@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace torqued {
@@ -421,7 +422,8 @@ void CrankDecoder::hold_rejected(std::int64_t t_ns) noexcept {
 // and the trend prediction (u_pred), and a rejected edge splits it into two periods per radian within
 // [burst_tooth_ratio_min, 1 / burst_tooth_ratio_min] of each other: the same bound on the crank's angular
 // acceleration from one tooth to the next that the burst rule applies. A glitch within one tooth period makes
-// the whole period about one tooth long, under the geometric mean.
+// the whole period about one tooth long, under the geometric mean. Of several such edges, the one splitting
+// the period most evenly is the tooth. Returns its time (0 = none).
 std::int64_t CrankDecoder::held_tooth_time(std::int64_t t_ns, double w, double w2,
                                            double u_pred) const noexcept {
   if (held_n_ == 0) return 0;
@@ -430,12 +432,13 @@ std::int64_t CrankDecoder::held_tooth_time(std::int64_t t_ns, double w, double w
   if (total < need * running_u() || total < need * u_pred) return 0;
   const double r = params_.burst_tooth_ratio_min;
   std::int64_t best = 0;
-  double best_dev = 0.0;
+  double best_dev = std::numeric_limits<double>::infinity();
   for (int k = 0; k < held_n_; ++k) {
     const auto t_h = held_t_ns_[static_cast<std::size_t>(k)];
+    if (t_h >= t_ns) continue;  // a duplicate timestamp splits nothing
     const double x = (static_cast<double>(t_h - last_t_ns_) / w) / (static_cast<double>(t_ns - t_h) / w2);
     const double dev = std::abs(std::log(x));
-    if (x >= r && x * r <= 1.0 && (best == 0 || dev < best_dev)) {
+    if (x >= r && x * r <= 1.0 && dev < best_dev) {
       best = t_h;
       best_dev = dev;
     }
