@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace torqued {
@@ -107,6 +108,7 @@ void CrankDecoder::reset_sync(SyncState to) noexcept {
   u1_ = u2_ = u3_ = 0.0;
   burst_teeth_ = 0;
   suspect_period_ns_ = 0;
+  held_n_ = 0;
   period_ns_ = 0;
 }
 
@@ -271,6 +273,7 @@ void CrankDecoder::enter_synced(std::int64_t t_ns, std::int64_t period, int idx,
   u1_ = static_cast<double>(period) / w;
   u2_ = u3_ = 0.0;
   burst_teeth_ = 0;
+  held_n_ = 0;
   suspect_period_ns_ = 0;
   last_t_ns_ = t_ns;
   pending_flags_ |= flags | (stats_.syncs > 1 ? kToothResynced : 0u);
@@ -308,20 +311,11 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   const double trend = u2_ > 0.0 ? clamp_trend(u1_ / u2_, params_.max_trend) : 1.0;
   const double q_flat = static_cast<double>(period) / (u1_ * w);
   const double q_trend = q_flat / trend;
-  // In a noise burst (a noise edge rejected within the last burst_teeth teeth) the last period and the trend
-  // may come from a glitch taken for the tooth it preceded; the running period (median of the last three)
-  // cannot. There an edge well short of the running period (burst_tooth_ratio_min: a real tooth period does
-  // not shorten by a fifth against the three before it while the signal is noisy enough to tell; outside
-  // bursts the wider runt_fraction / sync_ratio_min windows apply) is a glitch too (counted as noise), and a
-  // period that fits the running one is a tooth: so no glitch of the burst is counted as one more tooth (that
-  // shifted every index after it until the next gap, each glitch shortening the prediction for the next).
   const bool burst = burst_teeth_ > 0;
   const double q_run = static_cast<double>(period) / (running_u() * w);
-  // Noise: earlier than runt_fraction of a one-pitch period (also at a gap: a tooth where the gap should be
-  // is a missing gap, not noise).
-  if (static_cast<double>(period) < params_.runt_fraction * u1_ * wheel_.pitch_rad * std::min(trend, 1.0) ||
-      (burst && q_run < params_.burst_tooth_ratio_min)) {
+  if (is_synced_noise(period, u1_ * std::min(trend, 1.0), q_run)) {
     reject_noise();
+    hold_rejected(t_ns);
     return false;
   }
   auto in_window = [&](double q) { return q >= params_.sync_ratio_min && q <= params_.sync_ratio_max; };
@@ -335,11 +329,15 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   // slowdown and must not be explained by a lost tooth (that would shift every index after it). A period
   // inside the normal window is never a lost tooth.
   const double speed_rpm = last_width_rad_ / (static_cast<double>(period_ns_) * 1e-9) * (60.0 / kTwoPi);
-  // In a noise burst the speed and q come from edges a glitch may have stood in for: no lost-tooth guess.
+  // In a noise burst the speed and q come from edges a glitch may have stood in for: no lost-tooth guess,
+  // unless an edge rejected in this period was tooth i after all (held_tooth_time: the half-rate lock).
+  const double w2 = wheel_.width_of(i2);
+  const std::int64_t held_t = burst ? held_tooth_time(t_ns, w, w2, u1_ * std::min(trend, 1.0)) : 0;
+  const bool held_tooth = held_t > 0;
   const bool lost_possible = !normal && !burst && speed_rpm >= params_.lost_tooth_min_rpm &&
                              q_lost >= params_.lost_tooth_min_ratio && q > std::sqrt(q_lost) &&
                              q >= q_lost * params_.sync_ratio_min && q <= q_lost * params_.sync_ratio_max;
-  if (lost_possible) {
+  if (held_tooth || lost_possible) {
     ++lost_this_rev_;
     ++stats_.lost_teeth;
     if (lost_this_rev_ > params_.max_lost_teeth_per_rev) {
@@ -350,18 +348,10 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
       w += wheel_.width_of(i2);
       i = i2;
     }
-  } else if (!normal && q < params_.sync_ratio_min) {
-    lose_sync(gap_tooth ? SyncLossReason::kGapMissing : SyncLossReason::kPeriodTooShort, t_ns);
   } else if (!normal) {
-    lose_sync(SyncLossReason::kUnexpectedGap, t_ns);
+    lose_sync_on_period(gap_tooth, q, t_ns);
   }
-  if (state_ != SyncState::kSynced) {
-    // Report the failing edge; the decoder restarts syncing from here. The failing period (a glitch, a gap
-    // where none was expected) is no reference (reset_sync dropped it): the next period starts a new one.
-    last_t_ns_ = t_ns;
-    emit_unsynced(t_ns, SyncState::kLostSync, out);
-    return true;
-  }
+  if (state_ != SyncState::kSynced) return emit_lost(t_ns, out);
   // A tooth earlier than both the running period and the trend prediction may be a glitch standing in for the
   // tooth it precedes (the first edge of a noise burst, before any edge was early enough to be rejected). It
   // shortens u1_ and the trend, so the true tooth's remainder would pass as the next tooth and shift every
@@ -371,7 +361,10 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
                        wheel_.width_of(i2) < 1.5 * wheel_.pitch_rad &&
                        q_run < params_.burst_tooth_ratio_min && q_trend < params_.burst_tooth_ratio_min;
   const double u_pred = u1_ * trend, u_run = running_u();  // expected per radian, from before this tooth
+  const double w_i = wheel_.width_of(wheel_.next(tooth_));
   accept_tooth(t_ns, period, i, w, advance, gap_tooth, out);
+  if (held_tooth && advance == 2 && state_ == SyncState::kSynced)
+    restart_running_period(held_t, t_ns, w_i, w2);
   if (suspect && state_ == SyncState::kSynced) {  // (a pattern check in accept_tooth may have lost sync)
     suspect_u_ = u_pred;
     suspect_u_run_ = u_run;
@@ -379,6 +372,86 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
     suspect_period_ns_ = period;
   }
   return true;
+}
+
+// Synced noise: earlier than runt_fraction of a one-pitch period at the slower of the last period and the
+// trend prediction (u_pred, per radian; also at a gap: a tooth where the gap should be is a missing gap, not
+// noise). In a noise burst (a noise edge rejected within the last burst_teeth teeth) the last period and the
+// trend may come from a glitch taken for the tooth it preceded; the running period (median of the last three)
+// cannot. There an edge well short of the running period (q_run under burst_tooth_ratio_min: a real tooth
+// period does not shorten by a fifth against the three before it while the signal is noisy enough to tell;
+// outside bursts the wider runt_fraction / sync_ratio_min windows apply) is a glitch too, and a period that
+// fits the running one is a tooth: so no glitch of the burst is counted as one more tooth (that shifted every
+// index after it until the next gap, each glitch shortening the prediction for the next).
+bool CrankDecoder::is_synced_noise(std::int64_t period, double u_pred, double q_run) const noexcept {
+  return static_cast<double>(period) < params_.runt_fraction * u_pred * wheel_.pitch_rad ||
+         (burst_teeth_ > 0 && q_run < params_.burst_tooth_ratio_min);
+}
+
+// A period outside the normal window that no lost tooth explains: too short (a missing gap if tooth i is the
+// gap) or too long (a gap where none was expected).
+void CrankDecoder::lose_sync_on_period(bool gap_tooth, double q, std::int64_t t_ns) noexcept {
+  if (q < params_.sync_ratio_min)
+    lose_sync(gap_tooth ? SyncLossReason::kGapMissing : SyncLossReason::kPeriodTooShort, t_ns);
+  else
+    lose_sync(SyncLossReason::kUnexpectedGap, t_ns);
+}
+
+// Report the failing edge; the decoder restarts syncing from here. The failing period (a glitch, a gap where
+// none was expected) is no reference (reset_sync dropped it): the next period starts a new one.
+bool CrankDecoder::emit_lost(std::int64_t t_ns, ToothEvent& out) noexcept {
+  last_t_ns_ = t_ns;
+  emit_unsynced(t_ns, SyncState::kLostSync, out);
+  return true;
+}
+
+// Synced: keep the latest kHeld edges rejected as noise since the last accepted tooth.
+void CrankDecoder::hold_rejected(std::int64_t t_ns) noexcept {
+  if (held_n_ == kHeld) {
+    std::copy(held_t_ns_.begin() + 1, held_t_ns_.end(), held_t_ns_.begin());
+    --held_n_;
+  }
+  held_t_ns_[static_cast<std::size_t>(held_n_++)] = t_ns;
+}
+
+// The half-rate lock: in a burst the running period (median of three) lags a fast speed change (cranking
+// accelerates ~10 % per tooth), so a true tooth i can fall under burst_tooth_ratio_min of it and be rejected;
+// the next period then spans two teeth, and taken as one it makes every later true tooth a runt against it.
+// Tooth i was among the rejected edges if the period from the last tooth to this edge is at least the
+// geometric mean of one and two teeth (the lost-tooth rule's sqrt(q_lost)) against both the running period
+// and the trend prediction (u_pred), and a rejected edge splits it into two periods per radian within
+// [burst_tooth_ratio_min, 1 / burst_tooth_ratio_min] of each other: the same bound on the crank's angular
+// acceleration from one tooth to the next that the burst rule applies. A glitch within one tooth period makes
+// the whole period about one tooth long, under the geometric mean. Of several such edges, the one splitting
+// the period most evenly is the tooth. Returns its time (0 = none).
+std::int64_t CrankDecoder::held_tooth_time(std::int64_t t_ns, double w, double w2,
+                                           double u_pred) const noexcept {
+  if (held_n_ == 0) return 0;
+  const auto total = static_cast<double>(t_ns - last_t_ns_);
+  const double need = std::sqrt((w + w2) / w) * w;
+  if (total < need * running_u() || total < need * u_pred) return 0;
+  const double r = params_.burst_tooth_ratio_min;
+  std::int64_t best = 0;
+  double best_dev = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < held_n_; ++k) {
+    const auto t_h = held_t_ns_[static_cast<std::size_t>(k)];
+    if (t_h >= t_ns) continue;  // a duplicate timestamp splits nothing
+    const double x = (static_cast<double>(t_h - last_t_ns_) / w) / (static_cast<double>(t_ns - t_h) / w2);
+    const double dev = std::abs(std::log(x));
+    if (x >= r && x * r <= 1.0 && dev < best_dev) {
+      best = t_h;
+      best_dev = dev;
+    }
+  }
+  return best;
+}
+
+// A held edge was tooth i (held_tooth_time): its two periods are the freshest one-tooth periods there are,
+// and they replace the running ones, which lagged the speed change (else the next true tooth is rejected
+// against them again and the lock comes back).
+void CrankDecoder::restart_running_period(std::int64_t t_i, std::int64_t t_ns, double w, double w2) noexcept {
+  u3_ = u2_ = static_cast<double>(t_i - (t_ns - period_ns_)) / w;
+  u1_ = static_cast<double>(t_ns - t_i) / w2;
 }
 
 // The edge after a suspect tooth: if the two periods together make the one tooth period expected before the
@@ -427,6 +500,7 @@ void CrankDecoder::accept_tooth(std::int64_t t_ns, std::int64_t period, int i, d
   u2_ = u1_;
   u1_ = static_cast<double>(period) / w;
   if (burst_teeth_ > 0) --burst_teeth_;
+  held_n_ = 0;
   last_t_ns_ = t_ns;
   const int t = wheel_.teeth;
   const int idx = rev_ * t + i;

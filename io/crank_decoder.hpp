@@ -202,6 +202,13 @@ class CrankDecoder {
                     ToothEvent& out) noexcept;
   void reject_noise() noexcept;
   bool suspect_resolves_as_glitch(std::int64_t period_ns) noexcept;
+  void hold_rejected(std::int64_t t_ns) noexcept;
+  [[nodiscard]] std::int64_t held_tooth_time(std::int64_t t_ns, double w, double w2,
+                                             double u_pred) const noexcept;
+  void restart_running_period(std::int64_t t_i, std::int64_t t_ns, double w, double w2) noexcept;
+  [[nodiscard]] bool is_synced_noise(std::int64_t period_ns, double u_pred, double q_run) const noexcept;
+  void lose_sync_on_period(bool gap_tooth, double q, std::int64_t t_ns) noexcept;
+  bool emit_lost(std::int64_t t_ns, ToothEvent& out) noexcept;
   /// Synced: the running tooth period (ns/rad), the median of the last three normalised periods (u1_ before
   /// three are known). A glitch accepted as a tooth drags u1_ and the trend; it cannot drag the median.
   [[nodiscard]] double running_u() const noexcept {
@@ -249,6 +256,11 @@ class CrankDecoder {
   /// its period (0 = none), width, and the trend-predicted and running periods per radian before it.
   std::int64_t suspect_period_ns_ = 0;
   double suspect_w_ = 0.0, suspect_u_ = 0.0, suspect_u_run_ = 0.0;
+  /// Synced, in a burst: times of the edges rejected as noise since the last accepted tooth (the latest
+  /// kHeld; a true tooth among them is found at the next edge, held_tooth_time()).
+  static constexpr int kHeld = 4;
+  std::array<std::int64_t, kHeld> held_t_ns_{};
+  int held_n_ = 0;
   std::uint32_t pending_flags_ = 0;  ///< ToothEvent::events for the next tooth event
   DecoderStats stats_;
   DecoderEventLog* events_ = nullptr;

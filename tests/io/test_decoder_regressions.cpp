@@ -177,6 +177,36 @@ TEST(DecoderRegression, GlitchAtTwoThirdsOfAPeriodDoesNotShiftTheIndex) {
   EXPECT_GT(r.synced, 8 * w.teeth());
 }
 
+// The half-rate lock (36-2 at 300 rpm): a glitch (a runt, 0.3 of a pitch after tooth 10 of the sixth
+// revolution) starts a noise burst; from tooth 12 on the engine runs 1.3 times faster (each period 0.77 of a
+// pitch, for 10 teeth). Tooth 12 comes under burst_tooth_ratio_min (0.8) of the running period (median of the
+// last three, all one pitch) and is rejected as noise; the next period, two teeth of 0.77, is 1.54 times the
+// running period. Before the held edge (io/crank_decoder.cpp, held_tooth_time) it was taken as one tooth
+// (inside sync_ratio_max in a burst), tooth 13 got index 12 and every tooth after it stayed one behind until
+// the gap dropped sync. Now the rejected edge, splitting that period evenly, is tooth 12 after all: tooth 13
+// advances by two and the split's periods restart the running period.
+TEST(DecoderRegression, ToothRejectedInABurstSpeedUpDoesNotLockAtHalfRate) {
+  const WheelGeometry w = runs_wheel(36, {34, 2});
+  auto speed_up = [](int rev, int i) {  // pitches early: 0.23 more per tooth from tooth 12 to 21, then held
+    if (rev < 5) return 0.0;
+    return -0.23 * (rev > 5 ? 10 : std::clamp(i - 11, 0, 10));
+  };
+  Stream s = make_stream(w, 300.0, 10, speed_up);
+  const double pitch_ns = 60e9 / 300.0 / 36;
+  const auto g = s.truth[5 * 34 + 10].first + static_cast<std::int64_t>(0.3 * pitch_ns);  // after tooth 10
+  s.edges.push_back(EdgeEvent{g, 0, 1});
+  s.edges.push_back(EdgeEvent{g + 40'000, 0, 0});
+  std::stable_sort(s.edges.begin(), s.edges.end(),
+                   [](const EdgeEvent& a, const EdgeEvent& b) { return a.t_ns < b.t_ns; });
+  const Result r = run(w, DecoderParams{}, s);
+  EXPECT_EQ(r.stats.syncs, 1u);
+  EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
+  EXPECT_EQ(r.stats.noise_edges, 2u);  // the glitch and tooth 12
+  EXPECT_EQ(r.stats.lost_teeth, 1u);   // tooth 13 advanced by two
+  EXPECT_EQ(r.wrong_index, 0);
+  EXPECT_GT(r.synced, 8 * w.teeth());
+}
+
 // Cranking at 300 rpm on a 36-2 wheel with ±10 % of a period of jitter on every edge (tooth-to-tooth period
 // ratios up to ±20 %, as on noisy-trigger-1): the old decoder's trend-extrapolated prediction turned the
 // jitter into unexpected gaps and dropped sync.
