@@ -456,15 +456,20 @@ void CrankDecoder::restart_running_period(std::int64_t t_i, std::int64_t t_ns, d
 
 // The edge after a suspect tooth: if the two periods together make the one tooth period expected before the
 // suspect, both from the last period and trend and from the running period (each within
-// [burst_tooth_ratio_min, 1 / burst_tooth_ratio_min]), the suspect was a glitch standing in for this tooth:
-// this edge is noise (the suspect keeps the tooth's index) and the tooth's period is restored. Two true teeth
-// take longer. A speed-up that halves the period within two teeth (the 36-1 stopping engine at 80 % ripple,
-// out of a compression) fits the running period (1.08-1.15) but gives 1.3 times the trend prediction;
-// tooth-to-tooth jitter (real cranking captures, +-20 %) can make the trend prediction fit but not the
-// running period (2).
+// [burst_tooth_ratio_min, 1 / burst_tooth_ratio_min]), and this period is clearly shorter than the suspect's
+// (under burst_tooth_ratio_min of it: a glitch at 0.56-0.8 of a pitch leaves at most 0.8 of itself, while two
+// true teeth of a sudden speed-up are about equal), the suspect was a glitch standing in for this tooth: this
+// edge is noise (the suspect keeps the tooth's index) and the tooth's period is restored. The next period is
+// still measured from the glitch (2 - a pitches against a one-pitch prediction: a compression right after it
+// can exceed sync_ratio_max and drop sync; taking this edge as the timing reference instead moved 34 more
+// teeth to a wrong index in DecoderBurstResync, so it was not kept). Two true teeth take longer. A speed-up
+// that halves the period within two teeth (the 36-1 stopping engine at 80 % ripple, out of a compression)
+// fits the running period (1.08-1.15) but gives 1.3 times the trend prediction; tooth-to-tooth jitter (real
+// cranking captures, +-20 %) can make the trend prediction fit but not the running period (2).
 bool CrankDecoder::suspect_resolves_as_glitch(std::int64_t period) noexcept {
   if (suspect_period_ns_ <= 0) return false;
-  const auto combined = static_cast<double>(period + suspect_period_ns_);
+  const std::int64_t suspect = suspect_period_ns_;
+  const auto combined = static_cast<double>(period + suspect);
   suspect_period_ns_ = 0;
   const double r = params_.burst_tooth_ratio_min;
   const auto fits = [&](double u) {
@@ -472,6 +477,7 @@ bool CrankDecoder::suspect_resolves_as_glitch(std::int64_t period) noexcept {
     return q >= r && q * r <= 1.0;
   };
   if (!fits(suspect_u_) || !fits(suspect_u_run_)) return false;
+  if (!(static_cast<double>(period) < r * static_cast<double>(suspect))) return false;
   u1_ = combined / suspect_w_;
   reject_noise();
   return true;

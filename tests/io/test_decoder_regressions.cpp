@@ -177,6 +177,24 @@ TEST(DecoderRegression, GlitchAtTwoThirdsOfAPeriodDoesNotShiftTheIndex) {
   EXPECT_GT(r.synced, 8 * w.teeth());
 }
 
+// No noise at all: at steady 1000 rpm the engine speeds up abruptly, every period 0.62 of a pitch from
+// position 20 of the sixth revolution on. Two equal short teeth are not a glitch and its remainder (a glitch
+// at 0.56-0.8 of a pitch leaves at most 0.8 of itself): nothing is rejected, no index moves.
+TEST(DecoderRegression, AnAbruptSpeedUpWithoutNoiseIsNotTakenForAGlitch) {
+  const WheelGeometry w = runs_wheel(36, {34, 2});
+  auto fast = [&w](int rev, int i) {
+    const double pos = rev * 36.0 + w.tooth_angles_deg[static_cast<std::size_t>(i)] / 10.0;
+    return -0.38 * std::max(0.0, pos - (5 * 36.0 + 20.0));
+  };
+  Stream s = make_stream(w, 1000.0, 10, fast);
+  const Result r = run(w, DecoderParams{}, s);
+  EXPECT_EQ(r.stats.syncs, 1u);
+  EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
+  EXPECT_EQ(r.stats.noise_edges, 0u);
+  EXPECT_EQ(r.wrong_index, 0);
+  EXPECT_GT(r.synced, 8 * w.teeth());
+}
+
 // The half-rate lock (36-2 at 300 rpm): a glitch (a runt, 0.3 of a pitch after tooth 10 of the sixth
 // revolution) starts a noise burst; from tooth 12 on the engine runs 1.3 times faster (each period 0.77 of a
 // pitch, for 10 teeth). Tooth 12 comes under burst_tooth_ratio_min (0.8) of the running period (median of the
