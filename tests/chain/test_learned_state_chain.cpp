@@ -47,18 +47,23 @@ struct ReplayRun {
   std::vector<double> values;
 };
 
-ReplayRun replay(const std::string& config, const LearnedState* in) {
-  ReplayRun run;
+/// Replays `config` from `state` (in: the state to start from; out: what the run learned) into `tap`.
+ReplayResult replay_into(const std::string& config, LearnedState& state, AngleChainSink& tap) {
   const LoadResult lr = load_config(config);
   EXPECT_TRUE(lr.config.has_value()) << config;
-  if (!lr.config) return run;
+  if (!lr.config) return {};
   RunInputs inputs = open_inputs(*lr.config);
   EXPECT_TRUE(inputs.ok()) << inputs.error;
   NoSink sink;
+  return run_fast_replay(inputs.settings, inputs.edges.get(), inputs.can.get(), inputs.can_offset_ns,
+                         inputs.dbc_ptr(), sink, nullptr, &state, &tap);
+}
+
+ReplayRun replay(const std::string& config, const LearnedState* in) {
+  ReplayRun run;
   CycleTap tap;
   if (in) run.out = *in;
-  run.r = run_fast_replay(inputs.settings, inputs.edges.get(), inputs.can.get(), inputs.can_offset_ns,
-                          inputs.dbc_ptr(), sink, nullptr, &run.out, &tap);
+  run.r = replay_into(config, run.out, tap);
   run.values = std::move(tap.v);
   return run;
 }
@@ -142,15 +147,8 @@ struct FusedTap final : AngleChainSink {
 
 FusedTap replay_fused(const std::string& config, const LearnedState& in) {
   FusedTap tap;
-  const LoadResult lr = load_config(config);
-  EXPECT_TRUE(lr.config.has_value()) << config;
-  if (!lr.config) return tap;
-  RunInputs inputs = open_inputs(*lr.config);
-  EXPECT_TRUE(inputs.ok()) << inputs.error;
-  NoSink sink;
   LearnedState st = in;
-  (void)run_fast_replay(inputs.settings, inputs.edges.get(), inputs.can.get(), inputs.can_offset_ns,
-                        inputs.dbc_ptr(), sink, nullptr, &st, &tap);
+  (void)replay_into(config, st, tap);
   return tap;
 }
 

@@ -51,6 +51,14 @@ Stream make_stream(const WheelGeometry& w, double rpm, int revs, Shift shift_pit
   return s;
 }
 
+/// Adds a 40 µs glitch pulse (rising at `t_ns`) to the stream's edges, in time order.
+void add_pulse(Stream& s, std::int64_t t_ns) {
+  s.edges.push_back(EdgeEvent{t_ns, 0, 1});
+  s.edges.push_back(EdgeEvent{t_ns + 40'000, 0, 0});
+  std::stable_sort(s.edges.begin(), s.edges.end(),
+                   [](const EdgeEvent& a, const EdgeEvent& b) { return a.t_ns < b.t_ns; });
+}
+
 struct Result {
   DecoderStats stats;
   int wrong_index = 0;  ///< synced teeth whose index is not the true one
@@ -162,13 +170,7 @@ TEST(DecoderRegression, GlitchAtTwoThirdsOfAPeriodDoesNotShiftTheIndex) {
   const WheelGeometry w = runs_wheel(36, {34, 2});
   Stream s = make_stream(w, 1000.0, 10, [](int, int) { return 0.0; });
   const double pitch_ns = 60e9 / 1000.0 / 36;
-  std::vector<EdgeEvent> edges = s.edges;
-  const auto g = s.truth[5 * 34 + 20].first + static_cast<std::int64_t>(0.65 * pitch_ns);  // after tooth 20
-  edges.push_back(EdgeEvent{g, 0, 1});
-  edges.push_back(EdgeEvent{g + 40'000, 0, 0});
-  std::stable_sort(edges.begin(), edges.end(),
-                   [](const EdgeEvent& a, const EdgeEvent& b) { return a.t_ns < b.t_ns; });
-  s.edges = edges;
+  add_pulse(s, s.truth[5 * 34 + 20].first + static_cast<std::int64_t>(0.65 * pitch_ns));  // after tooth 20
   const Result r = run(w, DecoderParams{}, s);
   EXPECT_EQ(r.stats.syncs, 1u);
   EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
@@ -211,11 +213,7 @@ TEST(DecoderRegression, ToothRejectedInABurstSpeedUpDoesNotLockAtHalfRate) {
   };
   Stream s = make_stream(w, 300.0, 10, speed_up);
   const double pitch_ns = 60e9 / 300.0 / 36;
-  const auto g = s.truth[5 * 34 + 10].first + static_cast<std::int64_t>(0.3 * pitch_ns);  // after tooth 10
-  s.edges.push_back(EdgeEvent{g, 0, 1});
-  s.edges.push_back(EdgeEvent{g + 40'000, 0, 0});
-  std::stable_sort(s.edges.begin(), s.edges.end(),
-                   [](const EdgeEvent& a, const EdgeEvent& b) { return a.t_ns < b.t_ns; });
+  add_pulse(s, s.truth[5 * 34 + 10].first + static_cast<std::int64_t>(0.3 * pitch_ns));  // after tooth 10
   const Result r = run(w, DecoderParams{}, s);
   EXPECT_EQ(r.stats.syncs, 1u);
   EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
