@@ -4,10 +4,12 @@
 // would persist it.
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli_exit.hpp"
@@ -415,6 +417,68 @@ int run_vehicle_bed(bool all, const torqued::eval::DaemonBedOptions& opt) {
   return rc;
 }
 
+/// The q-quantile of |v| (0 when empty).
+double abs_quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  for (double& x : v) x = std::fabs(x);
+  std::sort(v.begin(), v.end());
+  return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5)];
+}
+double rms_of(const std::vector<double>& v) {
+  double s = 0.0;
+  for (double x : v) s += x * x;
+  return v.empty() ? 0.0 : std::sqrt(s / static_cast<double>(v.size()));
+}
+void append(torqued::eval::PriorCalibration& to, const torqued::eval::PriorCalibration& c) {
+  for (auto [dst, src] : {std::pair{&to.friction_rel, &c.friction_rel},
+                          std::pair{&to.friction_z, &c.friction_z}, std::pair{&to.fuel_rel, &c.fuel_rel},
+                          std::pair{&to.fuel_z, &c.fuel_z}, std::pair{&to.fused_z, &c.fused_z}})
+    dst->insert(dst->end(), src->begin(), src->end());
+}
+void print_prior_row(const std::string& name, const torqued::eval::PriorCalibration& c) {
+  constexpr double k1 = 0.6827;  // 1σ of a normal distribution
+  std::printf("%-14s %5zu | %6.1f%% %6.2f %6.2f | %6.1f%% %6.2f %6.2f | %6.2f %6.2f\n", name.c_str(),
+              c.friction_z.size(), 100.0 * rms_of(c.friction_rel), abs_quantile(c.friction_z, k1),
+              100.0 * abs_quantile(c.friction_rel, k1), 100.0 * rms_of(c.fuel_rel),
+              abs_quantile(c.fuel_z, k1), 100.0 * abs_quantile(c.fuel_rel, k1), abs_quantile(c.fused_z, k1),
+              abs_quantile(c.fused_z, 0.9545));
+}
+
+/// --bed-priors: how far the generic priors sit from engines (daemon_bed.hpp PriorCalibration), per engine
+/// and pooled over the calibration set (the one that sets the priors' 1σ), the tuning and the report engines.
+int run_bed_priors(bool all, const torqued::eval::DaemonBedOptions& opt) {
+  std::printf(
+      "Priors on the map without a load signal, fresh state, cycles whose fused brake rests on the priors "
+      "alone.\nfriction (generic correlation) and fuel (fuel model's indicated): RMS of (estimate - truth) / "
+      "estimate, z68 = 68th percentile of |error| / claimed 1 sigma (1.00: the 1 sigma is right; 0.8: "
+      "20 %% too wide), rel68 = 68th percentile of |relative error| (the relative 1 sigma the engines "
+      "support); fused brake: z68 and z95 (2.00 expected).\n"
+      "engine         cycles | fric RMS    z68  rel68 | fuel RMS    z68  rel68 | fused z68  z95\n");
+  std::vector<std::pair<std::string, const torqued::sim::BedEngine*>> engines;
+  for (const auto& e : torqued::sim::calibration_engines()) engines.emplace_back("calibration", &e);
+  if (all)
+    for (const auto& e : torqued::sim::unseen_engines())
+      engines.emplace_back(e.report ? "report" : "tuning", &e);
+  std::map<std::string, torqued::eval::PriorCalibration> pools;
+  int rc = 0;
+  for (const auto& [role, e] : engines) {
+    torqued::eval::PriorCalibration c;
+    std::string err;
+    if (!torqued::eval::evaluate_prior_calibration_engine(*e, opt, c, err)) {
+      std::fprintf(stderr, "error: %s\n", err.c_str());
+      rc = 1;
+      continue;
+    }
+    print_prior_row(e->name, c);
+    append(pools[role], c);
+    std::fflush(stdout);
+  }
+  std::printf("pooled:\n");
+  for (const char* role : {"calibration", "tuning", "report"})
+    if (pools.count(role) != 0) print_prior_row(std::string(role) + " all", pools[role]);
+  return rc;
+}
+
 /// Without a load signal, through the daemon's chain: the unseen-engines bed as recordings replayed by
 /// run_fast_replay.
 int run_bed_daemon(bool all, const torqued::eval::DaemonBedOptions& opt) {
@@ -480,7 +544,7 @@ struct Args {
   std::uint64_t random_seed = 15;
   torqued::eval::RecordingOptions rec;
   std::string bed_out = "bed-daemon";
-  bool vehicle_bed = false;
+  bool vehicle_bed = false, bed_priors = false;
   double vehicle_flag_lag = 0.0;
   double bed_machine = 0.0;
   bool bed_motoring = false, bed_fuel = false, bed_incycle = false, bed_misfire = false;
@@ -540,6 +604,11 @@ void add_bed_options(CLI::App& app, Args& a) {
       "run the vehicle bed: a vehicle (no load signal; clutch flag unmapped / as neutral) and a hybrid "
       "(machine torque and clutch flag on CAN) on the report engines through the daemon's chain "
       "(--bed-out, --bed-short, --bed-all apply)");
+  app.add_flag("--bed-priors", a.bed_priors,
+               "measure the generic priors' error (friction correlation, fuel model) on the calibration "
+               "engines: the map without a load signal from a fresh state; prints the 68th percentile of "
+               "|error| / claimed 1 sigma, the factor the priors' 1 sigma is off by (--bed-all: also the "
+               "bed's tuning and report engines, pooled apart; --bed-out, --bed-short apply)");
   app.add_option(
          "--vehicle-flag-lag", a.vehicle_flag_lag,
          "with --vehicle-bed: the clutch flag on CAN is late by this (s) instead of leading the clutch "
@@ -668,6 +737,13 @@ int run_unseen_bed(Args& a) {
 
 // --vehicle-bed, --bed unseen-daemon or --bed unseen.
 int run_beds(Args& a) {
+  if (a.bed_priors) {
+    torqued::eval::DaemonBedOptions o;
+    o.out_dir = a.bed_out == "bed-daemon" ? "bed-priors" : a.bed_out;
+    o.short_run = a.bed_short;
+    o.skip_cycles = a.skip;
+    return run_bed_priors(a.bed_all, o);
+  }
   if (a.vehicle_bed) {
     torqued::eval::DaemonBedOptions o;
     o.out_dir = a.bed_out == "bed-daemon" ? "bed-vehicle" : a.bed_out;
@@ -773,6 +849,6 @@ int main(int argc, char** argv) {
     if (a.rec.out_dir.empty()) a.rec.out_dir = "accuracy-out";
     return torqued::eval::run_recording(a.rec);
   }
-  if (a.vehicle_bed || !a.bed.empty()) return run_beds(a);
+  if (a.vehicle_bed || a.bed_priors || !a.bed.empty()) return run_beds(a);
   return run_scenarios(a);
 }

@@ -29,6 +29,7 @@ struct Row {
   TorqueEstimate brake, indicated, friction, indicated_crank;
   double fused = 0.0, fused_sd = 0.0;
   bool fused_valid = false;
+  bool fused_prior_only = false;  ///< the fused value rests on the priors alone (quality prior_only)
   ReferenceKind reference = ReferenceKind::kNone;
 };
 
@@ -49,6 +50,7 @@ struct Tap final : AngleChainSink {
     r.fused = o.fused.brake_nm;
     r.fused_sd = o.fused.sd_nm;
     r.fused_valid = o.fused.quality != FusionQuality::kInvalid;
+    r.fused_prior_only = o.fused.quality == FusionQuality::kPriorOnly;
     rows.push_back(r);
   }
 };
@@ -288,6 +290,38 @@ bool one_point_runs(const sim::BedEngine& e, const DaemonBedOptions& opt, const 
   return true;
 }
 }  // namespace
+
+bool evaluate_prior_calibration_engine(const sim::BedEngine& e, const DaemonBedOptions& opt,
+                                       PriorCalibration& r, std::string& error) {
+  r = PriorCalibration{};
+  r.engine = e.name;
+  try {
+    const sim::Scenario ev = sim::bed_eval_run(e, opt.short_run);
+    const sim::SimOutput out = sim::simulate(ev);
+    const fs::path md = fs::path(opt.out_dir) / e.name / "map";
+    sim::write_recording(out, ev, e.spec, md);
+    Tap never;
+    if (!replay(md / "torqued_noload.yaml", nullptr, nullptr, never, nullptr, error)) return false;
+    for (std::size_t i = static_cast<std::size_t>(opt.skip_cycles); i < never.rows.size(); ++i) {
+      const Row& x = never.rows[i];
+      const WindowTruth w = window_truth(out, x.t0_s, x.t1_s);
+      if (!w.ok || !x.fused_prior_only || !(x.friction.uncertainty > 0.0) || !(x.fused_sd > 0.0)) continue;
+      // The prior slot is fuel model − friction with both 1σ (fuel_prior_brake): the fuel model's own part.
+      const double fuel_ind = x.fused + x.friction.torque_nm;
+      const double fuel_sd =
+          std::sqrt(std::max(0.0, x.fused_sd * x.fused_sd - x.friction.uncertainty * x.friction.uncertainty));
+      r.friction_rel.push_back((x.friction.torque_nm - w.fric) / x.friction.torque_nm);
+      r.friction_z.push_back(std::fabs(x.friction.torque_nm - w.fric) / x.friction.uncertainty);
+      r.fuel_rel.push_back((fuel_ind - w.ind) / fuel_ind);
+      if (fuel_sd > 0.0) r.fuel_z.push_back(std::fabs(fuel_ind - w.ind) / fuel_sd);
+      r.fused_z.push_back(std::fabs(x.fused - w.brake) / x.fused_sd);
+    }
+  } catch (const std::exception& ex) {
+    error = e.name + ": " + ex.what();
+    return false;
+  }
+  return true;
+}
 
 bool evaluate_vehicle_bed_engine(const sim::BedEngine& e, const DaemonBedOptions& opt, VehicleBedResult& r,
                                  std::string& error) {

@@ -75,6 +75,17 @@ struct VehicleBedResult {
 bool evaluate_vehicle_bed_engine(const sim::BedEngine& e, const DaemonBedOptions& opt, VehicleBedResult& r,
                                  std::string& error);
 
+/// torque-accuracy --bed-priors: the map recording (bed_eval_run) without its load signal from a fresh state,
+/// per cycle whose fused value rests on the priors alone: the generic friction law's and the fuel model's
+/// relative errors (estimate − truth) / estimate, and each error in units of its claimed 1σ (z), also the
+/// fused brake's. The 68th percentile of z over a set of engines is the factor their claimed 1σ is off by.
+struct PriorCalibration {
+  std::string engine;
+  std::vector<double> friction_rel, friction_z, fuel_rel, fuel_z, fused_z;
+};
+bool evaluate_prior_calibration_engine(const sim::BedEngine& e, const DaemonBedOptions& opt,
+                                       PriorCalibration& r, std::string& error);
+
 /// One engine; false with `error` set when a recording could not be written or replayed.
 bool evaluate_bed_engine_daemon(const sim::BedEngine& e, const DaemonBedOptions& opt, DaemonBedResult& r,
                                 std::string& error);

@@ -477,6 +477,7 @@ BedFuelRun score_fuel(const ScenarioResult& r) {
     const double err = w.fused - w.brake_true;
     f.pass += std::fabs(err) <= std::max(0.08 * std::fabs(w.brake_true), 5.0) ? 1 : 0;
     f.covered += std::fabs(err) <= w.fused_sd ? 1 : 0;
+    f.covered2 += std::fabs(err) <= 2.0 * w.fused_sd ? 1 : 0;
     se += err * err;
     st += w.brake_true * w.brake_true;
     f.bias_nm += err;

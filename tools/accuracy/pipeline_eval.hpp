@@ -154,6 +154,7 @@ struct BedFuelRun {
   int prior_only = 0;              ///< of which with quality prior_only
   int pass = 0;                    ///< published within 8 % or 5 N m
   int covered = 0;                 ///< published with |error| <= claimed 1σ
+  int covered2 = 0;                ///< published with |error| <= 2 × claimed 1σ
   double rms_nm = 0.0;             ///< RMS error of the published fused values (N m)
   double rms_pct = 0.0;            ///< that RMS / RMS of the true brake torque (%)
   double bias_nm = 0.0;            ///< mean error of the published fused values (N m)

@@ -95,6 +95,24 @@ const std::vector<BedEngine>& unseen_engines() {
   return list;
 }
 
+const std::vector<BedEngine>& calibration_engines() {
+  static const std::vector<BedEngine> list = [] {
+    constexpr int kEngines = 12;
+    const std::array<std::pair<const Family*, const char*>, 3> families{
+        {{&kI4, "i4"}, {&kI3, "i3"}, {&kI6, "i6"}}};
+    std::vector<BedEngine> v;
+    for (int i = 0; i < kEngines; ++i) {
+      const auto& [f, tag] = families[static_cast<std::size_t>(i % 3)];
+      const int wheel = (i / 3) % 2 == 0 ? 60 : 36;
+      const std::string name =
+          "cal_" + std::string(tag) + "_" + std::to_string(wheel) + "_" + std::to_string(i / 6 + 1);
+      v.push_back(make(name, false, *f, wheel, 1421 + static_cast<std::uint64_t>(i)));
+    }
+    return v;
+  }();
+  return list;
+}
+
 Scenario bed_learning_run(const BedEngine& e) {
   Scenario s = e.truth;
   s.name = e.name + "_learn";

@@ -24,6 +24,12 @@ struct BedEngine {
 
 /// The fixed list (deterministic: drawn from fixed seeds).
 [[nodiscard]] const std::vector<BedEngine>& unseen_engines();
+/// The prior-calibration set: tuning-role engines drawn like the fixed list from other seeds (four each of
+/// I3, I4 and I6, half on 60-2 and half on 36-1 wheels). They are never scored in an accuracy table: they
+/// only measure how far the generic priors (the friction correlation, the fuel model's efficiency) sit from
+/// engines, so that the priors' claimed 1σ rests on more than the three tuning engines (torque-accuracy
+/// --bed-priors; docs/angle_pipeline.md "Calibrating the priors").
+[[nodiscard]] const std::vector<BedEngine>& calibration_engines();
 /// The engine of the fixed list named `name`, or nullptr.
 [[nodiscard]] const BedEngine* unseen_engine(const std::string& name);
 
