@@ -406,7 +406,7 @@ void AnglePipeline::cylinder_segment(const SegmentEnergy& seg, double work, bool
 
 double AnglePipeline::friction_sd_nm(double fric) const noexcept {
   // Until learned over speed (motoring) the law is the generic correlation, whose spread across engines is
-  // ≈ ±40 % (an idle correction fixes it near idle only). Learned: never below the 1σ its load references
+  // ≈ ±27 % (an idle correction fixes it near idle only). Learned: never below the 1σ its load references
   // shared (FrictionLearner::reference_sd_nm).
   if (!friction_.speed_law_learned()) return friction_.prior_level_sd() * std::fabs(fric);
   return std::max(cfg_.friction.learned_sd_nm, friction_.reference_sd_nm());

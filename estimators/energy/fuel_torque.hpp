@@ -66,8 +66,9 @@ struct FuelTorqueParams {
   double mbt_per_krpm_deg = 3.0;  ///< θ_MBT slope with speed (deg per 1000 rpm): longer burn angle
   double mbt_per_vacuum_deg =
       10.0;                     ///< θ_MBT added at zero MAP (deg, linear in 1 − p_man/p_ref): slower burn
-  double model_rel_sd = 0.024;  ///< model-form 1σ: share of the gross indicated torque (-); chosen on the
-                                ///< unseen bed's TUNING engines (never-taught 1σ coverage)
+  double model_rel_sd = 0.024;  ///< model-form 1σ: share of the gross indicated torque (-); the five prior 1σ
+                                ///< above and this one are scaled together so that the never-taught model's
+                                ///< 1σ covers 68 % on 12 calibration engines (torque-accuracy --bed-priors)
   double model_rel_sd_learned =
       0.0075;  ///< the same in a speed × MAP cell with references (-); TUNING engines
   // Learning.

@@ -20,7 +20,7 @@
 //    persisted (the four coefficients are); it is relearned after idle_steady_cycles of steady idle in each
 //    run.
 //  - Prior level at idle (idle_scales_prior): until the law is learned over speed (no motoring observation,
-//    nothing imported) it is the generic correlation, whose spread across engines is mostly its level (±40 %
+//    nothing imported) it is the generic correlation, whose spread across engines is mostly its level (±27 %
 //    of the whole curve, prior_rel_sd), not its shape. A steady-idle observation with a known load (neutral,
 //    the machine alone) then measures that level: s = T_idle / law(n_idle), combined with the prior s = 1 ±
 //    prior_rel_sd by inverse variances (scalar Bayesian update). The observation's 1σ (its load reference's
