@@ -404,15 +404,19 @@ bool CrankDecoder::fits_one_tooth(double q_flat, double trend, double q_run, boo
 // the tooth's index, its period is 1 - a pitch too long (a = the glitch's place in the period, 0.56-0.8), so
 // a compression right after the glitch (1.3 pitches) went over sync_ratio_max and dropped sync, and the
 // tooth's speed was reported 1.2-1.44 times too low. Its period is timed from the found tooth's edge instead
-// when that is one tooth period (returned; 0 = none, the period from the glitch stands). The noise checks
-// still time from the glitch: moving the decoder's last edge time there (last_t_ns_) moved 34 teeth to a
-// wrong index in DecoderBurstResync (194 against 160: the glitches after it were judged against a different
+// when that is one tooth period by the same tests (not noise, is_synced_noise; in the window,
+// fits_one_tooth): returned, 0 = none (the period from the glitch stands). The noise checks on the edge
+// itself still time from the glitch: moving the decoder's last edge time there (last_t_ns_) moved 34 teeth to
+// a wrong index in DecoderBurstResync (194 against 160: the glitches after it were judged against a different
 // edge).
 std::int64_t CrankDecoder::period_from_resolved(std::int64_t t_ns, double w, double trend,
                                                 bool burst) const noexcept {
   if (resolved_t_ns_ <= 0 || resolved_t_ns_ >= t_ns) return 0;
-  const auto p = static_cast<double>(t_ns - resolved_t_ns_);
-  return fits_one_tooth(p / (u1_ * w), trend, p / (running_u() * w), burst) ? t_ns - resolved_t_ns_ : 0;
+  const std::int64_t period = t_ns - resolved_t_ns_;
+  const auto p = static_cast<double>(period);
+  const double q_run = p / (running_u() * w);
+  if (is_synced_noise(period, u1_ * std::min(trend, 1.0), q_run)) return 0;
+  return fits_one_tooth(p / (u1_ * w), trend, q_run, burst) ? period : 0;
 }
 
 // A period outside the normal window that no lost tooth explains: too short (a missing gap if tooth i is the

@@ -214,8 +214,9 @@ TEST(DecoderBurstResync, NoResyncOnAGlitchMadeGapAndResyncWithinOneRevolution) {
   // one), 421 with it, 160 with the held edge (io/crank_decoder.cpp, held_tooth_time: a true tooth rejected
   // against a running period that lagged a speed-up was counted as one with the next, the half-rate lock;
   // 36-2 cranking seeds 2 and 6, 119 and 80 -> 4 and 0). Left: glitches standing in for teeth, one too many
-  // in a dense burst (60-2 and 36-2 idle, seeds 2, 4, 5; 36-2 cranking seed 5), docs/io.md.
-  EXPECT_LE(wrong, 170);
+  // in a dense burst (60-2 and 36-2 idle, seeds 2, 4, 5; 36-2 cranking seed 5), docs/io.md. The bound is the
+  // count measured (fixed seeds, deterministic): any new wrong index fails.
+  EXPECT_LE(wrong, 160);
 }
 
 }  // namespace
