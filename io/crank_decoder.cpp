@@ -108,6 +108,7 @@ void CrankDecoder::reset_sync(SyncState to) noexcept {
   u1_ = u2_ = u3_ = 0.0;
   burst_teeth_ = 0;
   suspect_period_ns_ = 0;
+  resolved_t_ns_ = 0;
   held_n_ = 0;
   period_ns_ = 0;
 }
@@ -275,6 +276,7 @@ void CrankDecoder::enter_synced(std::int64_t t_ns, std::int64_t period, int idx,
   burst_teeth_ = 0;
   held_n_ = 0;
   suspect_period_ns_ = 0;
+  resolved_t_ns_ = 0;
   last_t_ns_ = t_ns;
   pending_flags_ |= flags | (stats_.syncs > 1 ? kToothResynced : 0u);
   emit(t_ns, idx, w, period, out);
@@ -318,8 +320,11 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
     hold_rejected(t_ns);
     return false;
   }
-  auto in_window = [&](double q) { return q >= params_.sync_ratio_min && q <= params_.sync_ratio_max; };
-  const bool normal = in_window(q_flat) || in_window(q_trend) || (burst && in_window(q_run));
+  bool normal = fits_one_tooth(q_flat, trend, q_run, burst);
+  if (const std::int64_t p = period_from_resolved(t_ns, w, trend, burst); p > 0) {
+    normal = true;
+    period = p;
+  }
   const double q = std::max(q_flat, q_trend) > params_.sync_ratio_max ? std::min(q_flat, q_trend) : q_trend;
   int advance = 1;
   const bool gap_tooth = w > 1.5 * wheel_.pitch_rad;
@@ -386,6 +391,32 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
 bool CrankDecoder::is_synced_noise(std::int64_t period, double u_pred, double q_run) const noexcept {
   return static_cast<double>(period) < params_.runt_fraction * u_pred * wheel_.pitch_rad ||
          (burst_teeth_ > 0 && q_run < params_.burst_tooth_ratio_min);
+}
+
+// One tooth period: q (period over the expected one) within [sync_ratio_min, sync_ratio_max] against the last
+// period, the trend prediction (q_flat / trend) or, in a burst, the running period (q_run).
+bool CrankDecoder::fits_one_tooth(double q_flat, double trend, double q_run, bool burst) const noexcept {
+  auto in_window = [&](double q) { return q >= params_.sync_ratio_min && q <= params_.sync_ratio_max; };
+  return in_window(q_flat) || in_window(q_flat / trend) || (burst && in_window(q_run));
+}
+
+// The tooth after one found behind a glitch (suspect_resolves_as_glitch): timed from the glitch, which kept
+// the tooth's index, its period is 1 - a pitch too long (a = the glitch's place in the period, 0.56-0.8), so
+// a compression right after the glitch (1.3 pitches) went over sync_ratio_max and dropped sync, and the
+// tooth's speed was reported 1.2-1.44 times too low. Its period is timed from the found tooth's edge instead
+// when that is one tooth period by the same tests (not noise, is_synced_noise; in the window,
+// fits_one_tooth): returned, 0 = none (the period from the glitch stands). The noise checks on the edge
+// itself still time from the glitch: moving the decoder's last edge time there (last_t_ns_) moved 34 teeth to
+// a wrong index in DecoderBurstResync (194 against 160: the glitches after it were judged against a different
+// edge).
+std::int64_t CrankDecoder::period_from_resolved(std::int64_t t_ns, double w, double trend,
+                                                bool burst) const noexcept {
+  if (resolved_t_ns_ <= 0 || resolved_t_ns_ >= t_ns) return 0;
+  const std::int64_t period = t_ns - resolved_t_ns_;
+  const auto p = static_cast<double>(period);
+  const double q_run = p / (running_u() * w);
+  if (is_synced_noise(period, u1_ * std::min(trend, 1.0), q_run)) return 0;
+  return fits_one_tooth(p / (u1_ * w), trend, q_run, burst) ? period : 0;
 }
 
 // A period outside the normal window that no lost tooth explains: too short (a missing gap if tooth i is the
@@ -460,9 +491,8 @@ void CrankDecoder::restart_running_period(std::int64_t t_i, std::int64_t t_ns, d
 // (under burst_tooth_ratio_min of it: a glitch at 0.56-0.8 of a pitch leaves at most 0.8 of itself, while two
 // true teeth of a sudden speed-up are about equal), the suspect was a glitch standing in for this tooth: this
 // edge is noise (the suspect keeps the tooth's index) and the tooth's period is restored. The next period is
-// still measured from the glitch (2 - a pitches against a one-pitch prediction: a compression right after it
-// can exceed sync_ratio_max and drop sync; taking this edge as the timing reference instead moved 34 more
-// teeth to a wrong index in DecoderBurstResync, so it was not kept). Two true teeth take longer. A speed-up
+// timed from this edge when it is one tooth period (resolved_t_ns_, period_from_resolved), not from the
+// glitch (2 - a pitches against a one-pitch prediction). Two true teeth take longer. A speed-up
 // that halves the period within two teeth (the 36-1 stopping engine at 80 % ripple, out of a compression)
 // fits the running period (1.08-1.15) but gives 1.3 times the trend prediction; tooth-to-tooth jitter (real
 // cranking captures, +-20 %) can make the trend prediction fit but not the running period (2).
@@ -479,6 +509,7 @@ bool CrankDecoder::suspect_resolves_as_glitch(std::int64_t period) noexcept {
   if (!fits(suspect_u_) || !fits(suspect_u_run_)) return false;
   if (!(static_cast<double>(period) < r * static_cast<double>(suspect))) return false;
   u1_ = combined / suspect_w_;
+  resolved_t_ns_ = last_t_ns_ + period;
   reject_noise();
   return true;
 }
@@ -507,6 +538,7 @@ void CrankDecoder::accept_tooth(std::int64_t t_ns, std::int64_t period, int i, d
   u1_ = static_cast<double>(period) / w;
   if (burst_teeth_ > 0) --burst_teeth_;
   held_n_ = 0;
+  resolved_t_ns_ = 0;
   last_t_ns_ = t_ns;
   const int t = wheel_.teeth;
   const int idx = rev_ * t + i;

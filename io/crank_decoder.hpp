@@ -207,6 +207,9 @@ class CrankDecoder {
                                              double u_pred) const noexcept;
   void restart_running_period(std::int64_t t_i, std::int64_t t_ns, double w, double w2) noexcept;
   [[nodiscard]] bool is_synced_noise(std::int64_t period_ns, double u_pred, double q_run) const noexcept;
+  [[nodiscard]] bool fits_one_tooth(double q_flat, double trend, double q_run, bool burst) const noexcept;
+  [[nodiscard]] std::int64_t period_from_resolved(std::int64_t t_ns, double w, double trend,
+                                                  bool burst) const noexcept;
   void lose_sync_on_period(bool gap_tooth, double q, std::int64_t t_ns) noexcept;
   bool emit_lost(std::int64_t t_ns, ToothEvent& out) noexcept;
   /// Synced: the running tooth period (ns/rad), the median of the last three normalised periods (u1_ before
@@ -256,6 +259,9 @@ class CrankDecoder {
   /// its period (0 = none), width, and the trend-predicted and running periods per radian before it.
   std::int64_t suspect_period_ns_ = 0;
   double suspect_w_ = 0.0, suspect_u_ = 0.0, suspect_u_run_ = 0.0;
+  /// Synced: time of the tooth edge after a suspect resolved as a glitch (rejected as noise, the glitch keeps
+  /// its index), until the next tooth is accepted (0 = none): that tooth's period may be timed from it.
+  std::int64_t resolved_t_ns_ = 0;
   /// Synced, in a burst: times of the edges rejected as noise since the last accepted tooth (the latest
   /// kHeld; a true tooth among them is found at the next edge, held_tooth_time()).
   static constexpr int kHeld = 4;

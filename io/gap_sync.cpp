@@ -206,11 +206,15 @@ GapSync::Step GapSync::on_gap_candidate(std::int64_t period, double r, const Whe
   // After a sync loss the signal has been seen to be this wheel: a gap with kResyncRunBeforeGap clean teeth
   // before it identifies the position again, whatever counts the noise left in the history (a burst just
   // before a gap would otherwise cost a revolution, and miscounted gap-to-gap counts would keep matching
-  // from ever succeeding). A glitch inside the gap (the last burst's) splits it into a longer and a normal
-  // period: the run before the next gap then has one period more than a revolution's teeth (w.teeth - 1).
-  const bool single_ok = num_gaps_ == 1 && run_before_gap < w.teeth + (after_loss_ ? 1 : 0) &&
-                         (after_loss_ ? run_before_gap >= std::min(w.teeth / 2, kResyncRunBeforeGap)
-                                      : hist_len_ == 0 && run_before_gap >= w.teeth / 2);
+  // from ever succeeding). Nor does the run's length bound it from above: a run longer than a revolution
+  // means the search missed a gap while the burst still set its reference (a glitch inside the gap split it
+  // in two; or a glitch period and the true tooth after it made a trend that a cranking compression had
+  // clamped at max_trend, and the true gap came under gap_threshold_ of it: counted as a tooth period). That
+  // is the burst's state, not this candidate's; run_fits_gap judges the candidate by its own clean run.
+  const bool single_ok =
+      num_gaps_ == 1 &&
+      (after_loss_ ? run_before_gap >= std::min(w.teeth / 2, kResyncRunBeforeGap)
+                   : hist_len_ == 0 && run_before_gap >= w.teeth / 2 && run_before_gap < w.teeth);
   const int need = single_ok ? 0 : history_needed_;
   if (hist_len_ < need) return Step::kOther;
   match_ = match_gap(need, r, w, p);

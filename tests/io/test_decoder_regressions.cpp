@@ -223,6 +223,38 @@ TEST(DecoderRegression, ToothRejectedInABurstSpeedUpDoesNotLockAtHalfRate) {
   EXPECT_GT(r.synced, 8 * w.teeth());
 }
 
+// A glitch followed at once by a compression (36-2 at 1000 rpm): a 40 µs glitch pulse at 0.65 of a period
+// after tooth 20 of the sixth revolution stands in for tooth 21 (suspect, then resolved as a glitch at tooth
+// 21's edge, which is counted as noise: a burst), and from tooth 22 on the engine runs 1.3 times slower (each
+// period 1.3 pitches). Timed from the glitch, tooth 22's period is 0.35 + 1.3 = 1.65 pitches, over
+// sync_ratio_max (1.6): before io/crank_decoder.cpp timed it from tooth 21's edge (period_from_resolved) that
+// dropped sync (unexpected_gap) and the decoder resynced at the gap; now it is 1.3 pitches, a tooth, and its
+// speed is the true one.
+TEST(DecoderRegression, CompressionRightAfterAGlitchKeepsSyncAndIndex) {
+  const WheelGeometry w = runs_wheel(36, {34, 2});
+  auto slow_down = [&w](int rev, int i) {  // pitches late: 0.3 more per position from position 22 on
+    const double pos = rev * 36.0 + w.tooth_angles_deg[static_cast<std::size_t>(i)] / 10.0;
+    return 0.3 * std::max(0.0, pos - (5 * 36.0 + 21.0));
+  };
+  Stream s = make_stream(w, 1000.0, 10, slow_down);
+  const double pitch_ns = 60e9 / 1000.0 / 36;
+  add_pulse(s, s.truth[5 * 34 + 20].first + static_cast<std::int64_t>(0.65 * pitch_ns));  // after tooth 20
+  const Result r = run(w, DecoderParams{}, s);
+  EXPECT_EQ(r.stats.syncs, 1u);
+  EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
+  EXPECT_EQ(r.stats.lost_teeth, 0u);
+  EXPECT_EQ(r.stats.noise_edges, 1u);  // the true tooth 21, after the glitch that stood in for it
+  EXPECT_EQ(r.wrong_index, 1);         // the glitch itself (tooth 21 at the glitch's time); nothing after it
+  EXPECT_GT(r.synced, 8 * w.teeth());
+  const std::int64_t t22 = s.truth[5 * 34 + 22].first;
+  const auto it =
+      std::find_if(r.teeth.begin(), r.teeth.end(), [&](const ToothEvent& t) { return t.t_ns == t22; });
+  ASSERT_NE(it, r.teeth.end());
+  EXPECT_EQ(it->tooth % w.teeth(), 22);
+  // 80.6 rad/s over one pitch in 1.3 pitch times (timed from the glitch: 1.65, 63.5 rad/s)
+  EXPECT_NEAR(it->speed_rad_s, 1000.0 * 2.0 * kPi / 60.0 / 1.3, 1.0);
+}
+
 // Cranking at 300 rpm on a 36-2 wheel with ±10 % of a period of jitter on every edge (tooth-to-tooth period
 // ratios up to ±20 %, as on noisy-trigger-1): the old decoder's trend-extrapolated prediction turned the
 // jitter into unexpected gaps and dropped sync.
