@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "crank_decoder.hpp"
@@ -85,6 +86,19 @@ Result run(const WheelGeometry& w, const DecoderParams& p, const Stream& s) {
   }
   r.stats = dec.stats();
   return r;
+}
+
+/// A stream of 10 revolutions at `rpm` (edges moved by `shift_pitch`, as make_stream) with one glitch pulse
+/// `frac` of a pitch after tooth `tooth` of the sixth revolution, decoded with the default parameters.
+template <class Shift>
+std::pair<Stream, Result> glitch_after(const WheelGeometry& w, double rpm, Shift shift_pitch, int tooth,
+                                       double frac) {
+  Stream s = make_stream(w, rpm, 10, shift_pitch);
+  const double pitch_ns = 60e9 / rpm / w.positions;
+  add_pulse(s, s.truth[static_cast<std::size_t>(5 * w.teeth() + tooth)].first +
+                   static_cast<std::int64_t>(frac * pitch_ns));
+  Result r = run(w, DecoderParams{}, s);
+  return {std::move(s), std::move(r)};
 }
 
 // 4B11 36-2-1 on rising edges: the single gap (2 pitches) measures 1.8 and the tooth after it 1.16 pitch
@@ -168,10 +182,8 @@ TEST(DecoderRegression, QuarterMicrosecondGlitchAtPoint47OfAPeriodKeepsSync) {
 // after it was one ahead (DecoderBurstResync's "true teeth with a shifted index").
 TEST(DecoderRegression, GlitchAtTwoThirdsOfAPeriodDoesNotShiftTheIndex) {
   const WheelGeometry w = runs_wheel(36, {34, 2});
-  Stream s = make_stream(w, 1000.0, 10, [](int, int) { return 0.0; });
-  const double pitch_ns = 60e9 / 1000.0 / 36;
-  add_pulse(s, s.truth[5 * 34 + 20].first + static_cast<std::int64_t>(0.65 * pitch_ns));  // after tooth 20
-  const Result r = run(w, DecoderParams{}, s);
+  const auto [s, r] = glitch_after(
+      w, 1000.0, [](int, int) { return 0.0; }, 20, 0.65);
   EXPECT_EQ(r.stats.syncs, 1u);
   EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
   EXPECT_EQ(r.stats.noise_edges, 1u);  // the true tooth 21, after the glitch that stood in for it
@@ -211,10 +223,7 @@ TEST(DecoderRegression, ToothRejectedInABurstSpeedUpDoesNotLockAtHalfRate) {
     if (rev < 5) return 0.0;
     return -0.23 * (rev > 5 ? 10 : std::clamp(i - 11, 0, 10));
   };
-  Stream s = make_stream(w, 300.0, 10, speed_up);
-  const double pitch_ns = 60e9 / 300.0 / 36;
-  add_pulse(s, s.truth[5 * 34 + 10].first + static_cast<std::int64_t>(0.3 * pitch_ns));  // after tooth 10
-  const Result r = run(w, DecoderParams{}, s);
+  const auto [s, r] = glitch_after(w, 300.0, speed_up, 10, 0.3);
   EXPECT_EQ(r.stats.syncs, 1u);
   EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
   EXPECT_EQ(r.stats.noise_edges, 2u);  // the glitch and tooth 12
@@ -236,10 +245,7 @@ TEST(DecoderRegression, CompressionRightAfterAGlitchKeepsSyncAndIndex) {
     const double pos = rev * 36.0 + w.tooth_angles_deg[static_cast<std::size_t>(i)] / 10.0;
     return 0.3 * std::max(0.0, pos - (5 * 36.0 + 21.0));
   };
-  Stream s = make_stream(w, 1000.0, 10, slow_down);
-  const double pitch_ns = 60e9 / 1000.0 / 36;
-  add_pulse(s, s.truth[5 * 34 + 20].first + static_cast<std::int64_t>(0.65 * pitch_ns));  // after tooth 20
-  const Result r = run(w, DecoderParams{}, s);
+  const auto [s, r] = glitch_after(w, 1000.0, slow_down, 20, 0.65);
   EXPECT_EQ(r.stats.syncs, 1u);
   EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
   EXPECT_EQ(r.stats.lost_teeth, 0u);
