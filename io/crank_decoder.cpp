@@ -404,18 +404,18 @@ bool CrankDecoder::fits_one_tooth(double q_flat, double trend, double q_run, boo
 // the tooth's index, its period is 1 - a pitch too long (a = the glitch's place in the period, 0.56-0.8), so
 // a compression right after the glitch (1.3 pitches) went over sync_ratio_max and dropped sync, and the
 // tooth's speed was reported 1.2-1.44 times too low. Its period is timed from the found tooth's edge instead
-// when that is one tooth period by the same tests (not noise, is_synced_noise; in the window,
-// fits_one_tooth): returned, 0 = none (the period from the glitch stands). The noise checks on the edge
-// itself still time from the glitch: moving the decoder's last edge time there (last_t_ns_) moved 34 teeth to
-// a wrong index in DecoderBurstResync (194 against 160: the glitches after it were judged against a different
-// edge).
+// when that is one tooth period (in the window, fits_one_tooth): returned, 0 = none (the period from
+// the glitch stands). A noise test on it as well (is_synced_noise) changed no test and, on a grid of a second
+// glitch during an abrupt slow-down, turned 4 quick sync losses into a revolution of wrong indices: not kept.
+// The noise checks on the edge itself still time from the glitch: moving the decoder's last edge time there
+// (last_t_ns_) moved 34 teeth to a wrong index in DecoderBurstResync (194 against 160: the glitches after it
+// were judged against a different edge).
 std::int64_t CrankDecoder::period_from_resolved(std::int64_t t_ns, double w, double trend,
                                                 bool burst) const noexcept {
   if (resolved_t_ns_ <= 0 || resolved_t_ns_ >= t_ns) return 0;
   const std::int64_t period = t_ns - resolved_t_ns_;
   const auto p = static_cast<double>(period);
   const double q_run = p / (running_u() * w);
-  if (is_synced_noise(period, u1_ * std::min(trend, 1.0), q_run)) return 0;
   return fits_one_tooth(p / (u1_ * w), trend, q_run, burst) ? period : 0;
 }
 
@@ -458,7 +458,10 @@ void CrankDecoder::hold_rejected(std::int64_t t_ns) noexcept {
 std::int64_t CrankDecoder::held_tooth_time(std::int64_t t_ns, double w, double w2,
                                            double u_pred) const noexcept {
   if (held_n_ == 0) return 0;
-  const auto total = static_cast<double>(t_ns - last_t_ns_);
+  // After a suspect resolved as a glitch the period starts at the true tooth's edge (resolved_t_ns_), as
+  // period_from_resolved times it; an edge held before it splits nothing.
+  const std::int64_t t0 = resolved_t_ns_ > 0 && resolved_t_ns_ < t_ns ? resolved_t_ns_ : last_t_ns_;
+  const auto total = static_cast<double>(t_ns - t0);
   const double need = std::sqrt((w + w2) / w) * w;
   if (total < need * running_u() || total < need * u_pred) return 0;
   const double r = params_.burst_tooth_ratio_min;
@@ -466,8 +469,8 @@ std::int64_t CrankDecoder::held_tooth_time(std::int64_t t_ns, double w, double w
   double best_dev = std::numeric_limits<double>::infinity();
   for (int k = 0; k < held_n_; ++k) {
     const auto t_h = held_t_ns_[static_cast<std::size_t>(k)];
-    if (t_h >= t_ns) continue;  // a duplicate timestamp splits nothing
-    const double x = (static_cast<double>(t_h - last_t_ns_) / w) / (static_cast<double>(t_ns - t_h) / w2);
+    if (t_h >= t_ns || t_h <= t0) continue;  // a duplicate timestamp splits nothing
+    const double x = (static_cast<double>(t_h - t0) / w) / (static_cast<double>(t_ns - t_h) / w2);
     const double dev = std::abs(std::log(x));
     if (x >= r && x * r <= 1.0 && dev < best_dev) {
       best = t_h;

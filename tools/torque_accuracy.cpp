@@ -422,7 +422,7 @@ double abs_quantile(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
   for (double& x : v) x = std::fabs(x);
   std::sort(v.begin(), v.end());
-  return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5)];
+  return v[static_cast<std::size_t>(std::lround(q * static_cast<double>(v.size() - 1)))];
 }
 double rms_of(const std::vector<double>& v) {
   double s = 0.0;

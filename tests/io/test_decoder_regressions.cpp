@@ -261,6 +261,30 @@ TEST(DecoderRegression, CompressionRightAfterAGlitchKeepsSyncAndIndex) {
   EXPECT_NEAR(it->speed_rad_s, 1000.0 * 2.0 * kPi / 60.0 / 1.3, 1.0);
 }
 
+// The same glitch, then a second one 0.4 of a pitch after the true tooth 21, in a slow-down of 0.2 pitch per
+// position from tooth 22. The first resolves as a glitch (tooth 21's edge is noise, the next period timed
+// from it); the second is rejected as burst noise and held. Before held_tooth_time started at the resolved
+// edge it split the glitch-timed period (1 - 0.65 + 1.2 pitches) into two near-equal halves: true tooth 22
+// was taken for tooth 23 (advance 2), every index after it ran one ahead and the gap dropped sync (12 wrong,
+// 1 loss).
+TEST(DecoderRegression, SecondGlitchAfterAResolvedOneDoesNotAdvanceTheIndex) {
+  const WheelGeometry w = runs_wheel(36, {34, 2});
+  auto slow_down = [&w](int rev, int i) {  // pitches late: 0.2 more per position from position 22 on
+    const double pos = rev * 36.0 + w.tooth_angles_deg[static_cast<std::size_t>(i)] / 10.0;
+    return 0.2 * std::max(0.0, pos - (5 * 36.0 + 21.0));
+  };
+  auto [s, first] = glitch_after(w, 1000.0, slow_down, 20, 0.65);
+  const double pitch_ns = 60e9 / 1000.0 / 36;
+  add_pulse(s, s.truth[5 * 34 + 21].first + static_cast<std::int64_t>(0.4 * pitch_ns));  // after tooth 21
+  const Result r = run(w, DecoderParams{}, s);
+  EXPECT_EQ(first.wrong_index, 1);  // without the second glitch: the first one only
+  EXPECT_EQ(r.stats.syncs, 1u);
+  EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
+  EXPECT_EQ(r.stats.lost_teeth, 0u);
+  EXPECT_EQ(r.wrong_index, 1);  // the first glitch itself
+  EXPECT_GT(r.synced, 8 * w.teeth());
+}
+
 // Cranking at 300 rpm on a 36-2 wheel with ±10 % of a period of jitter on every edge (tooth-to-tooth period
 // ratios up to ±20 %, as on noisy-trigger-1): the old decoder's trend-extrapolated prediction turned the
 // jitter into unexpected gaps and dropped sync.
