@@ -284,7 +284,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          "steady idle: cycle-to-cycle speed change below this fraction");
   TQ_NUM("friction.prior_rel_sd", friction.params.prior_rel_sd, open_closed(0.0, 10.0), "",
          "1 sigma of the friction prior, fraction of the friction (until learned); the default is the 68th "
-         "percentile of the correlation's error on 12 calibration engines (torque-accuracy --bed-priors)");
+         "percentile of the correlation's error on 12 simulated calibration engines (torque-accuracy "
+         "--bed-priors); set it from measured engines of the family when known");
   TQ_NUM("friction.learned_sd_nm", friction.params.learned_sd_nm, open_closed(0.0, 1e4), "N m",
          "1 sigma claimed for the learned friction law");
   TQ_NUM("friction.residual_gain_min", friction.params.residual_gain_min, open_closed(0.0, 1.0), "",
@@ -376,7 +377,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("fuel.model_rel_sd", fuel.model_rel_sd, closed(0.0, 1.0), "",
          "model-form 1 sigma of the fuel model (what no parameter value removes): share of the gross "
          "indicated torque; scaled with the c0, c1, p_off and k_bp prior 1 sigma so that the never-taught "
-         "model's 1 sigma covers 68 % of its error on 12 calibration engines (torque-accuracy --bed-priors)");
+         "model's 1 sigma covers 68 % of its error on 12 simulated calibration engines (torque-accuracy "
+         "--bed-priors)");
   TQ_NUM("fuel.model_rel_sd_learned", fuel.model_rel_sd_learned, closed(0.0, 1.0), "",
          "the same in a speed x MAP cell with fuel.cell_min_references references (they measured part of "
          "it); chosen on the unseen bed's tuning engines");

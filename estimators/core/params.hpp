@@ -199,7 +199,8 @@ struct FrictionParams {
   double idle_max_rls_sd_nm = 1.5;  ///< and only with an RLS load 1σ below this (tight, settled) (N m)
   double idle_speed_tolerance = 0.03;  ///< steady idle: cycle-to-cycle speed change below this fraction (-)
   double prior_rel_sd = 0.27;          ///< 1σ of the generic prior, fraction of the friction (-): the 68th
-                                       ///< percentile of its error on 12 calibration engines (--bed-priors)
+                                       ///< percentile of its error on 12 simulated calibration engines
+                                       ///< (torque-accuracy --bed-priors; docs/angle_pipeline.md)
   double learned_sd_nm = 2.0;          ///< 1σ claimed for the learned friction law (N m)
   double residual_gain_min =
       0.02;  ///< once learned, the motoring residuals' 68th percentile (the claimed 1σ of

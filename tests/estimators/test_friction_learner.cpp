@@ -310,7 +310,7 @@ TEST(FrictionLearner, ClaimedSigmaNeverGoesBelowTheSharedErrorOfItsLoadReference
 
 TEST(FrictionLearner, SteadyIdleScalesTheGenericPriorUntilTheLawIsLearnedOverSpeed) {
   // GIVEN the generic prior of a 1.6 l engine whose friction is 1.3 x that correlation at every speed (within
-  // the correlation's ±40 % spread across engines: its level, not its shape)
+  // the bed's 0.6-1.4 × correlation range across engines: its level, not its shape)
   FrictionParams p;
   p.c = torqued::generic_friction_prior(1.6e-3, p.sign);
   FrictionLearner fl(p);

@@ -129,8 +129,8 @@ TEST_P(UnseenBedFuel, TaughtAtOnePointTheMapIsWithinTargetAndNeverTaughtIsPublis
   // Never taught: published on >= 95 % of the cycles with quality prior_only, RMS <= 25 % (the generic
   // friction law's ±27 % dominates). One engine is one draw from the population the priors' 1σ were
   // calibrated on (torque-accuracy --bed-priors): its error may sit outside 1σ on a whole short run
-  // (rep_i4_36: 1.4σ), so the per-engine check is 2σ, which should hold for about 95 % of engines: >= 90 % of
-  // its cycles.
+  // (rep_i4_36: 1.4σ), so the per-engine check is 2σ: >= 90 % of its cycles (it holds for 10-11 of the 12
+  // calibration engines, whose tails are heavier than a normal's).
   EXPECT_GE(never.published, 95 * never.cycles / 100);
   EXPECT_EQ(never.prior_only, never.published);
   EXPECT_LE(never.rms_pct, 25.0);

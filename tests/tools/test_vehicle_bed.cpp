@@ -9,12 +9,15 @@
 // indicated and friction torque. Tolerances are stated per assertion; they are the targets where reached and
 // otherwise a little above what the chain gives today (short runs: 4.5 s of charging, not the >= 10 s the
 // hybrid target is stated for; the full runs are in the report command `torque-accuracy --vehicle-bed`).
-// Label slow (about 10 s).
+// Label slow (about 10 s per engine; the prior calibration about 30 s).
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "daemon_bed.hpp"
 
@@ -74,7 +77,8 @@ TEST_P(VehicleBed, ClutchFlagMakesTheMachineAReferenceAndTheOverrunInGearTeaches
 
   // Vehicle without any load reference: nothing learned, fused published from the priors (prior_only) on
   // >= 95 % of the cycles within 12 N m RMS (today 2.0 and 5.5); the friction stays the generic prior, whose
-  // claimed 1 sigma (40 %) covers its error on every cycle.
+  // claimed 1 sigma (27 %) covers its error on every cycle of these two engines (both within 20 % of the
+  // correlation; on others it need not: rep_i4_36 is 45 % covered, rep_i3_60 33 %).
   const DaemonBedRun& nf = run(r, "vehicle/noflag");
   ASSERT_GT(nf.cycles, 60);
   EXPECT_GE(nf.fused_published, 95 * nf.cycles / 100);
@@ -122,6 +126,42 @@ TEST_P(VehicleBed, ClutchFlagMakesTheMachineAReferenceAndTheOverrunInGearTeaches
 }
 
 INSTANTIATE_TEST_SUITE_P(ReportEngines, VehicleBed, ::testing::Values("rep_i4_60", "rep_i6_36"));
+
+// The priors' 1σ defaults (friction.prior_rel_sd, the fuel model's prior 1σ) were set so that on the 12
+// calibration engines (tools/sim/unseen_engines.hpp calibration_engines(), never scored elsewhere) the 68th
+// percentile of |error| / claimed 1σ is 1 (torque-accuracy --bed-priors; docs/angle_pipeline.md "Calibrating
+// the priors"). A change to the fuel model, the friction law or the fusion that de-calibrates them fails
+// here: pooled z68 within 0.85-1.2 for each (today 1.01 and 1.00), the fused brake's within 0.85-1.35
+// (today 1.09: the tails are heavier than a normal's), on the full maps as the defaults were set (about 30
+// s).
+TEST(PriorCalibration, ThePriorsOneSigmaCoverTwoThirdsOfTheCalibrationEnginesErrors) {
+  DaemonBedOptions opt;
+  opt.out_dir =
+      (fs::temp_directory_path() / ("torqued_prior_calibration_" + std::to_string(::getpid()))).string();
+  opt.short_run = false;
+  PriorCalibration pool;
+  for (const auto& e : sim::calibration_engines()) {
+    PriorCalibration c;
+    std::string err;
+    ASSERT_TRUE(evaluate_prior_calibration_engine(e, opt, c, err)) << err;
+    ASSERT_GT(c.friction_z.size(), 100u) << e.name;
+    for (auto [dst, src] : {std::pair{&pool.friction_z, &c.friction_z}, std::pair{&pool.fuel_z, &c.fuel_z},
+                            std::pair{&pool.fused_z, &c.fused_z}})
+      dst->insert(dst->end(), src->begin(), src->end());
+  }
+  fs::remove_all(opt.out_dir);
+  const auto z68 = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[static_cast<std::size_t>(0.6827 * static_cast<double>(v.size() - 1))];
+  };
+  const double zf = z68(pool.friction_z), zu = z68(pool.fuel_z), zb = z68(pool.fused_z);
+  EXPECT_GE(zf, 0.85);
+  EXPECT_LE(zf, 1.2);
+  EXPECT_GE(zu, 0.85);
+  EXPECT_LE(zu, 1.2);
+  EXPECT_GE(zb, 0.85);
+  EXPECT_LE(zb, 1.35);
+}
 
 }  // namespace
 }  // namespace torqued::eval

@@ -62,6 +62,8 @@ struct Tap final : AngleChainSink {
 struct WindowTruth {
   double brake = 0.0, ind = 0.0, fric = 0.0, rpm = 0.0;
   bool ok = false;
+  bool fuel_cut =
+      false;  ///< this cycle or the one before had a cylinder's fuel cut (a window may straddle it)
 };
 WindowTruth window_truth(const sim::SimOutput& out, double t0, double t1) {
   WindowTruth w;
@@ -77,6 +79,7 @@ WindowTruth window_truth(const sim::SimOutput& out, double t0, double t1) {
   w.ind = best->t_ind_mean_nm;
   w.fric = best->t_fric_mean_nm;
   w.rpm = best->speed_mean_rad_s * 30.0 / std::numbers::pi;
+  w.fuel_cut = best->fuel_cut || (best != &cy.front() && (best - 1)->fuel_cut);
   w.ok = true;
   return w;
 }
@@ -305,8 +308,12 @@ bool evaluate_prior_calibration_engine(const sim::BedEngine& e, const DaemonBedO
     for (std::size_t i = static_cast<std::size_t>(opt.skip_cycles); i < never.rows.size(); ++i) {
       const Row& x = never.rows[i];
       const WindowTruth w = window_truth(out, x.t0_s, x.t1_s);
-      if (!w.ok || !x.fused_prior_only || !(x.friction.uncertainty > 0.0) || !(x.fused_sd > 0.0)) continue;
-      // The prior slot is fuel model − friction with both 1σ (fuel_prior_brake): the fuel model's own part.
+      if (!w.ok || w.fuel_cut || !x.fused_prior_only || !(x.friction.uncertainty > 0.0) ||
+          !(x.fused_sd > 0.0))
+        continue;
+      // In (or next to) a fuel cut-off the fuel model is its pumping term alone, which none of the priors'
+      // efficiency terms explain: left out. Elsewhere the prior slot is fuel model − friction with both 1σ
+      // (fuel_prior_brake): the fuel model's own part is recovered from the fused 1σ.
       const double fuel_ind = x.fused + x.friction.torque_nm;
       const double fuel_sd =
           std::sqrt(std::max(0.0, x.fused_sd * x.fused_sd - x.friction.uncertainty * x.friction.uncertainty));
