@@ -173,7 +173,10 @@ void match_pattern(WheelDetection& d) {
   std::vector<std::pair<std::string, double>> hits;
   for (const NamedWheel& w : wheel_catalogue()) {
     double deg = 0.0;
-    if (spacings_match(d.spacing, catalogue_repeat(w, deg))) hits.emplace_back(w.name, deg);
+    if (!spacings_match(d.spacing, catalogue_repeat(w, deg))) continue;
+    const double teeth_per_rev = 360.0 / deg * static_cast<double>(d.spacing.size());
+    if (d.cam_cycle_teeth > 0 && std::abs(2.0 * teeth_per_rev - d.cam_cycle_teeth) > 0.5) continue;
+    hits.emplace_back(w.name, deg);
   }
   if (hits.size() == 1) {
     d.matches.push_back(hits[0].first);
@@ -181,6 +184,41 @@ void match_pattern(WheelDetection& d) {
   } else {
     for (const auto& h : hits) d.candidates.push_back(h.first);
   }
+}
+
+/// Crank teeth per cam cycle: the smallest M (<= 2 kMaxPatternTeeth) after which the cam edges inside the
+/// crank periods repeat (same polarities in the same order, each at the same fraction of its period within
+/// kCamFracTol) for kMinCamFit of the periods that hold a cam edge. The cam turns once per 720 deg.
+int cam_cycle_teeth(std::span<const std::int64_t> t, std::span<const WheelCamEdge> cam) {
+  constexpr double kCamFracTol =
+      0.2;  // cranking ripple moves an edge within its period by a few tenths at most
+  constexpr double kMinCamFit = 0.9;  // a few glitch edges (4g63's last edges) may not repeat
+  std::vector<std::vector<std::pair<bool, double>>> sig(t.size() > 0 ? t.size() - 1 : 0);
+  std::size_t c = 0;
+  for (std::size_t k = 0; k < sig.size(); ++k) {
+    while (c < cam.size() && cam[c].t_ns < t[k]) ++c;
+    for (; c < cam.size() && cam[c].t_ns < t[k + 1]; ++c)
+      sig[k].emplace_back(cam[c].rising,
+                          static_cast<double>(cam[c].t_ns - t[k]) / static_cast<double>(t[k + 1] - t[k]));
+  }
+  const auto same = [&](std::size_t a, std::size_t b) {
+    if (sig[a].size() != sig[b].size()) return false;
+    for (std::size_t j = 0; j < sig[a].size(); ++j)
+      if (sig[a][j].first != sig[b][j].first || std::abs(sig[a][j].second - sig[b][j].second) > kCamFracTol)
+        return false;
+    return true;
+  };
+  for (std::size_t M = 1; M <= 2 * kMaxPatternTeeth && 3 * M <= sig.size(); ++M) {
+    std::size_t with_cam = 0, good = 0;
+    for (std::size_t k = 0; k + M < sig.size(); ++k) {
+      if (sig[k].empty() && sig[k + M].empty()) continue;
+      ++with_cam;
+      good += same(k, k + M);
+    }
+    if (with_cam >= 2 && static_cast<double>(good) >= kMinCamFit * static_cast<double>(with_cam))
+      return static_cast<int>(M);
+  }
+  return 0;
 }
 
 /// Widest spacing last (tooth 0 = the first tooth after it, as for gap wheels).
@@ -375,7 +413,8 @@ WheelDetection& read_gap_wheel(WheelDetection& d, std::span<const std::int64_t> 
 
 }  // namespace
 
-WheelDetection detect_wheel(std::span<const std::int64_t> t, std::span<const std::int64_t> other) {
+WheelDetection detect_wheel(std::span<const std::int64_t> t, std::span<const std::int64_t> other,
+                            std::span<const WheelCamEdge> cam) {
   WheelDetection d;
   if (t.size() < 3) return d.error = "fewer than 3 teeth", d;
   std::vector<std::int64_t> p(t.size() - 1);
@@ -399,6 +438,7 @@ WheelDetection detect_wheel(std::span<const std::int64_t> t, std::span<const std
   }
   if (!d.width_code.empty()) return d.error = d.width_code, d;
   if (len > 0) return read_gap_wheel(d, t, g, len);
+  d.cam_cycle_teeth = cam_cycle_teeth(t, cam);
   if (read_pattern_wheel(d, p, static_cast<double>(t[0]) * 1e-9)) return d;
   char buf[240];
   std::snprintf(buf, sizeof buf,
@@ -430,6 +470,10 @@ std::string describe_pattern(const WheelDetection& d) {
                   "noise periods\n",
                   d.revolutions, d.rpm_min, d.rpm_max, d.noise_periods);
   s += buf + ("read: " + d.stretch + "\n");
+  if (d.cam_cycle_teeth > 0)
+    s += "cam: its edges repeat every " + std::to_string(d.cam_cycle_teeth) +
+         " crank teeth (one cam turn = 720 deg: " + std::to_string(d.cam_cycle_teeth / 2.0).substr(0, 4) +
+         " teeth per revolution)\n";
   if (!d.matches.empty()) {
     s += "catalogue: " + d.matches[0];
     if (d.repeat_deg < 360.0)

@@ -302,15 +302,22 @@ int open_from_options(const Options& o, Inputs& in) {
 /// --detect-wheel: the marking crank edges of the capture, then the wheel they show.
 int detect_wheel_main(Options o) {
   o.edges = o.detect_wheel;
-  o.cam = "";  // the crank edges only
   std::string err;
-  auto src = open_edge_file(o, err);
+  auto src = open_edge_file(o, err);  // with the cam column (--cam) when the capture has it
+  if (!err.empty()) {
+    err.clear();
+    o.cam = "";
+    src = open_edge_file(o, err);
+  }
   if (!err.empty()) return fail(1, err);
   std::vector<std::int64_t> teeth, other;  // marking edges, and the other polarity (pulse widths)
+  std::vector<WheelCamEdge> cam;
   EdgeEvent e;
-  while (src->next(e) == SourceStatus::kOk)
+  while (src->next(e) == SourceStatus::kOk) {
     if (e.channel == kCrankChannel) ((e.level != 0) != o.falling ? teeth : other).push_back(e.t_ns);
-  const WheelDetection d = detect_wheel(teeth, other);
+    if (e.channel != kCrankChannel) cam.push_back({e.t_ns, e.level != 0});
+  }
+  const WheelDetection d = detect_wheel(teeth, other, cam);
   std::fputs(describe(d).c_str(), d.error.empty() ? stdout : stderr);
   return d.error.empty() ? 0 : 1;
 }

@@ -140,7 +140,9 @@ TEST(TorqueDecode, DetectWheelOnEveryRealCapture) {
       {"noisy-trigger-2.csv", "catalogue: toyota-36-2, 36-2", {"toyota-36-2", "36-2"}},
       {"noisy-trigger-3.csv", "detect-wheel: no repeating gap structure", {}},
       {"nb2-cranking-good.csv --crank crank", "catalogue: miata-nb2 (", {"miata-nb2"}},
-      {"4g63-cranking.csv --crank crank", "catalogue: not identified by the crank alone", {}},
+      {"4g63-cranking.csv --crank crank", "catalogue: 4g63 (", {"4g63"}},  // teeth per turn: its cam column
+      {"4g63-cranking.csv --crank crank --cam ''", "catalogue: not identified by the crank alone", {}},
+      {"cas_nissan_24_plus_1.csv --crank pri --cam sec", "catalogue: nissan-cas-24+1 (", {"nissan-cas-24+1"}},
       {"cas_nissan_24_plus_1.csv --crank pri", "catalogue: not identified by the crank alone", {}},
       {"gm_24x_cranking.csv --crank crank", "detect-wheel: pulse-width-coded wheel", {}},
       {"gm_24x_cranking.csv --crank crank --falling", "detect-wheel: pulse-width-coded wheel", {}},

@@ -124,6 +124,33 @@ TEST(WheelDetect, EquallySpacedWheelsAreNeverGivenACatalogueNameByTheCrankAlone)
   }
 }
 
+TEST(WheelDetect, TheCamGivesTheTeethPerRevolutionOfAnEquallySpacedWheel) {
+  for (const char* name : {"4g63", "nissan-cas-24+1"}) {
+    // GIVEN the wheel's crank and cam edges (cam rising 45 deg, falling 225 deg of 720), cranking ripple
+    WheelGeometry w;
+    ASSERT_TRUE(wheel_from_name(name, w, nullptr));
+    test::SynthOptions o;
+    o.wheel = w;
+    o.rpm0 = 250.0;
+    o.rpm1 = 2500.0;
+    o.duration_s = 3.0;
+    o.ripple = 0.2;
+    std::vector<std::int64_t> teeth;
+    std::vector<WheelCamEdge> cam;
+    for (const EdgeEvent& e : test::synthesize(o).edges) {
+      if (e.channel == 0 && e.level != 0) teeth.push_back(e.t_ns);
+      if (e.channel != 0) cam.push_back({e.t_ns, e.level != 0});
+    }
+    const WheelDetection d = detect_wheel(teeth, {}, cam);
+    // THEN the cam cycle holds twice the teeth per revolution, and that names the one entry
+    ASSERT_TRUE(d.error.empty()) << name << ": " << d.error;
+    EXPECT_EQ(d.cam_cycle_teeth, 2 * w.teeth()) << name << "\n" << describe(d);
+    EXPECT_EQ(d.matches, (std::vector<std::string>{name})) << describe(d);
+    EXPECT_DOUBLE_EQ(d.repeat_deg, 360.0 / w.teeth());
+    EXPECT_EQ(d.tooth_angles_deg.size(), static_cast<std::size_t>(w.teeth()));
+  }
+}
+
 TEST(WheelDetect, WidthCodedWheelNeedsBothEdges) {
   // GIVEN GM 24x falling edges every 15 deg, the rising edge 3 or 12 deg later by the code 0x0A33BE
   std::vector<std::int64_t> fall, rise;
