@@ -440,10 +440,11 @@ WheelDetection detect_wheel(std::span<const std::int64_t> t, std::span<const std
   if (len > 0) return read_gap_wheel(d, t, g, len);
   d.cam_cycle_teeth = cam_cycle_teeth(t, cam);
   if (read_pattern_wheel(d, p, static_cast<double>(t[0]) * 1e-9)) return d;
-  char buf[240];
+  char buf[320];
   std::snprintf(buf, sizeof buf,
-                "no repeating gap structure (%zu gaps in %zu teeth, %d noise periods) and no tooth pattern "
-                "repeating in %.0f %% of the periods (the capture is too noisy or irregular to read)",
+                "no repeating gap structure (%zu gaps in %zu teeth, %d noise periods; no stretch without "
+                "noise periods repeats its gaps for 2 revolutions) and no tooth pattern repeating in %.0f %% "
+                "of the periods: too noisy or irregular to read",
                 all_gaps, t.size(), d.noise_periods, 100.0 * kMinPatternFit);
   return d.error = buf, d;
 }

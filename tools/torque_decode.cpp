@@ -185,10 +185,11 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("--can", o.can, "candump -l log");
   app.add_option("--dbc", o.dbc, "DBC file to decode the CAN frames");
   app.add_option("--wheel", o.wheel, "crank wheel: " + known_wheel_names());
-  app.add_option("--detect-wheel", o.detect_wheel,
-                 "read an unknown wheel off this edge capture (crank column --crank, --falling): gap "
-                 "structure or repeating tooth pattern, matching catalogue entries, tooth_angles_deg to "
-                 "paste, speed range (docs/io.md)");
+  app.add_option(
+      "--detect-wheel", o.detect_wheel,
+      "read an unknown wheel off this edge capture (crank column --crank, --falling; cam column --cam if "
+      "present): gap structure or repeating tooth pattern, matching catalogue entries, tooth_angles_deg "
+      "to paste, speed range (docs/io.md)");
   app.add_flag("--falling", o.falling, "teeth are marked by falling crank edges");
   app.add_option("--crank", o.crank, "crank column name in the edge CSV");
   app.add_option("--cam", o.cam, "cam column name in the edge CSV (\"\" = none)");
