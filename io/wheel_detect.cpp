@@ -149,12 +149,12 @@ std::vector<double> catalogue_repeat(const NamedWheel& w, double& repeat_deg) {
     const double a1 = j + 1 < n ? g.tooth_angles_deg[static_cast<std::size_t>(j + 1)] : 360.0;
     s[static_cast<std::size_t>(j)] = (a1 - a0) / 360.0;
   }
-  const std::vector<double> r = smallest_repeat(s, 1e-9);
+  std::vector<double> r = smallest_repeat(s, 1e-9);
   repeat_deg = 360.0 * static_cast<double>(r.size()) / static_cast<double>(n);
   return r;
 }
 
-/// Whether b equals a rotated, spacing by spacing within kSpacingTol; `rot` is the rotation found.
+/// Whether b equals a rotated, spacing by spacing within kSpacingTol.
 bool spacings_match(const std::vector<double>& a, const std::vector<double>& b) {
   const std::size_t n = a.size();
   if (n != b.size()) return false;
@@ -353,7 +353,7 @@ int clean_stretch(GapScan& g) {
   if (best_len == 0) return 0;
   g.seq = std::vector<std::pair<int, double>>(g.seq.begin() + static_cast<std::ptrdiff_t>(best_a),
                                               g.seq.begin() + static_cast<std::ptrdiff_t>(best_a + best_n));
-  // gap_end[i] closes the gap before seq[i - 1]'s run... keep the gaps bounding the kept runs
+  // seq[i] is the run between gap_end[i] and gap_end[i + 1]: keep the gaps bounding the kept runs
   g.gap_end = std::vector<std::size_t>(g.gap_end.begin() + static_cast<std::ptrdiff_t>(best_a),
                                        g.gap_end.begin() + static_cast<std::ptrdiff_t>(best_a + best_n + 1));
   return best_len;
