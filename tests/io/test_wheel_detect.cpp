@@ -189,5 +189,35 @@ TEST(WheelDetect, GapWheelIsReadOffTheLongestCleanStretchOfANoisyCapture) {
   EXPECT_NE(describe(d).find("read: "), std::string::npos) << describe(d);
 }
 
+/// Tooth angles of a wheel (N-M wheels: their equally spaced teeth before the gap).
+std::vector<double> angles_of(const WheelGeometry& w) {
+  std::vector<double> a;
+  for (int i = 0; i < w.teeth(); ++i)
+    a.push_back(w.tooth_count > 0 ? w.tooth_angles_deg[static_cast<std::size_t>(i)]
+                                  : 360.0 * i / w.positions);
+  return a;
+}
+
+TEST(WheelDetect, NoCatalogueWheelIsEverGivenAWrongName) {
+  // GIVEN every catalogue wheel read by its edge times (the symmetric 36-2-2-16-16 shows as its half, the
+  // width-coded gm-24x needs both edges), cranking ripple and jitter
+  for (const NamedWheel& entry : wheel_catalogue()) {
+    if (entry.width_coded || std::string(entry.name) == "36-2-2-16-16") continue;
+    WheelGeometry truth;
+    ASSERT_TRUE(wheel_from_name(entry.name, truth, nullptr));
+    const WheelDetection d = detect_wheel(jittered_teeth(entry.name));
+    // THEN it is read, and every name printed as the match has the same tooth list (an alias or N-M)
+    ASSERT_TRUE(d.error.empty()) << entry.name << ": " << d.error;
+    for (const std::string& m : d.matches) {
+      WheelGeometry w;
+      ASSERT_TRUE(wheel_from_name(m, w, nullptr)) << m;
+      EXPECT_EQ(angles_of(w), angles_of(truth)) << entry.name << " read as " << m << "\n" << describe(d);
+    }
+    const bool equally_spaced = d.positions == 0 && d.pattern_teeth == 1;
+    EXPECT_TRUE(equally_spaced || has(d.matches, entry.name)) << entry.name << "\n" << describe(d);
+    if (equally_spaced) EXPECT_TRUE(has(d.candidates, entry.name)) << entry.name << "\n" << describe(d);
+  }
+}
+
 }  // namespace
 }  // namespace torqued
