@@ -91,7 +91,7 @@ PatternFit pattern_fit(const std::vector<double>& cum, std::size_t np, std::size
   for (std::size_t i = h; i + N + w - h <= np; ++i) {
     const double s0 = cum[i - h + w] - cum[i - h], s1 = cum[i + N - h + w] - cum[i + N - h];
     const double p0 = cum[i + 1] - cum[i], p1 = cum[i + N + 1] - cum[i + N];
-    const bool ok = std::abs((p1 / p0) * (s0 / s1) - 1.0) < kPeriodTol;
+    const bool ok = p0 > 0.0 && s1 > 0.0 && std::abs((p1 / p0) * (s0 / s1) - 1.0) < kPeriodTol;
     ++total;
     good += ok;
     if (!ok) run_n = 0;
@@ -353,7 +353,8 @@ GapScan scan_gaps(std::span<const std::int64_t> p, int& noise_periods) {
 /// between gaps repeat exactly every `len` gaps (len <= 16), at least kMinCleanCycles cycles long. Returns
 /// len (0: none) and cuts `g` to the stretch.
 int clean_stretch(GapScan& g) {
-  constexpr int kMinCleanCycles = 2;  // two whole revolutions: the structure seen to repeat at least once
+  // 3 whole revolutions: the structure seen to repeat twice (once can be chance in noise)
+  constexpr int kMinCleanCycles = 3;
   std::size_t best_a = 0, best_n = 0;
   int best_len = 0;
   const std::size_t n = g.seq.size();
@@ -362,7 +363,7 @@ int clean_stretch(GapScan& g) {
     for (std::size_t a = 0; a < n; ++a) {
       std::size_t b = a;  // stretch [a, b): seq[i] == seq[i + len] for i + len < b, no noise
       while (b < n && !g.noisy[b] && (b < a + ul || g.seq[b].first == g.seq[b - ul].first)) ++b;
-      if (b - a >= ul * (kMinCleanCycles + 1) && b - a > best_n) best_a = a, best_n = b - a, best_len = len;
+      if (b - a >= ul * kMinCleanCycles && b - a > best_n) best_a = a, best_n = b - a, best_len = len;
     }
   }
   if (best_len == 0) return 0;
@@ -458,7 +459,7 @@ WheelDetection detect_wheel(std::span<const std::int64_t> t, std::span<const std
   char buf[320];
   std::snprintf(buf, sizeof buf,
                 "no repeating gap structure (%zu gaps in %zu teeth, %d noise periods; no stretch without "
-                "noise periods repeats its gaps for 2 revolutions) and no tooth pattern repeating in %.0f %% "
+                "noise periods repeats its gaps for 3 revolutions) and no tooth pattern repeating in %.0f %% "
                 "of the periods: too noisy or irregular to read",
                 all_gaps, t.size(), d.noise_periods, 100.0 * kMinPatternFit);
   return d.error = buf, d;
