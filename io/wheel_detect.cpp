@@ -56,38 +56,330 @@ void find_matches(WheelDetection& d) {
   if (d.runs.size() == 2) d.matches.push_back(std::to_string(d.positions) + "-" + std::to_string(d.runs[1]));
 }
 
-}  // namespace
+// Pattern wheels (no missing-tooth gap: 4g63, miata-nb2, nissan-cas-24+1, ...): the tooth periods repeat
+// every N teeth. Tolerances, with their physical reason:
+/// A period against the one N teeth later, the speed change removed (ratio of the time of the N-multiple
+/// window around each): at the true N the compression ripple (up to +-20 % speed while cranking) is in phase
+/// and cancels; what remains is edge jitter (+-2 % per edge: up to +-8 % on a ratio of two periods) and the
+/// curvature of the cranking speed trend. 0.15 still tells a 70/110 deg spacing (ratio 1.57) from equal ones.
+constexpr double kPeriodTol = 0.15;
+/// Share of the periods that must repeat: noise periods, stalls and the first compressions spoil the
+/// comparisons around them (nb2-cranking-good.csv: 72 % repeat at N = 2, the wrong N <= 10 %).
+constexpr double kMinPatternFit = 0.6;
+/// A tooth spacing read off the periods vs the catalogue's (relative): the compression ripple distorts a
+/// spacing read off time by up to the speed ripple it spans (+-20 % cranking), plus jitter.
+constexpr double kSpacingTol = 0.3;
+/// A repeat is cut to a shorter one when its spacings agree within this (relative). A repeat of 2 teeth: the
+/// averaged spacings keep the jitter's mean only, and 70/110 deg (miata-nb2) is +-22 % from equal. From 3
+/// teeth on the repeat can be a compression cycle of an equally spaced wheel whose in-phase speed ripple
+/// (+-20 % while cranking) stays in the averaged spacings: kSpacingTol.
+constexpr double kReduceTol = 0.1;
+constexpr int kMaxPatternTeeth = 64;  ///< repeats longer than this are not looked for
+constexpr int kMinWindowTeeth = 8;    ///< the speed-trend window spans at least this many teeth
 
-WheelDetection detect_wheel(std::span<const std::int64_t> t) {
-  WheelDetection d;
-  if (t.size() < 3) return d.error = "fewer than 3 teeth", d;
-  std::vector<std::int64_t> p(t.size() - 1);
-  for (std::size_t k = 0; k + 1 < t.size(); ++k) p[k] = t[k + 1] - t[k];
-  // (teeth, missing) per gap, and the index of the tooth closing each gap.
-  std::vector<std::pair<int, double>> seq;  ///< teeth before the gap, gap period / neighbours' median
+/// Share of the periods i with p[i+N]/p[i] equal (within kPeriodTol) to the local speed change, and the
+/// longest run of consecutive repeating periods [best_a, best_a + best_n).
+struct PatternFit {
+  double fit = 0.0;
+  std::size_t a = 0, n = 0;
+};
+
+PatternFit pattern_fit(const std::vector<double>& cum, std::size_t np, std::size_t N) {
+  const std::size_t w = N * ((kMinWindowTeeth + N - 1) / N), h = w / 2;
+  PatternFit f;
+  std::size_t total = 0, good = 0, run_a = 0, run_n = 0;
+  for (std::size_t i = h; i + N + w - h <= np; ++i) {
+    const double s0 = cum[i - h + w] - cum[i - h], s1 = cum[i + N - h + w] - cum[i + N - h];
+    const double p0 = cum[i + 1] - cum[i], p1 = cum[i + N + 1] - cum[i + N];
+    const bool ok = p0 > 0.0 && s1 > 0.0 && std::abs((p1 / p0) * (s0 / s1) - 1.0) < kPeriodTol;
+    ++total;
+    good += ok;
+    if (!ok) run_n = 0;
+    if (ok && run_n++ == 0) run_a = i;
+    if (run_n > f.n) f.a = run_a, f.n = run_n;
+  }
+  f.fit = total > 0 ? static_cast<double>(good) / static_cast<double>(total) : 0.0;
+  f.n += N;  // the run's comparisons cover N more periods
+  return f;
+}
+
+/// Spacings (fractions of the repeat) averaged over the clean stretch, each period over the N around it.
+std::vector<double> mean_spacings(const std::vector<double>& cum, std::size_t N, const PatternFit& f) {
+  std::vector<double> a(N, 0.0);
+  std::vector<int> cnt(N, 0);
+  const std::size_t h = N / 2;
+  for (std::size_t i = f.a + h; i + N - h <= f.a + f.n; ++i) {
+    a[(i - f.a) % N] += (cum[i + 1] - cum[i]) / (cum[i - h + N] - cum[i - h]);
+    ++cnt[(i - f.a) % N];
+  }
+  double sum = 0.0;
+  for (std::size_t k = 0; k < N; ++k) sum += a[k] /= std::max(1, cnt[k]);
+  for (double& x : a) x /= sum;
+  return a;
+}
+
+/// The smallest d dividing a.size() such that a repeats every d entries within `tol` (relative); the
+/// repeat's spacings, renormalised.
+std::vector<double> smallest_repeat(const std::vector<double>& a, double tol) {
+  const std::size_t n = a.size();
+  for (std::size_t d = 1; d < n; ++d) {
+    if (n % d != 0) continue;
+    std::vector<double> b(d, 0.0);
+    for (std::size_t j = 0; j < n; ++j) b[j % d] += a[j] * static_cast<double>(d) / static_cast<double>(n);
+    bool ok = true;
+    for (std::size_t j = 0; j < n && ok; ++j) ok = std::abs(a[j] - b[j % d]) <= tol * b[j % d];
+    if (!ok) continue;
+    double sum = 0.0;
+    for (double x : b) sum += x;
+    for (double& x : b) x /= sum;
+    return b;
+  }
+  return a;
+}
+
+/// A catalogue entry's smallest repeat: its spacings (fractions) and the crank degrees it spans.
+std::vector<double> catalogue_repeat(const NamedWheel& w, double& repeat_deg) {
+  WheelGeometry g;
+  repeat_deg = 0.0;
+  if (!wheel_from_runs(w.positions, w.runs, w.n_runs, g, nullptr)) return {};
+  const int n = g.teeth();
+  std::vector<double> s(static_cast<std::size_t>(n));
+  for (int j = 0; j < n; ++j) {
+    const double a0 = g.tooth_angles_deg[static_cast<std::size_t>(j)];
+    const double a1 = j + 1 < n ? g.tooth_angles_deg[static_cast<std::size_t>(j + 1)] : 360.0;
+    s[static_cast<std::size_t>(j)] = (a1 - a0) / 360.0;
+  }
+  std::vector<double> r = smallest_repeat(s, 1e-9);
+  repeat_deg = 360.0 * static_cast<double>(r.size()) / static_cast<double>(n);
+  return r;
+}
+
+/// Whether b equals a rotated, spacing by spacing within kSpacingTol.
+bool spacings_match(const std::vector<double>& a, const std::vector<double>& b) {
+  const std::size_t n = a.size();
+  if (n != b.size()) return false;
+  for (std::size_t r = 0; r < n; ++r) {
+    bool ok = true;
+    for (std::size_t j = 0; j < n && ok; ++j) ok = std::abs(a[(j + r) % n] - b[j]) <= kSpacingTol * b[j];
+    if (ok) return true;
+  }
+  return false;
+}
+
+/// Catalogue entries with the detected repeat. One entry: a match (its degrees per repeat give the angles and
+/// rpm); several (equally spaced teeth: any count per revolution fits): candidates only, none printed as a
+/// match.
+void match_pattern(WheelDetection& d) {
+  std::vector<std::pair<std::string, double>> hits;
+  for (const NamedWheel& w : wheel_catalogue()) {
+    double deg = 0.0;
+    if (!spacings_match(d.spacing, catalogue_repeat(w, deg))) continue;
+    const double teeth_per_rev = 360.0 / deg * static_cast<double>(d.spacing.size());
+    if (d.cam_cycle_teeth > 0 && std::abs(2.0 * teeth_per_rev - d.cam_cycle_teeth) > 0.5) continue;
+    hits.emplace_back(w.name, deg);
+  }
+  if (hits.size() == 1) {
+    d.matches.push_back(hits[0].first);
+    d.repeat_deg = hits[0].second;
+  } else {
+    for (const auto& h : hits) d.candidates.push_back(h.first);
+  }
+}
+
+/// Crank teeth per cam cycle: the smallest M (<= 2 kMaxPatternTeeth) after which the cam edges inside the
+/// crank periods repeat (same polarities in the same order, each at the same fraction of its period within
+/// kCamFracTol) for kMinCamFit of the periods that hold a cam edge. The cam turns once per 720 deg.
+int cam_cycle_teeth(std::span<const std::int64_t> t, std::span<const WheelCamEdge> cam) {
+  constexpr double kCamFracTol =
+      0.2;  // cranking ripple moves an edge within its period by a few tenths at most
+  constexpr double kMinCamFit = 0.9;  // a few glitch edges (4g63's last edges) may not repeat
+  std::vector<std::vector<std::pair<bool, double>>> sig(t.size() > 0 ? t.size() - 1 : 0);
+  std::size_t c = 0;
+  for (std::size_t k = 0; k < sig.size(); ++k) {
+    while (c < cam.size() && cam[c].t_ns < t[k]) ++c;
+    for (; c < cam.size() && cam[c].t_ns < t[k + 1]; ++c)
+      sig[k].emplace_back(cam[c].rising,
+                          static_cast<double>(cam[c].t_ns - t[k]) / static_cast<double>(t[k + 1] - t[k]));
+  }
+  const auto same = [&](std::size_t a, std::size_t b) {
+    if (sig[a].size() != sig[b].size()) return false;
+    for (std::size_t j = 0; j < sig[a].size(); ++j)
+      if (sig[a][j].first != sig[b][j].first || std::abs(sig[a][j].second - sig[b][j].second) > kCamFracTol)
+        return false;
+    return true;
+  };
+  for (std::size_t M = 1; M <= 2 * kMaxPatternTeeth && 3 * M <= sig.size(); ++M) {
+    std::size_t with_cam = 0, good = 0;
+    for (std::size_t k = 0; k + M < sig.size(); ++k) {
+      if (sig[k].empty() && sig[k + M].empty()) continue;
+      ++with_cam;
+      good += same(k, k + M);
+    }
+    if (with_cam >= 2 && static_cast<double>(good) >= kMinCamFit * static_cast<double>(with_cam))
+      return static_cast<int>(M);
+  }
+  return 0;
+}
+
+/// Widest spacing last (tooth 0 = the first tooth after it, as for gap wheels).
+void rotate_after_widest(std::vector<double>& a) {
+  const auto widest = std::max_element(a.begin(), a.end()) - a.begin();
+  std::rotate(a.begin(), a.begin() + (widest + 1) % static_cast<std::ptrdiff_t>(a.size()), a.end());
+}
+
+/// Periods under 0.6 of the shortest spacing of the repeat (the time of the R periods from each as the
+/// repeat).
+int pattern_noise(const std::vector<double>& cum, const std::vector<double>& spacing) {
+  const double shortest = *std::min_element(spacing.begin(), spacing.end());
+  const std::size_t R = spacing.size(), np = cum.size() - 1;
+  int n = 0;
+  for (std::size_t i = 0; i + R <= np; ++i) n += cum[i + 1] - cum[i] < 0.6 * shortest * (cum[i + R] - cum[i]);
+  return n;
+}
+
+bool read_pattern_wheel(WheelDetection& d, std::span<const std::int64_t> p, double t0_s) {
+  std::vector<double> cum(p.size() + 1, 0.0);
+  for (std::size_t k = 0; k < p.size(); ++k) cum[k + 1] = cum[k] + static_cast<double>(p[k]) * 1e-9;
+  for (std::size_t N = 1; N <= kMaxPatternTeeth && 3 * N + kMinWindowTeeth <= p.size(); ++N) {
+    const PatternFit f = pattern_fit(cum, p.size(), N);
+    if (f.fit < kMinPatternFit || f.n < 2 * N) continue;
+    d.spacing = smallest_repeat(mean_spacings(cum, N, f), N >= 3 ? kSpacingTol : kReduceTol);
+    rotate_after_widest(d.spacing);
+    d.pattern_teeth = static_cast<int>(d.spacing.size());
+    d.noise_periods = pattern_noise(cum, d.spacing);
+    match_pattern(d);
+    const double unit = d.repeat_deg > 0 ? d.repeat_deg / 360.0 : 1.0;  // revolutions per repeat
+    const std::size_t R = d.spacing.size();
+    d.rpm_min = 1e300;
+    for (std::size_t i = f.a; i + R <= f.a + f.n; i += R, ++d.revolutions) {
+      const double rpm = 60.0 * unit / (cum[i + R] - cum[i]);
+      d.rpm_min = std::min(d.rpm_min, rpm);
+      d.rpm_max = std::max(d.rpm_max, rpm);
+    }
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "%zu of %zu periods (%.3f-%.3f s), the longest run that repeats", f.n,
+                  p.size(), t0_s + cum[f.a], t0_s + cum[f.a + f.n]);
+    d.stretch = buf;
+    double deg = 0.0;
+    for (std::size_t k = 0; d.repeat_deg > 0 && k < 360.0 / d.repeat_deg * R; ++k) {
+      d.tooth_angles_deg.push_back(std::round(deg * 10.0) / 10.0);
+      deg += d.spacing[k % R] * d.repeat_deg;
+    }
+    return true;
+  }
+  return false;
+}
+
+/// Duty of each marking period (other-polarity edge inside it): two clusters far apart = width-coded.
+std::string width_code(std::span<const std::int64_t> t, std::span<const std::int64_t> other) {
+  constexpr double kDutyGap = 0.25;  // two widths, e.g. GM 24x 3 deg vs 12 deg of 15 (duty 0.2 / 0.8)
+  constexpr double kMinShare = 0.2;  // each width on at least a fifth of the teeth (a gap is one tooth)
+  std::vector<double> duty;
+  std::size_t o = 0;
+  for (std::size_t k = 0; k + 1 < t.size(); ++k) {
+    while (o < other.size() && other[o] <= t[k]) ++o;
+    if (o < other.size() && other[o] < t[k + 1])
+      duty.push_back(static_cast<double>(other[o] - t[k]) / static_cast<double>(t[k + 1] - t[k]));
+  }
+  if (duty.size() < 10) return "";
+  std::sort(duty.begin(), duty.end());
+  const std::size_t lo = static_cast<std::size_t>(static_cast<double>(duty.size()) * kMinShare);
+  for (std::size_t i = lo; i + lo < duty.size(); ++i) {
+    if (duty[i] - duty[i - 1] < kDutyGap) continue;
+    std::string names;
+    for (const NamedWheel& w : wheel_catalogue())
+      if (w.width_coded) names += std::string(names.empty() ? "" : ", ") + w.name;
+    char buf[300];
+    std::snprintf(buf, sizeof buf,
+                  "pulse-width-coded wheel (duty %.2f-%.2f or %.2f-%.2f of a period): the position is in the "
+                  "widths, not the edge times; it needs both edges: --wheel NAME with a width-coded entry "
+                  "(%s)",
+                  duty.front(), duty[i - 1], duty[i], duty.back(), names.c_str());
+    return buf;
+  }
+  return "";
+}
+
+/// The gaps of a capture: (teeth before the gap, gap ratio), the index of the tooth closing each gap and
+/// whether a noise period lies in the run before it.
+struct GapScan {
+  std::vector<std::pair<int, double>> seq;
   std::vector<std::size_t> gap_end;
+  std::vector<bool> noisy;  ///< per seq entry
+};
+
+/// Gap k's period over the mean of the nearest tooth periods before and after it (ratio to neighbours in
+/// [0.6, 1.5)): the local speed at the gap, interpolated, follows the cranking ripple that the median of 8
+/// neighbours spanning 80+ deg does not (+-20 % ripple made a 3-period gap read as 4).
+double gap_ratio(std::span<const std::int64_t> p, std::size_t k, double fallback) {
+  const auto tooth = [&](std::size_t j) {
+    const double r = ratio_to_neighbours(p, j);
+    return r >= 0.6 && r < 1.5;
+  };
+  std::size_t a = k, b = k + 1;
+  while (a > 0 && k - a < 8 && !tooth(a - 1)) --a;
+  while (b < p.size() && b - k < 8 && !tooth(b)) ++b;
+  if (a == 0 || b >= p.size() || !tooth(a - 1) || !tooth(b)) return fallback;
+  return 2.0 * static_cast<double>(p[k]) / static_cast<double>(p[a - 1] + p[b]);
+}
+
+GapScan scan_gaps(std::span<const std::int64_t> p, int& noise_periods) {
+  GapScan g;
   int teeth = -1;  // -1: before the first gap (partial run, dropped)
+  bool noisy = false;
   for (std::size_t k = 0; k < p.size(); ++k) {
     const double r = ratio_to_neighbours(p, k);
     if (r < 0.6) {
-      ++d.noise_periods;
+      ++noise_periods;
+      noisy = true;
       continue;
     }
     if (r < 1.5) {
       if (teeth >= 0) ++teeth;
       continue;
     }
-    if (teeth >= 0) seq.emplace_back(teeth + 1, r);
-    gap_end.push_back(k + 1);
+    if (teeth >= 0) {
+      g.seq.emplace_back(teeth + 1, gap_ratio(p, k, r));
+      g.noisy.push_back(noisy);
+    }
+    g.gap_end.push_back(k + 1);
     teeth = 0;
+    noisy = false;
   }
-  const int len = cycle_length(seq);
-  if (seq.size() < 2 || len == 0) {
-    char buf[120];
-    std::snprintf(buf, sizeof buf, "no repeating gap structure (%zu gaps in %zu teeth, %d noise periods)",
-                  gap_end.size(), t.size(), d.noise_periods);
-    return d.error = buf, d;
+  return g;
+}
+
+/// A noisy or stalling capture: keeps the longest stretch of gaps without a noise period in which the teeth
+/// between gaps repeat exactly every `len` gaps (len <= 16), at least kMinCleanCycles cycles long. Returns
+/// len (0: none) and cuts `g` to the stretch.
+int clean_stretch(GapScan& g) {
+  // 3 whole revolutions: the structure seen to repeat twice (once can be chance in noise)
+  constexpr int kMinCleanCycles = 3;
+  std::size_t best_a = 0, best_n = 0;
+  int best_len = 0;
+  const std::size_t n = g.seq.size();
+  for (int len = 1; len <= 16; ++len) {
+    const auto ul = static_cast<std::size_t>(len);
+    for (std::size_t a = 0; a < n; ++a) {
+      std::size_t b = a;  // stretch [a, b): seq[i] == seq[i + len] for i + len < b, no noise
+      while (b < n && !g.noisy[b] && (b < a + ul || g.seq[b].first == g.seq[b - ul].first)) ++b;
+      if (b - a >= ul * kMinCleanCycles && b - a > best_n) best_a = a, best_n = b - a, best_len = len;
+    }
   }
+  if (best_len == 0) return 0;
+  g.seq = std::vector<std::pair<int, double>>(g.seq.begin() + static_cast<std::ptrdiff_t>(best_a),
+                                              g.seq.begin() + static_cast<std::ptrdiff_t>(best_a + best_n));
+  // seq[i] is the run between gap_end[i] and gap_end[i + 1]: keep the gaps bounding the kept runs
+  g.gap_end = std::vector<std::size_t>(g.gap_end.begin() + static_cast<std::ptrdiff_t>(best_a),
+                                       g.gap_end.begin() + static_cast<std::ptrdiff_t>(best_a + best_n + 1));
+  return best_len;
+}
+
+/// The gap wheel of `len` gaps per cycle read off `g`: runs, speed, tooth angles, decoder check, matches.
+WheelDetection& read_gap_wheel(WheelDetection& d, std::span<const std::int64_t> t, const GapScan& g,
+                               int len) {
+  const auto& seq = g.seq;
+  const auto& gap_end = g.gap_end;
   // Missing teeth of each gap of the cycle: its median ratio, rounded, minus one.
   std::vector<std::pair<int, int>> cyc(static_cast<std::size_t>(len));
   for (int i = 0; i < len; ++i) {
@@ -114,8 +406,8 @@ WheelDetection detect_wheel(std::span<const std::int64_t> t) {
   }
   // Per revolution: the time between closings of the same gap, len gaps apart.
   d.rpm_min = 1e300;
-  for (std::size_t g = 0; g + static_cast<std::size_t>(len) < gap_end.size(); ++g) {
-    const double rev_s = static_cast<double>(t[gap_end[g + len]] - t[gap_end[g]]) * 1e-9;
+  for (std::size_t k = 0; k + ulen < gap_end.size(); ++k) {
+    const double rev_s = static_cast<double>(t[gap_end[k + ulen]] - t[gap_end[k]]) * 1e-9;
     d.rpm_min = std::min(d.rpm_min, 60.0 / rev_s);
     d.rpm_max = std::max(d.rpm_max, 60.0 / rev_s);
     ++d.revolutions;
@@ -135,8 +427,99 @@ WheelDetection detect_wheel(std::span<const std::int64_t> t) {
   return d;
 }
 
+}  // namespace
+
+WheelDetection detect_wheel(std::span<const std::int64_t> t, std::span<const std::int64_t> other,
+                            std::span<const WheelCamEdge> cam) {
+  WheelDetection d;
+  if (t.size() < 3) return d.error = "fewer than 3 teeth", d;
+  std::vector<std::int64_t> p(t.size() - 1);
+  for (std::size_t k = 0; k + 1 < t.size(); ++k) p[k] = t[k + 1] - t[k];
+  d.width_code = width_code(t, other);
+  if (d.width_code.empty()) d.width_code = width_code(other, t);  // the widths seen from the other edge
+  GapScan g = scan_gaps(p, d.noise_periods);
+  const std::size_t all_gaps = g.gap_end.size();
+  int len = g.seq.size() >= 2 ? cycle_length(g.seq) : 0;
+  if (len == 0) {
+    len = clean_stretch(g);
+    if (len > 0) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf,
+                    "%zu of %zu gaps (%.3f-%.3f s): the longest stretch without noise periods or stalls "
+                    "in which the gaps repeat",
+                    g.gap_end.size(), all_gaps, static_cast<double>(t[g.gap_end.front()]) * 1e-9,
+                    static_cast<double>(t[g.gap_end.back()]) * 1e-9);
+      d.stretch = buf;
+    }
+  }
+  if (!d.width_code.empty()) return d.error = d.width_code, d;
+  if (len > 0) return read_gap_wheel(d, t, g, len);
+  d.cam_cycle_teeth = cam_cycle_teeth(t, cam);
+  if (read_pattern_wheel(d, p, static_cast<double>(t[0]) * 1e-9)) return d;
+  char buf[320];
+  std::snprintf(buf, sizeof buf,
+                "no repeating gap structure (%zu gaps in %zu teeth, %d noise periods; no stretch without "
+                "noise periods repeats its gaps for 3 revolutions) and no tooth pattern repeating in %.0f %% "
+                "of the periods: too noisy or irregular to read",
+                all_gaps, t.size(), d.noise_periods, 100.0 * kMinPatternFit);
+  return d.error = buf, d;
+}
+
+namespace {
+
+/// Report lines of a pattern wheel (no missing-tooth gap).
+std::string describe_pattern(const WheelDetection& d) {
+  char buf[200];
+  std::string s = "wheel: no missing-tooth gap; the tooth periods repeat every " +
+                  std::to_string(d.pattern_teeth) + (d.pattern_teeth == 1 ? " tooth" : " teeth") +
+                  ", spacings (fractions of the repeat):";
+  for (std::size_t i = 0; i < d.spacing.size(); ++i) {
+    std::snprintf(buf, sizeof buf, "%s%.3f", i == 0 ? " " : ", ", d.spacing[i]);
+    s += buf;
+  }
+  if (d.repeat_deg > 0)
+    std::snprintf(buf, sizeof buf,
+                  "\nseen: %d repeats of %.0f deg, %.0f-%.0f rpm (per repeat), %d noise periods\n",
+                  d.revolutions, d.repeat_deg, d.rpm_min, d.rpm_max, d.noise_periods);
+  else
+    std::snprintf(buf, sizeof buf,
+                  "\nseen: %d repeats, %.0f-%.0f per minute (degrees per repeat unknown), %d "
+                  "noise periods\n",
+                  d.revolutions, d.rpm_min, d.rpm_max, d.noise_periods);
+  s += buf + ("read: " + d.stretch + "\n");
+  if (d.cam_cycle_teeth > 0)
+    s += "cam: its edges repeat every " + std::to_string(d.cam_cycle_teeth) +
+         " crank teeth (one cam turn = 720 deg: " + std::to_string(d.cam_cycle_teeth / 2.0).substr(0, 4) +
+         " teeth per revolution)\n";
+  if (!d.matches.empty()) {
+    s += "catalogue: " + d.matches[0];
+    if (d.repeat_deg < 360.0)
+      s += " (its teeth repeat every " + std::to_string(static_cast<int>(d.repeat_deg)) +
+           " deg: the crank alone gives the position only within that; its cam or code resolves it)";
+    s += "\n";
+  } else if (!d.candidates.empty()) {
+    s += "catalogue: not identified by the crank alone: equally good for";
+    for (std::size_t i = 0; i < d.candidates.size(); ++i) s += (i == 0 ? " " : ", ") + d.candidates[i];
+    s += " (equally spaced teeth: the count per revolution is not in the periods; the cam or the "
+         "pulse widths tell them apart)\n";
+  } else {
+    s += "catalogue: no entry has this repeat\n";
+  }
+  if (d.tooth_angles_deg.empty())
+    return s + "wheel: tooth_angles_deg not determined (degrees per repeat unknown)\n";
+  s += "wheel:\n  tooth_angles_deg: [";
+  for (std::size_t i = 0; i < d.tooth_angles_deg.size(); ++i) {
+    std::snprintf(buf, sizeof buf, "%s%.10g", i == 0 ? "" : ", ", d.tooth_angles_deg[i]);
+    s += buf;
+  }
+  return s + "]\n";
+}
+
+}  // namespace
+
 std::string describe(const WheelDetection& d) {
   if (!d.error.empty()) return "detect-wheel: " + d.error + "\n";
+  if (d.positions == 0) return describe_pattern(d);
   std::string s = "wheel: " + std::to_string(d.positions) + " positions, " +
                   std::to_string(d.tooth_angles_deg.size()) + " teeth; runs (teeth, missing):";
   for (std::size_t i = 0; i < d.runs.size(); ++i) s += (i == 0 ? " " : ", ") + std::to_string(d.runs[i]);
@@ -144,6 +527,7 @@ std::string describe(const WheelDetection& d) {
   std::snprintf(buf, sizeof buf, "\nseen: %d revolutions, %.0f-%.0f rpm (per revolution), %d noise periods\n",
                 d.revolutions, d.rpm_min, d.rpm_max, d.noise_periods);
   s += buf;
+  if (!d.stretch.empty()) s += "read: " + d.stretch + "\n";
   s += "catalogue: ";
   for (std::size_t i = 0; i < d.matches.size(); ++i) s += (i == 0 ? "" : ", ") + d.matches[i];
   s += d.matches.empty() ? "no entry (paste the angles below)\n" : "\n";

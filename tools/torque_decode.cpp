@@ -185,9 +185,11 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("--can", o.can, "candump -l log");
   app.add_option("--dbc", o.dbc, "DBC file to decode the CAN frames");
   app.add_option("--wheel", o.wheel, "crank wheel: " + known_wheel_names());
-  app.add_option("--detect-wheel", o.detect_wheel,
-                 "read an unknown wheel off this edge capture (crank column --crank, --falling): gap "
-                 "structure, matching catalogue entries, tooth_angles_deg to paste, speed range");
+  app.add_option(
+      "--detect-wheel", o.detect_wheel,
+      "read an unknown wheel off this edge capture (crank column --crank, --falling; cam column --cam if "
+      "present): gap structure or repeating tooth pattern, matching catalogue entries, tooth_angles_deg "
+      "to paste, speed range (docs/io.md)");
   app.add_flag("--falling", o.falling, "teeth are marked by falling crank edges");
   app.add_option("--crank", o.crank, "crank column name in the edge CSV");
   app.add_option("--cam", o.cam, "cam column name in the edge CSV (\"\" = none)");
@@ -301,15 +303,22 @@ int open_from_options(const Options& o, Inputs& in) {
 /// --detect-wheel: the marking crank edges of the capture, then the wheel they show.
 int detect_wheel_main(Options o) {
   o.edges = o.detect_wheel;
-  o.cam = "";  // the crank edges only
   std::string err;
-  auto src = open_edge_file(o, err);
+  auto src = open_edge_file(o, err);  // with the cam column (--cam) when the capture has it
+  if (!err.empty()) {
+    err.clear();
+    o.cam = "";
+    src = open_edge_file(o, err);
+  }
   if (!err.empty()) return fail(1, err);
-  std::vector<std::int64_t> teeth;
+  std::vector<std::int64_t> teeth, other;  // marking edges, and the other polarity (pulse widths)
+  std::vector<WheelCamEdge> cam;
   EdgeEvent e;
-  while (src->next(e) == SourceStatus::kOk)
-    if (e.channel == kCrankChannel && (e.level != 0) != o.falling) teeth.push_back(e.t_ns);
-  const WheelDetection d = detect_wheel(teeth);
+  while (src->next(e) == SourceStatus::kOk) {
+    if (e.channel == kCrankChannel) ((e.level != 0) != o.falling ? teeth : other).push_back(e.t_ns);
+    if (e.channel != kCrankChannel) cam.push_back({e.t_ns, e.level != 0});
+  }
+  const WheelDetection d = detect_wheel(teeth, other, cam);
   std::fputs(describe(d).c_str(), d.error.empty() ? stdout : stderr);
   return d.error.empty() ? 0 : 1;
 }

@@ -2,12 +2,14 @@
 // checks its CSV outputs and one-line summary.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "io_test_util.hpp"
 #include "synthetic_wheel.hpp"
@@ -123,6 +125,47 @@ TEST(TorqueDecode, DetectWheelOnARealCapture) {
   EXPECT_NE(r.out.find("catalogue: arctic-cat"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("tooth_angles_deg: [0, 15, 30,"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("15 revolutions"), std::string::npos) << r.out;
+}
+
+// Every real capture (tests/data/captures/rusefi): the wheel each shows, or why none; never a wrong name.
+TEST(TorqueDecode, DetectWheelOnEveryRealCapture) {
+  struct Case {
+    const char* args;
+    const char* expect;                ///< a line (start) the output must hold
+    std::vector<std::string> allowed;  ///< names the "catalogue: " line may give as the match
+  };
+  const std::vector<Case> cases = {
+      {"arctic-cat.csv --crank 'Channel 1'", "catalogue: arctic-cat", {"arctic-cat"}},
+      {"noisy-trigger-1.csv", "catalogue: toyota-36-2, 36-2", {"toyota-36-2", "36-2"}},
+      {"noisy-trigger-2.csv", "catalogue: toyota-36-2, 36-2", {"toyota-36-2", "36-2"}},
+      {"noisy-trigger-3.csv", "detect-wheel: no repeating gap structure", {}},
+      {"nb2-cranking-good.csv --crank crank", "catalogue: miata-nb2 (", {"miata-nb2"}},
+      {"4g63-cranking.csv --crank crank", "catalogue: 4g63 (", {"4g63"}},  // teeth per turn: its cam column
+      {"4g63-cranking.csv --crank crank --cam ''", "catalogue: not identified by the crank alone", {}},
+      {"cas_nissan_24_plus_1.csv --crank pri --cam sec", "catalogue: nissan-cas-24+1 (", {"nissan-cas-24+1"}},
+      {"cas_nissan_24_plus_1.csv --crank pri", "catalogue: not identified by the crank alone", {}},
+      {"gm_24x_cranking.csv --crank crank", "detect-wheel: pulse-width-coded wheel", {}},
+      {"gm_24x_cranking.csv --crank crank --falling", "detect-wheel: pulse-width-coded wheel", {}},
+  };
+  const std::string dir = std::string(TORQUED_SOURCE_DIR) + "/tests/data/captures/rusefi/";
+  for (const Case& c : cases) {
+    const ToolRun r = run("--detect-wheel " + dir + c.args);
+    EXPECT_NE(r.out.find(c.expect), std::string::npos) << c.args << "\n" << r.out;
+    const auto at = r.out.find("catalogue: ");
+    if (at == std::string::npos || r.out.compare(at, 26, "catalogue: not identified ") == 0 ||
+        r.out.compare(at, 20, "catalogue: no entry ") == 0)
+      continue;
+    // THEN every name given as the match is a right one
+    std::string line = r.out.substr(at + 11, r.out.find_first_of("(\n", at) - at - 11);
+    std::stringstream names(line);
+    for (std::string n; std::getline(names, n, ',');) {
+      n.erase(0, n.find_first_not_of(' '));
+      n.erase(n.find_last_not_of(' ') + 1);
+      EXPECT_NE(std::find(c.allowed.begin(), c.allowed.end(), n), c.allowed.end())
+          << c.args << ": wrong match '" << n << "'\n"
+          << r.out;
+    }
+  }
 }
 
 TEST(TorqueDecode, UsageErrors) {

@@ -3,12 +3,14 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <random>
 #include <string>
 #include <vector>
 
 #include "edge_file_source.hpp"
 #include "synthetic_wheel.hpp"
 #include "wheel_detect.hpp"
+#include "wheel_names.hpp"
 
 namespace torqued {
 namespace {
@@ -23,6 +25,20 @@ std::vector<std::int64_t> synthetic_teeth(const WheelGeometry& w) {
   o.cam = false;
   std::vector<std::int64_t> t;
   for (const auto& s : test::synthesize(o).teeth) t.push_back(s.t_ns);
+  return t;
+}
+
+/// A catalogue wheel's marking edges while cranking up (+-20 % speed ripple per compression, 250 -> 2500
+/// rpm), each period's end moved by up to +-2 % of it (edge jitter, fixed seed).
+std::vector<std::int64_t> jittered_teeth(const char* name) {
+  WheelGeometry w;
+  EXPECT_TRUE(wheel_from_name(name, w, nullptr)) << name;
+  std::vector<std::int64_t> t = synthetic_teeth(w);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-0.02, 0.02);
+  for (std::size_t k = 1; k + 1 < t.size(); ++k)
+    t[k] +=
+        static_cast<std::int64_t>(u(rng) * static_cast<double>(std::min(t[k] - t[k - 1], t[k + 1] - t[k])));
   return t;
 }
 
@@ -75,6 +91,132 @@ TEST(WheelDetect, RealArcticCatCapture) {
   EXPECT_EQ(d.runs, (std::vector<int>{11, 1, 10, 2}));
   EXPECT_TRUE(has(d.matches, "arctic-cat")) << describe(d);
   std::printf("%s", describe(d).c_str());
+}
+
+TEST(WheelDetect, UnevenPatternWheelWithoutGapIsMatchedToItsCatalogueEntry) {
+  // GIVEN miata-nb2 (4 teeth at 0, 70, 180, 250 deg, no missing-tooth gap), cranking ripple and jitter
+  const WheelDetection d = detect_wheel(jittered_teeth("miata-nb2"));
+  // THEN the repeat (2 teeth over 180 deg, 70/110) is found and only miata-nb2 matches
+  ASSERT_TRUE(d.error.empty()) << d.error;
+  EXPECT_EQ(d.positions, 0);
+  EXPECT_EQ(d.pattern_teeth, 2) << describe(d);
+  EXPECT_EQ(d.matches, (std::vector<std::string>{"miata-nb2"})) << describe(d);
+  EXPECT_DOUBLE_EQ(d.repeat_deg, 180.0);
+  ASSERT_EQ(d.tooth_angles_deg.size(), 4u) << describe(d);
+  const double truth[] = {0.0, 70.0, 180.0, 250.0};
+  for (std::size_t i = 0; i < 4; ++i)
+    EXPECT_NEAR(d.tooth_angles_deg[i], truth[i], 14.0) << describe(d);  // +-20 % speed ripple on 70 deg
+  EXPECT_GT(d.revolutions, 20);
+  EXPECT_LT(d.noise_periods, 10) << describe(d);  // the 70 deg periods are no noise
+  EXPECT_NE(describe(d).find("catalogue: miata-nb2"), std::string::npos) << describe(d);
+}
+
+TEST(WheelDetect, EquallySpacedWheelsAreNeverGivenACatalogueNameByTheCrankAlone) {
+  // GIVEN the equally spaced catalogue wheels (4g63: 2 teeth, nissan-cas-24+1: 12), ripple and jitter
+  for (const char* name : {"4g63", "nissan-cas-24+1"}) {
+    const WheelDetection d = detect_wheel(jittered_teeth(name));
+    // THEN equal spacing is found, no entry is printed as the match, the right one is among the candidates
+    ASSERT_TRUE(d.error.empty()) << name << ": " << d.error;
+    EXPECT_EQ(d.pattern_teeth, 1) << name << "\n" << describe(d);
+    EXPECT_TRUE(d.matches.empty()) << name << "\n" << describe(d);
+    EXPECT_TRUE(has(d.candidates, name)) << name << "\n" << describe(d);
+    EXPECT_NE(describe(d).find("not identified by the crank alone"), std::string::npos) << describe(d);
+  }
+}
+
+TEST(WheelDetect, TheCamGivesTheTeethPerRevolutionOfAnEquallySpacedWheel) {
+  for (const char* name : {"4g63", "nissan-cas-24+1"}) {
+    // GIVEN the wheel's crank and cam edges (cam rising 45 deg, falling 225 deg of 720), cranking ripple
+    WheelGeometry w;
+    ASSERT_TRUE(wheel_from_name(name, w, nullptr));
+    test::SynthOptions o;
+    o.wheel = w;
+    o.rpm0 = 250.0;
+    o.rpm1 = 2500.0;
+    o.duration_s = 3.0;
+    o.ripple = 0.2;
+    std::vector<std::int64_t> teeth;
+    std::vector<WheelCamEdge> cam;
+    for (const EdgeEvent& e : test::synthesize(o).edges) {
+      if (e.channel == 0 && e.level != 0) teeth.push_back(e.t_ns);
+      if (e.channel != 0) cam.push_back({e.t_ns, e.level != 0});
+    }
+    const WheelDetection d = detect_wheel(teeth, {}, cam);
+    // THEN the cam cycle holds twice the teeth per revolution, and that names the one entry
+    ASSERT_TRUE(d.error.empty()) << name << ": " << d.error;
+    EXPECT_EQ(d.cam_cycle_teeth, 2 * w.teeth()) << name << "\n" << describe(d);
+    EXPECT_EQ(d.matches, (std::vector<std::string>{name})) << describe(d);
+    EXPECT_DOUBLE_EQ(d.repeat_deg, 360.0 / w.teeth());
+    EXPECT_EQ(d.tooth_angles_deg.size(), static_cast<std::size_t>(w.teeth()));
+  }
+}
+
+TEST(WheelDetect, WidthCodedWheelNeedsBothEdges) {
+  // GIVEN GM 24x falling edges every 15 deg, the rising edge 3 or 12 deg later by the code 0x0A33BE
+  std::vector<std::int64_t> fall, rise;
+  const std::int64_t pitch = 5'000'000;  // 15 deg at 500 rpm
+  for (int k = 0; k < 72; ++k) {
+    fall.push_back(k * pitch);
+    const bool narrow = ((0x0A33BEu >> (k % 24)) & 1u) != 0;
+    rise.push_back(k * pitch + (narrow ? pitch / 5 : pitch * 4 / 5));
+  }
+  // THEN, from either marking edge, it says the widths carry the position, never a gap or pattern match
+  for (const auto& [teeth, other] : {std::pair{fall, rise}, std::pair{rise, fall}}) {
+    const WheelDetection d = detect_wheel(teeth, other);
+    EXPECT_NE(d.error.find("pulse-width-coded"), std::string::npos) << describe(d);
+    EXPECT_NE(d.error.find("needs both edges"), std::string::npos) << describe(d);
+    EXPECT_NE(d.error.find("gm-24x"), std::string::npos) << describe(d);
+    EXPECT_TRUE(d.matches.empty());
+  }
+}
+
+TEST(WheelDetect, GapWheelIsReadOffTheLongestCleanStretchOfANoisyCapture) {
+  // GIVEN a 36-2 capture: clean revolutions, then a burst of noise edges and an irregular stretch
+  std::vector<std::int64_t> t = synthetic_teeth(test::wheel_nm(36, 2));
+  const std::size_t n = t.size();
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (std::size_t k = n / 3; k + 1 < n; ++k)  // from a third on: the teeth land anywhere in their period
+    t[k] =
+        t[k - 1] + 1 + static_cast<std::int64_t>(u(rng) * 1.9 * static_cast<double>(t[k + 1] - t[k - 1]) / 2);
+  std::sort(t.begin(), t.end());
+  const WheelDetection d = detect_wheel(t);
+  // THEN the clean third gives 36-2, and the output says a stretch was read
+  ASSERT_TRUE(d.error.empty()) << d.error;
+  EXPECT_EQ(d.runs, (std::vector<int>{34, 2})) << describe(d);
+  EXPECT_TRUE(has(d.matches, "36-2")) << describe(d);
+  EXPECT_FALSE(d.stretch.empty()) << describe(d);
+  EXPECT_NE(describe(d).find("read: "), std::string::npos) << describe(d);
+}
+
+/// Tooth angles of a wheel (N-M wheels: their equally spaced teeth before the gap).
+std::vector<double> angles_of(const WheelGeometry& w) {
+  std::vector<double> a;
+  for (int i = 0; i < w.teeth(); ++i)
+    a.push_back(w.tooth_count > 0 ? w.tooth_angles_deg[static_cast<std::size_t>(i)]
+                                  : 360.0 * i / w.positions);
+  return a;
+}
+
+TEST(WheelDetect, NoCatalogueWheelIsEverGivenAWrongName) {
+  // GIVEN every catalogue wheel read by its edge times (the symmetric 36-2-2-16-16 shows as its half, the
+  // width-coded gm-24x needs both edges), cranking ripple and jitter
+  for (const NamedWheel& entry : wheel_catalogue()) {
+    if (entry.width_coded || std::string(entry.name) == "36-2-2-16-16") continue;
+    WheelGeometry truth;
+    ASSERT_TRUE(wheel_from_name(entry.name, truth, nullptr));
+    const WheelDetection d = detect_wheel(jittered_teeth(entry.name));
+    // THEN it is read, and every name printed as the match has the same tooth list (an alias or N-M)
+    ASSERT_TRUE(d.error.empty()) << entry.name << ": " << d.error;
+    for (const std::string& m : d.matches) {
+      WheelGeometry w;
+      ASSERT_TRUE(wheel_from_name(m, w, nullptr)) << m;
+      EXPECT_EQ(angles_of(w), angles_of(truth)) << entry.name << " read as " << m << "\n" << describe(d);
+    }
+    const bool equally_spaced = d.positions == 0 && d.pattern_teeth == 1;
+    EXPECT_TRUE(equally_spaced || has(d.matches, entry.name)) << entry.name << "\n" << describe(d);
+    if (equally_spaced) EXPECT_TRUE(has(d.candidates, entry.name)) << entry.name << "\n" << describe(d);
+  }
 }
 
 }  // namespace
