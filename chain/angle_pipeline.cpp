@@ -102,6 +102,7 @@ void AnglePipeline::reset() noexcept {
   cut_flag_ = false;
   works_since_fuel_change_ = ~0u;
   have_fired_p3_ = false;
+  fired_t_ = ripple_t_ = LoadRls::kRippleBase;
   // The friction and inertia learners keep what they learned (persisted state); call their reset() to forget.
   prev_inertia_ = InertiaPoint{};
   tooth_ = ToothOutput{};
@@ -156,15 +157,34 @@ bool AnglePipeline::all_works_ok() const noexcept {
 
 double AnglePipeline::gas_ripple_nm(int k, bool works_ok) const noexcept {
   if (!have_map_) return 0.0;
-  // p3 per position follows the held MAP, the works' validity and a new segment work only: kept between
-  // them, not recomputed (four divisions) per tooth.
-  if (!ripple_p3_ok_ || held_map_pa_ != ripple_p3_map_ || works_ok != ripple_p3_works_) {
-    rls_.ripple_p3(held_map_pa_, cyl_work_j_, works_ok, ripple_p3_);
+  const bool phased = cfg_.energies.incycle_spark_phasing;
+  int t = LoadRls::kRippleBase;
+  double f = 0.0;
+  if (phased) rls_.ripple_table(ripple_centroid_deg(), t, f);
+  // p3 per position follows the held MAP, the works' validity, the centroid's table and a new segment work
+  // only: kept between them, not recomputed (four divisions) per tooth.
+  if (!ripple_p3_ok_ || held_map_pa_ != ripple_p3_map_ || works_ok != ripple_p3_works_ || t != ripple_t_) {
+    rls_.ripple_p3(held_map_pa_, cyl_work_j_, works_ok, ripple_p3_, t);
+    if (phased) rls_.ripple_p3(held_map_pa_, cyl_work_j_, works_ok, ripple_p3b_, t + 1);
     ripple_p3_map_ = held_map_pa_;
     ripple_p3_works_ = works_ok;
+    ripple_t_ = t;
     ripple_p3_ok_ = true;
   }
-  return rls_.gas_ripple_nm(k, held_map_pa_, ripple_p3_);
+  const double a = rls_.gas_ripple_nm(k, held_map_pa_, ripple_p3_, t);
+  if (!phased) return a;
+  if (f == 0.0) return a;
+  // Linear in the centroid between the two tables around it.
+  const double b = rls_.gas_ripple_nm(k, held_map_pa_, ripple_p3b_, t + 1);
+  return a + f * (b - a);
+}
+
+// The in-cycle model's burn centroid (docs/angle_estimators.md, "What limits the I6"): the spark advance's,
+// centroid = burn_delay_deg − advance as in the RLS closure (energies.incycle_spark_phasing), else, or while
+// no spark advance has arrived, energies.burn_centroid_atdc_deg.
+double AnglePipeline::ripple_centroid_deg() const noexcept {
+  if (!cfg_.energies.incycle_spark_phasing) return cfg_.energies.burn_centroid_atdc_deg;
+  return rls_.centroid_deg(held_spark_deg_);
 }
 
 std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& sig) noexcept {
@@ -253,6 +273,7 @@ bool AnglePipeline::feed_incycle_observers(const ToothSample& s, const EngineSig
                                            bool can_fresh, LoadReference& lref) noexcept {
   const double ripple =
       cfg_.kalman.gas_model || cfg_.fourier.gas_model ? observer_ripple_nm(s, sig, works_ok) : 0.0;
+  last_ripple_nm_ = ripple;
   lref = classify_load(cfg_.e_machine, cfg_.load_ref, sig);
   if (free_coast_) {
     const double map_pa = can_fresh && sig.map_valid ? sig.map_pa : held_map_pa_;
@@ -306,14 +327,15 @@ double AnglePipeline::observer_ripple_nm(const ToothSample& s, const EngineSigna
     works_since_fuel_change_ = 0;
     if (cut_flag_) {  // entering: the firing positions' p3 as last measured, the prior for when fuel returns
       have_fired_p3_ = works_ok && have_map_;
-      if (have_fired_p3_) rls_.ripple_p3(held_map_pa_, cyl_work_j_, works_ok, fired_p3_);
+      fired_t_ = ripple_t_;
+      if (have_fired_p3_) rls_.ripple_p3(held_map_pa_, cyl_work_j_, works_ok, fired_p3_, fired_t_);
     }
   }
   if (!have_map_) return 0.0;
   const std::uint32_t all = (1u << static_cast<unsigned>(cfg_.engine.cylinders)) - 1u;
   if ((works_since_fuel_change_ & all) == all) return gas_ripple_nm(s.tooth, works_ok);
   if (cut_flag_) return gas_ripple_nm(s.tooth, false);  // motored p3 at every position
-  return have_fired_p3_ ? rls_.gas_ripple_nm(s.tooth, held_map_pa_, fired_p3_)
+  return have_fired_p3_ ? rls_.gas_ripple_nm(s.tooth, held_map_pa_, fired_p3_, fired_t_)
                         : gas_ripple_nm(s.tooth, works_ok);
 }
 

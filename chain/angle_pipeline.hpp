@@ -168,6 +168,10 @@ class AnglePipeline {
     if (std::isfinite(v) && v >= 0.0) crank_err_var_ = v;
   }
   [[nodiscard]] const AnglePipelineConfig& config() const noexcept { return cfg_; }
+  /// The gas model's ripple handed to the in-cycle observers on the last tooth (N m; diagnostics).
+  [[nodiscard]] double last_ripple_nm() const noexcept { return last_ripple_nm_; }
+  /// The in-cycle gas model's burn centroid now (deg after firing TDC).
+  [[nodiscard]] double ripple_centroid_deg() const noexcept;
 
  private:
   [[nodiscard]] double gas_ripple_nm(int k, bool works_ok) const noexcept;
@@ -293,6 +297,12 @@ class AnglePipeline {
   /// at the last tooth, and the firing positions whose work was measured since it last changed (bit per
   /// position).
   bool cut_flag_ = false;
+  double last_ripple_nm_ = 0.0;  ///< last_ripple_nm()
+  /// The in-cycle model's combustion phasing (energies.incycle_spark_phasing): the table pair around the
+  /// current burn centroid (ripple_t_, ripple_t_ + 1; ripple_p3b_ the second's p3), and fired_p3_'s table.
+  mutable int ripple_t_ = LoadRls::kRippleBase;
+  mutable std::array<double, kMaxCylinders> ripple_p3b_{};
+  int fired_t_ = LoadRls::kRippleBase;
   std::uint32_t works_since_fuel_change_ = ~0u;
   std::array<double, kMaxCylinders> fired_p3_{};  ///< combustion p3 per position when the cut-off began (Pa)
   bool have_fired_p3_ = false;

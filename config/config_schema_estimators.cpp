@@ -203,6 +203,10 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("energies.incycle_expansion_kappa", energies.params.incycle_expansion_kappa, closed(0.0, 2.0), "",
          "in-cycle gas torque model: polytropic exponent of the burned gas's expansion (burned-gas gamma "
          "1.2-1.3, Heywood ch. 4); 0 = energies.polytropic_kappa");
+  TQ_BOOL("energies.incycle_spark_phasing", energies.params.incycle_spark_phasing,
+          "in-cycle gas torque model's combustion phasing: its burn centroid follows the spark advance, "
+          "energies.burn_delay_deg - advance (as the RLS closure); false: fixed at "
+          "energies.burn_centroid_atdc_deg (docs/angle_estimators.md)");
   TQ_NUM("energies.burn_centroid_atdc_deg", energies.params.burn_centroid_atdc_deg, closed(-90.0, 180.0),
          "deg", "heat release lumped here when the spark advance is unknown");
   TQ_NUM("energies.burn_delay_deg", energies.params.burn_delay_deg, closed(0.0, 180.0), "deg",

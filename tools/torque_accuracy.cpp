@@ -194,7 +194,8 @@ int run_bed_fuel(bool all, bool short_run, const torqued::eval::EvalOptions& bas
 }
 
 /// In-cycle torque from a fresh start without any fuel cut-off (incycle_bed.hpp).
-int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& base) {
+int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& base,
+                    const std::string& only) {
   std::printf(
       "in-cycle indicated torque from a FRESH start, no fuel cut-off (%s firing recording: dyno plateaus\n"
       "1500-3200 rpm, 40-88 kPa; tooth learner empty at start, learning on the recording, its table applied "
@@ -214,7 +215,7 @@ int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& 
   std::printf("%-11s | %-18s | %-18s | %6s | %7s | %6s | %-6s %s\n", "engine", "kalman % bias lag",
               "fourier % bias lag", "ready", "edge", "cycles", "orders", "quality");
   for (const auto& e : torqued::sim::unseen_engines()) {
-    if (!all && !e.report) continue;
+    if ((!all && !e.report && only.empty()) || (!only.empty() && e.name != only)) continue;
     const auto r = torqued::eval::evaluate_incycle_fresh(e, base, short_run);
     std::printf("%-11s | %5.1f %+5.1f %+5.1f | %5.1f %+5.1f %+5.1f | %5.1fs | %7.4f | %6llu | %-6s %s\n",
                 r.engine.c_str(), r.kalman.rms_pct_p2p, r.kalman.bias_pct_p2p, r.kalman.lag_deg,
@@ -227,7 +228,7 @@ int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& 
 }
 
 /// In-cycle torque through transients and a fuel cut-off entry/exit after a fresh start (incycle_bed.hpp).
-int run_bed_incycle_regimes(bool all, const torqued::eval::EvalOptions& base) {
+int run_bed_incycle_regimes(bool all, const torqued::eval::EvalOptions& base, const std::string& only) {
   std::printf(
       "\nin-cycle indicated torque after the 20 s fresh start (tooth table learned on the recording), then "
       "bed_eval_run:\nTRANSIENTS (20.5-27 s: speed ramps 1500-3500 rpm, throttle steps 35-90 kPa) and a FUEL "
@@ -239,7 +240,7 @@ int run_bed_incycle_regimes(bool all, const torqued::eval::EvalOptions& base) {
   std::printf("%-11s | %-9s | %-20s | %-11s | %-13s\n", "engine", "regime", "kalman % lag cover",
               "slow worst1s", "fourier % lag");
   for (const auto& e : torqued::sim::unseen_engines()) {
-    if (!all && !e.report) continue;
+    if ((!all && !e.report && only.empty()) || (!only.empty() && e.name != only)) continue;
     const auto r = torqued::eval::evaluate_incycle_regimes(e, base);
     for (int k = 0; k < 2; ++k) {
       const torqued::eval::InCycleRegime& g = k == 0 ? r.transient : r.cutoff;
@@ -602,12 +603,14 @@ struct Args {
   double bed_machine = 0.0;
   bool bed_motoring = false, bed_fuel = false, bed_incycle = false, bed_misfire = false;
   bool regimes_only = false;
+  std::string bed_engine, incycle_dump;
   int cylinder_seeds = 1;
   torqued::ToothLearnParams learn;
   bool no_firing_law = false;
   torqued::KalmanParams kalman;
   torqued::FourierParams fourier;
-  double burn_duration_deg = -1.0, evo_deg = -1.0;
+  double burn_duration_deg = -1.0, evo_deg = -1.0, centroid_deg = -1000.0, burn_delay = -1.0;
+  bool fixed_centroid = false;
   double kappa_c = -1.0, kappa_e = -1.0, wiebe_a = -1.0, wiebe_m = -1.0;
   bool no_gas_model = false;
 };
@@ -684,6 +687,12 @@ void add_bed_options(CLI::App& app, Args& a) {
       "through transients and a fuel cut-off entry/exit");
   app.add_flag("--bed-incycle-regimes", a.regimes_only,
                "with --bed unseen: only the transient and fuel cut-off rows of --bed-incycle");
+  app.add_option("--bed-engine", a.bed_engine,
+                 "with --bed-incycle / --bed-incycle-regimes: only this bed engine (tuning or report)");
+  app.add_option("--bed-incycle-dump", a.incycle_dump,
+                 "with --bed-incycle and --bed-engine: write that engine's fresh start per tooth (truth, gas "
+                 "model ripple, Kalman estimate, scored window) to this CSV file (tools/accuracy/"
+                 "incycle_orders.py decomposes it)");
   app.add_flag(
       "--bed-fuel", a.bed_fuel,
       "with --bed unseen: the fuel model without a load signal, taught at one operating point and never "
@@ -725,6 +734,17 @@ void add_observer_options(CLI::App& app, Args& a) {
   app.add_option("--burn-duration", a.burn_duration_deg,
                  "with --bed-incycle: the in-cycle gas torque model's burn duration (deg; default "
                  "energies.burn_duration_deg)")
+      ->check(CLI::Range(0.0, 180.0));
+  app.add_option(
+         "--burn-centroid", a.centroid_deg,
+         "with --bed-incycle: the burn centroid without a spark advance or with --fixed-burn-centroid "
+         "(deg after firing TDC; default energies.burn_centroid_atdc_deg)")
+      ->check(CLI::Range(-90.0, 180.0));
+  app.add_flag("--fixed-burn-centroid", a.fixed_centroid,
+               "with --bed-incycle: the in-cycle gas model's burn centroid fixed (--burn-centroid), not from "
+               "the spark advance (energies.incycle_spark_phasing false: as before)");
+  app.add_option("--burn-delay", a.burn_delay,
+                 "with --bed-incycle: spark to burn centroid (deg; default energies.burn_delay_deg)")
       ->check(CLI::Range(0.0, 180.0));
   app.add_option(
          "--evo", a.evo_deg,
@@ -775,12 +795,17 @@ int run_unseen_bed(Args& a) {
     bo.base.fourier = a.fourier;
     if (a.burn_duration_deg >= 0.0) bo.base.energies.burn_duration_deg = a.burn_duration_deg;
     if (a.evo_deg >= 0.0) bo.base.energies.evo_atdc_deg = a.evo_deg;
+    if (a.centroid_deg > -1000.0) bo.base.energies.burn_centroid_atdc_deg = a.centroid_deg;
+    if (a.burn_delay >= 0.0) bo.base.energies.burn_delay_deg = a.burn_delay;
+    if (a.fixed_centroid) bo.base.energies.incycle_spark_phasing = false;
     if (a.kappa_c >= 0.0) bo.base.energies.incycle_compression_kappa = a.kappa_c;
     if (a.kappa_e >= 0.0) bo.base.energies.incycle_expansion_kappa = a.kappa_e;
     if (a.wiebe_a >= 0.0) bo.base.energies.burn_wiebe_a = a.wiebe_a;
     if (a.wiebe_m >= 0.0) bo.base.energies.burn_wiebe_m = a.wiebe_m;
-    const int rc = a.regimes_only ? 0 : run_bed_incycle(a.bed_all, a.bed_short, bo);
-    return rc != 0 ? rc : run_bed_incycle_regimes(a.bed_all, bo);
+    torqued::eval::EvalOptions fresh = bo;
+    fresh.incycle_dump = a.incycle_dump;
+    const int rc = a.regimes_only ? 0 : run_bed_incycle(a.bed_all, a.bed_short, fresh, a.bed_engine);
+    return rc != 0 ? rc : run_bed_incycle_regimes(a.bed_all, bo, a.bed_engine);
   }
   if (a.bed_motoring)
     return run_bed_motoring(a.bed_all, a.bed_short, bo, a.bed_machine > 0.0 ? a.bed_machine : 1.0);

@@ -142,7 +142,7 @@ struct EnergiesParams {
                                          ///< the spark advance is unknown (deg after TDC)
   double burn_delay_deg = 29.0;     ///< spark to equivalent burn centroid (deg): centroid = delay − advance
   double burn_duration_deg = 40.0;  ///< in-cycle gas torque model only (Kalman known input): the
-                                    ///< heat release spread over this angle around burn_centroid_atdc_deg by
+                                    ///< heat release spread over this angle around the burn centroid by
                                     ///< a raised cosine (the RLS closure keeps the lumped burn); 0 = lumped
   double burn_wiebe_a = 0.0;        ///< in-cycle model only: burn shape a Wiebe function with this efficiency
                                     ///< parameter a instead of the raised cosine (0 = raised cosine) (-)
@@ -152,6 +152,9 @@ struct EnergiesParams {
                                            ///< polytropic_kappa). Burned-gas γ is 1.2-1.3 (Heywood ch. 4);
                                            ///< 1.25 helps the unseen bed, worsens the demo: not the default
                                            ///< (docs/angle_estimators.md)
+  /// In-cycle model only: its burn centroid follows the spark advance, burn_delay_deg − advance, as the RLS
+  /// closure's (false: fixed at burn_centroid_atdc_deg, as before); docs/angle_estimators.md
+  bool incycle_spark_phasing = true;
   double energy_window_deg = 30.0;    ///< kinetic energy averaged over this window around each boundary (deg)
   double segment_offset_deg = -20.0;  ///< segment boundary relative to each firing TDC (deg, <0: before TDC)
   double idle_max_rpm = 1100.0;       ///< idle (friction C4 learning) below this mean speed (rpm)

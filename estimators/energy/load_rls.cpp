@@ -185,7 +185,7 @@ std::uint64_t LoadRls::tables_key(const std::vector<double>& center) const noexc
   const EngineGeometry& e = engine_;
   const EnergiesParams& p = params_;
   TableKey key;
-  key.add(std::string_view("load-rls 1")).add(kMaxCylinders).add(kCentroids).add(samples_).add(center);
+  key.add(std::string_view("load-rls 2")).add(kMaxCylinders).add(kCentroids).add(samples_).add(center);
   key.add(e);
   key.add(p.window_start_btdc_deg).add(p.window_end_btdc_deg).add(p.polytropic_kappa).add(p.ivc_abdc_deg);
   key.add(p.evo_atdc_deg).add(p.blowdown_end_atdc_deg).add(p.exhaust_pressure_pa).add(p.ivc_pressure_factor);
@@ -329,7 +329,10 @@ void LoadRls::pack_tables(std::vector<double>& t) const {
   t.push_back(static_cast<double>(windows_tab_.size()));
   t.insert(t.end(), cyc_map_.begin(), cyc_map_.end());
   t.insert(t.end(), cyc_p3_.begin(), cyc_p3_.end());
-  t.insert(t.end(), {cyc_exh_, rip_cm_, rip_cp_, rip_ce_});
+  t.push_back(cyc_exh_);
+  t.insert(t.end(), rip_cm_.begin(), rip_cm_.end());
+  t.insert(t.end(), rip_cp_.begin(), rip_cp_.end());
+  t.insert(t.end(), rip_ce_.begin(), rip_ce_.end());
   t.insert(t.end(), rip_map_.begin(), rip_map_.end());
   t.insert(t.end(), rip_const_.begin(), rip_const_.end());
   t.insert(t.end(), rip_p3_.begin(), rip_p3_.end());
@@ -348,7 +351,8 @@ void LoadRls::pack_tables(std::vector<double>& t) const {
 
 bool LoadRls::unpack_tables(const std::vector<double>& t) {
   const auto ks = static_cast<std::size_t>(samples_);
-  const std::size_t head = 1 + 2 * kCentroids + 4 + ks * (2 + kMaxCylinders) + 2 * ks;
+  constexpr auto kt = static_cast<std::size_t>(kRippleTables);
+  const std::size_t head = 1 + 2 * kCentroids + 1 + 3 * kt + kt * ks * (2 + kMaxCylinders) + 2 * ks;
   if (t.size() < head) return false;
   const double nw = t[0];
   if (!(nw >= 0.0) || t.size() != head + static_cast<std::size_t>(nw) * kWindowFields) return false;
@@ -360,12 +364,12 @@ bool LoadRls::unpack_tables(const std::vector<double>& t) {
   take(cyc_map_);
   take(cyc_p3_);
   cyc_exh_ = *it++;
-  rip_cm_ = *it++;
-  rip_cp_ = *it++;
-  rip_ce_ = *it++;
-  rip_map_.resize(ks);
-  rip_const_.resize(ks);
-  rip_p3_.resize(ks * kMaxCylinders);
+  take(rip_cm_);
+  take(rip_cp_);
+  take(rip_ce_);
+  rip_map_.resize(kt * ks);
+  rip_const_.resize(kt * ks);
+  rip_p3_.resize(kt * ks * kMaxCylinders);
   take(rip_map_);
   take(rip_const_);
   take(rip_p3_);
@@ -399,28 +403,42 @@ bool LoadRls::unpack_tables(const std::vector<double>& t) {
 // each input, divided by the step, minus the 720° mean (the mean indicated torque is the cycle balance's, not
 // this).
 void LoadRls::build_ripple(const std::vector<double>& center) {
+  const auto ks = static_cast<std::size_t>(samples_);
+  constexpr auto kt = static_cast<std::size_t>(kRippleTables);
+  rip_map_.assign(kt * ks, 0.0);
+  rip_const_.assign(kt * ks, 0.0);
+  rip_p3_.assign(kt * ks * kMaxCylinders, 0.0);
+  for (int t = 0; t < kRippleTables; ++t) build_ripple_table(center, t);
+}
+
+// One table of build_ripple(): the burn centroid burn_centroid_atdc_deg + (t − kRippleBase)·kRippleStepDeg.
+void LoadRls::build_ripple_table(const std::vector<double>& center, int t) {
   const CrankKinematics kin(engine_);
   const int n = engine_.cylinders;
   const auto ks = static_cast<std::size_t>(samples_);
-  rip_map_.assign(ks, 0.0);
-  rip_const_.assign(ks, 0.0);
-  rip_p3_.assign(ks * kMaxCylinders, 0.0);
-  const double burn = params_.burn_centroid_atdc_deg * kDeg;
+  const auto tt = static_cast<std::size_t>(t);
+  const double burn = (params_.burn_centroid_atdc_deg + (t - kRippleBase) * kRippleStepDeg) * kDeg;
   const double dur = params_.burn_duration_deg * kDeg;
   const Kappas kap = ripple_kappas(params_);
   // Full-cycle closure of the same model for one cylinder (ripple_p3): ∮p dV per Pa of MAP and of p3, and the
   // p_exh part (J).
-  rip_cm_ = rip_cp_ = rip_ce_ = 0.0;
+  double cm = 0.0, cp = 0.0, ce = 0.0;
   constexpr int kClosureSteps = 720 * 4;  // 0.25° steps over the cycle
   for (int i = 0; i < kClosureSteps; ++i) {
     const double phi = (i + 0.5) * kFourPi / kClosureSteps;
     const AngleTerms at = angle_terms_for(phi, kin, params_, v_ivc_, v_c_, burn, dur, kap);
     const Weights w = ripple_weights(at, params_, burn, dur);
     const double dv = at.dvol * kFourPi / kClosureSteps;
-    rip_cm_ += w.map * dv;
-    rip_cp_ += w.p3 * dv;
-    rip_ce_ += w.exh * params_.exhaust_pressure_pa * dv;
+    cm += w.map * dv;
+    cp += w.p3 * dv;
+    ce += w.exh * params_.exhaust_pressure_pa * dv;
   }
+  rip_cm_[tt] = cm;
+  rip_cp_[tt] = cp;
+  rip_ce_[tt] = ce;
+  double* map = rip_map_.data() + tt * ks;
+  double* cst = rip_const_.data() + tt * ks;
+  double* p3 = rip_p3_.data() + tt * ks * kMaxCylinders;
   double wm = 0.0, wc = 0.0;
   std::array<double, kMaxCylinders> wp{};
   for (int k = 0; k < samples_; ++k) {
@@ -442,39 +460,50 @@ void LoadRls::build_ripple(const std::vector<double>& center) {
       }
     }
     const auto kk = static_cast<std::size_t>(k);
-    rip_map_[kk] = tm / span;
-    rip_const_[kk] = tc / span;
+    map[kk] = tm / span;
+    cst[kk] = tc / span;
     for (int q = 0; q < n; ++q)
-      rip_p3_[kk * kMaxCylinders + static_cast<std::size_t>(q)] = tp[static_cast<std::size_t>(q)] / span;
+      p3[kk * kMaxCylinders + static_cast<std::size_t>(q)] = tp[static_cast<std::size_t>(q)] / span;
     wm += tm;
     wc += tc;
     for (int q = 0; q < n; ++q) wp[static_cast<std::size_t>(q)] += tp[static_cast<std::size_t>(q)];
   }
   for (std::size_t k = 0; k < ks; ++k) {
-    rip_map_[k] -= wm / kFourPi;
-    rip_const_[k] -= wc / kFourPi;
+    map[k] -= wm / kFourPi;
+    cst[k] -= wc / kFourPi;
     for (int q = 0; q < n; ++q)
-      rip_p3_[k * kMaxCylinders + static_cast<std::size_t>(q)] -= wp[static_cast<std::size_t>(q)] / kFourPi;
+      p3[k * kMaxCylinders + static_cast<std::size_t>(q)] -= wp[static_cast<std::size_t>(q)] / kFourPi;
   }
 }
 
+void LoadRls::ripple_table(double centroid_deg, int& t, double& frac) const noexcept {
+  const double x = std::isfinite(centroid_deg)
+                       ? kRippleBase + (centroid_deg - params_.burn_centroid_atdc_deg) / kRippleStepDeg
+                       : static_cast<double>(kRippleBase);
+  const double c = std::clamp(x, 0.0, static_cast<double>(kRippleTables - 1));
+  t = std::min(static_cast<int>(c), kRippleTables - 2);
+  frac = c - t;
+}
+
 void LoadRls::ripple_p3(double map_pa, const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid,
-                        std::array<double, kMaxCylinders>& p3_pa) const noexcept {
+                        std::array<double, kMaxCylinders>& p3_pa, int t) const noexcept {
+  const auto tt = static_cast<std::size_t>(std::clamp(t, 0, kRippleTables - 1));
   for (int q = 0; q < engine_.cylinders; ++q) {
     const auto qi = static_cast<std::size_t>(q);
-    p3_pa[qi] = works_valid ? (cyl_work_j[qi] - rip_cm_ * map_pa - rip_ce_) / rip_cp_
+    p3_pa[qi] = works_valid ? (cyl_work_j[qi] - rip_cm_[tt] * map_pa - rip_ce_[tt]) / rip_cp_[tt]
                             : params_.ivc_pressure_factor * map_pa * rip_motored_;
   }
 }
 
-double LoadRls::gas_ripple_nm(int k, double map_pa,
-                              const std::array<double, kMaxCylinders>& p3_pa) const noexcept {
-  if (k < 0 || k >= samples_) return 0.0;
-  const auto kk = static_cast<std::size_t>(k);
-  double t = rip_map_[kk] * map_pa + rip_const_[kk];
+double LoadRls::gas_ripple_nm(int k, double map_pa, const std::array<double, kMaxCylinders>& p3_pa,
+                              int t) const noexcept {
+  if (k < 0 || k >= samples_ || t < 0 || t >= kRippleTables) return 0.0;
+  const auto kk =
+      static_cast<std::size_t>(t) * static_cast<std::size_t>(samples_) + static_cast<std::size_t>(k);
+  double v = rip_map_[kk] * map_pa + rip_const_[kk];
   for (int q = 0; q < engine_.cylinders; ++q)
-    t += rip_p3_[kk * kMaxCylinders + static_cast<std::size_t>(q)] * p3_pa[static_cast<std::size_t>(q)];
-  return t;
+    v += rip_p3_[kk * kMaxCylinders + static_cast<std::size_t>(q)] * p3_pa[static_cast<std::size_t>(q)];
+  return v;
 }
 
 void LoadRls::reset() noexcept {

@@ -103,16 +103,22 @@ class LoadRls {
                                       double spark_advance_deg) const noexcept;
   /// p3 of a motored cylinder (no combustion) at this MAP.
   [[nodiscard]] double motored_p3(double map_pa) const noexcept;
-  /// The model's p3 per firing position for the in-cycle gas torque ripple: closes the ripple model's ∮p dV
-  /// on the measured works (fixed burn centroid and energies.burn_duration_deg) when `works_valid`, else
-  /// motored.
+  /// The in-cycle gas torque model is tabulated for kRippleTables burn centroids, kRippleStepDeg apart, table
+  /// kRippleBase at energies.burn_centroid_atdc_deg (the fixed centroid, exact); ripple_table() picks the
+  /// pair around a centroid (deg ATDC): table `t` and t + 1 with weight `frac` on t + 1.
+  static constexpr int kRippleTables = 23;
+  static constexpr int kRippleBase = 8;
+  static constexpr double kRippleStepDeg = 2.0;
+  void ripple_table(double centroid_deg, int& t, double& frac) const noexcept;
+  /// The model's p3 per firing position for the in-cycle gas torque ripple of table `t`: closes the ripple
+  /// model's ∮p dV on the measured works (energies.burn_duration_deg) when `works_valid`, else motored.
   void ripple_p3(double map_pa, const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid,
-                 std::array<double, kMaxCylinders>& p3_pa) const noexcept;
-  /// Gas torque of the pressure model over sample k's step [c_k, c_{k+1}] (the step ChauvinKalman integrates
-  /// across edge k) minus its 720° mean (N m): the known shape of the in-cycle torque. Real-time
-  /// safe.
-  [[nodiscard]] double gas_ripple_nm(int k, double map_pa,
-                                     const std::array<double, kMaxCylinders>& p3_pa) const noexcept;
+                 std::array<double, kMaxCylinders>& p3_pa, int t = kRippleBase) const noexcept;
+  /// Gas torque of the pressure model (table `t`) over sample k's step [c_k, c_{k+1}] (the step
+  /// ChauvinKalman integrates across edge k) minus its 720° mean (N m): the known shape of the in-cycle
+  /// torque. Real-time safe.
+  [[nodiscard]] double gas_ripple_nm(int k, double map_pa, const std::array<double, kMaxCylinders>& p3_pa,
+                                     int t = kRippleBase) const noexcept;
   /// Cycle-mean indicated torque of the whole engine when motored (fuel cut-off) at this MAP: the pumping
   /// loop and the expansion lost at EVO (N m, negative). Used to turn a fuel cut-off energy balance into
   /// friction.
@@ -129,6 +135,7 @@ class LoadRls {
     bool closes_group = false;                    ///< last window of that firing to close (smallest shift)
   };
   void build_ripple(const std::vector<double>& center);
+  void build_ripple_table(const std::vector<double>& center, int t);
   void build_tables(const CrankKinematics& kin, const std::vector<double>& center);
   [[nodiscard]] std::uint64_t tables_key(const std::vector<double>& center) const noexcept;
   void pack_tables(std::vector<double>& t) const;
@@ -146,10 +153,12 @@ class LoadRls {
   std::array<double, kCentroids> cyc_map_{},
       cyc_p3_{};  ///< full-cycle ∮p dV coefficients of one cylinder (m³)
   double cyc_exh_ = 0.0;
-  /// gas_ripple_nm() per sample: torque per Pa of MAP, of p3 per position ([k * kMaxCylinders + q]), the
-  /// constant p_exh / p_cc part (N m), each minus its 720° mean.
+  /// gas_ripple_nm() per table and sample: torque per Pa of MAP ([t * samples + k]), of p3 per position
+  /// ([(t * samples + k) * kMaxCylinders + q]), the constant p_exh / p_cc part (N m), each minus its 720°
+  /// mean.
   std::vector<double> rip_map_, rip_p3_, rip_const_;
-  double rip_cm_ = 0.0, rip_cp_ = 1.0, rip_ce_ = 0.0;  ///< the ripple model's full-cycle closure (m³, m³, J)
+  /// The ripple model's full-cycle closure per table (m³, m³, J).
+  std::array<double, kRippleTables> rip_cm_{}, rip_cp_{}, rip_ce_{};
   double v_ivc_ = 0.0, v_c_ = 0.0;
   double rip_motored_ = 0.0;  ///< (V_IVC/V_c)^κ of the ripple model's compression: its motored p3 / p_IVC
   double kappa_ = 1.3;

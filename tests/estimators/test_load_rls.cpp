@@ -202,3 +202,66 @@ TEST(LoadRls, InCycleModelExponentsAndBurnShapeChangeOnlyTheRipple) {
   EXPECT_EQ(a.motored_torque_nm(80e3), c.motored_torque_nm(80e3));
   EXPECT_EQ(a.motored_p3(80e3), c.motored_p3(80e3));
 }
+
+TEST(LoadRls, RippleTablesFollowTheBurnCentroid) {
+  // GIVEN the in-cycle gas model's tables (kRippleTables burn centroids, kRippleStepDeg apart, kRippleBase at
+  // energies.burn_centroid_atdc_deg) of the default engine, and a model whose fixed centroid is 3 steps later
+  const EngineGeometry eng;
+  const WheelGeometry wheel;
+  const EnergiesParams base;
+  EnergiesParams later = base;
+  later.burn_centroid_atdc_deg = base.burn_centroid_atdc_deg + 3 * LoadRls::kRippleStepDeg;
+  const LoadRls a(eng, wheel, base), b(eng, wheel, later);
+  std::array<double, kMaxCylinders> works{}, pa{}, pb{};
+  works.fill(400.0);
+  const int t3 = LoadRls::kRippleBase + 3;
+  a.ripple_p3(80e3, works, true, pa, t3);
+  b.ripple_p3(80e3, works, true, pb);
+  // THEN the first's table 3 steps up is the second's base table, bit for bit (the same centroid)
+  const int samples = 2 * wheel.teeth();
+  double max_diff = 0.0;
+  for (int k = 0; k < samples; ++k)
+    max_diff = std::max(max_diff, std::abs(a.gas_ripple_nm(k, 80e3, pa, t3) - b.gas_ripple_nm(k, 80e3, pb)));
+  EXPECT_EQ(max_diff, 0.0);
+  EXPECT_EQ(pa[0], pb[0]);
+  // AND a centroid maps to its table pair and weight; unknown (NaN) to the base table, out of range clamped
+  int t = -1;
+  double f = -1.0;
+  a.ripple_table(base.burn_centroid_atdc_deg + 3 * LoadRls::kRippleStepDeg, t, f);
+  EXPECT_EQ(t, t3);
+  EXPECT_EQ(f, 0.0);
+  a.ripple_table(base.burn_centroid_atdc_deg + 0.5 * LoadRls::kRippleStepDeg, t, f);
+  EXPECT_EQ(t, LoadRls::kRippleBase);
+  EXPECT_DOUBLE_EQ(f, 0.5);
+  a.ripple_table(std::nan(""), t, f);
+  EXPECT_EQ(t, LoadRls::kRippleBase);
+  EXPECT_EQ(f, 0.0);
+  a.ripple_table(1e3, t, f);
+  EXPECT_EQ(t, LoadRls::kRippleTables - 2);
+  EXPECT_EQ(f, 1.0);
+  // AND a later burn moves the ripple's firing-frequency component later: its phase lag (crank deg) grows
+  // with the centroid, by less than the centroid's shift (the compression and expansion polytropes around
+  // TDC, which do not move, carry most of it; measured 0.8-1.8° per 4°)
+  const int h = eng.cylinders;  // firing harmonics per 720° cycle
+  auto phase = [&](int table) {
+    std::array<double, kMaxCylinders> p3{};
+    a.ripple_p3(80e3, works, true, p3, table);
+    double re = 0.0, im = 0.0;
+    for (int k = 0; k < samples; ++k) {
+      const double ang = 2.0 * std::numbers::pi * h * k / samples;
+      re += a.gas_ripple_nm(k, 80e3, p3, table) * std::cos(ang);
+      im += a.gas_ripple_nm(k, 80e3, p3, table) * std::sin(ang);
+    }
+    return std::atan2(im, re);  // rad of the harmonic
+  };
+  double prev = phase(LoadRls::kRippleBase - 2);
+  for (int tb = LoadRls::kRippleBase; tb <= LoadRls::kRippleBase + 6; tb += 2) {
+    const double lag = phase(tb);
+    const double moved =
+        std::remainder(lag - prev, 2.0 * std::numbers::pi) * 720.0 / (2.0 * std::numbers::pi * h);
+    const double shift = 2.0 * LoadRls::kRippleStepDeg;
+    EXPECT_GT(moved, 0.1 * shift) << tb;
+    EXPECT_LT(moved, shift) << tb;
+    prev = lag;
+  }
+}

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <numbers>
 #include <unordered_map>
 
@@ -100,6 +102,34 @@ void slow_and_worst(const Window& w, const InCycleStats& st, InCycleRegime& g) {
   }
 }
 
+/// Per-tooth diagnostics of run_fresh() (EvalOptions::incycle_dump): the gas model's ripple handed to the
+/// observers at each tooth, and the Kalman's (smoothed) estimate placed at the tooth it describes.
+struct ToothDump {
+  std::vector<double> ripple, map, spark, centroid, kalman;
+};
+
+/// Writes `d` with the simulator's truth per tooth as CSV (`scored`: inside the first window's spans).
+void write_dump(const std::string& path, const sim::SimOutput& out, const ToothDump& d, const Window& w,
+                int cylinders) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) return;
+  std::fprintf(f,
+               "t_s,cycle,tooth,angle720_deg,speed_rpm,t_ind_nm,t_mass_nm,ripple_nm,kalman_nm,map_pa,spark_"
+               "deg,centroid_deg,scored");
+  for (int c = 0; c < cylinders; ++c) std::fprintf(f, ",t_cyl%d_nm", c + 1);
+  std::fprintf(f, "\n");
+  for (std::size_t i = 0; i < d.ripple.size(); ++i) {
+    const sim::ToothTruth& t = out.teeth[i];
+    std::fprintf(f, "%.7f,%d,%d,%.4f,%.3f,%.4f,%.4f,%.4f,%.4f,%.1f,%.2f,%.3f,%d", t.t_s, t.cycle, t.tooth,
+                 t.angle720_rad * 180.0 / std::numbers::pi, t.speed_rad_s * 30.0 / std::numbers::pi,
+                 t.t_ind_nm, t.t_mass_nm, d.ripple[i], d.kalman[i], d.map[i], d.spark[i], d.centroid[i],
+                 w.holds(t.t_s) ? 1 : 0);
+    for (int c = 0; c < cylinders; ++c) std::fprintf(f, ",%.4f", t.t_ind_cyl_nm[static_cast<std::size_t>(c)]);
+    std::fprintf(f, "\n");
+  }
+  std::fclose(f);
+}
+
 /// What the learner ended with (table quality, counters, orders, edge residual).
 struct LearnSummary {
   double ready_at_s = -1.0, edge_resid_deg = 0.0;
@@ -133,6 +163,16 @@ LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, co
   std::unordered_map<std::int64_t, std::size_t> index;
   for (std::size_t i = 0; i < samples.size(); ++i) index[samples[i].t_ns] = i;
   LearnSummary r;
+  ToothDump dump;
+  const bool dumping = !opt.incycle_dump.empty() && !windows.empty();
+  if (dumping) {
+    const std::size_t n = std::min(samples.size(), out.teeth.size());
+    dump.ripple.assign(n, 0.0);
+    dump.map.assign(n, 0.0);
+    dump.spark.assign(n, 0.0);
+    dump.centroid.assign(n, 0.0);
+    dump.kalman.assign(n, std::numeric_limits<double>::quiet_NaN());
+  }
   int prev_tooth = -1;
   for (std::size_t i = 0; i < samples.size() && i < out.teeth.size(); ++i) {
     ToothSample s = samples[i];
@@ -154,6 +194,15 @@ LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, co
     s.width_rad *= ratio[p];
     pipe.on_tooth(s, sig);
     const ToothOutput& to = pipe.tooth_output();
+    if (dumping) {
+      dump.ripple[i] = pipe.last_ripple_nm();
+      dump.map[i] = sig.map_pa;
+      dump.spark[i] = sig.spark_advance_deg;
+      dump.centroid[i] = pipe.ripple_centroid_deg();
+      const auto it = index.find(to.kalman_ind.t_ns);
+      if (to.kalman_ind.health == Health::kValid && it != index.end() && it->second < dump.kalman.size())
+        dump.kalman[it->second] = to.kalman_ind.torque_nm;
+    }
     for (Window& w : windows) {
       if (to.kalman_ind.health == Health::kValid) {
         const auto it = index.find(to.kalman_ind.t_ns);
@@ -172,6 +221,7 @@ LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, co
       }
     }
   }
+  if (dumping) write_dump(opt.incycle_dump, out, dump, windows.front(), sc.engine.cylinders);
   r.edge_resid_deg = edge_residual_deg(out, ratio, nominal);
   r.cycles_used = learner.stats().cycles_used;
   r.cycles_cutoff = learner.stats().cycles_cutoff;
