@@ -15,13 +15,19 @@
 namespace torqued {
 namespace {
 
-std::vector<std::int64_t> synthetic_teeth(const WheelGeometry& w) {
+/// Cranking up, 250 -> 2500 rpm in 3 s with +-20 % speed ripple per compression.
+test::SynthOptions cranking(const WheelGeometry& w) {
   test::SynthOptions o;
   o.wheel = w;
   o.rpm0 = 250.0;
   o.rpm1 = 2500.0;
   o.duration_s = 3.0;
   o.ripple = 0.2;
+  return o;
+}
+
+std::vector<std::int64_t> synthetic_teeth(const WheelGeometry& w) {
+  test::SynthOptions o = cranking(w);
   o.cam = false;
   std::vector<std::int64_t> t;
   for (const auto& s : test::synthesize(o).teeth) t.push_back(s.t_ns);
@@ -129,12 +135,7 @@ TEST(WheelDetect, TheCamGivesTheTeethPerRevolutionOfAnEquallySpacedWheel) {
     // GIVEN the wheel's crank and cam edges (cam rising 45 deg, falling 225 deg of 720), cranking ripple
     WheelGeometry w;
     ASSERT_TRUE(wheel_from_name(name, w, nullptr));
-    test::SynthOptions o;
-    o.wheel = w;
-    o.rpm0 = 250.0;
-    o.rpm1 = 2500.0;
-    o.duration_s = 3.0;
-    o.ripple = 0.2;
+    const test::SynthOptions o = cranking(w);
     std::vector<std::int64_t> teeth;
     std::vector<WheelCamEdge> cam;
     for (const EdgeEvent& e : test::synthesize(o).edges) {
