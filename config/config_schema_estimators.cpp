@@ -205,10 +205,13 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          "1.2-1.3, Heywood ch. 4); 0 = energies.polytropic_kappa");
   TQ_BOOL("energies.incycle_spark_phasing", energies.params.incycle_spark_phasing,
           "in-cycle gas torque model's combustion phasing: its burn centroid follows the spark advance, "
-          "energies.burn_delay_deg - advance (as the RLS closure); false: fixed at "
-          "energies.burn_centroid_atdc_deg (docs/angle_estimators.md)");
+          "energies.burn_delay_deg - advance (as the RLS closure), clamped to 0-60 deg and tabulated in "
+          "2 deg steps from 16 deg before to 28 deg after energies.burn_centroid_atdc_deg (beyond: the end "
+          "table); until a spark advance arrives, or false: fixed at energies.burn_centroid_atdc_deg. When "
+          "CAN is lost the last advance "
+          "seen is held, as for the RLS closure (docs/angle_estimators.md)");
   TQ_NUM("energies.burn_centroid_atdc_deg", energies.params.burn_centroid_atdc_deg, closed(-90.0, 180.0),
-         "deg", "heat release lumped here when the spark advance is unknown");
+         "deg", "heat release lumped here until a spark advance arrives (or without spark phasing)");
   TQ_NUM("energies.burn_delay_deg", energies.params.burn_delay_deg, closed(0.0, 180.0), "deg",
          "spark to equivalent burn centroid: centroid = delay - advance");
   TQ_BOOL("energies.inertia.learn", energies.params.inertia.learn,

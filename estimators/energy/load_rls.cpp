@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <vector>
 
@@ -71,8 +72,9 @@ double burned_fraction(double x, double dur, const EnergiesParams& prm) noexcept
   const double a = prm.burn_wiebe_a;
   return (1.0 - std::exp(-a * std::pow(x / dur, prm.burn_wiebe_m + 1.0))) / (1.0 - std::exp(-a));
 }
-/// angle_terms() with only the volume powers that model_weights(·, burn) (dur = 0) or ripple_weights(·, burn,
-/// dur) (dur > 0) read at φ (the others stay 0): the same values where used, at half the pow() calls.
+/// angle_terms() with only the volume powers that model_weights(·, burn) (dur = 0) or the in-cycle model's
+/// weights (dur > 0, table_weights) read at φ (the others stay 0): the same values where used, at half the
+/// pow() calls.
 AngleTerms angle_terms_for(double phi, const CrankKinematics& kin, const EnergiesParams& prm, double v_ivc,
                            double v_c, double burn, double dur, Kappas kap) noexcept {
   const double bde = prm.blowdown_end_atdc_deg * kDeg;
@@ -133,19 +135,47 @@ Weights model_weights(const AngleTerms& t, const EnergiesParams& prm, double bur
   }
   return w;
 }
-/// The in-cycle gas torque model's weights: model_weights() with the heat release spread over
-/// `dur` around the centroid by a raised-cosine burned fraction x_b, p = (1 − x_b)·compression +
-/// x_b·expansion polytrope. The lumped burn's pressure step is harmless in a window integral but is a torque
-/// step in the in-cycle shape, which the Kalman's smooth coloured-noise prior cannot correct.
-Weights ripple_weights(const AngleTerms& t, const EnergiesParams& prm, double burn, double dur) noexcept {
-  const double s = t.phi > kTwoPi ? t.phi - kFourPi : t.phi;  // end of compression: negative
-  const double a0 = burn_start(burn, dur, prm);
-  if (dur <= 0.0 || s <= a0 || s >= a0 + dur) return model_weights(t, prm, burn);
-  const double xb = burned_fraction(s - a0, dur, prm);
-  Weights w;
-  w.map = (1.0 - xb) * prm.ivc_pressure_factor * t.ivc_poly;
-  w.p3 = xb * t.c_poly;
-  return w;
+
+/// The in-cycle gas torque model's weights are model_weights() with the heat release spread over `dur` around
+/// the centroid by a raised-cosine burned fraction x_b, p = (1 − x_b)·compression + x_b·expansion polytrope.
+/// The lumped burn's pressure step is harmless in a window integral but is a torque step in the in-cycle
+/// shape, which the Kalman's smooth coloured-noise prior cannot correct.
+/// What one integration angle contributes to every ripple table is computed once for all of them
+/// (build_ripple): the volume powers, dV/dφ as angle_terms_for() takes it (the plain dV/dφ from the blowdown
+/// end to IVC, where neither polytrope is read), and model_weights() before the burn centroid (compression)
+/// and after it (its other branches). The weights depend on the burn only through which branch holds and,
+/// inside the burn, the burned fraction, so table_weights() gives one table's weights exactly.
+struct SharedAngle {
+  AngleTerms full;
+  Weights before, after;
+  double dvol = 0.0;
+};
+SharedAngle shared_angle(double phi, const CrankKinematics& kin, const EnergiesParams& prm, double v_ivc,
+                         double v_c, Kappas kap) noexcept {
+  SharedAngle a;
+  a.full = angle_terms(phi, kin, prm, v_ivc, v_c, kap);
+  const double bde = prm.blowdown_end_atdc_deg * kDeg;
+  const double ivc = (540.0 + prm.ivc_abdc_deg) * kDeg;
+  a.dvol = phi >= bde && phi < ivc ? kin.dvolume(phi) : a.full.dvol;
+  a.before = model_weights(a.full, prm, std::numeric_limits<double>::infinity());
+  a.after = model_weights(a.full, prm, -std::numeric_limits<double>::infinity());
+  return a;
+}
+/// One table's weights at a shared angle; `a0` = burn_start(burn, dur).
+Weights table_weights(const SharedAngle& a, const EnergiesParams& prm, double burn, double a0,
+                      double dur) noexcept {
+  const double phi = a.full.phi;
+  if (dur > 0.0) {
+    const double s = phi > kTwoPi ? phi - kFourPi : phi;
+    if (s > a0 && s < a0 + dur) {
+      const double xb = burned_fraction(s - a0, dur, prm);
+      Weights w;
+      w.map = (1.0 - xb) * prm.ivc_pressure_factor * a.full.ivc_poly;
+      w.p3 = xb * a.full.c_poly;
+      return w;
+    }
+  }
+  return phi < burn ? a.before : a.after;
 }
 }  // namespace
 
@@ -408,71 +438,91 @@ void LoadRls::build_ripple(const std::vector<double>& center) {
   rip_map_.assign(kt * ks, 0.0);
   rip_const_.assign(kt * ks, 0.0);
   rip_p3_.assign(kt * ks * kMaxCylinders, 0.0);
-  for (int t = 0; t < kRippleTables; ++t) build_ripple_table(center, t);
+  RippleBuild b;
+  b.dur = params_.burn_duration_deg * kDeg;
+  for (std::size_t t = 0; t < b.burn.size(); ++t) {
+    b.burn[t] =
+        (params_.burn_centroid_atdc_deg + (static_cast<int>(t) - kRippleBase) * kRippleStepDeg) * kDeg;
+    b.start[t] = burn_start(b.burn[t], b.dur, params_);
+  }
+  build_ripple_closure(b);
+  build_ripple_samples(center, b);
 }
 
-// One table of build_ripple(): the burn centroid burn_centroid_atdc_deg + (t − kRippleBase)·kRippleStepDeg.
-void LoadRls::build_ripple_table(const std::vector<double>& center, int t) {
+// Full-cycle closure of the ripple model for one cylinder (ripple_p3), every table: ∮p dV per Pa of MAP and
+// of p3, and the p_exh part (J). Each angle's burn-independent terms are computed once for all tables.
+void LoadRls::build_ripple_closure(const RippleBuild& b) {
   const CrankKinematics kin(engine_);
-  const int n = engine_.cylinders;
-  const auto ks = static_cast<std::size_t>(samples_);
-  const auto tt = static_cast<std::size_t>(t);
-  const double burn = (params_.burn_centroid_atdc_deg + (t - kRippleBase) * kRippleStepDeg) * kDeg;
-  const double dur = params_.burn_duration_deg * kDeg;
   const Kappas kap = ripple_kappas(params_);
-  // Full-cycle closure of the same model for one cylinder (ripple_p3): ∮p dV per Pa of MAP and of p3, and the
-  // p_exh part (J).
-  double cm = 0.0, cp = 0.0, ce = 0.0;
+  std::array<double, kRippleTables> cm{}, cp{}, ce{};
   constexpr int kClosureSteps = 720 * 4;  // 0.25° steps over the cycle
   for (int i = 0; i < kClosureSteps; ++i) {
     const double phi = (i + 0.5) * kFourPi / kClosureSteps;
-    const AngleTerms at = angle_terms_for(phi, kin, params_, v_ivc_, v_c_, burn, dur, kap);
-    const Weights w = ripple_weights(at, params_, burn, dur);
-    const double dv = at.dvol * kFourPi / kClosureSteps;
-    cm += w.map * dv;
-    cp += w.p3 * dv;
-    ce += w.exh * params_.exhaust_pressure_pa * dv;
+    const SharedAngle sa = shared_angle(phi, kin, params_, v_ivc_, v_c_, kap);
+    const double dv = sa.dvol * kFourPi / kClosureSteps;
+    for (std::size_t t = 0; t < cm.size(); ++t) {
+      const Weights w = table_weights(sa, params_, b.burn[t], b.start[t], b.dur);
+      cm[t] += w.map * dv;
+      cp[t] += w.p3 * dv;
+      ce[t] += w.exh * params_.exhaust_pressure_pa * dv;
+    }
   }
-  rip_cm_[tt] = cm;
-  rip_cp_[tt] = cp;
-  rip_ce_[tt] = ce;
-  double* map = rip_map_.data() + tt * ks;
-  double* cst = rip_const_.data() + tt * ks;
-  double* p3 = rip_p3_.data() + tt * ks * kMaxCylinders;
-  double wm = 0.0, wc = 0.0;
-  std::array<double, kMaxCylinders> wp{};
+  rip_cm_ = cm;
+  rip_cp_ = cp;
+  rip_ce_ = ce;
+}
+
+// Per-sample gas-torque ripple of every table: the pressure model's work over [c_k, c_{k+1}] per unit of each
+// input, divided by the step, minus the 720° mean (the mean indicated torque is the cycle balance's, not
+// this).
+void LoadRls::build_ripple_samples(const std::vector<double>& center, const RippleBuild& b) {
+  const CrankKinematics kin(engine_);
+  const Kappas kap = ripple_kappas(params_);
+  const int n = engine_.cylinders;
+  const auto ks = static_cast<std::size_t>(samples_);
+  constexpr std::size_t kt = kRippleTables;
+  std::array<double, kt> wm{}, wc{};
+  std::array<std::array<double, kMaxCylinders>, kt> wp{};
   for (int k = 0; k < samples_; ++k) {
     const double c0 = center[static_cast<std::size_t>(k)];
     const double span = wrap4pi(center[static_cast<std::size_t>((k + 1) % samples_)] - c0);
     const int steps = std::max(4, static_cast<int>(std::ceil(span / (0.25 * kDeg))));
     const double h = span / steps;
-    double tm = 0.0, tc = 0.0;
-    std::array<double, kMaxCylinders> tp{};
+    std::array<double, kt> tm{}, tc{};
+    std::array<std::array<double, kMaxCylinders>, kt> tp{};
     for (int q = 0; q < n; ++q) {
       for (int i = 0; i < steps; ++i) {
         const double phi = wrap4pi(c0 + (i + 0.5) * h - kFourPi * q / n);
-        const AngleTerms at = angle_terms_for(phi, kin, params_, v_ivc_, v_c_, burn, dur, kap);
-        const Weights w = ripple_weights(at, params_, burn, dur);
-        const double dv = at.dvol * h;
-        tm += w.map * dv;
-        tc += (w.exh * params_.exhaust_pressure_pa - engine_.crankcase_pressure_pa) * dv;
-        tp[static_cast<std::size_t>(q)] += w.p3 * dv;
+        const SharedAngle sa = shared_angle(phi, kin, params_, v_ivc_, v_c_, kap);
+        const double dv = sa.dvol * h;
+        for (std::size_t t = 0; t < kt; ++t) {
+          const Weights w = table_weights(sa, params_, b.burn[t], b.start[t], b.dur);
+          tm[t] += w.map * dv;
+          tc[t] += (w.exh * params_.exhaust_pressure_pa - engine_.crankcase_pressure_pa) * dv;
+          tp[t][static_cast<std::size_t>(q)] += w.p3 * dv;
+        }
       }
     }
     const auto kk = static_cast<std::size_t>(k);
-    map[kk] = tm / span;
-    cst[kk] = tc / span;
-    for (int q = 0; q < n; ++q)
-      p3[kk * kMaxCylinders + static_cast<std::size_t>(q)] = tp[static_cast<std::size_t>(q)] / span;
-    wm += tm;
-    wc += tc;
-    for (int q = 0; q < n; ++q) wp[static_cast<std::size_t>(q)] += tp[static_cast<std::size_t>(q)];
+    for (std::size_t t = 0; t < kt; ++t) {
+      rip_map_[t * ks + kk] = tm[t] / span;
+      rip_const_[t * ks + kk] = tc[t] / span;
+      for (int q = 0; q < n; ++q)
+        rip_p3_[(t * ks + kk) * kMaxCylinders + static_cast<std::size_t>(q)] =
+            tp[t][static_cast<std::size_t>(q)] / span;
+      wm[t] += tm[t];
+      wc[t] += tc[t];
+      for (int q = 0; q < n; ++q) wp[t][static_cast<std::size_t>(q)] += tp[t][static_cast<std::size_t>(q)];
+    }
   }
-  for (std::size_t k = 0; k < ks; ++k) {
-    map[k] -= wm / kFourPi;
-    cst[k] -= wc / kFourPi;
-    for (int q = 0; q < n; ++q)
-      p3[k * kMaxCylinders + static_cast<std::size_t>(q)] -= wp[static_cast<std::size_t>(q)] / kFourPi;
+  for (std::size_t t = 0; t < kt; ++t) {
+    for (std::size_t k = 0; k < ks; ++k) {
+      rip_map_[t * ks + k] -= wm[t] / kFourPi;
+      rip_const_[t * ks + k] -= wc[t] / kFourPi;
+      for (int q = 0; q < n; ++q)
+        rip_p3_[(t * ks + k) * kMaxCylinders + static_cast<std::size_t>(q)] -=
+            wp[t][static_cast<std::size_t>(q)] / kFourPi;
+    }
   }
 }
 

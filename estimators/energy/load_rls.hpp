@@ -134,8 +134,14 @@ class LoadRls {
     int position = 0;                             ///< firing position whose compression it covers
     bool closes_group = false;                    ///< last window of that firing to close (smallest shift)
   };
+  /// What every ripple table is built with: its burn centroid and burn start (rad), the burn duration (rad).
+  struct RippleBuild {
+    std::array<double, kRippleTables> burn{}, start{};
+    double dur = 0.0;
+  };
   void build_ripple(const std::vector<double>& center);
-  void build_ripple_table(const std::vector<double>& center, int t);
+  void build_ripple_closure(const RippleBuild& b);
+  void build_ripple_samples(const std::vector<double>& center, const RippleBuild& b);
   void build_tables(const CrankKinematics& kin, const std::vector<double>& center);
   [[nodiscard]] std::uint64_t tables_key(const std::vector<double>& center) const noexcept;
   void pack_tables(std::vector<double>& t) const;
