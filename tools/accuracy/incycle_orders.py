@@ -60,13 +60,18 @@ def firing_tdcs(rows, ncyl):
     return sorted(tdc)
 
 
-def dft_rms(series, order):
-    """RMS (same unit) of the component at `order` per revolution of a 720-degree cycle's samples."""
+def dft_rms(series, angles, order):
+    """RMS (same unit) of the component at `order` per revolution of a 720-degree cycle's samples, each at
+    its own crank angle (deg in 720; the teeth are not equally spaced: a wheel's gap), the sum weighted by
+    the angle each sample stands for (half the span to each neighbour)."""
     n = len(series)
     h = order * 2.0
-    re = sum(x * math.cos(2.0 * math.pi * h * i / n) for i, x in enumerate(series))
-    im = sum(x * math.sin(2.0 * math.pi * h * i / n) for i, x in enumerate(series))
-    amp = 2.0 * math.hypot(re, im) / n if h > 0 else abs(re) / n
+    w = [((angles[(i + 1) % n] - angles[i - 1]) % 720.0) / 2.0 for i in range(n)]
+    tot = sum(w)
+    ph = [2.0 * math.pi * h * a / 720.0 for a in angles]
+    re = sum(x * wi * math.cos(p) for x, wi, p in zip(series, w, ph)) / tot
+    im = sum(x * wi * math.sin(p) for x, wi, p in zip(series, w, ph)) / tot
+    amp = 2.0 * math.hypot(re, im) if h > 0 else abs(re)
     return amp / math.sqrt(2.0) if h > 0 else amp
 
 
@@ -80,13 +85,14 @@ def analyse(path):
     interval = 720.0 / ncyl
     p2p = sum(max(float(r["t_ind_nm"]) for r in c) - min(float(r["t_ind_nm"]) for r in c) for c in cyc)
     p2p /= len(cyc)
-    ke, me = [], []  # per cycle: Kalman error, model ripple error (per tooth)
+    ke, me, ang = [], [], []  # per cycle: Kalman error, model ripple error, crank angle (per tooth)
     for c in cyc:
         t = [float(r["t_ind_nm"]) for r in c]
         mean_t = sum(t) / len(t)
         # the model's ripple describes the step after tooth k: the truth's mean over that step
         t_step = [0.5 * (t[i] + t[(i + 1) % len(t)]) - mean_t for i in range(len(t))]
         ke.append([float(r["kalman_nm"]) - x for r, x in zip(c, t)])
+        ang.append([float(r["angle720_deg"]) for r in c])
         me.append([float(r["ripple_nm"]) - x for r, x in zip(c, t_step)])
     n_all = sum(len(e) for e in ke)
     k_rms = math.sqrt(sum(x * x for e in ke for x in e) / n_all)
@@ -99,8 +105,8 @@ def analyse(path):
     print("| order | Kalman error | model error |")
     print("|---|---|---|")
     for o in ORDERS:
-        kk = math.sqrt(sum(dft_rms(e, o) ** 2 for e in ke) / len(ke))
-        mm = math.sqrt(sum(dft_rms(e, o) ** 2 for e in me) / len(me))
+        kk = math.sqrt(sum(dft_rms(e, a, o) ** 2 for e, a in zip(ke, ang)) / len(ke))
+        mm = math.sqrt(sum(dft_rms(e, a, o) ** 2 for e, a in zip(me, ang)) / len(me))
         print("| %g | %.2f | %.2f |" % (o, 100 * kk / p2p, 100 * mm / p2p))
     print("\n(b) by crank angle after the last firing TDC (deg; RMS % of p2p, mean error % of p2p)")
     print("| window | Kalman RMS | Kalman mean | model RMS | model mean | share of Kalman MS |")
