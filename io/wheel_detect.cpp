@@ -47,13 +47,51 @@ int cycle_length(const std::vector<std::pair<int, double>>& seq) {
   return 0;
 }
 
-void find_matches(WheelDetection& d) {
-  for (const NamedWheel& w : wheel_catalogue()) {
-    if (w.n_cam > 0 || w.width_coded || w.positions != d.positions) continue;
-    if (same_up_to_rotation(std::vector<int>(w.runs, w.runs + w.n_runs), d.runs))
-      d.matches.emplace_back(w.name);
+/// Turns per cycle of a catalogue entry whose runs repeat k times per turn (k >= 1), its repeat in `rep`.
+int runs_repeat(const NamedWheel& w, std::vector<int>& rep) {
+  const int G = w.n_runs / 2;
+  for (int p = 1; p <= G; ++p) {
+    if (G % p != 0) continue;
+    bool eq = true;
+    for (int j = 0; j < w.n_runs && eq; ++j) eq = w.runs[j] == w.runs[j % (2 * p)];
+    if (!eq) continue;
+    rep.assign(w.runs, w.runs + 2 * p);
+    return G / p;
   }
-  if (d.runs.size() == 2) d.matches.push_back(std::to_string(d.positions) + "-" + std::to_string(d.runs[1]));
+  return 1;
+}
+
+/// Catalogue entries with the detected cycle. An entry whose runs repeat k >= 2 times per turn shows the same
+/// cycle as the wheel turning once per cycle (36-2-2-16-16 and 18-2): the edge times cannot tell them, so
+/// all are candidates, unless the cam (720 deg) gives the teeth per turn. Returns the cycles per turn of the
+/// matches (1 unless the cam named an entry repeating k times per turn).
+int find_matches(WheelDetection& d) {
+  int cycle_teeth = 0;
+  for (std::size_t i = 0; i < d.runs.size(); i += 2) cycle_teeth += d.runs[i];
+  std::vector<std::pair<std::string, int>> hits;  // name, cycles per turn
+  for (const NamedWheel& w : wheel_catalogue()) {
+    if (w.n_cam > 0 || w.width_coded) continue;
+    std::vector<int> rep;
+    const int k = runs_repeat(w, rep);
+    if (w.positions == d.positions * k && same_up_to_rotation(rep, d.runs)) hits.emplace_back(w.name, k);
+  }
+  if (d.runs.size() == 2) hits.emplace_back(std::to_string(d.positions) + "-" + std::to_string(d.runs[1]), 1);
+  const bool several_k = std::any_of(hits.begin(), hits.end(), [](const auto& h) { return h.second > 1; });
+  int turn_k = 1;
+  for (const auto& [name, k] : hits) {
+    // the cam turns once per 720 deg: 2 k cycles per cam turn
+    const bool cam_says = d.cam_cycle_teeth > 0 && d.cam_cycle_teeth == 2 * k * cycle_teeth;
+    if (!several_k || cam_says) d.matches.push_back(name);
+    if (several_k && cam_says) turn_k = k;
+  }
+  if (!several_k || !d.matches.empty()) return turn_k;
+  for (const auto& [name, k] : hits) {
+    d.candidates.push_back(name);
+    d.ambiguity +=
+        name + (k == 1 ? ": the cycle once per turn; " : ": " + std::to_string(k) + " times per turn; ");
+  }
+  d.ambiguity += "edge times cannot tell (the speed and every angle differ by the factor); a cam column can";
+  return 1;
 }
 
 // Pattern wheels (no missing-tooth gap: 4g63, miata-nb2, nissan-cas-24+1, ...): the tooth periods repeat
@@ -375,6 +413,61 @@ int clean_stretch(GapScan& g) {
   return best_len;
 }
 
+// Evidence a gap wheel must show before an entry is named (random periods of a noise capture repeat a short
+// cycle by chance: 7 of 30 seeded 300-period captures did for 3 cycles of 7 teeth or fewer):
+/// revolutions: the structure seen to repeat at least twice
+constexpr int kMinEvidenceRevolutions = 3;
+/// teeth: a chance repeat of n gaps over a few teeth is likely; over 60 tooth periods (a 60-2's turn) it is
+/// not
+constexpr std::size_t kMinEvidenceTeeth = 60;
+/// share of the capture's teeth the read stretch spans: a stretch a few percent of a noisy capture is what
+/// chance gives (noisy-trigger-2, a real noisy 36-2 capture, reads ~20 %)
+constexpr double kMinEvidenceShare = 0.1;
+/// a gap's ratio vs the median of the same cycle position: each gap must give the same missing count (the
+/// count is the ratio rounded, minus one: +-0.5 changes it); local-speed interpolation keeps a real gap's
+/// ratio within a few tenths under +-20 % cranking ripple
+constexpr double kGapRatioSpread = 0.5;
+/// share of the gaps allowed off that (a stall or the first compressions: arctic-cat.csv has 1 in 30)
+constexpr double kMaxGapsOff = 0.2;
+
+/// Why the read gap wheel is too thin to be named ("" = enough evidence). `cyc`: (teeth, missing) per
+/// cycle position, in the order of g.seq.
+std::string thin_evidence(const WheelDetection& d, std::size_t all_teeth, const GapScan& g,
+                          const std::vector<std::pair<int, int>>& cyc) {
+  const std::size_t teeth = g.gap_end.back() - g.gap_end.front();
+  char buf[160];
+  if (d.revolutions < kMinEvidenceRevolutions || teeth < kMinEvidenceTeeth ||
+      static_cast<double>(teeth) < kMinEvidenceShare * static_cast<double>(all_teeth)) {
+    std::snprintf(
+        buf, sizeof buf,
+        "%d revolutions, %zu of %zu teeth (a name needs %d revolutions, %zu teeth and %.0f %% of the "
+        "capture)",
+        d.revolutions, teeth, all_teeth, kMinEvidenceRevolutions, kMinEvidenceTeeth,
+        100.0 * kMinEvidenceShare);
+    return buf;
+  }
+  std::size_t off = 0, worst = 0;
+  const std::size_t len = cyc.size();
+  for (std::size_t i = 0; i < len; ++i) {
+    std::vector<double> r;
+    for (std::size_t k = i; k < g.seq.size(); k += len) r.push_back(g.seq[k].second);
+    std::nth_element(r.begin(), r.begin() + static_cast<std::ptrdiff_t>(r.size() / 2), r.end());
+    const double median = r[r.size() / 2];
+    for (std::size_t k = i; k < g.seq.size(); k += len) {
+      const bool bad = std::abs(g.seq[k].second - median) >= kGapRatioSpread;
+      if (bad && off++ == 0) worst = k;
+    }
+  }
+  if (static_cast<double>(off) > kMaxGapsOff * static_cast<double>(g.seq.size())) {
+    std::snprintf(buf, sizeof buf,
+                  "%zu of %zu gaps are 0.5+ periods off their cycle position's median, e.g. gap %zu: %.2f "
+                  "periods",
+                  off, g.seq.size(), worst, g.seq[worst].second);
+    return buf;
+  }
+  return "";
+}
+
 /// The gap wheel of `len` gaps per cycle read off `g`: runs, speed, tooth angles, decoder check, matches.
 WheelDetection& read_gap_wheel(WheelDetection& d, std::span<const std::int64_t> t, const GapScan& g,
                                int len) {
@@ -404,10 +497,16 @@ WheelDetection& read_gap_wheel(WheelDetection& d, std::span<const std::int64_t> 
     d.runs.push_back(missing);
     d.positions += n_teeth + missing;
   }
-  // Per revolution: the time between closings of the same gap, len gaps apart.
+  // The cam can show the cycle to be 1/k of a turn (36-2-2-16-16): the wheel is then k cycles.
+  const int turn_k = find_matches(d);
+  const std::vector<int> cycle_runs = d.runs;
+  for (int j = 1; j < turn_k; ++j) d.runs.insert(d.runs.end(), cycle_runs.begin(), cycle_runs.end());
+  d.positions *= turn_k;
+  const std::size_t turn = ulen * static_cast<std::size_t>(turn_k);
+  // Per revolution: the time between closings of the same gap, one turn (len gaps per cycle) apart.
   d.rpm_min = 1e300;
-  for (std::size_t k = 0; k + ulen < gap_end.size(); ++k) {
-    const double rev_s = static_cast<double>(t[gap_end[k + ulen]] - t[gap_end[k]]) * 1e-9;
+  for (std::size_t k = 0; k + turn < gap_end.size(); ++k) {
+    const double rev_s = static_cast<double>(t[gap_end[k + turn]] - t[gap_end[k]]) * 1e-9;
     d.rpm_min = std::min(d.rpm_min, 60.0 / rev_s);
     d.rpm_max = std::max(d.rpm_max, 60.0 / rev_s);
     ++d.revolutions;
@@ -423,7 +522,9 @@ WheelDetection& read_gap_wheel(WheelDetection& d, std::span<const std::int64_t> 
     d.tooth_angles_deg.push_back(w.tooth_angles_deg[static_cast<std::size_t>(i)]);
   const CrankDecoder dec(w, DecoderParams{});
   if (!dec.valid()) d.decoder_error = dec.error();
-  find_matches(d);
+  d.thin = thin_evidence(d, t.size(), g, cyc);
+  if (!d.thin.empty()) d.candidates.insert(d.candidates.end(), d.matches.begin(), d.matches.end());
+  if (!d.thin.empty()) d.matches.clear();
   return d;
 }
 
@@ -453,8 +554,8 @@ WheelDetection detect_wheel(std::span<const std::int64_t> t, std::span<const std
     }
   }
   if (!d.width_code.empty()) return d.error = d.width_code, d;
-  if (len > 0) return read_gap_wheel(d, t, g, len);
   d.cam_cycle_teeth = cam_cycle_teeth(t, cam);
+  if (len > 0) return read_gap_wheel(d, t, g, len);
   if (read_pattern_wheel(d, p, static_cast<double>(t[0]) * 1e-9)) return d;
   char buf[320];
   std::snprintf(buf, sizeof buf,
@@ -530,7 +631,17 @@ std::string describe(const WheelDetection& d) {
   if (!d.stretch.empty()) s += "read: " + d.stretch + "\n";
   s += "catalogue: ";
   for (std::size_t i = 0; i < d.matches.size(); ++i) s += (i == 0 ? "" : ", ") + d.matches[i];
-  s += d.matches.empty() ? "no entry (paste the angles below)\n" : "\n";
+  if (!d.thin.empty()) {
+    s += "not identified: too little evidence (" + d.thin + "); candidates:";
+    for (std::size_t i = 0; i < d.candidates.size(); ++i) s += (i == 0 ? " " : ", ") + d.candidates[i];
+    s += d.candidates.empty() ? " none\n" : "\n";
+  } else if (!d.candidates.empty()) {
+    s += "not identified by the edge times: candidates";
+    for (std::size_t i = 0; i < d.candidates.size(); ++i) s += (i == 0 ? " " : ", ") + d.candidates[i];
+    s += " (" + d.ambiguity + ")\n";
+  } else {
+    s += d.matches.empty() ? "no entry (paste the angles below)\n" : "\n";
+  }
   if (!d.decoder_error.empty()) s += "decoder: refuses this wheel by itself: " + d.decoder_error + "\n";
   s += "wheel:\n  tooth_angles_deg: [";
   for (std::size_t i = 0; i < d.tooth_angles_deg.size(); ++i) {
