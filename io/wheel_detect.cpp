@@ -204,17 +204,65 @@ bool spacings_match(const std::vector<double>& a, const std::vector<double>& b) 
   return false;
 }
 
+/// Whether the cam edges (angle in [0, 720), polarity; sorted) are the entry's cam pattern, rotated, each
+/// within its cam tolerance.
+bool cam_is(const std::vector<std::pair<double, bool>>& e, const NamedWheel& w) {
+  const auto n = static_cast<std::size_t>(w.n_cam);
+  if (e.size() != n || n == 0) return false;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double off = w.cam[i].angle_deg - e[0].first;
+    bool ok = true;
+    for (std::size_t j = 0; j < n && ok; ++j) {
+      const CamEdgeSpec& c = w.cam[(i + j) % n];
+      const double diff = std::remainder(e[j].first + off - c.angle_deg, 720.0);
+      ok = c.rising == e[j].second && std::abs(diff) <= w.cam_tolerance_deg;
+    }
+    if (ok) return true;
+  }
+  return false;
+}
+
+/// Whether the cam edges of an equally spaced wheel, `pitch_deg` per tooth (the entry's), show the entry's
+/// cam pattern in most cam cycles of M teeth (a symmetric cam repeats within 720 deg: its cycle is then half
+/// the entry's, the count per turn read off it twice the true one).
+bool cam_pattern_fits(std::span<const std::int64_t> t, std::span<const WheelCamEdge> cam, std::size_t M,
+                      double pitch_deg, const NamedWheel& w) {
+  std::size_t windows = 0, good = 0, c = 0;
+  for (std::size_t s = 0; s + M < t.size(); s += M, ++windows) {
+    std::vector<std::pair<double, bool>> e;
+    while (c < cam.size() && cam[c].t_ns < t[s]) ++c;
+    for (std::size_t k = s; k < s + M; ++k)
+      for (; c < cam.size() && cam[c].t_ns < t[k + 1]; ++c) {
+        const double frac = static_cast<double>(cam[c].t_ns - t[k]) / static_cast<double>(t[k + 1] - t[k]);
+        e.emplace_back((static_cast<double>(k - s) + frac) * pitch_deg, cam[c].rising);
+      }
+    good += cam_is(e, w);
+  }
+  return windows > 0 && 2 * good > windows;
+}
+
 /// Catalogue entries with the detected repeat. One entry: a match (its degrees per repeat give the angles and
 /// rpm); several (equally spaced teeth: any count per revolution fits): candidates only, none printed as a
 /// match.
-void match_pattern(WheelDetection& d) {
+void match_pattern(WheelDetection& d, std::span<const std::int64_t> t, std::span<const WheelCamEdge> cam) {
   std::vector<std::pair<std::string, double>> hits;
   for (const NamedWheel& w : wheel_catalogue()) {
     double deg = 0.0;
-    if (!spacings_match(d.spacing, catalogue_repeat(w, deg))) continue;
+    if (w.width_coded || !spacings_match(d.spacing, catalogue_repeat(w, deg))) continue;
     const double teeth_per_rev = 360.0 / deg * static_cast<double>(d.spacing.size());
     if (d.cam_cycle_teeth > 0 && std::abs(2.0 * teeth_per_rev - d.cam_cycle_teeth) > 0.5) continue;
+    // equally spaced: the cam names the entry, so its edges must be the entry's cam pattern
+    if (d.cam_cycle_teeth > 0 && d.spacing.size() == 1 &&
+        !cam_pattern_fits(t, cam, static_cast<std::size_t>(d.cam_cycle_teeth), deg, w)) {
+      d.candidates.push_back(w.name);
+      d.ambiguity = "the cam's edges per cycle or their angles are not the entry's cam pattern";
+      continue;
+    }
     hits.emplace_back(w.name, deg);
+  }
+  if (!d.candidates.empty()) {
+    for (const auto& h : hits) d.candidates.push_back(h.first);
+    return;
   }
   if (hits.size() == 1) {
     d.matches.push_back(hits[0].first);
@@ -275,7 +323,9 @@ int pattern_noise(const std::vector<double>& cum, const std::vector<double>& spa
   return n;
 }
 
-bool read_pattern_wheel(WheelDetection& d, std::span<const std::int64_t> p, double t0_s) {
+bool read_pattern_wheel(WheelDetection& d, std::span<const std::int64_t> p, std::span<const std::int64_t> t,
+                        std::span<const WheelCamEdge> cam) {
+  const double t0_s = static_cast<double>(t[0]) * 1e-9;
   std::vector<double> cum(p.size() + 1, 0.0);
   for (std::size_t k = 0; k < p.size(); ++k) cum[k + 1] = cum[k] + static_cast<double>(p[k]) * 1e-9;
   for (std::size_t N = 1; N <= kMaxPatternTeeth && 3 * N + kMinWindowTeeth <= p.size(); ++N) {
@@ -285,7 +335,7 @@ bool read_pattern_wheel(WheelDetection& d, std::span<const std::int64_t> p, doub
     rotate_after_widest(d.spacing);
     d.pattern_teeth = static_cast<int>(d.spacing.size());
     d.noise_periods = pattern_noise(cum, d.spacing);
-    match_pattern(d);
+    match_pattern(d, t, cam);
     const double unit = d.repeat_deg > 0 ? d.repeat_deg / 360.0 : 1.0;  // revolutions per repeat
     const std::size_t R = d.spacing.size();
     d.rpm_min = 1e300;
@@ -556,7 +606,7 @@ WheelDetection detect_wheel(std::span<const std::int64_t> t, std::span<const std
   if (!d.width_code.empty()) return d.error = d.width_code, d;
   d.cam_cycle_teeth = cam_cycle_teeth(t, cam);
   if (len > 0) return read_gap_wheel(d, t, g, len);
-  if (read_pattern_wheel(d, p, static_cast<double>(t[0]) * 1e-9)) return d;
+  if (read_pattern_wheel(d, p, t, cam)) return d;
   char buf[320];
   std::snprintf(buf, sizeof buf,
                 "no repeating gap structure (%zu gaps in %zu teeth, %d noise periods; no stretch without "
@@ -598,6 +648,10 @@ std::string describe_pattern(const WheelDetection& d) {
       s += " (its teeth repeat every " + std::to_string(static_cast<int>(d.repeat_deg)) +
            " deg: the crank alone gives the position only within that; its cam or code resolves it)";
     s += "\n";
+  } else if (!d.ambiguity.empty()) {
+    s += "catalogue: not identified: candidates";
+    for (std::size_t i = 0; i < d.candidates.size(); ++i) s += (i == 0 ? " " : ", ") + d.candidates[i];
+    s += " (" + d.ambiguity + ")\n";
   } else if (!d.candidates.empty()) {
     s += "catalogue: not identified by the crank alone: equally good for";
     for (std::size_t i = 0; i < d.candidates.size(); ++i) s += (i == 0 ? " " : ", ") + d.candidates[i];

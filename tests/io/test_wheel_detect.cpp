@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <random>
 #include <string>
 #include <vector>
@@ -130,19 +131,36 @@ TEST(WheelDetect, EquallySpacedWheelsAreNeverGivenACatalogueNameByTheCrankAlone)
   }
 }
 
+/// Cam edges at `edges` (deg of 720, polarity) every 720 deg, placed between the teeth `t` of an equally
+/// spaced wheel (tooth k at k pitch deg) by interpolation.
+std::vector<WheelCamEdge> cam_at(const std::vector<std::int64_t>& t, double pitch,
+                                 const std::vector<std::pair<double, bool>>& edges) {
+  std::vector<WheelCamEdge> cam;
+  for (int cyc = 0; cyc * 720.0 < static_cast<double>(t.size()) * pitch; ++cyc)
+    for (const auto& [deg, rising] : edges) {
+      const double a = cyc * 720.0 + deg;
+      const auto k = static_cast<std::size_t>(a / pitch);
+      if (k + 1 >= t.size()) continue;
+      const double frac = a / pitch - static_cast<double>(k);
+      cam.push_back({t[k] + static_cast<std::int64_t>(frac * static_cast<double>(t[k + 1] - t[k])), rising});
+    }
+  std::sort(cam.begin(), cam.end(), [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; });
+  return cam;
+}
+
 TEST(WheelDetect, TheCamGivesTheTeethPerRevolutionOfAnEquallySpacedWheel) {
   for (const char* name : {"4g63", "nissan-cas-24+1"}) {
-    // GIVEN the wheel's crank and cam edges (cam rising 45 deg, falling 225 deg of 720), cranking ripple
+    // GIVEN the wheel's crank edges (cranking ripple) and its catalogue cam pattern, rotated by 100 deg
     WheelGeometry w;
     ASSERT_TRUE(wheel_from_name(name, w, nullptr));
-    const test::SynthOptions o = cranking(w);
-    std::vector<std::int64_t> teeth;
-    std::vector<WheelCamEdge> cam;
-    for (const EdgeEvent& e : test::synthesize(o).edges) {
-      if (e.channel == 0 && e.level != 0) teeth.push_back(e.t_ns);
-      if (e.channel != 0) cam.push_back({e.t_ns, e.level != 0});
-    }
-    const WheelDetection d = detect_wheel(teeth, {}, cam);
+    const std::vector<std::int64_t> teeth = synthetic_teeth(w);
+    const auto entry = std::find_if(wheel_catalogue().begin(), wheel_catalogue().end(),
+                                    [&](const NamedWheel& e) { return std::string(e.name) == name; });
+    std::vector<std::pair<double, bool>> edges;
+    for (int i = 0; i < entry->n_cam; ++i)
+      edges.emplace_back(std::fmod(entry->cam[i].angle_deg + 100.0, 720.0), entry->cam[i].rising);
+    std::sort(edges.begin(), edges.end());
+    const WheelDetection d = detect_wheel(teeth, {}, cam_at(teeth, 360.0 / w.teeth(), edges));
     // THEN the cam cycle holds twice the teeth per revolution, and that names the one entry
     ASSERT_TRUE(d.error.empty()) << name << ": " << d.error;
     EXPECT_EQ(d.cam_cycle_teeth, 2 * w.teeth()) << name << "\n" << describe(d);
@@ -150,6 +168,23 @@ TEST(WheelDetect, TheCamGivesTheTeethPerRevolutionOfAnEquallySpacedWheel) {
     EXPECT_DOUBLE_EQ(d.repeat_deg, 360.0 / w.teeth());
     EXPECT_EQ(d.tooth_angles_deg.size(), static_cast<std::size_t>(w.teeth()));
   }
+}
+
+TEST(WheelDetect, ASymmetricCamDoesNotNameAnEntryWhoseCamPatternItIsNot) {
+  // GIVEN 24 equal teeth per turn (600 rpm, +-10 % ripple twice per turn) and a cam high for 90 deg every
+  // 360 deg (two equal windows per cam turn: the cam cycle looks like 24 teeth = 12 per revolution)
+  std::vector<std::int64_t> t;
+  double s = 0.0;
+  for (int k = 0; k < 40 * 24; ++k, s += 15.0 / (3600.0 * (1.0 + 0.1 * std::sin(4.0 * M_PI * k / 24.0))))
+    t.push_back(static_cast<std::int64_t>(s * 1e9));
+  const auto cam = cam_at(t, 15.0, {{82.5, false}, {352.5, true}, {442.5, false}, {712.5, true}});
+  const WheelDetection d = detect_wheel(t, {}, cam);
+  // THEN nissan-cas-24+1 (12 teeth, one 11.5 deg cam slot per 720) is a candidate only, nothing is named
+  ASSERT_TRUE(d.error.empty()) << d.error;
+  EXPECT_EQ(d.cam_cycle_teeth, 24) << describe(d);
+  EXPECT_TRUE(d.matches.empty()) << describe(d);
+  EXPECT_TRUE(has(d.candidates, "nissan-cas-24+1")) << describe(d);
+  EXPECT_NE(describe(d).find("catalogue: not identified"), std::string::npos) << describe(d);
 }
 
 TEST(WheelDetect, WidthCodedWheelNeedsBothEdges) {
