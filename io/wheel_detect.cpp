@@ -358,10 +358,27 @@ bool read_pattern_wheel(WheelDetection& d, std::span<const std::int64_t> p, std:
   return false;
 }
 
-/// Duty of each marking period (other-polarity edge inside it): two clusters far apart = width-coded.
+/// Whether most marking periods equal their neighbours' mean: a width-coded wheel's marking edges are
+/// equally spaced (GM 24x: every 15 deg); an uneven wheel's (miata-nb2: 70/110 deg) are not, and there a
+/// constant tooth width gives two duties with nothing coded. The tolerance passes cranking ripple between
+/// neighbouring teeth (a few %) and a gap (one period in a revolution); 70/110 is -36/+57 %.
+bool marking_periods_equal(std::span<const std::int64_t> t) {
+  constexpr double kEqualTol = 0.25;
+  constexpr double kMinEqualShare = 0.8;
+  std::size_t n = 0, eq = 0;
+  for (std::size_t k = 1; k + 3 < t.size(); ++k, ++n) {
+    const double mean = 0.5 * static_cast<double>(t[k] - t[k - 1] + t[k + 2] - t[k + 1]);
+    eq += mean > 0 && std::abs(static_cast<double>(t[k + 1] - t[k]) / mean - 1.0) < kEqualTol;
+  }
+  return n > 0 && static_cast<double>(eq) >= kMinEqualShare * static_cast<double>(n);
+}
+
+/// Duty of each marking period (other-polarity edge inside it): two clusters far apart, with equally spaced
+/// marking edges = width-coded.
 std::string width_code(std::span<const std::int64_t> t, std::span<const std::int64_t> other) {
   constexpr double kDutyGap = 0.25;  // two widths, e.g. GM 24x 3 deg vs 12 deg of 15 (duty 0.2 / 0.8)
   constexpr double kMinShare = 0.2;  // each width on at least a fifth of the teeth (a gap is one tooth)
+  if (!marking_periods_equal(t)) return "";
   std::vector<double> duty;
   std::size_t o = 0;
   for (std::size_t k = 0; k + 1 < t.size(); ++k) {

@@ -206,6 +206,30 @@ TEST(WheelDetect, WidthCodedWheelNeedsBothEdges) {
   }
 }
 
+TEST(WheelDetect, WideTeethOnAnUnevenWheelAreNoWidthCode) {
+  // GIVEN miata-nb2 (teeth at 0, 70, 180, 250 deg) with 45 deg wide teeth, 600 rpm, +-10 % ripple per
+  // compression: its duty is 45/70 or 45/110 of a period with nothing coded
+  std::vector<std::int64_t> rise, fall;
+  double s = 0.0, prev = 0.0;
+  const auto at = [&](double deg) {  // time at crank angle deg (increasing), ripple twice per turn
+    for (; prev + 1.0 <= deg; prev += 1.0)
+      s += 1.0 / (3600.0 * (1.0 + 0.1 * std::sin(2.0 * prev * M_PI / 180)));
+    return static_cast<std::int64_t>(s * 1e9);
+  };
+  for (int r = 0; r < 40; ++r)
+    for (const double a : {0.0, 70.0, 180.0, 250.0}) {
+      rise.push_back(at(r * 360.0 + a));
+      fall.push_back(at(r * 360.0 + a + 45.0));
+    }
+  // THEN from either edge it reads miata-nb2, not a width-coded wheel
+  for (const auto& [teeth, other] : {std::pair{rise, fall}, std::pair{fall, rise}}) {
+    const WheelDetection d = detect_wheel(teeth, other);
+    ASSERT_TRUE(d.error.empty()) << d.error;
+    EXPECT_TRUE(d.width_code.empty()) << d.width_code;
+    EXPECT_EQ(d.matches, (std::vector<std::string>{"miata-nb2"})) << describe(d);
+  }
+}
+
 TEST(WheelDetect, GapWheelIsReadOffTheLongestCleanStretchOfANoisyCapture) {
   // GIVEN a 36-2 capture: clean revolutions, then a burst of noise edges and an irregular stretch
   std::vector<std::int64_t> t = synthetic_teeth(test::wheel_nm(36, 2));
