@@ -248,7 +248,7 @@ void match_pattern(WheelDetection& d, std::span<const std::int64_t> t, std::span
   std::vector<std::pair<std::string, double>> hits;
   for (const NamedWheel& w : wheel_catalogue()) {
     double deg = 0.0;
-    if (w.width_coded || !spacings_match(d.spacing, catalogue_repeat(w, deg))) continue;
+    if (!spacings_match(d.spacing, catalogue_repeat(w, deg))) continue;
     const double teeth_per_rev = 360.0 / deg * static_cast<double>(d.spacing.size());
     if (d.cam_cycle_teeth > 0 && std::abs(2.0 * teeth_per_rev - d.cam_cycle_teeth) > 0.5) continue;
     // equally spaced: the cam names the entry, so its edges must be the entry's cam pattern
