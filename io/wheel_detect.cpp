@@ -454,9 +454,9 @@ GapScan scan_gaps(std::span<const std::int64_t> p, int& noise_periods) {
   return g;
 }
 
-/// A noisy or stalling capture: keeps the longest stretch of gaps without a noise period in which the teeth
-/// between gaps repeat exactly every `len` gaps (len <= 16), at least kMinCleanCycles cycles long. Returns
-/// len (0: none) and cuts `g` to the stretch.
+/// A noisy or stalling capture (one pass per len: O(16 n)): keeps the longest stretch of gaps without a noise
+/// period in which the teeth between gaps repeat exactly every `len` gaps (len <= 16), at least
+/// kMinCleanCycles cycles long. Returns len (0: none) and cuts `g` to the stretch.
 int clean_stretch(GapScan& g) {
   // 3 whole revolutions: the structure seen to repeat twice (once can be chance in noise)
   constexpr int kMinCleanCycles = 3;
@@ -465,10 +465,16 @@ int clean_stretch(GapScan& g) {
   const std::size_t n = g.seq.size();
   for (int len = 1; len <= 16; ++len) {
     const auto ul = static_cast<std::size_t>(len);
-    for (std::size_t a = 0; a < n; ++a) {
-      std::size_t b = a;  // stretch [a, b): seq[i] == seq[i + len] for i + len < b, no noise
-      while (b < n && !g.noisy[b] && (b < a + ul || g.seq[b].first == g.seq[b - ul].first)) ++b;
-      if (b - a >= ul * kMinCleanCycles && b - a > best_n) best_a = a, best_n = b - a, best_len = len;
+    // one pass: a = the earliest start of a clean stretch [a, b] (no noise, seq[i] == seq[i - len] for
+    // i >= a + len); a mismatch at b moves it just past b - len, a noise period past b
+    for (std::size_t a = 0, b = 0; b < n; ++b) {
+      if (g.noisy[b]) {
+        a = b + 1;
+        continue;
+      }
+      if (b >= a + ul && g.seq[b].first != g.seq[b - ul].first) a = b - ul + 1;
+      const std::size_t len_ab = b + 1 - a;
+      if (len_ab >= ul * kMinCleanCycles && len_ab > best_n) best_a = a, best_n = len_ab, best_len = len;
     }
   }
   if (best_len == 0) return 0;
