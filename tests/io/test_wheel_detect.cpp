@@ -175,8 +175,10 @@ TEST(WheelDetect, ASymmetricCamDoesNotNameAnEntryWhoseCamPatternItIsNot) {
   // 360 deg (two equal windows per cam turn: the cam cycle looks like 24 teeth = 12 per revolution)
   std::vector<std::int64_t> t;
   double s = 0.0;
-  for (int k = 0; k < 40 * 24; ++k, s += 15.0 / (3600.0 * (1.0 + 0.1 * std::sin(4.0 * M_PI * k / 24.0))))
+  for (int k = 0; k < 40 * 24; ++k) {
     t.push_back(static_cast<std::int64_t>(s * 1e9));
+    s += 15.0 / (3600.0 * (1.0 + 0.1 * std::sin(4.0 * M_PI * k / 24.0)));
+  }
   const auto cam = cam_at(t, 15.0, {{82.5, false}, {352.5, true}, {442.5, false}, {712.5, true}});
   const WheelDetection d = detect_wheel(t, {}, cam);
   // THEN nissan-cas-24+1 (12 teeth, one 11.5 deg cam slot per 720) is a candidate only, nothing is named
@@ -210,10 +212,10 @@ TEST(WheelDetect, WideTeethOnAnUnevenWheelAreNoWidthCode) {
   // GIVEN miata-nb2 (teeth at 0, 70, 180, 250 deg) with 45 deg wide teeth, 600 rpm, +-10 % ripple per
   // compression: its duty is 45/70 or 45/110 of a period with nothing coded
   std::vector<std::int64_t> rise, fall;
-  double s = 0.0, prev = 0.0;
+  double s = 0.0;
+  int prev = 0;                      // whole degrees integrated so far
   const auto at = [&](double deg) {  // time at crank angle deg (increasing), ripple twice per turn
-    for (; prev + 1.0 <= deg; prev += 1.0)
-      s += 1.0 / (3600.0 * (1.0 + 0.1 * std::sin(2.0 * prev * M_PI / 180)));
+    for (; prev + 1 <= deg; ++prev) s += 1.0 / (3600.0 * (1.0 + 0.1 * std::sin(2.0 * prev * M_PI / 180)));
     return static_cast<std::int64_t>(s * 1e9);
   };
   for (int r = 0; r < 40; ++r)
