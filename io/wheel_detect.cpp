@@ -47,13 +47,51 @@ int cycle_length(const std::vector<std::pair<int, double>>& seq) {
   return 0;
 }
 
-void find_matches(WheelDetection& d) {
-  for (const NamedWheel& w : wheel_catalogue()) {
-    if (w.n_cam > 0 || w.width_coded || w.positions != d.positions) continue;
-    if (same_up_to_rotation(std::vector<int>(w.runs, w.runs + w.n_runs), d.runs))
-      d.matches.emplace_back(w.name);
+/// Turns per cycle of a catalogue entry whose runs repeat k times per turn (k >= 1), its repeat in `rep`.
+int runs_repeat(const NamedWheel& w, std::vector<int>& rep) {
+  const int G = w.n_runs / 2;
+  for (int p = 1; p <= G; ++p) {
+    if (G % p != 0) continue;
+    bool eq = true;
+    for (int j = 0; j < w.n_runs && eq; ++j) eq = w.runs[j] == w.runs[j % (2 * p)];
+    if (!eq) continue;
+    rep.assign(w.runs, w.runs + 2 * p);
+    return G / p;
   }
-  if (d.runs.size() == 2) d.matches.push_back(std::to_string(d.positions) + "-" + std::to_string(d.runs[1]));
+  return 1;
+}
+
+/// Catalogue entries with the detected cycle. An entry whose runs repeat k >= 2 times per turn shows the same
+/// cycle as the wheel turning once per cycle (36-2-2-16-16 and 18-2): the edge times cannot tell them, so
+/// all are candidates, unless the cam (720 deg) gives the teeth per turn. Returns the cycles per turn of the
+/// matches (1 unless the cam named an entry repeating k times per turn).
+int find_matches(WheelDetection& d) {
+  int cycle_teeth = 0;
+  for (std::size_t i = 0; i < d.runs.size(); i += 2) cycle_teeth += d.runs[i];
+  std::vector<std::pair<std::string, int>> hits;  // name, cycles per turn
+  for (const NamedWheel& w : wheel_catalogue()) {
+    if (w.n_cam > 0 || w.width_coded) continue;
+    std::vector<int> rep;
+    const int k = runs_repeat(w, rep);
+    if (w.positions == d.positions * k && same_up_to_rotation(rep, d.runs)) hits.emplace_back(w.name, k);
+  }
+  if (d.runs.size() == 2) hits.emplace_back(std::to_string(d.positions) + "-" + std::to_string(d.runs[1]), 1);
+  const bool several_k = std::any_of(hits.begin(), hits.end(), [](const auto& h) { return h.second > 1; });
+  int turn_k = 1;
+  for (const auto& [name, k] : hits) {
+    // the cam turns once per 720 deg: 2 k cycles per cam turn
+    const bool cam_says = d.cam_cycle_teeth > 0 && d.cam_cycle_teeth == 2 * k * cycle_teeth;
+    if (!several_k || cam_says) d.matches.push_back(name);
+    if (several_k && cam_says) turn_k = k;
+  }
+  if (!several_k || !d.matches.empty()) return turn_k;
+  for (const auto& [name, k] : hits) {
+    d.candidates.push_back(name);
+    d.ambiguity +=
+        name + (k == 1 ? ": the cycle once per turn; " : ": " + std::to_string(k) + " times per turn; ");
+  }
+  d.ambiguity += "edge times cannot tell (the speed and every angle differ by the factor); a cam column can";
+  return 1;
 }
 
 // Pattern wheels (no missing-tooth gap: 4g63, miata-nb2, nissan-cas-24+1, ...): the tooth periods repeat
@@ -166,17 +204,65 @@ bool spacings_match(const std::vector<double>& a, const std::vector<double>& b) 
   return false;
 }
 
+/// Whether the cam edges (angle in [0, 720), polarity; sorted) are the entry's cam pattern, rotated, each
+/// within its cam tolerance.
+bool cam_is(const std::vector<std::pair<double, bool>>& e, const NamedWheel& w) {
+  const auto n = static_cast<std::size_t>(w.n_cam);
+  if (e.size() != n || n == 0) return false;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double off = w.cam[i].angle_deg - e[0].first;
+    bool ok = true;
+    for (std::size_t j = 0; j < n && ok; ++j) {
+      const CamEdgeSpec& c = w.cam[(i + j) % n];
+      const double diff = std::remainder(e[j].first + off - c.angle_deg, 720.0);
+      ok = c.rising == e[j].second && std::abs(diff) <= w.cam_tolerance_deg;
+    }
+    if (ok) return true;
+  }
+  return false;
+}
+
+/// Whether the cam edges of an equally spaced wheel, `pitch_deg` per tooth (the entry's), show the entry's
+/// cam pattern in most cam cycles of M teeth (a symmetric cam repeats within 720 deg: its cycle is then half
+/// the entry's, the count per turn read off it twice the true one).
+bool cam_pattern_fits(std::span<const std::int64_t> t, std::span<const WheelCamEdge> cam, std::size_t M,
+                      double pitch_deg, const NamedWheel& w) {
+  std::size_t windows = 0, good = 0, c = 0;
+  for (std::size_t s = 0; s + M < t.size(); s += M, ++windows) {
+    std::vector<std::pair<double, bool>> e;
+    while (c < cam.size() && cam[c].t_ns < t[s]) ++c;
+    for (std::size_t k = s; k < s + M; ++k)
+      for (; c < cam.size() && cam[c].t_ns < t[k + 1]; ++c) {
+        const double frac = static_cast<double>(cam[c].t_ns - t[k]) / static_cast<double>(t[k + 1] - t[k]);
+        e.emplace_back((static_cast<double>(k - s) + frac) * pitch_deg, cam[c].rising);
+      }
+    good += cam_is(e, w);
+  }
+  return windows > 0 && 2 * good > windows;
+}
+
 /// Catalogue entries with the detected repeat. One entry: a match (its degrees per repeat give the angles and
 /// rpm); several (equally spaced teeth: any count per revolution fits): candidates only, none printed as a
 /// match.
-void match_pattern(WheelDetection& d) {
+void match_pattern(WheelDetection& d, std::span<const std::int64_t> t, std::span<const WheelCamEdge> cam) {
   std::vector<std::pair<std::string, double>> hits;
   for (const NamedWheel& w : wheel_catalogue()) {
     double deg = 0.0;
     if (!spacings_match(d.spacing, catalogue_repeat(w, deg))) continue;
     const double teeth_per_rev = 360.0 / deg * static_cast<double>(d.spacing.size());
     if (d.cam_cycle_teeth > 0 && std::abs(2.0 * teeth_per_rev - d.cam_cycle_teeth) > 0.5) continue;
+    // equally spaced: the cam names the entry, so its edges must be the entry's cam pattern
+    if (d.cam_cycle_teeth > 0 && d.spacing.size() == 1 &&
+        !cam_pattern_fits(t, cam, static_cast<std::size_t>(d.cam_cycle_teeth), deg, w)) {
+      d.candidates.push_back(w.name);
+      d.ambiguity = "the cam's edges per cycle or their angles are not the entry's cam pattern";
+      continue;
+    }
     hits.emplace_back(w.name, deg);
+  }
+  if (!d.candidates.empty()) {
+    for (const auto& h : hits) d.candidates.push_back(h.first);
+    return;
   }
   if (hits.size() == 1) {
     d.matches.push_back(hits[0].first);
@@ -237,7 +323,9 @@ int pattern_noise(const std::vector<double>& cum, const std::vector<double>& spa
   return n;
 }
 
-bool read_pattern_wheel(WheelDetection& d, std::span<const std::int64_t> p, double t0_s) {
+bool read_pattern_wheel(WheelDetection& d, std::span<const std::int64_t> p, std::span<const std::int64_t> t,
+                        std::span<const WheelCamEdge> cam) {
+  const double t0_s = static_cast<double>(t[0]) * 1e-9;
   std::vector<double> cum(p.size() + 1, 0.0);
   for (std::size_t k = 0; k < p.size(); ++k) cum[k + 1] = cum[k] + static_cast<double>(p[k]) * 1e-9;
   for (std::size_t N = 1; N <= kMaxPatternTeeth && 3 * N + kMinWindowTeeth <= p.size(); ++N) {
@@ -247,7 +335,7 @@ bool read_pattern_wheel(WheelDetection& d, std::span<const std::int64_t> p, doub
     rotate_after_widest(d.spacing);
     d.pattern_teeth = static_cast<int>(d.spacing.size());
     d.noise_periods = pattern_noise(cum, d.spacing);
-    match_pattern(d);
+    match_pattern(d, t, cam);
     const double unit = d.repeat_deg > 0 ? d.repeat_deg / 360.0 : 1.0;  // revolutions per repeat
     const std::size_t R = d.spacing.size();
     d.rpm_min = 1e300;
@@ -270,10 +358,27 @@ bool read_pattern_wheel(WheelDetection& d, std::span<const std::int64_t> p, doub
   return false;
 }
 
-/// Duty of each marking period (other-polarity edge inside it): two clusters far apart = width-coded.
+/// Whether most marking periods equal their neighbours' mean: a width-coded wheel's marking edges are
+/// equally spaced (GM 24x: every 15 deg); an uneven wheel's (miata-nb2: 70/110 deg) are not, and there a
+/// constant tooth width gives two duties with nothing coded. The tolerance passes cranking ripple between
+/// neighbouring teeth (a few %) and a gap (one period in a revolution); 70/110 is -36/+57 %.
+bool marking_periods_equal(std::span<const std::int64_t> t) {
+  constexpr double kEqualTol = 0.25;
+  constexpr double kMinEqualShare = 0.8;
+  std::size_t n = 0, eq = 0;
+  for (std::size_t k = 1; k + 3 < t.size(); ++k, ++n) {
+    const double mean = 0.5 * static_cast<double>(t[k] - t[k - 1] + t[k + 2] - t[k + 1]);
+    eq += mean > 0 && std::abs(static_cast<double>(t[k + 1] - t[k]) / mean - 1.0) < kEqualTol;
+  }
+  return n > 0 && static_cast<double>(eq) >= kMinEqualShare * static_cast<double>(n);
+}
+
+/// Duty of each marking period (other-polarity edge inside it): two clusters far apart, with equally spaced
+/// marking edges = width-coded.
 std::string width_code(std::span<const std::int64_t> t, std::span<const std::int64_t> other) {
   constexpr double kDutyGap = 0.25;  // two widths, e.g. GM 24x 3 deg vs 12 deg of 15 (duty 0.2 / 0.8)
   constexpr double kMinShare = 0.2;  // each width on at least a fifth of the teeth (a gap is one tooth)
+  if (!marking_periods_equal(t)) return "";
   std::vector<double> duty;
   std::size_t o = 0;
   for (std::size_t k = 0; k + 1 < t.size(); ++k) {
@@ -349,9 +454,9 @@ GapScan scan_gaps(std::span<const std::int64_t> p, int& noise_periods) {
   return g;
 }
 
-/// A noisy or stalling capture: keeps the longest stretch of gaps without a noise period in which the teeth
-/// between gaps repeat exactly every `len` gaps (len <= 16), at least kMinCleanCycles cycles long. Returns
-/// len (0: none) and cuts `g` to the stretch.
+/// A noisy or stalling capture (one pass per len: O(16 n)): keeps the longest stretch of gaps without a noise
+/// period in which the teeth between gaps repeat exactly every `len` gaps (len <= 16), at least
+/// kMinCleanCycles cycles long. Returns len (0: none) and cuts `g` to the stretch.
 int clean_stretch(GapScan& g) {
   // 3 whole revolutions: the structure seen to repeat twice (once can be chance in noise)
   constexpr int kMinCleanCycles = 3;
@@ -360,10 +465,16 @@ int clean_stretch(GapScan& g) {
   const std::size_t n = g.seq.size();
   for (int len = 1; len <= 16; ++len) {
     const auto ul = static_cast<std::size_t>(len);
-    for (std::size_t a = 0; a < n; ++a) {
-      std::size_t b = a;  // stretch [a, b): seq[i] == seq[i + len] for i + len < b, no noise
-      while (b < n && !g.noisy[b] && (b < a + ul || g.seq[b].first == g.seq[b - ul].first)) ++b;
-      if (b - a >= ul * kMinCleanCycles && b - a > best_n) best_a = a, best_n = b - a, best_len = len;
+    // one pass: a = the earliest start of a clean stretch [a, b] (no noise, seq[i] == seq[i - len] for
+    // i >= a + len); a mismatch at b moves it just past b - len, a noise period past b
+    for (std::size_t a = 0, b = 0; b < n; ++b) {
+      if (g.noisy[b]) {
+        a = b + 1;
+        continue;
+      }
+      if (b >= a + ul && g.seq[b].first != g.seq[b - ul].first) a = b - ul + 1;
+      const std::size_t len_ab = b + 1 - a;
+      if (len_ab >= ul * kMinCleanCycles && len_ab > best_n) best_a = a, best_n = len_ab, best_len = len;
     }
   }
   if (best_len == 0) return 0;
@@ -373,6 +484,61 @@ int clean_stretch(GapScan& g) {
   g.gap_end = std::vector<std::size_t>(g.gap_end.begin() + static_cast<std::ptrdiff_t>(best_a),
                                        g.gap_end.begin() + static_cast<std::ptrdiff_t>(best_a + best_n + 1));
   return best_len;
+}
+
+// Evidence a gap wheel must show before an entry is named (random periods of a noise capture repeat a short
+// cycle by chance: 7 of 30 seeded 300-period captures did for 3 cycles of 7 teeth or fewer):
+/// revolutions: the structure seen to repeat at least twice
+constexpr int kMinEvidenceRevolutions = 3;
+/// teeth: a chance repeat of n gaps over a few teeth is likely; over 60 tooth periods (a 60-2's turn) it is
+/// not
+constexpr std::size_t kMinEvidenceTeeth = 60;
+/// share of the capture's teeth the read stretch spans: a stretch a few percent of a noisy capture is what
+/// chance gives (noisy-trigger-2, a real noisy 36-2 capture, reads ~20 %)
+constexpr double kMinEvidenceShare = 0.1;
+/// a gap's ratio vs the median of the same cycle position: each gap must give the same missing count (the
+/// count is the ratio rounded, minus one: +-0.5 changes it); local-speed interpolation keeps a real gap's
+/// ratio within a few tenths under +-20 % cranking ripple
+constexpr double kGapRatioSpread = 0.5;
+/// share of the gaps allowed off that (a stall or the first compressions: arctic-cat.csv has 1 in 30)
+constexpr double kMaxGapsOff = 0.2;
+
+/// Why the read gap wheel is too thin to be named ("" = enough evidence). `cyc`: (teeth, missing) per
+/// cycle position, in the order of g.seq.
+std::string thin_evidence(const WheelDetection& d, std::size_t all_teeth, const GapScan& g,
+                          const std::vector<std::pair<int, int>>& cyc) {
+  const std::size_t teeth = g.gap_end.back() - g.gap_end.front();
+  char buf[160];
+  if (d.revolutions < kMinEvidenceRevolutions || teeth < kMinEvidenceTeeth ||
+      static_cast<double>(teeth) < kMinEvidenceShare * static_cast<double>(all_teeth)) {
+    std::snprintf(
+        buf, sizeof buf,
+        "%d revolutions, %zu of %zu teeth (a name needs %d revolutions, %zu teeth and %.0f %% of the "
+        "capture)",
+        d.revolutions, teeth, all_teeth, kMinEvidenceRevolutions, kMinEvidenceTeeth,
+        100.0 * kMinEvidenceShare);
+    return buf;
+  }
+  std::size_t off = 0, worst = 0;
+  const std::size_t len = cyc.size();
+  for (std::size_t i = 0; i < len; ++i) {
+    std::vector<double> r;
+    for (std::size_t k = i; k < g.seq.size(); k += len) r.push_back(g.seq[k].second);
+    std::nth_element(r.begin(), r.begin() + static_cast<std::ptrdiff_t>(r.size() / 2), r.end());
+    const double median = r[r.size() / 2];
+    for (std::size_t k = i; k < g.seq.size(); k += len) {
+      const bool bad = std::abs(g.seq[k].second - median) >= kGapRatioSpread;
+      if (bad && off++ == 0) worst = k;
+    }
+  }
+  if (static_cast<double>(off) > kMaxGapsOff * static_cast<double>(g.seq.size())) {
+    std::snprintf(buf, sizeof buf,
+                  "%zu of %zu gaps are 0.5+ periods off their cycle position's median, e.g. gap %zu: %.2f "
+                  "periods",
+                  off, g.seq.size(), worst, g.seq[worst].second);
+    return buf;
+  }
+  return "";
 }
 
 /// The gap wheel of `len` gaps per cycle read off `g`: runs, speed, tooth angles, decoder check, matches.
@@ -404,10 +570,16 @@ WheelDetection& read_gap_wheel(WheelDetection& d, std::span<const std::int64_t> 
     d.runs.push_back(missing);
     d.positions += n_teeth + missing;
   }
-  // Per revolution: the time between closings of the same gap, len gaps apart.
+  // The cam can show the cycle to be 1/k of a turn (36-2-2-16-16): the wheel is then k cycles.
+  const int turn_k = find_matches(d);
+  const std::vector<int> cycle_runs = d.runs;
+  for (int j = 1; j < turn_k; ++j) d.runs.insert(d.runs.end(), cycle_runs.begin(), cycle_runs.end());
+  d.positions *= turn_k;
+  const std::size_t turn = ulen * static_cast<std::size_t>(turn_k);
+  // Per revolution: the time between closings of the same gap, one turn (len gaps per cycle) apart.
   d.rpm_min = 1e300;
-  for (std::size_t k = 0; k + ulen < gap_end.size(); ++k) {
-    const double rev_s = static_cast<double>(t[gap_end[k + ulen]] - t[gap_end[k]]) * 1e-9;
+  for (std::size_t k = 0; k + turn < gap_end.size(); ++k) {
+    const double rev_s = static_cast<double>(t[gap_end[k + turn]] - t[gap_end[k]]) * 1e-9;
     d.rpm_min = std::min(d.rpm_min, 60.0 / rev_s);
     d.rpm_max = std::max(d.rpm_max, 60.0 / rev_s);
     ++d.revolutions;
@@ -423,7 +595,9 @@ WheelDetection& read_gap_wheel(WheelDetection& d, std::span<const std::int64_t> 
     d.tooth_angles_deg.push_back(w.tooth_angles_deg[static_cast<std::size_t>(i)]);
   const CrankDecoder dec(w, DecoderParams{});
   if (!dec.valid()) d.decoder_error = dec.error();
-  find_matches(d);
+  d.thin = thin_evidence(d, t.size(), g, cyc);
+  if (!d.thin.empty()) d.candidates.insert(d.candidates.end(), d.matches.begin(), d.matches.end());
+  if (!d.thin.empty()) d.matches.clear();
   return d;
 }
 
@@ -453,9 +627,9 @@ WheelDetection detect_wheel(std::span<const std::int64_t> t, std::span<const std
     }
   }
   if (!d.width_code.empty()) return d.error = d.width_code, d;
-  if (len > 0) return read_gap_wheel(d, t, g, len);
   d.cam_cycle_teeth = cam_cycle_teeth(t, cam);
-  if (read_pattern_wheel(d, p, static_cast<double>(t[0]) * 1e-9)) return d;
+  if (len > 0) return read_gap_wheel(d, t, g, len);
+  if (read_pattern_wheel(d, p, t, cam)) return d;
   char buf[320];
   std::snprintf(buf, sizeof buf,
                 "no repeating gap structure (%zu gaps in %zu teeth, %d noise periods; no stretch without "
@@ -497,6 +671,10 @@ std::string describe_pattern(const WheelDetection& d) {
       s += " (its teeth repeat every " + std::to_string(static_cast<int>(d.repeat_deg)) +
            " deg: the crank alone gives the position only within that; its cam or code resolves it)";
     s += "\n";
+  } else if (!d.ambiguity.empty()) {
+    s += "catalogue: not identified: candidates";
+    for (std::size_t i = 0; i < d.candidates.size(); ++i) s += (i == 0 ? " " : ", ") + d.candidates[i];
+    s += " (" + d.ambiguity + ")\n";
   } else if (!d.candidates.empty()) {
     s += "catalogue: not identified by the crank alone: equally good for";
     for (std::size_t i = 0; i < d.candidates.size(); ++i) s += (i == 0 ? " " : ", ") + d.candidates[i];
@@ -530,7 +708,17 @@ std::string describe(const WheelDetection& d) {
   if (!d.stretch.empty()) s += "read: " + d.stretch + "\n";
   s += "catalogue: ";
   for (std::size_t i = 0; i < d.matches.size(); ++i) s += (i == 0 ? "" : ", ") + d.matches[i];
-  s += d.matches.empty() ? "no entry (paste the angles below)\n" : "\n";
+  if (!d.thin.empty()) {
+    s += "not identified: too little evidence (" + d.thin + "); candidates:";
+    for (std::size_t i = 0; i < d.candidates.size(); ++i) s += (i == 0 ? " " : ", ") + d.candidates[i];
+    s += d.candidates.empty() ? " none\n" : "\n";
+  } else if (!d.candidates.empty()) {
+    s += "not identified by the edge times: candidates";
+    for (std::size_t i = 0; i < d.candidates.size(); ++i) s += (i == 0 ? " " : ", ") + d.candidates[i];
+    s += " (" + d.ambiguity + ")\n";
+  } else {
+    s += d.matches.empty() ? "no entry (paste the angles below)\n" : "\n";
+  }
   if (!d.decoder_error.empty()) s += "decoder: refuses this wheel by itself: " + d.decoder_error + "\n";
   s += "wheel:\n  tooth_angles_deg: [";
   for (std::size_t i = 0; i < d.tooth_angles_deg.size(); ++i) {

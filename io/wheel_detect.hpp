@@ -25,6 +25,8 @@ struct WheelDetection {
   std::vector<double> tooth_angles_deg;  ///< from runs, tooth 0 = first tooth after the first gap
   std::string decoder_error;             ///< why the decoder refuses this wheel by itself ("" = it syncs)
   std::string stretch;                   ///< non-empty: only this clean stretch of a noisy capture was read
+  std::string ambiguity;  ///< non-empty: why the candidates (each a turn of the same cycle) cannot be told
+  std::string thin;       ///< non-empty: too little evidence to name an entry (why); the names are candidates
   // Pattern wheels (no missing-tooth gap; positions == 0): the tooth periods repeat every pattern_teeth.
   int pattern_teeth = 0;        ///< teeth per repeat (smallest repeat of the spacings)
   std::vector<double> spacing;  ///< tooth i to i+1 as a fraction of the repeat, tooth 0 after the widest
