@@ -56,13 +56,14 @@ struct PreprocessParams {
 };
 /// Chauvin angle-domain estimators (docs/equations.md §2).
 struct KalmanParams {
-  double delta = 3.0;           ///< coloured-noise pole δ (1/rad) of h(z) (CK-18)
-  double torque_sd_nm = 300.0;  ///< stationary 1σ of the net torque x2 under h(z); sets Q (N m), used
-                                ///< while the gas model is not valid (no MAP yet) or gas_model is false
-  double model_torque_sd_nm =
-      75.0;                      ///< the same with the gas model valid, where x2 is only what the pressure
-                                 ///< model misses (tuned on incycle_*_65 + fuel_cut: 300/150/75/35 tried;
-                                 ///< 35 leans harder on the model, worse at 1000 rpm 95 kPa)
+  double delta = 3.0;                ///< coloured-noise pole δ (1/rad) of h(z) (CK-18)
+  double torque_sd_nm = 300.0;       ///< stationary 1σ of the net torque x2 under h(z); sets Q (N m), used
+                                     ///< while the gas model is not valid (no MAP yet) or gas_model is false
+  double model_torque_sd_nm = 60.0;  ///< the same with the gas model valid, where x2 is only what the
+                                     ///< pressure model misses (tuned on the bed's tuning engines with the
+                                     ///< spark-phased model: 40/45/50/55/60/75 tried, the least fresh-start +
+                                     ///< transient + cut-off total whose claimed 1σ still covers >= 68 % of
+                                     ///< the teeth; docs/angle_estimators.md "What limits the I6")
   double edge_noise_deg = 0.01;  ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.01 learned:
                                  ///< tuned on incycle_*_65 + fuel_cut, 0.005/0.01/0.02 tried)
   double jitter_s = 0.3e-6;      ///< timestamp jitter used for R (s)

@@ -117,6 +117,29 @@ TEST(TableStore, KalmanGainsFromTheCacheEqualTheComputedOnes) {
   EXPECT_EQ(st.misses(), 2);
 }
 
+// The model-miss sigma (kalman.model_torque_sd_nm) sets the gas-model gain set: a cache written with the old
+// default (75 N m) must not serve the new one (60 N m).
+TEST(TableStore, KalmanGainsAreCachedPerModelMissSigma) {
+  TempDir d;
+  const EngineGeometry eng;
+  const WheelGeometry wheel;
+  KalmanParams kp;
+  kp.speed_bins = 6;
+  TableStore st(d.path.string(), kBuild);
+  const ScopedTableCache use(&st);
+  kp.model_torque_sd_nm = 75.0;
+  const ChauvinKalman old_default(eng, wheel, kp);
+  kp.model_torque_sd_nm = 60.0;
+  const ChauvinKalman new_default(eng, wheel, kp);
+  EXPECT_EQ(st.hits(), 0);
+  EXPECT_EQ(st.misses(), 2);
+  const ChauvinKalman again(eng, wheel, kp);
+  EXPECT_EQ(st.hits(), 1);  // the same sigma again: read back
+  kp.gas_model = false;     // without the gas model only the whole-torque set is built: its own key
+  const ChauvinKalman no_model(eng, wheel, kp);
+  EXPECT_EQ(st.misses(), 3);
+}
+
 TEST(TableStore, LoadRlsTablesFromTheCacheEqualTheComputedOnes) {
   TempDir d;
   const EngineGeometry eng;
