@@ -85,6 +85,9 @@ struct PriorCalibration {
 };
 bool evaluate_prior_calibration_engine(const sim::BedEngine& e, const DaemonBedOptions& opt,
                                        PriorCalibration& r, std::string& error);
+/// --bed-priors (prior_bed.cpp): the calibration engines (with `all` also the bed's tuning and report
+/// engines) per engine and pooled by role, with a bootstrap over engines; 0, or 1 if an engine failed.
+int run_bed_priors(bool all, const DaemonBedOptions& opt);
 
 /// One engine; false with `error` set when a recording could not be written or replayed.
 bool evaluate_bed_engine_daemon(const sim::BedEngine& e, const DaemonBedOptions& opt, DaemonBedResult& r,
