@@ -60,7 +60,7 @@ AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
                   config.energies.cylinder_window_deg > 0.0 ? config.energies.cylinder_window_deg
                                                             : config.energies.energy_window_deg,
                   0.5 * config.energies.energy_window_deg, config.energies.cylinder_window_taper),
-      rls_(config.engine, config.wheel, config.energies),
+      rls_(config.engine, config.wheel, config.energies, config.spark_on_can),
       friction_(cfg_.friction),
       inertia_(config.energies.inertia),
       eso_(config.engine, config.energies),

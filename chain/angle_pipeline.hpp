@@ -63,6 +63,9 @@ struct AnglePipelineConfig {
   bool run_kalman = true;          ///< Chauvin TV-Kalman in-cycle indicated torque per tooth
   bool run_fourier = true;         ///< Chauvin Fourier observer per tooth (disabled if its gains fail CF-14)
   double default_oil_temp_c = 90.0;  ///< used until an oil temperature arrives on CAN (°C)
+  /// A spark advance can arrive (its CAN signal is mapped): else the in-cycle gas model's spark-phased
+  /// tables are not built (LoadRls::ripple_first/last), as it never reads them.
+  bool spark_on_can = true;
 };
 
 /// Per-tooth output.
