@@ -363,7 +363,8 @@ TEST(LoadRls, CacheHoldsTheEngineCylindersAndTheTablesBuiltAndRejectsAnotherLayo
   ASSERT_EQ(nt, 20u);
   ASSERT_GT(cache.stored.size(), head);
   EXPECT_EQ((cache.stored.size() - head) % (13 + 4), 0u);
-  EXPECT_EQ(static_cast<double>((cache.stored.size() - head) / (13 + 4)), cache.stored[0]);  // the windows
+  const std::size_t windows = (cache.stored.size() - head) / (13 + 4);
+  EXPECT_EQ(static_cast<double>(windows), cache.stored[0]);  // the window count it starts with
   // AND a run that loads it has the same tables bit for bit
   cache.give = cache.stored;
   const LoadRls loaded(eng, wheel, p);
