@@ -305,6 +305,12 @@ class AnglePipeline {
   /// current burn centroid (ripple_t_, ripple_t_ + 1; ripple_p3b_ the second's p3), and fired_p3_'s table.
   mutable int ripple_t_ = LoadRls::kRippleBase;
   mutable std::array<double, kMaxCylinders> ripple_p3b_{};
+  /// The table pair and weight (LoadRls::ripple_table) for the held spark advance of these bits: looked up
+  /// again only when the advance changes (ripple_pair_ok_ false after reset()).
+  mutable std::uint64_t ripple_pair_spark_ = 0;
+  mutable bool ripple_pair_ok_ = false;
+  mutable int ripple_pair_t_ = LoadRls::kRippleBase;
+  mutable double ripple_pair_f_ = 0.0;
   int fired_t_ = LoadRls::kRippleBase;
   std::uint32_t works_since_fuel_change_ = ~0u;
   std::array<double, kMaxCylinders> fired_p3_{};  ///< combustion p3 per position when the cut-off began (Pa)

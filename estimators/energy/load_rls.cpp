@@ -99,17 +99,6 @@ void LoadRls::ripple_p3(double map_pa, const std::array<double, kMaxCylinders>& 
   }
 }
 
-double LoadRls::gas_ripple_nm(int k, double map_pa, const std::array<double, kMaxCylinders>& p3_pa,
-                              int t) const noexcept {
-  if (k < 0 || k >= samples_ || t < 0 || t >= kRippleTables) return 0.0;
-  const auto kk =
-      static_cast<std::size_t>(t) * static_cast<std::size_t>(samples_) + static_cast<std::size_t>(k);
-  double v = rip_map_[kk] * map_pa + rip_const_[kk];
-  for (int q = 0; q < engine_.cylinders; ++q)
-    v += rip_p3_[kk * kMaxCylinders + static_cast<std::size_t>(q)] * p3_pa[static_cast<std::size_t>(q)];
-  return v;
-}
-
 void LoadRls::reset() noexcept {
   std::fill(open_.begin(), open_.end(), 0);
   expected_tooth_ = -1;

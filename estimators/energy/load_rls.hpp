@@ -213,4 +213,16 @@ class LoadRls {
   TorqueEstimate est_;
 };
 
+// Per tooth: inline in the pipeline.
+inline double LoadRls::gas_ripple_nm(int k, double map_pa, const std::array<double, kMaxCylinders>& p3_pa,
+                                     int t) const noexcept {
+  if (k < 0 || k >= samples_ || t < 0 || t >= kRippleTables) return 0.0;
+  const auto kk =
+      static_cast<std::size_t>(t) * static_cast<std::size_t>(samples_) + static_cast<std::size_t>(k);
+  double v = rip_map_[kk] * map_pa + rip_const_[kk];
+  for (int q = 0; q < engine_.cylinders; ++q)
+    v += rip_p3_[kk * kMaxCylinders + static_cast<std::size_t>(q)] * p3_pa[static_cast<std::size_t>(q)];
+  return v;
+}
+
 }  // namespace torqued
