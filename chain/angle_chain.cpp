@@ -22,6 +22,8 @@ AngleChain::AngleChain(const StageSettings& s, const DbcDatabase* dbc, AngleChai
     AnglePipelineConfig ac = s_.angle;
     ac.engine = s_.engine;
     ac.wheel = s_.wheel;
+    ac.spark_on_can =
+        store_ && !s_.signals[static_cast<std::size_t>(Quantity::kSparkAdvance)].message.empty();
     pipeline_ = std::make_unique<AnglePipeline>(ac);
   }
   if (s_.tooth_learn_enabled) {

@@ -1,6 +1,7 @@
 #include "angle_pipeline.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <numbers>
 
@@ -60,7 +61,7 @@ AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
                   config.energies.cylinder_window_deg > 0.0 ? config.energies.cylinder_window_deg
                                                             : config.energies.energy_window_deg,
                   0.5 * config.energies.energy_window_deg, config.energies.cylinder_window_taper),
-      rls_(config.engine, config.wheel, config.energies),
+      rls_(config.engine, config.wheel, config.energies, config.spark_on_can),
       friction_(cfg_.friction),
       inertia_(config.energies.inertia),
       eso_(config.engine, config.energies),
@@ -110,6 +111,7 @@ void AnglePipeline::reset() noexcept {
   stats_ = AnglePipelineStats{};
   cyl_work_j_.fill(0.0);
   ripple_p3_ok_ = false;
+  ripple_pair_ok_ = false;
   cyl_work_ok_.fill(false);
   works_all_ok_ = all_works_ok();
   oil_c_ = cfg_.default_oil_temp_c;
@@ -160,7 +162,16 @@ double AnglePipeline::gas_ripple_nm(int k, bool works_ok) const noexcept {
   const bool phased = cfg_.energies.incycle_spark_phasing;
   int t = LoadRls::kRippleBase;
   double f = 0.0;
-  if (phased) rls_.ripple_table(ripple_centroid_deg(), t, f);
+  if (phased) {
+    const auto spark = std::bit_cast<std::uint64_t>(held_spark_deg_);  // NaN (none yet) included
+    if (!ripple_pair_ok_ || spark != ripple_pair_spark_) {
+      rls_.ripple_table(ripple_centroid_deg(), ripple_pair_t_, ripple_pair_f_);
+      ripple_pair_spark_ = spark;
+      ripple_pair_ok_ = true;
+    }
+    t = ripple_pair_t_;
+    f = ripple_pair_f_;
+  }
   // p3 per position follows the held MAP, the works' validity, the centroid's table and a new segment work
   // only: kept between them, not recomputed (four divisions) per tooth.
   if (!ripple_p3_ok_ || held_map_pa_ != ripple_p3_map_ || works_ok != ripple_p3_works_ || t != ripple_t_) {

@@ -63,6 +63,9 @@ struct AnglePipelineConfig {
   bool run_kalman = true;          ///< Chauvin TV-Kalman in-cycle indicated torque per tooth
   bool run_fourier = true;         ///< Chauvin Fourier observer per tooth (disabled if its gains fail CF-14)
   double default_oil_temp_c = 90.0;  ///< used until an oil temperature arrives on CAN (°C)
+  /// A spark advance can arrive (its CAN signal is mapped): else the in-cycle gas model's spark-phased
+  /// tables are not built (LoadRls::ripple_first/last), as it never reads them.
+  bool spark_on_can = true;
 };
 
 /// Per-tooth output.
@@ -302,6 +305,12 @@ class AnglePipeline {
   /// current burn centroid (ripple_t_, ripple_t_ + 1; ripple_p3b_ the second's p3), and fired_p3_'s table.
   mutable int ripple_t_ = LoadRls::kRippleBase;
   mutable std::array<double, kMaxCylinders> ripple_p3b_{};
+  /// The table pair and weight (LoadRls::ripple_table) for the held spark advance of these bits: looked up
+  /// again only when the advance changes (ripple_pair_ok_ false after reset()).
+  mutable std::uint64_t ripple_pair_spark_ = 0;
+  mutable bool ripple_pair_ok_ = false;
+  mutable int ripple_pair_t_ = LoadRls::kRippleBase;
+  mutable double ripple_pair_f_ = 0.0;
   int fired_t_ = LoadRls::kRippleBase;
   std::uint32_t works_since_fuel_change_ = ~0u;
   std::array<double, kMaxCylinders> fired_p3_{};  ///< combustion p3 per position when the cut-off began (Pa)

@@ -209,7 +209,9 @@ void add_estimators(std::vector<SchemaEntry>& t) {
           "2 deg steps from 16 deg before to 28 deg after energies.burn_centroid_atdc_deg (beyond: the end "
           "table); until a spark advance arrives, or false: fixed at energies.burn_centroid_atdc_deg. When "
           "CAN is lost the last advance "
-          "seen is held, as for the RLS closure (docs/angle_estimators.md)");
+          "seen is held, as for the RLS closure (docs/angle_estimators.md). Only the tables a clamped "
+          "centroid can reach are built at start, and with can.signals.spark_advance unmapped only the "
+          "fixed centroid's");
   TQ_NUM("energies.burn_centroid_atdc_deg", energies.params.burn_centroid_atdc_deg, closed(-90.0, 180.0),
          "deg", "heat release lumped here until a spark advance arrives (or without spark phasing)");
   TQ_NUM("energies.burn_delay_deg", energies.params.burn_delay_deg, closed(0.0, 180.0), "deg",

@@ -64,7 +64,11 @@ namespace torqued {
 
 class LoadRls {
  public:
-  LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const EnergiesParams& params);
+  /// `spark_on_can`: a spark advance can arrive (the configuration maps its CAN signal). Without one, or
+  /// with energies.incycle_spark_phasing off, the in-cycle model's burn centroid stays fixed and only the
+  /// ripple tables it can read are built (ripple_tables()).
+  LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const EnergiesParams& params,
+          bool spark_on_can = true);
   void reset() noexcept;
 
   /// Real-time safe. `cyl_work_j[position]`: last measured indicated work per cycle of each firing position
@@ -110,6 +114,11 @@ class LoadRls {
   static constexpr int kRippleBase = 8;
   static constexpr double kRippleStepDeg = 2.0;
   void ripple_table(double centroid_deg, int& t, double& frac) const noexcept;
+  /// The ripple tables built, [first, last]: the ones a centroid in energies.burn_centroid_atdc_deg's clamp
+  /// range (0..60°, or that centroid alone without a spark advance or spark phasing) can read, and the base
+  /// table. The others are zero (never read).
+  [[nodiscard]] int ripple_first() const noexcept { return rip_lo_; }
+  [[nodiscard]] int ripple_last() const noexcept { return rip_hi_; }
   /// The model's p3 per firing position for the in-cycle gas torque ripple of table `t`: closes the ripple
   /// model's ∮p dV on the measured works (energies.burn_duration_deg) when `works_valid`, else motored.
   void ripple_p3(double map_pa, const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid,
@@ -138,7 +147,11 @@ class LoadRls {
   struct RippleBuild {
     std::array<double, kRippleTables> burn{}, start{};
     double dur = 0.0;
+    /// Below `full_below` (rad), or with s (φ − 4π beyond 2π) in (s_lo, s_hi), some table built reads the
+    /// volume powers between the blowdown end and IVC (the centroid's compression, the burn).
+    double full_below = 0.0, s_lo = 0.0, s_hi = 0.0;
   };
+  void ripple_range(bool spark_on_can) noexcept;
   void build_ripple(const std::vector<double>& center);
   void build_ripple_closure(const RippleBuild& b);
   void build_ripple_samples(const std::vector<double>& center, const RippleBuild& b);
@@ -165,6 +178,7 @@ class LoadRls {
   std::vector<double> rip_map_, rip_p3_, rip_const_;
   /// The ripple model's full-cycle closure per table (m³, m³, J).
   std::array<double, kRippleTables> rip_cm_{}, rip_cp_{}, rip_ce_{};
+  int rip_lo_ = 0, rip_hi_ = kRippleTables - 1;  ///< the ripple tables built (ripple_first/last)
   double v_ivc_ = 0.0, v_c_ = 0.0;
   double rip_motored_ = 0.0;  ///< (V_IVC/V_c)^κ of the ripple model's compression: its motored p3 / p_IVC
   double kappa_ = 1.3;
@@ -198,5 +212,17 @@ class LoadRls {
   std::uint64_t windows_ = 0;
   TorqueEstimate est_;
 };
+
+// Per tooth: inline in the pipeline.
+inline double LoadRls::gas_ripple_nm(int k, double map_pa, const std::array<double, kMaxCylinders>& p3_pa,
+                                     int t) const noexcept {
+  if (k < 0 || k >= samples_ || t < 0 || t >= kRippleTables) return 0.0;
+  const auto kk =
+      static_cast<std::size_t>(t) * static_cast<std::size_t>(samples_) + static_cast<std::size_t>(k);
+  double v = rip_map_[kk] * map_pa + rip_const_[kk];
+  for (int q = 0; q < engine_.cylinders; ++q)
+    v += rip_p3_[kk * kMaxCylinders + static_cast<std::size_t>(q)] * p3_pa[static_cast<std::size_t>(q)];
+  return v;
+}
 
 }  // namespace torqued

@@ -190,3 +190,33 @@ TEST_F(AngleChainTest, TimeEstimateReachesTheFusionOnlyWhenConfigured) {
 
 }  // namespace
 }  // namespace torqued
+
+namespace torqued {
+namespace {
+TEST(AngleChainSpark, SparkPhasedTablesOnlyWhenTheSparkAdvanceIsMapped) {
+  // GIVEN a DBC with a spark advance signal WHEN the chain maps it THEN the in-cycle gas model gets its
+  // spark-phased tables (3..22 at the default 10° centroid); without the mapping, or without any DBC, only
+  // the base table it reads (LoadRls::ripple_first/last)
+  const char* kDbc =
+      "VERSION \"\"\n\nBU_: ECU\n\nBO_ 257 ENGINE_2: 8 ECU\n"
+      " SG_ SparkAdvance : 39|8@0- (0.5,0) [-64|63.5] \"deg\" Vector__XXX\n";
+  auto r = DbcDatabase::parse_string(kDbc, "spark.dbc");
+  ASSERT_TRUE(r.db.has_value()) << (r.errors.empty() ? "" : r.errors.front());
+  Recorder rec;
+  StageSettings s;
+  s.signals[static_cast<std::size_t>(Quantity::kSparkAdvance)] = {"ENGINE_2", "SparkAdvance", 100'000'000};
+  const AngleChain mapped(s, &*r.db, rec, nullptr);
+  ASSERT_TRUE(mapped.pipeline());
+  EXPECT_EQ(mapped.pipeline()->load_rls().ripple_first(), 3);
+  EXPECT_EQ(mapped.pipeline()->load_rls().ripple_last(), LoadRls::kRippleTables - 1);
+  const AngleChain no_dbc(s, nullptr, rec, nullptr);
+  s.signals[static_cast<std::size_t>(Quantity::kSparkAdvance)] = {};
+  const AngleChain unmapped(s, &*r.db, rec, nullptr);
+  for (const AngleChain* c : {&no_dbc, &unmapped}) {
+    ASSERT_TRUE(c->pipeline());
+    EXPECT_EQ(c->pipeline()->load_rls().ripple_first(), LoadRls::kRippleBase);
+    EXPECT_EQ(c->pipeline()->load_rls().ripple_last(), LoadRls::kRippleBase);
+  }
+}
+}  // namespace
+}  // namespace torqued

@@ -18,8 +18,8 @@
 //   CycleEnergy::update         2 × 158
 //   FuelAngleWindow::on_tooth   165
 //   LoadRls::update             146                           22-24
-//   observer_ripple_nm          189 → 102 (next round)
-//   AnglePipeline::on_tooth     2 525 → 2 433; 2 711 → 2 460; 2 489 → 2 338 (round after)
+//   observer_ripple_nm          189 → 102 (next round); 193 → 146 (spark-phased: table pair per spark change)
+//   AnglePipeline::on_tooth     2 525 → 2 433; 2 711 → 2 460; 2 489 → 2 338 (round after); 2 432 → 2 385
 //                                                             225-243 → 217-244; 231-247 → 218-237 (load 9);
 //                                                             226-372 → 241-362 (load 5-6: inside the noise)
 #include <benchmark/benchmark.h>

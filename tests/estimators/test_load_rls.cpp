@@ -7,13 +7,18 @@
 #include <cmath>
 #include <cstdio>
 #include <numbers>
+#include <optional>
+#include <span>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "alloc_counter.hpp"
 #include "crank_kinematics.hpp"
 #include "engine_sim.hpp"
 #include "load_rls.hpp"
 #include "pipeline_eval.hpp"
+#include "table_cache.hpp"
 
 using namespace torqued;
 
@@ -264,4 +269,114 @@ TEST(LoadRls, RippleTablesFollowTheBurnCentroid) {
     EXPECT_LT(moved, shift) << tb;
     prev = lag;
   }
+}
+
+namespace {
+// Every ripple table [first, last] of `a` and `b` (and their closure's p3) agree bit for bit.
+void expect_same_tables(const LoadRls& a, const LoadRls& b, int first, int last, int samples) {
+  std::array<double, kMaxCylinders> works{}, pa{}, pb{};
+  works.fill(400.0);
+  for (int t = first; t <= last; ++t) {
+    a.ripple_p3(80e3, works, true, pa, t);
+    b.ripple_p3(80e3, works, true, pb, t);
+    EXPECT_EQ(pa, pb) << "table " << t;
+    int differ = 0;
+    for (int k = 0; k < samples; ++k)
+      differ += a.gas_ripple_nm(k, 80e3, pa, t) != b.gas_ripple_nm(k, 80e3, pb, t) ? 1 : 0;
+    EXPECT_EQ(differ, 0) << "table " << t;
+  }
+}
+}  // namespace
+
+TEST(LoadRls, BuildsOnlyTheRippleTablesACentroidCanRead) {
+  // GIVEN the default engine and model (fixed centroid 10° ATDC, 2° table steps, centroids clamped to 0-60°)
+  const EngineGeometry eng;
+  const WheelGeometry wheel;
+  const int samples = 2 * wheel.teeth();
+  EnergiesParams p;
+  ASSERT_EQ(p.burn_centroid_atdc_deg, 10.0);
+  const LoadRls spark(eng, wheel, p, true), no_spark(eng, wheel, p, false);
+  EnergiesParams fixed = p;
+  fixed.incycle_spark_phasing = false;
+  const LoadRls off(eng, wheel, fixed, true);
+  // THEN with a spark advance on CAN the tables from 0° up (10° − 5 steps: table 3; 60° clamps to the last)
+  // are built, without one or without spark phasing only the base table (the centroid stays at 10°)
+  EXPECT_EQ(spark.ripple_first(), 3);
+  EXPECT_EQ(spark.ripple_last(), LoadRls::kRippleTables - 1);
+  EXPECT_EQ(no_spark.ripple_first(), LoadRls::kRippleBase);
+  EXPECT_EQ(no_spark.ripple_last(), LoadRls::kRippleBase);
+  EXPECT_EQ(off.ripple_first(), LoadRls::kRippleBase);
+  EXPECT_EQ(off.ripple_last(), LoadRls::kRippleBase);
+  // AND the base table is the same bit for bit whichever others are built with it
+  expect_same_tables(spark, no_spark, LoadRls::kRippleBase, LoadRls::kRippleBase, samples);
+  expect_same_tables(spark, off, LoadRls::kRippleBase, LoadRls::kRippleBase, samples);
+  // AND a fixed centroid below the clamp (−3° → 0°, between tables 9 and 10) builds that pair and the base
+  // table, each the same as with all tables (a Wiebe burn; its sums shared between other tables there)
+  EnergiesParams early = p;
+  early.burn_centroid_atdc_deg = -3.0;
+  early.burn_wiebe_a = 5.0;
+  const LoadRls all(eng, wheel, early, true), pair(eng, wheel, early, false);
+  EXPECT_EQ(all.ripple_first(), LoadRls::kRippleBase);
+  EXPECT_EQ(pair.ripple_first(), LoadRls::kRippleBase);
+  EXPECT_EQ(pair.ripple_last(), LoadRls::kRippleBase + 2);
+  expect_same_tables(all, pair, LoadRls::kRippleBase, LoadRls::kRippleBase + 2, samples);
+  // AND the RLS closure does not depend on the tables built
+  EXPECT_EQ(spark.expansion_p3(400.0, 80e3, 20.0), no_spark.expansion_p3(400.0, 80e3, 20.0));
+  EXPECT_EQ(spark.motored_torque_nm(80e3), off.motored_torque_nm(80e3));
+}
+
+namespace {
+// The load RLS's entry of the process-wide table cache, in memory: what was stored, and what to return.
+class MemCache final : public TableCache {
+ public:
+  std::optional<std::vector<double>> load(std::string_view kind, std::uint64_t) override {
+    if (kind != "load-rls" || give.empty()) return std::nullopt;
+    return give;
+  }
+  void store(std::string_view kind, std::uint64_t, std::span<const double> table) override {
+    if (kind == "load-rls") stored.assign(table.begin(), table.end());
+  }
+  std::vector<double> stored, give;
+};
+struct UseCache {
+  explicit UseCache(TableCache* c) { set_table_cache(c); }
+  ~UseCache() { set_table_cache(nullptr); }
+  UseCache(const UseCache&) = delete;
+  UseCache& operator=(const UseCache&) = delete;
+};
+}  // namespace
+
+TEST(LoadRls, CacheHoldsTheEngineCylindersAndTheTablesBuiltAndRejectsAnotherLayout) {
+  // GIVEN the default four-cylinder engine, its tables computed into an in-memory cache
+  const EngineGeometry eng;
+  const WheelGeometry wheel;
+  const EnergiesParams p;
+  const int samples = 2 * wheel.teeth();
+  MemCache cache;
+  const UseCache use(&cache);
+  const LoadRls computed(eng, wheel, p);
+  // THEN the stored table holds the tables built (20 of 23) and 4 cylinders per entry, not 8: the closure,
+  // the ripple tables, the window indices, then whole windows of 13 fields + 4 cylinders
+  const auto nt = static_cast<std::size_t>(computed.ripple_last() - computed.ripple_first() + 1);
+  const auto ks = static_cast<std::size_t>(samples);
+  const std::size_t head = 1 + 2 * 61 + 1 + 3 * nt + nt * ks * (2 + 4) + 2 * ks;
+  ASSERT_EQ(nt, 20u);
+  ASSERT_GT(cache.stored.size(), head);
+  EXPECT_EQ((cache.stored.size() - head) % (13 + 4), 0u);
+  const std::size_t windows = (cache.stored.size() - head) / (13 + 4);
+  EXPECT_EQ(static_cast<double>(windows), cache.stored[0]);  // the window count it starts with
+  // AND a run that loads it has the same tables bit for bit
+  cache.give = cache.stored;
+  const LoadRls loaded(eng, wheel, p);
+  expect_same_tables(computed, loaded, computed.ripple_first(), computed.ripple_last(), samples);
+  std::array<double, kMaxCylinders> p3{};
+  p3.fill(2e6);
+  EXPECT_EQ(computed.window_gas_work(0, 80e3, p3), loaded.window_gas_work(0, 80e3, p3));
+  // AND a table of another layout (8 cylinders per entry, as before) is not read: the tables are computed
+  std::vector<double> other = cache.stored;
+  other.insert(other.end(), nt * ks * 4, 0.0);
+  cache.give = other;
+  const LoadRls rejected(eng, wheel, p);
+  expect_same_tables(computed, rejected, computed.ripple_first(), computed.ripple_last(), samples);
+  EXPECT_EQ(computed.window_gas_work(0, 80e3, p3), rejected.window_gas_work(0, 80e3, p3));
 }
