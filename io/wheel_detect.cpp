@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 
 #include "crank_decoder.hpp"
 #include "wheel_names.hpp"
@@ -241,12 +242,17 @@ bool cam_pattern_fits(std::span<const std::int64_t> t, std::span<const WheelCamE
   return windows > 0 && 2 * good > windows;
 }
 
-/// Catalogue entries with the detected repeat. One entry: a match (its degrees per repeat give the angles and
-/// rpm); several (equally spaced teeth: any count per revolution fits): candidates only, none printed as a
-/// match.
+/// Catalogue entries with the detected repeat; entries with the same tooth list (aliases: 36-2-2-17-15 and
+/// jeep-evd) count as one. One entry: a match (its degrees per repeat give the angles and rpm), unless it
+/// repeats k >= 2 times per turn (miata-nb2: 70/110 deg every 180 deg) and no cam shows the teeth per turn:
+/// the crank cannot tell the repeats per turn (a wheel with the repeat once per turn gives the same edge
+/// times), so it is a candidate only. Several (equally spaced teeth: any count per revolution fits):
+/// candidates only, none printed as a match.
 void match_pattern(WheelDetection& d, std::span<const std::int64_t> t, std::span<const WheelCamEdge> cam) {
-  std::vector<std::pair<std::string, double>> hits;
+  std::vector<std::pair<const NamedWheel*, double>> hits;  // one per tooth list (the first name), deg
+  std::vector<std::string> names;                          // every hit's names, in catalogue order
   for (const NamedWheel& w : wheel_catalogue()) {
+    if (w.width_coded) continue;  // the position is in the pulse widths (both edges), as in find_matches
     double deg = 0.0;
     if (!spacings_match(d.spacing, catalogue_repeat(w, deg))) continue;
     const double teeth_per_rev = 360.0 / deg * static_cast<double>(d.spacing.size());
@@ -258,18 +264,31 @@ void match_pattern(WheelDetection& d, std::span<const std::int64_t> t, std::span
       d.ambiguity = "the cam's edges per cycle or their angles are not the entry's cam pattern";
       continue;
     }
-    hits.emplace_back(w.name, deg);
+    names.emplace_back(w.name);
+    const bool alias = std::any_of(hits.begin(), hits.end(), [&](const auto& h) {
+      return h.first->positions == w.positions &&
+             std::equal(w.runs, w.runs + w.n_runs, h.first->runs, h.first->runs + h.first->n_runs);
+    });
+    if (!alias) hits.emplace_back(&w, deg);
   }
-  if (!d.candidates.empty()) {
-    for (const auto& h : hits) d.candidates.push_back(h.first);
+  if (!d.candidates.empty() || hits.size() != 1) {
+    d.candidates.insert(d.candidates.end(), names.begin(), names.end());
     return;
   }
-  if (hits.size() == 1) {
-    d.matches.push_back(hits[0].first);
-    d.repeat_deg = hits[0].second;
-  } else {
-    for (const auto& h : hits) d.candidates.push_back(h.first);
+  const double per_turn = 360.0 / hits[0].second;
+  if (per_turn > 1.5 && d.cam_cycle_teeth == 0) {
+    d.candidates = names;
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  "%s repeats its %zu teeth every %g deg, %g times per turn; edge times cannot tell how many "
+                  "times a turn holds the repeat (the speed and every angle differ by the factor); a cam "
+                  "column can",
+                  names[0].c_str(), d.spacing.size(), hits[0].second, per_turn);
+    d.ambiguity = buf;
+    return;
   }
+  d.matches = names;
+  d.repeat_deg = hits[0].second;
 }
 
 /// Crank teeth per cam cycle: the smallest M (<= 2 kMaxPatternTeeth) after which the cam edges inside the
@@ -323,8 +342,9 @@ int pattern_noise(const std::vector<double>& cum, const std::vector<double>& spa
   return n;
 }
 
+/// `dropped`: the edges dropped up front (periods <= 0), counted as noise periods.
 bool read_pattern_wheel(WheelDetection& d, std::span<const std::int64_t> p, std::span<const std::int64_t> t,
-                        std::span<const WheelCamEdge> cam) {
+                        std::span<const WheelCamEdge> cam, int dropped) {
   const double t0_s = static_cast<double>(t[0]) * 1e-9;
   std::vector<double> cum(p.size() + 1, 0.0);
   for (std::size_t k = 0; k < p.size(); ++k) cum[k + 1] = cum[k] + static_cast<double>(p[k]) * 1e-9;
@@ -334,7 +354,10 @@ bool read_pattern_wheel(WheelDetection& d, std::span<const std::int64_t> p, std:
     d.spacing = smallest_repeat(mean_spacings(cum, N, f), N >= 3 ? kSpacingTol : kReduceTol);
     rotate_after_widest(d.spacing);
     d.pattern_teeth = static_cast<int>(d.spacing.size());
-    d.noise_periods = pattern_noise(cum, d.spacing);
+    d.noise_periods = dropped + pattern_noise(cum, d.spacing);
+    // a cam that does not repeat over the whole capture (start-up, stop) may over the read stretch
+    if (d.cam_cycle_teeth == 0 && !cam.empty())
+      d.cam_cycle_teeth = cam_cycle_teeth(t.subspan(f.a, f.n + 1), cam);
     match_pattern(d, t, cam);
     const double unit = d.repeat_deg > 0 ? d.repeat_deg / 360.0 : 1.0;  // revolutions per repeat
     const std::size_t R = d.spacing.size();
@@ -576,14 +599,15 @@ WheelDetection& read_gap_wheel(WheelDetection& d, std::span<const std::int64_t> 
   for (int j = 1; j < turn_k; ++j) d.runs.insert(d.runs.end(), cycle_runs.begin(), cycle_runs.end());
   d.positions *= turn_k;
   const std::size_t turn = ulen * static_cast<std::size_t>(turn_k);
-  // Per revolution: the time between closings of the same gap, one turn (len gaps per cycle) apart.
+  // Per revolution: the time between closings of the same gap, one turn (len gaps per cycle) apart (every
+  // one-turn window, sliding gap by gap); the whole turns between the first and the last gap read.
   d.rpm_min = 1e300;
   for (std::size_t k = 0; k + turn < gap_end.size(); ++k) {
     const double rev_s = static_cast<double>(t[gap_end[k + turn]] - t[gap_end[k]]) * 1e-9;
     d.rpm_min = std::min(d.rpm_min, 60.0 / rev_s);
     d.rpm_max = std::max(d.rpm_max, 60.0 / rev_s);
-    ++d.revolutions;
   }
+  d.revolutions = gap_end.empty() ? 0 : static_cast<int>((gap_end.size() - 1) / turn);
   if (d.revolutions == 0) d.rpm_min = 0.0;
   WheelGeometry w;
   std::string err;
@@ -606,6 +630,16 @@ WheelDetection& read_gap_wheel(WheelDetection& d, std::span<const std::int64_t> 
 WheelDetection detect_wheel(std::span<const std::int64_t> t, std::span<const std::int64_t> other,
                             std::span<const WheelCamEdge> cam) {
   WheelDetection d;
+  // A period <= 0 (a duplicated or out-of-order time stamp: the edge readers do not enforce increasing
+  // times) is noise: its closing edge is dropped up front, so every ratio below divides by a positive time.
+  std::vector<std::int64_t> kept;
+  const std::size_t all_edges = t.size();
+  if (!std::is_sorted(t.begin(), t.end(), std::less_equal<>{})) {
+    for (const std::int64_t x : t)
+      if (kept.empty() || x > kept.back()) kept.push_back(x);
+    t = kept;
+  }
+  const int dropped = d.noise_periods = static_cast<int>(all_edges - t.size());
   if (t.size() < 3) return d.error = "fewer than 3 teeth", d;
   std::vector<std::int64_t> p(t.size() - 1);
   for (std::size_t k = 0; k + 1 < t.size(); ++k) p[k] = t[k + 1] - t[k];
@@ -629,7 +663,7 @@ WheelDetection detect_wheel(std::span<const std::int64_t> t, std::span<const std
   if (!d.width_code.empty()) return d.error = d.width_code, d;
   d.cam_cycle_teeth = cam_cycle_teeth(t, cam);
   if (len > 0) return read_gap_wheel(d, t, g, len);
-  if (read_pattern_wheel(d, p, t, cam)) return d;
+  if (read_pattern_wheel(d, p, t, cam, dropped)) return d;
   char buf[320];
   std::snprintf(buf, sizeof buf,
                 "no repeating gap structure (%zu gaps in %zu teeth, %d noise periods; no stretch without "
@@ -661,15 +695,21 @@ std::string describe_pattern(const WheelDetection& d) {
                   "noise periods\n",
                   d.revolutions, d.rpm_min, d.rpm_max, d.noise_periods);
   s += buf + ("read: " + d.stretch + "\n");
-  if (d.cam_cycle_teeth > 0)
-    s += "cam: its edges repeat every " + std::to_string(d.cam_cycle_teeth) +
-         " crank teeth (one cam turn = 720 deg: " + std::to_string(d.cam_cycle_teeth / 2.0).substr(0, 4) +
-         " teeth per revolution)\n";
+  if (d.cam_cycle_teeth > 0) {
+    std::snprintf(buf, sizeof buf,
+                  "cam: its edges repeat every %d crank teeth (one cam turn = 720 deg: %g teeth per "
+                  "revolution)\n",
+                  d.cam_cycle_teeth, d.cam_cycle_teeth / 2.0);
+    s += buf;
+  }
   if (!d.matches.empty()) {
     s += "catalogue: " + d.matches[0];
-    if (d.repeat_deg < 360.0)
-      s += " (its teeth repeat every " + std::to_string(static_cast<int>(d.repeat_deg)) +
-           " deg: the crank alone gives the position only within that; its cam or code resolves it)";
+    for (std::size_t i = 1; i < d.matches.size(); ++i) s += ", " + d.matches[i];
+    std::snprintf(buf, sizeof buf,
+                  " (its teeth repeat every %g deg: the crank alone gives the position only within that; its "
+                  "cam or code resolves it)",
+                  d.repeat_deg);
+    if (d.repeat_deg < 360.0) s += buf;
     s += "\n";
   } else if (!d.ambiguity.empty()) {
     s += "catalogue: not identified: candidates";

@@ -41,6 +41,7 @@ struct Options {
                                                 plot_script = torqued::tools::share_path("plot_decode.py");
   double can_offset_s = 0.0;
   bool can_offset_given = false;
+  bool cam_given = false;  ///< --cam on the command line (not the default column name)
   bool falling = false, quiet = false, revs = false, transitions = false;
 };
 
@@ -306,9 +307,13 @@ int detect_wheel_main(Options o) {
   std::string err;
   auto src = open_edge_file(o, err);  // with the cam column (--cam) when the capture has it
   if (!err.empty()) {
+    const std::string cam_err = err, cam_name = o.cam;
     err.clear();
     o.cam = "";
     src = open_edge_file(o, err);
+    if (err.empty() && o.cam_given)  // it reads without the cam: say that the asked-for cam column is dropped
+      std::fprintf(stderr, "torque-decode: note: --cam %s dropped (%s); reading the crank alone\n",
+                   shell_quote(cam_name).c_str(), cam_err.c_str());
   }
   if (!err.empty()) return fail(1, err);
   std::vector<std::int64_t> teeth, other;  // marking edges, and the other polarity (pulse widths)
@@ -490,6 +495,7 @@ int main(int argc, char** argv) {
   add_options(app, o);
   TORQUED_CLI_PARSE(app, argc, argv);
   o.can_offset_given = app.count("--can-offset") > 0;
+  o.cam_given = app.count("--cam") > 0;
 
   if (!o.detect_wheel.empty()) return detect_wheel_main(o);
   Inputs in;

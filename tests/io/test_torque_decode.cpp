@@ -124,7 +124,22 @@ TEST(TorqueDecode, DetectWheelOnARealCapture) {
       << r.out;
   EXPECT_NE(r.out.find("catalogue: arctic-cat"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("tooth_angles_deg: [0, 15, 30,"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("15 revolutions"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("seen: 8 revolutions"), std::string::npos) << r.out;  // 16 gaps, 2 per turn
+}
+
+TEST(TorqueDecode, DetectWheelSaysWhenTheAskedForCamColumnIsDropped) {
+  // GIVEN a capture whose cam column is named cam, and --cam with a name it does not have
+  const ToolRun r = run("--detect-wheel " + std::string(TORQUED_SOURCE_DIR) +
+                        "/tests/data/captures/rusefi/nb2-cranking-good.csv --crank crank --cam typo");
+  // THEN the crank alone is read, and a note says the cam asked for was dropped (and why)
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("torque-decode: note: --cam 'typo' dropped ("), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("no cam column named 'typo'"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("catalogue: not identified: candidates miata-nb2"), std::string::npos) << r.out;
+  // AND without --cam (the default column name, absent here) no note
+  const ToolRun q = run("--detect-wheel " + std::string(TORQUED_SOURCE_DIR) +
+                        "/tests/data/captures/rusefi/arctic-cat.csv --crank 'Channel 1'");
+  EXPECT_EQ(q.out.find("note:"), std::string::npos) << q.out;
 }
 
 // Every real capture (tests/data/captures/rusefi): the wheel each shows, or why none; never a wrong name.
@@ -139,8 +154,16 @@ TEST(TorqueDecode, DetectWheelOnEveryRealCapture) {
       {"noisy-trigger-1.csv", "catalogue: toyota-36-2, 36-2", {"toyota-36-2", "36-2"}},
       {"noisy-trigger-2.csv", "catalogue: toyota-36-2, 36-2", {"toyota-36-2", "36-2"}},
       {"noisy-trigger-3.csv", "detect-wheel: no repeating gap structure", {}},
-      {"nb2-cranking-good.csv --crank crank", "catalogue: miata-nb2 (", {"miata-nb2"}},
+      {"nb2-cranking-good.csv --crank crank", "catalogue: miata-nb2 (", {"miata-nb2"}},  // with its cam
+      {"nb2-cranking-good.csv --crank crank",
+       "(one cam turn = 720 deg: 4 teeth per revolution)",
+       {"miata-nb2"}},
+      // the crank alone: 70/110 deg every 180 deg, how many times per turn is not in the edge times
+      {"nb2-cranking-good.csv --crank crank --cam ''",
+       "catalogue: not identified: candidates miata-nb2 (",
+       {}},
       {"4g63-cranking.csv --crank crank", "catalogue: 4g63 (", {"4g63"}},  // teeth per turn: its cam column
+      {"4g63-cranking.csv --crank crank", "(one cam turn = 720 deg: 2 teeth per revolution)", {"4g63"}},
       {"4g63-cranking.csv --crank crank --cam ''", "catalogue: not identified by the crank alone", {}},
       {"cas_nissan_24_plus_1.csv --crank pri --cam sec", "catalogue: nissan-cas-24+1 (", {"nissan-cas-24+1"}},
       {"cas_nissan_24_plus_1.csv --crank pri", "catalogue: not identified by the crank alone", {}},
@@ -152,7 +175,7 @@ TEST(TorqueDecode, DetectWheelOnEveryRealCapture) {
     const ToolRun r = run("--detect-wheel " + dir + c.args);
     EXPECT_NE(r.out.find(c.expect), std::string::npos) << c.args << "\n" << r.out;
     const auto at = r.out.find("catalogue: ");
-    if (at == std::string::npos || r.out.compare(at, 26, "catalogue: not identified ") == 0 ||
+    if (at == std::string::npos || r.out.compare(at, 25, "catalogue: not identified") == 0 ||
         r.out.compare(at, 20, "catalogue: no entry ") == 0)
       continue;
     // THEN every name given as the match is a right one

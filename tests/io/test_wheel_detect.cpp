@@ -100,22 +100,47 @@ TEST(WheelDetect, RealArcticCatCapture) {
   std::printf("%s", describe(d).c_str());
 }
 
-TEST(WheelDetect, UnevenPatternWheelWithoutGapIsMatchedToItsCatalogueEntry) {
+TEST(WheelDetect, UnevenPatternWheelIsACandidateByTheCrankAloneAndNamedWithItsCam) {
   // GIVEN miata-nb2 (4 teeth at 0, 70, 180, 250 deg, no missing-tooth gap), cranking ripple and jitter
   const WheelDetection d = detect_wheel(jittered_teeth("miata-nb2"));
-  // THEN the repeat (2 teeth over 180 deg, 70/110) is found and only miata-nb2 matches
+  // THEN the repeat (2 teeth, 70/110) is found; it repeats twice per turn, which the crank cannot observe (a
+  // wheel with the repeat once per turn gives the same edge times): a candidate, no angles, no match
   ASSERT_TRUE(d.error.empty()) << d.error;
   EXPECT_EQ(d.positions, 0);
   EXPECT_EQ(d.pattern_teeth, 2) << describe(d);
-  EXPECT_EQ(d.matches, (std::vector<std::string>{"miata-nb2"})) << describe(d);
-  EXPECT_DOUBLE_EQ(d.repeat_deg, 180.0);
-  ASSERT_EQ(d.tooth_angles_deg.size(), 4u) << describe(d);
+  EXPECT_TRUE(d.matches.empty()) << describe(d);
+  EXPECT_EQ(d.candidates, (std::vector<std::string>{"miata-nb2"})) << describe(d);
+  EXPECT_TRUE(d.tooth_angles_deg.empty()) << describe(d);
+  EXPECT_NE(describe(d).find("catalogue: not identified: candidates miata-nb2 (miata-nb2 repeats its 2 teeth "
+                             "every 180 deg, 2 times per turn; edge times cannot tell"),
+            std::string::npos)
+      << describe(d);
+  EXPECT_LT(d.noise_periods, 10) << describe(d);  // the 70 deg periods are no noise
+  // GIVEN the same wheel with a cam (one window per 720 deg: its edges repeat every 8 teeth)
+  WheelGeometry w;
+  ASSERT_TRUE(wheel_from_name("miata-nb2", w, nullptr));
+  std::vector<std::int64_t> teeth;
+  std::vector<WheelCamEdge> cam;
+  for (const EdgeEvent& e : test::synthesize(cranking(w)).edges) {
+    if (e.channel == 0 && e.level != 0) teeth.push_back(e.t_ns);
+    if (e.channel != 0) cam.push_back({e.t_ns, e.level != 0});
+  }
+  const WheelDetection c = detect_wheel(teeth, {}, cam);
+  // THEN 4 teeth per turn: miata-nb2 is named, with its angles and the speed per turn
+  ASSERT_TRUE(c.error.empty()) << c.error;
+  EXPECT_EQ(c.cam_cycle_teeth, 8) << describe(c);
+  EXPECT_EQ(c.matches, (std::vector<std::string>{"miata-nb2"})) << describe(c);
+  EXPECT_DOUBLE_EQ(c.repeat_deg, 180.0);
+  ASSERT_EQ(c.tooth_angles_deg.size(), 4u) << describe(c);
   const double truth[] = {0.0, 70.0, 180.0, 250.0};
   for (std::size_t i = 0; i < 4; ++i)
-    EXPECT_NEAR(d.tooth_angles_deg[i], truth[i], 14.0) << describe(d);  // +-20 % speed ripple on 70 deg
-  EXPECT_GT(d.revolutions, 20);
-  EXPECT_LT(d.noise_periods, 10) << describe(d);  // the 70 deg periods are no noise
-  EXPECT_NE(describe(d).find("catalogue: miata-nb2"), std::string::npos) << describe(d);
+    EXPECT_NEAR(c.tooth_angles_deg[i], truth[i], 14.0) << describe(c);  // +-20 % speed ripple on 70 deg
+  EXPECT_GT(c.revolutions, 20);
+  EXPECT_LT(c.rpm_max, 2500.0 * 1.05) << describe(c);
+  EXPECT_NE(describe(c).find("cam: its edges repeat every 8 crank teeth (one cam turn = 720 deg: 4 teeth per "
+                             "revolution)\ncatalogue: miata-nb2 (its teeth repeat every 180 deg:"),
+            std::string::npos)
+      << describe(c);
 }
 
 TEST(WheelDetect, EquallySpacedWheelsAreNeverGivenACatalogueNameByTheCrankAlone) {
@@ -223,12 +248,12 @@ TEST(WheelDetect, WideTeethOnAnUnevenWheelAreNoWidthCode) {
       rise.push_back(at(r * 360.0 + a));
       fall.push_back(at(r * 360.0 + a + 45.0));
     }
-  // THEN from either edge it reads miata-nb2, not a width-coded wheel
+  // THEN from either edge it reads miata-nb2 (a candidate: no cam), not a width-coded wheel
   for (const auto& [teeth, other] : {std::pair{rise, fall}, std::pair{fall, rise}}) {
     const WheelDetection d = detect_wheel(teeth, other);
     ASSERT_TRUE(d.error.empty()) << d.error;
     EXPECT_TRUE(d.width_code.empty()) << d.width_code;
-    EXPECT_EQ(d.matches, (std::vector<std::string>{"miata-nb2"})) << describe(d);
+    EXPECT_EQ(d.candidates, (std::vector<std::string>{"miata-nb2"})) << describe(d);
   }
 }
 
@@ -325,6 +350,74 @@ TEST(WheelDetect, RandomPeriodsAreNeverGivenACatalogueName) {
         << "seed " << seed << "\n"
         << describe(d);
   }
+}
+
+TEST(WheelDetect, DuplicatedAndBackwardTimeStampsAreNoise) {
+  // GIVEN 36-2-2-17-15 while cranking with every edge duplicated (the same time twice: zero periods, half the
+  // periods around each) and a time stamp running backwards every 100 edges
+  const std::vector<std::int64_t> t = jittered_teeth("36-2-2-17-15");
+  std::vector<std::int64_t> dup;
+  for (std::size_t k = 0; k < t.size(); ++k) {
+    dup.push_back(t[k]);
+    dup.push_back(k % 100 == 50 ? t[k] - 1000 : t[k]);
+  }
+  const WheelDetection d = detect_wheel(dup);
+  // THEN each period <= 0 is a noise period, and the wheel reads as without them
+  ASSERT_TRUE(d.error.empty()) << d.error;
+  EXPECT_EQ(d.noise_periods, static_cast<int>(t.size())) << describe(d);
+  EXPECT_EQ(d.runs, (std::vector<int>{17, 2, 15, 2})) << describe(d);
+  EXPECT_TRUE(has(d.matches, "36-2-2-17-15")) << describe(d);
+  EXPECT_EQ(describe(d).find("nan"), std::string::npos) << describe(d);
+  // AND the same for a pattern wheel with its cam (the cam edges are read per crank period)
+  WheelGeometry w;
+  ASSERT_TRUE(wheel_from_name("miata-nb2", w, nullptr));
+  std::vector<std::int64_t> teeth;
+  std::vector<WheelCamEdge> cam;
+  for (const EdgeEvent& e : test::synthesize(cranking(w)).edges) {
+    if (e.channel == 0 && e.level != 0) teeth.insert(teeth.end(), 2, e.t_ns);
+    if (e.channel != 0) cam.push_back({e.t_ns, e.level != 0});
+  }
+  const WheelDetection c = detect_wheel(teeth, {}, cam);
+  ASSERT_TRUE(c.error.empty()) << c.error;
+  EXPECT_EQ(c.matches, (std::vector<std::string>{"miata-nb2"})) << describe(c);
+  EXPECT_GE(c.noise_periods, static_cast<int>(teeth.size() / 2)) << describe(c);
+}
+
+TEST(WheelDetect, RevolutionsCountTurnsNotOneTurnWindows) {
+  // GIVEN 20 turns of 36-2-2-17-15 (two gaps per turn) at a steady 1200 rpm
+  WheelGeometry w;
+  ASSERT_TRUE(wheel_from_name("36-2-2-17-15", w, nullptr));
+  std::vector<std::int64_t> t;
+  for (int r = 0; r < 20; ++r)
+    for (int i = 0; i < w.teeth(); ++i)
+      t.push_back(std::llround((r * 360.0 + w.tooth_angles_deg[static_cast<std::size_t>(i)]) / 7200.0 * 1e9));
+  const WheelDetection d = detect_wheel(t);
+  // THEN 19 whole turns lie between the first and the last gap (one-turn windows sliding gap by gap: 37)
+  ASSERT_TRUE(d.error.empty()) << d.error;
+  EXPECT_EQ(d.revolutions, 19) << describe(d);
+  EXPECT_NEAR(d.rpm_min, 1200.0, 1.0);
+  EXPECT_NEAR(d.rpm_max, 1200.0, 1.0);
+}
+
+TEST(WheelDetect, TheWidthCodedEntryIsNeverReadOffOneEdge) {
+  // GIVEN 24 equal teeth per turn, one edge only, at 600 rpm (+-10 % ripple twice per turn), with a cam
+  // window every 720 deg (its edges repeat every 48 teeth: 24 per turn, as gm-24x has)
+  std::vector<std::int64_t> t;
+  double s = 0.0;
+  for (int k = 0; k < 40 * 24; ++k) {
+    t.push_back(static_cast<std::int64_t>(s * 1e9));
+    s += 15.0 / (3600.0 * (1.0 + 0.1 * std::sin(4.0 * M_PI * k / 24.0)));
+  }
+  const WheelDetection d = detect_wheel(t, {}, cam_at(t, 15.0, {{100.0, true}, {290.0, false}}));
+  // THEN gm-24x (its position is in the pulse widths) is neither the match nor a candidate
+  ASSERT_TRUE(d.error.empty()) << d.error;
+  EXPECT_EQ(d.cam_cycle_teeth, 48) << describe(d);
+  EXPECT_FALSE(has(d.matches, "gm-24x")) << describe(d);
+  EXPECT_FALSE(has(d.candidates, "gm-24x")) << describe(d);
+  EXPECT_EQ(describe(d).find("gm-24x"), std::string::npos) << describe(d);
+  // AND without the cam neither
+  const WheelDetection n = detect_wheel(t);
+  EXPECT_FALSE(has(n.candidates, "gm-24x")) << describe(n);
 }
 
 }  // namespace
