@@ -610,6 +610,12 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
   if (!(en.window_end_btdc_deg < en.window_start_btdc_deg))
     out.push_back({"estimators.energies.window_end_btdc_deg", fmt(en.window_end_btdc_deg),
                    "less than window_start_btdc_deg = " + fmt(en.window_start_btdc_deg) + " deg"});
+  // The pressure model blends from the expansion polytrope to p_exh between EVO and the blowdown end
+  // (estimators/energy/load_rls_model.hpp): the blowdown ends after the exhaust valve opens.
+  if (!(en.evo_atdc_deg < en.blowdown_end_atdc_deg))
+    out.push_back({"estimators.energies.blowdown_end_atdc_deg", fmt(en.blowdown_end_atdc_deg),
+                   "more than evo_atdc_deg = " + fmt(en.evo_atdc_deg) +
+                       " deg (the blowdown ends after the exhaust valve opens)"});
   // Per-cylinder KE windows end energy_window/2 after each boundary; neighbouring ones must not overlap.
   const double seg_deg = 720.0 / std::max(1, c.engine.cylinders);
   if (!(en.cylinder_window_deg < seg_deg))

@@ -630,11 +630,11 @@ WheelDetection& read_gap_wheel(WheelDetection& d, std::span<const std::int64_t> 
 WheelDetection detect_wheel(std::span<const std::int64_t> t, std::span<const std::int64_t> other,
                             std::span<const WheelCamEdge> cam) {
   WheelDetection d;
-  // A period <= 0 (a duplicated or out-of-order time stamp: the edge readers do not enforce increasing
-  // times) is noise: its closing edge is dropped up front, so every ratio below divides by a positive time.
+  // A period <= 0 (a duplicated time stamp; through this API also an out-of-order one) is noise: its closing
+  // edge is dropped up front, so every ratio below divides by a positive time.
   std::vector<std::int64_t> kept;
   const std::size_t all_edges = t.size();
-  if (!std::is_sorted(t.begin(), t.end(), std::less_equal<>{})) {
+  if (std::adjacent_find(t.begin(), t.end(), std::greater_equal<>{}) != t.end()) {
     for (const std::int64_t x : t)
       if (kept.empty() || x > kept.back()) kept.push_back(x);
     t = kept;

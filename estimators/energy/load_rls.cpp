@@ -74,19 +74,25 @@ void LoadRls::ripple_range(bool spark_on_can) noexcept {
   const double lo = spark_on_can ? 0.0 : fixed, hi = spark_on_can ? kCentroids - 1.0 : fixed;
   int t = 0;
   double f = 0.0;
-  ripple_table(lo, t, f);  // t grows with the centroid
+  table_pair(lo, 0, kRippleTables - 1, t, f);  // t grows with the centroid
   rip_lo_ = std::min(rip_lo_, t);
-  ripple_table(hi, t, f);
+  table_pair(hi, 0, kRippleTables - 1, t, f);
   rip_hi_ = std::max(rip_hi_, f > 0.0 ? t + 1 : t);
 }
 
-void LoadRls::ripple_table(double centroid_deg, int& t, double& frac) const noexcept {
+void LoadRls::table_pair(double centroid_deg, int lo, int hi, int& t, double& frac) const noexcept {
   const double x = std::isfinite(centroid_deg)
                        ? kRippleBase + (centroid_deg - params_.burn_centroid_atdc_deg) / kRippleStepDeg
                        : static_cast<double>(kRippleBase);
-  const double c = std::clamp(x, 0.0, static_cast<double>(kRippleTables - 1));
-  t = std::min(static_cast<int>(c), kRippleTables - 2);
+  const double c = std::clamp(x, static_cast<double>(lo), static_cast<double>(hi));
+  t = std::min(static_cast<int>(c), std::max(lo, hi - 1));
   frac = c - t;
+}
+
+void LoadRls::ripple_table(double centroid_deg, int& t, double& frac) const noexcept {
+  // Within the tables built (ripple_first/last): a centroid they cannot reach (a spark advance given to a
+  // model built without one) reads the nearest built table, never an unbuilt (zero) one.
+  table_pair(centroid_deg, rip_lo_, rip_hi_, t, frac);
 }
 
 void LoadRls::ripple_p3(double map_pa, const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid,

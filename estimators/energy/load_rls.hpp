@@ -66,7 +66,7 @@ class LoadRls {
  public:
   /// `spark_on_can`: a spark advance can arrive (the configuration maps its CAN signal). Without one, or
   /// with energies.incycle_spark_phasing off, the in-cycle model's burn centroid stays fixed and only the
-  /// ripple tables it can read are built (ripple_tables()).
+  /// ripple tables it can read are built (ripple_first(), ripple_last()).
   LoadRls(const EngineGeometry& engine, const WheelGeometry& wheel, const EnergiesParams& params,
           bool spark_on_can = true);
   void reset() noexcept;
@@ -152,6 +152,8 @@ class LoadRls {
     double full_below = 0.0, s_lo = 0.0, s_hi = 0.0;
   };
   void ripple_range(bool spark_on_can) noexcept;
+  /// The table pair for a centroid (deg ATDC) among tables lo..hi (ripple_table() with the built ones).
+  void table_pair(double centroid_deg, int lo, int hi, int& t, double& frac) const noexcept;
   void build_ripple(const std::vector<double>& center);
   void build_ripple_closure(const RippleBuild& b);
   void build_ripple_samples(const std::vector<double>& center, const RippleBuild& b);

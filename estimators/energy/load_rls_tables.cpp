@@ -75,7 +75,10 @@ void LoadRls::build_tables(const CrankKinematics& kin, const std::vector<double>
   // reads the volume powers: elsewhere there they stay 0 (dV/dθ is the same).
   std::vector<AngleTerms> grid;
   grid.reserve(static_cast<std::size_t>(kFourPi / step) + 2);
-  const double bde = params.blowdown_end_atdc_deg * kDeg, ivc = (540.0 + params.ivc_abdc_deg) * kDeg;
+  // From max(EVO, blowdown end) model_weights() no longer reads the expansion polytrope (the configuration
+  // check keeps EVO before the blowdown end; the max keeps the tables right without it).
+  const double bde = std::max(params.evo_atdc_deg, params.blowdown_end_atdc_deg) * kDeg,
+               ivc = (540.0 + params.ivc_abdc_deg) * kDeg;
   const double last_burn = (kCentroids - 1) * kDeg;
   for (double phi = 0.5 * step; phi < kFourPi;) {  // the same φ sequence as before (repeated addition)
     if (phi >= bde && phi < ivc && !(phi < last_burn)) {
@@ -325,7 +328,8 @@ bool all_after(double phi, double full_below, double s_lo, double s_hi) noexcept
 }
 Powers reads(double phi, const EnergiesParams& prm, double full_below, double s_lo, double s_hi) noexcept {
   if (!all_after(phi, full_below, s_lo, s_hi)) return {};
-  return {phi >= (540.0 + prm.ivc_abdc_deg) * kDeg, phi < prm.blowdown_end_atdc_deg * kDeg};
+  return {phi >= (540.0 + prm.ivc_abdc_deg) * kDeg,
+          phi < std::max(prm.evo_atdc_deg, prm.blowdown_end_atdc_deg) * kDeg};
 }
 }  // namespace
 

@@ -133,6 +133,10 @@ const BadCase kBad[] = {
      "cylinder_window_overlaps.yaml:8:26: key 'estimators.energies.cylinder_window_deg': found '150', "
      "expected less than 720 deg / cylinders = 120 deg",
      1},
+    {"blowdown_before_evo",
+     "blowdown_before_evo.yaml:6:28: key 'estimators.energies.blowdown_end_atdc_deg': found '100', expected "
+     "more than evo_atdc_deg = 130 deg",
+     1},
     {"free_coast_band_inverted",
      "free_coast_band_inverted.yaml:4:3: key 'can.load_reference.free_coast_decel_max': found '1.8' "
      "(default), "

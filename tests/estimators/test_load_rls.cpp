@@ -307,6 +307,16 @@ TEST(LoadRls, BuildsOnlyTheRippleTablesACentroidCanRead) {
   EXPECT_EQ(no_spark.ripple_last(), LoadRls::kRippleBase);
   EXPECT_EQ(off.ripple_first(), LoadRls::kRippleBase);
   EXPECT_EQ(off.ripple_last(), LoadRls::kRippleBase);
+  // AND a centroid a model built without a spark advance cannot reach reads its base table alone, never an
+  // unbuilt (zero) one; with the advance the last table pair at the clamp
+  int t = -1;
+  double frac = -1.0;
+  no_spark.ripple_table(30.0, t, frac);
+  EXPECT_EQ(t, LoadRls::kRippleBase);
+  EXPECT_EQ(frac, 0.0);
+  spark.ripple_table(60.0, t, frac);
+  EXPECT_EQ(t, LoadRls::kRippleTables - 2);
+  EXPECT_EQ(frac, 1.0);
   // AND the base table is the same bit for bit whichever others are built with it
   expect_same_tables(spark, no_spark, LoadRls::kRippleBase, LoadRls::kRippleBase, samples);
   expect_same_tables(spark, off, LoadRls::kRippleBase, LoadRls::kRippleBase, samples);
