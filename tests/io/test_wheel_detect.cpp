@@ -53,6 +53,22 @@ bool has(const std::vector<std::string>& v, const char* s) {
   return std::find(v.begin(), v.end(), s) != v.end();
 }
 
+/// A catalogue wheel cranking up: its rising crank edges (each stamped `copies` times) and its cam edges.
+struct CrankAndCam {
+  std::vector<std::int64_t> teeth;
+  std::vector<WheelCamEdge> cam;
+};
+CrankAndCam crank_and_cam(const char* name, std::size_t copies = 1) {
+  WheelGeometry w;
+  EXPECT_TRUE(wheel_from_name(name, w, nullptr)) << name;
+  CrankAndCam c;
+  for (const EdgeEvent& e : test::synthesize(cranking(w)).edges) {
+    if (e.channel == 0 && e.level != 0) c.teeth.insert(c.teeth.end(), copies, e.t_ns);
+    if (e.channel != 0) c.cam.push_back({e.t_ns, e.level != 0});
+  }
+  return c;
+}
+
 TEST(WheelDetect, JeepEvdIsReadOffItsCaptureWithItsCatalogueNames) {
   const WheelDetection d = detect_wheel(synthetic_teeth(test::wheel_runs(36, {17, 2, 15, 2})));
   ASSERT_TRUE(d.error.empty()) << d.error;
@@ -117,14 +133,7 @@ TEST(WheelDetect, UnevenPatternWheelIsACandidateByTheCrankAloneAndNamedWithItsCa
       << describe(d);
   EXPECT_LT(d.noise_periods, 10) << describe(d);  // the 70 deg periods are no noise
   // GIVEN the same wheel with a cam (one window per 720 deg: its edges repeat every 8 teeth)
-  WheelGeometry w;
-  ASSERT_TRUE(wheel_from_name("miata-nb2", w, nullptr));
-  std::vector<std::int64_t> teeth;
-  std::vector<WheelCamEdge> cam;
-  for (const EdgeEvent& e : test::synthesize(cranking(w)).edges) {
-    if (e.channel == 0 && e.level != 0) teeth.push_back(e.t_ns);
-    if (e.channel != 0) cam.push_back({e.t_ns, e.level != 0});
-  }
+  const auto [teeth, cam] = crank_and_cam("miata-nb2");
   const WheelDetection c = detect_wheel(teeth, {}, cam);
   // THEN 4 teeth per turn: miata-nb2 is named, with its angles and the speed per turn
   ASSERT_TRUE(c.error.empty()) << c.error;
@@ -314,14 +323,7 @@ TEST(WheelDetect, NoCatalogueWheelIsEverGivenAWrongName) {
 
 TEST(WheelDetect, TheCamTellsTheSymmetricWheelFromItsHalf) {
   // GIVEN 36-2-2-16-16 (16, 2 twice per turn) with its cam (rising 45 deg, falling 225 deg of 720)
-  WheelGeometry w;
-  ASSERT_TRUE(wheel_from_name("36-2-2-16-16", w, nullptr));
-  std::vector<std::int64_t> teeth;
-  std::vector<WheelCamEdge> cam;
-  for (const EdgeEvent& e : test::synthesize(cranking(w)).edges) {
-    if (e.channel == 0 && e.level != 0) teeth.push_back(e.t_ns);
-    if (e.channel != 0) cam.push_back({e.t_ns, e.level != 0});
-  }
+  const auto [teeth, cam] = crank_and_cam("36-2-2-16-16");
   const WheelDetection d = detect_wheel(teeth, {}, cam);
   // THEN 64 teeth per cam turn = two cycles per turn: the whole wheel, its 32 angles, the speed per turn
   ASSERT_TRUE(d.error.empty()) << d.error;
@@ -369,14 +371,7 @@ TEST(WheelDetect, DuplicatedAndBackwardTimeStampsAreNoise) {
   EXPECT_TRUE(has(d.matches, "36-2-2-17-15")) << describe(d);
   EXPECT_EQ(describe(d).find("nan"), std::string::npos) << describe(d);
   // AND the same for a pattern wheel with its cam (the cam edges are read per crank period)
-  WheelGeometry w;
-  ASSERT_TRUE(wheel_from_name("miata-nb2", w, nullptr));
-  std::vector<std::int64_t> teeth;
-  std::vector<WheelCamEdge> cam;
-  for (const EdgeEvent& e : test::synthesize(cranking(w)).edges) {
-    if (e.channel == 0 && e.level != 0) teeth.insert(teeth.end(), 2, e.t_ns);
-    if (e.channel != 0) cam.push_back({e.t_ns, e.level != 0});
-  }
+  const auto [teeth, cam] = crank_and_cam("miata-nb2", 2);
   const WheelDetection c = detect_wheel(teeth, {}, cam);
   ASSERT_TRUE(c.error.empty()) << c.error;
   EXPECT_EQ(c.matches, (std::vector<std::string>{"miata-nb2"})) << describe(c);
