@@ -160,6 +160,14 @@ TEST(CsvNumber, EightDigitsMatchPrintf) {
 }
 
 TEST(CsvNumber, TrailingZerosTrimmedLikeTheCharacterScan) {
+  // around the single-SWAR form's bounds (n = v * 10^D below 10^8; a whole part of 0) and the fall-backs
+  for (const double x : {99.9999994, 99.9999996, 100.0, 99.999999, 0.01, 0.0099999, 0.1, 0.999999, 1.0, 1.5,
+                         -0.5, -99.9999996, 9.99999999, 10.0, 12345.678, 99999.9999, 100000.0, 0.0001})
+    for (const double y : {x, x / 1000.0, x * 1000.0}) {
+      ASSERT_EQ(fixed<3>(y), ref_fixed<3>(y)) << y;
+      ASSERT_EQ(fixed<6>(y), ref_fixed<6>(y)) << y;
+      ASSERT_EQ(fixed<9>(y), ref_fixed<9>(y)) << y;
+    }
   std::mt19937_64 rng(17);
   std::uniform_real_distribution<double> mant(-1.0, 1.0);
   for (int i = 0; i < 300000; ++i) {
