@@ -94,7 +94,7 @@ class TimeSanity {
   [[nodiscard]] bool pop(Rec& out) noexcept {
     if (ready_head_ == ready_tail_) return false;
     out = ready_[ready_head_];
-    ready_head_ = (ready_head_ + 1) % ready_.size();
+    if (++ready_head_ == ready_.size()) ready_head_ = 0;  // per record: a compare, not a division
     return true;
   }
 
@@ -119,7 +119,7 @@ class TimeSanity {
 
   void ready_push(const Rec& r) noexcept {
     ready_[ready_tail_] = r;
-    ready_tail_ = (ready_tail_ + 1) % ready_.size();
+    if (++ready_tail_ == ready_.size()) ready_tail_ = 0;
   }
   void accept(const Rec& r, std::int64_t t) noexcept {
     base_ = t;
