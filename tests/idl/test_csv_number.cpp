@@ -127,7 +127,8 @@ std::string ref_fixed(double v) {
   const double a = std::fabs(v);
   constexpr double kScale = static_cast<double>(csv::kPow10[D]);
   if (a == 0.0 || !(a >= 1e4 / kScale && a < 9007199254740992.0 / kScale)) return fixed<D>(v);
-  const auto n = static_cast<std::uint64_t>(a * kScale + 0.5);
+  // the writer's rounding (half away from zero on |v| x 10^D in IEEE double), on purpose
+  const auto n = static_cast<std::uint64_t>(a * kScale + 0.5);  // NOLINT(bugprone-incorrect-roundings)
   const std::uint64_t whole = n / csv::kPow10[D];
   char frac[32];
   std::snprintf(frac, sizeof frac, "%0*llu", D, static_cast<unsigned long long>(n - whole * csv::kPow10[D]));
