@@ -57,9 +57,17 @@ class TimeSanity {
     if (opt_.rebase_after > kMaxRebase) opt_.rebase_after = kMaxRebase;
   }
 
-  /// Next record of the input (time t_ns, input line `line`).
-  void push(const Rec& r, std::int64_t t_ns, std::uint64_t line) noexcept {
+  /// Next record of the input (time t_ns, input line `line`). Inline: the common record (no run held, within
+  /// max_jump_ns after the base) is accepted here, per record; the rest in push_held().
+  [[gnu::always_inline]] void push(const Rec& r, std::int64_t t_ns, std::uint64_t line) noexcept {
     if (opt_.max_jump_ns <= 0) return ready_push(r);
+    if (run_n_ == 0 && have_base_ && t_ns >= base_ && t_ns - base_ <= opt_.max_jump_ns) [[likely]]
+      return accept(r, t_ns);
+    push_held(r, t_ns, line);
+  }
+
+  /// push() past its common case (the same decisions, in the same order).
+  [[gnu::noinline]] void push_held(const Rec& r, std::int64_t t_ns, std::uint64_t line) noexcept {
     if (run_n_ == 0) {
       if (!have_base_) return start_run(r, t_ns, line);  // the first records: a run that must agree
       if (t_ns < base_) return drop(Held{r, t_ns, line}, true, base_);
