@@ -19,10 +19,11 @@ namespace torqued {
 std::size_t DbcSignal::bytes_needed() const noexcept {
   if (length == 0) return 0;
   if (little_endian) return static_cast<std::size_t>((start_bit + length - 1) / 8 + 1);
-  // Motorola: walk from the MSB (start_bit) down the sawtooth to the LSB; the furthest byte is the LSB's.
-  int b = start_bit;
-  for (int k = 1; k < length; ++k) b = (b % 8 == 0) ? b + 15 : b - 1;
-  return static_cast<std::size_t>(std::max(b, static_cast<int>(start_bit)) / 8 + 1);
+  // Motorola: from the MSB (start_bit) down the sawtooth to the LSB, the furthest byte is the LSB's: the
+  // MSB's byte holds start_bit % 8 + 1 bits, each further byte 8 (closed form of the bit-by-bit walk, called
+  // per CAN frame and bound signal; tests/io: Dbc.MotorolaBytesNeededMatchesTheSawtoothWalk).
+  const int rest = static_cast<int>(length) - (start_bit % 8 + 1);
+  return static_cast<std::size_t>(start_bit / 8 + (rest > 0 ? (rest + 7) / 8 : 0) + 1);
 }
 
 namespace {

@@ -57,9 +57,17 @@ class TimeSanity {
     if (opt_.rebase_after > kMaxRebase) opt_.rebase_after = kMaxRebase;
   }
 
-  /// Next record of the input (time t_ns, input line `line`).
-  void push(const Rec& r, std::int64_t t_ns, std::uint64_t line) noexcept {
+  /// Next record of the input (time t_ns, input line `line`). Inline: the common record (no run held, within
+  /// max_jump_ns after the base) is accepted here, per record; the rest in push_held().
+  [[gnu::always_inline]] void push(const Rec& r, std::int64_t t_ns, std::uint64_t line) noexcept {
     if (opt_.max_jump_ns <= 0) return ready_push(r);
+    if (run_n_ == 0 && have_base_ && t_ns >= base_ && t_ns - base_ <= opt_.max_jump_ns) [[likely]]
+      return accept(r, t_ns);
+    push_held(r, t_ns, line);
+  }
+
+  /// push() past its common case (the same decisions, in the same order).
+  [[gnu::noinline]] void push_held(const Rec& r, std::int64_t t_ns, std::uint64_t line) noexcept {
     if (run_n_ == 0) {
       if (!have_base_) return start_run(r, t_ns, line);  // the first records: a run that must agree
       if (t_ns < base_) return drop(Held{r, t_ns, line}, true, base_);
@@ -94,7 +102,7 @@ class TimeSanity {
   [[nodiscard]] bool pop(Rec& out) noexcept {
     if (ready_head_ == ready_tail_) return false;
     out = ready_[ready_head_];
-    ready_head_ = (ready_head_ + 1) % ready_.size();
+    if (++ready_head_ == ready_.size()) ready_head_ = 0;  // per record: a compare, not a division
     return true;
   }
 
@@ -119,7 +127,7 @@ class TimeSanity {
 
   void ready_push(const Rec& r) noexcept {
     ready_[ready_tail_] = r;
-    ready_tail_ = (ready_tail_ + 1) % ready_.size();
+    if (++ready_tail_ == ready_.size()) ready_tail_ = 0;
   }
   void accept(const Rec& r, std::int64_t t) noexcept {
     base_ = t;

@@ -15,7 +15,8 @@ void MeanSpeedTracker::recompute_sums() noexcept {
   sum_width_ = 0.0;
   sum_dt_ = 0.0;
   for (int i = 0; i < count_; ++i) {
-    const int idx = (head_ - 1 - i + kCapacity) % kCapacity;
+    int idx = head_ - 1 - i;  // in [-kCapacity, kCapacity): wrapped by a compare, not a division
+    if (idx < 0) idx += kCapacity;
     sum_width_ += width_[static_cast<std::size_t>(idx)];
     sum_dt_ += dt_[static_cast<std::size_t>(idx)];
   }
@@ -28,21 +29,21 @@ void MeanSpeedTracker::update(const ToothSample& tooth) noexcept {
     return;
   }
   if (count_ == kCapacity) {  // cannot happen for a window ≤ 720° and a valid wheel; drop the oldest anyway
-    const int oldest = (head_ - count_ + kCapacity) % kCapacity;
+    const int oldest = oldest_index();
     sum_width_ -= width_[static_cast<std::size_t>(oldest)];
     sum_dt_ -= dt_[static_cast<std::size_t>(oldest)];
     --count_;
   }
   width_[static_cast<std::size_t>(head_)] = tooth.width_rad;
   dt_[static_cast<std::size_t>(head_)] = tooth.dt_s;
-  head_ = (head_ + 1) % kCapacity;
+  if (++head_ == kCapacity) head_ = 0;
   ++count_;
   sum_width_ += tooth.width_rad;
   sum_dt_ += tooth.dt_s;
   // Drop the oldest teeth while the rest still covers the window (tolerance: round-off of the widths).
   const double need = window_rad_ * (1.0 - 1e-9);
   while (count_ > 1) {
-    const int oldest = (head_ - count_ + kCapacity) % kCapacity;
+    const int oldest = oldest_index();
     const double w = width_[static_cast<std::size_t>(oldest)];
     if (sum_width_ - w < need) break;
     sum_width_ -= w;

@@ -31,6 +31,11 @@ class MeanSpeedTracker {
 
  private:
   void recompute_sums() noexcept;
+  /// Ring index of the oldest tooth, (head_ - count_) mod kCapacity by a compare (per tooth: no division).
+  [[nodiscard]] int oldest_index() const noexcept {
+    const int i = head_ - count_;
+    return i < 0 ? i + kCapacity : i;
+  }
 
   double window_rad_;
   std::array<double, kCapacity> width_{};

@@ -5,6 +5,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <initializer_list>
 #include <limits>
 #include <random>
@@ -118,28 +119,56 @@ TEST(CsvNumber, ColumnResolutionFromUnit) {
       "accel_rad_s2,events\n");
 }
 
-/// The trailing-zero trim as it was (reading the written digits back), the reference of the integer form.
+/// The trailing-zero trim as it was (reading the written digits back), the reference of the integer form; the
+/// whole part by std::to_string and the fraction by printf's zero padding (independent of the writer's
+/// digits).
 template <int D>
 std::string ref_fixed(double v) {
-  char buf[64];
   const double a = std::fabs(v);
   constexpr double kScale = static_cast<double>(csv::kPow10[D]);
   if (a == 0.0 || !(a >= 1e4 / kScale && a < 9007199254740992.0 / kScale)) return fixed<D>(v);
-  const auto n = static_cast<std::uint64_t>(a * kScale + 0.5);
-  char* p = buf;
-  *p = '-';
-  p += v < 0;
+  // the writer's rounding (half away from zero on |v| x 10^D in IEEE double), on purpose
+  const auto n = static_cast<std::uint64_t>(a * kScale + 0.5);  // NOLINT(bugprone-incorrect-roundings)
   const std::uint64_t whole = n / csv::kPow10[D];
-  p = csv::write_uint(p, whole);
-  *p = '.';
-  csv::write_digits(p + 1, n - whole * csv::kPow10[D], D);
-  char* e = p + 1 + D;
-  while (e[-1] == '0') --e;
-  if (e[-1] == '.') --e;
-  return std::string(buf, e);
+  char frac[32];
+  std::snprintf(frac, sizeof frac, "%0*llu", D, static_cast<unsigned long long>(n - whole * csv::kPow10[D]));
+  std::string s = v < 0 ? "-" : "";
+  s += std::to_string(whole);
+  s += '.';
+  s += frac;
+  while (s.back() == '0') s.pop_back();
+  if (s.back() == '.') s.pop_back();
+  return s;
+}
+
+/// The SWAR digits (csv::digits8) against printf on every value below 10^5, a stride through [0, 10^8) and
+/// around each power of ten; and integers of every length at each offset.
+TEST(CsvNumber, EightDigitsMatchPrintf) {
+  auto check = [](std::uint32_t v) {
+    char want[16], got[9] = {};
+    std::snprintf(want, sizeof want, "%08u", v);
+    const std::uint64_t d = csv::digits8(v) | csv::kAsciiZeros;
+    for (int i = 0; i < 8; ++i) got[i] = static_cast<char>((d >> (8 * i)) & 0xFF);
+    ASSERT_STREQ(got, want) << v;
+  };
+  for (std::uint32_t v = 0; v < 100000; ++v) check(v);
+  for (std::uint32_t v = 100000; v < 100000000; v += 97) check(v);
+  for (std::uint64_t p = 10; p <= 100000000; p *= 10)
+    for (std::uint64_t v = p - 3; v < p + 3 && v < 100000000; ++v) check(static_cast<std::uint32_t>(v));
+  for (std::uint64_t p = 1; p != 0 && p <= 10000000000000000000ull; p *= 10)
+    for (const std::uint64_t v : {p - 1, p, p + 1, 2 * p - 1, 9 * p + (p - 1)})
+      EXPECT_EQ(uint_text(v), std::to_string(v));
 }
 
 TEST(CsvNumber, TrailingZerosTrimmedLikeTheCharacterScan) {
+  // around the single-SWAR form's bounds (n = v * 10^D below 10^8; a whole part of 0) and the fall-backs
+  for (const double x : {99.9999994, 99.9999996, 100.0, 99.999999, 0.01, 0.0099999, 0.1, 0.999999, 1.0, 1.5,
+                         -0.5, -99.9999996, 9.99999999, 10.0, 12345.678, 99999.9999, 100000.0, 0.0001})
+    for (const double y : {x, x / 1000.0, x * 1000.0}) {
+      ASSERT_EQ(fixed<3>(y), ref_fixed<3>(y)) << y;
+      ASSERT_EQ(fixed<6>(y), ref_fixed<6>(y)) << y;
+      ASSERT_EQ(fixed<9>(y), ref_fixed<9>(y)) << y;
+    }
   std::mt19937_64 rng(17);
   std::uniform_real_distribution<double> mant(-1.0, 1.0);
   for (int i = 0; i < 300000; ++i) {

@@ -2,6 +2,7 @@
 // exports, plus bit extraction checked against hand-packed payloads.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -152,6 +153,23 @@ TEST(Dbc, CantoolsStyleMotorola) {
   EXPECT_EQ(m->find("SparkAdvance")->bytes_needed(), 5u);
   EXPECT_EQ(m->find("FuelCutoff")->value_table.size(), 2u);
   EXPECT_EQ(m->find("FuelCutoff")->comment, "1 = fuel cut-off active");
+}
+
+/// The payload bytes a Motorola signal needs, against the bit-by-bit walk down the sawtooth numbering (MSB at
+/// start_bit, bit 0 of a byte followed by bit 7 of the next), for every start bit of a 64-byte frame and
+/// every length.
+TEST(Dbc, MotorolaBytesNeededMatchesTheSawtoothWalk) {
+  for (int start = 0; start < 512; ++start)
+    for (int length = 1; length <= 64; ++length) {
+      int b = start;
+      for (int k = 1; k < length; ++k) b = (b % 8 == 0) ? b + 15 : b - 1;
+      DbcSignal s;
+      s.start_bit = static_cast<std::uint16_t>(start);
+      s.length = static_cast<std::uint16_t>(length);
+      s.little_endian = false;
+      ASSERT_EQ(s.bytes_needed(), static_cast<std::size_t>(std::max(b, start) / 8 + 1))
+          << start << " " << length;
+    }
 }
 
 TEST(Dbc, KvaserStyleExtendedAndWarnings) {
