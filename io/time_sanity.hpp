@@ -61,7 +61,7 @@ class TimeSanity {
   /// max_jump_ns after the base) is accepted here, per record; the rest in push_held().
   [[gnu::always_inline]] void push(const Rec& r, std::int64_t t_ns, std::uint64_t line) noexcept {
     if (opt_.max_jump_ns <= 0) return ready_push(r);
-    if (run_n_ == 0 && have_base_ && t_ns >= base_ && t_ns - base_ <= opt_.max_jump_ns) [[likely]]
+    if (run_n_ == 0 && have_base_ && ahead_within(base_, t_ns)) [[likely]]
       return accept(r, t_ns);
     push_held(r, t_ns, line);
   }
@@ -71,17 +71,17 @@ class TimeSanity {
     if (run_n_ == 0) {
       if (!have_base_) return start_run(r, t_ns, line);  // the first records: a run that must agree
       if (t_ns < base_) return drop(Held{r, t_ns, line}, true, base_);
-      if (t_ns - base_ <= opt_.max_jump_ns) return accept(r, t_ns);
+      if (ahead_within(base_, t_ns)) return accept(r, t_ns);
       return start_run(r, t_ns, line);
     }
     const std::int64_t run_last = run_[run_n_ - 1].t;
-    if (t_ns >= run_last && t_ns - run_last <= opt_.max_jump_ns) {
+    if (ahead_within(run_last, t_ns)) {
       run_[run_n_++] = Held{r, t_ns, line};
       if (run_n_ >= opt_.rebase_after) adopt_run();
       return;
     }
     if (!have_base_) return conflict_at_start(r, t_ns, line, run_last);
-    if (t_ns >= base_ && t_ns - base_ <= opt_.max_jump_ns) {  // the old base holds: the run was wrong
+    if (ahead_within(base_, t_ns)) {  // the old base holds: the run was wrong
       drop_run();
       return accept(r, t_ns);
     }
@@ -125,6 +125,12 @@ class TimeSanity {
     std::uint64_t line = 0;
   };
 
+  /// `to` is at or after `from` by at most max_jump_ns. The distance is taken unsigned: two times of
+  /// opposite signs may lie more than INT64_MAX apart (a signed difference would overflow).
+  [[nodiscard]] bool ahead_within(std::int64_t from, std::int64_t to) const noexcept {
+    return to >= from && static_cast<std::uint64_t>(to) - static_cast<std::uint64_t>(from) <=
+                             static_cast<std::uint64_t>(opt_.max_jump_ns);
+  }
   void ready_push(const Rec& r) noexcept {
     ready_[ready_tail_] = r;
     if (++ready_tail_ == ready_.size()) ready_tail_ = 0;
@@ -144,8 +150,7 @@ class TimeSanity {
   /// (at most two records are lost to one corrupt time at the very start).
   void conflict_at_start(const Rec& r, std::int64_t t_ns, std::uint64_t line,
                          std::int64_t run_last) noexcept {
-    if (t_ns < run_last && run_last - t_ns <= opt_.max_jump_ns)
-      return drop(Held{r, t_ns, line}, true, run_last);
+    if (t_ns < run_last && ahead_within(t_ns, run_last)) return drop(Held{r, t_ns, line}, true, run_last);
     if (run_n_ >= 2) {
       adopt_run();
       return push(r, t_ns, line);

@@ -62,6 +62,20 @@ TEST(TimeSanity, OneRecordFarAheadIsDroppedNotAdopted) {
   for (std::size_t i = 1; i < r.kept.size(); ++i) EXPECT_LT(r.kept[i], 100 * kMs);
 }
 
+TEST(TimeSanity, AnOutlierMoreThanInt64MaxAheadIsDroppedNotTakenAsNow) {
+  // GIVEN records at -5e18 ns (a negative time the parsers accept) and one corrupt record at +5e18 ns: more
+  // than INT64_MAX apart, where a signed difference overflows (and wrapped to a small negative "within the
+  // jump")
+  auto t = steady(-5'000'000'000 * kS, 8);
+  t.push_back(5'000'000'000 * kS);
+  t.push_back(-5'000'000'000 * kS + 9 * kMs);
+  const Fed r = feed(t);
+  // THEN the corrupt record is the one dropped, and the good record after it is kept
+  EXPECT_EQ(r.dropped_lines, std::vector<std::uint64_t>{9});
+  ASSERT_EQ(r.kept.size(), 9u);
+  EXPECT_EQ(r.kept.back(), -5'000'000'000 * kS + 9 * kMs);
+}
+
 TEST(TimeSanity, GenuineClockJumpIsAdoptedAfterEnoughRecordsInStep) {
   auto t = steady(0, 20);
   const auto after = steady(3600 * kS, 20);  // a capture resumed an hour later
