@@ -1,6 +1,6 @@
 #pragma once
 // Fast, exact and deterministic number formatting for the CSV recordings (recorder + torque-echo).
-//  - integers: plain decimal (2-digit table, no locale);
+//  - integers: plain decimal, 8 digits per step by SWAR (digits8(); no locale, no division per digit);
 //  - doubles: fixed point with D decimals chosen per column from its unit (csv_decimals()), i.e. the value
 //    rounded to that resolution (half away from zero, applied to v * 10^D computed in IEEE double, so the
 //    same value always gives the same text), trailing zeros dropped ("60.172303", "314.5", "0"). Values too
@@ -16,11 +16,6 @@
 #include <string_view>
 
 namespace torqued::dds::csv {
-
-inline constexpr char kDigitPairs[201] =
-    "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
-    "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
-    "8081828384858687888990919293949596979899";
 
 #define TORQUED_CSV_INLINE [[gnu::always_inline]] inline
 
@@ -44,49 +39,6 @@ inline constexpr std::uint64_t kPow10[20] = {1ull,
                                              100000000000000000ull,
                                              1000000000000000000ull,
                                              10000000000000000000ull};
-
-/// Decimal digits of v (1 for 0): from the bit length (log10(2) ~ 1233/4096), one table compare.
-TORQUED_CSV_INLINE int digit_count(std::uint64_t v) noexcept {
-  const int t = ((64 - __builtin_clzll(v | 1)) * 1233) >> 12;
-  return t - (v < kPow10[t]) + 1;
-}
-
-/// Exactly 4 digits of y < 10000 at p.
-TORQUED_CSV_INLINE void write4(char* p, std::uint32_t y) noexcept {
-  const std::uint32_t hi = (y * 5243u) >> 19;  // y / 100 for y < 10000
-  std::memcpy(p, kDigitPairs + 2 * hi, 2);
-  std::memcpy(p + 2, kDigitPairs + 2 * (y - hi * 100), 2);
-}
-
-/// Writes exactly `n` digits of v (zero-padded on the left, v < 10^n) at p; returns p + n. Four digits per
-/// step from the right (one multiply-shift division by 10^4, two table pairs).
-TORQUED_CSV_INLINE char* write_digits(char* p, std::uint64_t v, int n) noexcept {
-  char* q = p + n;
-  while (q - p >= 4) {
-    const std::uint64_t d = v / 10000;
-    q -= 4;
-    write4(q, static_cast<std::uint32_t>(v - d * 10000));
-    v = d;
-  }
-  const auto r = static_cast<std::uint32_t>(v);  // < 1000
-  switch (q - p) {
-    case 3: {
-      const std::uint32_t hi = (r * 41u) >> 12;  // r / 100 for r < 1000
-      *p = static_cast<char>('0' + hi);
-      std::memcpy(p + 1, kDigitPairs + 2 * (r - hi * 100), 2);
-      break;
-    }
-    case 2:
-      std::memcpy(p, kDigitPairs + 2 * r, 2);
-      break;
-    case 1:
-      *p = static_cast<char>('0' + r);
-      break;
-    default:
-      break;
-  }
-  return p + n;
-}
 
 /// The 8 decimal digits of v < 10^8 as byte values 0-9, the most significant in the lowest byte (the first in
 /// memory on a little-endian machine), by SWAR: two halves of 4 digits in the 32-bit lanes, each split into
@@ -183,7 +135,7 @@ TORQUED_CSV_INLINE char* write_fixed_upto8(char* p, std::uint64_t d, int D) noex
 /// Fixed point with D decimals (see the file comment for the fall-backs). Needs 40 bytes of room.
 template <int D>
 TORQUED_CSV_INLINE char* write_fixed(char* p, double v) noexcept {
-  static_assert(D >= 1 && D <= 10);
+  static_assert(D >= 1 && D <= 9);
   constexpr double kScale = static_cast<double>(kPow10[D]);
   constexpr double kMin = 1e4 / kScale;                 // >= 4 significant digits
   constexpr double kMax = 9007199254740992.0 / kScale;  // 2^53

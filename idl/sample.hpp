@@ -19,7 +19,7 @@ struct AnySample {
     torque_CrankState crank;
     torque_DaemonStatus status;
   } u;
-  /// Zero-filled, so the bytes of unset fields are deterministic. `u{}` (value-initialising the 200-byte
+  /// Zero-filled, so the bytes of unset fields are deterministic. `u{}` (value-initialising the 264-byte
   /// union) compiled to `rep stosq`, slow to start for every sample on this CPU; word stores become vector
   /// stores (perf3: AngleStage::on_tooth's share of the fast replay ≈ −20 %).
   AnySample() noexcept {
