@@ -372,13 +372,9 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   const double u_pred = u1_ * trend, u_run = running_u();  // expected per radian, from before this tooth
   const double w_i = wheel_.width_of(wheel_.next(tooth_));
   const std::int64_t t_prev = last_t_ns_;
-  const bool steady =
-      u3_ > 0.0 && std::max({u1_, u2_, u3_}) * params_.burst_tooth_ratio_min <= std::min({u1_, u2_, u3_});
+  const bool retimable = advance == 1 && steady_for_retime(speed_rpm);
   accept_tooth(t_ns, period, i, w, advance, gap_tooth, out);
-  if (advance == 1 && steady && speed_rpm >= params_.lost_tooth_min_rpm && state_ == SyncState::kSynced) {
-    retime_t0_ns_ = t_prev;
-    retime_u_ = u_run;
-  }
+  if (retimable && state_ == SyncState::kSynced) arm_retime(t_prev, u_run);
   if (held_tooth && advance == 2 && state_ == SyncState::kSynced)
     restart_running_period(held_t, t_ns, w_i, w2);
   if (suspect && state_ == SyncState::kSynced) {  // (a pattern check in accept_tooth may have lost sync)
@@ -460,6 +456,18 @@ bool CrankDecoder::emit_lost(std::int64_t t_ns, ToothEvent& out) noexcept {
 // in cranking, where the period swings by tens of percent from tooth to tooth, the running period is no
 // reference for this choice (DecoderBurstResync: 86 wrong indices with both gates, 414 without the speed
 // gate, 755 without either, 163 without the steady one). Returns true when retimed.
+// retime_last_tooth()'s gates, checked before the tooth is accepted: the last three periods per radian within
+// burst_tooth_ratio_min of each other, and at least lost_tooth_min_rpm.
+bool CrankDecoder::steady_for_retime(double speed_rpm) const noexcept {
+  return u3_ > 0.0 && speed_rpm >= params_.lost_tooth_min_rpm &&
+         std::max({u1_, u2_, u3_}) * params_.burst_tooth_ratio_min <= std::min({u1_, u2_, u3_});
+}
+
+void CrankDecoder::arm_retime(std::int64_t t_prev, double u_run) noexcept {
+  retime_t0_ns_ = t_prev;
+  retime_u_ = u_run;
+}
+
 bool CrankDecoder::retime_last_tooth(std::int64_t t0, std::int64_t t_ns) noexcept {
   if (t0 <= 0 || t0 >= last_t_ns_ || t_ns <= last_t_ns_) return false;
   const double expected = retime_u_ * last_width_rad_;

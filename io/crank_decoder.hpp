@@ -204,6 +204,8 @@ class CrankDecoder {
   bool suspect_resolves_as_glitch(std::int64_t period_ns) noexcept;
   void hold_rejected(std::int64_t t_ns) noexcept;
   bool retime_last_tooth(std::int64_t t0, std::int64_t t_ns) noexcept;
+  [[nodiscard]] bool steady_for_retime(double speed_rpm) const noexcept;
+  void arm_retime(std::int64_t t_prev, double u_run) noexcept;
   [[nodiscard]] std::int64_t held_tooth_time(std::int64_t t_ns, double w, double w2,
                                              double u_pred) const noexcept;
   void restart_running_period(std::int64_t t_i, std::int64_t t_ns, double w, double w2) noexcept;
