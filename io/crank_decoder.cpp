@@ -109,6 +109,7 @@ void CrankDecoder::reset_sync(SyncState to) noexcept {
   burst_teeth_ = 0;
   suspect_period_ns_ = 0;
   resolved_t_ns_ = 0;
+  retime_t0_ns_ = 0;
   held_n_ = 0;
   period_ns_ = 0;
 }
@@ -277,6 +278,7 @@ void CrankDecoder::enter_synced(std::int64_t t_ns, std::int64_t period, int idx,
   held_n_ = 0;
   suspect_period_ns_ = 0;
   resolved_t_ns_ = 0;
+  retime_t0_ns_ = 0;
   last_t_ns_ = t_ns;
   pending_flags_ |= flags | (stats_.syncs > 1 ? kToothResynced : 0u);
   emit(t_ns, idx, w, period, out);
@@ -304,6 +306,8 @@ void CrankDecoder::emit_syncing(std::int64_t t_ns, std::int64_t period, bool too
 }
 
 bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEvent& out) noexcept {
+  const std::int64_t retime_t0 = retime_t0_ns_;
+  retime_t0_ns_ = 0;  // only the first edge after a tooth may retime it
   if (suspect_period_ns_ > 0 && suspect_resolves_as_glitch(period)) return false;
   int i = wheel_.next(tooth_);
   double w = wheel_.width_of(i);
@@ -317,7 +321,7 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
   const double q_run = static_cast<double>(period) / (running_u() * w);
   if (is_synced_noise(period, u1_ * std::min(trend, 1.0), q_run)) {
     reject_noise();
-    hold_rejected(t_ns);
+    if (!retime_last_tooth(retime_t0, t_ns)) hold_rejected(t_ns);
     return false;
   }
   bool normal = fits_one_tooth(q_flat, trend, q_run, burst);
@@ -367,7 +371,10 @@ bool CrankDecoder::synced_step(std::int64_t t_ns, std::int64_t period, ToothEven
                        q_run < params_.burst_tooth_ratio_min && q_trend < params_.burst_tooth_ratio_min;
   const double u_pred = u1_ * trend, u_run = running_u();  // expected per radian, from before this tooth
   const double w_i = wheel_.width_of(wheel_.next(tooth_));
+  const std::int64_t t_prev = last_t_ns_;
+  const bool retimable = advance == 1 && steady_for_retime(speed_rpm);
   accept_tooth(t_ns, period, i, w, advance, gap_tooth, out);
+  if (retimable && state_ == SyncState::kSynced) arm_retime(t_prev, u_run);
   if (held_tooth && advance == 2 && state_ == SyncState::kSynced)
     restart_running_period(held_t, t_ns, w_i, w2);
   if (suspect && state_ == SyncState::kSynced) {  // (a pattern check in accept_tooth may have lost sync)
@@ -433,6 +440,48 @@ void CrankDecoder::lose_sync_on_period(bool gap_tooth, double q, std::int64_t t_
 bool CrankDecoder::emit_lost(std::int64_t t_ns, ToothEvent& out) noexcept {
   last_t_ns_ = t_ns;
   emit_unsynced(t_ns, SyncState::kLostSync, out);
+  return true;
+}
+
+// The first edge after a tooth, rejected as noise: was it the tooth, and the edge accepted before it a glitch
+// standing in? At idle a glitch at 0.8-1 of a pitch fits the running period and the true tooth right after it
+// is a runt; each later glitch of a dense burst was then judged from the one before it, 0.85 of a pitch apart
+// is a tooth again, and one glitch too many ran every index after it one ahead until the gap dropped sync.
+// Taken as the tooth's time when the accepted edge came early (its period from the tooth before, t0, under
+// the running period before it, retime_u_) and this edge makes that period closer to the running one and
+// within [burst_tooth_ratio_min, 1 / burst_tooth_ratio_min] of it. The tooth keeps its index (already
+// reported); its period and the next edge's timing restart from this edge, so the glitches after it are
+// judged against the true tooth. Armed (retime_t0_ns_) only after a one-tooth step at a steady speed (the
+// last three periods per radian within burst_tooth_ratio_min of each other) of at least lost_tooth_min_rpm:
+// in cranking, where the period swings by tens of percent from tooth to tooth, the running period is no
+// reference for this choice (DecoderBurstResync: 86 wrong indices with both gates, 414 without the speed
+// gate, 755 without either, 163 without the steady one). Returns true when retimed.
+// retime_last_tooth()'s gates, checked before the tooth is accepted: the last three periods per radian within
+// burst_tooth_ratio_min of each other, and at least lost_tooth_min_rpm.
+bool CrankDecoder::steady_for_retime(double speed_rpm) const noexcept {
+  return u3_ > 0.0 && speed_rpm >= params_.lost_tooth_min_rpm &&
+         std::max({u1_, u2_, u3_}) * params_.burst_tooth_ratio_min <= std::min({u1_, u2_, u3_});
+}
+
+void CrankDecoder::arm_retime(std::int64_t t_prev, double u_run) noexcept {
+  retime_t0_ns_ = t_prev;
+  retime_u_ = u_run;
+}
+
+bool CrankDecoder::retime_last_tooth(std::int64_t t0, std::int64_t t_ns) noexcept {
+  if (t0 <= 0 || t0 >= last_t_ns_ || t_ns <= last_t_ns_) return false;
+  const double expected = retime_u_ * last_width_rad_;
+  const auto dev = [&](std::int64_t p) { return std::abs(std::log(static_cast<double>(p) / expected)); };
+  const std::int64_t p_new = t_ns - t0;
+  const double r = params_.burst_tooth_ratio_min;
+  const double q = static_cast<double>(p_new) / expected;
+  const auto p_old = static_cast<double>(last_t_ns_ - t0);
+  if (p_old >= expected || q < r || q * r > 1.0 || dev(p_new) >= dev(last_t_ns_ - t0)) return false;
+  period_ns_ = p_new;
+  u1_ = static_cast<double>(p_new) / last_width_rad_;
+  last_t_ns_ = t_ns;
+  suspect_period_ns_ = 0;
+  resolved_t_ns_ = 0;
   return true;
 }
 

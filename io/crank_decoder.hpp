@@ -203,6 +203,9 @@ class CrankDecoder {
   void reject_noise() noexcept;
   bool suspect_resolves_as_glitch(std::int64_t period_ns) noexcept;
   void hold_rejected(std::int64_t t_ns) noexcept;
+  bool retime_last_tooth(std::int64_t t0, std::int64_t t_ns) noexcept;
+  [[nodiscard]] bool steady_for_retime(double speed_rpm) const noexcept;
+  void arm_retime(std::int64_t t_prev, double u_run) noexcept;
   [[nodiscard]] std::int64_t held_tooth_time(std::int64_t t_ns, double w, double w2,
                                              double u_pred) const noexcept;
   void restart_running_period(std::int64_t t_i, std::int64_t t_ns, double w, double w2) noexcept;
@@ -262,6 +265,10 @@ class CrankDecoder {
   /// Synced: time of the tooth edge after a suspect resolved as a glitch (rejected as noise, the glitch keeps
   /// its index), until the next tooth is accepted (0 = none): that tooth's period may be timed from it.
   std::int64_t resolved_t_ns_ = 0;
+  /// Synced: time of the tooth before the last one (0 = the last tooth cannot be retimed) and the running
+  /// period per radian before the last tooth (retime_last_tooth()).
+  std::int64_t retime_t0_ns_ = 0;
+  double retime_u_ = 0.0;
   /// Synced, in a burst: times of the edges rejected as noise since the last accepted tooth (the latest
   /// kHeld; a true tooth among them is found at the next edge, held_tooth_time()).
   static constexpr int kHeld = 4;

@@ -86,6 +86,7 @@ struct Result {
   int wrong_resync = 0;          ///< ... of which the tooth of a (re)sync
   int late = 0;                  ///< bursts after which sync came back later than one revolution
   int bursts = 0;
+  int losses = 0;  ///< sync losses
   std::string first_wrong;
 };
 
@@ -133,6 +134,7 @@ Result run(const Case& c, const DecoderParams& p) {
       r.first_wrong = "tooth " + std::to_string(t.tooth % teeth) + " at " + std::to_string(t.t_ns * 1e-9) +
                       " s (true " + std::to_string(nearest_true_tooth(n.clean, t.t_ns, teeth)) + ")";
   }
+  r.losses = static_cast<int>(dec.stats().sync_losses);
   r.bursts_wrong = static_cast<int>(std::count(burst_wrong.begin(), burst_wrong.end(), true));
   for (const Burst& b : n.bursts) {
     ++r.bursts;
@@ -158,7 +160,7 @@ std::vector<Case> cases() {
 TEST(DecoderBurstResync, NoResyncOnAGlitchMadeGapAndResyncWithinOneRevolution) {
   DecoderParams p;
   p.use_cam = false;
-  int wrong = 0, wrong_resync = 0, after = 0, late = 0, bursts = 0;
+  int wrong = 0, wrong_resync = 0, after = 0, late = 0, bursts = 0, losses = 0;
   Result all;
   for (const Case& c : cases()) {
     const Result r = run(c, p);
@@ -170,13 +172,14 @@ TEST(DecoderBurstResync, NoResyncOnAGlitchMadeGapAndResyncWithinOneRevolution) {
     std::printf(
         "info: %d-%d at %.0f rpm, seed %u: synced teeth with a wrong index %d (at a glitch edge %d, "
         "lost-tooth recoveries %d); glitch edges taken as teeth %d; true teeth rejected as noise %d; "
-        "bursts followed by a wrong index %d of %d; late %d\n",
+        "bursts followed by a wrong index %d of %d; sync losses %d; late %d\n",
         c.positions, c.missing, c.rpm0, c.seed, r.wrong, r.wrong_at_glitch, r.wrong_lost, r.glitch_teeth,
-        r.true_rejected, r.bursts_wrong, r.bursts, r.late);
+        r.true_rejected, r.bursts_wrong, r.bursts, r.losses, r.late);
     wrong += r.wrong;
     wrong_resync += r.wrong_resync;
     after += r.wrong_after_bad_sync;
     late += r.late;
+    losses += r.losses;
     bursts += r.bursts;
     EXPECT_EQ(r.wrong_resync + r.wrong_after_bad_sync, 0)
         << c.positions << "-" << c.missing << " at " << c.rpm0 << " rpm, seed " << c.seed << ": "
@@ -184,8 +187,8 @@ TEST(DecoderBurstResync, NoResyncOnAGlitchMadeGapAndResyncWithinOneRevolution) {
   }
   std::printf(
       "info: %d bursts; resync teeth with a wrong index %d, teeth after such a resync %d; synced teeth "
-      "with a wrong index in all %d; bursts resynced later than one revolution %d\n",
-      bursts, wrong_resync, after, wrong, late);
+      "with a wrong index in all %d; sync losses %d; bursts resynced later than one revolution %d\n",
+      bursts, wrong_resync, after, wrong, losses, late);
   std::printf(
       "info: of the %d: %d reported at a glitch edge, %d lost-tooth recoveries, the rest true teeth with a "
       "shifted index; glitch edges taken as teeth %d; true teeth rejected as noise while synced %d; bursts "
@@ -214,9 +217,14 @@ TEST(DecoderBurstResync, NoResyncOnAGlitchMadeGapAndResyncWithinOneRevolution) {
   // one), 421 with it, 160 with the held edge (io/crank_decoder.cpp, held_tooth_time: a true tooth rejected
   // against a running period that lagged a speed-up was counted as one with the next, the half-rate lock;
   // 36-2 cranking seeds 2 and 6, 119 and 80 -> 4 and 0). Left: glitches standing in for teeth, one too many
-  // in a dense burst (60-2 and 36-2 idle, seeds 2, 4, 5; 36-2 cranking seed 5), docs/io.md. The bound is the
-  // count measured (fixed seeds, deterministic): any new wrong index fails.
-  EXPECT_LE(wrong, 160);
+  // in a dense burst (60-2 and 36-2 idle, seeds 2, 4, 5; 36-2 cranking seed 5). 86 with the retimed tooth
+  // (io/crank_decoder.cpp, retime_last_tooth: at steady speed over 400 rpm a glitch at 0.8 of a pitch stood
+  // in for a tooth and the glitches after it were judged from it; the tooth's own edge right after it now
+  // retimes it): 60-2 idle seed 2 40 -> 0, 36-2 idle seed 4 35 -> 2, sync losses 77 -> 68. Left: a glitch
+  // standing in at the gap and in cranking bursts (36-2 idle seed 5, 36-2 cranking seed 5), docs/io.md. The
+  // bound is the count measured (fixed seeds, deterministic) with a margin of 4.
+  EXPECT_LE(wrong, 90);
+  EXPECT_LE(losses, 70);
 }
 
 }  // namespace

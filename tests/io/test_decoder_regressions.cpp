@@ -285,6 +285,27 @@ TEST(DecoderRegression, SecondGlitchAfterAResolvedOneDoesNotAdvanceTheIndex) {
   EXPECT_GT(r.synced, 8 * w.teeth());
 }
 
+// A dense burst at steady idle (60-2 at 800 rpm): glitch pulses every 0.85 of a pitch from tooth 20 of the
+// sixth revolution on (4 of them). The first fits the running period (0.85 >= burst_tooth_ratio_min) and
+// stands in for tooth 21, whose edge 0.15 pitch later is a runt. Before the last tooth could be retimed
+// (io/crank_decoder.cpp, retime_last_tooth) each later glitch was judged from the one before it, 0.85 of a
+// pitch, a tooth again: the glitch at 3.4 pitches took index 24 (true 23 at 3.0 was rejected), and the
+// indices ran one ahead until the gap dropped sync. Now tooth 21's edge, making the period one pitch, retimes
+// tooth 21 and the glitches after it are runts against it.
+TEST(DecoderRegression, GlitchesAtFourFifthsOfAPitchAtIdleDoNotRunTheIndexAhead) {
+  const WheelGeometry w = runs_wheel(60, {58, 2});
+  Stream s = make_stream(w, 800.0, 10, [](int, int) { return 0.0; });
+  const double pitch_ns = 60e9 / 800.0 / 60;
+  for (int k = 1; k <= 4; ++k)
+    add_pulse(s, s.truth[5 * 58 + 20].first + static_cast<std::int64_t>(0.85 * k * pitch_ns));
+  const Result r = run(w, DecoderParams{}, s);
+  EXPECT_EQ(r.stats.syncs, 1u);
+  EXPECT_EQ(r.stats.sync_losses, 0u) << to_string(r.stats.last_loss_reason);
+  EXPECT_EQ(r.stats.lost_teeth, 0u);
+  EXPECT_EQ(r.wrong_index, 1);  // the first glitch itself (tooth 21 at the glitch's time); nothing after it
+  EXPECT_GT(r.synced, 8 * w.teeth());
+}
+
 // Cranking at 300 rpm on a 36-2 wheel with ±10 % of a period of jitter on every edge (tooth-to-tooth period
 // ratios up to ±20 %, as on noisy-trigger-1): the old decoder's trend-extrapolated prediction turned the
 // jitter into unexpected gaps and dropped sync.
