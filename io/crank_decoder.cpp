@@ -443,6 +443,18 @@ bool CrankDecoder::emit_lost(std::int64_t t_ns, ToothEvent& out) noexcept {
   return true;
 }
 
+// retime_last_tooth()'s gates, checked before the tooth is accepted: the last three periods per radian within
+// burst_tooth_ratio_min of each other, and at least lost_tooth_min_rpm.
+bool CrankDecoder::steady_for_retime(double speed_rpm) const noexcept {
+  return u3_ > 0.0 && speed_rpm >= params_.lost_tooth_min_rpm &&
+         std::max({u1_, u2_, u3_}) * params_.burst_tooth_ratio_min <= std::min({u1_, u2_, u3_});
+}
+
+void CrankDecoder::arm_retime(std::int64_t t_prev, double u_run) noexcept {
+  retime_t0_ns_ = t_prev;
+  retime_u_ = u_run;
+}
+
 // The first edge after a tooth, rejected as noise: was it the tooth, and the edge accepted before it a glitch
 // standing in? At idle a glitch at 0.8-1 of a pitch fits the running period and the true tooth right after it
 // is a runt; each later glitch of a dense burst was then judged from the one before it, 0.85 of a pitch apart
@@ -456,18 +468,6 @@ bool CrankDecoder::emit_lost(std::int64_t t_ns, ToothEvent& out) noexcept {
 // in cranking, where the period swings by tens of percent from tooth to tooth, the running period is no
 // reference for this choice (DecoderBurstResync: 86 wrong indices with both gates, 414 without the speed
 // gate, 755 without either, 163 without the steady one). Returns true when retimed.
-// retime_last_tooth()'s gates, checked before the tooth is accepted: the last three periods per radian within
-// burst_tooth_ratio_min of each other, and at least lost_tooth_min_rpm.
-bool CrankDecoder::steady_for_retime(double speed_rpm) const noexcept {
-  return u3_ > 0.0 && speed_rpm >= params_.lost_tooth_min_rpm &&
-         std::max({u1_, u2_, u3_}) * params_.burst_tooth_ratio_min <= std::min({u1_, u2_, u3_});
-}
-
-void CrankDecoder::arm_retime(std::int64_t t_prev, double u_run) noexcept {
-  retime_t0_ns_ = t_prev;
-  retime_u_ = u_run;
-}
-
 bool CrankDecoder::retime_last_tooth(std::int64_t t0, std::int64_t t_ns) noexcept {
   if (t0 <= 0 || t0 >= last_t_ns_ || t_ns <= last_t_ns_) return false;
   const double expected = retime_u_ * last_width_rad_;
