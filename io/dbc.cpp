@@ -1,5 +1,4 @@
-// DBC parser (load-time) and bit extraction (real-time safe). Line-oriented with statement joining: CM_ and
-// other quoted statements may span lines; the NS_ block's indented keyword list is skipped.
+// DBC parser (load time: multi-line quoted statements, NS_ list skipped) and bit extraction (real-time safe).
 #include "dbc.hpp"
 
 #include <algorithm>
@@ -19,9 +18,8 @@ namespace torqued {
 std::size_t DbcSignal::bytes_needed() const noexcept {
   if (length == 0) return 0;
   if (little_endian) return static_cast<std::size_t>((start_bit + length - 1) / 8 + 1);
-  // Motorola: from the MSB (start_bit) down the sawtooth to the LSB, the furthest byte is the LSB's: the
-  // MSB's byte holds start_bit % 8 + 1 bits, each further byte 8 (closed form of the bit-by-bit walk, called
-  // per CAN frame and bound signal; tests/io: Dbc.MotorolaBytesNeededMatchesTheSawtoothWalk).
+  // Motorola (the sawtooth from the MSB, start_bit, to the LSB, whose byte is the furthest): the MSB's byte
+  // holds start_bit % 8 + 1 bits, each further one 8 (test Dbc.MotorolaBytesNeededMatchesTheSawtoothWalk).
   const int rest = static_cast<int>(length) - (start_bit % 8 + 1);
   return static_cast<std::size_t>(start_bit / 8 + (rest > 0 ? (rest + 7) / 8 : 0) + 1);
 }
