@@ -53,6 +53,17 @@ bool has(const std::vector<std::string>& v, const char* s) {
   return std::find(v.begin(), v.end(), s) != v.end();
 }
 
+/// 40 turns of 24 equal teeth at 600 rpm with +-10 % speed ripple twice per turn (edge times, ns).
+std::vector<std::int64_t> equal_teeth_600rpm() {
+  std::vector<std::int64_t> t;
+  double s = 0.0;
+  for (int k = 0; k < 40 * 24; ++k) {
+    t.push_back(static_cast<std::int64_t>(s * 1e9));
+    s += 15.0 / (3600.0 * (1.0 + 0.1 * std::sin(4.0 * M_PI * k / 24.0)));
+  }
+  return t;
+}
+
 /// A catalogue wheel cranking up: its rising crank edges (each stamped `copies` times) and its cam edges.
 struct CrankAndCam {
   std::vector<std::int64_t> teeth;
@@ -207,12 +218,7 @@ TEST(WheelDetect, TheCamGivesTheTeethPerRevolutionOfAnEquallySpacedWheel) {
 TEST(WheelDetect, ASymmetricCamDoesNotNameAnEntryWhoseCamPatternItIsNot) {
   // GIVEN 24 equal teeth per turn (600 rpm, +-10 % ripple twice per turn) and a cam high for 90 deg every
   // 360 deg (two equal windows per cam turn: the cam cycle looks like 24 teeth = 12 per revolution)
-  std::vector<std::int64_t> t;
-  double s = 0.0;
-  for (int k = 0; k < 40 * 24; ++k) {
-    t.push_back(static_cast<std::int64_t>(s * 1e9));
-    s += 15.0 / (3600.0 * (1.0 + 0.1 * std::sin(4.0 * M_PI * k / 24.0)));
-  }
+  const std::vector<std::int64_t> t = equal_teeth_600rpm();
   const auto cam = cam_at(t, 15.0, {{82.5, false}, {352.5, true}, {442.5, false}, {712.5, true}});
   const WheelDetection d = detect_wheel(t, {}, cam);
   // THEN nissan-cas-24+1 (12 teeth, one 11.5 deg cam slot per 720) is a candidate only, nothing is named
@@ -397,12 +403,7 @@ TEST(WheelDetect, RevolutionsCountTurnsNotOneTurnWindows) {
 TEST(WheelDetect, TheWidthCodedEntryIsNeverReadOffOneEdge) {
   // GIVEN 24 equal teeth per turn, one edge only, at 600 rpm (+-10 % ripple twice per turn), with a cam
   // window every 720 deg (its edges repeat every 48 teeth: 24 per turn, as gm-24x has)
-  std::vector<std::int64_t> t;
-  double s = 0.0;
-  for (int k = 0; k < 40 * 24; ++k) {
-    t.push_back(static_cast<std::int64_t>(s * 1e9));
-    s += 15.0 / (3600.0 * (1.0 + 0.1 * std::sin(4.0 * M_PI * k / 24.0)));
-  }
+  const std::vector<std::int64_t> t = equal_teeth_600rpm();
   const WheelDetection d = detect_wheel(t, {}, cam_at(t, 15.0, {{100.0, true}, {290.0, false}}));
   // THEN gm-24x (its position is in the pulse widths) is neither the match nor a candidate
   ASSERT_TRUE(d.error.empty()) << d.error;
