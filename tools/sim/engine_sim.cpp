@@ -6,6 +6,7 @@
 #include <numbers>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "air_path.hpp"
 #include "can_codec.hpp"
@@ -173,439 +174,550 @@ std::vector<double> nominal_tooth_angles_rad(const WheelGeometry& wheel) {
   return a;
 }
 
-SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& progress) {
-  validate(sc);
-  SimOutput out;
-  const int ncyl = sc.engine.cylinders;
-  EngineModel model(sc);
-  const double t_intake_k = sc.intake_temp_c + 273.15;
-  AirPath air(sc.air, sc.combustion, model.displacement_m3(), t_intake_k);
+namespace {
 
-  SimRandom rng_wheel(sc.seed, 1), rng_jitter(sc.seed, 2), rng_can(sc.seed, 3), rng_noise(sc.seed, 4);
+/// One simulate() run: the crank-angle grid, its slow states, the cylinder events, the sensors and the truth
+/// bookkeeping. run() steps the grid until the scenario's duration; each step is one method per concern.
+class Simulation {
+ public:
+  Simulation(const Scenario& sc, const std::function<void(double t_s)>& progress);
+  SimOutput run();
+
+ private:
+  using State = EngineModel::State;
+  void init_cylinders();
+  void init_edges();
+  void init_can();
+  [[nodiscard]] double throttle_base(double t, double omega) const;
+  /// Every load on the crank (N m); without a vehicle exactly t_load_ (a −0 stays −0 in the truth files).
+  [[nodiscard]] double total_load() const {
+    return sc_.vehicle.present ? t_load_ + veh_.shaft_nm + veh_.acc_nm : t_load_;
+  }
+  [[nodiscard]] double edge_angle() const {
+    return kFourPi * static_cast<double>(kc_) + tmpl_[ki_].angle_rad;
+  }
+  void advance_edge();
+  CycleAcc& cycle_acc(std::int64_t k);
+  void update_fuel_cut(bool rec, double t_rel);
+  void cylinder_events(double theta, double oil_c);
+  void accumulate_truth(std::int64_t n, bool locked, double t_rel, double theta, double omega, double t_total,
+                        double t_mass);
+  void cylinder_windows(double theta);
+  void step_slow(std::int64_t n, bool locked, double t_rel, double omega);
+  [[nodiscard]] double load_command(double t_rel, double dt);
+  void emit_can(double t_rel);
+  void fill_frame(const MessageDef& m, double t_rel, CanFrame& f);
+  void integrate(double theta, const HeldInputs& in, bool rec);
+  void record_edge(const EdgeTemplate& et, double the, const HeldInputs& in, bool rec);
+  void finish();
+
+  const Scenario& sc_;
+  const std::function<void(double t_s)>& progress_;
+  SimOutput out_;
+  const int ncyl_;
+  EngineModel model_;
+  AirPath air_;
+  SimRandom rng_wheel_, rng_jitter_, rng_can_, rng_noise_;
+  std::vector<EdgeTemplate> tmpl_;
+
+  // Integration grid.
+  std::int64_t spc_ = 0;  // steps per cycle
+  double h_ = 0.0;
+  double omega0_ = 0.0;
+  static constexpr int kLockCycles = 2;
+  std::int64_t n0_ = 0;  // grid index of θ = 0
+  double theta_start_ = 0.0;
+  [[nodiscard]] double theta_at(std::int64_t n) const { return static_cast<double>(n - n0_) * h_; }
+
+  // Slow states.
+  double omega_f_ = 0.0;     // dyno/ECU speed filter (rad/s)
+  double dyno_integ_ = 0.0;  // PI integral (N m)
+  double t_load_ = 0.0;      // applied load torque (N m): dynamometer, or the machine's (absorbing positive)
+  VehicleState veh_{};       // vehicle driveline (clutch, shaft, road load; VehicleSim)
+  double idle_integ_ = 0.0;  // idle PI integral (throttle fraction)
+  double throttle_ = 0.0;
+  double map_s_ = 0.0, maf_s_ = 0.0, load_s_ = 0.0, speed_s_ = 0.0;  // sensor lags
+  double last_fuel_mg_ = 0.0, spark_deg_ = 0.0;
+  bool fuel_cut_now_ = false;
+  std::vector<bool> cut_resumed_;
+
+  // State and cylinder events.
+  State y_{};
+  std::array<double, kMaxCylinders> next_ivc_{};
+  double ivc_psi_ = 0.0;  // IVC relative to the following firing TDC (rad, negative)
+
+  // Edges: template cycle and index of the next edge, levels.
+  std::int64_t kc_ = 0;
+  std::size_t ki_ = 0;
+  std::array<std::uint8_t, 2> level_{};
+
+  // CAN.
+  std::vector<MessageDef> msgs_;
+  std::vector<std::int64_t> can_k_;
+  std::vector<double> can_next_;
+  static constexpr std::array<double, 4> kCanOffsets{0.0, 0.0025, 0.005, 0.0075};
+
+  // Truth.
+  std::vector<CycleAcc> cyc_;
+  std::array<std::int64_t, kMaxCylinders> win_idx_{};
+  std::array<double, kMaxCylinders> win_acc_{};
+  std::array<bool, kMaxCylinders> win_clean_{};
+  double lock_acc_ = 0.0;
+  double t_zero_ = 0.0, t_prev_ = 0.0, next_progress_ = 0.5;
+  State k1_{}, k2_{}, k3_{}, k4_{}, yt_{}, ye_{};
+  ModelEval ev_, ev_e_;
+};
+
+void axpy(EngineModel::State& r, const EngineModel::State& a, double s, const EngineModel::State& b) {
+  for (std::size_t i = 0; i < r.size(); ++i) r[i] = a[i] + s * b[i];
+}
+
+Simulation::Simulation(const Scenario& sc, const std::function<void(double t_s)>& progress)
+    : sc_(sc),
+      progress_(progress),
+      ncyl_(sc.engine.cylinders),
+      model_(sc),
+      air_(sc.air, sc.combustion, model_.displacement_m3(), sc.intake_temp_c + 273.15),
+      rng_wheel_(sc.seed, 1),
+      rng_jitter_(sc.seed, 2),
+      rng_can_(sc.seed, 3),
+      rng_noise_(sc.seed, 4) {
   const int teeth = sc.wheel.teeth();
-  out.tooth_error_rad.resize(static_cast<std::size_t>(teeth));
-  for (auto& e : out.tooth_error_rad) e = rng_wheel.gaussian(sc.sensors.tooth_error_sd_deg * kDeg);
-  const auto tmpl = build_template(sc, out.tooth_error_rad);
+  out_.tooth_error_rad.resize(static_cast<std::size_t>(teeth));
+  for (auto& e : out_.tooth_error_rad) e = rng_wheel_.gaussian(sc.sensors.tooth_error_sd_deg * kDeg);
+  tmpl_ = build_template(sc, out_.tooth_error_rad);
+  spc_ = static_cast<std::int64_t>(std::llround(720.0 / sc.step_deg));
+  h_ = kFourPi / static_cast<double>(spc_);
+  omega0_ = std::max(evaluate(sc.speed_rpm, 0.0, 2000.0), 300.0) * kRpm;
+  const int free_cycles = static_cast<int>(std::ceil(sc.warmup_s * omega0_ / kFourPi));
+  n0_ = static_cast<std::int64_t>(kLockCycles + free_cycles) * spc_;
+  theta_start_ = theta_at(0);
+  air_.reset(air_.steady_map(throttle_base(0.0, omega0_), omega0_));
+  omega_f_ = omega0_;
+  veh_.omega_v = omega0_;
+  throttle_ = throttle_base(0.0, omega0_);
+  map_s_ = air_.map_pa();
+  speed_s_ = omega0_;
+  cut_resumed_.assign(sc.fuel_cuts.size(), false);
+  init_cylinders();
+  init_edges();
+  init_can();
+}
 
-  // --- integration grid -----------------------------------------------------------------------------------
-  const auto spc = static_cast<std::int64_t>(std::llround(720.0 / sc.step_deg));  // steps per cycle
-  const double h = kFourPi / static_cast<double>(spc);
-  const double omega0 = std::max(evaluate(sc.speed_rpm, 0.0, 2000.0), 300.0) * kRpm;
-  const int lock_cycles = 2;
-  const int free_cycles = static_cast<int>(std::ceil(sc.warmup_s * omega0 / kFourPi));
-  const std::int64_t n0 = static_cast<std::int64_t>(lock_cycles + free_cycles) * spc;  // grid index of θ = 0
-  const auto theta_at = [&](std::int64_t n) { return static_cast<double>(n - n0) * h; };
-  const double theta_start = theta_at(0);
+double Simulation::throttle_base(double t, double omega) const {
+  if (!sc_.throttle_pct.empty()) return std::clamp(evaluate(sc_.throttle_pct, t, 0.0) / 100.0, 0.0, 1.0);
+  if (!sc_.map_target_kpa.empty())
+    return air_.throttle_for_map(evaluate(sc_.map_target_kpa, t, 50.0) * 1e3, omega);
+  return 0.0;
+}
 
-  // --- slow states ----------------------------------------------------------------------------------------
-  const auto throttle_base = [&](double t, double omega) {
-    if (!sc.throttle_pct.empty()) return std::clamp(evaluate(sc.throttle_pct, t, 0.0) / 100.0, 0.0, 1.0);
-    if (!sc.map_target_kpa.empty())
-      return air.throttle_for_map(evaluate(sc.map_target_kpa, t, 50.0) * 1e3, omega);
-    return 0.0;
-  };
-  air.reset(air.steady_map(throttle_base(0.0, omega0), omega0));
-  double omega_f = omega0;   // dyno/ECU speed filter (rad/s)
-  double dyno_integ = 0.0;   // PI integral (N m)
-  double t_load = 0.0;       // applied load torque (N m): dynamometer, or the machine's (absorbing positive)
-  VehicleState veh{omega0};  // vehicle driveline (clutch, shaft, road load; VehicleSim)
-  double idle_integ = 0.0;   // idle PI integral (throttle fraction)
-  double throttle = throttle_base(0.0, omega0);
-  double map_s = air.map_pa(), maf_s = 0.0, load_s = 0.0, speed_s = omega0;  // sensor lags
-  double last_fuel_mg = 0.0, spark_deg = 0.0;
-  bool fuel_cut_now = false;
-  std::vector<bool> cut_resumed(sc.fuel_cuts.size(), false);
-
-  // --- state and cylinder events --------------------------------------------------------------------------
-  EngineModel::State y{};
-  std::array<double, kMaxCylinders> next_ivc{};
-  const double ivc_rad = sc.combustion.ivc_deg * kDeg;
-  const double ivc_psi = ivc_rad - kFourPi;  // IVC relative to the following firing TDC (rad, negative)
-  const double gamma = sc.combustion.gamma;
-  for (int c = 0; c < ncyl; ++c) {
+void Simulation::init_cylinders() {
+  ivc_psi_ = sc_.combustion.ivc_deg * kDeg - kFourPi;
+  const double gamma = sc_.combustion.gamma;
+  for (int c = 0; c < ncyl_; ++c) {
     const auto cu = static_cast<std::size_t>(c);
-    const double first = model.tdc_base_rad(c) + ivc_psi;
-    next_ivc[cu] = first + kFourPi * std::ceil((theta_start - first) / kFourPi - 1e-12);
+    const double first = model_.tdc_base_rad(c) + ivc_psi_;
+    next_ivc_[cu] = first + kFourPi * std::ceil((theta_start_ - first) / kFourPi - 1e-12);
     // A cylinder already between IVC and blowdown end at start-up: motored polytrope from IVC at MAP.
-    auto& e = model.event(c);
-    e.theta_tdc_rad = next_ivc[cu] - kFourPi - ivc_psi;
-    const double psi = theta_start - e.theta_tdc_rad;
-    e.active = psi <= sc.combustion.blowdown_end_deg * kDeg;
+    auto& e = model_.event(c);
+    e.theta_tdc_rad = next_ivc_[cu] - kFourPi - ivc_psi_;
+    const double psi = theta_start_ - e.theta_tdc_rad;
+    e.active = psi <= sc_.combustion.blowdown_end_deg * kDeg;
     e.q_total_j = 0.0;
     e.cycle = -1000000;
-    y[2 + cu] = air.map_pa() * std::pow(model.volume_m3(ivc_psi) / model.volume_m3(psi), gamma);
+    y_[2 + cu] = air_.map_pa() * std::pow(model_.volume_m3(ivc_psi_) / model_.volume_m3(psi), gamma);
   }
-  {
-    HeldInputs in{0.0, air.map_pa(), 90.0, omega0};
-    ModelEval ev;
-    EngineModel::State dy;
-    model.derivative(theta_start, y, in, dy, &ev);
-    y[1] = 0.5 * ev.inertia_kgm2 * omega0 * omega0;
-  }
+  const HeldInputs in{0.0, air_.map_pa(), 90.0, omega0_};
+  ModelEval ev;
+  State dy;
+  model_.derivative(theta_start_, y_, in, dy, &ev);
+  y_[1] = 0.5 * ev.inertia_kgm2 * omega0_ * omega0_;
+  for (int c = 0; c < ncyl_; ++c)
+    win_idx_[static_cast<std::size_t>(c)] = static_cast<std::int64_t>(
+        std::floor((theta_start_ - model_.tdc_base_rad(c) + 2.0 * kPi) / kFourPi + 1e-12));
+}
 
-  // --- edges
-  // -------------------------------------------------------------------------------------------------
-  auto kc =
-      static_cast<std::int64_t>(std::floor(theta_start / kFourPi)) - 1;  // template cycle of the next edge
-  std::size_t ki = 0;
-  std::array<std::uint8_t, 2> level{};
-  const auto edge_angle = [&]() { return kFourPi * static_cast<double>(kc) + tmpl[ki].angle_rad; };
-  const auto advance_edge = [&]() {
-    if (++ki == tmpl.size()) {
-      ki = 0;
-      ++kc;
-    }
-  };
-  while (edge_angle() <= theta_start) {
-    level[tmpl[ki].channel] = tmpl[ki].level;
+void Simulation::init_edges() {
+  kc_ = static_cast<std::int64_t>(std::floor(theta_start_ / kFourPi)) - 1;  // template cycle of the next edge
+  ki_ = 0;
+  while (edge_angle() <= theta_start_) {
+    level_[tmpl_[ki_].channel] = tmpl_[ki_].level;
     advance_edge();
   }
+}
 
-  // --- CAN
-  // --------------------------------------------------------------------------------------------------- EM_1
-  // only with a machine, VEH_1 only with a vehicle (which has no DYNO_1): without them the frames and their
-  // random draws are unchanged.
-  std::vector<MessageDef> msgs;
-  for (const MessageDef& m : demo_messages()) {
-    if ((m.id == kEm1Id && !sc.e_machine.present) || (m.id == kDyno1Id && sc.vehicle.present) ||
-        (m.id == kVeh1Id && !(sc.vehicle.present && sc.vehicle.flag_on_can)))
-      continue;
-    msgs.push_back(m);
+void Simulation::advance_edge() {
+  if (++ki_ == tmpl_.size()) {
+    ki_ = 0;
+    ++kc_;
   }
-  const double can_offsets[] = {0.0, 0.0025, 0.005, 0.0075};
-  std::vector<std::int64_t> can_k(msgs.size(), 0);
-  std::vector<double> can_next(msgs.size());
-  for (std::size_t m = 0; m < msgs.size(); ++m)
-    can_next[m] = std::max(0.0, can_offsets[m % 4] + rng_can.symmetric(sc.sensors.can_jitter_s));
+}
 
-  std::vector<CycleAcc> cyc;
-  const auto cycle_acc = [&](std::int64_t k) -> CycleAcc& {
-    if (static_cast<std::size_t>(k) >= cyc.size()) cyc.resize(static_cast<std::size_t>(k) + 1);
-    return cyc[static_cast<std::size_t>(k)];
-  };
-  std::array<std::int64_t, kMaxCylinders> win_idx{};
-  std::array<double, kMaxCylinders> win_acc{};
-  std::array<bool, kMaxCylinders> win_clean{};
-  for (int c = 0; c < ncyl; ++c)
-    win_idx[static_cast<std::size_t>(c)] = static_cast<std::int64_t>(
-        std::floor((theta_start - model.tdc_base_rad(c) + 2.0 * kPi) / kFourPi + 1e-12));
+void Simulation::init_can() {
+  // EM_1 only with a machine, VEH_1 only with a vehicle (which has no DYNO_1): without them the frames and
+  // their random draws are unchanged.
+  for (const MessageDef& m : demo_messages()) {
+    if ((m.id == kEm1Id && !sc_.e_machine.present) || (m.id == kDyno1Id && sc_.vehicle.present) ||
+        (m.id == kVeh1Id && !(sc_.vehicle.present && sc_.vehicle.flag_on_can)))
+      continue;
+    msgs_.push_back(m);
+  }
+  can_k_.assign(msgs_.size(), 0);
+  can_next_.resize(msgs_.size());
+  for (std::size_t m = 0; m < msgs_.size(); ++m)
+    can_next_[m] = std::max(0.0, kCanOffsets[m % 4] + rng_can_.symmetric(sc_.sensors.can_jitter_s));
+}
 
-  const double v_cyl = model.displacement_m3() / ncyl;
-  double lock_acc = 0.0;
-  double t_zero = 0.0, t_prev = 0.0, next_progress = 0.5;
-  const int trace_every = sc.trace_every_steps;
-  EngineModel::State k1, k2, k3, k4, yt, ye;
-  ModelEval ev, ev_e;
+CycleAcc& Simulation::cycle_acc(std::int64_t k) {
+  if (static_cast<std::size_t>(k) >= cyc_.size()) cyc_.resize(static_cast<std::size_t>(k) + 1);
+  return cyc_[static_cast<std::size_t>(k)];
+}
 
+SimOutput Simulation::run() {
   for (std::int64_t n = 0;; ++n) {
     const double theta = theta_at(n);
-    const bool locked = n < static_cast<std::int64_t>(lock_cycles) * spc;
-    const bool rec = n >= n0;
-    if (n == n0) {
-      t_zero = y[0];
-      out.initial_levels = level;
+    const bool locked = n < static_cast<std::int64_t>(kLockCycles) * spc_;
+    const bool rec = n >= n0_;
+    if (n == n0_) {
+      t_zero_ = y_[0];
+      out_.initial_levels = level_;
     }
-    const double t_rel = rec ? y[0] - t_zero : 0.0;  // schedules are held at t = 0 during warm-up
-    if (rec && t_rel >= sc.duration_s) break;
-    if (progress && rec && t_rel >= next_progress) {
-      progress(t_rel);
-      next_progress += 0.5;
+    const double t_rel = rec ? y_[0] - t_zero_ : 0.0;  // schedules are held at t = 0 during warm-up
+    if (rec && t_rel >= sc_.duration_s) break;
+    if (progress_ && rec && t_rel >= next_progress_) {
+      progress_(t_rel);
+      next_progress_ += 0.5;
     }
+    update_fuel_cut(rec, t_rel);
+    spark_deg_ = sc_.spark_advance_deg.empty()
+                     ? spark_map_deg(omega_f_ / kRpm, air_.map_pa()) + sc_.spark_offset_deg
+                     : evaluate(sc_.spark_advance_deg, t_rel, 15.0);
+    const double oil_c = evaluate(sc_.oil_temp_c, t_rel, 90.0);
+    cylinder_events(theta, oil_c);
 
-    // Fuel cut-off state (time intervals, early resume below resume_rpm).
-    fuel_cut_now = false;
-    for (std::size_t i = 0; i < sc.fuel_cuts.size(); ++i) {
-      const auto& fc = sc.fuel_cuts[i];
-      if (rec && t_rel >= fc.t_start_s && t_rel < fc.t_end_s && !cut_resumed[i]) {
-        if (omega_f < fc.resume_rpm * kRpm)
-          cut_resumed[i] = true;
-        else
-          fuel_cut_now = true;
-      }
-    }
-    spark_deg = sc.spark_advance_deg.empty()
-                    ? spark_map_deg(omega_f / kRpm, air.map_pa()) + sc.spark_offset_deg
-                    : evaluate(sc.spark_advance_deg, t_rel, 15.0);
-    const double oil_c = evaluate(sc.oil_temp_c, t_rel, 90.0);
-
-    // Cylinder events: IVC starts the closed-cycle integration.
-    for (int c = 0; c < ncyl; ++c) {
-      const auto cu = static_cast<std::size_t>(c);
-      auto& e = model.event(c);
-      if (e.active && theta - e.theta_tdc_rad > sc.combustion.blowdown_end_deg * kDeg) {
-        e.active = false;
-        if (e.cycle >= 0) cycle_acc(e.cycle).truth.cyl_peak_pa[cu] = e.peak_pa;
-      }
-      if (theta >= next_ivc[cu] - 1e-9) {
-        const double tdc = next_ivc[cu] - ivc_psi;
-        next_ivc[cu] += kFourPi;
-        const auto k = static_cast<std::int64_t>(std::floor(tdc / kFourPi + 1e-12));
-        bool misfire = false;
-        for (const auto& m : sc.misfires) misfire |= (k >= 0 && m.cycle == k && m.cylinder == c + 1);
-        const double fuel = air.trapped_air_kg(air.map_pa(), ncyl) /
-                            (sc.combustion.afr_stoich * sc.combustion.lambda) * sc.fuel_factor[cu];
-        e.active = true;
-        e.theta_tdc_rad = tdc;
-        e.q_total_j =
-            (misfire || fuel_cut_now) ? 0.0 : fuel * sc.combustion.q_lhv_j_kg * sc.combustion.heat_fraction;
-        e.soc_rad = -spark_deg * kDeg;
-        e.cycle = static_cast<int>(k);
-        y[2 + cu] = air.map_pa() * std::pow(model.volume_m3(ivc_psi) / model.volume_m3(theta - tdc), gamma);
-        e.peak_pa = y[2 + cu];
-        last_fuel_mg = fuel_cut_now ? 0.0 : fuel * 1e6;
-        if (k >= 0) {
-          auto& tr = cycle_acc(k).truth;
-          tr.cyl_fuel_kg[cu] = fuel_cut_now ? 0.0 : fuel;
-          tr.misfire[cu] = misfire;
-          tr.fuel_cut = tr.fuel_cut || fuel_cut_now;
-          if (c == sc.engine.firing_order[0] - 1) {
-            tr.map_pa = air.map_pa();
-            tr.oil_temp_c = oil_c;
-          }
-        }
-      }
-    }
-
-    // Every load on the crank (N m); without a vehicle exactly t_load (a −0 stays −0 in the truth files).
-    const auto total_load = [&] { return sc.vehicle.present ? t_load + veh.shaft_nm + veh.acc_nm : t_load; };
     const double t_total = total_load();
-    const HeldInputs in{t_total, air.map_pa(), oil_c, locked ? omega0 : 0.0};
-    model.derivative(theta, y, in, k1, &ev);
-    const double omega = ev.omega_rad_s;
+    const HeldInputs in{t_total, air_.map_pa(), oil_c, locked ? omega0_ : 0.0};
+    model_.derivative(theta, y_, in, k1_, &ev_);
+    const double omega = ev_.omega_rad_s;
     if (!locked && omega < 30.0)
-      throw std::runtime_error("scenario '" + sc.name + "': engine stalled (" + std::to_string(omega / kRpm) +
-                               " rpm) at t = " + std::to_string(t_rel) + " s");
-    for (int c = 0; c < ncyl; ++c) {
-      auto& e = model.event(c);
-      if (e.active) e.peak_pa = std::max(e.peak_pa, ev.p_pa[static_cast<std::size_t>(c)]);
+      throw std::runtime_error("scenario '" + sc_.name + "': engine stalled (" +
+                               std::to_string(omega / kRpm) + " rpm) at t = " + std::to_string(t_rel) + " s");
+    for (int c = 0; c < ncyl_; ++c) {
+      auto& e = model_.event(c);
+      if (e.active) e.peak_pa = std::max(e.peak_pa, ev_.p_pa[static_cast<std::size_t>(c)]);
     }
     const double alpha =
-        (ev.t_ind_nm - ev.t_fric_nm - t_total - ev.half_dinertia * omega * omega) / ev.inertia_kgm2;
-    const double t_mass = (ev.inertia_kgm2 - sc.engine.j_rot_kgm2) * alpha + ev.half_dinertia * omega * omega;
-
-    // --- truth accumulators (θ-integrals by the trapezoidal rule on the grid) ---
-    if (locked && n >= spc) lock_acc += h * (ev.t_ind_nm - ev.t_fric_nm);
-    if (rec) {
-      const std::int64_t rel = n - n0;
-      const std::int64_t k = rel / spc;
-      const auto add = [&](CycleAcc& a, double w) {
-        a.ind += w * ev.t_ind_nm;
-        a.fric += w * ev.t_fric_nm;
-        a.load += w * t_total;
-        a.mass += w * t_mass;
-      };
-      if (rel % spc == 0) {
-        CycleAcc& a = cycle_acc(k);
-        a.started = true;
-        a.truth.t_start_s = t_rel;
-        add(a, 0.5 * h);
-        if (k > 0) {
-          CycleAcc& b = cycle_acc(k - 1);
-          add(b, 0.5 * h);
-          b.truth.t_end_s = t_rel;
-          b.range_done = b.started;
-        }
-      } else {
-        add(cycle_acc(k), h);
-      }
-      if (trace_every > 0 && rel % trace_every == 0) {
-        FineSample fs;
-        fs.t_s = t_rel;
-        fs.wheel_angle_rad = theta;
-        fs.speed_rad_s = omega;
-        fs.kinetic_j = 0.5 * ev.inertia_kgm2 * omega * omega;
-        fs.t_ind_nm = ev.t_ind_nm;
-        fs.t_fric_nm = ev.t_fric_nm;
-        fs.t_load_nm = t_total;
-        fs.p_cyl_pa = ev.p_pa;
-        out.trace.push_back(fs);
-      }
-    }
-    for (int c = 0; c < ncyl; ++c) {
-      const auto cu = static_cast<std::size_t>(c);
-      const auto w = static_cast<std::int64_t>(
-          std::floor((theta - model.tdc_base_rad(c) + 2.0 * kPi) / kFourPi + 1e-12));
-      if (w != win_idx[cu]) {
-        const double tdc = model.tdc_base_rad(c) + kFourPi * static_cast<double>(win_idx[cu]);
-        const auto k = static_cast<std::int64_t>(std::floor(tdc / kFourPi + 1e-12));
-        if (win_clean[cu] && k >= 0) {
-          CycleAcc& a = cycle_acc(k);
-          a.truth.cyl_ind_mean_nm[cu] = win_acc[cu] / kFourPi;
-          a.truth.cyl_imep_pa[cu] = win_acc[cu] / v_cyl;
-          ++a.windows;
-        }
-        win_idx[cu] = w;
-        win_acc[cu] = 0.0;
-        win_clean[cu] = true;
-      }
-      win_acc[cu] += h * ev.t_cyl_nm[cu];
-    }
-
-    // --- slow dynamics over the time since the previous grid point (explicit Euler, µs steps) ---
-    const double dt = n == 0 ? 0.0 : y[0] - t_prev;
-    t_prev = y[0];
-    omega_f += dt / sc.dyno.speed_filter_s * (omega - omega_f);
-    if (locked) {
-      if (n == static_cast<std::int64_t>(lock_cycles) * spc - 1) {
-        // End of the locked start: initialise the load at the measured mean net torque (steady start).
-        const double mean_net = lock_acc / kFourPi;
-        const bool torque_mode = !sc.load_phases.empty() && sc.load_phases.front().mode == LoadMode::kTorque;
-        t_load = torque_mode ? evaluate(sc.load_torque_nm, 0.0, 0.0) : mean_net;
-        dyno_integ = t_load;
-      }
-    } else {
-      LoadMode mode = LoadMode::kDynoSpeed;
-      for (const auto& ph : sc.load_phases)
-        if (t_rel >= ph.t_start_s) mode = ph.mode;
-      if (sc.vehicle.present && clutch_closed_at(sc.vehicle, t_rel))
-        mode = LoadMode::kTorque;  // the road holds it
-      double cmd;
-      if (mode == LoadMode::kDynoSpeed) {
-        const double e = omega_f - evaluate(sc.speed_rpm, t_rel, 2000.0) * kRpm;
-        dyno_integ += sc.dyno.ki_nm_per_rad * e * dt;
-        cmd = sc.dyno.kp_nm_per_rad_s * e + dyno_integ;
-      } else {
-        cmd = evaluate(sc.load_torque_nm, t_rel, 0.0);
-        dyno_integ = cmd - sc.dyno.kp_nm_per_rad_s * (omega_f - evaluate(sc.speed_rpm, t_rel, 2000.0) * kRpm);
-      }
-      if (sc.vehicle.present && !sc.e_machine.present) cmd = 0.0;  // no dynamometer, no machine
-      t_load += dt / sc.dyno.torque_lag_s * (cmd - t_load);
-      if (sc.vehicle.present) step_vehicle(sc, veh, t_rel, dt, omega, omega_f);
-    }
-    double u = throttle_base(t_rel, omega_f);
-    if (sc.idle_control) {
-      const double e_rpm = sc.idle_rpm - omega_f / kRpm;
-      idle_integ = std::clamp(idle_integ + sc.air.idle_ki / 100.0 * e_rpm * dt, 0.0, 0.5);
-      u += std::max(0.0, sc.air.idle_kp / 100.0 * e_rpm + idle_integ);
-    }
-    throttle = std::clamp(u, 0.0, 1.0);
-    air.step(throttle, omega, dt);
-    const auto lag = [&](double& s, double x, double tau) {
-      s += (tau > 0 ? std::min(dt / tau, 1.0) : 1.0) * (x - s);
-    };
-    lag(map_s, air.map_pa(), sc.sensors.map_lag_s);
-    lag(maf_s, air.throttle_flow_now_kg_s(), sc.sensors.maf_lag_s);
-    lag(load_s, t_load, sc.sensors.load_lag_s);
-    lag(speed_s, omega, 0.005);
-
-    // --- CAN frames due by now ---
-    if (rec) {
-      for (std::size_t m = 0; m < msgs.size(); ++m) {
-        while (can_next[m] <= t_rel) {
-          const double ts = can_next[m];
-          ++can_k[m];
-          can_next[m] = can_offsets[m % 4] + static_cast<double>(can_k[m]) * sc.sensors.can_period_s +
-                        rng_can.symmetric(sc.sensors.can_jitter_s);
-          if (rng_can.uniform() < sc.sensors.can_drop_prob) continue;
-          CanFrame f;
-          f.t_ns = std::llround(ts * 1e6) * 1000;  // candump resolution: µs
-          f.id = msgs[m].id;
-          f.len = static_cast<std::uint8_t>(msgs[m].dlc);
-          const auto put = [&](const char* name, double v) {
-            pack_signal(*find_signal(msgs[m], name), v, f.data.data());
-          };
-          const double rpm = speed_s / kRpm;
-          switch (msgs[m].id) {
-            case kEngine1Id:
-              put("EngineSpeed", rpm + rng_noise.gaussian(sc.sensors.speed_noise_rpm));
-              put("MAP", (map_s + rng_noise.gaussian(sc.sensors.map_noise_pa)) / 1e3);
-              put("IntakeAirTemp", sc.intake_temp_c + rng_noise.gaussian(sc.sensors.temp_noise_c));
-              put("Throttle", throttle * 100.0);
-              break;
-            case kEngine2Id:
-              put("MAF", maf_s * 1e3 * (1.0 + rng_noise.gaussian(sc.sensors.maf_noise_frac)));
-              put("FuelMass", last_fuel_mg);
-              put("SparkAdvance", spark_deg);
-              put("Lambda",
-                  fuel_cut_now ? 5.0 : sc.combustion.lambda + rng_noise.gaussian(sc.sensors.lambda_noise));
-              put("FuelCutoff", fuel_cut_now ? 1.0 : 0.0);
-              break;
-            case kEngine3Id:
-              put("OilTemp", oil_c + rng_noise.gaussian(sc.sensors.temp_noise_c));
-              put("CoolantTemp", sc.coolant_temp_c + rng_noise.gaussian(sc.sensors.temp_noise_c));
-              break;
-            case kDyno1Id:
-              put("LoadTorque", load_s + rng_noise.gaussian(sc.sensors.load_noise_nm));
-              put("DynoSpeed", rpm + rng_noise.gaussian(sc.sensors.speed_noise_rpm));
-              break;
-            case kVeh1Id:
-              put("ClutchOpen", clutch_flag_open(sc.vehicle, t_rel) ? 1.0 : 0.0);
-              break;
-            case kEm1Id:
-              put("EmTorque", -load_s / sc.e_machine.ratio + rng_noise.gaussian(sc.e_machine.noise_nm));
-              put("EmSpeed", rpm * sc.e_machine.ratio);
-              break;
-            default:
-              break;
-          }
-          out.can.push_back(f);
-        }
-      }
-    }
-
-    // --- RK4 step in crank angle (held slow inputs) ---
-    const auto axpy = [](EngineModel::State& r, const EngineModel::State& a, double s,
-                         const EngineModel::State& b) {
-      for (std::size_t i = 0; i < r.size(); ++i) r[i] = a[i] + s * b[i];
-    };
-    axpy(yt, y, 0.5 * h, k1);
-    model.derivative(theta + 0.5 * h, yt, in, k2, nullptr);
-    axpy(yt, y, 0.5 * h, k2);
-    model.derivative(theta + 0.5 * h, yt, in, k3, nullptr);
-    axpy(yt, y, h, k3);
-    model.derivative(theta + h, yt, in, k4, nullptr);
-
-    // --- edges inside (θ, θ + h]: a partial RK4 step from θ gives the state at the edge angle ---
-    while (edge_angle() <= theta + h) {
-      const EdgeTemplate& et = tmpl[ki];
-      const double the = edge_angle();
-      const double he = the - theta;
-      EngineModel::State q2, q3, q4;
-      axpy(yt, y, 0.5 * he, k1);
-      model.derivative(theta + 0.5 * he, yt, in, q2, nullptr);
-      axpy(yt, y, 0.5 * he, q2);
-      model.derivative(theta + 0.5 * he, yt, in, q3, nullptr);
-      axpy(yt, y, he, q3);
-      model.derivative(the, yt, in, q4, nullptr);
-      for (std::size_t i = 0; i < ye.size(); ++i)
-        ye[i] = y[i] + he / 6.0 * (k1[i] + 2.0 * q2[i] + 2.0 * q3[i] + q4[i]);
-      level[et.channel] = et.level;
-      const double t_true = ye[0] - t_zero;
-      if (rec && t_true >= 0.0) {
-        double tm = t_true + rng_jitter.gaussian(sc.sensors.jitter_sd_s);
-        if (sc.sensors.clock_hz > 0) tm = std::round(tm * sc.sensors.clock_hz) / sc.sensors.clock_hz;
-        const std::int64_t tns = std::max<std::int64_t>(0, std::llround(tm * 1e9));
-        out.edges.push_back({tns, et.channel, et.level});
-        if (et.tooth >= 0) {
-          model.derivative(the, ye, in, q2, &ev_e);
-          const double w = ev_e.omega_rad_s;
-          const double t_edge_load = total_load();  // after this step's slow update, as the truth always was
-          const double acc =
-              (ev_e.t_ind_nm - ev_e.t_fric_nm - t_edge_load - ev_e.half_dinertia * w * w) / ev_e.inertia_kgm2;
-          ToothTruth tt;
-          tt.t_s = t_true;
-          tt.t_meas_ns = tns;
-          tt.tooth = et.tooth;
-          tt.cycle = static_cast<int>(kc);
-          tt.angle720_rad = et.angle_rad;
-          tt.speed_rad_s = w;
-          tt.t_ind_nm = ev_e.t_ind_nm;
-          tt.t_ind_cyl_nm = ev_e.t_cyl_nm;
-          tt.t_mass_nm = (ev_e.inertia_kgm2 - sc.engine.j_rot_kgm2) * acc + ev_e.half_dinertia * w * w;
-          tt.t_fric_nm = ev_e.t_fric_nm;
-          tt.t_load_nm = t_edge_load;
-          tt.t_brake_nm = ev_e.t_ind_nm - ev_e.t_fric_nm;
-          out.teeth.push_back(tt);
-        }
-      }
-      advance_edge();
-    }
-    for (std::size_t i = 0; i < y.size(); ++i) y[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        (ev_.t_ind_nm - ev_.t_fric_nm - t_total - ev_.half_dinertia * omega * omega) / ev_.inertia_kgm2;
+    const double t_mass =
+        (ev_.inertia_kgm2 - sc_.engine.j_rot_kgm2) * alpha + ev_.half_dinertia * omega * omega;
+    accumulate_truth(n, locked, t_rel, theta, omega, t_total, t_mass);
+    cylinder_windows(theta);
+    step_slow(n, locked, t_rel, omega);
+    if (rec) emit_can(t_rel);
+    integrate(theta, in, rec);
   }
+  finish();
+  return std::move(out_);
+}
 
-  for (std::size_t k = 0; k < cyc.size(); ++k) {
-    CycleAcc& a = cyc[k];
-    if (!a.range_done || a.windows != ncyl) continue;
+/// Fuel cut-off state (time intervals, early resume below resume_rpm).
+void Simulation::update_fuel_cut(bool rec, double t_rel) {
+  fuel_cut_now_ = false;
+  for (std::size_t i = 0; i < sc_.fuel_cuts.size(); ++i) {
+    const auto& fc = sc_.fuel_cuts[i];
+    if (rec && t_rel >= fc.t_start_s && t_rel < fc.t_end_s && !cut_resumed_[i]) {
+      if (omega_f_ < fc.resume_rpm * kRpm)
+        cut_resumed_[i] = true;
+      else
+        fuel_cut_now_ = true;
+    }
+  }
+}
+
+/// Cylinder events: the blowdown end closes a cylinder's cycle, IVC starts the closed-cycle integration.
+void Simulation::cylinder_events(double theta, double oil_c) {
+  const double gamma = sc_.combustion.gamma;
+  for (int c = 0; c < ncyl_; ++c) {
+    const auto cu = static_cast<std::size_t>(c);
+    auto& e = model_.event(c);
+    if (e.active && theta - e.theta_tdc_rad > sc_.combustion.blowdown_end_deg * kDeg) {
+      e.active = false;
+      if (e.cycle >= 0) cycle_acc(e.cycle).truth.cyl_peak_pa[cu] = e.peak_pa;
+    }
+    if (theta < next_ivc_[cu] - 1e-9) continue;
+    const double tdc = next_ivc_[cu] - ivc_psi_;
+    next_ivc_[cu] += kFourPi;
+    const auto k = static_cast<std::int64_t>(std::floor(tdc / kFourPi + 1e-12));
+    bool misfire = false;
+    for (const auto& m : sc_.misfires) misfire |= (k >= 0 && m.cycle == k && m.cylinder == c + 1);
+    const double fuel = air_.trapped_air_kg(air_.map_pa(), ncyl_) /
+                        (sc_.combustion.afr_stoich * sc_.combustion.lambda) * sc_.fuel_factor[cu];
+    e.active = true;
+    e.theta_tdc_rad = tdc;
+    e.q_total_j =
+        (misfire || fuel_cut_now_) ? 0.0 : fuel * sc_.combustion.q_lhv_j_kg * sc_.combustion.heat_fraction;
+    e.soc_rad = -spark_deg_ * kDeg;
+    e.cycle = static_cast<int>(k);
+    y_[2 + cu] = air_.map_pa() * std::pow(model_.volume_m3(ivc_psi_) / model_.volume_m3(theta - tdc), gamma);
+    e.peak_pa = y_[2 + cu];
+    last_fuel_mg_ = fuel_cut_now_ ? 0.0 : fuel * 1e6;
+    if (k < 0) continue;
+    auto& tr = cycle_acc(k).truth;
+    tr.cyl_fuel_kg[cu] = fuel_cut_now_ ? 0.0 : fuel;
+    tr.misfire[cu] = misfire;
+    tr.fuel_cut = tr.fuel_cut || fuel_cut_now_;
+    if (c == sc_.engine.firing_order[0] - 1) {
+      tr.map_pa = air_.map_pa();
+      tr.oil_temp_c = oil_c;
+    }
+  }
+}
+
+/// Truth accumulators (θ-integrals by the trapezoidal rule on the grid) and the fine trace.
+void Simulation::accumulate_truth(std::int64_t n, bool locked, double t_rel, double theta, double omega,
+                                  double t_total, double t_mass) {
+  if (locked && n >= spc_) lock_acc_ += h_ * (ev_.t_ind_nm - ev_.t_fric_nm);
+  if (n < n0_) return;
+  const std::int64_t rel = n - n0_;
+  const std::int64_t k = rel / spc_;
+  const auto add = [&](CycleAcc& a, double w) {
+    a.ind += w * ev_.t_ind_nm;
+    a.fric += w * ev_.t_fric_nm;
+    a.load += w * t_total;
+    a.mass += w * t_mass;
+  };
+  if (rel % spc_ == 0) {
+    CycleAcc& a = cycle_acc(k);
+    a.started = true;
+    a.truth.t_start_s = t_rel;
+    add(a, 0.5 * h_);
+    if (k > 0) {
+      CycleAcc& b = cycle_acc(k - 1);
+      add(b, 0.5 * h_);
+      b.truth.t_end_s = t_rel;
+      b.range_done = b.started;
+    }
+  } else {
+    add(cycle_acc(k), h_);
+  }
+  if (sc_.trace_every_steps > 0 && rel % sc_.trace_every_steps == 0) {
+    FineSample fs;
+    fs.t_s = t_rel;
+    fs.wheel_angle_rad = theta;
+    fs.speed_rad_s = omega;
+    fs.kinetic_j = 0.5 * ev_.inertia_kgm2 * omega * omega;
+    fs.t_ind_nm = ev_.t_ind_nm;
+    fs.t_fric_nm = ev_.t_fric_nm;
+    fs.t_load_nm = t_total;
+    fs.p_cyl_pa = ev_.p_pa;
+    out_.trace.push_back(fs);
+  }
+}
+
+/// Per-cylinder windows (TDC − 180° .. TDC + 540°): each cylinder's indicated mean and IMEP.
+void Simulation::cylinder_windows(double theta) {
+  const double v_cyl = model_.displacement_m3() / ncyl_;
+  for (int c = 0; c < ncyl_; ++c) {
+    const auto cu = static_cast<std::size_t>(c);
+    const auto w =
+        static_cast<std::int64_t>(std::floor((theta - model_.tdc_base_rad(c) + 2.0 * kPi) / kFourPi + 1e-12));
+    if (w != win_idx_[cu]) {
+      const double tdc = model_.tdc_base_rad(c) + kFourPi * static_cast<double>(win_idx_[cu]);
+      const auto k = static_cast<std::int64_t>(std::floor(tdc / kFourPi + 1e-12));
+      if (win_clean_[cu] && k >= 0) {
+        CycleAcc& a = cycle_acc(k);
+        a.truth.cyl_ind_mean_nm[cu] = win_acc_[cu] / kFourPi;
+        a.truth.cyl_imep_pa[cu] = win_acc_[cu] / v_cyl;
+        ++a.windows;
+      }
+      win_idx_[cu] = w;
+      win_acc_[cu] = 0.0;
+      win_clean_[cu] = true;
+    }
+    win_acc_[cu] += h_ * ev_.t_cyl_nm[cu];
+  }
+}
+
+/// Slow dynamics over the time since the previous grid point (explicit Euler, µs steps): load, driveline,
+/// idle controller, throttle, air path and the sensors' lags.
+void Simulation::step_slow(std::int64_t n, bool locked, double t_rel, double omega) {
+  const double dt = n == 0 ? 0.0 : y_[0] - t_prev_;
+  t_prev_ = y_[0];
+  omega_f_ += dt / sc_.dyno.speed_filter_s * (omega - omega_f_);
+  if (locked) {
+    if (n == static_cast<std::int64_t>(kLockCycles) * spc_ - 1) {
+      // End of the locked start: initialise the load at the measured mean net torque (steady start).
+      const double mean_net = lock_acc_ / kFourPi;
+      const bool torque_mode = !sc_.load_phases.empty() && sc_.load_phases.front().mode == LoadMode::kTorque;
+      t_load_ = torque_mode ? evaluate(sc_.load_torque_nm, 0.0, 0.0) : mean_net;
+      dyno_integ_ = t_load_;
+    }
+  } else {
+    const double cmd = load_command(t_rel, dt);
+    t_load_ += dt / sc_.dyno.torque_lag_s * (cmd - t_load_);
+    if (sc_.vehicle.present) step_vehicle(sc_, veh_, t_rel, dt, omega, omega_f_);
+  }
+  double u = throttle_base(t_rel, omega_f_);
+  if (sc_.idle_control) {
+    const double e_rpm = sc_.idle_rpm - omega_f_ / kRpm;
+    idle_integ_ = std::clamp(idle_integ_ + sc_.air.idle_ki / 100.0 * e_rpm * dt, 0.0, 0.5);
+    u += std::max(0.0, sc_.air.idle_kp / 100.0 * e_rpm + idle_integ_);
+  }
+  throttle_ = std::clamp(u, 0.0, 1.0);
+  air_.step(throttle_, omega, dt);
+  const auto lag = [&](double& s, double x, double tau) {
+    s += (tau > 0 ? std::min(dt / tau, 1.0) : 1.0) * (x - s);
+  };
+  lag(map_s_, air_.map_pa(), sc_.sensors.map_lag_s);
+  lag(maf_s_, air_.throttle_flow_now_kg_s(), sc_.sensors.maf_lag_s);
+  lag(load_s_, t_load_, sc_.sensors.load_lag_s);
+  lag(speed_s_, omega, 0.005);
+}
+
+/// The dynamometer's (or machine's) torque command: its speed PI, or the scheduled torque (the PI's integral
+/// tracking it for a bumpless switch); none on a vehicle without a machine.
+double Simulation::load_command(double t_rel, double dt) {
+  LoadMode mode = LoadMode::kDynoSpeed;
+  for (const auto& ph : sc_.load_phases)
+    if (t_rel >= ph.t_start_s) mode = ph.mode;
+  if (sc_.vehicle.present && clutch_closed_at(sc_.vehicle, t_rel))
+    mode = LoadMode::kTorque;  // the road holds it
+  double cmd;
+  if (mode == LoadMode::kDynoSpeed) {
+    const double e = omega_f_ - evaluate(sc_.speed_rpm, t_rel, 2000.0) * kRpm;
+    dyno_integ_ += sc_.dyno.ki_nm_per_rad * e * dt;
+    cmd = sc_.dyno.kp_nm_per_rad_s * e + dyno_integ_;
+  } else {
+    cmd = evaluate(sc_.load_torque_nm, t_rel, 0.0);
+    dyno_integ_ = cmd - sc_.dyno.kp_nm_per_rad_s * (omega_f_ - evaluate(sc_.speed_rpm, t_rel, 2000.0) * kRpm);
+  }
+  if (sc_.vehicle.present && !sc_.e_machine.present) cmd = 0.0;  // no dynamometer, no machine
+  return cmd;
+}
+
+/// CAN frames due by now (period, jitter and drops per message; µs time stamps like candump).
+void Simulation::emit_can(double t_rel) {
+  for (std::size_t m = 0; m < msgs_.size(); ++m) {
+    while (can_next_[m] <= t_rel) {
+      const double ts = can_next_[m];
+      ++can_k_[m];
+      can_next_[m] = kCanOffsets[m % 4] + static_cast<double>(can_k_[m]) * sc_.sensors.can_period_s +
+                     rng_can_.symmetric(sc_.sensors.can_jitter_s);
+      if (rng_can_.uniform() < sc_.sensors.can_drop_prob) continue;
+      CanFrame f;
+      f.t_ns = std::llround(ts * 1e6) * 1000;  // candump resolution: µs
+      f.id = msgs_[m].id;
+      f.len = static_cast<std::uint8_t>(msgs_[m].dlc);
+      fill_frame(msgs_[m], t_rel, f);
+      out_.can.push_back(f);
+    }
+  }
+}
+
+void Simulation::fill_frame(const MessageDef& m, double t_rel, CanFrame& f) {
+  const auto put = [&](const char* name, double v) { pack_signal(*find_signal(m, name), v, f.data.data()); };
+  const SensorParams& s = sc_.sensors;
+  const double rpm = speed_s_ / kRpm;
+  switch (m.id) {
+    case kEngine1Id:
+      put("EngineSpeed", rpm + rng_noise_.gaussian(s.speed_noise_rpm));
+      put("MAP", (map_s_ + rng_noise_.gaussian(s.map_noise_pa)) / 1e3);
+      put("IntakeAirTemp", sc_.intake_temp_c + rng_noise_.gaussian(s.temp_noise_c));
+      put("Throttle", throttle_ * 100.0);
+      break;
+    case kEngine2Id:
+      put("MAF", maf_s_ * 1e3 * (1.0 + rng_noise_.gaussian(s.maf_noise_frac)));
+      put("FuelMass", last_fuel_mg_);
+      put("SparkAdvance", spark_deg_);
+      put("Lambda", fuel_cut_now_ ? 5.0 : sc_.combustion.lambda + rng_noise_.gaussian(s.lambda_noise));
+      put("FuelCutoff", fuel_cut_now_ ? 1.0 : 0.0);
+      break;
+    case kEngine3Id:
+      put("OilTemp", evaluate(sc_.oil_temp_c, t_rel, 90.0) + rng_noise_.gaussian(s.temp_noise_c));
+      put("CoolantTemp", sc_.coolant_temp_c + rng_noise_.gaussian(s.temp_noise_c));
+      break;
+    case kDyno1Id:
+      put("LoadTorque", load_s_ + rng_noise_.gaussian(s.load_noise_nm));
+      put("DynoSpeed", rpm + rng_noise_.gaussian(s.speed_noise_rpm));
+      break;
+    case kVeh1Id:
+      put("ClutchOpen", clutch_flag_open(sc_.vehicle, t_rel) ? 1.0 : 0.0);
+      break;
+    case kEm1Id:
+      put("EmTorque", -load_s_ / sc_.e_machine.ratio + rng_noise_.gaussian(sc_.e_machine.noise_nm));
+      put("EmSpeed", rpm * sc_.e_machine.ratio);
+      break;
+    default:
+      break;
+  }
+}
+
+/// RK4 step in crank angle (held slow inputs); the edges inside (θ, θ + h] are placed by partial steps.
+void Simulation::integrate(double theta, const HeldInputs& in, bool rec) {
+  axpy(yt_, y_, 0.5 * h_, k1_);
+  model_.derivative(theta + 0.5 * h_, yt_, in, k2_, nullptr);
+  axpy(yt_, y_, 0.5 * h_, k2_);
+  model_.derivative(theta + 0.5 * h_, yt_, in, k3_, nullptr);
+  axpy(yt_, y_, h_, k3_);
+  model_.derivative(theta + h_, yt_, in, k4_, nullptr);
+  while (edge_angle() <= theta + h_) {
+    const EdgeTemplate& et = tmpl_[ki_];
+    const double the = edge_angle();
+    const double he = the - theta;
+    State q2, q3, q4;
+    axpy(yt_, y_, 0.5 * he, k1_);
+    model_.derivative(theta + 0.5 * he, yt_, in, q2, nullptr);
+    axpy(yt_, y_, 0.5 * he, q2);
+    model_.derivative(theta + 0.5 * he, yt_, in, q3, nullptr);
+    axpy(yt_, y_, he, q3);
+    model_.derivative(the, yt_, in, q4, nullptr);
+    for (std::size_t i = 0; i < ye_.size(); ++i)
+      ye_[i] = y_[i] + he / 6.0 * (k1_[i] + 2.0 * q2[i] + 2.0 * q3[i] + q4[i]);
+    level_[et.channel] = et.level;
+    record_edge(et, the, in, rec);
+    advance_edge();
+  }
+  for (std::size_t i = 0; i < y_.size(); ++i)
+    y_[i] += h_ / 6.0 * (k1_[i] + 2.0 * k2_[i] + 2.0 * k3_[i] + k4_[i]);
+}
+
+/// One edge at wheel angle `the` (state ye_): its measured time (jitter, clock) and, for a marking tooth
+/// edge, the per-tooth truth.
+void Simulation::record_edge(const EdgeTemplate& et, double the, const HeldInputs& in, bool rec) {
+  const double t_true = ye_[0] - t_zero_;
+  if (!rec || t_true < 0.0) return;
+  double tm = t_true + rng_jitter_.gaussian(sc_.sensors.jitter_sd_s);
+  if (sc_.sensors.clock_hz > 0) tm = std::round(tm * sc_.sensors.clock_hz) / sc_.sensors.clock_hz;
+  const std::int64_t tns = std::max<std::int64_t>(0, std::llround(tm * 1e9));
+  out_.edges.push_back({tns, et.channel, et.level});
+  if (et.tooth < 0) return;
+  State dy;
+  model_.derivative(the, ye_, in, dy, &ev_e_);
+  const double w = ev_e_.omega_rad_s;
+  const double t_edge_load = total_load();  // after this step's slow update, as the truth always was
+  const double acc =
+      (ev_e_.t_ind_nm - ev_e_.t_fric_nm - t_edge_load - ev_e_.half_dinertia * w * w) / ev_e_.inertia_kgm2;
+  ToothTruth tt;
+  tt.t_s = t_true;
+  tt.t_meas_ns = tns;
+  tt.tooth = et.tooth;
+  tt.cycle = static_cast<int>(kc_);
+  tt.angle720_rad = et.angle_rad;
+  tt.speed_rad_s = w;
+  tt.t_ind_nm = ev_e_.t_ind_nm;
+  tt.t_ind_cyl_nm = ev_e_.t_cyl_nm;
+  tt.t_mass_nm = (ev_e_.inertia_kgm2 - sc_.engine.j_rot_kgm2) * acc + ev_e_.half_dinertia * w * w;
+  tt.t_fric_nm = ev_e_.t_fric_nm;
+  tt.t_load_nm = t_edge_load;
+  tt.t_brake_nm = ev_e_.t_ind_nm - ev_e_.t_fric_nm;
+  out_.teeth.push_back(tt);
+}
+
+/// The per-cycle truth of every complete cycle; edges and frames in time order.
+void Simulation::finish() {
+  for (std::size_t k = 0; k < cyc_.size(); ++k) {
+    CycleAcc& a = cyc_[k];
+    if (!a.range_done || a.windows != ncyl_) continue;
     CycleTruth t = a.truth;
     t.cycle = static_cast<int>(k);
     t.speed_mean_rad_s = kFourPi / (t.t_end_s - t.t_start_s);
@@ -614,13 +726,19 @@ SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& pr
     t.t_load_mean_nm = a.load / kFourPi;
     t.t_mass_mean_nm = a.mass / kFourPi;
     t.t_brake_mean_nm = t.t_ind_mean_nm - t.t_fric_mean_nm;
-    out.cycles.push_back(t);
+    out_.cycles.push_back(t);
   }
-  std::stable_sort(out.edges.begin(), out.edges.end(),
+  std::stable_sort(out_.edges.begin(), out_.edges.end(),
                    [](const EdgeEvent& a, const EdgeEvent& b) { return a.t_ns < b.t_ns; });
-  std::stable_sort(out.can.begin(), out.can.end(),
+  std::stable_sort(out_.can.begin(), out_.can.end(),
                    [](const CanFrame& a, const CanFrame& b) { return a.t_ns < b.t_ns; });
-  return out;
+}
+
+}  // namespace
+
+SimOutput simulate(const Scenario& sc, const std::function<void(double t_s)>& progress) {
+  validate(sc);
+  return Simulation(sc, progress).run();
 }
 
 }  // namespace torqued::sim
