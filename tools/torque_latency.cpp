@@ -322,9 +322,8 @@ void remove_dir(const std::string& dir, bool keep) {
     std::fprintf(stderr, "torque-latency: could not remove %s\n", dir.c_str());
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+/// What the command line asks for (see add_options for each one's meaning).
+struct Options {
   std::string torqued = "torqued", config;
   bool keep_logs = false;
   std::vector<std::string> daemon_env;
@@ -332,106 +331,93 @@ int main(int argc, char** argv) {
   double duration_s = 15, speed = 1.0;
   bool stress = false, cyclic = false, ddsperf = false, use_waitset = false;
   int sub_prio = 70, ddsperf_rate_hz = 500, sub_cpu = -1, stress_cpu = -1, cyclic_interval_us = 1000;
-  CLI::App app{
-      "torque-latency: tooth edge -> subscriber latency of torqued in paced replay (p50/p99/p99.9/max + "
-      "histogram), optionally with stress-ng --cpu 1, cyclictest and ddsperf alongside"};
-  app.add_option("--torqued", torqued, "torqued executable");
-  app.add_option("--config", config, "daemon configuration (paced replay)")->required();
-  app.add_option("--duration", duration_s, "measurement time (s)");
-  app.add_option("--speed", speed, "replay speed factor");
-  app.add_flag("--stress", stress, "load one core with stress-ng --cpu 1 during the run");
-  app.add_flag("--cyclictest", cyclic, "run cyclictest (rt-tests) alongside and print its percentiles");
-  app.add_flag("--ddsperf", ddsperf,
+};
+
+void add_options(CLI::App& app, Options& o) {
+  app.add_option("--torqued", o.torqued, "torqued executable");
+  app.add_option("--config", o.config, "daemon configuration (paced replay)")->required();
+  app.add_option("--duration", o.duration_s, "measurement time (s)");
+  app.add_option("--speed", o.speed, "replay speed factor");
+  app.add_flag("--stress", o.stress, "load one core with stress-ng --cpu 1 during the run");
+  app.add_flag("--cyclictest", o.cyclic, "run cyclictest (rt-tests) alongside and print its percentiles");
+  app.add_flag("--ddsperf", o.ddsperf,
                "run Cyclone's ddsperf ping/pong alongside and print its one-way latency");
-  app.add_option("--ddsperf-rate", ddsperf_rate_hz, "ddsperf ping rate (Hz), comparable to the sample rate");
-  app.add_flag("--waitset", use_waitset,
+  app.add_option("--ddsperf-rate", o.ddsperf_rate_hz,
+                 "ddsperf ping rate (Hz), comparable to the sample rate");
+  app.add_flag("--waitset", o.use_waitset,
                "take samples from a waitset in the main thread instead of a listener (one more wake-up)");
-  app.add_option("--subscriber-priority", sub_prio,
+  app.add_option("--subscriber-priority", o.sub_prio,
                  "SCHED_FIFO priority of this subscriber process and its DDS threads (0: SCHED_OTHER)")
       ->check(CLI::Range(0, 99));
   app.add_option(
-      "--subscriber-cpu", sub_cpu,
+      "--subscriber-cpu", o.sub_cpu,
       "pin this subscriber (all its DDS threads) to this CPU; cyclictest and ddsperf (ping and pong) "
       "then run on it too, so their floors are the same CPU's (-1: not pinned)");
   app.add_option(
-         "--cyclictest-interval", cyclic_interval_us,
+         "--cyclictest-interval", o.cyclic_interval_us,
          "cyclictest's period (us). It skips the periods a stall swallows (one late sample per stall), "
          "while every tooth edge delayed by a stall is a late sample of ours: at the CrankState rate "
          "(e.g. 3333 at 3000 rpm with crank_state_decimation 10) both p99.9 see stalls equally often")
       ->check(CLI::Range(50, 1000000));
-  app.add_option("--stress-cpu", stress_cpu, "pin stress-ng to this CPU (-1: not pinned)");
+  app.add_option("--stress-cpu", o.stress_cpu, "pin stress-ng to this CPU (-1: not pinned)");
   app.add_option(
-      "--plot", plot,
+      "--plot", o.plot,
       "write a PNG: the latency distributions (tail on a log scale, p50 region as a histogram) next "
       "to cyclictest's, with the targets");
   app.add_option(
-      "--plot-script", plot_script,
+      "--plot-script", o.plot_script,
       "plot script, run with /usr/bin/python3 (default: in PREFIX/share/torqued next to PREFIX/bin)");
-  app.add_option("--title", title, "plot title");
+  app.add_option("--title", o.title, "plot title");
   app.add_option(
-         "--daemon-env", daemon_env,
+         "--daemon-env", o.daemon_env,
          "NAME=VALUE set in the daemon's environment only (repeatable); e.g. TORQUED_DDS_ROLE=daemon with "
          "config/security/cyclonedds-secure-loopback.xml, to measure DDS Security (docs/security.md)")
       ->check(
           [](const std::string& v) { return v.find('=') == std::string::npos ? "expected NAME=VALUE" : ""; });
-  app.add_flag("--keep-logs", keep_logs, "keep the temporary directory with the daemon's and helpers' logs");
+  app.add_flag("--keep-logs", o.keep_logs,
+               "keep the temporary directory with the daemon's and helpers' logs");
   app.footer(
       "Exit status: 0 done; 1 no latency sample measured, the daemon could not be started or DDS failed; 2 "
       "command-line error (unknown option, bad value, file that does not exist).");
-  TORQUED_CLI_PARSE(app, argc, argv);
+}
 
-  // The daemon's DDS settings: same domain, topic prefix and engine_id as the daemon this run starts.
-  const LoadResult cfg = load_config(config);
-  if (!cfg.ok()) {
-    for (const auto& e : cfg.errors) std::fprintf(stderr, "torque-latency: %s\n", e.c_str());
-    return 2;
-  }
-  // Its QoS too: the readers below keep 256 and request no deadline (both what iceoryx carries).
-  const dds::DdsSettings s = tools::dds_settings_from(*cfg.config);
+/// The private temporary directory: logs of the daemon and the helpers, the daemon's state directory.
+struct Paths {
+  std::string dir, daemon_log, cyclic_log, ddsperf_log, state_dir;
+};
 
-  // Private paths: logs of the daemon and the helpers, the daemon's state directory.
-  char tmpl[] = "/tmp/torque-latency-XXXXXX";
-  const char* tmp = mkdtemp(tmpl);
-  if (!tmp) {
-    std::fprintf(stderr, "torque-latency: mkdtemp: %s\n", std::strerror(errno));
-    return 2;
-  }
-  const std::string dir = tmp, daemon_log = dir + "/torqued.log", cyclic_log = dir + "/cyclictest.log",
-                    ddsperf_log = dir + "/ddsperf.log", state_dir = dir + "/state";
-
-  if (sub_cpu >= 0) {
+/// The subscriber's own CPU and scheduling: Cyclone's receive threads inherit the policy of the thread that
+/// creates the participant, so a SCHED_FIFO main thread makes the whole receive path real-time (as a real
+/// supervisory controller would configure it). Refused (not root, no CAP_SYS_NICE): measured with
+/// SCHED_OTHER, said so.
+void pin_and_prioritise(const Options& o) {
+  if (o.sub_cpu >= 0) {
     cpu_set_t set;
     CPU_ZERO(&set);
-    CPU_SET(sub_cpu, &set);
+    CPU_SET(o.sub_cpu, &set);
     if (sched_setaffinity(0, sizeof set, &set) != 0)
-      std::fprintf(stderr, "torque-latency: CPU %d refused (%s): subscriber not pinned\n", sub_cpu,
+      std::fprintf(stderr, "torque-latency: CPU %d refused (%s): subscriber not pinned\n", o.sub_cpu,
                    std::strerror(errno));
   }
-
-  // The subscriber's own scheduling: Cyclone's receive threads inherit the policy of the thread that creates
-  // the participant, so a SCHED_FIFO main thread makes the whole receive path real-time (as a real
-  // supervisory controller would configure it). Refused (not root, no CAP_SYS_NICE): measured with
-  // SCHED_OTHER, said so.
-  if (sub_prio > 0) {
+  if (o.sub_prio > 0) {
     sched_param sp{};
-    sp.sched_priority = sub_prio;
+    sp.sched_priority = o.sub_prio;
     if (sched_setscheduler(0, SCHED_FIFO, &sp) != 0)
       std::fprintf(stderr, "torque-latency: SCHED_FIFO %d refused (%s): subscriber runs SCHED_OTHER\n",
-                   sub_prio, std::strerror(errno));
+                   o.sub_prio, std::strerror(errno));
     else
       mlockall(MCL_CURRENT | MCL_FUTURE);
   }
-  const dds_entity_t pp = dds_create_participant(s.domain_id, nullptr, nullptr);
-  if (pp < 0) {
-    std::fprintf(stderr, "dds_create_participant failed\n");
-    return 1;
-  }
-  // Listener mode (default): samples are taken and time-stamped in Cyclone's receive thread, no extra
-  // wake-up.
-  // --waitset: a waitset in this thread (one more wake-up, what a simple polling subscriber sees).
-  Receiver rx;
+}
+
+/// The two readers on participant `pp`. Listener mode (default): samples are taken and time-stamped in
+/// Cyclone's receive thread, no extra wake-up. --waitset: a waitset in this thread (one more wake-up, what a
+/// simple polling subscriber sees); returns it (0 in listener mode). Whether both readers are on shared
+/// memory goes to `shm`.
+dds_entity_t open_readers(const Options& o, const dds::DdsSettings& s, dds_entity_t pp, Receiver& rx,
+                          bool& shm) {
   dds_listener_t* lis = nullptr;
-  if (!use_waitset) {
+  if (!o.use_waitset) {
     lis = dds_create_listener(&rx);
     dds_lset_data_available(lis, &Receiver::on_data);
   }
@@ -449,36 +435,38 @@ int main(int argc, char** argv) {
   rx.crank.reader = reader(dds::Topic::kCrankState);
   rx.engine.reader = reader(dds::Topic::kEngineTorque);
   if (lis) dds_delete_listener(lis);
-  const bool sub_shm =
-      dds_is_shared_memory_available(rx.crank.reader) && dds_is_shared_memory_available(rx.engine.reader);
+  shm = dds_is_shared_memory_available(rx.crank.reader) && dds_is_shared_memory_available(rx.engine.reader);
+  if (!o.use_waitset) return 0;
   const dds_entity_t ws = dds_create_waitset(pp);
-  if (use_waitset) {
-    dds_waitset_attach(ws, dds_create_readcondition(rx.crank.reader, DDS_ANY_STATE), 1);
-    dds_waitset_attach(ws, dds_create_readcondition(rx.engine.reader, DDS_ANY_STATE), 2);
-  }
+  dds_waitset_attach(ws, dds_create_readcondition(rx.crank.reader, DDS_ANY_STATE), 1);
+  dds_waitset_attach(ws, dds_create_readcondition(rx.engine.reader, DDS_ANY_STATE), 2);
+  return ws;
+}
 
+/// stress-ng, cyclictest and ddsperf as asked, each for the run's length plus 3 s.
+std::vector<pid_t> start_helpers(const Options& o, const dds::DdsSettings& s, const Paths& p) {
   std::vector<pid_t> helpers;
-  const std::string dur = std::to_string(static_cast<int>(duration_s + 3));
-  if (stress) {
+  const std::string dur = std::to_string(static_cast<int>(o.duration_s + 3));
+  if (o.stress) {
     std::vector<std::string> a{"stress-ng", "--cpu", "1", "--timeout", dur + "s", "--quiet"};
-    if (stress_cpu >= 0) a.insert(a.end(), {"--taskset", std::to_string(stress_cpu)});
+    if (o.stress_cpu >= 0) a.insert(a.end(), {"--taskset", std::to_string(o.stress_cpu)});
     helpers.push_back(spawn(a, "/dev/null"));
   }
-  if (cyclic) {
+  if (o.cyclic) {
     std::vector<std::string> a{
-        "cyclictest", "-m",   "-q", "-p", "80", "-i", std::to_string(cyclic_interval_us),
+        "cyclictest", "-m",   "-q", "-p", "80", "-i", std::to_string(o.cyclic_interval_us),
         "-h",         "2000", "-D", dur};
-    if (sub_cpu >= 0) a.insert(a.end(), {"-a", std::to_string(sub_cpu)});
-    helpers.push_back(spawn(a, cyclic_log.c_str()));
+    if (o.sub_cpu >= 0) a.insert(a.end(), {"-a", std::to_string(o.sub_cpu)});
+    helpers.push_back(spawn(a, p.cyclic_log.c_str()));
   }
-  if (ddsperf) {
+  if (o.ddsperf) {
     // Same scheduling as our subscriber, and pinged at a rate like the tooth rate (a CPU woken from idle for
     // each sample is much slower than back-to-back ping-pong, so the unpaced figure is not a fair floor).
-    const std::string prio = std::to_string(sub_prio > 0 ? sub_prio : 1);
-    const std::string rate = std::to_string(ddsperf_rate_hz) + "Hz";
+    const std::string prio = std::to_string(o.sub_prio > 0 ? o.sub_prio : 1);
+    const std::string rate = std::to_string(o.ddsperf_rate_hz) + "Hz";
     std::vector<std::string> pre;
-    if (sub_cpu >= 0) pre.insert(pre.end(), {"taskset", "-c", std::to_string(sub_cpu)});
-    if (sub_prio > 0) pre.insert(pre.end(), {"chrt", "-f", prio});
+    if (o.sub_cpu >= 0) pre.insert(pre.end(), {"taskset", "-c", std::to_string(o.sub_cpu)});
+    if (o.sub_prio > 0) pre.insert(pre.end(), {"chrt", "-f", prio});
     auto with_pre = [&pre](std::vector<std::string> a) {
       a.insert(a.begin(), pre.begin(), pre.end());
       return a;
@@ -488,27 +476,27 @@ int main(int argc, char** argv) {
     const std::string domain = std::to_string(s.domain_id);
     helpers.push_back(spawn(with_pre({"ddsperf", "-i", domain, "-D", dur, "pong"}), "/dev/null"));
     helpers.push_back(
-        spawn(with_pre({"ddsperf", "-i", domain, "-D", dur, "ping", rate}), ddsperf_log.c_str()));
+        spawn(with_pre({"ddsperf", "-i", domain, "-D", dur, "ping", rate}), p.ddsperf_log.c_str()));
   }
-  const pid_t daemon = spawn({torqued, "--config", config, "--speed", std::to_string(speed),
-                              "--wait-subscribers", "1", "--state-dir", state_dir},
-                             daemon_log.c_str(), daemon_env);
+  return helpers;
+}
 
-  const auto t_end = std::chrono::steady_clock::now() + std::chrono::duration<double>(duration_s + 1.5);
+/// Receives for the run's length plus 1.5 s, then stops the listener, the daemon and the helpers.
+void measure(const Options& o, Receiver& rx, dds_entity_t ws, pid_t daemon,
+             const std::vector<pid_t>& helpers) {
+  const auto t_end = std::chrono::steady_clock::now() + std::chrono::duration<double>(o.duration_s + 1.5);
   while (std::chrono::steady_clock::now() < t_end) {
-    if (use_waitset) {
+    if (o.use_waitset) {
       dds_waitset_wait(ws, nullptr, 0, DDS_MSECS(100));
       rx.take_all();
     } else {
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
   }
-  if (!use_waitset) {  // stop the listener before reading its statistics
+  if (!o.use_waitset) {  // stop the listener before reading its statistics
     dds_set_listener(rx.crank.reader, nullptr);
     dds_set_listener(rx.engine.reader, nullptr);
   }
-  const Stats& crank_us = rx.crank.total;
-  const Stats& engine_us = rx.engine.total;
   kill(daemon, SIGTERM);
   int st = 0;
   waitpid(daemon, &st, 0);
@@ -516,11 +504,12 @@ int main(int argc, char** argv) {
     kill(h, SIGINT);
     waitpid(h, &st, 0);
   }
-  dds_delete(pp);
+}
 
+void print_paths(const Options& o, const dds::DdsSettings& s, const Receiver& rx, bool sub_shm) {
   std::printf("torque-latency: %.0f s paced replay at %.1fx%s; DDS domain %u, topics %s/*, engine_id %u\n",
-              duration_s, speed, stress ? ", stress-ng --cpu 1" : "", s.domain_id, s.topic_prefix.c_str(),
-              static_cast<unsigned>(s.engine_id));
+              o.duration_s, o.speed, o.stress ? ", stress-ng --cpu 1" : "", s.domain_id,
+              s.topic_prefix.c_str(), static_cast<unsigned>(s.engine_id));
   if (rx.crank.other_engines + rx.engine.other_engines > 0)
     std::printf("ignored %zu samples of other engine_ids on this domain and prefix\n",
                 rx.crank.other_engines + rx.engine.other_engines);
@@ -529,64 +518,116 @@ int main(int argc, char** argv) {
     std::printf("%-38s %8zu %8.1f %8.1f %8.1f %8.1f\n", name, st.us.size(), st.pct(50), st.pct(99),
                 st.pct(99.9), st.max());
   };
-  row("tooth edge -> CrankState (subscriber)", crank_us);
+  row("tooth edge -> CrankState (subscriber)", rx.crank.total);
   row("  edge -> dds_write (in the daemon)", rx.crank.in_daemon);
   row("  dds_write -> received (DDS)", rx.crank.dds);
-  row("tooth edge -> EngineTorque (subscr.)", engine_us);
+  row("tooth edge -> EngineTorque (subscr.)", rx.engine.total);
   row("  edge -> dds_write (in the daemon)", rx.engine.in_daemon);
   row("  dds_write -> received (DDS)", rx.engine.dds);
   print_tail_owner("CrankState", rx.crank.split);
   print_tail_owner("EngineTorque", rx.engine.split);
   std::printf("subscriber: %s, %s; its readers on %s\n",
-              use_waitset ? "waitset" : "listener (receive thread)",
-              sub_prio > 0 ? "SCHED_FIFO requested" : "SCHED_OTHER",
+              o.use_waitset ? "waitset" : "listener (receive thread)",
+              o.sub_prio > 0 ? "SCHED_FIFO requested" : "SCHED_OTHER",
               sub_shm ? "shared memory (iceoryx)" : "the network path");
+}
+
+/// The floors measured alongside (cyclictest, ddsperf), printed; what they measured.
+struct Floors {
   double cyc_p50 = -1, cyc_p999 = -1, dds_one_way = -1;
-  bool daemon_shm = false;  ///< the daemon logged CrankState among its shared-memory topics
-  if (cyclic) {
+};
+
+Floors print_floors_measured(const Options& o, const Paths& p, bool& keep_logs) {
+  Floors fl;
+  if (o.cyclic) {
     double p50 = 0, p99 = 0, p999 = 0, mx = 0;
     long late_1ms = 0;
-    cyclictest_summary(read_cyclictest(cyclic_log.c_str()), p50, p99, p999, mx, late_1ms);
-    cyc_p50 = p50;
-    cyc_p999 = p999;
-    const std::string name = "cyclictest -i " + std::to_string(cyclic_interval_us) + " (same run)";
+    cyclictest_summary(read_cyclictest(p.cyclic_log.c_str()), p50, p99, p999, mx, late_1ms);
+    fl.cyc_p50 = p50;
+    fl.cyc_p999 = p999;
+    const std::string name = "cyclictest -i " + std::to_string(o.cyclic_interval_us) + " (same run)";
     std::printf("%-38s %8s %8.1f %8.1f %8.1f %8.1f\n", name.c_str(), "-", p50, p99, p999, mx);
     std::printf(
         "cyclictest wake-ups >= 1 ms late: %ld (a 1 kHz thread late by that much misses a tick: compare "
         "with the daemon's time-thread overruns below)\n",
         late_1ms);
   }
-  if (ddsperf) {
+  if (o.ddsperf) {
     double p50 = 0, p99 = 0;
     std::size_t n = 0;
-    ddsperf_summary(ddsperf_log.c_str(), p50, p99, n);
+    ddsperf_summary(p.ddsperf_log.c_str(), p50, p99, n);
     if (n > 0) {
       std::printf("%-38s %8s %8.1f %8.1f %8s %8s\n", "ddsperf one-way (round trip / 2)", "-", p50 / 2,
                   p99 / 2, "-", "-");
-      dds_one_way = p50 / 2;
+      fl.dds_one_way = p50 / 2;
     }
     std::printf(
         "ddsperf ping %d Hz / pong (round trip p50 %.1f us, p99 %.1f us; median of %zu one-second reports)\n",
-        ddsperf_rate_hz, p50, p99, n);
+        o.ddsperf_rate_hz, p50, p99, n);
     if (n == 0) keep_logs = true;
   }
-  print_floors(crank_us, rx.crank.in_daemon, rx.crank.dds, cyc_p50, cyc_p999, dds_one_way);
-  {  // the daemon's own counters (ring drops, time-thread overruns) from its final log line
-    FILE* f = std::fopen(daemon_log.c_str(), "r");
-    char line[1024];
-    std::string last, shm_topics, threads;
-    while (f && std::fgets(line, sizeof line, f)) {
-      if (std::strstr(line, "stopped:")) last = line;
-      if (const char* t = std::strstr(line, "threads over the run")) threads = t;
-      if (const char* t = std::strstr(line, "DDS shared memory (iceoryx) for:")) shm_topics = t;
-    }
-    daemon_shm = shm_topics.find("CrankState") != std::string::npos;
-    if (f) std::fclose(f);
-    if (last.empty()) keep_logs = true;
-    std::printf("daemon: %s", last.empty() ? ("no final counters (see " + daemon_log + ")\n").c_str()
-                                           : last.substr(last.find("stopped:")).c_str());
-    if (!threads.empty()) std::printf("daemon: %s", threads.c_str());
+  return fl;
+}
+
+/// The daemon's own counters (ring drops, time-thread overruns) from its final log line; returns whether it
+/// logged CrankState among its shared-memory topics.
+bool print_daemon_counters(const Paths& p, bool& keep_logs) {
+  FILE* f = std::fopen(p.daemon_log.c_str(), "r");
+  char line[1024];
+  std::string last, shm_topics, threads;
+  while (f && std::fgets(line, sizeof line, f)) {
+    if (std::strstr(line, "stopped:")) last = line;
+    if (const char* t = std::strstr(line, "threads over the run")) threads = t;
+    if (const char* t = std::strstr(line, "DDS shared memory (iceoryx) for:")) shm_topics = t;
   }
+  if (f) std::fclose(f);
+  if (last.empty()) keep_logs = true;
+  std::printf("daemon: %s", last.empty() ? ("no final counters (see " + p.daemon_log + ")\n").c_str()
+                                         : last.substr(last.find("stopped:")).c_str());
+  if (!threads.empty()) std::printf("daemon: %s", threads.c_str());
+  return shm_topics.find("CrankState") != std::string::npos;
+}
+
+/// The PNG of --plot (plot_latency.py on the samples and cyclictest's histogram); false when it failed
+/// (said).
+bool write_plot(const Options& o, const Paths& p, const Receiver& rx) {
+  const std::string csv = o.plot + ".data.csv";
+  const auto cyc =
+      o.cyclic ? read_cyclictest(p.cyclic_log.c_str()).hist : std::vector<std::pair<int, long>>{};
+  if (!write_plot_data(csv,
+                       {{"crank_total", &rx.crank.total},
+                        {"crank_daemon", &rx.crank.in_daemon},
+                        {"crank_dds", &rx.crank.dds},
+                        {"engine_total", &rx.engine.total}},
+                       cyc)) {
+    std::fprintf(stderr, "torque-latency: cannot write %s: %s\n", csv.c_str(), std::strerror(errno));
+    return false;
+  }
+  char dflt[160];
+  std::snprintf(dflt, sizeof dflt, "torqued: tooth edge -> subscriber, %.0f s paced replay at %.1fx%s",
+                o.duration_s, o.speed, o.stress ? ", stress-ng --cpu 1" : "");
+  // Debian's python3-matplotlib lives with /usr/bin/python3 (the PATH python may be another one).
+  const std::string cmd = "/usr/bin/python3 " + shell_quote(o.plot_script) + " --data " + shell_quote(csv) +
+                          " --out " + shell_quote(o.plot) + " --title " +
+                          shell_quote(o.title.empty() ? std::string(dflt) : o.title);
+  if (std::system(cmd.c_str()) != 0) {
+    std::fprintf(stderr, "torque-latency: plot failed (%s); data kept in %s\n", cmd.c_str(), csv.c_str());
+    return false;
+  }
+  std::remove(csv.c_str());
+  std::printf("plot: %s\n", o.plot.c_str());
+  return true;
+}
+
+/// Everything printed after the run: the latency rows, the floors, the daemon's counters, the summary line,
+/// the histogram and the plot. Returns the exit status.
+int report(const Options& o, const dds::DdsSettings& s, const Paths& p, const Receiver& rx, bool sub_shm) {
+  bool keep_logs = o.keep_logs;
+  print_paths(o, s, rx, sub_shm);
+  const Floors fl = print_floors_measured(o, p, keep_logs);
+  const Stats& crank_us = rx.crank.total;
+  print_floors(crank_us, rx.crank.in_daemon, rx.crank.dds, fl.cyc_p50, fl.cyc_p999, fl.dds_one_way);
+  const bool daemon_shm = print_daemon_counters(p, keep_logs);
   // One line to compare runs (shared memory against the network path): the path is "shm" only when both the
   // daemon's CrankState writer and this subscriber's readers are on shared memory.
   std::printf(
@@ -594,38 +635,58 @@ int main(int argc, char** argv) {
       "dds_write->received "
       "p50 %.1f p99.9 %.1f us, cyclictest p50 %.1f p99.9 %.1f us, n %zu\n",
       sub_shm && daemon_shm ? "shm" : (sub_shm || daemon_shm ? "mixed" : "network"), crank_us.pct(50),
-      crank_us.pct(99.9), rx.crank.in_daemon.pct(50), rx.crank.dds.pct(50), rx.crank.dds.pct(99.9), cyc_p50,
-      cyc_p999, crank_us.us.size());
+      crank_us.pct(99.9), rx.crank.in_daemon.pct(50), rx.crank.dds.pct(50), rx.crank.dds.pct(99.9),
+      fl.cyc_p50, fl.cyc_p999, crank_us.us.size());
   histogram(crank_us, "tooth edge -> CrankState");
-  if (!plot.empty()) {
-    const std::string csv = plot + ".data.csv";
-    const auto cyc = cyclic ? read_cyclictest(cyclic_log.c_str()).hist : std::vector<std::pair<int, long>>{};
-    if (!write_plot_data(csv,
-                         {{"crank_total", &crank_us},
-                          {"crank_daemon", &rx.crank.in_daemon},
-                          {"crank_dds", &rx.crank.dds},
-                          {"engine_total", &engine_us}},
-                         cyc)) {
-      std::fprintf(stderr, "torque-latency: cannot write %s: %s\n", csv.c_str(), std::strerror(errno));
-      remove_dir(dir, keep_logs);
-      return 1;
-    }
-    char dflt[160];
-    std::snprintf(dflt, sizeof dflt, "torqued: tooth edge -> subscriber, %.0f s paced replay at %.1fx%s",
-                  duration_s, speed, stress ? ", stress-ng --cpu 1" : "");
-    // Debian's python3-matplotlib lives with /usr/bin/python3 (the PATH python may be another one).
-    const std::string cmd = "/usr/bin/python3 " + shell_quote(plot_script) + " --data " + shell_quote(csv) +
-                            " --out " + shell_quote(plot) + " --title " +
-                            shell_quote(title.empty() ? std::string(dflt) : title);
-    if (std::system(cmd.c_str()) != 0) {
-      std::fprintf(stderr, "torque-latency: plot failed (%s); data kept in %s\n", cmd.c_str(), csv.c_str());
-      remove_dir(dir, keep_logs);
-      return 1;
-    }
-    std::remove(csv.c_str());
-    std::printf("plot: %s\n", plot.c_str());
+  if (!o.plot.empty() && !write_plot(o, p, rx)) {
+    remove_dir(p.dir, keep_logs);
+    return 1;
   }
   if (crank_us.us.empty()) keep_logs = true;
-  remove_dir(dir, keep_logs);
+  remove_dir(p.dir, keep_logs);
   return crank_us.us.empty() ? 1 : 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  CLI::App app{
+      "torque-latency: tooth edge -> subscriber latency of torqued in paced replay (p50/p99/p99.9/max + "
+      "histogram), optionally with stress-ng --cpu 1, cyclictest and ddsperf alongside"};
+  add_options(app, o);
+  TORQUED_CLI_PARSE(app, argc, argv);
+
+  // The daemon's DDS settings: same domain, topic prefix and engine_id as the daemon this run starts.
+  const LoadResult cfg = load_config(o.config);
+  if (!cfg.ok()) {
+    for (const auto& e : cfg.errors) std::fprintf(stderr, "torque-latency: %s\n", e.c_str());
+    return 2;
+  }
+  // Its QoS too: the readers below keep 256 and request no deadline (both what iceoryx carries).
+  const dds::DdsSettings s = tools::dds_settings_from(*cfg.config);
+  char tmpl[] = "/tmp/torque-latency-XXXXXX";
+  const char* tmp = mkdtemp(tmpl);
+  if (!tmp) {
+    std::fprintf(stderr, "torque-latency: mkdtemp: %s\n", std::strerror(errno));
+    return 2;
+  }
+  const std::string dir = tmp;
+  const Paths p{dir, dir + "/torqued.log", dir + "/cyclictest.log", dir + "/ddsperf.log", dir + "/state"};
+  pin_and_prioritise(o);
+  const dds_entity_t pp = dds_create_participant(s.domain_id, nullptr, nullptr);
+  if (pp < 0) {
+    std::fprintf(stderr, "dds_create_participant failed\n");
+    return 1;
+  }
+  Receiver rx;
+  bool sub_shm = false;
+  const dds_entity_t ws = open_readers(o, s, pp, rx, sub_shm);
+  const std::vector<pid_t> helpers = start_helpers(o, s, p);
+  const pid_t daemon = spawn({o.torqued, "--config", o.config, "--speed", std::to_string(o.speed),
+                              "--wait-subscribers", "1", "--state-dir", p.state_dir},
+                             p.daemon_log.c_str(), o.daemon_env);
+  measure(o, rx, ws, daemon, helpers);
+  dds_delete(pp);
+  return report(o, s, p, rx, sub_shm);
 }
