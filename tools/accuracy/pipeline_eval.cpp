@@ -118,236 +118,227 @@ AnglePipelineConfig pipeline_config(const sim::Scenario& sc, const EvalOptions& 
   return cfg;
 }
 
-ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, const EvalOptions& opt) {
-  const AnglePipelineConfig cfg = pipeline_config(sc, opt);
-  AnglePipeline pipe(cfg);
-  if (opt.friction) pipe.friction().import_coefficients(*opt.friction);
-  if (opt.fuel_state) pipe.fuel_model().import_state(*opt.fuel_state);
-  if (opt.crank_err_var) pipe.import_crank_error_var(*opt.crank_err_var);
-  if (opt.idle_correction)
-    pipe.friction().import_idle_correction((*opt.idle_correction)[0], (*opt.idle_correction)[1]);
+namespace {
 
-  std::vector<ToothSample> samples = sim::ideal_tooth_samples(out, sc);
+/// Applies the tooth table `opt` asks for (none, the true wheel, the learned one) to the samples' widths, and
+/// scores its residual against the true width errors (the wheel's, not the jitter's) and of the edge angles
+/// (cumulative width residual, mean removed): what the kinetic-energy windows see.
+void apply_tooth_table(const sim::Scenario& sc, const sim::SimOutput& out, const EvalOptions& opt,
+                       std::vector<ToothSample>& samples, ScenarioResult& r) {
   const int teeth = sc.wheel.teeth();
-  ScenarioResult r;
-  if (static_cast<int>(out.tooth_error_rad.size()) == teeth) {
-    std::vector<double> ratio;
-    if (opt.tooth_table == ToothTable::kLearned) {
-      ratio = learned_width_ratios(sc, opt.tooth_learn, &r.tooth_learn_cycles, &r.tooth_low_orders);
+  if (static_cast<int>(out.tooth_error_rad.size()) != teeth) return;
+  std::vector<double> ratio;
+  if (opt.tooth_table == ToothTable::kLearned)
+    ratio = learned_width_ratios(sc, opt.tooth_learn, &r.tooth_learn_cycles, &r.tooth_low_orders);
+  const auto true_err = [&](int p) {
+    return out.tooth_error_rad[static_cast<std::size_t>(p)] -
+           out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
+  };
+  std::vector<double> nominal(static_cast<std::size_t>(teeth), 0.0);
+  for (ToothSample& s : samples) {
+    const int p = s.tooth % teeth;
+    const auto pi = static_cast<std::size_t>(p);
+    nominal[pi] = s.width_rad;
+    if (opt.tooth_table == ToothTable::kTrue) {
+      s.width_rad += true_err(p);
+    } else if (opt.tooth_table == ToothTable::kLearned && ratio.size() == nominal.size()) {
+      s.width_rad *= ratio[pi];
     }
-    std::vector<double> nominal(static_cast<std::size_t>(teeth), 0.0);
-    for (ToothSample& s : samples) {
-      const int p = s.tooth % teeth;
-      const auto pi = static_cast<std::size_t>(p);
-      nominal[pi] = s.width_rad;
-      if (opt.tooth_table == ToothTable::kTrue) {
-        s.width_rad +=
-            out.tooth_error_rad[pi] - out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
-      } else if (opt.tooth_table == ToothTable::kLearned && ratio.size() == nominal.size()) {
-        s.width_rad *= ratio[pi];
+  }
+  std::vector<double> edge(static_cast<std::size_t>(teeth), 0.0);
+  double ss = 0.0, cum = 0.0, mean_e = 0.0;
+  for (int p = 0; p < teeth; ++p) {
+    const auto pi = static_cast<std::size_t>(p);
+    const double err = true_err(p);
+    double used = 0.0;
+    if (opt.tooth_table == ToothTable::kTrue) used = err;
+    if (opt.tooth_table == ToothTable::kLearned && ratio.size() == nominal.size())
+      used = (ratio[pi] - 1.0) * nominal[pi];
+    ss += (used - err) * (used - err);
+    cum += used - err;
+    edge[pi] = cum;
+    mean_e += cum / teeth;
+  }
+  r.tooth_resid_deg = std::sqrt(ss / teeth) / kDeg;
+  double se = 0.0;
+  for (double e : edge) se += (e - mean_e) * (e - mean_e);
+  r.tooth_edge_resid_deg = std::sqrt(se / teeth) / kDeg;
+}
+
+/// Exact truth over the pipeline's own 720° windows: the energy form d(½Jθ̇²)/dθ = T_ind − T_fric − T_load
+/// holds exactly in the simulator, so the true angle-mean of T_brake − T_load over [a, b] is ΔKE_true/(b −
+/// a), with KE from the true edge speeds, averaged over the same ±window/2 as the estimator. Load and
+/// friction are smooth and are integrated by the trapezoid rule over the edges.
+class WindowTruth {
+ public:
+  WindowTruth(const sim::Scenario& sc, const sim::SimOutput& out, const AnglePipelineConfig& cfg) {
+    const CrankKinematics kin(sc.engine);
+    const std::size_t nt = out.teeth.size();
+    abs_a_.resize(nt);
+    ke_.resize(nt);
+    cum_load_.assign(nt, 0.0);
+    cum_fric_.assign(nt, 0.0);
+    for (std::size_t i = 0; i < nt; ++i) {
+      const sim::ToothTruth& t = out.teeth[i];
+      abs_a_[i] = kFourPi * t.cycle + t.angle720_rad;
+      ke_[i] = 0.5 * kin.inertia(t.angle720_rad - sc.engine.tdc_offset_rad) * t.speed_rad_s * t.speed_rad_s;
+      if (i > 0) {
+        const double da = abs_a_[i] - abs_a_[i - 1];
+        cum_load_[i] = cum_load_[i - 1] + 0.5 * (t.t_load_nm + out.teeth[i - 1].t_load_nm) * da;
+        cum_fric_[i] = cum_fric_[i - 1] + 0.5 * (t.t_fric_nm + out.teeth[i - 1].t_fric_nm) * da;
       }
     }
-    // Residual of the width correction in use vs the true width error (the wheel's, not the jitter's), and of
-    // the edge angles (cumulative width residual, mean removed): what the kinetic-energy windows see.
-    std::vector<double> edge(static_cast<std::size_t>(teeth), 0.0);
-    double ss = 0.0, cum = 0.0, mean_e = 0.0;
-    for (int p = 0; p < teeth; ++p) {
-      const auto pi = static_cast<std::size_t>(p);
-      const double true_err =
-          out.tooth_error_rad[pi] - out.tooth_error_rad[static_cast<std::size_t>((p + teeth - 1) % teeth)];
-      double used = 0.0;
-      if (opt.tooth_table == ToothTable::kTrue) used = true_err;
-      if (opt.tooth_table == ToothTable::kLearned && ratio.size() == nominal.size())
-        used = (ratio[pi] - 1.0) * nominal[pi];
-      ss += (used - true_err) * (used - true_err);
-      cum += used - true_err;
-      edge[pi] = cum;
-      mean_e += cum / teeth;
-    }
-    r.tooth_resid_deg = std::sqrt(ss / teeth) / kDeg;
-    double se = 0.0;
-    for (double e : edge) se += (e - mean_e) * (e - mean_e);
-    r.tooth_edge_resid_deg = std::sqrt(se / teeth) / kDeg;
+    half_w_ = 0.5 * cfg.energies.energy_window_deg * kDeg;
+    // The pipeline's 720° balance averages KE over [b + w/2 − W, b + w/2) (energies.cycle_ke_window_deg = W,
+    // or ±w/2 when 0): the truth uses the same window (an exact balance averaged over the same boundary
+    // shifts).
+    const double wide_w = cfg.energies.cycle_ke_window_deg * kDeg;
+    lo_w_ = wide_w > 0.0 && wide_w < 2.0 * std::numbers::pi ? half_w_ - wide_w : -half_w_;
   }
-  std::map<int, const sim::CycleTruth*> truth;
-  for (const auto& c : out.cycles) truth[c.cycle] = &c;
-  std::set<std::pair<int, int>> true_misfires, found;
-  for (const auto& c : out.cycles) {
-    for (int j = 0; j < sc.engine.cylinders; ++j) {
-      if (c.misfire[static_cast<std::size_t>(j)]) true_misfires.insert({c.cycle, j + 1});
-    }
+  /// Mean load, friction and ΔKE/4π over [a_start, a_end] (wheel angle, absolute): NaN outside the run.
+  [[nodiscard]] double load(double a0, double a1) const {
+    return (interp(cum_load_, a1) - interp(cum_load_, a0)) / kFourPi;
   }
+  [[nodiscard]] double fric(double a0, double a1) const {
+    return (interp(cum_fric_, a1) - interp(cum_fric_, a0)) / kFourPi;
+  }
+  [[nodiscard]] double dke(double a0, double a1) const { return (ke_at(a1) - ke_at(a0)) / kFourPi; }
 
-  // Exact truth over the pipeline's own 720° windows: the energy form d(½Jθ̇²)/dθ = T_ind − T_fric − T_load
-  // holds exactly in the simulator, so the true angle-mean of T_brake − T_load over [a, b] is ΔKE_true/(b −
-  // a), with KE from the true edge speeds, averaged over the same ±window/2 as the estimator. Load and
-  // friction are smooth and are integrated by the trapezoid rule over the edges.
-  const CrankKinematics kin(sc.engine);
-  const std::size_t nt = out.teeth.size();
-  std::vector<double> abs_a(nt), ke(nt), cum_load(nt, 0.0), cum_fric(nt, 0.0);
-  for (std::size_t i = 0; i < nt; ++i) {
-    const sim::ToothTruth& t = out.teeth[i];
-    abs_a[i] = kFourPi * t.cycle + t.angle720_rad;
-    ke[i] = 0.5 * kin.inertia(t.angle720_rad - sc.engine.tdc_offset_rad) * t.speed_rad_s * t.speed_rad_s;
-    if (i > 0) {
-      const double da = abs_a[i] - abs_a[i - 1];
-      cum_load[i] = cum_load[i - 1] + 0.5 * (t.t_load_nm + out.teeth[i - 1].t_load_nm) * da;
-      cum_fric[i] = cum_fric[i - 1] + 0.5 * (t.t_fric_nm + out.teeth[i - 1].t_fric_nm) * da;
-    }
-  }
-  const double half_w = 0.5 * cfg.energies.energy_window_deg * kDeg;
-  const auto interp = [&](const std::vector<double>& cum, double a) {
-    const auto it = std::lower_bound(abs_a.begin(), abs_a.end(), a);
-    if (it == abs_a.begin() || it == abs_a.end()) return std::nan("");
-    const std::size_t j = static_cast<std::size_t>(it - abs_a.begin());
-    const double f = (a - abs_a[j - 1]) / (abs_a[j] - abs_a[j - 1]);
+ private:
+  [[nodiscard]] double interp(const std::vector<double>& cum, double a) const {
+    const auto it = std::lower_bound(abs_a_.begin(), abs_a_.end(), a);
+    if (it == abs_a_.begin() || it == abs_a_.end()) return std::nan("");
+    const std::size_t j = static_cast<std::size_t>(it - abs_a_.begin());
+    const double f = (a - abs_a_[j - 1]) / (abs_a_[j] - abs_a_[j - 1]);
     return cum[j - 1] + f * (cum[j] - cum[j - 1]);
-  };
-  // The pipeline's 720° balance averages KE over [b + w/2 − W, b + w/2) (energies.cycle_ke_window_deg = W, or
-  // ±w/2 when 0): the truth uses the same window (an exact balance averaged over the same boundary shifts).
-  const double wide_w = cfg.energies.cycle_ke_window_deg * kDeg;
-  const double lo_w = wide_w > 0.0 && wide_w < 2.0 * std::numbers::pi ? half_w - wide_w : -half_w;
-  const auto ke_at = [&](double a) {
-    auto it = std::lower_bound(abs_a.begin(), abs_a.end(), a + lo_w);
+  }
+  [[nodiscard]] double ke_at(double a) const {
+    auto it = std::lower_bound(abs_a_.begin(), abs_a_.end(), a + lo_w_);
     double sum = 0.0;
     int cnt = 0;
-    for (; it != abs_a.end() && *it <= a + half_w; ++it) {
-      sum += ke[static_cast<std::size_t>(it - abs_a.begin())];
+    for (; it != abs_a_.end() && *it <= a + half_w_; ++it) {
+      sum += ke_[static_cast<std::size_t>(it - abs_a_.begin())];
       ++cnt;
     }
     return cnt > 0 ? sum / cnt : std::nan("");
-  };
+  }
+  std::vector<double> abs_a_, ke_, cum_load_, cum_fric_;
+  double half_w_ = 0.0, lo_w_ = 0.0;
+};
 
-  r.name = sc.name;
-  const int n = sc.engine.cylinders;
-  const double offset = cfg.energies.segment_offset_deg * kDeg;
-  const double b0_wheel = wrap4pi(sc.engine.tdc_offset_rad + offset);  // boundary 0 in wheel angle
-  int cycle_rows = 0;
-  int first_cycle = -1, last_cycle = -1;
+/// What the per-cycle loop of evaluate() carries from one cycle to the next.
+struct EvalRun {
+  std::set<std::pair<int, int>> true_misfires, found;
+  int cycle_rows = 0, first_cycle = -1, last_cycle = -1;
   double prev_true = 0.0, prev_rpm = 0.0;
   bool have_prev = false;
   int transient_hold = 0;
   std::array<double, kMaxCylinders> imb_true_sum{};
   int imb_true_n = 0;
-  EngineSignals last_sig;
-  for (std::size_t i = 0; i < samples.size() && i < out.teeth.size(); ++i) {
-    const ToothSample& s = samples[i];
-    const double t_s = static_cast<double>(s.t_ns) * 1e-9;
-    EngineSignals sig;
-    if (opt.can_lost_after_s >= 0.0 && t_s >= opt.can_lost_after_s) {
-      sig = EngineSignals{};
-      sig.t_ns = last_sig.t_ns;  // the store still knows when it last heard something; all values invalid
+};
+
+/// Misfire matching: the cylinder at firing position m fired at boundary m + |offset| of this window.
+void match_misfires(const sim::Scenario& sc, const CycleOutput& o, double a_start, double offset, int cycle,
+                    EvalRun& run, ScenarioResult& r) {
+  if (o.cylinders.health == Health::kInvalidInput || run.cycle_rows < 2) return;
+  const int n = sc.engine.cylinders;
+  ++r.detection_cycles;
+  if (o.cylinders.detection == MisfireDetection::kActive) ++r.detection_active;
+  if (run.first_cycle < 0) run.first_cycle = cycle;
+  run.last_cycle = cycle;
+  for (int m = 0; m < n; ++m) {
+    const int cyl = sc.engine.firing_order[static_cast<std::size_t>(m)];
+    const double tdc_w = a_start + m * kFourPi / n - offset;
+    const int tc = static_cast<int>(std::floor(tdc_w / kFourPi + 1e-9));
+    if (!o.cylinders.misfire[static_cast<std::size_t>(cyl - 1)]) continue;
+    if (run.true_misfires.count({tc, cyl})) {
+      run.found.insert({tc, cyl});
     } else {
-      sig = sim::signals_at(out, t_s);
-      last_sig = sig;
+      ++r.misfires_false;
     }
-    if (opt.load_lost_after_s >= 0.0 && t_s >= opt.load_lost_after_s) sig.load_torque_valid = false;
-    if (opt.no_fuel_cutoff_flag) sig.fuel_cutoff_valid = false;
-    const std::uint8_t ready = pipe.on_tooth(s, sig);
-    if (!(ready & AnglePipeline::kCycleReady)) continue;
-    const CycleOutput& o = pipe.cycle_output();
-    const sim::ToothTruth& tt = out.teeth[i];
-    double a_end = kFourPi * tt.cycle + b0_wheel;
-    if (b0_wheel > tt.angle720_rad + 1e-9) a_end -= kFourPi;
-    const double a_start = a_end - kFourPi;
-    const int j0 = static_cast<int>(std::floor(a_start / kFourPi));
-    const double w0 = ((j0 + 1) * kFourPi - a_start) / kFourPi;
-    if (!truth.count(j0) || !truth.count(j0 + 1)) continue;
-    const sim::CycleTruth& c1 = *truth[j0 + 1];
-    const auto blend = [&](double a, double b) { return w0 * a + (1.0 - w0) * b; };
-    ++cycle_rows;
-
-    // Misfire matching: cylinder at firing position m fired at boundary m + |offset| of this window.
-    if (o.cylinders.health != Health::kInvalidInput && cycle_rows >= 2) {
-      ++r.detection_cycles;
-      if (o.cylinders.detection == MisfireDetection::kActive) ++r.detection_active;
-      if (first_cycle < 0) first_cycle = j0 + 1;
-      last_cycle = j0 + 1;
-      for (int m = 0; m < n; ++m) {
-        const int cyl = sc.engine.firing_order[static_cast<std::size_t>(m)];
-        const double tdc_w = a_start + m * kFourPi / n - offset;
-        const int tc = static_cast<int>(std::floor(tdc_w / kFourPi + 1e-9));
-        if (o.cylinders.misfire[static_cast<std::size_t>(cyl - 1)]) {
-          if (true_misfires.count({tc, cyl})) {
-            found.insert({tc, cyl});
-          } else {
-            ++r.misfires_false;
-          }
-        }
-      }
-    }
-    if (cycle_rows <= opt.skip_cycles) continue;
-
-    CycleCompare row;
-    row.t_s = t_s;
-    row.speed_rpm = o.speed_mean_rad_s * 30.0 / std::numbers::pi;
-    const double load_m = (interp(cum_load, a_end) - interp(cum_load, a_start)) / kFourPi;
-    const double fric_m = (interp(cum_fric, a_end) - interp(cum_fric, a_start)) / kFourPi;
-    const double dke_m = (ke_at(a_end) - ke_at(a_start)) / kFourPi;
-    if (!std::isfinite(load_m + fric_m + dke_m)) continue;
-    (void)blend;  // the CycleTruth blend is kept for per-cylinder truth only
-    row.brake = o.brake.torque_nm;
-    row.brake_true = dke_m + load_m;
-    row.indicated = o.indicated.torque_nm;
-    row.indicated_true = dke_m + load_m + fric_m;
-    row.friction = o.friction.torque_nm;
-    row.friction_true = fric_m;
-    row.load_rls = o.load_rls.torque_nm;
-    row.load_star_true = load_m + fric_m;
-    row.indicated_crank = o.indicated_crank.torque_nm;
-    row.indicated_eso = o.indicated_eso.torque_nm;
-    row.fused = o.fused.brake_nm;
-    row.brake_sd = o.brake.uncertainty;
-    row.indicated_sd = o.indicated.uncertainty;
-    row.fused_sd = o.fused.sd_nm;
-    row.friction_prior = pipe.friction().is_prior();
-    row.quality = o.fused.quality;
-    row.brake_valid = o.brake.health == Health::kValid;
-    row.indicated_valid = o.indicated.health == Health::kValid;
-    row.rls_valid = o.load_rls.health == Health::kValid;
-    row.eso_valid = o.indicated_eso.health == Health::kValid;
-    // Transient: the true brake torque or speed moves between consecutive cycles.
-    if (have_prev && (std::fabs(row.brake_true - prev_true) > 1.5 ||
-                      std::fabs(row.speed_rpm - prev_rpm) > 0.01 * prev_rpm)) {
-      transient_hold = 2;
-    }
-    row.transient = transient_hold > 0;
-    if (transient_hold > 0) --transient_hold;
-    prev_true = row.brake_true;
-    prev_rpm = row.speed_rpm;
-    have_prev = true;
-    const double pct = row.transient ? opt.transient_pct : opt.steady_pct;
-    const double nm = row.transient ? opt.transient_nm : opt.steady_nm;
-    if (row.brake_valid || opt.score_all_cycles)
-      add(r.brake, row.brake, row.brake_true, pct, nm, row.brake_sd);
-    if (row.indicated_valid || opt.score_all_cycles)
-      add(r.indicated, row.indicated, row.indicated_true, pct, nm, row.indicated_sd);
-    if (o.fused.quality != FusionQuality::kInvalid)
-      add(r.fused, row.fused, row.brake_true, pct, nm, row.fused_sd);
-    add(r.friction, row.friction, row.friction_true, pct, nm);
-    if (row.rls_valid) {
-      add(r.load_rls, row.load_rls, row.load_star_true, pct, nm);
-      add(r.indicated_crank, row.indicated_crank, row.indicated_true, pct, nm);
-      add(r.brake_crank, row.indicated_crank - row.friction, row.brake_true, pct, nm);
-    }
-    if (row.eso_valid) add(r.indicated_eso, row.indicated_eso, row.indicated_true, pct, nm);
-    r.mean_rpm += row.speed_rpm;
-    // True imbalance (firing cycles only).
-    bool any_mis = false;
-    double mean = 0.0;
-    for (int j = 0; j < n; ++j) {
-      any_mis = any_mis || c1.misfire[static_cast<std::size_t>(j)];
-      mean += c1.cyl_ind_mean_nm[static_cast<std::size_t>(j)] / n;
-    }
-    if (!any_mis && !c1.fuel_cut && std::fabs(mean) > 1.0) {
-      for (int j = 0; j < n; ++j) {
-        imb_true_sum[static_cast<std::size_t>(j)] +=
-            (c1.cyl_ind_mean_nm[static_cast<std::size_t>(j)] / mean - 1.0) * 100.0;
-      }
-      ++imb_true_n;
-    }
-    r.rows.push_back(row);
   }
+}
+
+/// One cycle's estimates against the window truth (load, friction, ΔKE means); false outside the run.
+bool make_row(const CycleOutput& o, const AnglePipeline& pipe, const WindowTruth& wt, double a_start,
+              double a_end, CycleCompare& row) {
+  row.speed_rpm = o.speed_mean_rad_s * 30.0 / std::numbers::pi;
+  const double load_m = wt.load(a_start, a_end);
+  const double fric_m = wt.fric(a_start, a_end);
+  const double dke_m = wt.dke(a_start, a_end);
+  if (!std::isfinite(load_m + fric_m + dke_m)) return false;
+  row.brake = o.brake.torque_nm;
+  row.brake_true = dke_m + load_m;
+  row.indicated = o.indicated.torque_nm;
+  row.indicated_true = dke_m + load_m + fric_m;
+  row.friction = o.friction.torque_nm;
+  row.friction_true = fric_m;
+  row.load_rls = o.load_rls.torque_nm;
+  row.load_star_true = load_m + fric_m;
+  row.indicated_crank = o.indicated_crank.torque_nm;
+  row.indicated_eso = o.indicated_eso.torque_nm;
+  row.fused = o.fused.brake_nm;
+  row.brake_sd = o.brake.uncertainty;
+  row.indicated_sd = o.indicated.uncertainty;
+  row.fused_sd = o.fused.sd_nm;
+  row.friction_prior = pipe.friction().is_prior();
+  row.quality = o.fused.quality;
+  row.brake_valid = o.brake.health == Health::kValid;
+  row.indicated_valid = o.indicated.health == Health::kValid;
+  row.rls_valid = o.load_rls.health == Health::kValid;
+  row.eso_valid = o.indicated_eso.health == Health::kValid;
+  return true;
+}
+
+/// Marks the row transient (the true brake torque or speed moves between consecutive cycles; held 2 cycles)
+/// and adds it to every score with the steady or transient tolerance.
+void score_row(const CycleOutput& o, const EvalOptions& opt, CycleCompare& row, EvalRun& run,
+               ScenarioResult& r) {
+  if (run.have_prev && (std::fabs(row.brake_true - run.prev_true) > 1.5 ||
+                        std::fabs(row.speed_rpm - run.prev_rpm) > 0.01 * run.prev_rpm)) {
+    run.transient_hold = 2;
+  }
+  row.transient = run.transient_hold > 0;
+  if (run.transient_hold > 0) --run.transient_hold;
+  run.prev_true = row.brake_true;
+  run.prev_rpm = row.speed_rpm;
+  run.have_prev = true;
+  const double pct = row.transient ? opt.transient_pct : opt.steady_pct;
+  const double nm = row.transient ? opt.transient_nm : opt.steady_nm;
+  if (row.brake_valid || opt.score_all_cycles) add(r.brake, row.brake, row.brake_true, pct, nm, row.brake_sd);
+  if (row.indicated_valid || opt.score_all_cycles)
+    add(r.indicated, row.indicated, row.indicated_true, pct, nm, row.indicated_sd);
+  if (o.fused.quality != FusionQuality::kInvalid)
+    add(r.fused, row.fused, row.brake_true, pct, nm, row.fused_sd);
+  add(r.friction, row.friction, row.friction_true, pct, nm);
+  if (row.rls_valid) {
+    add(r.load_rls, row.load_rls, row.load_star_true, pct, nm);
+    add(r.indicated_crank, row.indicated_crank, row.indicated_true, pct, nm);
+    add(r.brake_crank, row.indicated_crank - row.friction, row.brake_true, pct, nm);
+  }
+  if (row.eso_valid) add(r.indicated_eso, row.indicated_eso, row.indicated_true, pct, nm);
+  r.mean_rpm += row.speed_rpm;
+}
+
+/// True imbalance of cycle `c1` (firing cycles only): each cylinder's share of the mean, in %.
+void add_true_imbalance(const sim::CycleTruth& c1, int n, EvalRun& run) {
+  bool any_mis = false;
+  double mean = 0.0;
+  for (int j = 0; j < n; ++j) {
+    any_mis = any_mis || c1.misfire[static_cast<std::size_t>(j)];
+    mean += c1.cyl_ind_mean_nm[static_cast<std::size_t>(j)] / n;
+  }
+  if (any_mis || c1.fuel_cut || std::fabs(mean) <= 1.0) return;
+  for (int j = 0; j < n; ++j) {
+    run.imb_true_sum[static_cast<std::size_t>(j)] +=
+        (c1.cyl_ind_mean_nm[static_cast<std::size_t>(j)] / mean - 1.0) * 100.0;
+  }
+  ++run.imb_true_n;
+}
+
+/// The run's totals: RMS of every score, imbalance against the truth, misfires, and what the pipeline
+/// learned.
+void finish_result(const AnglePipeline& pipe, int n, const EvalRun& run, ScenarioResult& r) {
   r.cycles = static_cast<int>(r.rows.size());
   if (r.cycles > 0) r.mean_rpm /= r.cycles;
   for (ErrorStats* s : {&r.brake, &r.indicated, &r.fused, &r.brake_crank, &r.indicated_crank,
@@ -358,13 +349,13 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
   for (int j = 0; j < n; ++j) {
     const auto ji = static_cast<std::size_t>(j);
     r.imbalance_est[ji] = last.cylinders.imbalance_filtered_pct[ji];
-    r.imbalance_true[ji] = imb_true_n > 0 ? imb_true_sum[ji] / imb_true_n : 0.0;
+    r.imbalance_true[ji] = run.imb_true_n > 0 ? run.imb_true_sum[ji] / run.imb_true_n : 0.0;
     r.imbalance_max_pp = std::max(r.imbalance_max_pp, std::fabs(r.imbalance_est[ji] - r.imbalance_true[ji]));
   }
-  for (const auto& m : true_misfires) {
-    if (first_cycle >= 0 && m.first >= first_cycle && m.first <= last_cycle) ++r.misfires_true;
+  for (const auto& m : run.true_misfires) {
+    if (run.first_cycle >= 0 && m.first >= run.first_cycle && m.first <= run.last_cycle) ++r.misfires_true;
   }
-  r.misfires_found = static_cast<int>(found.size());
+  r.misfires_found = static_cast<int>(run.found.size());
   r.friction_coefficients = pipe.friction().coefficients();
   r.idle_correction_nm = pipe.friction().idle_correction_nm();
   r.idle_rpm = pipe.friction().idle_speed_rpm();
@@ -372,6 +363,76 @@ ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, cons
   r.crank_err_var = pipe.crank_error_var();
   r.friction_observations = pipe.stats().friction_observations;
   r.stats = pipe.stats();
+}
+
+/// The CAN signals at `t_s` as the options leave them (all lost after can_lost_after_s, the load after
+/// load_lost_after_s, no fuel cut-off flag).
+EngineSignals eval_signals(const sim::SimOutput& out, const EvalOptions& opt, double t_s,
+                           EngineSignals& last_sig) {
+  EngineSignals sig;
+  if (opt.can_lost_after_s >= 0.0 && t_s >= opt.can_lost_after_s) {
+    sig = EngineSignals{};
+    sig.t_ns = last_sig.t_ns;  // the store still knows when it last heard something; all values invalid
+  } else {
+    sig = sim::signals_at(out, t_s);
+    last_sig = sig;
+  }
+  if (opt.load_lost_after_s >= 0.0 && t_s >= opt.load_lost_after_s) sig.load_torque_valid = false;
+  if (opt.no_fuel_cutoff_flag) sig.fuel_cutoff_valid = false;
+  return sig;
+}
+
+}  // namespace
+
+ScenarioResult evaluate(const sim::Scenario& sc, const sim::SimOutput& out, const EvalOptions& opt) {
+  const AnglePipelineConfig cfg = pipeline_config(sc, opt);
+  AnglePipeline pipe(cfg);
+  if (opt.friction) pipe.friction().import_coefficients(*opt.friction);
+  if (opt.fuel_state) pipe.fuel_model().import_state(*opt.fuel_state);
+  if (opt.crank_err_var) pipe.import_crank_error_var(*opt.crank_err_var);
+  if (opt.idle_correction)
+    pipe.friction().import_idle_correction((*opt.idle_correction)[0], (*opt.idle_correction)[1]);
+  std::vector<ToothSample> samples = sim::ideal_tooth_samples(out, sc);
+  ScenarioResult r;
+  apply_tooth_table(sc, out, opt, samples, r);
+  std::map<int, const sim::CycleTruth*> truth;
+  for (const auto& c : out.cycles) truth[c.cycle] = &c;
+  EvalRun run;
+  for (const auto& c : out.cycles) {
+    for (int j = 0; j < sc.engine.cylinders; ++j) {
+      if (c.misfire[static_cast<std::size_t>(j)]) run.true_misfires.insert({c.cycle, j + 1});
+    }
+  }
+  const WindowTruth wt(sc, out, cfg);
+  r.name = sc.name;
+  const int n = sc.engine.cylinders;
+  const double offset = cfg.energies.segment_offset_deg * kDeg;
+  const double b0_wheel = wrap4pi(sc.engine.tdc_offset_rad + offset);  // boundary 0 in wheel angle
+  EngineSignals last_sig;
+  for (std::size_t i = 0; i < samples.size() && i < out.teeth.size(); ++i) {
+    const ToothSample& s = samples[i];
+    const double t_s = static_cast<double>(s.t_ns) * 1e-9;
+    const EngineSignals sig = eval_signals(out, opt, t_s, last_sig);
+    const std::uint8_t ready = pipe.on_tooth(s, sig);
+    if (!(ready & AnglePipeline::kCycleReady)) continue;
+    const CycleOutput& o = pipe.cycle_output();
+    const sim::ToothTruth& tt = out.teeth[i];
+    double a_end = kFourPi * tt.cycle + b0_wheel;
+    if (b0_wheel > tt.angle720_rad + 1e-9) a_end -= kFourPi;
+    const double a_start = a_end - kFourPi;
+    const int j0 = static_cast<int>(std::floor(a_start / kFourPi));
+    if (!truth.count(j0) || !truth.count(j0 + 1)) continue;
+    ++run.cycle_rows;
+    match_misfires(sc, o, a_start, offset, j0 + 1, run, r);
+    if (run.cycle_rows <= opt.skip_cycles) continue;
+    CycleCompare row;
+    row.t_s = t_s;
+    if (!make_row(o, pipe, wt, a_start, a_end, row)) continue;
+    score_row(o, opt, row, run, r);
+    add_true_imbalance(*truth[j0 + 1], n, run);
+    r.rows.push_back(row);
+  }
+  finish_result(pipe, n, run, r);
   return r;
 }
 
