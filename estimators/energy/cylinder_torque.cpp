@@ -101,17 +101,8 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
   o.t_ns = t_ns;
   o.cycle = ++cycles_;
   o.cylinders = n;
-  bool all_valid = true, all_fired = true, any_fired = false;
-  double sum = 0.0;
-  for (int m = 0; m < n; ++m) {
-    const auto mi = static_cast<std::size_t>(m);
-    all_valid = all_valid && valid_[mi];
-    all_fired = all_fired && fired_[mi];
-    any_fired = any_fired || fired_[mi];
-    sum += work_[mi];
-    comb_[mi] = work_[mi] - motored_j_;  // combustion work: above the motored level (0 until a cut-off)
-  }
-  if (!all_valid) {
+  const CycleSums c = sum_cycle(n);
+  if (!c.all_valid) {
     o.health = Health::kInvalidInput;
     o.detection = MisfireDetection::kInvalid;
     o.imbalance_filtered_pct = out_.imbalance_filtered_pct;
@@ -120,45 +111,78 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
     prev_combusting_ = prev_last_misfire_ = false;
     return true;
   }
-  const double mean_w = sum / n;
-  const double scale = std::max(mean_w, w_floor_j_);  // > 0: shares stay bounded when the mean is small
-  o.mean_nm = sum / kFourPi;
   const double seg_rad = kFourPi / n;
-  const double sigma_j = std::sqrt(share_var_) * scale;  // running cycle-to-cycle noise of a segment's work
+  o.mean_nm = c.sum / kFourPi;
+  const CycleLevels lv = cycle_levels(n, c.sum / n);
+  // Resume after a cut-off: the caller's fired flags come back only some cycles after the injections (they
+  // arm late so that a flag leading the injections is no false alarm), but once a whole cycle combusted the
+  // fuel is back on every cylinder (the resume runs in firing order), so a segment at the motored level is a
+  // misfire.
+  const bool resumed = !c.all_fired && after_cut_ && prev_combusting_;
+  const bool low_load = lv.fired_level_j / seg_rad <= params_.min_mean_nm;
+  const bool noisy = update_noisy(lv.sigma_j, lv.fired_level_j);
+  o.detection = !(c.all_fired || resumed) ? MisfireDetection::kOverrun
+                : low_load                ? MisfireDetection::kLowLoad
+                : !wheel_learned_         ? MisfireDetection::kWheelUnlearned
+                : noisy                   ? MisfireDetection::kNoisy
+                                          : MisfireDetection::kActive;
+  const int candidates = flag_misfires(o, lv, resumed);
+  update_level(o.detection, candidates);
+  update_filtered_imbalance(o, candidates, cycle_dt_s);
+  o.imbalance_filtered_pct = despilled();
+  o.imbalance_sd_pct = ema_cycles_ > 0 ? 100.0 * std::sqrt(ema_var_) : 0.0;
+  o.health = health_of(o.detection);
+  out_ = o;
+  prev_combusting_ = all_combusting(n, seg_rad);
+  track_overrun(c.any_fired, median_of_others(work_, n, -1));
+  return true;
+}
+
+CylinderTorque::CycleSums CylinderTorque::sum_cycle(int n) noexcept {
+  CycleSums c;
+  for (int m = 0; m < n; ++m) {
+    const auto mi = static_cast<std::size_t>(m);
+    c.all_valid = c.all_valid && valid_[mi];
+    c.all_fired = c.all_fired && fired_[mi];
+    c.any_fired = c.any_fired || fired_[mi];
+    c.sum += work_[mi];
+    comb_[mi] = work_[mi] - motored_j_;  // combustion work: above the motored level (0 until a cut-off)
+  }
+  return c;
+}
+
+CylinderTorque::CycleLevels CylinderTorque::cycle_levels(int n, double mean_w) const noexcept {
+  CycleLevels lv;
+  lv.mean_w = mean_w;
+  lv.scale = std::max(mean_w, w_floor_j_);        // > 0: shares stay bounded when the mean is small
+  lv.sigma_j = std::sqrt(share_var_) * lv.scale;  // running cycle-to-cycle noise of a segment's work
   // Firing level of the cycle: the largest median of the others (robust to two misfires in one cycle), in
   // combustion work: at idle after a cut-off the pumping loss makes a firing segment's net work ≈ 0 while its
   // combustion (and what a misfire removes) is the whole step up from the motored level.
   // Anchored: the running firing level L applies where some segment still fires at its usual level.
   constexpr double kAnchor = 0.8;
-  bool anchored = false;
   for (int m = 0; m < n && level_known_; ++m)
-    anchored = anchored || comb_[static_cast<std::size_t>(m)] >= kAnchor * level_j_;
-  double fired_level_j = -1e300;
-  for (int m = 0; m < n; ++m) fired_level_j = std::max(fired_level_j, reference_j(n, m, anchored));
-  const bool low_load = fired_level_j / seg_rad <= params_.min_mean_nm;
-  const bool noisy = update_noisy(sigma_j, fired_level_j);
-  // Resume after a cut-off: the caller's fired flags come back only some cycles after the injections (they
-  // arm late so that a flag leading the injections is no false alarm), but once a whole cycle combusted the
-  // fuel is back on every cylinder (the resume runs in firing order), so a segment at the motored level is a
-  // misfire.
-  const bool resumed = !all_fired && after_cut_ && prev_combusting_;
-  o.detection = !(all_fired || resumed) ? MisfireDetection::kOverrun
-                : low_load              ? MisfireDetection::kLowLoad
-                : !wheel_learned_       ? MisfireDetection::kWheelUnlearned
-                : noisy                 ? MisfireDetection::kNoisy
-                                        : MisfireDetection::kActive;
+    lv.anchored = lv.anchored || comb_[static_cast<std::size_t>(m)] >= kAnchor * level_j_;
+  lv.fired_level_j = -1e300;
+  for (int m = 0; m < n; ++m) lv.fired_level_j = std::max(lv.fired_level_j, reference_j(n, m, lv.anchored));
+  return lv;
+}
+
+int CylinderTorque::flag_misfires(CylinderCycle& o, const CycleLevels& lv, bool resumed) noexcept {
+  const int n = engine_.cylinders;
+  const double seg_rad = kFourPi / n;
   const bool decide = o.detection == MisfireDetection::kActive;
   int candidates = 0;  // segments below the threshold, decided or not: kept out of the noise estimate
   for (int m = 0; m < n; ++m) {
     const auto mi = static_cast<std::size_t>(m);
     const auto ci = static_cast<std::size_t>(engine_.firing_order[mi] - 1);
     o.torque_nm[ci] = work_[mi] / kFourPi;
-    o.imbalance_pct[ci] = (work_[mi] - mean_w) / scale * 100.0;
+    o.imbalance_pct[ci] = (work_[mi] - lv.mean_w) / lv.scale * 100.0;
     // Misfire: compare with the median of the other cylinders (robust to a second misfire in the same cycle).
-    const double med = reference_j(n, m, anchored);
+    const double med = reference_j(n, m, lv.anchored);
     // and, once the cycle-to-cycle noise of the shares is known, a deficit beyond misfire_sigma·σ (high
     // speed: jitter makes single segments swing; a missing combustion is a deficit of ~100 % of the mean)
-    const bool beyond_noise = med - comb_[mi] > params_.misfire_sigma * sigma_j;
+    const bool beyond_noise = med - comb_[mi] > params_.misfire_sigma * lv.sigma_j;
     const bool fired = fired_[mi] || resumed;
     // the segment after a misfire lacks that cylinder's expansion tail: a lower threshold there
     const bool after =
@@ -175,23 +199,19 @@ bool CylinderTorque::on_segment(std::int64_t t_ns, int position, double work_j, 
     }
   }
   prev_last_misfire_ = o.misfire[static_cast<std::size_t>(engine_.firing_order[n - 1] - 1)];
+  return candidates;
+}
+
+void CylinderTorque::update_level(MisfireDetection detection, int candidates) noexcept {
   // Running firing level from cycles decided without any candidate (a clean firing cycle).
   constexpr double kLevelFilter = 0.2;  // EMA weight per clean cycle (≈ 5-cycle memory, as W_mot)
-  if (decide && candidates == 0) {
-    const double lv = median_of_others(comb_, n, -1);
+  if (detection == MisfireDetection::kActive && candidates == 0) {
+    const double lv = median_of_others(comb_, engine_.cylinders, -1);
     level_j_ = level_known_ ? level_j_ + kLevelFilter * (lv - level_j_) : lv;
     level_known_ = true;
-  } else if (o.detection == MisfireDetection::kOverrun) {
+  } else if (detection == MisfireDetection::kOverrun) {
     level_known_ = false;  // the level after a cut-off is learned anew
   }
-  update_filtered_imbalance(o, candidates, cycle_dt_s);
-  o.imbalance_filtered_pct = despilled();
-  o.imbalance_sd_pct = ema_cycles_ > 0 ? 100.0 * std::sqrt(ema_var_) : 0.0;
-  o.health = health_of(o.detection);
-  out_ = o;
-  prev_combusting_ = all_combusting(n, seg_rad);
-  track_overrun(any_fired, median_of_others(work_, n, -1));
-  return true;
 }
 
 // d_m = (1 − s)·c_m + s·c_{m−1} around the cycle, solved by the fixed point c_m = (d_m − s·c_{m−1})/(1 − s):

@@ -119,6 +119,23 @@ class CylinderTorque {
   [[nodiscard]] double spill() const noexcept { return spill_; }
 
  private:
+  /// This cycle's segment sums (and comb_, each segment's work above the motored level).
+  struct CycleSums {
+    bool all_valid = true, all_fired = true, any_fired = false;
+    double sum = 0.0;  ///< J
+  };
+  /// This cycle's scale of the shares, segment noise and firing level (J).
+  struct CycleLevels {
+    double mean_w = 0.0, scale = 0.0, sigma_j = 0.0, fired_level_j = 0.0;
+    bool anchored = false;  ///< some segment fires at the running level L: L is a reference
+  };
+  CycleSums sum_cycle(int n) noexcept;
+  [[nodiscard]] CycleLevels cycle_levels(int n, double mean_w) const noexcept;
+  /// Per cylinder torque, share and misfire flag into `o`; returns the candidates (segments below the
+  /// ordinary threshold, decided or not).
+  int flag_misfires(CylinderCycle& o, const CycleLevels& lv, bool resumed) noexcept;
+  /// The running firing level L from a clean decided cycle; forgotten in an overrun.
+  void update_level(MisfireDetection detection, int candidates) noexcept;
   /// Motored level: learns the segment work of steady fuel cut-off cycles, tracks the resume after one.
   void track_overrun(bool all_fired, double median_work_j) noexcept;
   /// Every segment of this cycle carried a combustion (the whole cycle is above the motored level).
