@@ -537,36 +537,39 @@ bool valid_topic_prefix(std::string_view prefix) {
   return true;
 }
 
-std::vector<ConfigProblem> check_config_physics(const Config& c) {
-  std::vector<ConfigProblem> out;
-  const auto& e = c.engine;
-  // Firing order: a permutation of 1..n (docs/equations.md §0: phases come from the firing order).
-  {
-    std::vector<int> count(kMaxCylinders + 1, 0);
-    std::string listed = "[";
-    int len = 0;
-    for (int k = 0; k < kMaxCylinders && e.firing_order[std::size_t(k)] != 0; ++k, ++len) {
-      const int cyl = e.firing_order[std::size_t(k)];
-      listed += (k ? ", " : "") + std::to_string(cyl);
-      if (cyl >= 1 && cyl <= kMaxCylinders) ++count[std::size_t(cyl)];
-    }
-    listed += "]";
-    std::string why;
-    if (len != e.cylinders)
-      why = std::to_string(len) + " entries for " + std::to_string(e.cylinders) + " cylinders";
-    for (int cyl = 1; cyl <= e.cylinders && why.empty(); ++cyl) {
-      if (count[std::size_t(cyl)] > 1)
-        why = "cylinder " + std::to_string(cyl) + " appears twice";
-      else if (count[std::size_t(cyl)] == 0)
-        why = "cylinder " + std::to_string(cyl) + " is missing";
-    }
-    for (int k = 0; k < len && why.empty(); ++k)
-      if (e.firing_order[std::size_t(k)] > e.cylinders)
-        why = "cylinder " + std::to_string(e.firing_order[std::size_t(k)]) + " does not exist";
-    if (!why.empty())
-      out.push_back({"engine.firing_order", listed,
-                     "a permutation of 1.." + std::to_string(e.cylinders) + " (" + why + ")"});
+namespace {
+
+// Firing order: a permutation of 1..n (docs/equations.md §0: phases come from the firing order).
+void check_firing_order(const EngineGeometry& e, std::vector<ConfigProblem>& out) {
+  std::vector<int> count(kMaxCylinders + 1, 0);
+  std::string listed = "[";
+  int len = 0;
+  for (int k = 0; k < kMaxCylinders && e.firing_order[std::size_t(k)] != 0; ++k, ++len) {
+    const int cyl = e.firing_order[std::size_t(k)];
+    listed += (k ? ", " : "") + std::to_string(cyl);
+    if (cyl >= 1 && cyl <= kMaxCylinders) ++count[std::size_t(cyl)];
   }
+  listed += "]";
+  std::string why;
+  if (len != e.cylinders)
+    why = std::to_string(len) + " entries for " + std::to_string(e.cylinders) + " cylinders";
+  for (int cyl = 1; cyl <= e.cylinders && why.empty(); ++cyl) {
+    if (count[std::size_t(cyl)] > 1)
+      why = "cylinder " + std::to_string(cyl) + " appears twice";
+    else if (count[std::size_t(cyl)] == 0)
+      why = "cylinder " + std::to_string(cyl) + " is missing";
+  }
+  for (int k = 0; k < len && why.empty(); ++k)
+    if (e.firing_order[std::size_t(k)] > e.cylinders)
+      why = "cylinder " + std::to_string(e.firing_order[std::size_t(k)]) + " does not exist";
+  if (!why.empty())
+    out.push_back({"engine.firing_order", listed,
+                   "a permutation of 1.." + std::to_string(e.cylinders) + " (" + why + ")"});
+}
+
+void check_geometry(const Config& c, std::vector<ConfigProblem>& out) {
+  const auto& e = c.engine;
+  check_firing_order(e, out);
   if (!(e.rod_m > e.crank_radius_m()))
     out.push_back(
         {"engine.rod_m", fmt(e.rod_m),
@@ -578,18 +581,21 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
                      "fewer missing teeth than teeth = " + std::to_string(w.positions)});
     else if (w.positions - w.missing < 2)
       out.push_back({"wheel.missing", std::to_string(w.missing), "at least 2 real teeth per revolution"});
-  } else {
-    for (int k = 1; k < w.tooth_count; ++k)
-      if (!(w.tooth_angles_deg[std::size_t(k)] > w.tooth_angles_deg[std::size_t(k - 1)])) {
-        out.push_back(
-            {"wheel.tooth_angles_deg", fmt(w.tooth_angles_deg[std::size_t(k)]),
-             "strictly increasing angles (element " + std::to_string(k) + " is not above the previous one)"});
-        break;
-      }
-    if (w.tooth_count < 2)
-      out.push_back({"wheel.tooth_angles_deg", std::to_string(w.tooth_count) + " teeth", "at least 2 teeth"});
+    return;
   }
-  const bool geometry_ok = out.empty();  // the Fourier observer's check needs a valid engine and wheel
+  for (int k = 1; k < w.tooth_count; ++k)
+    if (!(w.tooth_angles_deg[std::size_t(k)] > w.tooth_angles_deg[std::size_t(k - 1)])) {
+      out.push_back(
+          {"wheel.tooth_angles_deg", fmt(w.tooth_angles_deg[std::size_t(k)]),
+           "strictly increasing angles (element " + std::to_string(k) + " is not above the previous one)"});
+      break;
+    }
+  if (w.tooth_count < 2)
+    out.push_back({"wheel.tooth_angles_deg", std::to_string(w.tooth_count) + " teeth", "at least 2 teeth"});
+}
+
+// Bounds that come in pairs: the upper one above the lower one.
+void check_ordered_pairs(const Config& c, std::vector<ConfigProblem>& out) {
   if (!(c.wheel.decoder.gap_ratio_min < c.wheel.decoder.gap_ratio_max))
     out.push_back({"wheel.decoder.gap_ratio_max", fmt(c.wheel.decoder.gap_ratio_max),
                    "more than gap_ratio_min = " + fmt(c.wheel.decoder.gap_ratio_min)});
@@ -606,6 +612,9 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
   if (!(lr.free_coast_decel_min < lr.free_coast_decel_max))
     out.push_back({"can.load_reference.free_coast_decel_max", fmt(lr.free_coast_decel_max),
                    "more than free_coast_decel_min = " + fmt(lr.free_coast_decel_min)});
+}
+
+void check_energy_windows(const Config& c, bool geometry_ok, std::vector<ConfigProblem>& out) {
   const auto& en = c.estimators.energies.params;
   if (!(en.window_end_btdc_deg < en.window_start_btdc_deg))
     out.push_back({"estimators.energies.window_end_btdc_deg", fmt(en.window_end_btdc_deg),
@@ -625,9 +634,12 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
   // The estimator's own check (CF-14 at every tooth + spectral radius of the cycle map) when the Fourier
   // observer runs; check_fourier_stability() above is the paper's bound alone.
   if (c.estimators.fourier.enabled && geometry_ok)
-    if (auto why = FourierObserver::check_stability(c.estimators.fourier.params, c.engine, w))
+    if (auto why = FourierObserver::check_stability(c.estimators.fourier.params, c.engine, c.wheel.geometry))
       out.push_back({"estimators.fourier.l_ke", fmt(c.estimators.fourier.params.l_ke),
                      "stable observer gains: " + *why});
+}
+
+void check_threads(const Config& c, std::vector<ConfigProblem>& out) {
   const std::pair<const char*, const ThreadConfig*> threads[] = {{"angle", &c.realtime.angle},
                                                                  {"time", &c.realtime.time},
                                                                  {"source", &c.realtime.source},
@@ -643,6 +655,10 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
         break;
       }
   }
+}
+
+// What an input backend, a CAN mapping or the DDS names need besides their own value.
+void check_dependencies(const Config& c, std::vector<ConfigProblem>& out) {
   if (c.inputs.edges.backend == EdgeBackend::kGpio && c.inputs.edges.gpio_chip.empty())
     out.push_back({"inputs.edges.gpio_chip", "", "a GPIO chip device (backend gpio)"});
   if (c.inputs.can.backend == CanBackend::kSocketCan && c.inputs.can.interface.empty())
@@ -662,6 +678,18 @@ std::vector<ConfigProblem> check_config_physics(const Config& c) {
   if (c.can.e_machine.sole_load && !em_mapped)
     out.push_back(
         {"can.e_machine.sole_load", "true", "can.signals.em_torque mapped (the machine's torque on CAN)"});
+}
+
+}  // namespace
+
+std::vector<ConfigProblem> check_config_physics(const Config& c) {
+  std::vector<ConfigProblem> out;
+  check_geometry(c, out);
+  const bool geometry_ok = out.empty();  // the Fourier observer's check needs a valid engine and wheel
+  check_ordered_pairs(c, out);
+  check_energy_windows(c, geometry_ok, out);
+  check_threads(c, out);
+  check_dependencies(c, out);
   return out;
 }
 
