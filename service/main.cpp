@@ -50,45 +50,44 @@ int check_config(const std::string& path, bool check_files) {
   return 0;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{
-      "torqued: real-time engine torque estimation from a crank encoder and CAN, published over DDS"};
-  app.set_version_flag("--version", std::string("torqued ") + TORQUED_VERSION);
+/// The command line: the three actions (run, check, schema) and the run's overrides.
+struct Cli {
   std::string config_path, check_path, schema_format;
-  auto* run_opt = app.add_option("--config,-c", config_path, "run with this YAML configuration")
-                      ->check(CLI::ExistingFile);
-  auto* check_opt =
-      app.add_option("--check-config", check_path, "validate a configuration file and exit (0 = valid)");
-  auto* schema_opt =
-      app.add_option("--print-schema", schema_format, "print every configuration key (yaml|text) and exit")
+  bool no_file_checks = false;
+  torqued::RunOptions run;
+  std::string mode, record_dir, state_dir;
+  double speed = 0.0;
+  CLI::Option *run_opt = nullptr, *check_opt = nullptr, *schema_opt = nullptr;
+  CLI::Option *mode_opt = nullptr, *speed_opt = nullptr, *record_opt = nullptr, *state_opt = nullptr;
+};
+
+void add_options(CLI::App& app, Cli& c) {
+  c.run_opt = app.add_option("--config,-c", c.config_path, "run with this YAML configuration")
+                  ->check(CLI::ExistingFile);
+  c.check_opt =
+      app.add_option("--check-config", c.check_path, "validate a configuration file and exit (0 = valid)");
+  c.schema_opt =
+      app.add_option("--print-schema", c.schema_format, "print every configuration key (yaml|text) and exit")
           ->expected(0, 1)
           ->default_str("yaml");
-  bool no_file_checks = false;
-  app.add_flag("--no-file-checks", no_file_checks,
+  app.add_flag("--no-file-checks", c.no_file_checks,
                "with --check-config: do not require the input files to exist");
-  torqued::RunOptions run;
-  std::string mode;
-  double speed = 0.0;
-  std::string record_dir, state_dir;
-  auto* mode_opt = app.add_option("--replay", mode, "override replay.mode: fast | paced")
-                       ->check(CLI::IsMember({"fast", "paced"}));
-  auto* speed_opt = app.add_option("--speed", speed, "override replay.speed (paced replay speed factor)")
-                        ->check(CLI::PositiveNumber);
-  auto* record_opt = app.add_option("--record", record_dir, "override output.record_dir (CSV recording)");
-  auto* state_opt =
-      app.add_option("--state-dir", state_dir,
-                     "override output.state_dir: learned state loaded at start and saved while running "
-                     "and at exit (also in fast replay)");
-  app.add_flag("--fresh-state", run.fresh_state,
+  c.mode_opt = app.add_option("--replay", c.mode, "override replay.mode: fast | paced")
+                   ->check(CLI::IsMember({"fast", "paced"}));
+  c.speed_opt = app.add_option("--speed", c.speed, "override replay.speed (paced replay speed factor)")
+                    ->check(CLI::PositiveNumber);
+  c.record_opt = app.add_option("--record", c.record_dir, "override output.record_dir (CSV recording)");
+  c.state_opt = app.add_option("--state-dir", c.state_dir,
+                               "override output.state_dir: learned state loaded at start and saved while "
+                               "running and at exit (also in fast replay)");
+  app.add_flag("--fresh-state", c.run.fresh_state,
                "do not load the learned state: learn from the prior (the state is still saved)");
-  app.add_flag("--no-dds", run.no_dds, "do not publish on DDS (record only)");
-  app.add_flag("--exit-when-done", run.exit_when_done, "paced replay: exit once the recording is consumed");
-  app.add_option("--wait-subscribers", run.wait_subscribers,
+  app.add_flag("--no-dds", c.run.no_dds, "do not publish on DDS (record only)");
+  app.add_flag("--exit-when-done", c.run.exit_when_done, "paced replay: exit once the recording is consumed");
+  app.add_option("--wait-subscribers", c.run.wait_subscribers,
                  "wait (up to 10 s) for this many EngineTorque readers");
-  check_opt->excludes(run_opt);
-  schema_opt->excludes(run_opt)->excludes(check_opt);
+  c.check_opt->excludes(c.run_opt);
+  c.schema_opt->excludes(c.run_opt)->excludes(c.check_opt);
   app.footer(
       "Exit status:\n"
       "  0  run ended normally (SIGTERM/SIGINT, end of a fast replay, --exit-when-done); --check-config: "
@@ -101,33 +100,23 @@ int main(int argc, char** argv) {
       "file\n"
       "     that does not exist\n"
       "  3  the CSV recording (output.record_dir / --record) failed; estimation and publishing went on");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int rc = app.exit(e);  // prints the message (or the help / version)
-    return rc == 0 ? 0 : 2;
-  }
+}
 
-  if (*schema_opt) {
-    if (schema_format.empty() || schema_format == "yaml")
-      std::cout << torqued::schema_example_yaml();
-    else if (schema_format == "text")
-      std::cout << torqued::schema_table_text();
-    else {
-      std::cerr << "--print-schema: unknown format '" << schema_format << "', expected yaml or text\n";
-      return 2;
-    }
-    return 0;
-  }
-  if (*check_opt) return check_config(check_path, !no_file_checks);
-  if (!*run_opt) {
-    std::cerr << "torqued: nothing to do: give --config FILE to run, --check-config FILE to validate a "
-                 "configuration, or --print-schema\n\n"
-              << app.help();
+int print_schema(const std::string& format) {
+  if (format.empty() || format == "yaml") {
+    std::cout << torqued::schema_example_yaml();
+  } else if (format == "text") {
+    std::cout << torqued::schema_table_text();
+  } else {
+    std::cerr << "--print-schema: unknown format '" << format << "', expected yaml or text\n";
     return 2;
   }
+  return 0;
+}
 
-  const torqued::LoadResult r = torqued::load_config(config_path);
+/// Loads the configuration, applies the command line's overrides and runs the daemon.
+int run(Cli& c) {
+  const torqued::LoadResult r = torqued::load_config(c.config_path);
   if (!r.ok()) {
     for (const auto& e : r.errors) std::cerr << e << "\n";
     return 1;
@@ -135,14 +124,39 @@ int main(int argc, char** argv) {
   torqued::logging::init(r.config->logging.level);
   for (const auto& w : r.warnings) spdlog::warn("{}", w);
   spdlog::info("torqued {} configuration {} loaded", TORQUED_VERSION, r.config->source_file);
-  run.config_path = config_path;
-  if (*mode_opt) run.mode = mode;
-  if (*speed_opt) run.speed = speed;
-  if (*record_opt) run.record_dir = record_dir;
-  if (*state_opt) run.state_dir = state_dir;
+  c.run.config_path = c.config_path;
+  if (*c.mode_opt) c.run.mode = c.mode;
+  if (*c.speed_opt) c.run.speed = c.speed;
+  if (*c.record_opt) c.run.record_dir = c.record_dir;
+  if (*c.state_opt) c.run.state_dir = c.state_dir;
   // Config twin of --exit-when-done, for the replays that end: file inputs, not looped (live inputs never
   // end).
   const bool file_inputs = r.config->inputs.edges.backend == torqued::EdgeBackend::kFile;
-  if (r.config->replay.exit_when_done && !r.config->replay.loop && file_inputs) run.exit_when_done = true;
-  return torqued::run_daemon(*r.config, run);
+  if (r.config->replay.exit_when_done && !r.config->replay.loop && file_inputs) c.run.exit_when_done = true;
+  return torqued::run_daemon(*r.config, c.run);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "torqued: real-time engine torque estimation from a crank encoder and CAN, published over DDS"};
+  app.set_version_flag("--version", std::string("torqued ") + TORQUED_VERSION);
+  Cli c;
+  add_options(app, c);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);  // prints the message (or the help / version)
+    return rc == 0 ? 0 : 2;
+  }
+  if (*c.schema_opt) return print_schema(c.schema_format);
+  if (*c.check_opt) return check_config(c.check_path, !c.no_file_checks);
+  if (!*c.run_opt) {
+    std::cerr << "torqued: nothing to do: give --config FILE to run, --check-config FILE to validate a "
+                 "configuration, or --print-schema\n\n"
+              << app.help();
+    return 2;
+  }
+  return run(c);
 }
