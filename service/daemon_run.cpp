@@ -139,6 +139,35 @@ bool loop_inputs(const Config& cfg, RunInputs& in) {
                static_cast<double>(period_ns) * 1e-9);
   return true;
 }
+/// The DBC file's warnings, the first kMaxDbcWarnings of them logged and the rest counted.
+void log_dbc_warnings(const std::vector<std::string>& warnings) {
+  constexpr std::size_t kMaxDbcWarnings = 20;  // then counted
+  for (std::size_t i = 0; i < warnings.size() && i < kMaxDbcWarnings; ++i) spdlog::warn("{}", warnings[i]);
+  if (warnings.size() > kMaxDbcWarnings)
+    spdlog::warn("can.dbc: {} more warnings not shown", warnings.size() - kMaxDbcWarnings);
+}
+
+/// The DDS publisher, created on a thread with the publisher's scheduling (Cyclone's threads inherit it: see
+/// ScopedThreadRt; refused: as before), then waiting for --wait-subscribers; nullptr (logged) when DDS
+/// failed.
+std::unique_ptr<DdsPublisher> open_publisher(const Config& cfg, const StageSettings& s, const RunOptions& opt,
+                                             bool fast) {
+  std::unique_ptr<DdsPublisher> publisher;
+  {
+    const ScopedThreadRt as_publisher(fast ? ThreadRt{} : thread_rt(cfg.realtime.publisher, ""));
+    publisher = std::make_unique<DdsPublisher>(s.dds, /*stamp_times=*/!fast);
+  }
+  if (!publisher->ok()) {
+    spdlog::critical("dds: {}", publisher->error());
+    return nullptr;
+  }
+  spdlog::info("DDS domain {} topics {}/* engine_id {}", s.dds.domain_id, s.dds.topic_prefix,
+               s.dds.engine_id);
+  if (const std::string shm = publisher->shared_memory_topics(); !shm.empty())
+    spdlog::info("DDS shared memory (iceoryx) for: {}", shm);
+  wait_for_subscribers(*publisher, opt);
+  return publisher;
+}
 }  // namespace
 
 int run_daemon(const Config& cfg_in, const RunOptions& opt) {
@@ -160,11 +189,7 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   const ScopedTableCache tables_in_use(tables.dir().empty() ? nullptr : &tables);
   const bool fast = opt.mode ? *opt.mode == "fast" : cfg.replay.mode == ReplayMode::kFast;
   RunInputs in = open_inputs(cfg);
-  constexpr std::size_t kMaxDbcWarnings = 20;  // then counted
-  for (std::size_t i = 0; i < in.dbc_warnings.size() && i < kMaxDbcWarnings; ++i)
-    spdlog::warn("{}", in.dbc_warnings[i]);
-  if (in.dbc_warnings.size() > kMaxDbcWarnings)
-    spdlog::warn("can.dbc: {} more warnings not shown", in.dbc_warnings.size() - kMaxDbcWarnings);
+  log_dbc_warnings(in.dbc_warnings);
   if (!in.ok()) {
     spdlog::critical("{}", in.error);
     return 1;
@@ -187,22 +212,7 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
     spdlog::info("recording CSV to {}", cfg.output.record_dir);
   }
   std::unique_ptr<DdsPublisher> publisher;
-  if (!opt.no_dds) {
-    {
-      // Cyclone's threads inherit the publisher thread's scheduling (see ScopedThreadRt); refused: as before.
-      const ScopedThreadRt as_publisher(fast ? ThreadRt{} : thread_rt(cfg.realtime.publisher, ""));
-      publisher = std::make_unique<DdsPublisher>(s.dds, /*stamp_times=*/!fast);
-    }
-    if (!publisher->ok()) {
-      spdlog::critical("dds: {}", publisher->error());
-      return 1;
-    }
-    spdlog::info("DDS domain {} topics {}/* engine_id {}", s.dds.domain_id, s.dds.topic_prefix,
-                 s.dds.engine_id);
-    if (const std::string shm = publisher->shared_memory_topics(); !shm.empty())
-      spdlog::info("DDS shared memory (iceoryx) for: {}", shm);
-    wait_for_subscribers(*publisher, opt);
-  }
+  if (!opt.no_dds && !(publisher = open_publisher(cfg, s, opt, fast))) return 1;
   OutputFanout fanout(recorder.get(), publisher.get(), s.dds.engine_id);
   // Metrics (metrics.enabled, service/metrics.hpp): a tap in front of the output, served by its own threads.
   std::unique_ptr<metrics::MetricsServer> metrics;
