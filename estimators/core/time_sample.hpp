@@ -43,4 +43,18 @@ struct TimeSample {
   return Health::kValid;
 }
 
+/// The common start of a time-triggered estimator's update: stamps `est` with the sample's time and checks
+/// the sample (check_time_sample). A bad one is not used: `est.health` says why (its torque held from the
+/// last good step) and `primed` is cleared, so the estimator restarts from the next good sample (its filter
+/// history is no longer current). Returns whether the sample may be used. Real-time safe.
+[[nodiscard]] inline bool accept_time_sample(const TimeSample& s, bool need_maf, TorqueEstimate& est,
+                                             bool& primed) noexcept {
+  est.t_ns = s.t_ns;
+  const Health input = check_time_sample(s, need_maf);
+  if (input == Health::kValid) return true;
+  est.health = input;
+  primed = false;
+  return false;
+}
+
 }  // namespace torqued

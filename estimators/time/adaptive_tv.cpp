@@ -69,13 +69,8 @@ void AdaptiveTv::fail_numerical(std::int64_t t_ns) noexcept {
 }
 
 void AdaptiveTv::update(const TimeSample& s) noexcept {
-  estimate_.t_ns = s.t_ns;
-  const Health input = check_time_sample(s, /*need_maf=*/true);
-  if (input != Health::kValid) {
-    estimate_.health = input;  // θ̂, P, Q, K held; filters restart at the next good sample
-    primed_ = false;
-    return;
-  }
+  // A bad sample: θ̂, P, Q, K held; the filters restart at the next good one.
+  if (!accept_time_sample(s, /*need_maf=*/true, estimate_, primed_)) return;
   const Vec phi(s.speed_rad_s * scale_[0], s.maf_kg_s * scale_[1]);
   if (!primed_) {
     omega_f_.reset(s.speed_rad_s);

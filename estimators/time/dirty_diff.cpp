@@ -18,11 +18,7 @@ void DirtyDiff::reset() noexcept {
 }
 
 void DirtyDiff::update(const TimeSample& s) noexcept {
-  estimate_.t_ns = s.t_ns;
-  const Health input = check_time_sample(s, /*need_maf=*/false);
-  if (input != Health::kValid) {
-    estimate_.health = input;
-    primed_ = false;
+  if (!accept_time_sample(s, /*need_maf=*/false, estimate_, primed_)) {
     running_s_ = 0.0;
     return;
   }

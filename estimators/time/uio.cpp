@@ -24,11 +24,7 @@ void Uio::reset() noexcept {
 }
 
 void Uio::update(const TimeSample& s) noexcept {
-  estimate_.t_ns = s.t_ns;
-  const Health input = check_time_sample(s, /*need_maf=*/false);
-  if (input != Health::kValid) {
-    estimate_.health = input;  // torque held from the last good step
-    primed_ = false;           // restart from the next good sample: the filter history is no longer current
+  if (!accept_time_sample(s, /*need_maf=*/false, estimate_, primed_)) {
     running_s_ = 0.0;
     return;
   }
