@@ -12,16 +12,23 @@
 
 namespace torqued::dds {
 
-/// Calls f(name, value) for each field in declaration order (arrays: f(name, array, count)). constexpr: the
-/// CSV row plan (decimals per column) is computed at compile time.
-template <class F>
-constexpr void visit_fields(const torque_EngineTorque& s, F&& f) {
-  f("engine_id", s.engine_id);
+/// The fields every topic carries after its key (sequence number, the three time stamps, the
+/// validity bits), in declaration order.
+template <class S, class F>
+constexpr void visit_stamps(const S& s, F&& f) {
   f("seq", s.seq);
   f("source_t_ns", s.source_t_ns);
   f("ingest_t_ns", s.ingest_t_ns);
   f("publish_t_ns", s.publish_t_ns);
   f("validity", s.validity);
+}
+
+/// Calls f(name, value) for each field in declaration order (arrays: f(name, array, count)). constexpr: the
+/// CSV row plan (decimals per column) is computed at compile time.
+template <class F>
+constexpr void visit_fields(const torque_EngineTorque& s, F&& f) {
+  f("engine_id", s.engine_id);
+  visit_stamps(s, f);
   f("kind", s.kind);
   f("cylinder", s.cylinder);
   f("cycle", s.cycle);
@@ -40,11 +47,7 @@ template <class F>
 constexpr void visit_fields(const torque_EstimatorTorque& s, F&& f) {
   f("engine_id", s.engine_id);
   f("method", s.method);
-  f("seq", s.seq);
-  f("source_t_ns", s.source_t_ns);
-  f("ingest_t_ns", s.ingest_t_ns);
-  f("publish_t_ns", s.publish_t_ns);
-  f("validity", s.validity);
+  visit_stamps(s, f);
   f("value_nm", s.value_nm);
   f("uncertainty", s.uncertainty);
   f("health", s.health);
@@ -52,11 +55,7 @@ constexpr void visit_fields(const torque_EstimatorTorque& s, F&& f) {
 template <class F>
 constexpr void visit_fields(const torque_CylinderTorque& s, F&& f) {
   f("engine_id", s.engine_id);
-  f("seq", s.seq);
-  f("source_t_ns", s.source_t_ns);
-  f("ingest_t_ns", s.ingest_t_ns);
-  f("publish_t_ns", s.publish_t_ns);
-  f("validity", s.validity);
+  visit_stamps(s, f);
   f("cycle", s.cycle);
   f("cylinders", s.cylinders);
   f("indicated_nm", s.indicated_nm, 8);
@@ -69,11 +68,7 @@ constexpr void visit_fields(const torque_CylinderTorque& s, F&& f) {
 template <class F>
 constexpr void visit_fields(const torque_CrankState& s, F&& f) {
   f("engine_id", s.engine_id);
-  f("seq", s.seq);
-  f("source_t_ns", s.source_t_ns);
-  f("ingest_t_ns", s.ingest_t_ns);
-  f("publish_t_ns", s.publish_t_ns);
-  f("validity", s.validity);
+  visit_stamps(s, f);
   f("tooth", s.tooth);
   f("sync", s.sync);
   f("phase_known", s.phase_known);
@@ -85,11 +80,7 @@ constexpr void visit_fields(const torque_CrankState& s, F&& f) {
 template <class F>
 constexpr void visit_fields(const torque_DaemonStatus& s, F&& f) {
   f("engine_id", s.engine_id);
-  f("seq", s.seq);
-  f("source_t_ns", s.source_t_ns);
-  f("ingest_t_ns", s.ingest_t_ns);
-  f("publish_t_ns", s.publish_t_ns);
-  f("validity", s.validity);
+  visit_stamps(s, f);
   f("health", s.health);
   f("flags", s.flags);
   f("uptime_ns", s.uptime_ns);
