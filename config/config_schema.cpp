@@ -63,6 +63,9 @@ void add_engine(std::vector<SchemaEntry>& t) {
                      positive(1e6), "Pa", "crankcase pressure under the pistons"));
 }
 
+void add_wheel_decoder(std::vector<SchemaEntry>& t);
+void add_wheel_stall_and_cam(std::vector<SchemaEntry>& t);
+
 void add_wheel(std::vector<SchemaEntry>& t) {
   t.push_back(integer("wheel.teeth", TQ_REF(int, wheel.geometry.positions), closed(2, kMaxTeeth), "",
                       "equally spaced tooth positions per revolution incl. missing ones (60 for 60-2)"));
@@ -95,6 +98,11 @@ void add_wheel(std::vector<SchemaEntry>& t) {
   t.push_back(choice<bool>("wheel.cam_edge", TQ_REF(bool, wheel.cam_rising_edge),
                            {{"rising", true}, {"falling", false}},
                            "cam-signal edge that marks the 720 deg phase"));
+  add_wheel_decoder(t);
+  add_wheel_stall_and_cam(t);
+}
+
+void add_wheel_decoder(std::vector<SchemaEntry>& t) {
   const std::string d = "wheel.decoder.";
   auto dn = [&](const char* key, double DecoderParams::*m, Bounds b, const char* desc) {
     SchemaEntry e = entry(d + key, ValueKind::kDouble, "", desc);
@@ -148,6 +156,10 @@ void add_wheel(std::vector<SchemaEntry>& t) {
      "below this speed (rpm) a long period is a slowdown, never a lost tooth");
   t.push_back(integer(d + "max_lost_teeth_per_rev", TQ_REF(int, wheel.decoder.max_lost_teeth_per_rev),
                       closed(0, kMaxTeeth), "", "more lost teeth than this in one revolution = lost sync"));
+}
+
+void add_wheel_stall_and_cam(std::vector<SchemaEntry>& t) {
+  const std::string d = "wheel.decoder.";
   SchemaEntry stall =
       entry(d + "stall_timeout_s", ValueKind::kDouble, "s", "no crank edge for this long = stalled");
   apply(stall, positive(60.0));
@@ -160,26 +172,11 @@ void add_wheel(std::vector<SchemaEntry>& t) {
     return v;
   };
   t.push_back(std::move(stall));
-  SchemaEntry ws = entry(d + "cam_window_start_deg", ValueKind::kDouble, "deg",
-                         "cam edge must fall in [start, end) of the 720 deg cycle");
-  apply(ws, {0.0, 720.0, false, true});
-  ws.set = [](Config& c, const ConfigValue& v) { c.wheel.decoder.cam_window_start_deg = v.d; };
-  ws.get = [](const Config& c) {
-    ConfigValue v;
-    v.d = c.wheel.decoder.cam_window_start_deg;
-    return v;
-  };
-  t.push_back(std::move(ws));
-  SchemaEntry we =
-      entry(d + "cam_window_end_deg", ValueKind::kDouble, "deg", "end of the cam window, > start");
-  apply(we, {0.0, 720.0, true, false});
-  we.set = [](Config& c, const ConfigValue& v) { c.wheel.decoder.cam_window_end_deg = v.d; };
-  we.get = [](const Config& c) {
-    ConfigValue v;
-    v.d = c.wheel.decoder.cam_window_end_deg;
-    return v;
-  };
-  t.push_back(std::move(we));
+  t.push_back(number(d + "cam_window_start_deg", TQ_REF(double, wheel.decoder.cam_window_start_deg),
+                     {0.0, 720.0, false, true}, "deg",
+                     "cam edge must fall in [start, end) of the 720 deg cycle"));
+  t.push_back(number(d + "cam_window_end_deg", TQ_REF(double, wheel.decoder.cam_window_end_deg),
+                     {0.0, 720.0, true, false}, "deg", "end of the cam window, > start"));
   t.push_back(choice<bool>(d + "cam_window", TQ_REF(bool, wheel.decoder.cam_window_auto),
                            {{"fixed", false}, {"auto", true}},
                            "fixed: the cam edge must fall in [cam_window_start_deg, cam_window_end_deg); "
@@ -187,8 +184,9 @@ void add_wheel(std::vector<SchemaEntry>& t) {
                            "the first of the cycle) and use +-90 deg around it"));
   t.push_back(integer(d + "cam_auto_edges", TQ_REF(int, wheel.decoder.cam_auto_edges), closed(1, 100), "",
                       "cam_window auto: consistent cam edges needed to learn the cam angle"));
-  dn("cam_auto_spread_deg", &DecoderParams::cam_auto_spread_deg, {0.0, 90.0, false, true},
-     "cam_window auto: learning cam edges must agree within this (crank deg)");
+  t.push_back(number(d + "cam_auto_spread_deg", TQ_REF(double, wheel.decoder.cam_auto_spread_deg),
+                     {0.0, 90.0, false, true}, "",
+                     "cam_window auto: learning cam edges must agree within this (crank deg)"));
 }
 
 void add_inputs(std::vector<SchemaEntry>& t) {
