@@ -158,6 +158,8 @@ class LoadRls {
   void build_ripple_closure(const RippleBuild& b);
   void build_ripple_samples(const std::vector<double>& center, const RippleBuild& b);
   void build_tables(const CrankKinematics& kin, const std::vector<double>& center);
+  void build_closure(const CrankKinematics& kin, double step);
+  void build_windows(const CrankKinematics& kin, const std::vector<double>& center, double step);
   [[nodiscard]] std::uint64_t tables_key(const std::vector<double>& center) const noexcept;
   void pack_tables(std::vector<double>& t) const;
   bool unpack_tables(const std::vector<double>& t);  ///< false (nothing usable) on a size mismatch

@@ -59,18 +59,76 @@ class AngleMemo {
 };
 }  // namespace
 
+namespace {
+/// The teeth whose period centre lies in [a, b] (relative distance from a, wrapped): the first and the last;
+/// false when the window is narrower than a tooth (unusable).
+bool window_teeth(const std::vector<double>& center, int samples, double a, double b, int& first, int& last) {
+  first = -1;
+  last = -1;
+  double best_first = 1e9, best_last = -1e9;
+  for (int k = 0; k < samples; ++k) {
+    const double d = wrap4pi(center[static_cast<std::size_t>(k)] - a + 1e-9);  // rounding-safe edges
+    if (d <= b - a + 1e-9) {
+      if (d < best_first) {
+        best_first = d;
+        first = k;
+      }
+      if (d > best_last) {
+        best_last = d;
+        last = k;
+      }
+    }
+  }
+  return first >= 0 && last >= 0 && first != last;
+}
+
+/// A window's gas-work integrals over every cylinder q (midpoint rule at about `step`): k_map, k_exh,
+/// k_p3[q], k_cc, with the pressure model at the default burn centroid (EN-9: dV_j/dθ dθ = A R f(θ − φ_j)
+/// dθ).
+template <class Win>
+void integrate_window(Win& win, const CrankKinematics& kin, const EnergiesParams& params, int n, double v_ivc,
+                      double v_c, double step, AngleMemo& memo) {
+  const int steps = static_cast<int>(std::ceil(win.span / step));
+  const double h = win.span / steps;
+  for (int q = 0; q < n; ++q) {
+    const double phase = kFourPi * q / n;
+    for (int i = 0; i < steps; ++i) {
+      const double th = win.c_first + (i + 0.5) * h;
+      const double phi = wrap4pi(th - phase);
+      const WindowAngle wa = memo.get(phi, [&] {
+        const double burn = params.burn_centroid_atdc_deg * kDeg;
+        const AngleTerms at =
+            angle_terms_for(phi, kin, params, v_ivc, v_c, burn, 0.0, closure_kappas(params));
+        return WindowAngle{model_weights(at, params, burn), at.dvol};
+      });
+      const Weights& w = wa.w;
+      const double dv = wa.dvol * h;
+      win.k_map += w.map * dv;
+      win.k_exh += w.exh * dv;
+      win.k_p3[static_cast<std::size_t>(q)] += w.p3 * dv;
+      win.k_cc -= dv;
+    }
+  }
+}
+}  // namespace
+
 // The closure coefficients, the windows' gas-work integrals and the ripple tables (precomputed, see the
 // header's rule 3).
 void LoadRls::build_tables(const CrankKinematics& kin, const std::vector<double>& center) {
-  const EnergiesParams& params = params_;
-  const int n = engine_.cylinders;
   windows_tab_.clear();
   window_first_of_.assign(static_cast<std::size_t>(samples_), -1);
   window_last_of_.assign(static_cast<std::size_t>(samples_), -1);
   const double step = 0.05 * kDeg;
-  // Full-cycle ∮p dV coefficients of one cylinder (local angle), one set per burn centroid 0..kCentroids−1
-  // deg. The burn-independent terms are tabulated once over the integration grid (same φ sequence for every
-  // centroid).
+  build_closure(kin, step);
+  build_windows(kin, center, step);
+  build_ripple(center);
+}
+
+// Full-cycle ∮p dV coefficients of one cylinder (local angle), one set per burn centroid 0..kCentroids−1 deg.
+// The burn-independent terms are tabulated once over the integration grid (same φ sequence for every
+// centroid).
+void LoadRls::build_closure(const CrankKinematics& kin, double step) {
+  const EnergiesParams& params = params_;
   // Between the blowdown end and IVC only the compression before a centroid (below kCentroids − 1 degrees)
   // reads the volume powers: elsewhere there they stay 0 (dV/dθ is the same).
   std::vector<AngleTerms> grid;
@@ -120,6 +178,13 @@ void LoadRls::build_tables(const CrankKinematics& kin, const std::vector<double>
   closure_sums(prod, ib, pre, cyc_map_.data(), cyc_p3_.data());
   cyc_exh_ = 0.0;
   for (std::size_t i = i0; i < grid.size(); ++i) cyc_exh_ += prod[i][2];
+}
+
+// One window per firing position and shift (its teeth, inertias and gas-work integrals), then each position's
+// closing window: the smallest shift kept (it ends at window_end_btdc, the latest).
+void LoadRls::build_windows(const CrankKinematics& kin, const std::vector<double>& center, double step) {
+  const EnergiesParams& params = params_;
+  const int n = engine_.cylinders;
   const double pitch = kFourPi / samples_;
   AngleMemo memo;
   for (int m = 0; m < n; ++m)
@@ -127,23 +192,12 @@ void LoadRls::build_tables(const CrankKinematics& kin, const std::vector<double>
       const double tdc = kFourPi * m / n - shift * pitch;
       const double a = tdc - params.window_start_btdc_deg * kDeg;
       const double b = tdc - params.window_end_btdc_deg * kDeg;
-      // Teeth whose period centre lies in [a, b] (relative distance from a, wrapped).
       int first = -1, last = -1;
-      double best_first = 1e9, best_last = -1e9;
-      for (int k = 0; k < samples_; ++k) {
-        const double d = wrap4pi(center[static_cast<std::size_t>(k)] - a + 1e-9);  // rounding-safe edges
-        if (d <= b - a + 1e-9) {
-          if (d < best_first) {
-            best_first = d;
-            first = k;
-          }
-          if (d > best_last) {
-            best_last = d;
-            last = k;
-          }
-        }
+      if (!window_teeth(center, samples_, a, b, first, last)) continue;
+      if (window_first_of_[static_cast<std::size_t>(first)] >= 0 ||
+          window_last_of_[static_cast<std::size_t>(last)] >= 0) {
+        continue;  // irregular wheel: two shifts mapped onto the same teeth
       }
-      if (first < 0 || last < 0 || first == last) continue;  // window narrower than a tooth: unusable
       Window win;
       win.first = first;
       win.last = last;
@@ -152,37 +206,12 @@ void LoadRls::build_tables(const CrankKinematics& kin, const std::vector<double>
       win.span = wrap4pi(win.c_last - win.c_first);
       win.j_first = kin.inertia(win.c_first);
       win.j_last = kin.inertia(win.c_last);
-      if (window_first_of_[static_cast<std::size_t>(first)] >= 0 ||
-          window_last_of_[static_cast<std::size_t>(last)] >= 0) {
-        continue;  // irregular wheel: two shifts mapped onto the same teeth
-      }
-      const int steps = static_cast<int>(std::ceil(win.span / step));
-      const double h = win.span / steps;
-      for (int q = 0; q < n; ++q) {
-        const double phase = kFourPi * q / n;
-        for (int i = 0; i < steps; ++i) {
-          const double th = win.c_first + (i + 0.5) * h;
-          const double phi = wrap4pi(th - phase);
-          const WindowAngle wa = memo.get(phi, [&] {
-            const double burn = params.burn_centroid_atdc_deg * kDeg;
-            const AngleTerms at =
-                angle_terms_for(phi, kin, params, v_ivc_, v_c_, burn, 0.0, closure_kappas(params));
-            return WindowAngle{model_weights(at, params, burn), at.dvol};
-          });
-          const Weights& w = wa.w;
-          const double dv = wa.dvol * h;  // dV_j/dθ dθ = A R f(θ − φ_j) dθ (EN-9)
-          win.k_map += w.map * dv;
-          win.k_exh += w.exh * dv;
-          win.k_p3[static_cast<std::size_t>(q)] += w.p3 * dv;
-          win.k_cc -= dv;
-        }
-      }
+      integrate_window(win, kin, params, n, v_ivc_, v_c_, step, memo);
       window_first_of_[static_cast<std::size_t>(first)] = static_cast<int>(windows_tab_.size());
       window_last_of_[static_cast<std::size_t>(last)] = static_cast<int>(windows_tab_.size());
       win.position = m;
       windows_tab_.push_back(win);
     }
-  // The group's closing window: the smallest shift kept (it ends at window_end_btdc, the latest).
   for (int m = 0; m < n; ++m) {
     for (std::size_t w = 0; w < windows_tab_.size(); ++w) {
       if (windows_tab_[w].position == m) {
@@ -191,7 +220,6 @@ void LoadRls::build_tables(const CrankKinematics& kin, const std::vector<double>
       }
     }
   }
-  build_ripple(center);
 }
 
 // The tables as one array of doubles for the table cache (integers are exact in a double): the closure
