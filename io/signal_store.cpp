@@ -168,15 +168,17 @@ bool SignalStore::on_frame(const CanFrame& frame) noexcept {
       ++stats_.rejected_values;
       continue;
     }
+    // An older frame than the value it replaces can lower the snapshot's newest time: rebuild it whole.
+    if (v.seen && frame.t_ns < v.t_ns) cache_ok_ = false;
     v.value = phys * b.scale + b.shift;
     v.t_ns = frame.t_ns;
     v.seen = true;
     ++v.updates;
+    changed_ |= 1u << i;
     any = true;
   }
   if (used) ++stats_.frames_used;
   if (bad) ++stats_.bad_frames;
-  if (any) cache_ok_ = false;
   return any;
 }
 
@@ -210,11 +212,106 @@ EngineSignals SignalStore::signals_at(std::int64_t now_ns) const noexcept {
   return snapshot_at(now_ns, stale);
 }
 
-const EngineSignals& SignalStore::snapshot_at(std::int64_t now_ns, std::uint32_t& stale_mask) const noexcept {
+namespace {
+/// Quantity i's fields in the snapshot: its validity, and its value once one was accepted (else the field's
+/// default); the flags are the value > 0.5 (fuel cut-off) or non-zero (the machine is the only load, neutral).
+void put(EngineSignals& s, std::size_t i, const SignalValue& v, bool valid) noexcept {
+  const double x = v.value;
+  switch (static_cast<Quantity>(i)) {
+    case Quantity::kMap:
+      s.map_valid = valid;
+      if (v.seen) s.map_pa = x;
+      break;
+    case Quantity::kMaf:
+      s.maf_valid = valid;
+      if (v.seen) s.maf_kg_s = x;
+      break;
+    case Quantity::kIntakeTemp:
+      s.intake_temp_valid = valid;
+      if (v.seen) s.intake_temp_k = x;
+      break;
+    case Quantity::kOilTemp:
+      s.oil_temp_valid = valid;
+      if (v.seen) s.oil_temp_c = x;
+      break;
+    case Quantity::kThrottle:
+      s.throttle_valid = valid;
+      if (v.seen) s.throttle_pct = x;
+      break;
+    case Quantity::kLambda:
+      s.lambda_valid = valid;
+      if (v.seen) s.lambda = x;
+      break;
+    case Quantity::kSparkAdvance:
+      s.spark_valid = valid;
+      if (v.seen) s.spark_advance_deg = x;
+      break;
+    case Quantity::kFuelMass:
+      s.fuel_mass_valid = valid;
+      if (v.seen) s.fuel_mass_kg = x;
+      break;
+    case Quantity::kFuelCutoff:
+      s.fuel_cutoff_valid = valid;
+      s.fuel_cutoff = v.seen && x > 0.5;
+      break;
+    case Quantity::kLoadTorque:
+      s.load_torque_valid = valid;
+      if (v.seen) s.load_torque_nm = x;
+      break;
+    case Quantity::kEmTorque:
+      s.em_torque_valid = valid;
+      if (v.seen) s.em_torque_nm = x;
+      break;
+    case Quantity::kEmSoleLoad:
+      s.em_sole_load_valid = valid;
+      s.em_sole_load = v.seen && x != 0.0;  // non-zero: the machine is the only load
+      break;
+    case Quantity::kNeutral:
+      s.neutral_valid = valid;
+      s.neutral = v.seen && x != 0.0;
+      break;
+    case Quantity::kCount:
+      break;
+  }
+}
+}  // namespace
+
+void SignalStore::account(std::size_t i, bool valid, std::uint32_t& stale, std::int64_t& newest,
+                          std::int64_t& until) const noexcept {
+  const SignalValue& v = values_[i];
+  if (bindings_[i].sig != nullptr && !valid) stale |= 1u << i;
+  if (valid && v.t_ns > newest) newest = v.t_ns;
+  const std::int64_t to = bindings_[i].timeout_ns;  // valid while now - t <= time-out (no overflow below)
+  if (valid && (v.t_ns < 0 || to < std::numeric_limits<std::int64_t>::max() - 1 - v.t_ns))
+    until = std::min(until, v.t_ns + to + 1);
+}
+
+// The snapshot holds for every quantity not changed since it was built (now_ns is inside its window); a
+// changed one's new time is not older than its previous one (on_frame() rebuilds otherwise), so the newest
+// time is the larger of the two, and the window's end only moves earlier (the replaced value's end stays in
+// the minimum: an end earlier than needed costs one rebuild, never a wrong snapshot). A changed quantity not
+// valid at now_ns may be valid before it: the window starts at now_ns.
+void SignalStore::refresh_changed(std::int64_t now_ns) const noexcept {
+  std::uint32_t stale = cache_stale_ & ~changed_;
+  std::int64_t newest = cache_.t_ns;
+  for (std::uint32_t bits = changed_; bits != 0; bits &= bits - 1) {
+    const auto i = static_cast<std::size_t>(__builtin_ctz(bits));
+    const bool valid = valid_at(static_cast<Quantity>(i), now_ns);
+    put(cache_, i, values_[i], valid);
+    account(i, valid, stale, newest, cache_until_ns_);
+  }
+  cache_.t_ns = newest;
+  cache_stale_ = stale;
+  cache_from_ns_ = now_ns;
+  changed_ = 0;
+}
+
+const EngineSignals& SignalStore::snapshot_update(std::int64_t now_ns, std::uint32_t& stale_mask) const noexcept {
   // Validity only changes with a frame (on_frame), a time-out change, or when now passes t + time-out of a
   // valid quantity; an invalid one stays invalid for a later now. So the snapshot holds for a later now_ns
   // up to the first such time-out.
   if (cache_ok_ && now_ns >= cache_from_ns_ && now_ns < cache_until_ns_) {
+    if (changed_ != 0) refresh_changed(now_ns);
     stale_mask = cache_stale_;
     return cache_;
   }
@@ -222,42 +319,18 @@ const EngineSignals& SignalStore::snapshot_at(std::int64_t now_ns, std::uint32_t
   std::uint32_t stale = 0;
   std::int64_t newest = 0;
   std::int64_t until = std::numeric_limits<std::int64_t>::max();
-  auto get = [&](Quantity q, double& value, bool& valid) {
-    valid = valid_at(q, now_ns);
-    const auto i = static_cast<std::size_t>(q);
-    const SignalValue& v = values_[i];
-    if (v.seen) value = v.value;
-    if (bindings_[i].sig != nullptr && !valid) stale |= 1u << i;
-    if (valid && v.t_ns > newest) newest = v.t_ns;
-    const std::int64_t to = bindings_[i].timeout_ns;  // valid while now - t <= time-out (no overflow below)
-    if (valid && (v.t_ns < 0 || to < std::numeric_limits<std::int64_t>::max() - 1 - v.t_ns))
-      until = std::min(until, v.t_ns + to + 1);
-  };
-  get(Quantity::kMap, s.map_pa, s.map_valid);
-  get(Quantity::kMaf, s.maf_kg_s, s.maf_valid);
-  get(Quantity::kIntakeTemp, s.intake_temp_k, s.intake_temp_valid);
-  get(Quantity::kOilTemp, s.oil_temp_c, s.oil_temp_valid);
-  get(Quantity::kThrottle, s.throttle_pct, s.throttle_valid);
-  get(Quantity::kLambda, s.lambda, s.lambda_valid);
-  get(Quantity::kSparkAdvance, s.spark_advance_deg, s.spark_valid);
-  get(Quantity::kFuelMass, s.fuel_mass_kg, s.fuel_mass_valid);
-  double cut = 0.0;
-  get(Quantity::kFuelCutoff, cut, s.fuel_cutoff_valid);
-  s.fuel_cutoff = cut > 0.5;
-  get(Quantity::kLoadTorque, s.load_torque_nm, s.load_torque_valid);
-  get(Quantity::kEmTorque, s.em_torque_nm, s.em_torque_valid);
-  double flag = 0.0;
-  get(Quantity::kEmSoleLoad, flag, s.em_sole_load_valid);
-  s.em_sole_load = flag != 0.0;  // non-zero: the machine is the only load
-  flag = 0.0;
-  get(Quantity::kNeutral, flag, s.neutral_valid);
-  s.neutral = flag != 0.0;
+  for (std::size_t i = 0; i < values_.size(); ++i) {
+    const bool valid = valid_at(static_cast<Quantity>(i), now_ns);
+    put(s, i, values_[i], valid);
+    account(i, valid, stale, newest, until);
+  }
   s.t_ns = newest;
   cache_ = s;
   cache_stale_ = stale;
   cache_from_ns_ = now_ns;
   cache_until_ns_ = until;
   cache_ok_ = true;
+  changed_ = 0;
   stale_mask = stale;
   return cache_;
 }

@@ -94,13 +94,21 @@ class SignalStore {
   /// Age in seconds at now_ns (+inf if never seen).
   [[nodiscard]] double age_s(Quantity q, std::int64_t now_ns) const noexcept;
   /// Snapshot for the estimators at `now_ns` (validity = valid_at). Real-time safe. Cached: the same snapshot
-  /// is returned while no value was accepted, no time-out changed and now_ns stays in [the time it was built,
-  /// the first time-out of a valid quantity) (per tooth and time step, frames are 10x rarer). Like
-  /// on_frame(), not for concurrent use from several threads (each stage owns its store).
+  /// is returned while no time-out changed and now_ns stays in [the time it was built, the first time-out of
+  /// a valid quantity) (per tooth and time step, frames are 10x rarer); a frame's accepted values are written
+  /// into it at the next call (only those quantities), a frame older than the value it replaces rebuilds it.
+  /// Like on_frame(), not for concurrent use from several threads (each stage owns its store).
   [[nodiscard]] EngineSignals signals_at(std::int64_t now_ns) const noexcept;
   /// signals_at() without the copy: the cached snapshot (valid until the next call or frame), and in `stale`
   /// bit i set for each bound quantity i not valid at now_ns (built with the snapshot, not per call).
-  [[nodiscard]] const EngineSignals& snapshot_at(std::int64_t now_ns, std::uint32_t& stale) const noexcept;
+  /// Inline: the cached snapshot is returned per tooth and time step, frames are 10x rarer.
+  [[nodiscard]] const EngineSignals& snapshot_at(std::int64_t now_ns, std::uint32_t& stale) const noexcept {
+    if (cache_ok_ && changed_ == 0 && now_ns >= cache_from_ns_ && now_ns < cache_until_ns_) [[likely]] {
+      stale = cache_stale_;
+      return cache_;
+    }
+    return snapshot_update(now_ns, stale);
+  }
   [[nodiscard]] const SignalStoreStats& stats() const noexcept { return stats_; }
   /// One line per bound signal that met frames too short for it, naming the first such frame:
   /// "CAN frame 0x100 (ENGINE_1) at t=12.345678 s: 4 data bytes, ENGINE_1.MAP needs 6 (DBC DLC 8); 17 such
@@ -120,6 +128,14 @@ class SignalStore {
     std::int64_t first_t_ns = 0;
     std::uint8_t first_len = 0;
   };
+  /// Quantity i's stale bit, and its share of the snapshot's newest time and validity end (snapshot_at()).
+  void account(std::size_t i, bool valid, std::uint32_t& stale, std::int64_t& newest,
+               std::int64_t& until) const noexcept;
+  /// Writes the quantities with a value accepted since the snapshot was built into it (at now_ns).
+  void refresh_changed(std::int64_t now_ns) const noexcept;
+  /// snapshot_at() when the cached snapshot does not hold as it is: refreshed or rebuilt.
+  const EngineSignals& snapshot_update(std::int64_t now_ns, std::uint32_t& stale) const noexcept;
+
   const DbcDatabase* db_;
   std::array<Binding, kQuantityCount> bindings_{};
   std::array<SignalValue, kQuantityCount> values_{};
@@ -128,6 +144,7 @@ class SignalStore {
   mutable EngineSignals cache_{};  ///< signals_at() result valid for now in [cache_from_ns_, cache_until_ns_)
   mutable std::int64_t cache_from_ns_ = 0, cache_until_ns_ = 0;
   mutable std::uint32_t cache_stale_ = 0;  ///< bound and not valid, bit per quantity, of cache_
+  mutable std::uint32_t changed_ = 0;  ///< bit per quantity: a value accepted since cache_ was built or refreshed
   mutable bool cache_ok_ = false;
 };
 

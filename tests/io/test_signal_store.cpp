@@ -183,6 +183,60 @@ TEST_F(SignalStoreTest, CachedSnapshotEqualsFreshOneAtAnyTime) {
   EXPECT_EQ(hits, 20000);
 }
 
+// A frame's accepted values are written into the cached snapshot at the next call (only the quantities it
+// carried); a frame older than the value it replaces (out of order) rebuilds it. Either way every quantity's
+// value, validity and stale bit and the newest time must be what a snapshot built from scratch gives.
+TEST_F(SignalStoreTest, SnapshotFollowsEachFrameAlsoOutOfOrder) {
+  // GIVEN frames of the three messages at jittered times, some older than the previous one of their message,
+  // a snapshot taken between most of them (the stage's tooth) and sometimes several frames in between
+  std::mt19937_64 rng(23);
+  std::int64_t t = 2'000'000'000;
+  int checked = 0;
+  for (int i = 0; i < 20000; ++i) {
+    t += static_cast<std::int64_t>(rng() % 1'500'000);
+    const std::int64_t ft = t - static_cast<std::int64_t>(rng() % 4 == 0 ? rng() % 30'000'000 : 0);
+    const auto b = static_cast<std::uint8_t>(rng());
+    const unsigned what = static_cast<unsigned>(rng() % 100);
+    if (what < 30)
+      (void)store_->on_frame(frame(0x100, ft, {0, 0, b, 0x27, static_cast<std::uint8_t>(b % 100), 0, 0, 0}));
+    else if (what < 60)
+      (void)store_->on_frame(frame(0x101, ft, {b, 0xD2, 0x50, 0x14, 0, static_cast<std::uint8_t>(b & 1), 0, 0}));
+    else if (what < 75)
+      (void)store_->on_frame(frame(0x200, ft, {b, static_cast<std::uint8_t>(rng() % 2 ? 0x7F : 0x01), 0, 0}));
+    else if (what == 75)
+      t += 70'000'000;  // a gap: everything times out
+    if (rng() % 4 == 0) continue;  // another frame before the next snapshot
+    // WHEN the stage takes the snapshot now (rarely slightly behind: the other stage's time)
+    const std::int64_t now = rng() % 16 == 0 ? t - static_cast<std::int64_t>(rng() % 20'000'000) : t;
+    std::uint32_t stale = 0;
+    const EngineSignals& s = store_->snapshot_at(now, stale);
+    // THEN it equals the values and validity the store holds at now, the newest valid time and the stale bits
+    std::int64_t newest = 0;
+    std::uint32_t want_stale = 0;
+    for (int q = 0; q < kQuantityCount; ++q) {
+      const auto quantity = static_cast<Quantity>(q);
+      const SignalValue& v = store_->value(quantity);
+      const bool valid = store_->valid_at(quantity, now);
+      if (valid && v.t_ns > newest) newest = v.t_ns;
+      if (store_->bound(quantity) && !valid) want_stale |= 1u << q;
+    }
+    auto value_of = [&](Quantity q) { return store_->value(q).seen ? store_->value(q).value : 0.0; };
+    ASSERT_EQ(s.map_pa, value_of(Quantity::kMap)) << "at " << now;
+    ASSERT_EQ(s.map_valid, store_->valid_at(Quantity::kMap, now)) << "at " << now;
+    ASSERT_EQ(s.intake_temp_k, value_of(Quantity::kIntakeTemp)) << "at " << now;
+    ASSERT_EQ(s.maf_kg_s, value_of(Quantity::kMaf)) << "at " << now;
+    ASSERT_EQ(s.maf_valid, store_->valid_at(Quantity::kMaf, now)) << "at " << now;
+    ASSERT_EQ(s.fuel_mass_kg, value_of(Quantity::kFuelMass)) << "at " << now;
+    ASSERT_EQ(s.fuel_cutoff, value_of(Quantity::kFuelCutoff) > 0.5) << "at " << now;
+    ASSERT_EQ(s.load_torque_nm, value_of(Quantity::kLoadTorque)) << "at " << now;
+    ASSERT_EQ(s.load_torque_valid, store_->valid_at(Quantity::kLoadTorque, now)) << "at " << now;
+    ASSERT_EQ(s.t_ns, newest) << "at " << now;
+    ASSERT_EQ(stale, want_stale) << "at " << now;
+    ++checked;
+  }
+  EXPECT_GT(checked, 12000);
+}
+
 TEST_F(SignalStoreTest, SnapshotStaleMaskIsBoundAndNotValidAtAnyTime) {
   // GIVEN six bound quantities (seven unbound), frames at random times with gaps that time everything out
   std::mt19937_64 rng(11);
