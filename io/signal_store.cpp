@@ -1,9 +1,11 @@
 #include "signal_store.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 
 namespace torqued {
@@ -136,20 +138,60 @@ bool SignalStore::bind(Quantity q, std::string_view message, std::string_view si
   b.msg = m;
   b.sig = s;
   b.timeout_ns = timeout_ns;
+  prepare(b);
   bindings_[static_cast<std::size_t>(q)] = b;
+  bound_count_ = 0;
+  for (std::size_t i = 0; i < bindings_.size(); ++i)
+    if (bindings_[i].sig != nullptr) bound_[static_cast<std::size_t>(bound_count_++)] = static_cast<std::uint8_t>(i);
   values_[static_cast<std::size_t>(q)] = SignalValue{};
   cache_ok_ = false;
   return true;
 }
 
+void SignalStore::prepare(Binding& b) noexcept {
+  const DbcSignal& s = *b.sig;
+  b.id = b.msg->id;
+  b.extended = b.msg->extended;
+  b.need = static_cast<std::uint8_t>(std::min<std::size_t>(s.bytes_needed(), 255));
+  // The tolerance on_frame() applied per frame: the same doubles, computed once.
+  const double eps = 1e-9 * (std::abs(s.max) + std::abs(s.min)) + 1e-12;
+  b.lo = s.has_range() ? s.min - eps : -std::numeric_limits<double>::infinity();
+  b.hi = s.has_range() ? s.max + eps : std::numeric_limits<double>::infinity();
+  // DbcSignal::raw_bits() gathers the `bytes` bytes the signal spans into one integer (Intel: the first
+  // lowest; Motorola: the first highest), shifts and masks. Reading 8 bytes from the same first byte gives
+  // that integer with more bytes above (Intel) or below (Motorola, then shifted by 8·(8 − bytes) more): the
+  // same n bits after the shift and the mask. Multiplexed signals, IEEE floats, 64-bit signals, a span over
+  // 8 bytes or past the 64-byte payload buffer keep the general decode.
+  const int n = s.length, first = s.start_bit / 8, in_byte = s.start_bit % 8;
+  const int bytes = s.little_endian ? (in_byte + n + 7) / 8 : (7 - in_byte + n + 7) / 8;
+  b.word = s.value_type == DbcSignal::ValueType::kInteger && s.mux != DbcSignal::Mux::kMultiplexed && n >= 1 &&
+           n <= 63 && bytes <= 8 && first + 8 <= static_cast<int>(sizeof(CanFrame::data));
+  if (!b.word) return;
+  b.motorola = !s.little_endian;
+  b.first = static_cast<std::uint8_t>(first);
+  b.right = static_cast<std::uint8_t>(s.little_endian ? in_byte : 57 + in_byte - n);
+  b.mask = (std::uint64_t{1} << n) - 1u;
+  b.sign = s.is_signed ? std::uint64_t{1} << (n - 1) : 0u;
+}
+
+double SignalStore::word_decode(const Binding& b, const std::uint8_t* data) noexcept {
+  std::uint64_t w = 0;
+  std::memcpy(&w, data + b.first, sizeof w);
+  if ((std::endian::native == std::endian::big) != b.motorola) w = __builtin_bswap64(w);
+  const std::uint64_t v = (w >> b.right) & b.mask;
+  if (b.sign == 0) return static_cast<double>(v);
+  return static_cast<double>(static_cast<std::int64_t>((v ^ b.sign) - b.sign));  // sign-extended
+}
+
 bool SignalStore::on_frame(const CanFrame& frame) noexcept {
   ++stats_.frames;
   bool any = false, used = false, bad = false;
-  for (std::size_t i = 0; i < bindings_.size(); ++i) {
+  for (int n = 0; n < bound_count_; ++n) {
+    const std::size_t i = bound_[static_cast<std::size_t>(n)];
     const Binding& b = bindings_[i];
-    if (b.sig == nullptr || b.msg->id != frame.id || b.msg->extended != frame.extended) continue;
+    if (b.id != frame.id || b.extended != frame.extended) continue;
     used = true;
-    if (frame.len < b.sig->bytes_needed()) {  // wrong DLC: the signal is not (fully) in this frame
+    if (frame.len < b.need) {  // wrong DLC: the signal is not (fully) in this frame
       bad = true;
       ShortFrames& sf = short_[i];
       if (sf.count++ == 0) {
@@ -158,12 +200,15 @@ bool SignalStore::on_frame(const CanFrame& frame) noexcept {
       }
       continue;
     }
-    if (!b.msg->signal_present(*b.sig, frame.data.data(), frame.len)) continue;
-    const double phys = b.sig->decode(frame.data.data(), frame.len);
+    double phys = 0.0;
+    if (b.word) {  // DbcSignal::decode()'s raw × factor + offset
+      phys = word_decode(b, frame.data.data()) * b.sig->factor + b.sig->offset;
+    } else {
+      if (!b.msg->signal_present(*b.sig, frame.data.data(), frame.len)) continue;
+      phys = b.sig->decode(frame.data.data(), frame.len);
+    }
     SignalValue& v = values_[i];
-    const double eps = 1e-9 * (std::abs(b.sig->max) + std::abs(b.sig->min)) + 1e-12;
-    if (!std::isfinite(phys) ||
-        (b.sig->has_range() && (phys < b.sig->min - eps || phys > b.sig->max + eps))) {
+    if (!std::isfinite(phys) || phys < b.lo || phys > b.hi) {
       ++v.rejected;
       ++stats_.rejected_values;
       continue;

@@ -122,6 +122,19 @@ class SignalStore {
     double scale = 1.0;  ///< SI = physical × scale + shift
     double shift = 0.0;
     std::int64_t timeout_ns = 0;
+    // Prepared at bind() for on_frame() (per frame and bound signal): the message's id, the payload length
+    // the signal needs, the accepted physical range and, for a plain integer signal within 8 bytes from
+    // `first`, its word-at-a-time decode (word_decode(); else DbcSignal::decode).
+    double lo = 0.0, hi = 0.0;  ///< DBC range widened by its tolerance; ±inf without a range
+    std::uint64_t mask = 0;     ///< the raw value's bits
+    std::uint64_t sign = 0;     ///< a signed signal's sign bit (0: unsigned)
+    std::uint32_t id = 0;
+    bool extended = false;
+    bool word = false;      ///< word_decode() applies
+    bool motorola = false;  ///< the 8 bytes read big-endian
+    std::uint8_t need = 0;  ///< DbcSignal::bytes_needed()
+    std::uint8_t first = 0;  ///< first of the 8 payload bytes read
+    std::uint8_t right = 0;  ///< right shift of the word read
   };
   struct ShortFrames {  ///< frames of a bound message too short for its signal (per quantity)
     std::uint64_t count = 0;
@@ -136,8 +149,15 @@ class SignalStore {
   /// snapshot_at() when the cached snapshot does not hold as it is: refreshed or rebuilt.
   const EngineSignals& snapshot_update(std::int64_t now_ns, std::uint32_t& stale) const noexcept;
 
+  /// Raw value of a `word` binding's signal, as DbcSignal::raw_value() gives it.
+  [[nodiscard]] static double word_decode(const Binding& b, const std::uint8_t* data) noexcept;
+  /// Fills b's prepared fields from its message and signal.
+  static void prepare(Binding& b) noexcept;
+
   const DbcDatabase* db_;
   std::array<Binding, kQuantityCount> bindings_{};
+  std::array<std::uint8_t, kQuantityCount> bound_{};  ///< the bound quantities, in index order
+  int bound_count_ = 0;
   std::array<SignalValue, kQuantityCount> values_{};
   std::array<ShortFrames, kQuantityCount> short_{};
   SignalStoreStats stats_;

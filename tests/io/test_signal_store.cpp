@@ -2,6 +2,7 @@
 // rejected and counted; short frames counted as bad frames.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 #include "alloc_counter.hpp"
@@ -235,6 +236,60 @@ TEST_F(SignalStoreTest, SnapshotFollowsEachFrameAlsoOutOfOrder) {
     ++checked;
   }
   EXPECT_GT(checked, 12000);
+}
+
+// on_frame() decodes a plain integer signal within 8 bytes a word at a time (bind() prepares it): the value
+// must be DbcSignal::decode()'s, bit for bit, for every layout (Intel/Motorola, signed, 1-64 bits, any start,
+// classic and 64-byte payloads, factor and offset), and the signals it does not take (64 bits, floats,
+// multiplexed) keep the general decode. A unit-less ratio (lambda) is stored as decoded (scale 1, shift 0).
+TEST(SignalStoreDecode, WordAtATimeEqualsTheDbcDecodeForAnyLayout) {
+  std::mt19937_64 rng(31);
+  int compared = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    // GIVEN a message with one signal of a random layout
+    const int dlc = rng() % 5 == 0 ? 64 : 8;
+    const int length = 1 + static_cast<int>(rng() % 64);
+    const int start = static_cast<int>(rng() % static_cast<unsigned>(8 * dlc));
+    const bool intel = rng() % 2 == 0, is_signed = rng() % 2 == 0;
+    const char* factor = rng() % 2 == 0 ? "1" : "0.125";
+    const char* offset = rng() % 2 == 0 ? "0" : "-40.5";
+    const std::string kind = rng() % 8 == 0 ? "mux" : rng() % 8 == 0 ? "float" : "plain";
+    std::string text = "VERSION \"\"\nBU_: ECU\nBO_ 291 M: " + std::to_string(dlc) + " ECU\n";
+    if (kind == "mux") text += " SG_ Sel M : 0|2@1+ (1,0) [0|0] \"\" Vector__XXX\n";
+    text += " SG_ S" + std::string(kind == "mux" ? " m1" : "") + " : " + std::to_string(start) + "|" +
+            std::to_string(length) + "@" + (intel ? "1" : "0") + (is_signed ? "-" : "+") + " (" + factor + "," +
+            offset + ") [0|0] \"\" Vector__XXX\n";
+    if (kind == "float" && (length == 32 || length == 64))
+      text += "SIG_VALTYPE_ 291 S : " + std::string(length == 32 ? "1" : "2") + ";\n";
+    auto r = DbcDatabase::parse_string(text, "t.dbc");
+    if (!r.db.has_value() || r.db->find("M") == nullptr || r.db->find("M")->find("S") == nullptr) continue;
+    const DbcDatabase db = std::move(*r.db);
+    const DbcSignal& sig = *db.find("M")->find("S");
+    SignalStore store(db);
+    std::string err;
+    ASSERT_TRUE(store.bind(Quantity::kLambda, "M", "S", 1'000'000'000, &err)) << err;
+    // WHEN random payloads of the DLC arrive
+    for (int f = 0; f < 8; ++f) {
+      CanFrame frame;
+      frame.id = 291;
+      frame.len = static_cast<std::uint8_t>(dlc);
+      frame.t_ns = 1000 * (f + 1);
+      for (auto& byte : frame.data) byte = static_cast<std::uint8_t>(rng());
+      const std::uint64_t updates = store.value(Quantity::kLambda).updates;
+      const bool accepted = store.on_frame(frame);
+      // THEN the stored value is the DBC decode (when the payload holds the signal, the multiplexor selects it
+      // and the value is finite)
+      const bool present = frame.len >= sig.bytes_needed() &&
+                           db.find("M")->signal_present(sig, frame.data.data(), frame.len);
+      const double want = sig.decode(frame.data.data(), frame.len);
+      ASSERT_EQ(accepted, present && std::isfinite(want)) << text;
+      if (!accepted) continue;
+      ASSERT_EQ(store.value(Quantity::kLambda).updates, updates + 1);
+      ASSERT_EQ(store.value(Quantity::kLambda).value, want) << text;
+      ++compared;
+    }
+  }
+  EXPECT_GT(compared, 10000);
 }
 
 TEST_F(SignalStoreTest, SnapshotStaleMaskIsBoundAndNotValidAtAnyTime) {
