@@ -133,9 +133,13 @@ SourceStatus CandumpSource::next(CanFrame& out) noexcept {
 /// Index of an interface name, registered on first sight (more than kMaxBuses share the last index).
 std::uint8_t CandumpSource::bus_index(std::string_view bus) noexcept {
   int b = 0;
-  while (b < buses_ && std::string_view(bus_names_[static_cast<std::size_t>(b)].data()) != bus) ++b;
+  while (b < buses_ && std::string_view(bus_names_[static_cast<std::size_t>(b)].data(),
+                                        bus_name_len_[static_cast<std::size_t>(b)]) != bus)
+    ++b;
   if (b == buses_) {
     if (buses_ < kMaxBuses) {
+      bus_name_len_[static_cast<std::size_t>(buses_)] =
+          static_cast<std::uint8_t>(std::min(bus.size(), bus_names_[0].size() - 1));
       auto& slot = bus_names_[static_cast<std::size_t>(buses_++)];
       const std::size_t n = std::min(bus.size(), slot.size() - 1);
       std::memcpy(slot.data(), bus.data(), n);

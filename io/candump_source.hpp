@@ -55,6 +55,7 @@ class CandumpSource final : public CanSource {
   bool ok_ = false;
   static constexpr int kMaxBuses = 8;
   std::array<std::array<char, 16>, kMaxBuses> bus_names_{};
+  std::array<std::uint8_t, kMaxBuses> bus_name_len_{};  ///< strlen of each bus_names_ entry
   int buses_ = 0;
   std::uint64_t rtr_frames_ = 0;
   SourceStats stats_;
