@@ -357,7 +357,10 @@ void ChauvinKalman::predict(int k) noexcept {
   const double x2 = 2.0 * a * x_(kTorqueState) - a * a * x_(kTorquePrevState);
   x_(kNoisePrev) = x_(kNoiseNow);
   x_(kNoiseNow) = 0.0;  // the next edge's error: zero mean
-  for (int j = kTorqueLastState; j >= kTorquePrevState; --j) x_(j) = x_(j - 1);
+  // The lag register moves up one state, through registers (the element loop had become a memmove call).
+  constexpr int kLags = kTorqueLastState - kTorquePrevState + 1;
+  const Eigen::Matrix<double, kLags, 1> lags = x_.segment<kLags>(kTorqueState);
+  x_.segment<kLags>(kTorquePrevState) = lags;
   x_(kTorqueState) = x2;
   x_(kSpeedSqState) = x1;
 }
