@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <numbers>
 
 #include "table_cache.hpp"
@@ -20,6 +21,40 @@ constexpr double kWhiteFloorFrac = 1e-2;
 /// overflows (then every element is checked), and any infinite or NaN element makes the sum non-finite.
 /// Eigen's allFinite() tests the 16 elements one by one with a branch each (a seventh of an update).
 bool all_finite(const ChauvinKalman::Vec& v) noexcept { return std::isfinite(v.sum()) || v.allFinite(); }
+
+using Pair = double __attribute__((vector_size(16)));  // two doubles in one register (SSE2 / NEON)
+
+/// The lag block of riccati_step_symmetric(): rows and columns 2…13 of the new P (column-major, stride kStates)
+/// are the old P and the gain product shifted by one state in both indices, P(r, c) = P(r−1, c−1) − (K_{r−1}
+/// K_{c−1}) S. Computed on and below the diagonal two rows at a time (from the even row at or above c) and
+/// written to both triangles: P is bit-symmetric and K_a K_b = K_b K_a exactly, so every entry has the bits of
+/// its own expression (tests: SymmetricRiccatiStepIsTheGeneralStepBitForBit), with 42 row pairs instead of 72.
+/// Columns from the last down: column c reads rows c − 2…12 of column c − 1, which no earlier write touches
+/// (they go to columns above c − 1). A column's first pair needs no mirror: its entries are the diagonal and
+/// either the entry above it (computed here) or the one below it (computed in column c + 1's first pair).
+void shift_lag_block(double* p, const double* __restrict k, double s) noexcept {
+  constexpr int n = ChauvinKalman::kStates;
+  constexpr int first = ChauvinKalman::kTorquePrevState, last = ChauvinKalman::kTorqueLastState;
+  static_assert(first % 2 == 0 && (last - first + 1) % 2 == 0, "row pairs start on the block's first row");
+  const Pair sv = {s, s};
+#pragma GCC unroll 12
+  for (int c = last; c >= first; --c) {
+    const Pair kc = {k[c - 1], k[c - 1]};
+    const int r0 = c - ((c - first) & 1);
+#pragma GCC unroll 6
+    for (int r = r0; r < last; r += 2) {
+      Pair old, kr;
+      std::memcpy(&old, p + (c - 1) * n + (r - 1), sizeof old);
+      std::memcpy(&kr, k + (r - 1), sizeof kr);
+      const Pair v = old - (kr * kc) * sv;
+      std::memcpy(p + c * n + r, &v, sizeof v);
+      if (r > r0) {
+        p[r * n + c] = v[0];
+        p[(r + 1) * n + c] = v[1];
+      }
+    }
+  }
+}
 }  // namespace
 
 ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& wheel,
@@ -246,8 +281,8 @@ void ChauvinKalman::riccati_step_symmetric(int k, double speed_rad_s, Mat& p, Ve
   const double s = pc(kSpeedSqState) + h * (pc(kNoisePrev) - pc(kNoiseNow)) + measurement_var(k, speed_rad_s);
   gain = pc / s;
   // Columns of post = P − K S Kᵀ (its entries as in riccati_step(), (K_i K_j) S) that A post Aᵀ reads outside
-  // the shifted block; that block is then written in place, highest column first (column j − 1 is read before
-  // it is overwritten), without a temporary matrix.
+  // the shifted block; that block is then written in place by shift_lag_block() (its lower triangle, mirrored),
+  // without a temporary matrix.
   const Vec post0 = p.col(kSpeedSqState) - (gain * gain(kSpeedSqState)) * s;
   const Vec post1 = p.col(kTorqueState) - (gain * gain(kTorqueState)) * s;
   const Vec post2 = p.col(kTorquePrevState) - (gain * gain(kTorquePrevState)) * s;
@@ -258,9 +293,7 @@ void ChauvinKalman::riccati_step_symmetric(int k, double speed_rad_s, Mat& p, Ve
   const Vec m0 = r00 * post0 + r01 * post1;  // post symmetric: rows = columns
   const Vec m1 = r11 * post1 + r12 * post2;
   constexpr int kLags = kTorqueLastState - kTorquePrevState + 1;  // the copy rows 2…13
-  for (int j = kTorqueLastState; j >= kTorquePrevState; --j)
-    p.block<kLags, 1>(kTorquePrevState, j) =
-        p.block<kLags, 1>(kTorqueState, j - 1) - (gain.segment<kLags>(kTorqueState) * gain(j - 1)) * s;
+  shift_lag_block(p.data(), gain.data(), s);
   p.block<kLags, 1>(kTorquePrevState, kNoisePrev) = post14.segment<kLags>(kTorqueState);
   p.block<1, kLags>(kNoisePrev, kTorquePrevState) = post14.segment<kLags>(kTorqueState).transpose();
   p(kNoisePrev, kNoisePrev) = post14(kNoiseNow);
