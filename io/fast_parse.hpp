@@ -10,8 +10,8 @@
 namespace torqued::parse {
 
 /// 10^n for n = 0..9.
-inline constexpr std::array<std::int64_t, 10> kPow10 = {1,       10,       100,       1'000,       10'000,
-                                                        100'000, 1'000'000, 10'000'000, 100'000'000, 1'000'000'000};
+inline constexpr std::array<std::int64_t, 10> kPow10 = {
+    1, 10, 100, 1'000, 10'000, 100'000, 1'000'000, 10'000'000, 100'000'000, 1'000'000'000};
 
 /// The leading ASCII digits (at most 8) of the 8 bytes at p: their count, and their value in `value` (SWAR;
 /// Lemire's 8-digit conversion with the digits right-aligned). The bytes after the first non-digit do not
@@ -29,7 +29,7 @@ inline int leading_digits8(const char* p, std::uint64_t& value) noexcept {
     return 0;
   }
   std::uint64_t d = (v - 0x3030303030303030ull) << (8 * (8 - n));  // zero digits in front of the n
-  d = (d * 10) + (d >> 8);                                          // pairs
+  d = (d * 10) + (d >> 8);                                         // pairs
   d = (((d & 0x000000FF000000FFull) * (100 + (1000000ull << 32))) +
        (((d >> 16) & 0x000000FF000000FFull) * (1 + (10000ull << 32)))) >>
       32;

@@ -142,7 +142,8 @@ bool SignalStore::bind(Quantity q, std::string_view message, std::string_view si
   bindings_[static_cast<std::size_t>(q)] = b;
   bound_count_ = 0;
   for (std::size_t i = 0; i < bindings_.size(); ++i)
-    if (bindings_[i].sig != nullptr) bound_[static_cast<std::size_t>(bound_count_++)] = static_cast<std::uint8_t>(i);
+    if (bindings_[i].sig != nullptr)
+      bound_[static_cast<std::size_t>(bound_count_++)] = static_cast<std::uint8_t>(i);
   values_[static_cast<std::size_t>(q)] = SignalValue{};
   cache_ok_ = false;
   return true;
@@ -164,8 +165,8 @@ void SignalStore::prepare(Binding& b) noexcept {
   // 8 bytes or past the 64-byte payload buffer keep the general decode.
   const int n = s.length, first = s.start_bit / 8, in_byte = s.start_bit % 8;
   const int bytes = s.little_endian ? (in_byte + n + 7) / 8 : (7 - in_byte + n + 7) / 8;
-  b.word = s.value_type == DbcSignal::ValueType::kInteger && s.mux != DbcSignal::Mux::kMultiplexed && n >= 1 &&
-           n <= 63 && bytes <= 8 && first + 8 <= static_cast<int>(sizeof(CanFrame::data));
+  b.word = s.value_type == DbcSignal::ValueType::kInteger && s.mux != DbcSignal::Mux::kMultiplexed &&
+           n >= 1 && n <= 63 && bytes <= 8 && first + 8 <= static_cast<int>(sizeof(CanFrame::data));
   if (!b.word) return;
   b.motorola = !s.little_endian;
   b.first = static_cast<std::uint8_t>(first);
@@ -259,7 +260,8 @@ EngineSignals SignalStore::signals_at(std::int64_t now_ns) const noexcept {
 
 namespace {
 /// Quantity i's fields in the snapshot: its validity, and its value once one was accepted (else the field's
-/// default); the flags are the value > 0.5 (fuel cut-off) or non-zero (the machine is the only load, neutral).
+/// default); the flags are the value > 0.5 (fuel cut-off) or non-zero (the machine is the only load,
+/// neutral).
 void put(EngineSignals& s, std::size_t i, const SignalValue& v, bool valid) noexcept {
   const double x = v.value;
   switch (static_cast<Quantity>(i)) {
@@ -351,7 +353,8 @@ void SignalStore::refresh_changed(std::int64_t now_ns) const noexcept {
   changed_ = 0;
 }
 
-const EngineSignals& SignalStore::snapshot_update(std::int64_t now_ns, std::uint32_t& stale_mask) const noexcept {
+const EngineSignals& SignalStore::snapshot_update(std::int64_t now_ns,
+                                                  std::uint32_t& stale_mask) const noexcept {
   // Validity only changes with a frame (on_frame), a time-out change, or when now passes t + time-out of a
   // valid quantity; an invalid one stays invalid for a later now. So the snapshot holds for a later now_ns
   // up to the first such time-out.

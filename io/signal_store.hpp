@@ -130,9 +130,9 @@ class SignalStore {
     std::uint64_t sign = 0;     ///< a signed signal's sign bit (0: unsigned)
     std::uint32_t id = 0;
     bool extended = false;
-    bool word = false;      ///< word_decode() applies
-    bool motorola = false;  ///< the 8 bytes read big-endian
-    std::uint8_t need = 0;  ///< DbcSignal::bytes_needed()
+    bool word = false;       ///< word_decode() applies
+    bool motorola = false;   ///< the 8 bytes read big-endian
+    std::uint8_t need = 0;   ///< DbcSignal::bytes_needed()
     std::uint8_t first = 0;  ///< first of the 8 payload bytes read
     std::uint8_t right = 0;  ///< right shift of the word read
   };
@@ -164,7 +164,8 @@ class SignalStore {
   mutable EngineSignals cache_{};  ///< signals_at() result valid for now in [cache_from_ns_, cache_until_ns_)
   mutable std::int64_t cache_from_ns_ = 0, cache_until_ns_ = 0;
   mutable std::uint32_t cache_stale_ = 0;  ///< bound and not valid, bit per quantity, of cache_
-  mutable std::uint32_t changed_ = 0;  ///< bit per quantity: a value accepted since cache_ was built or refreshed
+  mutable std::uint32_t changed_ =
+      0;  ///< bit per quantity: a value accepted since cache_ was built or refreshed
   mutable bool cache_ok_ = false;
 };
 

@@ -24,14 +24,15 @@ bool all_finite(const ChauvinKalman::Vec& v) noexcept { return std::isfinite(v.s
 
 using Pair = double __attribute__((vector_size(16)));  // two doubles in one register (SSE2 / NEON)
 
-/// The lag block of riccati_step_symmetric(): rows and columns 2…13 of the new P (column-major, stride kStates)
-/// are the old P and the gain product shifted by one state in both indices, P(r, c) = P(r−1, c−1) − (K_{r−1}
-/// K_{c−1}) S. Computed on and below the diagonal two rows at a time (from the even row at or above c) and
-/// written to both triangles: P is bit-symmetric and K_a K_b = K_b K_a exactly, so every entry has the bits of
-/// its own expression (tests: SymmetricRiccatiStepIsTheGeneralStepBitForBit), with 42 row pairs instead of 72.
-/// Columns from the last down: column c reads rows c − 2…12 of column c − 1, which no earlier write touches
-/// (they go to columns above c − 1). A column's first pair needs no mirror: its entries are the diagonal and
-/// either the entry above it (computed here) or the one below it (computed in column c + 1's first pair).
+/// The lag block of riccati_step_symmetric(): rows and columns 2…13 of the new P (column-major, stride
+/// kStates) are the old P and the gain product shifted by one state in both indices, P(r, c) = P(r−1, c−1) −
+/// (K_{r−1} K_{c−1}) S. Computed on and below the diagonal two rows at a time (from the even row at or above
+/// c) and written to both triangles: P is bit-symmetric and K_a K_b = K_b K_a exactly, so every entry has the
+/// bits of its own expression (tests: SymmetricRiccatiStepIsTheGeneralStepBitForBit), with 42 row pairs
+/// instead of 72. Columns from the last down: column c reads rows c − 2…12 of column c − 1, which no earlier
+/// write touches (they go to columns above c − 1). A column's first pair needs no mirror: its entries are the
+/// diagonal and either the entry above it (computed here) or the one below it (computed in column c + 1's
+/// first pair).
 void shift_lag_block(double* p, const double* __restrict k, double s) noexcept {
   constexpr int n = ChauvinKalman::kStates;
   constexpr int first = ChauvinKalman::kTorquePrevState, last = ChauvinKalman::kTorqueLastState;
@@ -281,8 +282,8 @@ void ChauvinKalman::riccati_step_symmetric(int k, double speed_rad_s, Mat& p, Ve
   const double s = pc(kSpeedSqState) + h * (pc(kNoisePrev) - pc(kNoiseNow)) + measurement_var(k, speed_rad_s);
   gain = pc / s;
   // Columns of post = P − K S Kᵀ (its entries as in riccati_step(), (K_i K_j) S) that A post Aᵀ reads outside
-  // the shifted block; that block is then written in place by shift_lag_block() (its lower triangle, mirrored),
-  // without a temporary matrix.
+  // the shifted block; that block is then written in place by shift_lag_block() (its lower triangle,
+  // mirrored), without a temporary matrix.
   const Vec post0 = p.col(kSpeedSqState) - (gain * gain(kSpeedSqState)) * s;
   const Vec post1 = p.col(kTorqueState) - (gain * gain(kTorqueState)) * s;
   const Vec post2 = p.col(kTorquePrevState) - (gain * gain(kTorquePrevState)) * s;

@@ -95,7 +95,8 @@ TEST(FastParse, EightDigitsAtATimeAgreeWithTheDigitByDigitParse) {
   // (digit-like bytes '/', ':', 0x1F, 0x3A-0x3F, 0xFA-0xFF next to digits: the SWAR test's edge cases), and
   // the text ending anywhere (fewer than 8 bytes left)
   std::mt19937_64 rng(41);
-  const char others[] = {'/', ':', ';', '?', ')', ' ', 'e', '.', '-', '\x1f', '\x3a', '\xfa', '\xff', '\x00', '\x80'};
+  const char others[] = {'/', ':',    ';',    '?',    ')',    ' ',    'e',   '.',
+                         '-', '\x1f', '\x3a', '\xfa', '\xff', '\x00', '\x80'};
   int ok = 0;
   for (int trial = 0; trial < 200000; ++trial) {
     std::string text;

@@ -201,11 +201,12 @@ TEST_F(SignalStoreTest, SnapshotFollowsEachFrameAlsoOutOfOrder) {
     if (what < 30)
       (void)store_->on_frame(frame(0x100, ft, {0, 0, b, 0x27, static_cast<std::uint8_t>(b % 100), 0, 0, 0}));
     else if (what < 60)
-      (void)store_->on_frame(frame(0x101, ft, {b, 0xD2, 0x50, 0x14, 0, static_cast<std::uint8_t>(b & 1), 0, 0}));
+      (void)store_->on_frame(
+          frame(0x101, ft, {b, 0xD2, 0x50, 0x14, 0, static_cast<std::uint8_t>(b & 1), 0, 0}));
     else if (what < 75)
       (void)store_->on_frame(frame(0x200, ft, {b, static_cast<std::uint8_t>(rng() % 2 ? 0x7F : 0x01), 0, 0}));
     else if (what == 75)
-      t += 70'000'000;  // a gap: everything times out
+      t += 70'000'000;             // a gap: everything times out
     if (rng() % 4 == 0) continue;  // another frame before the next snapshot
     // WHEN the stage takes the snapshot now (rarely slightly behind: the other stage's time)
     const std::int64_t now = rng() % 16 == 0 ? t - static_cast<std::int64_t>(rng() % 20'000'000) : t;
@@ -257,8 +258,8 @@ TEST(SignalStoreDecode, WordAtATimeEqualsTheDbcDecodeForAnyLayout) {
     std::string text = "VERSION \"\"\nBU_: ECU\nBO_ 291 M: " + std::to_string(dlc) + " ECU\n";
     if (kind == "mux") text += " SG_ Sel M : 0|2@1+ (1,0) [0|0] \"\" Vector__XXX\n";
     text += " SG_ S" + std::string(kind == "mux" ? " m1" : "") + " : " + std::to_string(start) + "|" +
-            std::to_string(length) + "@" + (intel ? "1" : "0") + (is_signed ? "-" : "+") + " (" + factor + "," +
-            offset + ") [0|0] \"\" Vector__XXX\n";
+            std::to_string(length) + "@" + (intel ? "1" : "0") + (is_signed ? "-" : "+") + " (" + factor +
+            "," + offset + ") [0|0] \"\" Vector__XXX\n";
     if (kind == "float" && (length == 32 || length == 64))
       text += "SIG_VALTYPE_ 291 S : " + std::string(length == 32 ? "1" : "2") + ";\n";
     auto r = DbcDatabase::parse_string(text, "t.dbc");
@@ -277,10 +278,10 @@ TEST(SignalStoreDecode, WordAtATimeEqualsTheDbcDecodeForAnyLayout) {
       for (auto& byte : frame.data) byte = static_cast<std::uint8_t>(rng());
       const std::uint64_t updates = store.value(Quantity::kLambda).updates;
       const bool accepted = store.on_frame(frame);
-      // THEN the stored value is the DBC decode (when the payload holds the signal, the multiplexor selects it
-      // and the value is finite)
-      const bool present = frame.len >= sig.bytes_needed() &&
-                           db.find("M")->signal_present(sig, frame.data.data(), frame.len);
+      // THEN the stored value is the DBC decode (when the payload holds the signal, the multiplexor selects
+      // it and the value is finite)
+      const bool present =
+          frame.len >= sig.bytes_needed() && db.find("M")->signal_present(sig, frame.data.data(), frame.len);
       const double want = sig.decode(frame.data.data(), frame.len);
       ASSERT_EQ(accepted, present && std::isfinite(want)) << text;
       if (!accepted) continue;
