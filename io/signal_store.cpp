@@ -140,10 +140,7 @@ bool SignalStore::bind(Quantity q, std::string_view message, std::string_view si
   b.timeout_ns = timeout_ns;
   prepare(b);
   bindings_[static_cast<std::size_t>(q)] = b;
-  bound_count_ = 0;
-  for (std::size_t i = 0; i < bindings_.size(); ++i)
-    if (bindings_[i].sig != nullptr)
-      bound_[static_cast<std::size_t>(bound_count_++)] = static_cast<std::uint8_t>(i);
+  group_messages();
   values_[static_cast<std::size_t>(q)] = SignalValue{};
   cache_ok_ = false;
   return true;
@@ -184,14 +181,45 @@ double SignalStore::word_decode(const Binding& b, const std::uint8_t* data) noex
   return static_cast<double>(static_cast<std::int64_t>((v ^ b.sign) - b.sign));  // sign-extended
 }
 
+// The bound quantities grouped by message id (groups in order of first appearance, quantities in index order
+// within a group): on_frame() finds the frame's group and visits only its quantities.
+void SignalStore::group_messages() noexcept {
+  group_count_ = 0;
+  int n = 0;
+  for (std::size_t i = 0; i < bindings_.size(); ++i) {
+    const Binding& b = bindings_[i];
+    if (b.sig == nullptr) continue;
+    bool seen = false;
+    for (int g = 0; g < group_count_; ++g)
+      seen = seen || (groups_[static_cast<std::size_t>(g)].id == b.id &&
+                      groups_[static_cast<std::size_t>(g)].extended == b.extended);
+    if (seen) continue;
+    MessageGroup& g = groups_[static_cast<std::size_t>(group_count_++)];
+    g = MessageGroup{b.id, b.extended, static_cast<std::uint8_t>(n), 0};
+    for (std::size_t j = i; j < bindings_.size(); ++j) {
+      if (bindings_[j].sig == nullptr || bindings_[j].id != b.id || bindings_[j].extended != b.extended)
+        continue;
+      bound_[static_cast<std::size_t>(n++)] = static_cast<std::uint8_t>(j);
+      ++g.count;
+    }
+  }
+}
+
 bool SignalStore::on_frame(const CanFrame& frame) noexcept {
   ++stats_.frames;
-  bool any = false, used = false, bad = false;
-  for (int n = 0; n < bound_count_; ++n) {
+  const MessageGroup* group = nullptr;
+  for (int g = 0; g < group_count_; ++g) {
+    if (groups_[static_cast<std::size_t>(g)].id == frame.id &&
+        groups_[static_cast<std::size_t>(g)].extended == frame.extended) {
+      group = &groups_[static_cast<std::size_t>(g)];
+      break;
+    }
+  }
+  if (group == nullptr) return false;  // no bound signal in this message
+  bool any = false, bad = false;
+  for (int n = group->first; n < group->first + group->count; ++n) {
     const std::size_t i = bound_[static_cast<std::size_t>(n)];
     const Binding& b = bindings_[i];
-    if (b.id != frame.id || b.extended != frame.extended) continue;
-    used = true;
     if (frame.len < b.need) {  // wrong DLC: the signal is not (fully) in this frame
       bad = true;
       ShortFrames& sf = short_[i];
@@ -223,7 +251,7 @@ bool SignalStore::on_frame(const CanFrame& frame) noexcept {
     changed_ |= 1u << i;
     any = true;
   }
-  if (used) ++stats_.frames_used;
+  ++stats_.frames_used;
   if (bad) ++stats_.bad_frames;
   return any;
 }

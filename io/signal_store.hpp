@@ -153,11 +153,19 @@ class SignalStore {
   [[nodiscard]] static double word_decode(const Binding& b, const std::uint8_t* data) noexcept;
   /// Fills b's prepared fields from its message and signal.
   static void prepare(Binding& b) noexcept;
+  /// Rebuilds bound_ and groups_ from the bindings (bind()).
+  void group_messages() noexcept;
 
   const DbcDatabase* db_;
   std::array<Binding, kQuantityCount> bindings_{};
-  std::array<std::uint8_t, kQuantityCount> bound_{};  ///< the bound quantities, in index order
-  int bound_count_ = 0;
+  struct MessageGroup {  ///< the bound quantities of one message id: bound_[first, first + count)
+    std::uint32_t id = 0;
+    bool extended = false;
+    std::uint8_t first = 0, count = 0;
+  };
+  std::array<std::uint8_t, kQuantityCount> bound_{};  ///< bound quantities by message id, index order within
+  std::array<MessageGroup, kQuantityCount> groups_{};
+  int group_count_ = 0;
   std::array<SignalValue, kQuantityCount> values_{};
   std::array<ShortFrames, kQuantityCount> short_{};
   SignalStoreStats stats_;

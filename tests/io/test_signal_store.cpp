@@ -100,6 +100,33 @@ TEST_F(SignalStoreTest, OutOfRangeRejectedAndShortFrameCounted) {
   EXPECT_EQ(store_->stats().frames_used, 3u);
 }
 
+TEST_F(SignalStoreTest, AFrameReachesTheQuantitiesOfItsMessageOnly) {
+  // GIVEN quantities bound to three messages, interleaved in quantity order (MAP, MAF, IAT, fuel, ...)
+  // WHEN an ENGINE_2 frame arrives, then an extended frame with ENGINE_1's id, then the intake temperature is
+  // bound again (a reload) and an ENGINE_1 frame arrives
+  EXPECT_TRUE(store_->on_frame(frame(0x101, 1'000'000, {0x04, 0xD2, 0x50, 0x14, 0, 0x01, 0, 0})));
+  // THEN only ENGINE_2's quantities changed
+  EXPECT_EQ(store_->value(Quantity::kMaf).updates, 1u);
+  EXPECT_EQ(store_->value(Quantity::kFuelMass).updates, 1u);
+  EXPECT_EQ(store_->value(Quantity::kFuelCutoff).updates, 1u);
+  EXPECT_EQ(store_->value(Quantity::kMap).updates, 0u);
+  EXPECT_EQ(store_->value(Quantity::kIntakeTemp).updates, 0u);
+  EXPECT_EQ(store_->value(Quantity::kLoadTorque).updates, 0u);
+  // an extended id equal to a standard one is another message
+  CanFrame ext = frame(0x100, 2'000'000, {0, 0, 0x92, 0x27, 30, 0, 0, 0});
+  ext.extended = true;
+  EXPECT_FALSE(store_->on_frame(ext));
+  EXPECT_EQ(store_->value(Quantity::kMap).updates, 0u);
+  EXPECT_EQ(store_->stats().frames_used, 1u);
+  std::string err;
+  ASSERT_TRUE(store_->bind(Quantity::kIntakeTemp, "ENGINE_1", "IntakeAirTemp", 50'000'000, &err)) << err;
+  EXPECT_TRUE(store_->on_frame(frame(0x100, 3'000'000, {0, 0, 0x92, 0x27, 30, 50, 0, 0})));
+  // (each quantity once: the rebinding did not list it twice)
+  EXPECT_EQ(store_->value(Quantity::kMap).updates, 1u);
+  EXPECT_EQ(store_->value(Quantity::kIntakeTemp).updates, 1u);
+  EXPECT_EQ(store_->value(Quantity::kMaf).updates, 1u);
+}
+
 TEST_F(SignalStoreTest, BindErrorsAreExplicit) {
   std::string err;
   EXPECT_FALSE(store_->bind(Quantity::kOilTemp, "ENGINE_3", "OilTemp", 1, &err));
