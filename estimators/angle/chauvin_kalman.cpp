@@ -163,10 +163,10 @@ double ChauvinKalman::edge_state_var(double speed_rad_s) const noexcept {
 void ChauvinKalman::build_aps_set(int set, int bins, std::vector<double>& out) {
   const int kk = table_.samples;
   const int o = kTorqueState + params_.smoother_lag;
-  std::vector<double> h(static_cast<std::size_t>(kk));
-  for (int k = 0; k < kk; ++k) h[static_cast<std::size_t>(k)] = edge_coupling(k);
+  std::vector<StepNoise> noise(static_cast<std::size_t>(kk));
   for (int b = 0; b < bins; ++b) {
     const double w = std::exp(bin_log_speed_[static_cast<std::size_t>(b)]);
+    for (int k = 0; k < kk; ++k) noise[static_cast<std::size_t>(k)] = step_noise(k, w);
     Mat p = initial_covariance(0, w);
     Vec g;
     double change = 1.0;
@@ -176,8 +176,9 @@ void ChauvinKalman::build_aps_set(int set, int bins, std::vector<double>& out) {
         const auto slot_index = static_cast<std::size_t>((set * bins + b) * kk + k);
         const double prior_oo = p(o, o),
                      pc_o = p(o, kSpeedSqState) +
-                            h[static_cast<std::size_t>(k)] * (p(o, kNoisePrev) - p(o, kNoiseNow));
-        riccati_step_symmetric(k, w, p, g);             // P stays bit-symmetric: P0 is diagonal
+                            noise[static_cast<std::size_t>(k)].h * (p(o, kNoisePrev) - p(o, kNoiseNow));
+        riccati_step_symmetric(k, noise[static_cast<std::size_t>(k)], p,
+                               g);                      // P bit-symmetric: P0 is diagonal
         aps_var_[slot_index] = prior_oo - g(o) * pc_o;  // posterior variance of the output state x2(k−d | k)
         if (!(change > 1e-12)) {  // once a gain of this cycle moved, the cycle is not the last: skip the rest
           const double scale = std::max(1e-300, g.cwiseAbs().maxCoeff());
@@ -270,16 +271,26 @@ void ChauvinKalman::riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) c
   }
 }
 
+ChauvinKalman::StepNoise ChauvinKalman::step_noise(int k, double speed_rad_s) const noexcept {
+  return {edge_coupling(k), measurement_var(k, speed_rad_s),
+          qgain_[static_cast<std::size_t>(k)] * qu_[static_cast<std::size_t>(mode_)],
+          edge_state_var(speed_rad_s)};
+}
+
 void ChauvinKalman::riccati_step_symmetric(int k, double speed_rad_s, Mat& p, Vec& gain) const noexcept {
+  riccati_step_symmetric(k, step_noise(k, speed_rad_s), p, gain);
+}
+
+void ChauvinKalman::riccati_step_symmetric(int k, const StepNoise& n, Mat& p, Vec& gain) const noexcept {
   // riccati_step() with A P Aᵀ written out for a symmetric P. Rows 2…13 and 15 of A_k copy one state (the lag
   // register, v_k → v_{k−1}), row 14 is zero and only rows 0 and 1 combine two: A post Aᵀ is post shifted by
   // one state in both indices, except rows and columns 0 and 1, which are m0 = (A post) row 0 and m1 = row 1
   // (each the same sum of the same two products as in propagate()). The product of a copy row and a
   // combining row comes out equal from both sides, so of the ½(P + Pᵀ) only the (0, 1) entry changes
   // anything. A third of riccati_step()'s instructions; same bits for a bit-symmetric P.
-  const double h = edge_coupling(k);
+  const double h = n.h;
   const Vec pc = p.col(kSpeedSqState) + h * (p.col(kNoisePrev) - p.col(kNoiseNow));
-  const double s = pc(kSpeedSqState) + h * (pc(kNoisePrev) - pc(kNoiseNow)) + measurement_var(k, speed_rad_s);
+  const double s = pc(kSpeedSqState) + h * (pc(kNoisePrev) - pc(kNoiseNow)) + n.r;
   gain = pc / s;
   // Columns of post = P − K S Kᵀ (its entries as in riccati_step(), (K_i K_j) S) that A post Aᵀ reads outside
   // the shifted block; that block is then written in place by shift_lag_block() (its lower triangle,
@@ -311,7 +322,8 @@ void ChauvinKalman::riccati_step_symmetric(int k, double speed_rad_s, Mat& p, Ve
   p(kTorqueState, kTorqueState) = r11 * m1(kTorqueState) + r12 * m1(kTorquePrevState);
   const double v01 = r11 * m0(kTorqueState) + r12 * m0(kTorquePrevState);  // (A post Aᵀ)(0, 1)
   const double v10 = r00 * m1(kSpeedSqState) + r01 * m1(kTorqueState);     // (A post Aᵀ)(1, 0)
-  add_process_noise(k, speed_rad_s, p);
+  p(kTorqueState, kTorqueState) += n.q;  // add_process_noise() with the values of this tooth and speed
+  p(kNoiseNow, kNoiseNow) += n.v;
   p(kSpeedSqState, kTorqueState) = p(kTorqueState, kSpeedSqState) = 0.5 * (v01 + v10);
 }
 

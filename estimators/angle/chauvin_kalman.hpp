@@ -151,6 +151,14 @@ class ChauvinKalman {
   [[nodiscard]] Mat initial_covariance(int k, double speed_rad_s) const noexcept;
   /// P + B Q Bᵀ after the propagation of tooth k (torque noise u and a fresh edge error at speed ω).
   void add_process_noise(int k, double speed_rad_s, Mat& p) const noexcept;
+  /// What a Riccati step at tooth k and speed ω takes from the model besides P: edge_coupling(k),
+  /// measurement_var(k, ω), the torque state's process noise and edge_state_var(ω) (constant per APS speed
+  /// bin: build_aps_set() computes them once per tooth of the cycle, not per step).
+  struct StepNoise {
+    double h = 0.0, r = 0.0, q = 0.0, v = 0.0;
+  };
+  [[nodiscard]] StepNoise step_noise(int k, double speed_rad_s) const noexcept;
+  void riccati_step_symmetric(int k, const StepNoise& n, Mat& p, Vec& gain) const noexcept;
   [[nodiscard]] Mat transition(int k) const noexcept;
   /// A_k P A_kᵀ using the sparsity of A_k (per-tooth covariance propagation, CK-13).
   [[nodiscard]] Mat propagate(int k, const Mat& p) const noexcept;
