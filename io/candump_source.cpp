@@ -25,7 +25,7 @@ std::string CandumpSource::describe() const { return "candump " + path_; }
 
 std::string_view CandumpSource::bus_name(std::uint8_t bus) const noexcept {
   if (bus >= buses_) return {};
-  return std::string_view(bus_names_[bus].data());
+  return std::string_view(bus_names_[bus].data(), bus_name_len_[bus]);  // as matched: the bytes stored
 }
 
 const char* CandumpSource::parse_line(std::string_view line, CanFrame& out,

@@ -7,13 +7,21 @@ namespace torqued {
 namespace {
 constexpr std::size_t kMaxMessages = 20;
 
-/// Nanoseconds as seconds with 9 decimals ("-0.000500000").
-std::string seconds(std::int64_t ns) {
+/// A magnitude of nanoseconds with its sign as seconds with 9 decimals ("-0.000500000").
+std::string seconds(bool negative, std::uint64_t a) {
   char buf[40];
-  const std::uint64_t a = ns < 0 ? 0 - static_cast<std::uint64_t>(ns) : static_cast<std::uint64_t>(ns);
-  std::snprintf(buf, sizeof buf, "%s%" PRIu64 ".%09" PRIu64, ns < 0 ? "-" : "", a / 1'000'000'000u,
+  std::snprintf(buf, sizeof buf, "%s%" PRIu64 ".%09" PRIu64, negative ? "-" : "", a / 1'000'000'000u,
                 a % 1'000'000'000u);
   return buf;
+}
+std::string seconds(std::int64_t ns) {
+  return seconds(ns < 0, ns < 0 ? 0 - static_cast<std::uint64_t>(ns) : static_cast<std::uint64_t>(ns));
+}
+/// t − base as seconds, exact for any two times: the distance taken unsigned (two times of opposite sign can
+/// be more than INT64_MAX apart).
+std::string seconds_between(std::int64_t t, std::int64_t base) {
+  const auto ut = static_cast<std::uint64_t>(t), ub = static_cast<std::uint64_t>(base);
+  return t >= base ? seconds(false, ut - ub) : seconds(true, ub - ut);
 }
 }  // namespace
 
@@ -21,8 +29,8 @@ std::string describe_time_drop(const TimeDrop& d, const std::string& path) {
   std::string s = path + ":" + std::to_string(d.line) + ": ";
   if (d.backwards)
     return s + "time goes backwards (" + seconds(d.t_ns) + " s after " + seconds(d.base_ns) + " s): dropped";
-  return s + "time " + seconds(d.t_ns) + " s is " + seconds(d.t_ns - d.base_ns) + " s off the time base (" +
-         seconds(d.base_ns) +
+  return s + "time " + seconds(d.t_ns) + " s is " + seconds_between(d.t_ns, d.base_ns) +
+         " s off the time base (" + seconds(d.base_ns) +
          " s) and too few records follow it in step (inputs.max_time_jump_s, inputs.time_rebase_records): "
          "dropped as an outlier";
 }

@@ -537,6 +537,24 @@ TEST(Candump, ClassicExtendedFdRemoteAndBadLines) {
             std::string::npos);
 }
 
+TEST(Candump, AnInterfaceNameWithANulByteIsOneBusNamedByTheBytesMatched) {
+  // A corrupt log: "can0<NUL>x" is not "can0"; each keeps one bus, and bus_name() gives the bytes matched.
+  const std::string text = std::string("(1.000000) can0") + '\0' + "x 100#01\n(1.001000) can0 100#02\n" +
+                           "(1.002000) can0" + '\0' + "x 100#03\n";
+  TempFile f(text);
+  CandumpSource src(f.path());
+  ASSERT_TRUE(src.ok());
+  std::vector<CanFrame> fr;
+  CanFrame c;
+  while (src.next(c) == SourceStatus::kOk) fr.push_back(c);
+  ASSERT_EQ(fr.size(), 3u);
+  EXPECT_EQ(fr[0].bus, 0);
+  EXPECT_EQ(fr[1].bus, 1);
+  EXPECT_EQ(fr[2].bus, 0);
+  EXPECT_EQ(src.bus_name(0), std::string_view("can0\0x", 6));
+  EXPECT_EQ(src.bus_name(1), "can0");
+}
+
 TEST(Candump, NextDoesNotAllocate) {
   std::string content;
   for (int i = 0; i < 1000; ++i) content += "(1700000000.000100) can0 100#0011223344556677\n";

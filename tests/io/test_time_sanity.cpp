@@ -183,5 +183,20 @@ TEST(TimeSanity, CandumpFrameFarAheadIsDroppedAndNamed) {
       << src.bad_line_messages()[0];
 }
 
+TEST(TimeSanity, AnOutlierMessageGivesTheDistanceOfTimesMoreThanInt64MaxApart) {
+  // Two times of opposite sign 1.8e19 ns apart: their difference does not fit an int64 (UBSan flagged it).
+  TimeDrop d;
+  d.line = 7;
+  d.t_ns = 9'000'000'000'000'000'000;
+  d.base_ns = -9'000'000'000'000'000'000;
+  const std::string m = describe_time_drop(d, "x.log");
+  EXPECT_NE(m.find("x.log:7: time 9000000000.000000000 s is 18000000000.000000000 s off the time base "
+                   "(-9000000000.000000000 s)"),
+            std::string::npos)
+      << m;
+  std::swap(d.t_ns, d.base_ns);
+  EXPECT_NE(describe_time_drop(d, "x.log").find("is -18000000000.000000000 s off"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace torqued
