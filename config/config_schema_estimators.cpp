@@ -92,6 +92,8 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          "stationary 1 sigma of the net torque; sets Q without the gas torque model");
   TQ_NUM("kalman.model_torque_sd_nm", kalman.params.model_torque_sd_nm, open_closed(0.0, 1e5), "N m",
          "stationary 1 sigma of what the gas torque model misses; sets Q while the model is valid");
+  TQ_NUM("kalman.model_delta", kalman.params.model_delta, open_closed(0.0, 1e3), "1/rad",
+         "coloured-noise pole of h(z) (CK-18) while the gas torque model is valid");
   TQ_NUM("kalman.edge_noise_deg", kalman.params.edge_noise_deg, open_closed(0.0, 10.0), "deg",
          "edge-angle error used for R");
   TQ_NUM("kalman.jitter_s", kalman.params.jitter_s, closed(0.0, 1e-2), "s", "timestamp jitter used for R");

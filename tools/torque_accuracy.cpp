@@ -192,8 +192,8 @@ int run_bed_fuel(bool all, bool short_run, const torqued::eval::EvalOptions& bas
 }
 
 /// In-cycle torque from a fresh start without any fuel cut-off (incycle_bed.hpp).
-int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& base,
-                    const std::string& only) {
+int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& base, const std::string& only,
+                    int digits) {
   std::printf(
       "in-cycle indicated torque from a FRESH start, no fuel cut-off (%s firing recording: dyno plateaus\n"
       "1500-3200 rpm, 40-88 kPa; tooth learner empty at start, learning on the recording, its table applied "
@@ -215,18 +215,19 @@ int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& 
   for (const auto& e : torqued::sim::unseen_engines()) {
     if ((!all && !e.report && only.empty()) || (!only.empty() && e.name != only)) continue;
     const auto r = torqued::eval::evaluate_incycle_fresh(e, base, short_run);
-    std::printf("%-11s | %5.1f %+5.1f %+5.1f | %5.1f %+5.1f %+5.1f | %5.1fs | %7.4f | %6llu | %-6s %s\n",
-                r.engine.c_str(), r.kalman.rms_pct_p2p, r.kalman.bias_pct_p2p, r.kalman.lag_deg,
-                r.fourier.rms_pct_p2p, r.fourier.bias_pct_p2p, r.fourier.lag_deg, r.ready_at_s,
-                r.tooth_edge_resid_deg, static_cast<unsigned long long>(r.cycles_used), r.orders.c_str(),
-                torqued::to_string(r.quality));
+    std::printf("%-11s | %5.*f %+5.1f %+5.*f | %5.1f %+5.1f %+5.1f | %5.1fs | %7.4f | %6llu | %-6s %s\n",
+                r.engine.c_str(), digits, r.kalman.rms_pct_p2p, r.kalman.bias_pct_p2p, digits,
+                r.kalman.lag_deg, r.fourier.rms_pct_p2p, r.fourier.bias_pct_p2p, r.fourier.lag_deg,
+                r.ready_at_s, r.tooth_edge_resid_deg, static_cast<unsigned long long>(r.cycles_used),
+                r.orders.c_str(), torqued::to_string(r.quality));
     std::fflush(stdout);
   }
   return 0;
 }
 
 /// In-cycle torque through transients and a fuel cut-off entry/exit after a fresh start (incycle_bed.hpp).
-int run_bed_incycle_regimes(bool all, const torqued::eval::EvalOptions& base, const std::string& only) {
+int run_bed_incycle_regimes(bool all, const torqued::eval::EvalOptions& base, const std::string& only,
+                            int digits) {
   std::printf(
       "\nin-cycle indicated torque after the 20 s fresh start (tooth table learned on the recording), then "
       "bed_eval_run:\nTRANSIENTS (20.5-27 s: speed ramps 1500-3500 rpm, throttle steps 35-90 kPa) and a FUEL "
@@ -242,8 +243,8 @@ int run_bed_incycle_regimes(bool all, const torqued::eval::EvalOptions& base, co
     const auto r = torqued::eval::evaluate_incycle_regimes(e, base);
     for (int k = 0; k < 2; ++k) {
       const torqued::eval::InCycleRegime& g = k == 0 ? r.transient : r.cutoff;
-      std::printf("%-11s | %-9s | %5.1f %+5.1f %5.0f%% | %5.1f %5.1f | %5.1f %+5.1f\n", r.engine.c_str(),
-                  k == 0 ? "transient" : "cut-off", g.kalman.rms_pct_p2p, g.kalman.lag_deg,
+      std::printf("%-11s | %-9s | %5.*f %+5.*f %5.0f%% | %5.1f %5.1f | %5.1f %+5.1f\n", r.engine.c_str(),
+                  k == 0 ? "transient" : "cut-off", digits, g.kalman.rms_pct_p2p, digits, g.kalman.lag_deg,
                   g.kalman_cover_pct, g.kalman_slow_pct, g.kalman_worst_s_pct, g.fourier.rms_pct_p2p,
                   g.fourier.lag_deg);
     }
@@ -489,6 +490,7 @@ struct Args {
   bool bed_motoring = false, bed_fuel = false, bed_incycle = false, bed_misfire = false;
   bool regimes_only = false;
   std::string bed_engine, incycle_dump;
+  int incycle_digits = 1;
   int cylinder_seeds = 1;
   torqued::ToothLearnParams learn;
   bool no_firing_law = false;
@@ -574,6 +576,10 @@ void add_bed_options(CLI::App& app, Args& a) {
                "with --bed unseen: only the transient and fuel cut-off rows of --bed-incycle");
   app.add_option("--bed-engine", a.bed_engine,
                  "with --bed-incycle / --bed-incycle-regimes: only this bed engine (tuning or report)");
+  app.add_option(
+         "--bed-incycle-digits", a.incycle_digits,
+         "with --bed-incycle: decimals of the Kalman's RMS % and lag (2 for sweeps whose steps are small)")
+      ->check(CLI::Range(1, 3));
   app.add_option("--bed-incycle-dump", a.incycle_dump,
                  "with --bed-incycle and --bed-engine: write that engine's fresh start per tooth (truth, gas "
                  "model ripple, Kalman estimate, scored window) to this CSV file (tools/accuracy/"
@@ -612,6 +618,8 @@ void add_observer_options(CLI::App& app, Args& a) {
   app.add_option("--kalman-torque-sd", a.kalman.torque_sd_nm,
                  "Kalman process noise without the gas model: 1 sigma of the net torque (N m)");
   app.add_option("--kalman-delta", a.kalman.delta, "Kalman coloured-noise pole (1/rad)");
+  app.add_option("--kalman-model-delta", a.kalman.model_delta,
+                 "Kalman coloured-noise pole with the gas model valid (1/rad)");
   app.add_option("--kalman-model-torque-sd", a.kalman.model_torque_sd_nm,
                  "Kalman process noise with the gas model valid: 1 sigma of what the model misses (N m)");
   app.add_option("--kalman-edge-noise", a.kalman.edge_noise_deg, "Kalman R: edge-angle error (deg)");
@@ -689,8 +697,9 @@ int run_unseen_bed(Args& a) {
     if (a.wiebe_m >= 0.0) bo.base.energies.burn_wiebe_m = a.wiebe_m;
     torqued::eval::EvalOptions fresh = bo;
     fresh.incycle_dump = a.incycle_dump;
-    const int rc = a.regimes_only ? 0 : run_bed_incycle(a.bed_all, a.bed_short, fresh, a.bed_engine);
-    return rc != 0 ? rc : run_bed_incycle_regimes(a.bed_all, bo, a.bed_engine);
+    const int rc =
+        a.regimes_only ? 0 : run_bed_incycle(a.bed_all, a.bed_short, fresh, a.bed_engine, a.incycle_digits);
+    return rc != 0 ? rc : run_bed_incycle_regimes(a.bed_all, bo, a.bed_engine, a.incycle_digits);
   }
   if (a.bed_motoring)
     return run_bed_motoring(a.bed_all, a.bed_short, bo, a.bed_machine > 0.0 ? a.bed_machine : 1.0);

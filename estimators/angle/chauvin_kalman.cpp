@@ -66,26 +66,36 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
   const int kk = table_.samples;
   a11_.resize(static_cast<std::size_t>(kk));
   b12_.resize(static_cast<std::size_t>(kk));
-  acol_.resize(static_cast<std::size_t>(kk));
-  qgain_.resize(static_cast<std::size_t>(kk));
+  acol_.resize(static_cast<std::size_t>(2 * kk));
+  qgain_.resize(static_cast<std::size_t>(2 * kk));
+  // The pole per noise set: δ for the whole net torque, model_delta for the gas model's miss (its correlation
+  // length after the burn is modelled is shorter; docs/angle_estimators.md "A pole of its own").
+  const std::array<double, 2> delta{params_.delta, params_.model_delta};
   for (int k = 0; k < kk; ++k) {
     const auto i = static_cast<std::size_t>(k);
     const auto n = static_cast<std::size_t>((k + 1) % kk);
     // Energy balance over Δ_k (CF-2), the exact form of (CK-3): ½J_{k+1}x1(k+1) = ½J_k x1(k) + Δ_k x2(k).
     a11_[i] = table_.j_center[i] / table_.j_center[n];
     b12_[i] = 2.0 * table_.step_rad[i] / table_.j_center[n];
-    acol_[i] = std::exp(-params_.delta * table_.step_rad[i]);  // pole of h(z) (CK-18)
-    qgain_[i] = std::pow(1.0 - acol_[i], 4);                   // (1−a)⁴ of the noise input (CK-18)
+    for (int set = kWholeTorqueSet; set <= kModelMissSet; ++set) {
+      const auto j = static_cast<std::size_t>(set * kk + k);
+      // The pole of h(z) and the (1−a)⁴ of its noise input (CK-18).
+      acol_[j] = std::exp(-delta[static_cast<std::size_t>(set)] * table_.step_rad[i]);
+      qgain_[j] = std::pow(1.0 - acol_[j], 4);
+    }
   }
   // Q from the stationary variance of x2 under h(z) at the nominal step: for x(n+1) = 2a x(n) − a² x(n−1) +
-  // (1−a)² u, var x = (1−a)⁴ q (1+a²)/(1−a²)³  →  q = σ² (1−a²)³ / ((1−a)⁴ (1+a²)). Two σ: the whole net
-  // torque (no model) and, with gas_model, what the pressure model misses.
+  // (1−a)² u, var x = (1−a)⁴ q (1+a²)/(1−a²)³  →  q = σ² (1−a²)³ / ((1−a)⁴ (1+a²)). Two σ (and two δ): the
+  // whole net torque (no model) and, with gas_model, what the pressure model misses.
   std::vector<double> steps(table_.step_rad);
   std::nth_element(steps.begin(), steps.begin() + kk / 2, steps.end());
-  const double a = std::exp(-params_.delta * steps[static_cast<std::size_t>(kk / 2)]);
-  const double qf = std::pow(1.0 - a * a, 3) / (std::pow(1.0 - a, 4) * (1.0 + a * a));
-  qu_[kWholeTorqueSet] = params_.torque_sd_nm * params_.torque_sd_nm * qf;
-  qu_[kModelMissSet] = params_.model_torque_sd_nm * params_.model_torque_sd_nm * qf;
+  const double nominal_step = steps[static_cast<std::size_t>(kk / 2)];
+  const auto stationary = [&](double d, double sd) {
+    const double a = std::exp(-d * nominal_step);
+    return sd * sd * std::pow(1.0 - a * a, 3) / (std::pow(1.0 - a, 4) * (1.0 + a * a));
+  };
+  qu_[kWholeTorqueSet] = stationary(params_.delta, params_.torque_sd_nm);
+  qu_[kModelMissSet] = stationary(params_.model_delta, params_.model_torque_sd_nm);
   sd_[kWholeTorqueSet] = params_.torque_sd_nm;
   sd_[kModelMissSet] = params_.model_torque_sd_nm;
 
@@ -105,7 +115,7 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
 // is the cache's part of the key: learned/table_store.hpp).
 std::uint64_t ChauvinKalman::aps_key(int sets, int bins) const noexcept {
   TableKey key;
-  key.add(std::string_view("chauvin-aps 2")).add(kStates).add(table_.samples).add(sets).add(bins);
+  key.add(std::string_view("chauvin-aps 3")).add(kStates).add(table_.samples).add(sets).add(bins);
   key.add(params_.smoother_lag);  // the output state whose posterior variance is tabulated
   key.add(table_.width_rad).add(a11_).add(b12_).add(acol_).add(bin_log_speed_);
   key.add(std::span<const double>(qu_)).add(std::span<const double>(sd_));
@@ -209,13 +219,13 @@ ChauvinKalman::Mat ChauvinKalman::initial_covariance(int k, double speed_rad_s) 
 }
 
 void ChauvinKalman::add_process_noise(int k, double speed_rad_s, Mat& p) const noexcept {
-  p(kTorqueState, kTorqueState) += qgain_[static_cast<std::size_t>(k)] * qu_[static_cast<std::size_t>(mode_)];
+  p(kTorqueState, kTorqueState) += qgain_[set_slot(k)] * qu_[static_cast<std::size_t>(mode_)];
   p(kNoiseNow, kNoiseNow) += edge_state_var(speed_rad_s);  // the next edge's error, fresh
 }
 
 ChauvinKalman::Mat ChauvinKalman::transition(int k) const noexcept {
   const auto i = static_cast<std::size_t>(k);
-  const double a = acol_[i];
+  const double a = acol_[set_slot(k)];
   Mat m = Mat::Zero();
   m(kSpeedSqState, kSpeedSqState) = a11_[i];
   m(kSpeedSqState, kTorqueState) = b12_[i];
@@ -230,7 +240,7 @@ ChauvinKalman::Mat ChauvinKalman::propagate(int k, const Mat& p) const noexcept 
   // A P Aᵀ with the sparse A_k of transition(): the rows of θ̇² and x2(k) have two entries, the rest is a
   // shift register. Same products as the dense form, without the 2·8³ multiplications by zero (per tooth).
   const auto i = static_cast<std::size_t>(k);
-  const double a = acol_[i];
+  const double a = acol_[set_slot(k)];
   const double r00 = a11_[i], r01 = b12_[i], r11 = 2.0 * a, r12 = -a * a;
   Mat m;  // m = A P
   m.row(kSpeedSqState) = r00 * p.row(kSpeedSqState) + r01 * p.row(kTorqueState);
@@ -273,8 +283,7 @@ void ChauvinKalman::riccati_step(int k, double speed_rad_s, Mat& p, Vec& gain) c
 
 ChauvinKalman::StepNoise ChauvinKalman::step_noise(int k, double speed_rad_s) const noexcept {
   return {edge_coupling(k), measurement_var(k, speed_rad_s),
-          qgain_[static_cast<std::size_t>(k)] * qu_[static_cast<std::size_t>(mode_)],
-          edge_state_var(speed_rad_s)};
+          qgain_[set_slot(k)] * qu_[static_cast<std::size_t>(mode_)], edge_state_var(speed_rad_s)};
 }
 
 void ChauvinKalman::riccati_step_symmetric(int k, double speed_rad_s, Mat& p, Vec& gain) const noexcept {
@@ -300,7 +309,7 @@ void ChauvinKalman::riccati_step_symmetric(int k, const StepNoise& n, Mat& p, Ve
   const Vec post2 = p.col(kTorquePrevState) - (gain * gain(kTorquePrevState)) * s;
   const Vec post14 = p.col(kNoiseNow) - (gain * gain(kNoiseNow)) * s;
   const auto i = static_cast<std::size_t>(k);
-  const double a = acol_[i];
+  const double a = acol_[set_slot(k)];
   const double r00 = a11_[i], r01 = b12_[i], r11 = 2.0 * a, r12 = -a * a;
   const Vec m0 = r00 * post0 + r01 * post1;  // post symmetric: rows = columns
   const Vec m1 = r11 * post1 + r12 * post2;
@@ -337,13 +346,20 @@ ChauvinKalman::BinPos ChauvinKalman::bin_pos(int k, double speed_rad_s) const no
   return bin_pos_log(k, std::log(std::max(speed_rad_s, 1e-3)));
 }
 
-ChauvinKalman::BinPos ChauvinKalman::bin_pos_log(int k, double l) const noexcept {
+ChauvinKalman::Vec ChauvinKalman::periodic_gain_of_set(int set, int k, double speed_rad_s) const noexcept {
+  const int built = params_.gas_model ? kModelMissSet : kWholeTorqueSet;  // last set build_aps_tables made
+  const BinPos at =
+      bin_pos_log(std::clamp(set, kWholeTorqueSet, built), k, std::log(std::max(speed_rad_s, 1e-3)));
+  return (1.0 - at.t) * aps_gain(at.lo) + at.t * aps_gain(at.hi);
+}
+
+ChauvinKalman::BinPos ChauvinKalman::bin_pos_log(int set, int k, double l) const noexcept {
   const int kk = table_.samples;
   const int bins = static_cast<int>(bin_log_speed_.size());
   double pos = (l - bin_log_speed_.front()) * bin_scale_;
   pos = std::clamp(pos, 0.0, static_cast<double>(bins - 1) - 1e-12);
   const int b = static_cast<int>(pos);
-  const int base = mode_ * bins;
+  const int base = set * bins;
   return {static_cast<std::size_t>((base + b) * kk + k), static_cast<std::size_t>((base + b + 1) * kk + k),
           pos - b};
 }
@@ -397,7 +413,7 @@ void ChauvinKalman::advance_mean_speed(double omega) noexcept {
 
 void ChauvinKalman::predict(int k) noexcept {
   const auto i = static_cast<std::size_t>(k);
-  const double a = acol_[i];
+  const double a = acol_[set_slot(k)];
   // x ← A_k x with the sparse A_k of the header comment.
   const double x1 = a11_[i] * x_(kSpeedSqState) + b12_[i] * (x_(kTorqueState) + model_[0]);
   const double x2 = 2.0 * a * x_(kTorqueState) - a * a * x_(kTorquePrevState);

@@ -11,20 +11,21 @@
 // across the gap. m_k is a known input (beyond the paper): the zero-mean gas torque ripple of a
 // cylinder-pressure model over the step (set_model_torque; 0 without one), so x2 = T_ind − T*_load − m and
 // T̂_ind = x2 + m + T*_load. Coloured noise (CK-18): x2(k+1) = 2a x2(k) − a² x2(k−1) + (1−a)² u(k), a =
-// e^{−δΔ_k}. The extra lags (beyond the paper's q = 2) make a fixed-lag smoother: the filtered estimate of
-// x2(k−d) uses d more teeth of speed and removes most of the predictor's phase lag (d = smoother_lag ≤
-// kMaxLag = 12, latency d teeth; at 6000 rpm the filter's memory outgrows 6 teeth). Measurement y_k
-// = θ̇²(k) = (w_k/dt_k)², R_k from the edge-angle error and jitter (relative, so R ∝ θ̇⁴). Because R depends on
-// speed, the asymptotic periodic gains (APS, CK §VI and Bittanti Theorem 3) are computed at start-up for a
-// log-spaced set of speeds and interpolated; the exact-Riccati variant (11)-(13) runs P on line. Measurement
-// noise (beyond the paper): an edge-angle error or timestamp error e_k (equivalent angle, rad) of edge k
-// shortens period k and lengthens period k+1, so y_k = θ̇²(c_k) + (2θ̇²/w_k)(e_{k−1} − e_k): moving-average
-// noise whose power at the low orders that carry the torque is a small fraction of the white R the paper
-// assumes (for order o of a K-sample cycle, 2(1 − cos 2πo/K) instead of 2). With differenced_edge_noise the
-// two edge errors are states, v = 2θ̇²e ((rad/s)² rad, fresh each tooth with variance 4θ̇⁴σ_e², and its copy),
-// y_k = x1 + (v_{k−1} − v_k)/w_k, and R keeps only a small floor (Bryson & Henrikson's state augmentation for
-// coloured measurement noise). In these units the gains of the edge states scale with speed like those of x1,
-// so the APS interpolation between speed bins stays as accurate.
+// e^{−δΔ_k}, δ = delta (the paper's filter) or model_delta (while the gas model is valid). The extra lags
+// (beyond the paper's q = 2) make a fixed-lag smoother: the filtered estimate of x2(k−d) uses d more teeth of
+// speed and removes most of the predictor's phase lag (d = smoother_lag ≤ kMaxLag = 12, latency d teeth; at
+// 6000 rpm the filter's memory outgrows 6 teeth). Measurement y_k = θ̇²(k) = (w_k/dt_k)², R_k from the
+// edge-angle error and jitter (relative, so R ∝ θ̇⁴). Because R depends on speed, the asymptotic periodic
+// gains (APS, CK §VI and Bittanti Theorem 3) are computed at start-up for a log-spaced set of speeds and
+// interpolated; the exact-Riccati variant (11)-(13) runs P on line. Measurement noise (beyond the paper): an
+// edge-angle error or timestamp error e_k (equivalent angle, rad) of edge k shortens period k and lengthens
+// period k+1, so y_k = θ̇²(c_k) + (2θ̇²/w_k)(e_{k−1} − e_k): moving-average noise whose power at the low orders
+// that carry the torque is a small fraction of the white R the paper assumes (for order o of a K-sample
+// cycle, 2(1 − cos 2πo/K) instead of 2). With differenced_edge_noise the two edge errors are states, v = 2θ̇²e
+// ((rad/s)² rad, fresh each tooth with variance 4θ̇⁴σ_e², and its copy), y_k = x1 + (v_{k−1} − v_k)/w_k, and R
+// keeps only a small floor (Bryson & Henrikson's state augmentation for coloured measurement noise). In these
+// units the gains of the edge states scale with speed like those of x1, so the APS interpolation between
+// speed bins stays as accurate.
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
@@ -105,6 +106,9 @@ class ChauvinKalman {
   [[nodiscard]] const Vec& last_gain() const noexcept { return last_gain_; }
   /// APS filter gain at tooth k for speed ω (interpolated between the precomputed speed bins).
   [[nodiscard]] Vec periodic_gain(int k, double speed_rad_s) const noexcept;
+  /// The same from noise set `set` (kWholeTorqueSet, or kModelMissSet when built with gas_model), whichever
+  /// set the last update() used (tests).
+  [[nodiscard]] Vec periodic_gain_of_set(int set, int k, double speed_rad_s) const noexcept;
   /// Posterior variance of the output state x2(k−d | k) ((N m)²) at tooth k for speed ω under the APS gains
   /// (the periodic Riccati solution's, interpolated as the gains are): the claimed 1σ² of the estimate.
   [[nodiscard]] double periodic_output_var(int k, double speed_rad_s) const noexcept;
@@ -134,7 +138,10 @@ class ChauvinKalman {
   };
   [[nodiscard]] BinPos bin_pos(int k, double speed_rad_s) const noexcept;
   /// bin_pos() from ln ω (ω already clamped to ≥ 1e-3 rad/s).
-  [[nodiscard]] BinPos bin_pos_log(int k, double log_speed) const noexcept;
+  [[nodiscard]] BinPos bin_pos_log(int k, double log_speed) const noexcept {
+    return bin_pos_log(mode_, k, log_speed);
+  }
+  [[nodiscard]] BinPos bin_pos_log(int set, int k, double log_speed) const noexcept;
   /// The running mean speed's update and its logarithm for the APS bin (per tooth): ln ω̄ exact at a
   /// (re)start and once per cycle, in between advanced by ln(1 + u), u = Δω̄/ω̄ (a short series).
   void advance_mean_speed(double omega) noexcept;
@@ -165,8 +172,15 @@ class ChauvinKalman {
 
   KalmanParams params_;
   ToothAngleTable table_;
-  std::vector<double> a11_, b12_, acol_;  ///< per tooth: J_k/J_{k+1}, 2Δ_k/J_{k+1}, a = e^{−δΔ_k}
-  std::vector<double> qgain_;             ///< per tooth: (1 − a)⁴
+  std::vector<double> a11_, b12_;  ///< per tooth: J_k/J_{k+1}, 2Δ_k/J_{k+1}
+  /// Per noise set and tooth [set * K + k]: a = e^{−δΔ_k}, δ = delta (whole torque) or model_delta (model
+  /// miss)
+  std::vector<double> acol_;
+  std::vector<double> qgain_;  ///< the same slots: (1 − a)⁴
+  /// Slot of tooth k's pole in acol_ / qgain_ for the current noise set.
+  [[nodiscard]] std::size_t set_slot(int k) const noexcept {
+    return static_cast<std::size_t>(mode_ * table_.samples + k);
+  }
   std::array<double, 2> qu_{};  ///< variance of u (N m)²: [0] whole net torque, [1] the gas model's miss
   std::array<double, 2> sd_{};  ///< the matching stationary 1σ of x2 (P0)
   int mode_ = kWholeTorqueSet;  ///< which of the two the current tooth uses (kModelMissSet: gas model valid)

@@ -64,6 +64,9 @@ struct KalmanParams {
                                      ///< spark-phased model: 40/45/50/55/60/75 tried, the least fresh-start +
                                      ///< transient + cut-off total whose claimed 1σ still covers >= 68 % of
                                      ///< the teeth; docs/angle_estimators.md "What limits the I6")
+  double model_delta = 3.0;  ///< coloured-noise pole δ (1/rad) while the gas model is valid (the model-miss
+                             ///< set; delta serves the papers' filter): 1/δ the crank angle over which the
+                             ///< model's miss stays correlated
   double edge_noise_deg = 0.01;  ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.01 learned:
                                  ///< tuned on incycle_*_65 + fuel_cut, 0.005/0.01/0.02 tried)
   double jitter_s = 0.3e-6;      ///< timestamp jitter used for R (s)

@@ -137,6 +137,10 @@ const BadCase kBad[] = {
      "blowdown_before_evo.yaml:6:28: key 'estimators.energies.blowdown_end_atdc_deg': found '100', expected "
      "more than evo_atdc_deg = 130 deg",
      1},
+    {"model_delta_zero",
+     "model_delta_zero.yaml:5:18: key 'estimators.kalman.model_delta': found '0', expected a finite number "
+     "(1/rad, range (0, 1000])",
+     1},
     {"free_coast_band_inverted",
      "free_coast_band_inverted.yaml:4:3: key 'can.load_reference.free_coast_decel_max': found '1.8' "
      "(default), "

@@ -329,6 +329,67 @@ TEST(ChauvinKalman, WithoutAValidGasModelItIsThePapersFilterBitForBit) {
   EXPECT_EQ(differ, 0);
 }
 
+bool same_gains(const ChauvinKalman& a, const ChauvinKalman& b, int set) {
+  for (int k = 0; k < a.table().samples; k += 5)
+    for (double w : {60.0, 157.0, 400.0, 790.0}) {
+      const ChauvinKalman::Vec ga = a.periodic_gain_of_set(set, k, w), gb = b.periodic_gain_of_set(set, k, w);
+      for (int i = 0; i < ChauvinKalman::kStates; ++i)
+        if (std::bit_cast<std::uint64_t>(ga(i)) != std::bit_cast<std::uint64_t>(gb(i))) return false;
+    }
+  return true;
+}
+
+TEST(ChauvinKalman, TheModelDeltaLeavesThePapersGainSetUnchanged) {
+  // GIVEN two filters built for the gas model that differ only in the model-miss pole (model_delta 3 and 12)
+  const EngineGeometry eng;
+  const WheelGeometry wheel;
+  KalmanParams p3;
+  p3.speed_bins = 8;
+  KalmanParams p12 = p3;
+  p12.model_delta = 12.0;
+  const ChauvinKalman a(eng, wheel, p3), b(eng, wheel, p12);
+  // THEN the papers' (whole-torque) gain set is the same bit for bit, the model-miss set is not
+  EXPECT_TRUE(same_gains(a, b, ChauvinKalman::kWholeTorqueSet));
+  EXPECT_FALSE(same_gains(a, b, ChauvinKalman::kModelMissSet));
+}
+
+TEST(ChauvinKalman, TheModelSetUsesItsOwnDelta) {
+  // GIVEN a filter with delta 3 / model_delta 12, one with delta 12 / model_delta 12 and one with 3 / 3
+  test::SyntheticSpec sp;
+  sp.cycles = 8;
+  auto run = test::make_synthetic(sp);
+  apply_true_widths(run, sp.wheel);
+  KalmanParams own;
+  own.speed_bins = 8;
+  own.model_delta = 12.0;
+  KalmanParams shared = own;
+  shared.delta = 12.0;
+  KalmanParams old = own;
+  old.model_delta = 3.0;
+  ChauvinKalman a(sp.engine, sp.wheel, own), b(sp.engine, sp.wheel, shared), c(sp.engine, sp.wheel, old);
+  // THEN the model-miss gain set of the first is the second's (δ alone sets it, not the papers' δ) ...
+  EXPECT_TRUE(same_gains(a, b, ChauvinKalman::kModelMissSet));
+  EXPECT_FALSE(same_gains(a, b, ChauvinKalman::kWholeTorqueSet));
+  // ... and WHEN all three run on the same teeth with a valid gas model (the prediction's pole as well)
+  int differ_shared = 0, differ_old = 0, n = 0;
+  for (std::size_t i = 0; i < run.samples.size(); ++i) {
+    const double ripple = 50.0 * std::sin(0.1 * static_cast<double>(i));
+    bool ok = true;
+    for (ChauvinKalman* kf : {&a, &b, &c}) {
+      kf->set_model_torque(ripple, true);
+      ok = kf->update(run.samples[i]) && ok;
+    }
+    if (!ok) continue;  // (the first tooth: no period yet)
+    EXPECT_TRUE(a.model_active());
+    differ_shared += a.estimate().torque_nm != b.estimate().torque_nm ? 1 : 0;
+    differ_old += a.estimate().torque_nm != c.estimate().torque_nm ? 1 : 0;
+    ++n;
+  }
+  // THEN the first's estimates are the second's bit for bit, and not the third's
+  EXPECT_EQ(differ_shared, 0);
+  EXPECT_GT(differ_old, n / 2);
+}
+
 TEST(ChauvinKalman, AKnownGasTorqueInputLeavesTheFilterOnlyTheModelsMiss) {
   // GIVEN the synthetic engine's indicated torque ripple about its cycle mean as the known input (a perfect
   // gas model) and a 40 % error on it (a poor one)

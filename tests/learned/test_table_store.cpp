@@ -140,6 +140,31 @@ TEST(TableStore, KalmanGainsAreCachedPerModelMissSigma) {
   EXPECT_EQ(st.misses(), 3);
 }
 
+// The model-miss pole (kalman.model_delta) sets the gas-model gain set too: a cache written with one δ is not
+// read for another.
+TEST(TableStore, KalmanGainsAreCachedPerModelDelta) {
+  TempDir d;
+  const EngineGeometry eng;
+  const WheelGeometry wheel;
+  KalmanParams kp;
+  kp.speed_bins = 6;
+  TableStore st(d.path.string(), kBuild);
+  const ScopedTableCache use(&st);
+  kp.model_delta = 3.0;
+  const ChauvinKalman first(eng, wheel, kp);
+  kp.model_delta = 12.0;
+  const ChauvinKalman second(eng, wheel, kp);
+  EXPECT_EQ(st.hits(), 0);
+  EXPECT_EQ(st.misses(), 2);
+  const ChauvinKalman again(eng, wheel, kp);
+  EXPECT_EQ(st.hits(), 1);  // the same δ again: read back
+  for (int k = 0; k < second.table().samples; k += 11) {
+    const auto a = second.periodic_gain_of_set(ChauvinKalman::kModelMissSet, k, 157.0);
+    const auto b = again.periodic_gain_of_set(ChauvinKalman::kModelMissSet, k, 157.0);
+    for (int i = 0; i < ChauvinKalman::kStates; ++i) EXPECT_TRUE(same_bytes(a(i), b(i))) << k << " " << i;
+  }
+}
+
 TEST(TableStore, LoadRlsTablesFromTheCacheEqualTheComputedOnes) {
   TempDir d;
   const EngineGeometry eng;
