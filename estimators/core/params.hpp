@@ -56,17 +56,19 @@ struct PreprocessParams {
 };
 /// Chauvin angle-domain estimators (docs/equations.md §2).
 struct KalmanParams {
-  double delta = 3.0;                ///< coloured-noise pole δ (1/rad) of h(z) (CK-18)
+  double delta = 3.0;         ///< coloured-noise pole δ (1/rad) of h(z) (CK-18)
+  double model_delta = 16.0;  ///< coloured-noise pole δ (1/rad) while the gas model is valid (the model-miss
+                              ///< set; delta serves the papers' filter): 1/δ the crank angle over which the
+                              ///< model's miss stays correlated (16: 3.6°; chosen with model_torque_sd_nm and
+                              ///< the Wiebe burn on the bed's tuning engines, docs/angle_estimators.md "A
+                              ///< pole of its own")
   double torque_sd_nm = 300.0;       ///< stationary 1σ of the net torque x2 under h(z); sets Q (N m), used
                                      ///< while the gas model is not valid (no MAP yet) or gas_model is false
-  double model_torque_sd_nm = 60.0;  ///< the same with the gas model valid, where x2 is only what the
+  double model_torque_sd_nm = 20.0;  ///< the same with the gas model valid, where x2 is only what the
                                      ///< pressure model misses (tuned on the bed's tuning engines with the
-                                     ///< spark-phased model: 40/45/50/55/60/75 tried, the least fresh-start +
+                                     ///< spark-phased Wiebe model, with model_delta: the least fresh-start +
                                      ///< transient + cut-off total whose claimed 1σ still covers >= 68 % of
-                                     ///< the teeth; docs/angle_estimators.md "What limits the I6")
-  double model_delta = 3.0;  ///< coloured-noise pole δ (1/rad) while the gas model is valid (the model-miss
-                             ///< set; delta serves the papers' filter): 1/δ the crank angle over which the
-                             ///< model's miss stays correlated
+                                     ///< the teeth; docs/angle_estimators.md "A pole of its own")
   double edge_noise_deg = 0.01;  ///< edge-angle error used for R (deg) (0.05 unlearned wheel, ~0.01 learned:
                                  ///< tuned on incycle_*_65 + fuel_cut, 0.005/0.01/0.02 tried)
   double jitter_s = 0.3e-6;      ///< timestamp jitter used for R (s)
@@ -145,10 +147,12 @@ struct EnergiesParams {
   double burn_centroid_atdc_deg = 10.0;  ///< heat release lumped here in the expansion-pressure closure when
                                          ///< the spark advance is unknown (deg after TDC)
   double burn_delay_deg = 29.0;     ///< spark to equivalent burn centroid (deg): centroid = delay − advance
-  double burn_duration_deg = 40.0;  ///< in-cycle gas torque model only (Kalman known input): the
-                                    ///< heat release spread over this angle around the burn centroid by
-                                    ///< a raised cosine (the RLS closure keeps the lumped burn); 0 = lumped
-  double burn_wiebe_a = 0.0;        ///< in-cycle model only: burn shape a Wiebe function with this efficiency
+  double burn_duration_deg = 55.0;  ///< in-cycle gas torque model only (Kalman known input): the
+                                    ///< heat release spread over this angle around the burn centroid
+                                    ///< (the RLS closure keeps the lumped burn); 0 = lumped. 55 with the
+                                    ///< Wiebe shape (40 with the raised cosine before; tuning engines,
+                                    ///< docs/angle_estimators.md "A pole of its own")
+  double burn_wiebe_a = 5.0;        ///< in-cycle model only: burn shape a Wiebe function with this efficiency
                                     ///< parameter a instead of the raised cosine (0 = raised cosine) (-)
   double burn_wiebe_m = 2.0;        ///< and this form factor m (Heywood §9.2.1: a = 5, m = 2) (-)
   double incycle_compression_kappa = 0.0;  ///< in-cycle model only: κ of compression (0 = polytropic_kappa)

@@ -283,9 +283,9 @@ TEST(CylinderAccuracy, InCycleIndicatedTorqueOnRowsNotTunedOn) {
 
 TEST(CylinderAccuracy, GasTorqueModelAsKnownInputFollowsTheWaveformOnRowsAndEnginesNotTunedOn) {
   // GIVEN the cylinder-pressure model's gas torque ripple fed to the Kalman filter and the Fourier observer
-  // as a known input (kalman.gas_model, fourier.gas_model; energies.burn_duration_deg = 40° is a textbook
-  // 0-90 % burn angle, not tuned; fourier.model_l_ref tuned on incycle_*_65 + fuel_cut,
-  // kalman.model_torque_sd_nm on the unseen-engines bed's tuning engines), on simulator rows and on
+  // as a known input (kalman.gas_model, fourier.gas_model; the burn (energies.burn_duration_deg,
+  // burn_wiebe_a), kalman.model_torque_sd_nm and kalman.model_delta tuned on the unseen-engines bed's tuning
+  // engines; fourier.model_l_ref on incycle_*_65 + fuel_cut), on simulator rows and on
   // randomised engines (seed 77: geometry, inertia, wheel and injectors drawn at random) not tuned on. Bounds
   // sit between the figures with the model (and its filter gains: kalman.model_torque_sd_nm,
   // fourier.model_l_ref) and without it (the papers' zero-mean priors), so each fails without the model:

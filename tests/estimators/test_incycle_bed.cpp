@@ -51,9 +51,10 @@ TEST_P(InCycleFreshStart, KalmanWithinFivePercentOfPeakToPeakAndOneDegreeWithout
 }
 
 // The I6 report engines since the in-cycle gas model's burn centroid follows the spark advance
-// (energies.incycle_spark_phasing; docs/angle_estimators.md, "What limits the I6"): 4.6 / 4.6 % at +0.1 /
-// +0.3° on this 20 s run with kalman.model_torque_sd_nm 60 (75: 4.6 / 4.7 % at +0.3 / +0.4°; fixed centroid,
-// --fixed-burn-centroid: 6.6 / 5.4 %, failing).
+// (energies.incycle_spark_phasing; docs/angle_estimators.md, "What limits the I6"): 4.7 / 4.4 % at −0.8 /
+// +0.1° on this 20 s run with the Wiebe 55° burn, kalman.model_delta 16 and model_torque_sd_nm 20 ("A pole of
+// its own"; raised cosine 40°, δ 3, σ 60: 4.6 / 4.6 % at +0.1 / +0.3°; fixed centroid, --fixed-burn-centroid:
+// 6.6 / 5.4 %, failing).
 INSTANTIATE_TEST_SUITE_P(ReportEngines, InCycleFreshStart,
                          ::testing::Values("rep_i4_60", "rep_i4_36", "rep_i3_60", "rep_i3_36", "rep_i6_60",
                                            "rep_i6_36"));
