@@ -21,9 +21,12 @@ Bounds open_open(double lo, double hi) { return {lo, hi, true, true}; }
 #define TQ_ARR2(key, field, bounds, unit, desc) \
   t.push_back(fixed_list<2>("estimators." key, TQ_REF(Arr2, estimators.field), bounds, unit, desc))
 
-void add_estimators(std::vector<SchemaEntry>& t) {
-  using Arr2 = std::array<double, 2>;
-  using Arr4 = std::array<double, 4>;
+namespace {
+using Arr2 = std::array<double, 2>;
+using Arr4 = std::array<double, 4>;
+
+/// The time-triggered estimators of Na et al. (docs/equations.md §1).
+void add_time_estimators(std::vector<SchemaEntry>& t) {
   // Time-triggered pipeline (docs/equations.md §1).
   TQ_NUM("time_pipeline.step_s", time_pipeline.step_s, closed(1e-5, 0.1), "s",
          "time pipeline step T_s (1 ms = 1 kHz)");
@@ -75,7 +78,10 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          "K^-1 never decays below k0_floor K0");
   TQ_ARR2("adaptive.theta0", adaptive.params.theta0, closed(-1e9, 1e9), "N m",
           "initial parameters (normalised units)");
+}
 
+/// The angle-triggered observers: preprocessor, Kalman, Fourier (docs/equations.md §2).
+void add_angle_observers(std::vector<SchemaEntry>& t) {
   // Angle-triggered (docs/equations.md §2).
   TQ_NUM("preprocess.lowpass_hz", preprocess.lowpass_hz, open_closed(0.0, 1e5), "Hz",
          "low-pass cut-off on tooth speed (EN §2.1)");
@@ -127,7 +133,10 @@ void add_estimators(std::vector<SchemaEntry>& t) {
       "feed the cylinder-pressure model's gas torque ripple (MAP, measured cylinder works) as a known input");
   TQ_INT("fourier.output_lag", fourier.params.output_lag, closed(0, 6), "teeth",
          "report the torque at tooth k-lag from the coefficients after tooth k");
+}
 
+/// The Energies 2019 chain: windows, load RLS, ESO (docs/equations.md §3-4).
+void add_energies(std::vector<SchemaEntry>& t) {
   // Energies 2019 chain and beyond (docs/equations.md §3-4).
   TQ_BOOL("energies.enabled", energies.enabled, "run the load RLS + ESO chain (EN)");
   TQ_NUM("energies.window_start_btdc_deg", energies.params.window_start_btdc_deg, open_closed(0.0, 180.0),
@@ -192,6 +201,10 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          "aligned to it");
   TQ_INT("energies.rls_window_shifts", energies.params.rls_window_shifts, closed(1, 64), "",
          "each RLS window also shifted 1..n-1 teeth earlier");
+}
+
+/// The in-cycle gas torque model and the rest of the energies section.
+void add_gas_model(std::vector<SchemaEntry>& t) {
   TQ_NUM("energies.burn_duration_deg", energies.params.burn_duration_deg, closed(0.0, 120.0), "deg",
          "in-cycle gas torque model (Kalman known input): heat release spread over this angle around the "
          "burn centroid; 0 = lumped");
@@ -242,6 +255,10 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          "upper bound of the learned scale k");
   TQ_NUM("default_oil_temp_c", default_oil_temp_c, closed(-40.0, 200.0), "degC",
          "oil temperature the friction law assumes until OilTemp arrives on CAN");
+}
+
+/// Friction (EN-24..36): the law, its prior and what teaches it.
+void add_friction(std::vector<SchemaEntry>& t) {
   TQ_BOOL("friction.enabled", friction.enabled, "estimate friction torque (EN-24)");
   t.push_back(fixed_list<4>("estimators.friction.c", TQ_REF(Arr4, estimators.friction.params.c),
                             closed(-1e6, 1e6), "",
@@ -304,6 +321,10 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          "window in fuel cut-off): memory of about its inverse in motoring cycles");
   TQ_NUM("friction.residual_sd_floor_nm", friction.params.residual_sd_floor_nm, open_closed(0.0, 1e3), "N m",
          "the motoring residual scale never claims less than this");
+}
+
+/// Per-cylinder torque, misfire and imbalance; the fusion of the brake-torque sources.
+void add_cylinder_and_fusion(std::vector<SchemaEntry>& t) {
   TQ_BOOL("cylinder.enabled", cylinder.enabled, "per-cylinder torque, imbalance and misfire");
   TQ_NUM("cylinder.misfire_threshold", cylinder.params.misfire_threshold, open_open(0.0, 1.0), "",
          "misfire when cylinder torque < threshold x cycle mean");
@@ -336,6 +357,10 @@ void add_estimators(std::vector<SchemaEntry>& t) {
          "1 sigma of the measured load torque (torque flange / e-machine)");
   TQ_NUM("fusion.brake_sd_ema", fusion.brake_sd_ema, open_closed(0.0, 1.0), "",
          "EMA weight per segment of the measured error variances");
+}
+
+/// The fuel-based indicated torque (estimators/energy/fuel_torque.hpp).
+void add_fuel(std::vector<SchemaEntry>& t) {
   // Fuel-based indicated torque (estimators/energy/fuel_torque.hpp): efficiency learned while a load
   // reference exists.
   TQ_NUM("fuel.c0_prior", fuel.c0_prior, open_closed(0.0, 1.0), "",
@@ -379,6 +404,10 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("fuel.spark_k_per_deg2", fuel.spark_k_per_deg2, closed(0.0, 0.01), "1/deg^2",
          "spark factor 1 - k (spark - MBT)^2 when the spark advance is on CAN (0.88 at 20 deg from MBT with "
          "3e-4, Heywood fig. 15-13)");
+}
+
+/// The fuel model's spark (MBT) terms and how it learns.
+void add_fuel_spark_and_learning(std::vector<SchemaEntry>& t) {
   TQ_NUM("fuel.mbt_deg", fuel.mbt_deg, closed(0.0, 60.0), "deg",
          "MBT spark advance at fuel.ref_rpm and full MAP (deg BTDC; textbook part-load order)");
   TQ_NUM("fuel.mbt_per_krpm_deg", fuel.mbt_per_krpm_deg, closed(-20.0, 20.0), "deg",
@@ -429,6 +458,10 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("fuel.sd_floor_nm", fuel.sd_floor_nm, open_closed(0.0, 1e3), "N m",
          "the fuel model's claimed residual scale (68th percentile of |reference residual|) never claims "
          "less than this");
+}
+
+/// The tooth-error learner (estimators/learners/tooth_error_learner.hpp).
+void add_tooth_learn(std::vector<SchemaEntry>& t) {
   TQ_BOOL("tooth_learn.enabled", tooth_learn.enabled, "apply the per-tooth angle correction table");
   TQ_BOOL("tooth_learn.learn", tooth_learn.params.learn, "learn per-tooth corrections while running");
   TQ_NUM("tooth_learn.max_correction_deg", tooth_max_correction_deg, open_closed(0.0, 5.0), "deg",
@@ -484,6 +517,20 @@ void add_estimators(std::vector<SchemaEntry>& t) {
   TQ_NUM("tooth_learn.distrust_floor_deg", tooth_learn.params.distrust_floor_deg, closed(0.0, 5.0), "deg",
          "... and exceeds this RMS width disagreement (well below the ~0.18 deg cumulative pitch deviation "
          "of ISO 1328-1 grade 12)");
+}
+
+}  // namespace
+
+void add_estimators(std::vector<SchemaEntry>& t) {
+  add_time_estimators(t);
+  add_angle_observers(t);
+  add_energies(t);
+  add_gas_model(t);
+  add_friction(t);
+  add_cylinder_and_fusion(t);
+  add_fuel(t);
+  add_fuel_spark_and_learning(t);
+  add_tooth_learn(t);
 }
 
 }  // namespace torqued::schema_detail

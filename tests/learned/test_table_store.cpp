@@ -70,7 +70,7 @@ TEST(TableStore, CorruptTruncatedOrForeignFilesAreNotUsed) {
   EXPECT_FALSE(st.load("demo", 7).has_value());
   rewrite([](std::string& b) { b.assign(3, 'a'); });
   EXPECT_FALSE(st.load("demo", 7).has_value());
-  st.take_messages();
+  (void)st.take_messages();  // the messages of the rewrites above are not this check's
   st.store("demo", 7, t);
   TableStore rebuilt(d.path.string(), kBuild + 1);  // the same inputs, another build of the daemon
   EXPECT_FALSE(rebuilt.load("demo", 7).has_value());
