@@ -11,6 +11,8 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -117,50 +119,59 @@ TEST(TableStore, KalmanGainsFromTheCacheEqualTheComputedOnes) {
   EXPECT_EQ(st.misses(), 2);
 }
 
+/// A parameter of the gas-model gain set keys its cache: a Kalman built with `first` applied and one with
+/// `second` applied miss twice (two keys); `second` again is read back. Returns the Kalman built with
+/// `second` the first time, the one read back in `again`.
+ChauvinKalman built_with_two_keys(TableStore& st, KalmanParams kp,
+                                  const std::function<void(KalmanParams&)>& first,
+                                  const std::function<void(KalmanParams&)>& second,
+                                  std::optional<ChauvinKalman>& again) {
+  const EngineGeometry eng;
+  const WheelGeometry wheel;
+  first(kp);
+  const ChauvinKalman a(eng, wheel, kp);
+  second(kp);
+  ChauvinKalman b(eng, wheel, kp);
+  EXPECT_EQ(st.hits(), 0);
+  EXPECT_EQ(st.misses(), 2);
+  again.emplace(eng, wheel, kp);
+  EXPECT_EQ(st.hits(), 1);  // the same value again: read back
+  return b;
+}
+
 // The model-miss sigma (kalman.model_torque_sd_nm) sets the gas-model gain set: a cache written with the old
 // default (75 N m) must not serve the new one (60 N m).
 TEST(TableStore, KalmanGainsAreCachedPerModelMissSigma) {
   TempDir d;
-  const EngineGeometry eng;
-  const WheelGeometry wheel;
   KalmanParams kp;
   kp.speed_bins = 6;
   TableStore st(d.path.string(), kBuild);
   const ScopedTableCache use(&st);
-  kp.model_torque_sd_nm = 75.0;
-  const ChauvinKalman old_default(eng, wheel, kp);
+  std::optional<ChauvinKalman> again;
+  (void)built_with_two_keys(
+      st, kp, [](KalmanParams& p) { p.model_torque_sd_nm = 75.0; },
+      [](KalmanParams& p) { p.model_torque_sd_nm = 60.0; }, again);
   kp.model_torque_sd_nm = 60.0;
-  const ChauvinKalman new_default(eng, wheel, kp);
-  EXPECT_EQ(st.hits(), 0);
-  EXPECT_EQ(st.misses(), 2);
-  const ChauvinKalman again(eng, wheel, kp);
-  EXPECT_EQ(st.hits(), 1);  // the same sigma again: read back
-  kp.gas_model = false;     // without the gas model only the whole-torque set is built: its own key
-  const ChauvinKalman no_model(eng, wheel, kp);
+  kp.gas_model = false;  // without the gas model only the whole-torque set is built: its own key
+  const ChauvinKalman no_model(EngineGeometry{}, WheelGeometry{}, kp);
   EXPECT_EQ(st.misses(), 3);
 }
 
 // The model-miss pole (kalman.model_delta) sets the gas-model gain set too: a cache written with one δ is not
-// read for another.
+// read for another, and the gains read back are the computed ones bit for bit.
 TEST(TableStore, KalmanGainsAreCachedPerModelDelta) {
   TempDir d;
-  const EngineGeometry eng;
-  const WheelGeometry wheel;
   KalmanParams kp;
   kp.speed_bins = 6;
   TableStore st(d.path.string(), kBuild);
   const ScopedTableCache use(&st);
-  kp.model_delta = 3.0;
-  const ChauvinKalman first(eng, wheel, kp);
-  kp.model_delta = 12.0;
-  const ChauvinKalman second(eng, wheel, kp);
-  EXPECT_EQ(st.hits(), 0);
-  EXPECT_EQ(st.misses(), 2);
-  const ChauvinKalman again(eng, wheel, kp);
-  EXPECT_EQ(st.hits(), 1);  // the same δ again: read back
+  std::optional<ChauvinKalman> again;
+  const ChauvinKalman second = built_with_two_keys(
+      st, kp, [](KalmanParams& p) { p.model_delta = 3.0; }, [](KalmanParams& p) { p.model_delta = 12.0; },
+      again);
   for (int k = 0; k < second.table().samples; k += 11) {
     const auto a = second.periodic_gain_of_set(ChauvinKalman::kModelMissSet, k, 157.0);
-    const auto b = again.periodic_gain_of_set(ChauvinKalman::kModelMissSet, k, 157.0);
+    const auto b = again->periodic_gain_of_set(ChauvinKalman::kModelMissSet, k, 157.0);
     for (int i = 0; i < ChauvinKalman::kStates; ++i) EXPECT_TRUE(same_bytes(a(i), b(i))) << k << " " << i;
   }
 }
