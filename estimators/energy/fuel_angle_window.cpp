@@ -38,6 +38,7 @@ void FuelAngleWindow::reset() noexcept {
   unwrapped_ = prev_rel_ = last_fuel_kg_ = 0.0;
   open_ = -1;
   have_prev_ = false;
+  any_pending_ = false;
 }
 
 // A report consistent with one injection decision: the cut-off flag set with no fuel, or clear with fuel.
@@ -67,20 +68,28 @@ void FuelAngleWindow::on_tooth(std::int64_t t_ns, double rel_rad, const FuelInta
   if (fuel_report) last_fuel_kg_ = in.fuel_kg;
   if (open_ >= 0 && in.valid && t_ns <= open_until_ns_ && unwrapped_ + d <= open_until_rad_)
     revise(ev_[static_cast<std::size_t>(open_)][0], in);
+  // A report fills the pending events (only when one may exist: the flag is set with any pending event and
+  // cleared by this pass, which leaves none; a pending event is created only without a report, below).
+  if (fuel_report && any_pending_) {
+    for (int m = 0; m < n_; ++m) {
+      for (Event& e : ev_[static_cast<std::size_t>(m)]) {
+        if (e.fuel_pending) {
+          e.in.fuel_kg = in.fuel_kg;
+          e.fuel_pending = false;
+        }
+      }
+    }
+    any_pending_ = false;
+  }
   double newest_x = -1.0;
   for (int m = 0; m < n_; ++m) {
     const auto i = static_cast<std::size_t>(m);
     auto& c = ev_[i];
-    for (Event& e : c) {
-      if (e.fuel_pending && fuel_report) {
-        e.in.fuel_kg = in.fuel_kg;
-        e.fuel_pending = false;
-      }
-    }
     const double x = wrap4pi(intake_rel_[i] - prev_rel_);
     if (!(x > 0.0 && x <= d)) continue;
     for (std::size_t k = c.size() - 1; k > 0; --k) c[k] = c[k - 1];
     c[0] = Event{unwrapped_ + x + lead_rad_, in, true, in.valid && !in.fuel_cut && !fuel_report};
+    any_pending_ = any_pending_ || c[0].fuel_pending;
     if (x > newest_x) {
       newest_x = x;
       open_ = m;
