@@ -93,7 +93,12 @@ ToothAngleTable ToothAngleTable::build_uncached(const EngineGeometry& engine, co
 
 ToothPreprocessor::ToothPreprocessor(const EngineGeometry& engine, const WheelGeometry& wheel,
                                      const PreprocessParams& params)
-    : table_(ToothAngleTable::build(engine, wheel)), params_(params) {}
+    : table_(ToothAngleTable::build(engine, wheel)),
+      params_(params),
+      edge_var2_(2.0 * (params.edge_noise_deg * kDeg) * (params.edge_noise_deg * kDeg)),
+      jitter2_(2.0 * params.jitter_s * params.jitter_s),
+      lp_rate_(-2.0 * std::numbers::pi * params.lowpass_hz),
+      jerk_q_(params.accel_jerk_sd * params.accel_jerk_sd) {}
 
 void ToothPreprocessor::reset() noexcept {
   out_ = ToothKinematics{};
@@ -134,8 +139,7 @@ bool ToothPreprocessor::update(const ToothSample& s) noexcept {
   const std::int64_t center_ns = s.t_ns - static_cast<std::int64_t>(0.5e9 * s.dt_s);
   // Measurement variance of θ̇: (½ speed_sq_rel_sd · ω)² = (2σ_a² + 2σ_t²ω²)·(ω/w)² = (2σ_a² + 2σ_t²ω²)/dt²
   // (the square root and the width division of speed_sq_rel_sd cancel; the same value up to rounding).
-  const double edge_sd = params_.edge_noise_deg * kDeg;
-  const double var_sum = 2.0 * edge_sd * edge_sd + 2.0 * params_.jitter_s * params_.jitter_s * omega * omega;
+  const double var_sum = edge_var2_ + jitter2_ * omega * omega;
   const double r = var_sum / (s.dt_s * s.dt_s) + 1e-12;
   if (!have_prev_) {
     out_.speed_lp_rad_s = omega;
@@ -155,10 +159,10 @@ bool ToothPreprocessor::update(const ToothSample& s) noexcept {
   prev_center_ns_ = center_ns;
   // Exact first-order low-pass: y += (1 − e^{−2π f_c h})(x − y).
   out_.speed_lp_rad_s +=
-      (1.0 - std::exp(-2.0 * std::numbers::pi * params_.lowpass_hz * h)) * (omega - out_.speed_lp_rad_s);
+      (1.0 - std::exp(lp_rate_ * h)) * (omega - out_.speed_lp_rad_s);
   // [θ̇, θ̈] Kalman filter, constant-acceleration model with white jerk q (Energies 2019 §2.1 uses a KF for θ̈):
   // F = [[1, h], [0, 1]], Q = q [[h³/3, h²/2], [h²/2, h]], measurement θ̇ with variance r.
-  const double q = params_.accel_jerk_sd * params_.accel_jerk_sd;
+  const double q = jerk_q_;
   const double x0 = kf_x_[0] + h * kf_x_[1];
   const double x1 = kf_x_[1];
   const double p00 = kf_p_[0] + 2.0 * h * kf_p_[1] + h * h * kf_p_[2] + q * h * h * h / 3.0;

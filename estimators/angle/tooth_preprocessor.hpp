@@ -85,6 +85,11 @@ class ToothPreprocessor {
   double kf_x_[2] = {0.0, 0.0};       ///< [θ̇, θ̈]
   double kf_p_[3] = {0.0, 0.0, 0.0};  ///< P00, P01, P11
   std::int64_t prev_center_ns_ = 0;
+  // Per-tooth constants of update(), from params_ alone (the same expressions, taken once).
+  double edge_var2_;  ///< 2σ_e² (rad²)
+  double jitter2_;    ///< 2σ_t² (s²)
+  double lp_rate_;    ///< −2π f_c (rad/s)
+  double jerk_q_;     ///< q = σ_jerk² ((rad/s³)²)
 };
 
 }  // namespace torqued
