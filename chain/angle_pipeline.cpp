@@ -215,7 +215,9 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   tooth_.tooth = s.tooth;
   tooth_.angle_rad = s.angle_rad;
   tooth_.speed_rad_s = speed;
-  pre_.update(s);
+  // The sample passed the checks every stage makes (all size the cycle as 2 × teeth of the same wheel):
+  // they take it without repeating them.
+  pre_.update_checked(s);
   const ToothKinematics& kin = pre_.state();
   tooth_.accel_rad_s2 =
       kin.valid ? kin.accel_rad_s2 : (have_prev_ ? (speed - prev_speed_) / (0.5 * (s.dt_s + prev_dt_)) : 0.0);
@@ -245,7 +247,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   }
   if (can_fresh && sig.spark_valid && std::isfinite(sig.spark_advance_deg))
     held_spark_deg_ = sig.spark_advance_deg;
-  rls_.update(s, held_map_pa_, have_map_, held_spark_deg_, cyl_work_j_, works_ok);
+  rls_.update_checked(s, held_map_pa_, have_map_, held_spark_deg_, cyl_work_j_, works_ok);
   FuelIntakeInput intake;
   intake.fuel_kg = sig.fuel_mass_kg;
   intake.map_pa = held_map_pa_;
@@ -253,15 +255,15 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
   intake.valid = can_fresh && sig.fuel_mass_valid && std::isfinite(sig.fuel_mass_kg) && have_map_;
   fuel_win_.on_tooth(s.t_ns, s.angle_rad - cfg_.engine.tdc_offset_rad, intake);
 
-  wide_done_ = wide_.update(s);  // completes on the same tooth as boundary 0's per-cylinder window
+  wide_done_ = wide_.update_checked(s);  // completes on the same tooth as boundary 0's per-cylinder window
   const std::uint64_t breaks_before = energy_.breaks();
   // The per-cylinder work with the friction law and RLS load as they are before this segment's learning;
   // handed to CylinderTorque after on_segment, which decides the segment's fuel state (count_fuel_state).
   // Both windows end on the same tooth: a cycle record completed here goes out with boundary 0's segment.
-  const bool cyl_done = cyl_energy_.update(s, net.torque_nm, load_ok);
+  const bool cyl_done = cyl_energy_.update_checked(s, net.torque_nm, load_ok);
   double cyl_work_j = 0.0;
   const bool cyl_ok = cyl_done && cylinder_work(cyl_energy_.segment(), cyl_work_j);
-  if (energy_.update(s, net.torque_nm, load_ok)) {
+  if (energy_.update_checked(s, net.torque_nm, load_ok)) {
     on_segment(energy_.segment(), sig, can_fresh);
     ready = static_cast<std::uint8_t>(ready | kSegmentReady);
     if (cycle_.cycle_end) ready = static_cast<std::uint8_t>(ready | kCycleReady);

@@ -129,6 +129,11 @@ bool ToothPreprocessor::update(const ToothSample& s) noexcept {
     have_prev_ = false;
     return false;
   }
+  return update_checked(s);
+}
+
+// update() after its sample checks (AnglePipeline::on_tooth makes the same ones once per tooth).
+bool ToothPreprocessor::update_checked(const ToothSample& s) noexcept {
   ++stats_.accepted;
   const double omega = s.width_rad / s.dt_s;
   out_.t_ns = s.t_ns;

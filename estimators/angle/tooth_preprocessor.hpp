@@ -67,6 +67,9 @@ class ToothPreprocessor {
   void reset() noexcept;
   /// Real-time safe. Returns false (and counts) when the sample is rejected; the state is then not valid.
   bool update(const ToothSample& s) noexcept;
+  /// update() for a sample already checked as update() does (synced, finite positive dt and width, tooth in
+  /// [0, samples)): AnglePipeline::on_tooth checks once per tooth. Real-time safe.
+  bool update_checked(const ToothSample& s) noexcept;
   [[nodiscard]] const ToothKinematics& state() const noexcept { return out_; }
   [[nodiscard]] const PreprocessStats& stats() const noexcept { return stats_; }
   [[nodiscard]] const ToothAngleTable& table() const noexcept { return table_; }

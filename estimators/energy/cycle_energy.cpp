@@ -175,7 +175,7 @@ void CycleEnergy::track_load(const ToothSample& s, bool first_after_break, doubl
   const int k = s.tooth;
   const auto i = static_cast<std::size_t>(k);
   const int sg = segment_of_[i];
-  const int prev_sg = segment_of_[static_cast<std::size_t>((k + samples_ - 1) % samples_)];
+  const int prev_sg = segment_of_[static_cast<std::size_t>(k == 0 ? samples_ - 1 : k - 1)];
   if (sg != prev_sg || first_after_break) {
     if (!first_after_break) {
       flush_pending(load_nm, load_valid);
@@ -269,6 +269,11 @@ bool CycleEnergy::update(const ToothSample& s, double load_nm, bool load_valid) 
     invalidate();
     return false;
   }
+  return update_checked(s, load_nm, load_valid);
+}
+
+// update() after its sample checks (AnglePipeline::on_tooth makes the same ones once per tooth).
+bool CycleEnergy::update_checked(const ToothSample& s, double load_nm, bool load_valid) noexcept {
   const int k = s.tooth;
   const auto i = static_cast<std::size_t>(k);
   if (expected_tooth_ >= 0 && k != expected_tooth_) {
@@ -277,7 +282,7 @@ bool CycleEnergy::update(const ToothSample& s, double load_nm, bool load_valid) 
     invalidate();
   }
   const bool first_after_break = expected_tooth_ < 0 || k != expected_tooth_;
-  expected_tooth_ = (k + 1) % samples_;
+  expected_tooth_ = k + 1 == samples_ ? 0 : k + 1;  // (k + 1) mod samples_, k in [0, samples_)
 
   track_load(s, first_after_break, load_nm, load_valid);
 

@@ -76,6 +76,9 @@ class CycleEnergy {
   /// Real-time safe. `load_nm` is the load torque at this tooth (dyno / e-machine), `load_valid` whether
   /// known. Returns true when a boundary window completed on this tooth; then segment() holds the new record.
   bool update(const ToothSample& s, double load_nm, bool load_valid) noexcept;
+  /// update() for a sample already checked as update() does (synced, finite positive dt and width, tooth in
+  /// [0, samples())): AnglePipeline::on_tooth checks once per tooth. Real-time safe.
+  bool update_checked(const ToothSample& s, double load_nm, bool load_valid) noexcept;
   [[nodiscard]] const SegmentEnergy& segment() const noexcept { return seg_; }
 
   [[nodiscard]] int samples() const noexcept { return samples_; }

@@ -53,17 +53,30 @@ void CycleKeWindow::reset() noexcept {
   ke_ok_ = d_ke_ok_ = false;
 }
 
+// Sequence break: the open window and the previous one are no longer comparable.
+void CycleKeWindow::restart(int tooth) noexcept {
+  count_ = 0;
+  sum_w_ = sum_wke_ = 0.0;
+  ke_ok_ = false;
+  prev_tooth_ = tooth;
+}
+
 bool CycleKeWindow::update(const ToothSample& s) noexcept {
   if (expected_ == 0) return false;
   const bool ok = s.synced && s.tooth >= 0 && s.tooth < samples_ && s.dt_s > 0.0 && s.width_rad > 0.0 &&
                   std::isfinite(s.dt_s) && std::isfinite(s.width_rad);
-  if (!ok || (prev_tooth_ >= 0 && s.tooth != (prev_tooth_ + 1) % samples_)) {
-    // Sequence break: the open window and the previous one are no longer comparable.
-    count_ = 0;
-    sum_w_ = sum_wke_ = 0.0;
-    ke_ok_ = false;
-    prev_tooth_ = ok ? s.tooth : -1;
-    if (!ok) return false;
+  if (!ok) {
+    restart(-1);
+    return false;
+  }
+  return update_checked(s);
+}
+
+// update() after its sample checks (AnglePipeline::on_tooth makes the same ones once per tooth).
+bool CycleKeWindow::update_checked(const ToothSample& s) noexcept {
+  if (expected_ == 0) return false;
+  if (prev_tooth_ >= 0 && s.tooth != (prev_tooth_ + 1 == samples_ ? 0 : prev_tooth_ + 1)) {
+    restart(s.tooth);
   } else {
     prev_tooth_ = s.tooth;
   }

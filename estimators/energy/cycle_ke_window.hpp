@@ -27,6 +27,9 @@ class CycleKeWindow {
   [[nodiscard]] bool enabled() const noexcept { return expected_ > 0; }
   /// Real-time safe. Returns true when the window around boundary 0 completed on this tooth.
   bool update(const ToothSample& s) noexcept;
+  /// update() for a sample already checked as update() does (synced, finite positive dt and width, tooth in
+  /// [0, samples)): AnglePipeline::on_tooth checks once per tooth. Real-time safe.
+  bool update_checked(const ToothSample& s) noexcept;
   /// Window-mean ½Jθ̇² of the last completed window (J) and whether all its periods were seen in sequence.
   [[nodiscard]] double ke_j() const noexcept { return ke_j_; }
   [[nodiscard]] bool ke_valid() const noexcept { return ke_ok_; }
@@ -35,6 +38,7 @@ class CycleKeWindow {
   [[nodiscard]] bool cycle_valid() const noexcept { return d_ke_ok_; }
 
  private:
+  void restart(int tooth) noexcept;
   int samples_ = 0;
   std::vector<double> j_center_, width_;
   std::vector<std::uint8_t> in_;    ///< 1 if the period ending at tooth k lies in the window

@@ -326,18 +326,33 @@ void LoadRls::publish(std::int64_t t_ns, double err, const Window& win) noexcept
 
 bool LoadRls::update(const ToothSample& s, double map_pa, bool map_valid, double spark_advance_deg,
                      const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid) noexcept {
-  if (!s.synced || s.tooth < 0 || s.tooth >= samples_ || !(s.dt_s > 0.0) || !(s.width_rad > 0.0) ||
-      (expected_tooth_ >= 0 && s.tooth != expected_tooth_)) {
-    std::fill(open_.begin(), open_.end(), 0);
-    expected_tooth_ = s.synced && s.tooth >= 0 && s.tooth < samples_ ? (s.tooth + 1) % samples_ : -1;
-    grp_sum_.fill(0.0);  // no cycle mean across a hole
-    grp_n_.fill(0);
-    hist_count_ = 0;
-    z_valid_ = false;
-    blend_ = 0.0;
+  if (!s.synced || s.tooth < 0 || s.tooth >= samples_ || !(s.dt_s > 0.0) || !(s.width_rad > 0.0)) {
+    restart(s.synced && s.tooth >= 0 && s.tooth < samples_ ? (s.tooth + 1) % samples_ : -1);
     return false;
   }
-  expected_tooth_ = (s.tooth + 1) % samples_;
+  return update_checked(s, map_pa, map_valid, spark_advance_deg, cyl_work_j, works_valid);
+}
+
+// A hole in the tooth sequence: no window or cycle mean across it.
+void LoadRls::restart(int expected_tooth) noexcept {
+  std::fill(open_.begin(), open_.end(), 0);
+  expected_tooth_ = expected_tooth;
+  grp_sum_.fill(0.0);  // no cycle mean across a hole
+  grp_n_.fill(0);
+  hist_count_ = 0;
+  z_valid_ = false;
+  blend_ = 0.0;
+}
+
+// update() after its sample checks (AnglePipeline::on_tooth makes them, and more, once per tooth).
+bool LoadRls::update_checked(const ToothSample& s, double map_pa, bool map_valid, double spark_advance_deg,
+                             const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid) noexcept {
+  const int next = s.tooth + 1 == samples_ ? 0 : s.tooth + 1;  // (tooth + 1) mod samples_
+  if (expected_tooth_ >= 0 && s.tooth != expected_tooth_) {
+    restart(next);
+    return false;
+  }
+  expected_tooth_ = next;
   const auto k = static_cast<std::size_t>(s.tooth);
   const double w2 = (s.width_rad / s.dt_s) * (s.width_rad / s.dt_s);
   const int opened = window_first_of_[k];

@@ -77,6 +77,10 @@ class LoadRls {
   /// burn_centroid_atdc_deg is used).
   bool update(const ToothSample& s, double map_pa, bool map_valid, double spark_advance_deg,
               const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid) noexcept;
+  /// update() for a sample already checked as update() does (synced, positive dt and width, tooth in
+  /// [0, samples)): AnglePipeline::on_tooth checks once per tooth. Real-time safe.
+  bool update_checked(const ToothSample& s, double map_pa, bool map_valid, double spark_advance_deg,
+                      const std::array<double, kMaxCylinders>& cyl_work_j, bool works_valid) noexcept;
 
   /// Extended load T_load + T_fric (N m) from the RLS (EN-15); uncertainty = 1σ of the mean from the
   /// residuals.
@@ -134,6 +138,7 @@ class LoadRls {
   [[nodiscard]] double motored_torque_nm(double map_pa) const noexcept;
 
  private:
+  void restart(int expected_tooth) noexcept;
   struct Window {
     int first = 0, last = 0;                         ///< tooth indices (sequence order)
     double c_first = 0.0, c_last = 0.0, span = 0.0;  ///< centres relative to cyl-1 TDC (rad), span (rad)
