@@ -285,7 +285,7 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
 bool AnglePipeline::feed_incycle_observers(const ToothSample& s, const EngineSignals& sig, bool works_ok,
                                            bool can_fresh, LoadReference& lref) noexcept {
   const double ripple =
-      cfg_.kalman.gas_model || cfg_.fourier.gas_model ? observer_ripple_nm(s, sig, works_ok) : 0.0;
+      cfg_.kalman.gas_model || cfg_.fourier.gas_model ? observer_ripple_nm(s, sig, works_ok, can_fresh) : 0.0;
   last_ripple_nm_ = ripple;
   lref = classify_load(cfg_.e_machine, cfg_.load_ref, sig);
   if (free_coast_) {
@@ -300,7 +300,7 @@ bool AnglePipeline::feed_incycle_observers(const ToothSample& s, const EngineSig
   if (cfg_.run_kalman) {
     kalman_.set_extended_load(observer_load_star_nm(net.torque_nm, load_ok));
     kalman_.set_model_torque(cfg_.kalman.gas_model ? ripple : 0.0, have_map_);
-    kalman_.update(s);
+    kalman_.update_checked(s);
     copy_estimate(tooth_.kalman_ind, kalman_.estimate());
   } else {
     tooth_.kalman_ind.health = Health::kDisabled;
@@ -308,7 +308,7 @@ bool AnglePipeline::feed_incycle_observers(const ToothSample& s, const EngineSig
   if (fourier_ok_) {
     fourier_.set_extended_load(load_star_nm_);
     fourier_.set_model_torque(cfg_.fourier.gas_model ? ripple : 0.0, have_map_);
-    fourier_.update(s);
+    fourier_.update_checked(s);
     copy_estimate(tooth_.fourier_ind, fourier_.estimate());
   } else {
     tooth_.fourier_ind.health = Health::kDisabled;
@@ -332,9 +332,8 @@ double AnglePipeline::observer_load_star_nm(double net_load_nm, bool load_ok) co
 // change: in cut-off the motored p3 (no combustion, known from MAP alone); after the exit the p3 each
 // position had when the cut-off began (its combustion before it), instead of the motored works of the cut-off
 // cycles.
-double AnglePipeline::observer_ripple_nm(const ToothSample& s, const EngineSignals& sig,
-                                         bool works_ok) noexcept {
-  const bool fresh = static_cast<double>(s.t_ns - sig.t_ns) * 1e-9 <= cfg_.fusion.max_can_age_s;
+double AnglePipeline::observer_ripple_nm(const ToothSample& s, const EngineSignals& sig, bool works_ok,
+                                         bool fresh) noexcept {
   if (fresh && sig.fuel_cutoff_valid && sig.fuel_cutoff != cut_flag_) {
     cut_flag_ = sig.fuel_cutoff;
     works_since_fuel_change_ = 0;

@@ -279,8 +279,9 @@ class AnglePipeline {
   /// The extended load handed to the in-cycle Kalman at this tooth (N m).
   [[nodiscard]] double observer_load_star_nm(double net_load_nm, bool load_ok) const noexcept;
   /// The gas ripple handed to the in-cycle observers, with the fuel-state change rule (updates cut_flag_).
-  [[nodiscard]] double observer_ripple_nm(const ToothSample& s, const EngineSignals& sig,
-                                          bool works_ok) noexcept;
+  /// `fresh`: the CAN values are fresh at this tooth (on_tooth's can_fresh).
+  [[nodiscard]] double observer_ripple_nm(const ToothSample& s, const EngineSignals& sig, bool works_ok,
+                                          bool fresh) noexcept;
   double crank_err_var_ =
       0.0;             ///< measured variance of the compression-window chain vs the energy balance (N m²)
   bool fired_ = true;  ///< current segment fires (no fuel cut-off flag, not motored by the machine)

@@ -463,6 +463,12 @@ bool ChauvinKalman::update(const ToothSample& s) noexcept {
     est_.health = input;
     return false;
   }
+  return update_checked(s);
+}
+
+// update() after check_tooth_sample (AnglePipeline::on_tooth makes the same checks once per tooth).
+bool ChauvinKalman::update_checked(const ToothSample& s) noexcept {
+  const int kk = table_.samples;
   const int k = s.tooth;
   const double omega = s.width_rad / s.dt_s;
   const double y = omega * omega;

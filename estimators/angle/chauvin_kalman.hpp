@@ -93,6 +93,9 @@ class ChauvinKalman {
   void set_wheel_learned(bool learned) noexcept { wheel_learned_ = learned; }
   /// Real-time safe (no allocation, no exception). Returns false if the sample was rejected.
   bool update(const ToothSample& s) noexcept;
+  /// update() for a sample that passed check_tooth_sample for this table (AnglePipeline::on_tooth checks once
+  /// per tooth). Real-time safe.
+  bool update_checked(const ToothSample& s) noexcept;
 
   /// Indicated torque T̂_ind at the edge `estimate_tooth()` (t_ns of that edge), 1σ from P.
   [[nodiscard]] const TorqueEstimate& estimate() const noexcept { return est_; }

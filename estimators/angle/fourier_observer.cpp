@@ -287,6 +287,12 @@ bool FourierObserver::update(const ToothSample& s) noexcept {
     est_.health = input;
     return false;
   }
+  return update_checked(s);
+}
+
+// update() after check_tooth_sample (AnglePipeline::on_tooth makes the same checks once per tooth).
+bool FourierObserver::update_checked(const ToothSample& s) noexcept {
+  const int kk = table_.samples;
   const int k = s.tooth;
   const double omega = s.width_rad / s.dt_s;
   const double phi_meas = 0.5 * table_.j_center[static_cast<std::size_t>(k)] * omega * omega;

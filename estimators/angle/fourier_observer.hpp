@@ -101,6 +101,9 @@ class FourierObserver {
   void set_wheel_learned(bool learned) noexcept { wheel_learned_ = learned; }
   /// Real-time safe. Returns false if the sample was rejected.
   bool update(const ToothSample& s) noexcept;
+  /// update() for a sample that passed check_tooth_sample for this table (AnglePipeline::on_tooth checks once
+  /// per tooth). Real-time safe.
+  bool update_checked(const ToothSample& s) noexcept;
 
   /// T̂_ind at edge k − output_lag (t_ns of that edge): m(e)·ĉ + T*_load (uncertainty not modelled: 0).
   [[nodiscard]] const TorqueEstimate& estimate() const noexcept { return est_; }
