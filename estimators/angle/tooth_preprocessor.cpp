@@ -163,8 +163,7 @@ bool ToothPreprocessor::update_checked(const ToothSample& s) noexcept {
   const double h = 1e-9 * static_cast<double>(center_ns - prev_center_ns_);
   prev_center_ns_ = center_ns;
   // Exact first-order low-pass: y += (1 − e^{−2π f_c h})(x − y).
-  out_.speed_lp_rad_s +=
-      (1.0 - std::exp(lp_rate_ * h)) * (omega - out_.speed_lp_rad_s);
+  out_.speed_lp_rad_s += (1.0 - std::exp(lp_rate_ * h)) * (omega - out_.speed_lp_rad_s);
   // [θ̇, θ̈] Kalman filter, constant-acceleration model with white jerk q (Energies 2019 §2.1 uses a KF for θ̈):
   // F = [[1, h], [0, 1]], Q = q [[h³/3, h²/2], [h²/2, h]], measurement θ̇ with variance r.
   const double q = jerk_q_;

@@ -69,7 +69,8 @@ CycleEnergy::CycleEnergy(const EngineGeometry& engine, const WheelGeometry& whee
   segment_of_.assign(n, 0);
   for (int k = 0; k < samples_; ++k) {
     const auto i = static_cast<std::size_t>(k);
-    const double e = (k / t) * kTwoPi + e1[static_cast<std::size_t>(k % t)];
+    const int turn = k / t;  // the crank turn of sample k (0 or 1)
+    const double e = turn * kTwoPi + e1[static_cast<std::size_t>(k % t)];
     width_[i] = w1[static_cast<std::size_t>(k % t)];
     center_[i] = wrap4pi(e - 0.5 * width_[i] - engine.tdc_offset_rad);
     j_center_[i] = kin.inertia(center_[i]);

@@ -76,7 +76,8 @@ class FuelAngleWindow {
   std::int64_t report_window_ns_;
   double prev_rel_ = 0.0;
   bool have_prev_ = false;
-  bool any_pending_ = false;  ///< some event may be fuel_pending (none when false): skips the fill pass per tooth
+  bool any_pending_ =
+      false;  ///< some event may be fuel_pending (none when false): skips the fill pass per tooth
 };
 
 }  // namespace torqued
