@@ -12,19 +12,25 @@
 // calls), CPU ns alone from BM_Method_* on the 2-vCPU VM at load 7 (README.md, performance section):
 //   method                      instructions (before → now)   CPU ns alone (before → now)
 //   ChauvinKalman::update       527 → 457; 593 → 485 (next round); 485 → 408 (round after, no log per tooth);
-//                               408 → 388 (lag register shifted in registers, not by a memmove call)
+//                               408 → 388 (lag register shifted in registers, not by a memmove call);
+//                               388 → 362 (update_checked: the pipeline's one sample check)
 //                                                             82 → 55-59; 68-69 → 61.4-61.6; 62-68 → 54-65
-//   FourierObserver::update     500 → 477; 477 → 408 (round after, paired pass); 408 → 389 (unrolled by 2)
+//   FourierObserver::update     500 → 477; 477 → 408 (round after, paired pass); 408 → 389 (unrolled by 2);
+//                               389 → 365 (update_checked)
 //                                                             35-38 → 35-37; 36-54 → 37-46
-//   ToothPreprocessor::update   216 → 211 (round after)       21
-//   CycleEnergy::update         2 × 158
-//   FuelAngleWindow::on_tooth   165
-//   LoadRls::update             146                           22-24
-//   observer_ripple_nm          189 → 102 (next round); 193 → 146 (spark-phased: table pair per spark change)
+//   ToothPreprocessor::update   216 → 211 (round after); 211 → 178 (constants once, update_checked)   21
+//   CycleEnergy::update         2 × 158 → 2 × 134 (update_checked, successor by a compare)
+//   CycleKeWindow::update       48 → 24 (update_checked)
+//   FuelAngleWindow::on_tooth   165 → 153 (fill pass only while an event may be pending)
+//   LoadRls::update             146 → 132 (update_checked)      22-24
+//   observer_ripple_nm          189 → 102 (next round); 193 → 146 (spark-phased: table pair per spark change);
+//                               146 → 140 (on_tooth's can_fresh)
 //   AnglePipeline::on_tooth     2 525 → 2 433; 2 711 → 2 460; 2 489 → 2 338 (round after); 2 432 → 2 385;
-//                               2 385 → 2 346 (the Kalman and Fourier changes above)
+//                               2 385 → 2 346 (the Kalman and Fourier changes above); 2 346 → 2 160
+//                               (the sample checked once per tooth, and the rows above)
 //                                                             225-243 → 217-244; 231-247 → 218-237 (load 9);
-//                                                             226-372 → 241-362 (load 5-6: inside the noise)
+//                                                             226-372 → 241-362 (load 5-6: inside the noise);
+//                                                             125-127 → 119-121 (load 3-4)
 #include <benchmark/benchmark.h>
 
 #include <cmath>
