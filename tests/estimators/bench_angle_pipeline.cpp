@@ -13,7 +13,8 @@
 //   method                      instructions (before → now)   CPU ns alone (before → now)
 //   ChauvinKalman::update       527 → 457; 593 → 485 (next round); 485 → 408 (round after, no log per tooth);
 //                               408 → 388 (lag register shifted in registers, not by a memmove call);
-//                               388 → 362 (update_checked: the pipeline's one sample check)
+//                               388 → 362 (update_checked: the pipeline's one sample check; 393 → 367 with
+//                               the model-miss pole of 4b05a43)
 //                                                             82 → 55-59; 68-69 → 61.4-61.6; 62-68 → 54-65
 //   FourierObserver::update     500 → 477; 477 → 408 (round after, paired pass); 408 → 389 (unrolled by 2);
 //                               389 → 365 (update_checked)
@@ -27,10 +28,10 @@
 //                               146 → 140 (on_tooth's can_fresh)
 //   AnglePipeline::on_tooth     2 525 → 2 433; 2 711 → 2 460; 2 489 → 2 338 (round after); 2 432 → 2 385;
 //                               2 385 → 2 346 (the Kalman and Fourier changes above); 2 346 → 2 160
-//                               (the sample checked once per tooth, and the rows above)
+//                               (the sample checked once per tooth, and the rows above; 2 351 → 2 165 on 4b05a43)
 //                                                             225-243 → 217-244; 231-247 → 218-237 (load 9);
 //                                                             226-372 → 241-362 (load 5-6: inside the noise);
-//                                                             125-127 → 119-121 (load 3-4)
+//                                                             127 → 118-120 (load 3.1-3.4)
 #include <benchmark/benchmark.h>
 
 #include <cmath>
