@@ -24,11 +24,12 @@
 //   CycleKeWindow::update       48 → 24 (update_checked)
 //   FuelAngleWindow::on_tooth   165 → 153 (fill pass only while an event may be pending)
 //   LoadRls::update             146 → 132 (update_checked)      22-24
-//   observer_ripple_nm          189 → 102 (next round); 193 → 146 (spark-phased: table pair per spark change);
-//                               146 → 140 (on_tooth's can_fresh)
+//   observer_ripple_nm          189 → 102 (next round); 193 → 146 (spark-phased: table pair per
+//                               spark change); 146 → 140 (on_tooth's can_fresh)
 //   AnglePipeline::on_tooth     2 525 → 2 433; 2 711 → 2 460; 2 489 → 2 338 (round after); 2 432 → 2 385;
 //                               2 385 → 2 346 (the Kalman and Fourier changes above); 2 346 → 2 160
-//                               (the sample checked once per tooth, and the rows above; 2 351 → 2 165 on 4b05a43)
+//                               (the sample checked once per tooth, and the rows above);
+//                               2 351 → 2 165 on 4b05a43
 //                                                             225-243 → 217-244; 231-247 → 218-237 (load 9);
 //                                                             226-372 → 241-362 (load 5-6: inside the noise);
 //                                                             127 → 118-120 (load 3.1-3.4)
