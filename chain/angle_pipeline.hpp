@@ -159,6 +159,8 @@ class AnglePipeline {
   [[nodiscard]] FrictionLearner& friction() noexcept { return friction_; }
   [[nodiscard]] const FrictionLearner& friction() const noexcept { return friction_; }
   [[nodiscard]] const LoadRls& load_rls() const noexcept { return rls_; }
+  /// The in-cycle Kalman observer (diagnostics: its innovation and gain per tooth).
+  [[nodiscard]] const ChauvinKalman& kalman() const noexcept { return kalman_; }
   /// Fuel-based indicated torque (learned efficiency; persisted with friction, see FuelTorqueState).
   /// J = scale · J_spec, learned from a known load (InertiaLearner); persisted like the friction law.
   [[nodiscard]] InertiaLearner& inertia() noexcept { return inertia_; }

@@ -489,7 +489,7 @@ struct Args {
   double bed_machine = 0.0;
   bool bed_motoring = false, bed_fuel = false, bed_incycle = false, bed_misfire = false;
   bool regimes_only = false;
-  std::string bed_engine, incycle_dump;
+  std::string bed_engine, incycle_dump, incycle_regimes_dump;
   int incycle_digits = 1;
   int cylinder_seeds = 1;
   torqued::ToothLearnParams learn;
@@ -584,6 +584,10 @@ void add_bed_options(CLI::App& app, Args& a) {
                  "with --bed-incycle and --bed-engine: write that engine's fresh start per tooth (truth, gas "
                  "model ripple, Kalman estimate, scored window) to this CSV file (tools/accuracy/"
                  "incycle_orders.py decomposes it)");
+  app.add_option(
+      "--bed-incycle-regimes-dump", a.incycle_regimes_dump,
+      "with --bed-incycle or --bed-incycle-regimes and --bed-engine: the same per-tooth CSV for that "
+      "engine's transient and cut-off run (scored 1 transient, 2 cut-off; docs/eval.md)");
   app.add_flag(
       "--bed-fuel", a.bed_fuel,
       "with --bed unseen: the fuel model without a load signal, taught at one operating point and never "
@@ -697,6 +701,7 @@ int run_unseen_bed(Args& a) {
     if (a.wiebe_m >= 0.0) bo.base.energies.burn_wiebe_m = a.wiebe_m;
     torqued::eval::EvalOptions fresh = bo;
     fresh.incycle_dump = a.incycle_dump;
+    bo.incycle_regimes_dump = a.incycle_regimes_dump;
     const int rc =
         a.regimes_only ? 0 : run_bed_incycle(a.bed_all, a.bed_short, fresh, a.bed_engine, a.incycle_digits);
     return rc != 0 ? rc : run_bed_incycle_regimes(a.bed_all, bo, a.bed_engine, a.incycle_digits);

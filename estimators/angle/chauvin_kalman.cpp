@@ -385,6 +385,8 @@ void ChauvinKalman::reset() noexcept {
   p_.setZero();
   p_finite_ = true;
   last_gain_.setZero();
+  last_innovation_ = 0.0;
+  output_model_nm_ = 0.0;
   est_ = TorqueEstimate{};
   est_.health = Health::kNotConverged;
   est_tooth_ = 0;
@@ -505,7 +507,8 @@ bool ChauvinKalman::update_checked(const ToothSample& s) noexcept {
     p_ = pn;
   }
   // (CK-11) split into measurement update and prediction: x̂_{k|k} = x̂_{k|k−1} + K (y − C x̂_{k|k−1}).
-  x_ += gain * (y - x_(kSpeedSqState) - h * (x_(kNoisePrev) - x_(kNoiseNow)));
+  last_innovation_ = y - x_(kSpeedSqState) - h * (x_(kNoisePrev) - x_(kNoiseNow));
+  x_ += gain * last_innovation_;
   push_edge_time(s.t_ns);
   ++teeth_seen_;
   ++stats_.updates;
@@ -518,7 +521,8 @@ bool ChauvinKalman::update_checked(const ToothSample& s) noexcept {
     est_.health = Health::kNumerical;
     return false;
   }
-  est_.torque_nm = x_(o) + model_[static_cast<std::size_t>(params_.smoother_lag)] + load_star_nm_;
+  output_model_nm_ = model_[static_cast<std::size_t>(params_.smoother_lag)];
+  est_.torque_nm = x_(o) + output_model_nm_ + load_star_nm_;
   est_.t_ns = edge_t_ns_[static_cast<std::size_t>(params_.smoother_lag)];
   est_.uncertainty = out_var > 0.0 ? std::sqrt(out_var) : 0.0;  // APS: 0 without a call
   est_tooth_ = k >= params_.smoother_lag ? k - params_.smoother_lag : k - params_.smoother_lag + kk;

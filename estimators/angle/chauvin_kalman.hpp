@@ -107,6 +107,11 @@ class ChauvinKalman {
 
   /// Filter gain K_k = P Cᵀ/(C P Cᵀ + R) last applied (for the APS vs exact test).
   [[nodiscard]] const Vec& last_gain() const noexcept { return last_gain_; }
+  /// Innovation y − C x̂_{k|k−1} of the last update ((rad/s)²; diagnostics: torque-accuracy's per-tooth dump).
+  [[nodiscard]] double last_innovation() const noexcept { return last_innovation_; }
+  /// The gas model's ripple and the extended load inside the last estimate() (N m; T̂_ind = x̂2(k−d) + both).
+  [[nodiscard]] double output_model_nm() const noexcept { return output_model_nm_; }
+  [[nodiscard]] double extended_load_nm() const noexcept { return load_star_nm_; }
   /// APS filter gain at tooth k for speed ω (interpolated between the precomputed speed bins).
   [[nodiscard]] Vec periodic_gain(int k, double speed_rad_s) const noexcept;
   /// The same from noise set `set` (kWholeTorqueSet, or kModelMissSet when built with gas_model), whichever
@@ -202,6 +207,8 @@ class ChauvinKalman {
   Mat p_ = Mat::Zero();
   bool p_finite_ = true;  ///< p_.allFinite() as of its last change (APS: P changes only at a restart)
   Vec last_gain_ = Vec::Zero();
+  double last_innovation_ = 0.0;  ///< last_innovation() ((rad/s)²)
+  double output_model_nm_ = 0.0;  ///< output_model_nm() (N m)
   TorqueEstimate est_;
   int est_tooth_ = 0;
   bool wheel_learned_ = true;

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -130,4 +131,83 @@ TEST(InCycleDump, ScoredRowsReproduceTheBedsKalmanFigure) {
   ASSERT_GT(n, 1000);
   EXPECT_NEAR(n, r.kalman.n, 4);
   EXPECT_NEAR(100.0 * std::sqrt(se / n) / r.kalman.p2p_nm, r.kalman.rms_pct_p2p, 0.05);
+}
+
+// The per-tooth dump of the transient and cut-off run (EvalOptions::incycle_regimes_dump, torque-accuracy
+// --bed-incycle-regimes-dump) holds both windows (scored bit 1 transient, bit 2 cut-off: they overlap) and
+// the Kalman's parts.
+TEST(InCycleDump, RegimesDumpHoldsBothWindowsAndTheKalmansParts) {
+  eval::EvalOptions o;
+  o.incycle_regimes_dump = "/tmp/torqued_incycle_regimes_dump_" + std::to_string(::getpid()) + ".csv";
+  const eval::InCycleRegimesResult r = eval::evaluate_incycle_regimes(engine("tune_i6_60"), o);
+  std::ifstream f(o.incycle_regimes_dump);
+  ASSERT_TRUE(f.good());
+  std::string line;
+  std::getline(f, line);
+  std::vector<std::string> names;
+  {
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) names.push_back(cell);
+  }
+  const auto col = [&](const std::string& name) {
+    for (std::size_t j = 0; j < names.size(); ++j)
+      if (names[j] == name) return static_cast<int>(j);
+    return -1;
+  };
+  const std::vector<std::string> want = {"t_s",
+                                         "speed_rpm",
+                                         "t_ind_nm",
+                                         "ripple_nm",
+                                         "kalman_nm",
+                                         "map_pa",
+                                         "spark_deg",
+                                         "scored",
+                                         "t_cyl6_nm",
+                                         "kalman_model_nm",
+                                         "kalman_load_nm",
+                                         "kalman_sd_nm",
+                                         "innov_rad2_s2",
+                                         "gain_out_nm_s2_rad2"};
+  for (const std::string& w : want) EXPECT_GE(col(w), 0) << w;
+  ASSERT_GE(col("gain_out_nm_s2_rad2"), 0);
+  const auto ix = [&](const char* n) { return static_cast<std::size_t>(col(n)); };
+  std::array<double, 3> se{};
+  std::array<int, 3> n{};
+  int gained = 0, rows = 0;
+  double innov_sq = 0.0;
+  while (std::getline(f, line)) {
+    std::vector<double> v;
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) v.push_back(cell == "nan" ? std::nan("") : std::stod(cell));
+    ASSERT_EQ(v.size(), names.size());
+    ++rows;
+    const auto bits = static_cast<unsigned>(v[ix("scored")]);
+    ASSERT_LE(bits, 3u);
+    if (std::isfinite(v[ix("kalman_nm")])) {
+      for (unsigned w = 1; w <= 2; ++w) {
+        if ((bits & w) == 0) continue;
+        se[w] += (v[ix("kalman_nm")] - v[ix("t_ind_nm")]) * (v[ix("kalman_nm")] - v[ix("t_ind_nm")]);
+        ++n[w];
+      }
+      // the estimate's parts are the ones it was built from, and its claimed 1 sigma is positive
+      EXPECT_TRUE(std::isfinite(v[ix("kalman_model_nm")]) && std::isfinite(v[ix("kalman_load_nm")]));
+      EXPECT_GT(v[ix("kalman_sd_nm")], 0.0);
+    }
+    if (v[ix("gain_out_nm_s2_rad2")] != 0.0) ++gained;
+    innov_sq += v[ix("innov_rad2_s2")] * v[ix("innov_rad2_s2")];
+  }
+  std::remove(o.incycle_regimes_dump.c_str());
+  // THEN both windows are there, the scored rows give the bed's Kalman RMS per regime (within 0.05 pp, as for
+  // the fresh start's dump), and the filter's innovation and output gain were recorded on most teeth
+  ASSERT_GT(n[1], 1000);
+  ASSERT_GT(n[2], 1000);
+  EXPECT_NEAR(n[1], r.transient.kalman.n, 4);
+  EXPECT_NEAR(n[2], r.cutoff.kalman.n, 4);
+  EXPECT_NEAR(100.0 * std::sqrt(se[1] / n[1]) / r.transient.kalman.p2p_nm, r.transient.kalman.rms_pct_p2p,
+              0.05);
+  EXPECT_NEAR(100.0 * std::sqrt(se[2] / n[2]) / r.cutoff.kalman.p2p_nm, r.cutoff.kalman.rms_pct_p2p, 0.05);
+  EXPECT_GT(gained, rows / 2);
+  EXPECT_GT(innov_sq, 0.0);
 }

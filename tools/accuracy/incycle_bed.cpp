@@ -102,30 +102,67 @@ void slow_and_worst(const Window& w, const InCycleStats& st, InCycleRegime& g) {
   }
 }
 
-/// Per-tooth diagnostics of run_fresh() (EvalOptions::incycle_dump): the gas model's ripple handed to the
-/// observers at each tooth, and the Kalman's (smoothed) estimate placed at the tooth it describes.
+/// Per-tooth diagnostics of run_fresh() (EvalOptions::incycle_dump / incycle_regimes_dump). Two placements:
+/// the inputs and the filter step of the tooth just measured (the gas model's ripple handed to the observers
+/// for the coming step, MAP, spark, the centroid, the Kalman's innovation ν and its gain at the output state
+/// x2(k−d)), and the Kalman's smoothed estimate with its parts (the model ripple and extended load inside it,
+/// its claimed 1σ) at the tooth it describes, d teeth back.
 struct ToothDump {
-  std::vector<double> ripple, map, spark, centroid, kalman;
+  std::vector<double> ripple, map, spark, centroid, innov, gain_out;  // at the tooth measured
+  std::vector<double> kalman, model_out, load_star, sigma;            // at the tooth described
+  void resize(std::size_t n) {
+    for (auto* v : {&ripple, &map, &spark, &centroid, &innov, &gain_out}) v->assign(n, 0.0);
+    for (auto* v : {&kalman, &model_out, &load_star, &sigma})
+      v->assign(n, std::numeric_limits<double>::quiet_NaN());
+  }
+  /// Tooth `i` was just handed to `pipe`; `at` is the index of the tooth its Kalman estimate describes.
+  void record(std::size_t i, const AnglePipeline& pipe, const EngineSignals& sig, std::size_t at,
+              int output_state) {
+    ripple[i] = pipe.last_ripple_nm();
+    map[i] = sig.map_pa;
+    spark[i] = sig.spark_advance_deg;
+    centroid[i] = pipe.ripple_centroid_deg();
+    const ChauvinKalman& k = pipe.kalman();
+    innov[i] = k.last_innovation();
+    gain_out[i] = k.last_gain()(output_state);
+    const TorqueEstimate& e = pipe.tooth_output().kalman_ind;
+    if (e.health != Health::kValid || at >= kalman.size()) return;
+    kalman[at] = e.torque_nm;
+    model_out[at] = k.output_model_nm();
+    load_star[at] = k.extended_load_nm();
+    sigma[at] = e.uncertainty;
+  }
 };
 
-/// Writes `d` with the simulator's truth per tooth as CSV (`scored`: inside the first window's spans).
-void write_dump(const std::string& path, const sim::SimOutput& out, const ToothDump& d, const Window& w,
-                int cylinders) {
+/// Bit j set: window j holds `t` (the regimes' transient and cut-off windows overlap).
+int windows_holding(const std::vector<Window>& windows, double t) {
+  int bits = 0;
+  for (std::size_t j = 0; j < windows.size(); ++j)
+    if (windows[j].holds(t)) bits |= 1 << j;
+  return bits;
+}
+
+/// Writes `d` with the simulator's truth per tooth as CSV (`scored`: bit mask of the windows holding the
+/// tooth: 1 the fresh start's, or 1 transient | 2 cut-off for the regimes; 0 none). docs/eval.md lists the
+/// columns.
+void write_dump(const std::string& path, const sim::SimOutput& out, const ToothDump& d,
+                const std::vector<Window>& windows, int cylinders) {
   std::FILE* f = std::fopen(path.c_str(), "w");
   if (f == nullptr) return;
   std::fprintf(f,
                "t_s,cycle,tooth,angle720_deg,speed_rpm,t_ind_nm,t_mass_nm,ripple_nm,kalman_nm,map_pa,spark_"
                "deg,centroid_deg,scored");
   for (int c = 0; c < cylinders; ++c) std::fprintf(f, ",t_cyl%d_nm", c + 1);
-  std::fprintf(f, "\n");
+  std::fprintf(f, ",kalman_model_nm,kalman_load_nm,kalman_sd_nm,innov_rad2_s2,gain_out_nm_s2_rad2\n");
   for (std::size_t i = 0; i < d.ripple.size(); ++i) {
     const sim::ToothTruth& t = out.teeth[i];
     std::fprintf(f, "%.7f,%d,%d,%.4f,%.3f,%.4f,%.4f,%.4f,%.4f,%.1f,%.2f,%.3f,%d", t.t_s, t.cycle, t.tooth,
                  t.angle720_rad * 180.0 / std::numbers::pi, t.speed_rad_s * 30.0 / std::numbers::pi,
                  t.t_ind_nm, t.t_mass_nm, d.ripple[i], d.kalman[i], d.map[i], d.spark[i], d.centroid[i],
-                 w.holds(t.t_s) ? 1 : 0);
+                 windows_holding(windows, t.t_s));
     for (int c = 0; c < cylinders; ++c) std::fprintf(f, ",%.4f", t.t_ind_cyl_nm[static_cast<std::size_t>(c)]);
-    std::fprintf(f, "\n");
+    std::fprintf(f, ",%.4f,%.4f,%.4f,%.6g,%.6g\n", d.model_out[i], d.load_star[i], d.sigma[i], d.innov[i],
+                 d.gain_out[i]);
   }
   std::fclose(f);
 }
@@ -141,8 +178,9 @@ struct LearnSummary {
 
 /// The daemon's angle chain on `sc` from a fresh start (tooth learner empty, its table applied at each
 /// cycle end), the in-cycle outputs collected into `windows`.
+/// `dump_path`: where to write the per-tooth dump (empty: none).
 LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, const sim::SimOutput& out,
-                       const EvalOptions& opt, std::vector<Window>& windows) {
+                       const EvalOptions& opt, std::vector<Window>& windows, const std::string& dump_path) {
   EvalOptions o = opt;
   o.spec_engine = engine.spec;
   o.friction_prior.reset();  // a fresh daemon: the generic friction correlation from the spec sheet
@@ -164,15 +202,9 @@ LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, co
   for (std::size_t i = 0; i < samples.size(); ++i) index[samples[i].t_ns] = i;
   LearnSummary r;
   ToothDump dump;
-  const bool dumping = !opt.incycle_dump.empty() && !windows.empty();
-  if (dumping) {
-    const std::size_t n = std::min(samples.size(), out.teeth.size());
-    dump.ripple.assign(n, 0.0);
-    dump.map.assign(n, 0.0);
-    dump.spark.assign(n, 0.0);
-    dump.centroid.assign(n, 0.0);
-    dump.kalman.assign(n, std::numeric_limits<double>::quiet_NaN());
-  }
+  const bool dumping = !dump_path.empty() && !windows.empty();
+  if (dumping) dump.resize(std::min(samples.size(), out.teeth.size()));
+  const int output_state = ChauvinKalman::kTorqueState + pipe.config().kalman.smoother_lag;
   int prev_tooth = -1;
   for (std::size_t i = 0; i < samples.size() && i < out.teeth.size(); ++i) {
     ToothSample s = samples[i];
@@ -195,13 +227,8 @@ LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, co
     pipe.on_tooth(s, sig);
     const ToothOutput& to = pipe.tooth_output();
     if (dumping) {
-      dump.ripple[i] = pipe.last_ripple_nm();
-      dump.map[i] = sig.map_pa;
-      dump.spark[i] = sig.spark_advance_deg;
-      dump.centroid[i] = pipe.ripple_centroid_deg();
       const auto it = index.find(to.kalman_ind.t_ns);
-      if (to.kalman_ind.health == Health::kValid && it != index.end() && it->second < dump.kalman.size())
-        dump.kalman[it->second] = to.kalman_ind.torque_nm;
+      dump.record(i, pipe, sig, it != index.end() ? it->second : dump.kalman.size(), output_state);
     }
     for (Window& w : windows) {
       if (to.kalman_ind.health == Health::kValid) {
@@ -221,7 +248,7 @@ LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, co
       }
     }
   }
-  if (dumping) write_dump(opt.incycle_dump, out, dump, windows.front(), sc.engine.cylinders);
+  if (dumping) write_dump(dump_path, out, dump, windows, sc.engine.cylinders);
   r.edge_resid_deg = edge_residual_deg(out, ratio, nominal);
   r.cycles_used = learner.stats().cycles_used;
   r.cycles_cutoff = learner.stats().cycles_cutoff;
@@ -251,7 +278,7 @@ InCycleBedResult evaluate_incycle_fresh(const sim::BedEngine& engine, const Eval
   const sim::SimOutput out = sim::simulate(sc);
   r.duration_s = sc.duration_s;
   r.score_from_s = windows[0].spans.empty() ? 0.0 : windows[0].spans.front().first;
-  const LearnSummary l = run_fresh(engine, sc, out, opt, windows);
+  const LearnSummary l = run_fresh(engine, sc, out, opt, windows, opt.incycle_dump);
   const InCycleRegime g = score(windows[0], 360.0 / sc.wheel.positions);
   r.kalman = g.kalman;
   r.fourier = g.fourier;
@@ -274,7 +301,7 @@ InCycleRegimesResult evaluate_incycle_regimes(const sim::BedEngine& engine, cons
   windows[1].spans.resize(1);
   const sim::Scenario sc = sim::bed_incycle_regimes_run(engine, &windows[0].spans[0], &windows[1].spans[0]);
   const sim::SimOutput out = sim::simulate(sc);
-  const LearnSummary l = run_fresh(engine, sc, out, opt, windows);
+  const LearnSummary l = run_fresh(engine, sc, out, opt, windows, opt.incycle_regimes_dump);
   const double step = 360.0 / sc.wheel.positions;
   r.transient = score(windows[0], step);
   r.cutoff = score(windows[1], step);

@@ -45,8 +45,10 @@ struct EvalOptions {
       e_machine{};  ///< hybrid input: bound = the EM_1 machine torque is used (scenario with a machine)
   bool no_fuel_cutoff_flag = false;  ///< the ECU sends no cut-off flag: fuel mass 0 is all there is
   /// In-cycle beds (incycle_bed.hpp): write the per-tooth truth, gas model ripple and Kalman estimate to this
-  /// CSV file (empty: none).
+  /// CSV file (empty: none): the fresh start's (incycle_dump), the transient and cut-off run's
+  /// (incycle_regimes_dump). Columns: docs/eval.md.
   std::string incycle_dump;
+  std::string incycle_regimes_dump;
 };
 
 /// One compared cycle (the pipeline's rolling 720° window ending at boundary 0).
