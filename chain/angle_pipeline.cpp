@@ -204,13 +204,13 @@ std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& 
     ++stats_.not_synced;
     return break_sequence(s);
   }
+  const double speed = s.width_rad / s.dt_s;
   if (!(s.dt_s > 0.0) || !(s.width_rad > 0.0) || !std::isfinite(s.dt_s) || !std::isfinite(s.width_rad) ||
-      s.tooth < 0 || s.tooth >= energy_.samples()) {
+      !std::isfinite(speed) || s.tooth < 0 || s.tooth >= energy_.samples()) {
     ++stats_.invalid;
     return break_sequence(s);
   }
   std::uint8_t ready = kToothReady;
-  const double speed = s.width_rad / s.dt_s;
   tooth_.t_ns = s.t_ns;
   tooth_.tooth = s.tooth;
   tooth_.angle_rad = s.angle_rad;

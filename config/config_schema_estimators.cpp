@@ -92,14 +92,17 @@ void add_angle_observers(std::vector<SchemaEntry>& t) {
   TQ_NUM("preprocess.jitter_s", preprocess.jitter_s, closed(0.0, 1e-2), "s",
          "edge timestamp jitter, 1 sigma");
   TQ_BOOL("kalman.enabled", kalman.enabled, "run the time-varying Kalman filter (CK)");
-  TQ_NUM("kalman.delta", kalman.params.delta, open_closed(0.0, 1e3), "1/rad",
-         "coloured-noise pole of h(z) (CK-18)");
+  TQ_NUM("kalman.delta", kalman.params.delta, closed(1e-3, 1e3), "1/rad",
+         "coloured-noise pole of h(z) (CK-18); at least 0.001: below it the pole rounds to 1 (a random walk, "
+         "whose "
+         "stationary Q does not exist)");
   TQ_NUM("kalman.torque_sd_nm", kalman.params.torque_sd_nm, open_closed(0.0, 1e5), "N m",
          "stationary 1 sigma of the net torque; sets Q without the gas torque model");
   TQ_NUM("kalman.model_torque_sd_nm", kalman.params.model_torque_sd_nm, open_closed(0.0, 1e5), "N m",
          "stationary 1 sigma of what the gas torque model misses; sets Q while the model is valid");
-  TQ_NUM("kalman.model_delta", kalman.params.model_delta, open_closed(0.0, 1e3), "1/rad",
-         "coloured-noise pole of h(z) (CK-18) while the gas torque model is valid");
+  TQ_NUM("kalman.model_delta", kalman.params.model_delta, closed(1e-3, 1e3), "1/rad",
+         "coloured-noise pole of h(z) (CK-18) while the gas torque model is valid; at least 0.001, as "
+         "kalman.delta");
   TQ_NUM("kalman.edge_noise_deg", kalman.params.edge_noise_deg, open_closed(0.0, 10.0), "deg",
          "edge-angle error used for R");
   TQ_NUM("kalman.jitter_s", kalman.params.jitter_s, closed(0.0, 1e-2), "s", "timestamp jitter used for R");

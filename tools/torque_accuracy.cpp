@@ -754,7 +754,16 @@ void write_cycles_csv(const std::string& path, const torqued::eval::ScenarioResu
 
 // The simulator's scenarios (or --cylinders' table): friction learned first, then one row per scenario.
 int run_scenarios(Args& a) {
-  if (a.names.empty() && !a.cylinders) a.names = torqued::sim::scenario_names();
+  const std::vector<std::string> known = torqued::sim::scenario_names();
+  if (a.names.empty() && !a.cylinders) a.names = known;
+  for (const auto& name : a.names) {
+    if (a.cylinders || std::find(known.begin(), known.end(), name) != known.end()) continue;
+    std::string list;
+    for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
+    std::fprintf(stderr, "torque-accuracy: --scenario: unknown scenario '%s'; known: %s\n", name.c_str(),
+                 list.c_str());
+    return 2;
+  }
 
   torqued::eval::EvalOptions opt;
   using torqued::eval::ToothTable;
@@ -818,7 +827,8 @@ int main(int argc, char** argv) {
   add_observer_options(app, a);
   app.footer(
       "Exit status: 0 done (tables printed); 1 a recording could not be read or the output not written; 2 "
-      "command-line error (unknown option, bad value, file that does not exist) or --config refused / its "
+      "command-line error (unknown option or scenario, bad value, file that does not exist) or --config "
+      "refused / its "
       "inputs cannot be opened.");
   TORQUED_CLI_PARSE(app, argc, argv);
   a.learn.firing_load_law = !a.no_firing_law;

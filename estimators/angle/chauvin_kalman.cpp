@@ -92,7 +92,9 @@ ChauvinKalman::ChauvinKalman(const EngineGeometry& engine, const WheelGeometry& 
   const double nominal_step = steps[static_cast<std::size_t>(kk / 2)];
   const auto stationary = [&](double d, double sd) {
     const double a = std::exp(-d * nominal_step);
-    return sd * sd * std::pow(1.0 - a * a, 3) / (std::pow(1.0 - a, 4) * (1.0 + a * a));
+    // The ratio first, then σ²: the papers' filter's Q rounds as it did before the model set had a pole of
+    // its own.
+    return sd * sd * (std::pow(1.0 - a * a, 3) / (std::pow(1.0 - a, 4) * (1.0 + a * a)));
   };
   qu_[kWholeTorqueSet] = stationary(params_.delta, params_.torque_sd_nm);
   qu_[kModelMissSet] = stationary(params_.model_delta, params_.model_torque_sd_nm);
@@ -395,6 +397,7 @@ void ChauvinKalman::reset() noexcept {
   teeth_seen_ = 0;
   edge_t_ns_.fill(0);
   model_.fill(0.0);
+  mode_ = kWholeTorqueSet;
 }
 
 void ChauvinKalman::advance_mean_speed(double omega) noexcept {
@@ -475,6 +478,8 @@ bool ChauvinKalman::update_checked(const ToothSample& s) noexcept {
   const double omega = s.width_rad / s.dt_s;
   const double y = omega * omega;
   if (expected_tooth_ >= 0 && k != expected_tooth_) bridge_lost_teeth(k);
+  // The noise set before a restart: the starting covariance takes this tooth's σ, not the last tooth's.
+  mode_ = params_.gas_model && model_next_valid_ ? kModelMissSet : kWholeTorqueSet;
   if (expected_tooth_ < 0) {
     // (Re)start: x̂ = [y, 0, ...], P0 = diag(R, σ², ...) (CK (11) initial condition m0).
     x_.setZero();
@@ -486,7 +491,6 @@ bool ChauvinKalman::update_checked(const ToothSample& s) noexcept {
     teeth_seen_ = 0;
   }
   advance_mean_speed(omega);
-  mode_ = params_.gas_model && model_next_valid_ ? kModelMissSet : kWholeTorqueSet;
   push_model(model_next_valid_ ? model_next_ : 0.0);
   Vec& gain = last_gain_;  // the gain is built where it is kept (no per-tooth copy of 16 doubles)
   double out_var = 0.0;

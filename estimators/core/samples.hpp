@@ -21,11 +21,12 @@ struct ToothSample {
 };
 
 /// Shared input check of the per-tooth estimators: kNoSync when the decoder is not synced, kInvalidInput for
-/// a non-positive or non-finite period/width or a tooth index outside [0, samples_per_cycle), else kValid.
+/// a non-positive or non-finite period/width, a speed width/period that is not finite (a subnormal period),
+/// or a tooth index outside [0, samples_per_cycle), else kValid.
 [[nodiscard]] inline Health check_tooth_sample(const ToothSample& s, int samples_per_cycle) noexcept {
   if (!s.synced) return Health::kNoSync;
   if (!(s.dt_s > 0.0) || !(s.width_rad > 0.0) || !std::isfinite(s.dt_s) || !std::isfinite(s.width_rad) ||
-      s.tooth < 0 || s.tooth >= samples_per_cycle) {
+      !std::isfinite(s.width_rad / s.dt_s) || s.tooth < 0 || s.tooth >= samples_per_cycle) {
     return Health::kInvalidInput;
   }
   return Health::kValid;

@@ -139,7 +139,12 @@ const BadCase kBad[] = {
      1},
     {"model_delta_zero",
      "model_delta_zero.yaml:5:18: key 'estimators.kalman.model_delta': found '0', expected a finite number "
-     "(1/rad, range (0, 1000])",
+     "(1/rad, range [0.001, 1000])",
+     1},
+    {"delta_subnormal_pole",
+     "delta_subnormal_pole.yaml:5:12: key 'estimators.kalman.delta': found '1e-300', expected a finite "
+     "number "
+     "(1/rad, range [0.001, 1000])",
      1},
     {"free_coast_band_inverted",
      "free_coast_band_inverted.yaml:4:3: key 'can.load_reference.free_coast_decel_max': found '1.8' "

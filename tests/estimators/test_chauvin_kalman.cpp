@@ -292,6 +292,53 @@ TEST(ChauvinKalman, HoldsWithoutSyncAndRejectsBadSamples) {
   EXPECT_EQ(kf.stats().rejected, 3u);
 }
 
+TEST(ChauvinKalman, ASubnormalPeriodIsRejectedNotTurnedIntoAnInfiniteSpeed) {
+  // GIVEN a synced first sample whose period is positive and finite but subnormal (width/period overflows)
+  ChauvinKalman kf(EngineGeometry{}, WheelGeometry{}, KalmanParams{});
+  ToothSample s;
+  s.synced = true;
+  s.tooth = 0;
+  s.width_rad = 2.0 * std::numbers::pi / 60.0;
+  s.dt_s = 5e-324;
+  // THEN it is invalid input, as a zero period is
+  EXPECT_FALSE(kf.update(s));
+  EXPECT_EQ(kf.estimate().health, Health::kInvalidInput);
+  EXPECT_EQ(kf.stats().rejected, 1u);
+}
+
+TEST(ChauvinKalman, AResetFilterRestartsAsAFreshOneWithTheGasModel) {
+  // GIVEN exact Riccati steps and a valid gas model: one filter fresh, one that ran 500 teeth and was reset
+  test::SyntheticSpec sp;
+  sp.cycles = 10;
+  auto run = test::make_synthetic(sp);
+  apply_true_widths(run, sp.wheel);
+  KalmanParams p;
+  p.gas_model = true;
+  p.periodic_gains = false;
+  ChauvinKalman fresh(sp.engine, sp.wheel, p), used(sp.engine, sp.wheel, p);
+  for (std::size_t i = 0; i < 500; ++i) {
+    used.set_model_torque(40.0, true);
+    used.update(run.samples[i]);
+  }
+  used.reset();
+  // WHEN both run on the same teeth from there (the model's validity alternating per half cycle)
+  int differ = 0;
+  for (std::size_t i = 0; i < 2000; ++i) {
+    const bool valid = (i / 60) % 2 == 0;
+    for (ChauvinKalman* kf : {&fresh, &used}) {
+      kf->set_model_torque(30.0 * std::sin(0.1 * static_cast<double>(i)), valid);
+      kf->update(run.samples[i]);
+    }
+    if (std::bit_cast<std::uint64_t>(fresh.estimate().torque_nm) !=
+            std::bit_cast<std::uint64_t>(used.estimate().torque_nm) ||
+        std::bit_cast<std::uint64_t>(fresh.estimate().uncertainty) !=
+            std::bit_cast<std::uint64_t>(used.estimate().uncertainty))
+      ++differ;
+  }
+  // THEN they agree bit for bit: the restart's covariance takes this tooth's noise set, not the last run's
+  EXPECT_EQ(differ, 0);
+}
+
 TEST(ChauvinKalman, BridgesALostToothByPrediction) {
   test::SyntheticSpec sp;
   sp.cycles = 12;

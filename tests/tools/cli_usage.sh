@@ -2,6 +2,7 @@
 # ctest tools.cli_usage: what a new user meets on the command line.
 #   - every binary's --help lists its exit statuses; a command-line error exits 2 (not CLI11's 105...);
 #   - torqued without arguments says what to give and exits 2; --config of a missing file exits 2;
+#   - torque-accuracy: an unknown scenario exits 2 and lists the known ones;
 #   - torque-eval: an unknown column lists the columns that exist (exit 1); the table calls max |error| max|err|;
 #   - the plot: one panel per quantity, identical estimates merged, a PNG written;
 #   - torque-dash like the others (exit 2 on a bad option, exit statuses and defaults in --help);
@@ -25,6 +26,12 @@ if [[ -x "$build/tools/torque-dash" ]]; then
   "$build/tools/torque-dash" --help >"$tmp/help" 2>&1
   grep -q "127.0.0.1:8080" "$tmp/help" && grep -q "share/torqued/www" "$tmp/help" && grep -Eq "period-ms.*=100" "$tmp/help" ||
     fail "torque-dash --help does not show its defaults: $(cat "$tmp/help")"
+fi
+# torque-accuracy: an unknown scenario is a command-line error that lists the known ones (not an abort).
+if [[ -x "$build/tools/torque-accuracy" ]]; then
+  "$build/tools/torque-accuracy" --scenario nosuch >/dev/null 2>"$tmp/err"; rc=$?
+  ((rc == 2)) && grep -q "unknown scenario 'nosuch'; known: steady_1000_low" "$tmp/err" ||
+    fail "torque-accuracy --scenario nosuch: exit $rc, $(head -c 300 "$tmp/err")"
 fi
 "$build/service/torqued" >/dev/null 2>"$tmp/err"; rc=$?
 ((rc == 2)) && grep -q "nothing to do: give --config" "$tmp/err" || fail "torqued without arguments: exit $rc, $(head -2 "$tmp/err")"
