@@ -49,6 +49,15 @@ class SpscRing {
     return true;
   }
 
+  /// Producer side: true when a try_push now would be refused (re-reads the consumer's index first). For a
+  /// producer that may wait (back-pressure, service/sink_thread.hpp) instead of dropping.
+  [[nodiscard]] bool full() noexcept {
+    const std::size_t tail = tail_.load(std::memory_order_relaxed);
+    if (tail - head_cache_ <= mask_) return false;
+    head_cache_ = head_.load(std::memory_order_acquire);
+    return tail - head_cache_ > mask_;
+  }
+
   /// Consumer side. Returns false when empty.
   [[nodiscard]] bool try_pop(T& out) noexcept {
     const std::size_t head = head_.load(std::memory_order_relaxed);
