@@ -1,8 +1,10 @@
 #pragma once
-// As-fast-as-possible replay: ONE thread, sources -> merger -> angle stage (decoder, angle estimators) and
-// time stage (ticks every step on the edge clock, interleaved by time) -> sink (recorder and/or publisher).
-// Deterministic: no wall-clock time enters the outputs (ingest/publish times are 0), ties are broken by
-// the merger (edges first), so the same input gives byte-identical CSV output.
+// As-fast-as-possible replay: sources -> merger (both on a reader thread, read_ahead_merger.hpp, handing the
+// records over in order) -> angle stage (decoder, angle estimators) and time stage (ticks every step on the
+// edge clock, interleaved by time), on the calling thread -> sink (recorder and/or publisher; daemon_run.cpp
+// gives the recorder a thread of its own, sink_thread.hpp). Deterministic: no wall-clock time enters the
+// outputs (ingest/publish times are 0), ties are broken by the merger (edges first), so the same input gives
+// byte-identical CSV output.
 #include <cstdint>
 #include <string>
 #include <vector>
