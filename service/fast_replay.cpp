@@ -149,6 +149,7 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
   }
   input.stop();  // the sources are this thread's again: their stats, errors and problems below
   if (source_failed) r.error = input.first_error();
+  r.input_waits = input.waits();
   drain_transitions(angle.chain().transitions(), r.transitions);
   r.transitions.not_kept += angle.chain().transitions().dropped();  // ring full between two drains
   RuntimeCounters c = counters();

@@ -23,7 +23,7 @@ namespace torqued {
 
 class ReadAheadMerger {
  public:
-  static constexpr std::size_t kDefaultCapacity = 4096;  ///< records (≈ 0.5 MB of 128-byte records)
+  static constexpr std::size_t kDefaultCapacity = 16384;  ///< records (2 MB of 128 bytes, ≈ 2.6 ms of replay)
 
   /// Starts the reader thread (allocates the ring here, never afterwards). Sources must outlive this.
   ReadAheadMerger(EdgeSource* edges, CanSource* can, std::int64_t can_offset_ns,

@@ -6,7 +6,7 @@
 // one caller.
 //
 // Back-pressure, never a drop: a full ring makes emit() wait until the writer has made room (spinning
-// briefly, then yielding, then sleeping: back_off.hpp; counted in waits()); the sample is then pushed.
+// long, then yielding, then sleeping: back_off.hpp; counted in waits()); the sample is then pushed.
 // drops() counts samples the ring refused after that wait: it stays 0 (one producer; the test checks it).
 // This is for the fast replay, which may wait; the real-time threads of the paced runtime use try_push and
 // count drops instead. Real-time notes: emit() does not allocate, lock or throw; it may wait (above) and then
@@ -24,7 +24,7 @@ namespace torqued {
 
 class SinkThread final : public SampleSink {
  public:
-  static constexpr std::size_t kDefaultCapacity = 8192;  ///< samples (≈ 2.2 MB of 272-byte samples)
+  static constexpr std::size_t kDefaultCapacity = 16384;  ///< samples (4.3 MB of 272-byte samples)
 
   /// Starts the writer thread (allocates the ring here, never afterwards).
   explicit SinkThread(SampleSink& inner, std::size_t capacity = kDefaultCapacity);
