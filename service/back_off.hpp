@@ -27,4 +27,12 @@ namespace torqued {
   ++round;
 }
 
+/// The helper threads' own wait (nothing to do: the reader's ring full, the writer's empty): sleep 50 µs, no
+/// spin. Their rings hold milliseconds of the replay, so a late wake-up costs nothing, while a spinning
+/// helper takes the CPU from the replay whenever both share a core.
+inline void rest() noexcept {
+  const timespec ts{0, 50'000};
+  nanosleep(&ts, nullptr);
+}
+
 }  // namespace torqued

@@ -52,10 +52,11 @@ void ReadAheadMerger::run() noexcept {
     rec.frames_out = merger_.frames_out();
     rec.source_drops = (edges_ ? edges_->stats().bad_lines + edges_->stats().dropped : 0) +
                        (can_ ? can_->stats().bad_lines + can_->stats().dropped : 0);
-    unsigned round = 0;
-    while (ring_.full()) {
-      if (quit_.load(std::memory_order_acquire)) return;
-      back_off(round);
+    if (ring_.full()) {  // wait until the replay has taken half of it: fewer, longer turns of this thread
+      do {
+        if (quit_.load(std::memory_order_acquire)) return;
+        rest();
+      } while (ring_.size() > ring_.capacity() / 2);
     }
     (void)ring_.try_push(
         rec);  // room was made above and only this thread pushes: counted in drops() if refused

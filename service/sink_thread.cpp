@@ -32,13 +32,11 @@ void SinkThread::flush() noexcept {
 
 void SinkThread::run() noexcept {
   std::uint64_t n = 0;
-  unsigned round = 0;
   for (;;) {
     if (const dds::AnySample* s = ring_.front()) {
       inner_.emit(*s);
       ring_.pop_front();
       written_.store(++n, std::memory_order_release);
-      round = 0;
       continue;
     }
     // Empty: done_ is read before the last look at the ring, so a sample pushed before done_ was set is seen.
@@ -46,7 +44,7 @@ void SinkThread::run() noexcept {
       if (ring_.front() == nullptr) return;
       continue;
     }
-    back_off(round);
+    rest();
   }
 }
 
