@@ -6,10 +6,10 @@
 // the merger's status, its CAN frame count and the sources' bad lines and drops as they stood right after
 // that merger.next(), so DaemonStatus counts are those of the one-thread replay (determinism: same bytes).
 //
-// Back-pressure, never a drop: the reader waits while the ring is full (back_off.hpp), the replay while it is
-// empty (counted in waits()); drops() counts records the ring refused after that wait and stays 0.
-// Only the reader thread touches the sources until stop() (or the end), which joins it: read their stats and
-// errors after that.
+// Back-pressure, never a drop: the reader sleeps while the ring is full (rest(), back_off.hpp) until half of
+// it is free, the replay waits (back_off()) while it is empty (counted in waits()); drops() counts records
+// the ring refused after that wait and stays 0. Only the reader thread touches the sources until stop() (or
+// the end), which joins it: read their stats and errors after that.
 #include <atomic>
 #include <cstdint>
 #include <string>
