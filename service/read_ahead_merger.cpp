@@ -21,7 +21,11 @@ SourceStatus ReadAheadMerger::next(ReplayMerger::Item& out) noexcept {
     while ((r = ring_.front()) == nullptr) back_off(round);
   }
   const SourceStatus st = r->status;
-  out = r->item;
+  out.kind = r->kind;  // only the half of the record in use: its other cache lines stay on the reader's core
+  if (r->kind == ReplayMerger::Kind::kEdge)
+    out.edge = r->edge;
+  else
+    out.frame = r->frame;
   frames_out_ = r->frames_out;
   source_drops_ = r->source_drops;
   ring_.pop_front();
@@ -37,10 +41,10 @@ void ReadAheadMerger::stop() noexcept {
 }
 
 void ReadAheadMerger::run() noexcept {
-  Record rec;
+  ReplayMerger::Item item;
   for (;;) {
-    rec.status = merger_.next(rec.item);
-    if (rec.status == SourceStatus::kError && first_error_.empty()) {
+    const SourceStatus status = merger_.next(item);
+    if (status == SourceStatus::kError && first_error_.empty()) {
       try {  // what the one-thread replay took at its first error (fast_replay.cpp)
         first_error_ = (edges_ && !edges_->last_error().empty()) ? edges_->last_error()
                        : can_                                    ? can_->last_error()
@@ -49,18 +53,27 @@ void ReadAheadMerger::run() noexcept {
         first_error_.clear();
       }
     }
-    rec.frames_out = merger_.frames_out();
-    rec.source_drops = (edges_ ? edges_->stats().bad_lines + edges_->stats().dropped : 0) +
-                       (can_ ? can_->stats().bad_lines + can_->stats().dropped : 0);
-    if (ring_.full()) {  // wait until the replay has taken half of it: fewer, longer turns of this thread
+    Record* rec = ring_.claim();
+    if (rec == nullptr) {  // wait until the replay has taken half of it: fewer, longer turns of this thread
       do {
         if (quit_.load(std::memory_order_acquire)) return;
         rest();
       } while (ring_.size() > ring_.capacity() / 2);
+      rec = ring_.claim();  // not null: only the replay takes records
     }
-    (void)ring_.try_push(
-        rec);  // room was made above and only this thread pushes: counted in drops() if refused
-    if (rec.status == SourceStatus::kEnd || quit_.load(std::memory_order_acquire)) return;
+    rec->status = status;
+    rec->kind = item.kind;
+    rec->frames_out = merger_.frames_out();
+    rec->source_drops = (edges_ ? edges_->stats().bad_lines + edges_->stats().dropped : 0) +
+                        (can_ ? can_->stats().bad_lines + can_->stats().dropped : 0);
+    if (status == SourceStatus::kOk) {
+      if (item.kind == ReplayMerger::Kind::kEdge)
+        rec->edge = item.edge;
+      else
+        rec->frame = item.frame;
+    }
+    ring_.publish();
+    if (status == SourceStatus::kEnd || quit_.load(std::memory_order_acquire)) return;
   }
 }
 

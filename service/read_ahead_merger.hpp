@@ -23,7 +23,8 @@ namespace torqued {
 
 class ReadAheadMerger {
  public:
-  static constexpr std::size_t kDefaultCapacity = 16384;  ///< records (2 MB of 128 bytes, ≈ 2.6 ms of replay)
+  static constexpr std::size_t kDefaultCapacity =
+      16384;  ///< records (2.5 MB of 192 bytes, ≈ 2.6 ms of replay)
 
   /// Starts the reader thread (allocates the ring here, never afterwards). Sources must outlive this.
   ReadAheadMerger(EdgeSource* edges, CanSource* can, std::int64_t can_offset_ns,
@@ -46,11 +47,15 @@ class ReadAheadMerger {
   [[nodiscard]] std::uint64_t drops() const noexcept { return ring_.drops(); }
 
  private:
-  struct Record {
+  /// An edge record uses its first 48 bytes only (one cache line to carry to the replay's core when the slot
+  /// is line-aligned); a CAN frame's follows.
+  struct alignas(64) Record {
     SourceStatus status = SourceStatus::kEnd;
-    ReplayMerger::Item item;
+    ReplayMerger::Kind kind = ReplayMerger::Kind::kEdge;
     std::uint64_t frames_out = 0;    ///< merger.frames_out() after this next()
     std::uint64_t source_drops = 0;  ///< bad lines + drops of both sources after this next()
+    EdgeEvent edge;                  ///< kind == kEdge
+    CanFrame frame;                  ///< kind == kCan
   };
   void run() noexcept;  ///< the reader thread
 

@@ -1,5 +1,7 @@
 #include "sink_thread.hpp"
 
+#include <cstring>
+
 #include "back_off.hpp"
 
 namespace torqued {
@@ -14,12 +16,19 @@ void SinkThread::emit(const dds::AnySample& s) noexcept {
     inner_.emit(s);
     return;
   }
-  if (ring_.full()) {
+  dds::AnySample* slot = ring_.claim();
+  if (slot == nullptr) {
     ++waits_;
     unsigned round = 0;
-    while (ring_.full()) back_off(round);
+    while ((slot = ring_.claim()) == nullptr) back_off(round);
   }
-  (void)ring_.try_push(s);  // room was made above and only this thread pushes: counted in drops() if refused
+  // Only the topic's own struct: the recorder reads nothing else, and the rest of the 272 bytes would be
+  // cache lines to carry to the writer's core for nothing (an EstimatorTorque, 9 in 10 samples, is 72 bytes).
+  slot->topic = s.topic;
+  s.visit([&](const auto& v) {
+    std::memcpy(static_cast<void*>(reinterpret_cast<unsigned char*>(&slot->u)), &v, sizeof(v));
+  });
+  ring_.publish();
 }
 
 void SinkThread::flush() noexcept {
