@@ -49,6 +49,25 @@ class SpscRing {
     return true;
   }
 
+  /// Producer side: true when a try_push now would be refused (re-reads the consumer's index first). For a
+  /// producer that may wait (back-pressure, service/sink_thread.hpp) instead of dropping.
+  [[nodiscard]] bool full() noexcept {
+    const std::size_t tail = tail_.load(std::memory_order_relaxed);
+    if (tail - head_cache_ <= mask_) return false;
+    head_cache_ = head_.load(std::memory_order_acquire);
+    return tail - head_cache_ > mask_;
+  }
+
+  /// Producer side, in two steps: the slot the next push would fill (nullptr when full), to be written in
+  /// place (only the bytes the record uses: fewer cache lines cross to the consumer's core), then publish()
+  /// it.
+  [[nodiscard]] T* claim() noexcept {
+    return full() ? nullptr : &slots_[tail_.load(std::memory_order_relaxed) & mask_];
+  }
+  void publish() noexcept {
+    tail_.store(tail_.load(std::memory_order_relaxed) + 1, std::memory_order_release);
+  }
+
   /// Consumer side. Returns false when empty.
   [[nodiscard]] bool try_pop(T& out) noexcept {
     const std::size_t head = head_.load(std::memory_order_relaxed);

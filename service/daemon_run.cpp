@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cinttypes>
 #include <memory>
+#include <optional>
 #include <thread>
 
 #include "angle_stage.hpp"
@@ -26,6 +27,7 @@
 #include "runtime.hpp"
 #include "sample_recorder.hpp"
 #include "sd_notify.hpp"
+#include "sink_thread.hpp"
 #include "stage_settings.hpp"
 #include "state_store.hpp"
 #include "supervisor.hpp"
@@ -77,6 +79,7 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
   const ReplayResult r = run_fast_replay(s, edges, can, can_time_offset_ns(cfg), dbc, out, &g_fast_stop,
                                          spath.empty() ? nullptr : &st);
   if (!r.error.empty()) spdlog::error("replay: {}", r.error);
+  spdlog::debug("reader thread: the replay waited for it {} times", r.input_waits);
   for (const auto& p : r.input_problems) spdlog::warn("{}", p);
   for (const auto& b : r.bad_frames) spdlog::warn("can: {}", b);
   for (const DecoderEvent& e : r.transitions.events) log_transition(e);
@@ -228,7 +231,17 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   SampleSink& out = metrics ? metrics->sink() : static_cast<SampleSink&>(fanout);
 
   if (fast) {
-    const int rc = run_fast(s, cfg, opt, edges.get(), can.get(), dbc ? &*dbc : nullptr, out);
+    // The recording is formatted and written on a second thread (sink_thread.hpp: same samples, same order,
+    // the replay waits when that thread falls behind); the replay's timed loop ends once it has written all.
+    std::optional<SinkThread> writer;
+    if (recorder) writer.emplace(out);
+    const int rc = run_fast(s, cfg, opt, edges.get(), can.get(), dbc ? &*dbc : nullptr,
+                            writer ? static_cast<SampleSink&>(*writer) : out);
+    if (writer) {
+      writer->flush();
+      spdlog::debug("recording thread: {} samples, the replay waited for it {} times, {} dropped",
+                    writer->written(), writer->waits(), writer->drops());
+    }
     if (recorder) recorder->flush(true);
     return recording_failed(recorder.get()) ? std::max(rc, 3) : rc;
   }

@@ -3,8 +3,8 @@
 #include <chrono>
 
 #include "angle_stage.hpp"
+#include "read_ahead_merger.hpp"
 #include "replay_inputs.hpp"
-#include "replay_merger.hpp"
 #include "time_stage.hpp"
 
 namespace torqued {
@@ -47,9 +47,8 @@ void drain_transitions(DecoderEventLog& log, ReplayResult::Transitions& out) noe
   }
 }
 
-/// DaemonStatus counters of the replay so far.
-RuntimeCounters replay_counters(const AngleChain& chain, const ReplayMerger& merger, EdgeSource* edges,
-                                CanSource* can) noexcept {
+/// DaemonStatus counters of the replay so far (the input's counts as of the last record taken).
+RuntimeCounters replay_counters(const AngleChain& chain, const ReadAheadMerger& input) noexcept {
   RuntimeCounters c;
   const auto& ds = chain.decoder().stats();
   c.edges = ds.edges;
@@ -63,9 +62,8 @@ RuntimeCounters replay_counters(const AngleChain& chain, const ReplayMerger& mer
     c.fuel_references = p->fuel_model().state().references;
     c.fuel_cells = p->fuel_model().learned_cells();
   }
-  c.can_frames = merger.frames_out();
-  c.source_drops = (edges ? edges->stats().bad_lines + edges->stats().dropped : 0) +
-                   (can ? can->stats().bad_lines + can->stats().dropped : 0);
+  c.can_frames = input.frames_out();
+  c.source_drops = input.source_drops();
   c.sensor_timeouts = chain.status().stale_mask;
   c.synced = chain.decoder().state() == SyncState::kSynced;
   return c;
@@ -99,23 +97,22 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
   }
   if (state) r.imported = angle.import_state(*state);
 
-  ReplayMerger merger(edges, can, can_offset_ns);
+  // The inputs are read, parsed and merged on a second thread (read_ahead_merger.hpp), in the same order.
+  ReadAheadMerger input(edges, can, can_offset_ns);
   const auto t0 = std::chrono::steady_clock::now();
   bool first = true;
   std::int64_t next_tick = 0, next_status = 0;
   std::uint64_t n = 0;
   StatusTracker status;
   ReplayMerger::Item item;
-  auto counters = [&] { return replay_counters(angle.chain(), merger, edges, can); };
+  bool source_failed = false;
+  auto counters = [&] { return replay_counters(angle.chain(), input); };
   for (;;) {
     if (stop && *stop) break;
-    const SourceStatus st = merger.next(item);
+    const SourceStatus st = input.next(item);
     if (st == SourceStatus::kEnd) break;
     if (st == SourceStatus::kError) {
-      if (r.error.empty())
-        r.error = (edges && !edges->last_error().empty()) ? edges->last_error()
-                  : can                                   ? can->last_error()
-                                                          : "source error";
+      source_failed = true;  // its message: input.first_error(), once the reader has ended
       continue;
     }
     if (st != SourceStatus::kOk) continue;
@@ -150,6 +147,9 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
     r.last_t_ns = t;
     ++n;
   }
+  input.stop();  // the sources are this thread's again: their stats, errors and problems below
+  if (source_failed) r.error = input.first_error();
+  r.input_waits = input.waits();
   drain_transitions(angle.chain().transitions(), r.transitions);
   r.transitions.not_kept += angle.chain().transitions().dropped();  // ring full between two drains
   RuntimeCounters c = counters();

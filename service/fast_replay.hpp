@@ -1,8 +1,10 @@
 #pragma once
-// As-fast-as-possible replay: ONE thread, sources -> merger -> angle stage (decoder, angle estimators) and
-// time stage (ticks every step on the edge clock, interleaved by time) -> sink (recorder and/or publisher).
-// Deterministic: no wall-clock time enters the outputs (ingest/publish times are 0), ties are broken by
-// the merger (edges first), so the same input gives byte-identical CSV output.
+// As-fast-as-possible replay: sources -> merger (both on a reader thread, read_ahead_merger.hpp, handing the
+// records over in order) -> angle stage (decoder, angle estimators) and time stage (ticks every step on the
+// edge clock, interleaved by time), on the calling thread -> sink (recorder and/or publisher; daemon_run.cpp
+// gives the recorder a thread of its own, sink_thread.hpp). Deterministic: no wall-clock time enters the
+// outputs (ingest/publish times are 0), ties are broken by the merger (edges first), so the same input gives
+// byte-identical CSV output.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -21,10 +23,11 @@ struct ReplayResult {
   RuntimeCounters counters;
   std::uint64_t samples = 0;  ///< samples emitted
   std::int64_t first_t_ns = 0, last_t_ns = 0;
-  double wall_s = 0.0;   ///< wall time of the loop (s), up to the sink flushed (recording written)
-  std::string error;     ///< a source failed (the replay kept going with the other)
-  std::string imported;  ///< what of the initial learned state was applied ("" = nothing)
-  bool learned = false;  ///< `state` holds what the chain learned (or was given) by the end
+  double wall_s = 0.0;            ///< wall time of the loop (s), up to the sink flushed (recording written)
+  std::uint64_t input_waits = 0;  ///< times the replay found the reader thread behind (read_ahead_merger.hpp)
+  std::string error;              ///< a source failed (the replay kept going with the other)
+  std::string imported;           ///< what of the initial learned state was applied ("" = nothing)
+  bool learned = false;           ///< `state` holds what the chain learned (or was given) by the end
   std::vector<std::string> bad_frames;  ///< CAN frames too short for their signals (one line per signal)
   std::vector<std::string>
       input_problems;  ///< bad lines (file:line), inputs with no record (input_problems())

@@ -72,11 +72,15 @@ void add_options(CLI::App& app, Cli& c) {
           ->default_str("yaml");
   app.add_flag("--no-file-checks", c.no_file_checks,
                "with --check-config: do not require the input files to exist");
-  c.mode_opt = app.add_option("--replay", c.mode, "override replay.mode: fast | paced")
-                   ->check(CLI::IsMember({"fast", "paced"}));
+  c.mode_opt =
+      app.add_option("--replay", c.mode,
+                     "override replay.mode: fast | paced (fast: inputs read on a second thread, same order)")
+          ->check(CLI::IsMember({"fast", "paced"}));
   c.speed_opt = app.add_option("--speed", c.speed, "override replay.speed (paced replay speed factor)")
                     ->check(CLI::PositiveNumber);
-  c.record_opt = app.add_option("--record", c.record_dir, "override output.record_dir (CSV recording)");
+  c.record_opt = app.add_option("--record", c.record_dir,
+                                "override output.record_dir (CSV recording; in fast replay written by a "
+                                "second thread, in order, never dropping)");
   c.state_opt = app.add_option("--state-dir", c.state_dir,
                                "override output.state_dir: learned state loaded at start and saved while "
                                "running and at exit (also in fast replay)");

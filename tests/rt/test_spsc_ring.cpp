@@ -47,6 +47,32 @@ TEST(SpscRing, FullDropsNewestAndCounts) {
   EXPECT_EQ(v, 7);
 }
 
+TEST(SpscRing, ClaimAndPublishFillInPlaceAndAFullRingClaimsNothing) {
+  // GIVEN a ring of 4 WHEN four slots are claimed, written and published THEN full() holds, a fifth claim
+  // gives nullptr without counting a drop, and the four come out in order; after a pop a claim succeeds.
+  SpscRing<int> r(4);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_FALSE(r.full());
+    int* slot = r.claim();
+    ASSERT_NE(slot, nullptr);
+    *slot = 10 + i;
+    r.publish();
+  }
+  EXPECT_TRUE(r.full());
+  EXPECT_EQ(r.claim(), nullptr);
+  EXPECT_EQ(r.drops(), 0u);
+  int v = -1;
+  ASSERT_TRUE(r.try_pop(v));
+  EXPECT_EQ(v, 10);
+  EXPECT_FALSE(r.full());
+  ASSERT_NE(r.claim(), nullptr);
+  for (int i = 1; i < 4; ++i) {
+    ASSERT_TRUE(r.try_pop(v));
+    EXPECT_EQ(v, 10 + i);
+  }
+  EXPECT_FALSE(r.try_pop(v));  // the claimed slot was never published
+}
+
 TEST(SpscRing, FrontAndPopFront) {
   SpscRing<int> r(2);
   EXPECT_EQ(r.front(), nullptr);

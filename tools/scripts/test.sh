@@ -44,7 +44,7 @@ if [[ "${TORQUED_SKIP_SANITIZERS:-0}" != "1" ]]; then
   echo "== build + ctest (TSan, threaded tests: label tsan) =="
   cmake -S . -B build-tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTORQUED_TSAN=ON -DTORQUED_BENCHMARKS=OFF >/dev/null
   cmake --build build-tsan -j"$jobs" --target test_spsc_ring test_runtime_alloc test_socketcan test_latest_value \
-    test_learned_handoff >/dev/null
+    test_learned_handoff test_sink_thread test_read_ahead_merger test_fast_replay >/dev/null
   TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 run_tier tsan build-tsan -L tsan
 fi
 
