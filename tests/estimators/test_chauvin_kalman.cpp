@@ -31,6 +31,13 @@ void apply_true_widths(test::SyntheticRun& run, const WheelGeometry& wheel) {
   }
 }
 
+/// The synthetic engine's teeth with the wheel's true widths (a perfectly learned tooth table).
+test::SyntheticRun true_width_run(const test::SyntheticSpec& sp) {
+  auto run = test::make_synthetic(sp);
+  apply_true_widths(run, sp.wheel);
+  return run;
+}
+
 struct RunResult {
   test::Accuracy acc;
   std::size_t allocations = 0;
@@ -73,8 +80,7 @@ TEST(ChauvinKalman, ApsAndExactRiccatiAgreeAfterConvergence) {
   test::SyntheticSpec sp;
   sp.rpm = 2000.0;
   sp.cycles = 25;
-  auto run = test::make_synthetic(sp);
-  apply_true_widths(run, sp.wheel);
+  const auto run = true_width_run(sp);
   KalmanParams aps;
   KalmanParams exact = aps;
   exact.periodic_gains = false;
@@ -245,8 +251,7 @@ TEST_P(KalmanAccuracy, InCycleIndicatedTorqueWithLearnedToothErrors) {
   test::SyntheticSpec sp;
   sp.rpm = GetParam();
   sp.cycles = 30;
-  auto run = test::make_synthetic(sp);
-  apply_true_widths(run, sp.wheel);
+  const auto run = true_width_run(sp);
   // WHEN the APS Kalman filter runs with default tuning
   const auto r = run_kalman(run, sp.engine, sp.wheel, KalmanParams{});
   std::printf("kalman %5.0f rpm: RMS %.1f %% of p2p %.0f N m, lag %.1f deg\n", sp.rpm, r.acc.rms_pct_p2p,
@@ -268,8 +273,7 @@ TEST(ChauvinKalman, ThreeCylinderAnd36Minus1WheelByConfigurationOnly) {
   sp.wheel.positions = 36;
   sp.wheel.missing = 1;
   sp.rpm = 2000.0;
-  auto run = test::make_synthetic(sp);
-  apply_true_widths(run, sp.wheel);
+  const auto run = true_width_run(sp);
   const auto r = run_kalman(run, sp.engine, sp.wheel, KalmanParams{});
   std::printf("kalman 3-cyl 36-1: RMS %.1f %% of p2p, lag %.1f deg\n", r.acc.rms_pct_p2p, r.acc.lag_deg);
   EXPECT_LE(r.acc.rms_pct_p2p, 15.0);
@@ -312,8 +316,7 @@ TEST(ChauvinKalman, AResetFilterRestartsAsAFreshOneWithTheGasModel) {
   // GIVEN exact Riccati steps and a valid gas model: one filter fresh, one that ran 500 teeth and was reset
   test::SyntheticSpec sp;
   sp.cycles = 10;
-  auto run = test::make_synthetic(sp);
-  apply_true_widths(run, sp.wheel);
+  const auto run = true_width_run(sp);
   KalmanParams p;
   p.gas_model = true;
   p.periodic_gains = false;
@@ -344,8 +347,7 @@ TEST(ChauvinKalman, AResetFilterRestartsAsAFreshOneWithTheGasModel) {
 TEST(ChauvinKalman, BridgesALostToothByPrediction) {
   test::SyntheticSpec sp;
   sp.cycles = 12;
-  auto run = test::make_synthetic(sp);
-  apply_true_widths(run, sp.wheel);
+  auto run = true_width_run(sp);
   run.samples.erase(run.samples.begin() + 800);  // a lost tooth
   ChauvinKalman kf(sp.engine, sp.wheel, KalmanParams{});
   for (const auto& s : run.samples) kf.update(s);
@@ -358,8 +360,7 @@ TEST(ChauvinKalman, WithoutAValidGasModelItIsThePapersFilterBitForBit) {
   // GIVEN a filter built for the gas model whose model is never valid (no MAP yet), and one without the model
   test::SyntheticSpec sp;
   sp.cycles = 8;
-  auto run = test::make_synthetic(sp);
-  apply_true_widths(run, sp.wheel);
+  const auto run = true_width_run(sp);
   KalmanParams with;
   with.gas_model = true;
   KalmanParams without = with;
@@ -406,8 +407,7 @@ TEST(ChauvinKalman, TheModelSetUsesItsOwnDelta) {
   // GIVEN a filter with delta 3 / model_delta 12, one with delta 12 / model_delta 12 and one with 3 / 3
   test::SyntheticSpec sp;
   sp.cycles = 8;
-  auto run = test::make_synthetic(sp);
-  apply_true_widths(run, sp.wheel);
+  const auto run = true_width_run(sp);
   KalmanParams own;
   own.speed_bins = 8;
   own.model_delta = 12.0;
@@ -444,8 +444,7 @@ TEST(ChauvinKalman, AKnownGasTorqueInputLeavesTheFilterOnlyTheModelsMiss) {
   // gas model) and a 40 % error on it (a poor one)
   test::SyntheticSpec sp;
   sp.cycles = 16;
-  auto run = test::make_synthetic(sp);
-  apply_true_widths(run, sp.wheel);
+  const auto run = true_width_run(sp);
   double mean = 0.0;
   for (double t : run.t_ind_nm) mean += t / static_cast<double>(run.t_ind_nm.size());
   const int kk = 2 * sp.wheel.teeth();
@@ -494,8 +493,7 @@ double firing_order_lag_deg(double rpm, double residual_deg, double phase_deg) {
   test::SyntheticSpec sp;
   sp.rpm = rpm;
   sp.cycles = 30;
-  auto run = test::make_synthetic(sp);
-  apply_true_widths(run, sp.wheel);
+  auto run = true_width_run(sp);
   const auto r = [&](double th) {
     return residual_deg * kPi / 180.0 * std::sin(2.0 * th + phase_deg * kPi / 180.0);
   };
