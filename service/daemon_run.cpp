@@ -79,7 +79,8 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
   const ReplayResult r = run_fast_replay(s, edges, can, can_time_offset_ns(cfg), dbc, out, &g_fast_stop,
                                          spath.empty() ? nullptr : &st);
   if (!r.error.empty()) spdlog::error("replay: {}", r.error);
-  if (r.threads.threads == 3) spdlog::debug("reader thread: the replay waited for it {} times", r.input_waits);
+  if (r.threads.threads == 3)
+    spdlog::debug("reader thread: the replay waited for it {} times", r.input_waits);
   for (const auto& p : r.input_problems) spdlog::warn("{}", p);
   for (const auto& b : r.bad_frames) spdlog::warn("can: {}", b);
   for (const DecoderEvent& e : r.transitions.events) log_transition(e);

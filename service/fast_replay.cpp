@@ -51,7 +51,7 @@ void drain_transitions(DecoderEventLog& log, ReplayResult::Transitions& out) noe
   }
 }
 
-/// The one-thread input (replay.fast_threads 1): the merger on the chain's thread, read as ReadAheadMerger is.
+/// The one-thread input (replay.fast_threads 1): the merger on the chain's thread, read like ReadAheadMerger.
 class InlineInput {
  public:
   InlineInput(EdgeSource* edges, CanSource* can, std::int64_t can_offset_ns)

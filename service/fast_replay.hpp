@@ -27,7 +27,7 @@ struct FastThreadsChoice {
 };
 
 /// replay.fast_threads (`setting`: 0 = auto, 1 or 3) for a process that may run on `cpus` CPUs: 1 and 3 as
-/// given; auto is 3 with at least 2 CPUs, else 1 (on one CPU a helper thread only takes turns with the chain).
+/// given; auto is 3 with at least 2 CPUs, else 1 (on one CPU a helper only takes turns with the chain).
 [[nodiscard]] FastThreadsChoice resolve_fast_threads(int setting, int cpus);
 /// CPUs this process may run on (sched_getaffinity: a container's or taskset's limit; 1 if unknown).
 [[nodiscard]] int usable_cpus() noexcept;

@@ -74,8 +74,8 @@ void add_options(CLI::App& app, Cli& c) {
                "with --check-config: do not require the input files to exist");
   c.mode_opt =
       app.add_option("--replay", c.mode,
-                     "override replay.mode: fast | paced (fast: with replay.fast_threads 3 or auto on 2+ CPUs, "
-                     "inputs read on a second thread, same order)")
+                     "override replay.mode: fast | paced (fast: with replay.fast_threads 3, or auto on 2+ "
+                     "CPUs, inputs read on a second thread, same order)")
           ->check(CLI::IsMember({"fast", "paced"}));
   c.speed_opt = app.add_option("--speed", c.speed, "override replay.speed (paced replay speed factor)")
                     ->check(CLI::PositiveNumber);

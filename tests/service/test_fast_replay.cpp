@@ -133,7 +133,7 @@ TEST_F(FastReplayTest, OneThreadAndThreeGiveTheSameBytesAndCounts) {
     OutputFanout fanout(&rec, nullptr);
     if (threads == 1) return run_fast_replay(s, &src, &can, 0, nullptr, fanout);
     SinkThread writer(fanout);
-    const ReplayResult r = run_fast_replay(s, &src, &can, 0, nullptr, writer);
+    ReplayResult r = run_fast_replay(s, &src, &can, 0, nullptr, writer);
     writer.flush();
     EXPECT_EQ(writer.written(), r.samples);
     return r;
