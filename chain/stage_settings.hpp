@@ -47,6 +47,8 @@ struct StageSettings {
   /// Fast replay: across a silent stretch of the input (a genuine clock jump) only this much recording time
   /// of time-triggered output is written (inputs.max_time_jump_s).
   std::int64_t max_input_gap_ns = 10'000'000'000;
+  /// Fast replay's threads (replay.fast_threads): 0 = auto (3 when the process may use 2 CPUs, else 1), 1, 3.
+  int fast_threads = 0;
   dds::DdsSettings dds;
 };
 

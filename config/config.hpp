@@ -23,6 +23,8 @@ enum class CanBackend : std::uint8_t { kFile, kSocketCan };
 enum class SchedPolicy : std::uint8_t { kFifo, kOther };
 enum class Reliability : std::uint8_t { kReliable, kBestEffort };
 enum class ReplayMode : std::uint8_t { kFast, kPaced };
+/// Fast replay's threads (replay.fast_threads): auto = 3 when the process may run on at least 2 CPUs, else 1.
+enum class FastThreads : std::uint8_t { kAuto, kOne, kThree };
 enum class LogLevel : std::uint8_t { kTrace, kDebug, kInfo, kWarn, kError, kCritical, kOff };
 
 /// Number of CAN quantities of EngineSignals; `CanSignalsConfig::signals` is indexed by torqued::Quantity
@@ -201,6 +203,8 @@ struct ReplayConfig {
   /// Paced replay of files that does not loop: exit (0) once the recording is consumed (= --exit-when-done).
   bool exit_when_done = true;
   bool loop = false;  ///< paced replay of files: start the recording again at its end (io/looping_source.hpp)
+  /// Fast replay: 1 = everything on the chain's thread; 3 = a reader and a recording writer beside it.
+  FastThreads fast_threads = FastThreads::kAuto;
 };
 
 /// Prometheus exposition endpoint (service/metrics.hpp), served by its own threads, never the real-time ones.

@@ -328,8 +328,10 @@ class Loader {
         const std::string s = (!null && n.IsScalar()) ? n.Scalar() : node_text(n);
         if (std::find(e.choices.begin(), e.choices.end(), s) == e.choices.end()) {
           std::string hint;
-          for (const auto& c : e.choices)
-            if (edit_distance(lower(s), c) <= 2) hint = " (did you mean '" + c + "'?)";
+          for (const auto& c : e.choices) {  // a near miss, not a whole other word ('2' is no typo of '3')
+            const auto d = edit_distance(lower(s), c);
+            if (d <= 2 && d < c.size()) hint = " (did you mean '" + c + "'?)";
+          }
           add(m, key, s, describe_expected(e) + hint);
           return;
         }

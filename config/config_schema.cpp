@@ -447,6 +447,13 @@ void add_rest(std::vector<SchemaEntry>& t) {
   // running flat out); 0.001 is a 20 s recording in 5.6 h.
   t.push_back(number("replay.speed", TQ_REF(double, replay.speed), closed(0.001, 1000.0), "x",
                      "paced replay speed factor"));
+  t.push_back(choice<FastThreads>(
+      "replay.fast_threads", TQ_REF(FastThreads, replay.fast_threads),
+      {{"auto", FastThreads::kAuto}, {"1", FastThreads::kOne}, {"3", FastThreads::kThree}},
+      "threads of the fast replay: 1 = all on one thread (suits a one-CPU container or a busy shared "
+      "machine, where a descheduled helper stalls the chain); 3 = inputs read on a reader thread and the "
+      "recording written on a writer thread beside the chain's; auto = 3 when the process may run on at "
+      "least 2 CPUs (sched_getaffinity), else 1. Same output either way"));
   t.push_back(
       boolean("replay.exit_when_done", TQ_REF(bool, replay.exit_when_done),
               "paced replay of files that does not loop (replay.loop false): exit (status 0) once the "

@@ -79,7 +79,8 @@ int run_fast(const StageSettings& s, const Config& cfg, const RunOptions& opt, E
   const ReplayResult r = run_fast_replay(s, edges, can, can_time_offset_ns(cfg), dbc, out, &g_fast_stop,
                                          spath.empty() ? nullptr : &st);
   if (!r.error.empty()) spdlog::error("replay: {}", r.error);
-  spdlog::debug("reader thread: the replay waited for it {} times", r.input_waits);
+  if (r.threads.threads == 3)
+    spdlog::debug("reader thread: the replay waited for it {} times", r.input_waits);
   for (const auto& p : r.input_problems) spdlog::warn("{}", p);
   for (const auto& b : r.bad_frames) spdlog::warn("can: {}", b);
   for (const DecoderEvent& e : r.transitions.events) log_transition(e);
@@ -231,10 +232,18 @@ int run_daemon(const Config& cfg_in, const RunOptions& opt) {
   SampleSink& out = metrics ? metrics->sink() : static_cast<SampleSink&>(fanout);
 
   if (fast) {
-    // The recording is formatted and written on a second thread (sink_thread.hpp: same samples, same order,
-    // the replay waits when that thread falls behind); the replay's timed loop ends once it has written all.
+    const FastThreadsChoice threads = resolve_fast_threads(s.fast_threads, usable_cpus());
+    s.fast_threads = threads.threads;  // run_fast_replay uses what is logged here
+    spdlog::info("fast replay threads: {} ({})",
+                 threads.threads == 1 ? "one (inputs, chain and recording on one thread)"
+                 : recorder           ? "reader, chain, recording writer"
+                                      : "reader, chain (no recording to write)",
+                 threads.why);
+    // With three threads the recording is formatted and written on a thread of its own (sink_thread.hpp: same
+    // samples, same order, the replay waits when that thread falls behind); the replay's timed loop ends once
+    // it has written all.
     std::optional<SinkThread> writer;
-    if (recorder) writer.emplace(out);
+    if (recorder && threads.threads == 3) writer.emplace(out);
     const int rc = run_fast(s, cfg, opt, edges.get(), can.get(), dbc ? &*dbc : nullptr,
                             writer ? static_cast<SampleSink&>(*writer) : out);
     if (writer) {

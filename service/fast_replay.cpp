@@ -1,6 +1,10 @@
 #include "fast_replay.hpp"
 
+#include <sched.h>
+
+#include <algorithm>
 #include <chrono>
+#include <string>
 
 #include "angle_stage.hpp"
 #include "read_ahead_merger.hpp"
@@ -47,8 +51,35 @@ void drain_transitions(DecoderEventLog& log, ReplayResult::Transitions& out) noe
   }
 }
 
+/// The one-thread input (replay.fast_threads 1): the merger on the chain's thread, read like ReadAheadMerger.
+class InlineInput {
+ public:
+  InlineInput(EdgeSource* edges, CanSource* can, std::int64_t can_offset_ns)
+      : edges_(edges), can_(can), merger_(edges, can, can_offset_ns) {}
+  [[nodiscard]] SourceStatus next(ReplayMerger::Item& out) noexcept {
+    const SourceStatus st = merger_.next(out);
+    if (st == SourceStatus::kError && first_error_.empty()) first_error_ = source_error_message(edges_, can_);
+    return st;
+  }
+  void stop() noexcept {}
+  [[nodiscard]] std::uint64_t frames_out() const noexcept { return merger_.frames_out(); }
+  [[nodiscard]] std::uint64_t source_drops() const noexcept {
+    return (edges_ ? edges_->stats().bad_lines + edges_->stats().dropped : 0) +
+           (can_ ? can_->stats().bad_lines + can_->stats().dropped : 0);
+  }
+  [[nodiscard]] const std::string& first_error() const noexcept { return first_error_; }
+  [[nodiscard]] static std::uint64_t waits() noexcept { return 0; }
+
+ private:
+  EdgeSource* edges_;
+  CanSource* can_;
+  ReplayMerger merger_;
+  std::string first_error_;
+};
+
 /// DaemonStatus counters of the replay so far (the input's counts as of the last record taken).
-RuntimeCounters replay_counters(const AngleChain& chain, const ReadAheadMerger& input) noexcept {
+template <class Input>
+RuntimeCounters replay_counters(const AngleChain& chain, const Input& input) noexcept {
   RuntimeCounters c;
   const auto& ds = chain.decoder().stats();
   c.edges = ds.edges;
@@ -76,33 +107,26 @@ void skip_gap(std::int64_t& next, std::int64_t t, std::int64_t max_gap, std::int
   next += (t - max_gap - next) / period * period;
 }
 
-}  // namespace
+/// The stages of one fast replay, built from the settings (allocates here, not in the loop).
+struct Stages {
+  Stages(const StageSettings& s, const DbcDatabase* dbc, SampleSink& out, AngleChainSink* tap)
+      : sink(out), time(s, dbc, sink), feed(time), angle(s, dbc, sink, &feed, tap) {}
+  CountingSink sink;
+  TimeStage time;
+  TimeFeed feed;
+  AngleStage angle;
+};
 
-ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSource* can,
-                             std::int64_t can_offset_ns, const DbcDatabase* dbc, SampleSink& out,
-                             const volatile bool* stop, LearnedState* state, AngleChainSink* tap) {
-  ReplayResult r;
-  r.transitions.events.reserve(ReplayResult::Transitions::kMaxKept);
-  CountingSink sink(out);
-  TimeStage time(s, dbc, sink);
-  TimeFeed feed(time);
-  AngleStage angle(s, dbc, sink, &feed, tap);
-  if (!angle.ok()) {
-    r.error = angle.error();
-    return r;
-  }
-  if (!time.ok()) {
-    r.error = time.error();
-    return r;
-  }
-  if (state) r.imported = angle.import_state(*state);
-
-  // The inputs are read, parsed and merged on a second thread (read_ahead_merger.hpp), in the same order.
-  ReadAheadMerger input(edges, can, can_offset_ns);
-  const auto t0 = std::chrono::steady_clock::now();
+/// The replay loop, from the first record to the last DaemonStatus; the same code for both inputs
+/// (InlineInput, ReadAheadMerger), so one thread and three give the same bytes.
+template <class Input>
+void replay_loop(const StageSettings& s, Stages& g, Input& input, const volatile bool* stop, ReplayResult& r,
+                 std::chrono::steady_clock::time_point& t0) {
+  t0 = std::chrono::steady_clock::now();  // the input built (a reader thread started)
+  TimeStage& time = g.time;
+  AngleStage& angle = g.angle;
   bool first = true;
   std::int64_t next_tick = 0, next_status = 0;
-  std::uint64_t n = 0;
   StatusTracker status;
   ReplayMerger::Item item;
   bool source_failed = false;
@@ -141,11 +165,10 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
     }
     while (next_status <= t) {
       drain_transitions(angle.chain().transitions(), r.transitions);
-      sink.emit(status.next(counters(), next_status, next_status - r.first_t_ns));
+      g.sink.emit(status.next(counters(), next_status, next_status - r.first_t_ns));
       next_status += s.status_period_ns;
     }
     r.last_t_ns = t;
-    ++n;
   }
   input.stop();  // the sources are this thread's again: their stats, errors and problems below
   if (source_failed) r.error = input.first_error();
@@ -154,13 +177,62 @@ ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSourc
   r.transitions.not_kept += angle.chain().transitions().dropped();  // ring full between two drains
   RuntimeCounters c = counters();
   c.flags |= torque_STATUS_REPLAY_DONE;
-  sink.emit(status.next(c, r.last_t_ns, r.last_t_ns - r.first_t_ns));
+  g.sink.emit(status.next(c, r.last_t_ns, r.last_t_ns - r.first_t_ns));
   r.counters = c;
-  if (state) r.learned = angle.chain().snapshot(*state);
-  r.bad_frames = angle.chain().describe_bad_frames();
+}
+
+}  // namespace
+
+int usable_cpus() noexcept {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof(set), &set) != 0) return 1;
+  return std::max(1, CPU_COUNT(&set));
+}
+
+FastThreadsChoice resolve_fast_threads(int setting, int cpus) {
+  FastThreadsChoice c;
+  if (setting == 1 || setting == 3) {
+    c.threads = setting;
+    c.why = "replay.fast_threads " + std::to_string(setting);
+    return c;
+  }
+  c.threads = cpus >= 2 ? 3 : 1;  // one CPU: a helper thread could only take turns with the chain's
+  c.why = "replay.fast_threads auto, " + std::to_string(cpus) + (cpus == 1 ? " CPU" : " CPUs") + " usable";
+  return c;
+}
+
+ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSource* can,
+                             std::int64_t can_offset_ns, const DbcDatabase* dbc, SampleSink& out,
+                             const volatile bool* stop, LearnedState* state, AngleChainSink* tap) {
+  ReplayResult r;
+  r.threads = resolve_fast_threads(s.fast_threads, usable_cpus());
+  r.transitions.events.reserve(ReplayResult::Transitions::kMaxKept);
+  Stages g(s, dbc, out, tap);
+  if (!g.angle.ok()) {
+    r.error = g.angle.error();
+    return r;
+  }
+  if (!g.time.ok()) {
+    r.error = g.time.error();
+    return r;
+  }
+  if (state) r.imported = g.angle.import_state(*state);
+
+  std::chrono::steady_clock::time_point t0;
+  if (r.threads.threads == 3) {
+    // The inputs are read, parsed and merged on a second thread (read_ahead_merger.hpp), in the same order.
+    ReadAheadMerger input(edges, can, can_offset_ns);
+    replay_loop(s, g, input, stop, r, t0);
+  } else {
+    InlineInput input(edges, can, can_offset_ns);
+    replay_loop(s, g, input, stop, r, t0);
+  }
+  if (state) r.learned = g.angle.chain().snapshot(*state);
+  r.bad_frames = g.angle.chain().describe_bad_frames();
   r.input_problems = input_problems(edges, can);
-  r.samples = sink.n_;
-  sink.flush();  // the recording's last buffers are written inside the timed loop
+  r.samples = g.sink.n_;
+  g.sink.flush();  // the recording's last buffers are written inside the timed loop
   r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }

@@ -1,10 +1,11 @@
 #pragma once
-// As-fast-as-possible replay: sources -> merger (both on a reader thread, read_ahead_merger.hpp, handing the
-// records over in order) -> angle stage (decoder, angle estimators) and time stage (ticks every step on the
-// edge clock, interleaved by time), on the calling thread -> sink (recorder and/or publisher; daemon_run.cpp
-// gives the recorder a thread of its own, sink_thread.hpp). Deterministic: no wall-clock time enters the
-// outputs (ingest/publish times are 0), ties are broken by the merger (edges first), so the same input gives
-// byte-identical CSV output.
+// As-fast-as-possible replay: sources -> merger -> angle stage (decoder, angle estimators) and time stage
+// (ticks every step on the edge clock, interleaved by time), on the calling thread -> sink (recorder and/or
+// publisher). With three threads (replay.fast_threads, StageSettings::fast_threads) the sources and the
+// merger run on a reader thread (read_ahead_merger.hpp, handing the records over in order) and daemon_run.cpp
+// gives the recorder a thread of its own (sink_thread.hpp); with one, everything runs on the calling thread.
+// Deterministic: no wall-clock time enters the outputs (ingest/publish times are 0), ties are broken by the
+// merger (edges first), so the same input gives byte-identical CSV output, on one thread or three.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -19,7 +20,20 @@
 
 namespace torqued {
 
+/// The fast replay's threads as resolved from replay.fast_threads, and why (for the daemon's log line).
+struct FastThreadsChoice {
+  int threads = 1;  ///< 1: all on the calling thread; 3: a reader thread, and the caller's recording writer
+  std::string why;  ///< e.g. "replay.fast_threads auto, 2 CPUs usable"
+};
+
+/// replay.fast_threads (`setting`: 0 = auto, 1 or 3) for a process that may run on `cpus` CPUs: 1 and 3 as
+/// given; auto is 3 with at least 2 CPUs, else 1 (on one CPU a helper only takes turns with the chain).
+[[nodiscard]] FastThreadsChoice resolve_fast_threads(int setting, int cpus);
+/// CPUs this process may run on (sched_getaffinity: a container's or taskset's limit; 1 if unknown).
+[[nodiscard]] int usable_cpus() noexcept;
+
 struct ReplayResult {
+  FastThreadsChoice threads;  ///< the threads this replay used (StageSettings::fast_threads resolved)
   RuntimeCounters counters;
   std::uint64_t samples = 0;  ///< samples emitted
   std::int64_t first_t_ns = 0, last_t_ns = 0;

@@ -74,13 +74,15 @@ void add_options(CLI::App& app, Cli& c) {
                "with --check-config: do not require the input files to exist");
   c.mode_opt =
       app.add_option("--replay", c.mode,
-                     "override replay.mode: fast | paced (fast: inputs read on a second thread, same order)")
+                     "override replay.mode: fast | paced (fast: with replay.fast_threads 3, or auto on 2+ "
+                     "CPUs, inputs read on a second thread, same order)")
           ->check(CLI::IsMember({"fast", "paced"}));
   c.speed_opt = app.add_option("--speed", c.speed, "override replay.speed (paced replay speed factor)")
                     ->check(CLI::PositiveNumber);
   c.record_opt = app.add_option("--record", c.record_dir,
-                                "override output.record_dir (CSV recording; in fast replay written by a "
-                                "second thread, in order, never dropping)");
+                                "override output.record_dir (CSV recording; in fast replay with three "
+                                "threads (replay.fast_threads) written by a thread of its own, in order, "
+                                "never dropping)");
   c.state_opt = app.add_option("--state-dir", c.state_dir,
                                "override output.state_dir: learned state loaded at start and saved while "
                                "running and at exit (also in fast replay)");

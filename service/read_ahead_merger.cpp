@@ -4,6 +4,16 @@
 
 namespace torqued {
 
+std::string source_error_message(const EdgeSource* edges, const CanSource* can) noexcept {
+  try {
+    return (edges && !edges->last_error().empty()) ? edges->last_error()
+           : can                                   ? can->last_error()
+                                                   : "source error";
+  } catch (...) {
+    return {};
+  }
+}
+
 ReadAheadMerger::ReadAheadMerger(EdgeSource* edges, CanSource* can, std::int64_t can_offset_ns,
                                  std::size_t capacity)
     : edges_(edges), can_(can), merger_(edges, can, can_offset_ns), ring_(capacity), thread_([this] {
@@ -44,15 +54,8 @@ void ReadAheadMerger::run() noexcept {
   ReplayMerger::Item item;
   for (;;) {
     const SourceStatus status = merger_.next(item);
-    if (status == SourceStatus::kError && first_error_.empty()) {
-      try {  // what the one-thread replay took at its first error (fast_replay.cpp)
-        first_error_ = (edges_ && !edges_->last_error().empty()) ? edges_->last_error()
-                       : can_                                    ? can_->last_error()
-                                                                 : "source error";
-      } catch (...) {
-        first_error_.clear();
-      }
-    }
+    if (status == SourceStatus::kError && first_error_.empty())
+      first_error_ = source_error_message(edges_, can_);
     Record* rec = ring_.claim();
     if (rec == nullptr) {  // wait until the replay has taken half of it: fewer, longer turns of this thread
       do {

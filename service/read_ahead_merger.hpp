@@ -21,6 +21,10 @@
 
 namespace torqued {
 
+/// What a replay reports when a source fails: the edge source's last error, else the CAN source's ("" when
+/// the message could not be copied). Both replays (one thread, read-ahead) take it at the first kError.
+std::string source_error_message(const EdgeSource* edges, const CanSource* can) noexcept;
+
 class ReadAheadMerger {
  public:
   static constexpr std::size_t kDefaultCapacity =

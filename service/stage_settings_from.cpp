@@ -82,6 +82,9 @@ StageSettings stage_settings_from(const Config& cfg) {
   s.edge_timeout_ns = static_cast<std::int64_t>(std::llround(cfg.inputs.edges.timeout_s * 1e9));
   s.status_period_ns = static_cast<std::int64_t>(std::llround(cfg.dds.status_period_s * 1e9));
   s.max_input_gap_ns = static_cast<std::int64_t>(std::llround(cfg.inputs.max_time_jump_s * 1e9));
+  s.fast_threads = cfg.replay.fast_threads == FastThreads::kOne     ? 1
+                   : cfg.replay.fast_threads == FastThreads::kThree ? 3
+                                                                    : 0;
   s.tooth_learn = cfg.estimators.tooth_learn.params;
   s.tooth_learn_enabled = cfg.estimators.tooth_learn.enabled && cfg.estimators.tooth_learn.params.learn;
   s.dds.domain_id = static_cast<std::uint32_t>(cfg.dds.domain_id);

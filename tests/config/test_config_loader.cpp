@@ -91,6 +91,8 @@ const BadCase kBad[] = {
      "unknown_enum_typo.yaml:4:9: key 'wheel.edge': found 'risin', expected one of rising|falling (did you "
      "mean 'rising'?)",
      1},
+    {"fast_threads_two",
+     "fast_threads_two.yaml:4:17: key 'replay.fast_threads': found '2', expected one of auto|1|3", 1},
     {"fourier_unstable",
      "fourier_unstable.yaml:5:11: key 'estimators.fourier.l_ke': found '0.001', expected stable observer "
      "gains: ",
