@@ -387,7 +387,7 @@ double edge_residual_order_deg(const ToothErrorLearner& learner, const std::vect
 }
 
 /// GIVEN the synthetic I4 (60-2, 0.05° wheel) at loads that vary apart from the speed, whose spark advance
-/// moves with the speed: 15° + 3° per 1000 rpm above 1000 rpm, so the combustion peak moves from 20° to 8°
+/// moves with the speed: 15° + 3° per 1000 rpm above 1000 rpm, so the combustion peak moves from 20° to 11°
 /// after TDC (peak = 35° − spark). With `spark_on_can` false the spark signal is stale throughout.
 std::vector<double> feed_spark_map(ToothErrorLearner& learner, bool spark_on_can) {
   std::vector<double> err;
@@ -412,7 +412,9 @@ TEST(ToothErrorLearner, TheSparkColumnTakesTheSparkMapOutOfTheFiringOrders) {
   ToothLearnParams with;
   with.spark_column = true;
   ToothErrorLearner spark(EngineGeometry{}, WheelGeometry{}, with);
-  ToothErrorLearner plain(EngineGeometry{}, WheelGeometry{}, ToothLearnParams{});
+  ToothLearnParams without;
+  without.spark_column = false;  // the law before the column
+  ToothErrorLearner plain(EngineGeometry{}, WheelGeometry{}, without);
   ToothErrorLearner stale(EngineGeometry{}, WheelGeometry{}, with);
   const std::vector<double> err = feed_spark_map(spark, true);
   (void)feed_spark_map(plain, true);
@@ -426,7 +428,7 @@ TEST(ToothErrorLearner, TheSparkColumnTakesTheSparkMapOutOfTheFiringOrders) {
   }
   EXPECT_EQ(spark.stats().cycles_no_spark, 0u);
   // AND the learned table's order-2 residual is below 0.005° (the wheel: 0.05° per edge; 0.0007° with the
-  // spark held, the linearised column leaves 0.003° of this 12° phase swing), while the law
+  // spark held, the linearised column leaves 0.003° of this 9° phase swing), while the law
   // without the column, with constant coefficients, reads the spark's phase turn as wheel error above it
   const double r_spark = edge_residual_order_deg(spark, err, 2);
   const double r_plain = edge_residual_order_deg(plain, err, 2);
