@@ -95,6 +95,7 @@ void AngleChain::on_tooth(const ToothEvent& te) noexcept {
   if (learner_) {
     learner_->set_fuel_cutoff(sig.fuel_cutoff_valid && sig.fuel_cutoff);  // feedback (2)
     learner_->set_map(sig.map_pa, sig.map_valid);  // the speed law compares cycles at the same load
+    learner_->set_spark(sig.spark_advance_deg, sig.spark_valid);  // the firing law's spark column
     learner_->update(ts);
   }
   const std::uint8_t ready = pipeline_ ? pipeline_->on_tooth(ts, sig) : 0;

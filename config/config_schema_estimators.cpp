@@ -506,6 +506,11 @@ void add_tooth_learn(std::vector<SchemaEntry>& t) {
           "an order nothing else identifies is learned from every firing cycle (no fuel cut-off, no two "
           "cycles at the same load): intercept of its per-cycle coefficient against (MAP/100 kPa)/speed^2 "
           "(the engine's ripple scales with the load over the speed squared, the wheel's does not)");
+  TQ_BOOL(
+      "tooth_learn.spark_column", tooth_learn.params.spark_column,
+      "the firing orders' load law gets a column (MAP/100 kPa)/speed^2 * (spark advance - 15 deg) from the "
+      "firing cycles with a fresh spark advance on CAN (the combustion's phase, so the ripple's phase at "
+      "the firing orders, moves with the spark); without a spark advance the law without it");
   TQ_NUM("tooth_learn.firing_law_min_load_spread", tooth_learn.params.firing_law_min_load_spread,
          closed(0.0, 1.0), "",
          "the firing orders' load law is used only when this share of the variance of (MAP/100 kPa)/speed^2 "

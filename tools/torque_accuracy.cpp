@@ -494,6 +494,7 @@ struct Args {
   int cylinder_seeds = 1;
   torqued::ToothLearnParams learn;
   bool no_firing_law = false;
+  bool spark_column = false, no_spark_column = false;
   torqued::KalmanParams kalman;
   torqued::FourierParams fourier;
   double burn_duration_deg = -1.0, evo_deg = -1.0, centroid_deg = -1000.0, burn_delay = -1.0;
@@ -616,6 +617,11 @@ void add_observer_options(CLI::App& app, Args& a) {
   app.add_flag(
       "--no-firing-load-law", a.no_firing_law,
       "tooth learner: orders are not learned from the firing cycles' load law (the learner before it)");
+  app.add_flag(
+      "--spark-column", a.spark_column,
+      "tooth learner: the firing orders' load law with the spark advance column (tooth_learn.spark_column)");
+  app.add_flag("--no-spark-column", a.no_spark_column,
+               "tooth learner: the firing orders' load law without the spark advance column");
   app.add_option("--speed-weight-exp", a.learn.speed_weight_exp,
                  "tooth learner: residuals weighted by speed^p");
   app.add_option("--kalman-lag", a.kalman.smoother_lag, "Kalman fixed-lag smoother (teeth)");
@@ -832,6 +838,8 @@ int main(int argc, char** argv) {
       "inputs cannot be opened.");
   TORQUED_CLI_PARSE(app, argc, argv);
   a.learn.firing_load_law = !a.no_firing_law;
+  if (a.spark_column) a.learn.spark_column = true;
+  if (a.no_spark_column) a.learn.spark_column = false;
   if (!a.rec.config_path.empty()) {
     if (a.rec.out_dir.empty()) a.rec.out_dir = "accuracy-out";
     return torqued::eval::run_recording(a.rec);

@@ -304,6 +304,10 @@ struct ToothLearnParams {
   bool firing_load_law =
       true;  ///< an order nothing else identifies is learned from ALL steady firing cycles
              ///< (any load): intercept against u = (MAP/100 kPa)/ω̄² (ToothOrderSource::kFiring)
+  bool spark_column =
+      false;  ///< the firing orders' load law gets a column u·(spark − spark_ref) from the firing cycles with
+              ///< a fresh spark advance (the combustion's phase, so the ripple's firing-order phase, moves
+              ///< with the spark); without a spark advance the law [1, u, x] (docs/angle_estimators.md)
   double firing_law_min_load_spread =
       0.05;  ///< the firing orders' load law [1, u, x] (x = 1/ω̄²) is used only when this share of the
              ///< variance of u is not explained by x (1 − r²): loads that vary apart from the speed. At

@@ -50,6 +50,8 @@ double z_of_width_ratio(double ratio) noexcept { return 0.5 * (1.0 - 1.0 / (rati
 constexpr double kRpm = std::numbers::pi / 30.0;
 constexpr double kRefSpeed = 100.0;  ///< x = (ω_ref/ω̄)² keeps the regression sums O(1) (rad/s)
 constexpr double kRefMap = 1e5;      ///< u = (MAP/p_ref)·x of the load law (Pa)
+constexpr double kRefSpark = 15.0;  ///< spark column u·(spark − ref)/scale: O(u) sums (deg); the intercept
+constexpr double kSparkScale = 10.0;  ///< does not depend on either (the law holds u itself) (deg)
 }  // namespace
 
 ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGeometry& wheel,
@@ -119,6 +121,8 @@ ToothErrorLearner::ToothErrorLearner(const EngineGeometry& engine, const WheelGe
   fxb_.assign(nbs, 0.0);
   ffb_.assign(nbs, 0.0);
   fbb_.assign(nbs, 0.0);
+  smb_.assign(4 * nbs, 0.0);
+  smbb_.assign(nbs, 0.0);
   low_coef_.assign(nbs, 0.0);
   imp_coef_.assign(nbs, 0.0);
   const auto ts = static_cast<std::size_t>(table_.teeth);
@@ -144,7 +148,8 @@ void ToothErrorLearner::reset() noexcept {
   std::fill(sfb_.begin(), sfb_.end(), 0.0);
   std::fill(sbb_.begin(), sbb_.end(), 0.0);
   fire_ = LoadSlot{};
-  for (auto* v : {&fb_, &fxb_, &ffb_, &fbb_}) std::fill(v->begin(), v->end(), 0.0);
+  for (auto* v : {&fb_, &fxb_, &ffb_, &fbb_, &smb_, &smbb_}) std::fill(v->begin(), v->end(), 0.0);
+  sm_ = {};
   std::fill(cb_.begin(), cb_.end(), 0.0);
   std::fill(cxb_.begin(), cxb_.end(), 0.0);
   std::fill(imp_coef_.begin(), imp_coef_.end(), 0.0);
@@ -155,6 +160,7 @@ void ToothErrorLearner::reset() noexcept {
     id.cycles = 0.0;
     id.edge_amplitude_rad = 0.0;
     id.firing_se_frac = -1.0;
+    id.spark = false;
   }
   std::fill(eps_.begin(), eps_.end(), 0.0);
   std::fill(eps_import_.begin(), eps_import_.end(), 0.0);
@@ -200,6 +206,8 @@ void ToothErrorLearner::update(const ToothSample& s) noexcept {
     cycle_map_valid_ = map_valid_;
     cycle_map_sum_ = 0.0;
     cycle_map_min_ = cycle_map_max_ = map_pa_;
+    cycle_spark_valid_ = spark_valid_;
+    cycle_spark_sum_ = 0.0;
     next_tooth_ = 0;
   }
   if (s.tooth != next_tooth_) {
@@ -223,6 +231,8 @@ void ToothErrorLearner::update(const ToothSample& s) noexcept {
   cycle_map_sum_ += map_pa_;
   cycle_map_min_ = std::min(cycle_map_min_, map_pa_);
   cycle_map_max_ = std::max(cycle_map_max_, map_pa_);
+  cycle_spark_valid_ = cycle_spark_valid_ && spark_valid_;
+  cycle_spark_sum_ += spark_valid_ ? spark_deg_ : 0.0;
   ++collected_;
   next_tooth_ = (s.tooth + 1) % kk;
 }
@@ -375,7 +385,20 @@ void ToothErrorLearner::regress(double omega) noexcept {
   fire_.sf += g;
   fire_.sxf += u * g;
   fire_.sff += g * g;
+  // The spark column (only cycles with a fresh spark advance at every tooth; the others stay in [1, u, x]).
+  const bool spark = params_.spark_column && cycle_spark_valid_;
+  const double col[4] = {1.0, u, g, u * (cycle_spark_sum_ / table_.samples - kRefSpark) / kSparkScale};
+  if (spark) {
+    for (std::size_t r = 0; r < 4; ++r)
+      for (std::size_t c = 0; c < 4; ++c) sm_[r * 4 + c] += col[r] * col[c];
+  } else if (params_.spark_column) {
+    ++stats_.cycles_no_spark;
+  }
   for (std::size_t j = 0; j < static_cast<std::size_t>(nb_); ++j) {
+    if (spark) {
+      for (std::size_t c = 0; c < 4; ++c) smb_[j * 4 + c] += col[c] * coef_[j];
+      smbb_[j] += coef_[j] * coef_[j];
+    }
     const double b = coef_[j];
     sb_[off + j] += b;
     sxb_[off + j] += x * b;
@@ -422,6 +445,57 @@ bool ToothErrorLearner::law_intercept(const LoadSlot& sl, const double* sb, cons
   const double s2 = std::max(rss, 0.0) / (2.0 * (sl.n - params));
   const double m_inv00 = firing ? (m11 * m22 - m12 * m12) / det : sl.sxx / vx;
   *var = std::max(s2 * m_inv00, 1e-30);
+  return true;
+}
+
+// The spark law's normal equations M·p = r (4 columns, Cholesky): intercept p₀ per cos/sin column and its
+// variance s²·(M⁻¹)₀₀, s² = RSS/(n − 4) pooled over the two columns, as law_intercept(). A column that the
+// others explain (a spark advance that moves with u and x alone) gives a vanishing pivot: not identified.
+bool ToothErrorLearner::spark_law_intercept(std::size_t j0, double* v, double* var) const noexcept {
+  constexpr std::size_t kP = 4;
+  constexpr double kMinCycles = 8.0;  // twice the 4 parameters
+  const double n = sm_[0];
+  if (n < kMinCycles) return false;
+  double l[kP * kP] = {};
+  for (std::size_t i = 0; i < kP; ++i) {
+    for (std::size_t k = 0; k <= i; ++k) {
+      double acc = sm_[i * kP + k];
+      for (std::size_t m = 0; m < k; ++m) acc -= l[i * kP + m] * l[k * kP + m];
+      if (k < i) {
+        l[i * kP + k] = acc / l[k * kP + k];
+      } else {
+        if (!(acc > 1e-9 * sm_[i * kP + i])) return false;  // this column is (almost) the others'
+        l[i * kP + i] = std::sqrt(acc);
+      }
+    }
+  }
+  // M⁻¹·b by forward and back substitution with L.
+  const auto solve = [&l](const double* b, double* x) {
+    double y[kP];
+    for (std::size_t i = 0; i < kP; ++i) {
+      double acc = b[i];
+      for (std::size_t m = 0; m < i; ++m) acc -= l[i * kP + m] * y[m];
+      y[i] = acc / l[i * kP + i];
+    }
+    for (std::size_t i = kP; i-- > 0;) {
+      double acc = y[i];
+      for (std::size_t m = i + 1; m < kP; ++m) acc -= l[m * kP + i] * x[m];
+      x[i] = acc / l[i * kP + i];
+    }
+  };
+  double rss = 0.0;
+  for (std::size_t c = 0; c < 2; ++c) {
+    const double* r = &smb_[(j0 + c) * kP];
+    double p[kP];
+    solve(r, p);
+    v[c] = p[0];
+    rss += smbb_[j0 + c] - (p[0] * r[0] + p[1] * r[1] + p[2] * r[2] + p[3] * r[3]);
+  }
+  const double e0[kP] = {1.0, 0.0, 0.0, 0.0};
+  double inv0[kP];
+  solve(e0, inv0);
+  const double s2 = std::max(rss, 0.0) / (2.0 * (n - static_cast<double>(kP)));
+  *var = std::max(s2 * inv0[0], 1e-30);
   return true;
 }
 
@@ -479,6 +553,15 @@ void ToothErrorLearner::identify_orders(double* low, double hf_rms) noexcept {
     const bool fire_fit =
         learn && params_.firing_load_law &&
         law_intercept(fire_, fb_.data(), fxb_.data(), ffb_.data(), fbb_.data(), j0, id.firing, fv, &fvar);
+    // The firing orders: the law with the spark column where the cycles with a spark advance identify it.
+    double pv[2] = {0.0, 0.0}, pvar = 0.0;
+    id.spark = fire_fit && id.firing && params_.spark_column && spark_law_intercept(j0, pv, &pvar) &&
+               std::sqrt(pvar) <= params_.max_low_order_se_frac * hf_rms;
+    if (id.spark) {
+      fv[0] = pv[0];
+      fv[1] = pv[1];
+      fvar = pvar;
+    }
     id.firing_se_frac = fire_fit && hf_rms > 0.0 ? std::sqrt(fvar) / hf_rms : -1.0;
     const bool fire_ok = fire_fit && std::sqrt(fvar) <= params_.max_low_order_se_frac * hf_rms &&
                          (!id.firing || fire_loads_vary);
@@ -490,7 +573,7 @@ void ToothErrorLearner::identify_orders(double* low, double hf_rms) noexcept {
       id.cycles = nc_;
     } else if (fire_ok) {  // ahead of the same-load slots: all cycles, no load slot with a few cycles only
       id.source = ToothOrderSource::kFiring;
-      id.cycles = fire_.n;
+      id.cycles = id.spark ? sm_[0] : fire_.n;
     } else if (speeds) {
       id.source = ToothOrderSource::kSpeeds;
       id.cycles = cycles;

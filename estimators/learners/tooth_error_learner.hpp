@@ -86,6 +86,9 @@ struct ToothOrderId {
   /// Convergence of the firing-cycle load law for this order: standard error of its intercept / RMS of the
   /// learned higher orders (the variance check takes it at ≤ max_low_order_se_frac); < 0: not estimable yet.
   double firing_se_frac = -1.0;
+  /// A firing order taken from the load law with the spark column (ToothLearnParams::spark_column): false
+  /// when the column is off, or too few cycles with a fresh spark advance identify the order with it.
+  bool spark = false;
 };
 
 /// What the tooth table rests on, worst order first (ToothErrorLearner::quality()).
@@ -104,6 +107,9 @@ struct ToothLearnStats {
       0;  ///< clean cut-off cycles (whole cycle and the previous one cut) used as overrun
   std::uint64_t cycles_rejected = 0;    ///< incomplete (lost/invalid teeth), unsteady or out of speed range
   std::uint64_t tables_distrusted = 0;  ///< imported tables the engine contradicted (discarded, relearned)
+  /// Firing cycles of the load law without a fresh spark advance over the whole cycle: they enter the law
+  /// without the spark column only (ToothLearnParams::spark_column).
+  std::uint64_t cycles_no_spark = 0;
 };
 
 /// Imported table against the fresh evidence (ToothErrorLearner::import_check()): RMS over the teeth of the
@@ -129,6 +135,13 @@ class ToothErrorLearner {
   void set_map(double map_pa, bool valid) noexcept {
     map_pa_ = map_pa;
     map_valid_ = valid && map_pa > 0.0 && std::isfinite(map_pa);
+  }
+  /// Spark advance at the current tooth (deg BTDC; `valid` false when unknown or stale): a firing cycle with
+  /// a fresh spark advance at every tooth enters the load law's spark column
+  /// (ToothLearnParams::spark_column).
+  void set_spark(double spark_deg, bool valid) noexcept {
+    spark_deg_ = spark_deg;
+    spark_valid_ = valid && std::isfinite(spark_deg);
   }
   /// Real-time safe. Uses s.tooth, s.dt_s, s.t_ns, s.synced; ignores s.width_rad (learns against nominal
   /// widths).
@@ -221,6 +234,18 @@ class ToothErrorLearner {
   /// slot cannot identify them. Writes the intercepts and their variance.
   bool law_intercept(const LoadSlot& sl, const double* sb, const double* sxb, const double* sfb,
                      const double* sbb, std::size_t j0, bool firing, double* v, double* var) const noexcept;
+  /// The load law with a spark column, over the firing cycles with a fresh spark advance: β = a + b·u + c·x
+  /// + d·u·(spark − spark_ref) (the combustion's phase turns with the spark, so its firing-order components
+  /// rotate: linearised, a column per cos/sin coefficient proportional to the load and the spark's change).
+  /// Moments of the columns [1, u, x, s] (sm_[r * 4 + c]); per fit column j: Σβ·col at [j * 4 + c], Σβ².
+  std::array<double, 16> sm_{};
+  std::vector<double> smb_, smbb_;
+  /// Intercept of columns j0, j0 + 1 of the spark law, and its variance; false when it cannot identify them.
+  bool spark_law_intercept(std::size_t j0, double* v, double* var) const noexcept;
+  double spark_deg_ = 0.0;
+  bool spark_valid_ = false;
+  double cycle_spark_sum_ = 0.0;
+  bool cycle_spark_valid_ = false;
   double map_pa_ = 0.0;
   bool map_valid_ = false;
   double cycle_map_sum_ = 0.0, cycle_map_min_ = 0.0, cycle_map_max_ = 0.0;

@@ -31,8 +31,9 @@ struct SyntheticSpec {
   WheelGeometry wheel{};
   double rpm = 2000.0;  ///< mean speed
   int cycles = 30;
-  double peak_bar = 40.0;  ///< combustion pressure bump (bar) on top of the motored pressure
-  double map_bar = 0.6;    ///< pressure at IVC (bar)
+  double peak_bar = 40.0;       ///< combustion pressure bump (bar) on top of the motored pressure
+  double map_bar = 0.6;         ///< pressure at IVC (bar)
+  double burn_peak_rad = 0.35;  ///< crank angle of the combustion bump's peak after firing TDC (rad)
   double tooth_error_deg = 0.05;
   double jitter_s = 0.3e-6;
   std::uint64_t wheel_seed = 7;  ///< fixed wheel (same machining errors for every run with this seed)
@@ -54,7 +55,8 @@ class Gauss {
 };
 
 /// Indicated torque of the synthetic engine at angle θ after cylinder 1's firing TDC: motored polytropic
-/// pressure (κ = 1.3 from IVC at BDC) plus a Gaussian combustion bump 20° after TDC.
+/// pressure (κ = 1.3 from IVC at BDC) plus a Gaussian combustion bump (20° after TDC unless
+/// SyntheticSpec::burn_peak_rad says otherwise).
 inline double synthetic_t_ind(const CrankKinematics& kin, const SyntheticSpec& sp, double theta) {
   const double pi = std::numbers::pi;
   double sum = 0.0;
@@ -65,7 +67,7 @@ inline double synthetic_t_ind(const CrankKinematics& kin, const SyntheticSpec& s
     double p = sp.map_bar * 1e5;
     if (a > -pi && a < pi) {
       p = sp.map_bar * 1e5 * std::pow(kin.volume(pi) / kin.volume(a), 1.3);
-      const double d = (a - 0.35) / 0.30;
+      const double d = (a - sp.burn_peak_rad) / 0.30;
       p += sp.peak_bar * 1e5 * std::exp(-d * d) * (a > 0 ? 1.0 : std::exp(-d * d));
     }
     sum += kin.gas_torque(theta, c, p);

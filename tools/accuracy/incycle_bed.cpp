@@ -215,6 +215,7 @@ LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, co
     if (learned) {  // the chain's order: learner first, with nominal widths
       learner.set_fuel_cutoff(sig.fuel_cutoff_valid && sig.fuel_cutoff);
       learner.set_map(sig.map_pa, sig.map_valid);
+      learner.set_spark(sig.spark_advance_deg, sig.spark_valid);
       learner.update(s);
       if (prev_tooth >= 0 && s.tooth < prev_tooth && learner.ready()) {  // cycle end: table applied
         for (int q = 0; q < teeth; ++q) ratio[static_cast<std::size_t>(q)] = learner.width_ratio(q);

@@ -90,6 +90,7 @@ std::vector<double> learned_width_ratios(const sim::Scenario& sc, const ToothLea
       const EngineSignals sig = sim::signals_at(out, static_cast<double>(samples[i].t_ns) * 1e-9);
       learner.set_fuel_cutoff(sig.fuel_cutoff_valid && sig.fuel_cutoff);
       learner.set_map(sig.map_pa, sig.map_valid);
+      learner.set_spark(sig.spark_advance_deg, sig.spark_valid);
       learner.update(samples[i]);
     }
     LearnedTable t;
