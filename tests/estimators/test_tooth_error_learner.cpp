@@ -244,17 +244,23 @@ TEST(ToothErrorLearner, ObserversSayWhenTheWheelIsUnlearned) {
 namespace torqued {
 namespace {
 
+/// Ten steady cycles of the synthetic I4 at (rpm, peak pressure), their noise seeded by both.
+test::SyntheticSpec steady_spec(double rpm, double bar) {
+  test::SyntheticSpec sp;
+  sp.rpm = rpm;
+  sp.peak_bar = bar;
+  sp.cycles = 10;
+  sp.noise_seed = static_cast<std::uint64_t>(rpm + 7.0 * bar);
+  return sp;
+}
+
 /// Steady synthetic runs of one wheel, each at (rpm, peak pressure) with its MAP given to the learner.
 /// Returns the wheel's true edge errors (rad per physical tooth).
 std::vector<double> feed_runs(ToothErrorLearner& learner,
                               std::initializer_list<std::pair<double, double>> runs) {
   std::vector<double> err;
   for (const auto& [rpm, bar] : runs) {
-    test::SyntheticSpec sp;
-    sp.rpm = rpm;
-    sp.peak_bar = bar;
-    sp.cycles = 10;
-    sp.noise_seed = static_cast<std::uint64_t>(rpm + 7.0 * bar);
+    const test::SyntheticSpec sp = steady_spec(rpm, bar);
     learner.set_map(1e3 * bar, true);  // the MAP that goes with this load
     const auto run = test::make_synthetic(sp);
     err = run.edge_error_rad;
@@ -392,11 +398,7 @@ double edge_residual_order_deg(const ToothErrorLearner& learner, const std::vect
 std::vector<double> feed_spark_map(ToothErrorLearner& learner, bool spark_on_can) {
   std::vector<double> err;
   for (const auto& [rpm, bar] : kLoadsApartFromSpeed) {
-    test::SyntheticSpec sp;
-    sp.rpm = rpm;
-    sp.peak_bar = bar;
-    sp.cycles = 10;
-    sp.noise_seed = static_cast<std::uint64_t>(rpm + 7.0 * bar);
+    test::SyntheticSpec sp = steady_spec(rpm, bar);
     const double spark_deg = 15.0 + 3.0 * (rpm - 1000.0) / 1000.0;
     sp.burn_peak_rad = (35.0 - spark_deg) * kDeg;
     learner.set_map(1e3 * bar, true);

@@ -139,40 +139,44 @@ ChauvinKalman built_with_two_keys(TableStore& st, KalmanParams kp,
   return b;
 }
 
+/// A fresh table store in use as the cache, Kalman parameters of 6 speed bins, and the slot for the
+/// read-back.
+struct KalmanCacheBed {
+  TempDir d;
+  KalmanParams kp = [] {
+    KalmanParams p;
+    p.speed_bins = 6;
+    return p;
+  }();
+  TableStore st{d.path.string(), kBuild};
+  const ScopedTableCache use{&st};
+  std::optional<ChauvinKalman> again;
+};
+
 // The model-miss sigma (kalman.model_torque_sd_nm) sets the gas-model gain set: a cache written with the old
 // default (75 N m) must not serve the new one (60 N m).
 TEST(TableStore, KalmanGainsAreCachedPerModelMissSigma) {
-  TempDir d;
-  KalmanParams kp;
-  kp.speed_bins = 6;
-  TableStore st(d.path.string(), kBuild);
-  const ScopedTableCache use(&st);
-  std::optional<ChauvinKalman> again;
+  KalmanCacheBed b;
   (void)built_with_two_keys(
-      st, kp, [](KalmanParams& p) { p.model_torque_sd_nm = 75.0; },
-      [](KalmanParams& p) { p.model_torque_sd_nm = 60.0; }, again);
-  kp.model_torque_sd_nm = 60.0;
-  kp.gas_model = false;  // without the gas model only the whole-torque set is built: its own key
-  const ChauvinKalman no_model(EngineGeometry{}, WheelGeometry{}, kp);
-  EXPECT_EQ(st.misses(), 3);
+      b.st, b.kp, [](KalmanParams& p) { p.model_torque_sd_nm = 75.0; },
+      [](KalmanParams& p) { p.model_torque_sd_nm = 60.0; }, b.again);
+  b.kp.model_torque_sd_nm = 60.0;
+  b.kp.gas_model = false;  // without the gas model only the whole-torque set is built: its own key
+  const ChauvinKalman no_model(EngineGeometry{}, WheelGeometry{}, b.kp);
+  EXPECT_EQ(b.st.misses(), 3);
 }
 
 // The model-miss pole (kalman.model_delta) sets the gas-model gain set too: a cache written with one δ is not
 // read for another, and the gains read back are the computed ones bit for bit.
 TEST(TableStore, KalmanGainsAreCachedPerModelDelta) {
-  TempDir d;
-  KalmanParams kp;
-  kp.speed_bins = 6;
-  TableStore st(d.path.string(), kBuild);
-  const ScopedTableCache use(&st);
-  std::optional<ChauvinKalman> again;
+  KalmanCacheBed b;
   const ChauvinKalman second = built_with_two_keys(
-      st, kp, [](KalmanParams& p) { p.model_delta = 3.0; }, [](KalmanParams& p) { p.model_delta = 12.0; },
-      again);
+      b.st, b.kp, [](KalmanParams& p) { p.model_delta = 3.0; }, [](KalmanParams& p) { p.model_delta = 12.0; },
+      b.again);
   for (int k = 0; k < second.table().samples; k += 11) {
-    const auto a = second.periodic_gain_of_set(ChauvinKalman::kModelMissSet, k, 157.0);
-    const auto b = again->periodic_gain_of_set(ChauvinKalman::kModelMissSet, k, 157.0);
-    for (int i = 0; i < ChauvinKalman::kStates; ++i) EXPECT_TRUE(same_bytes(a(i), b(i))) << k << " " << i;
+    const auto x = second.periodic_gain_of_set(ChauvinKalman::kModelMissSet, k, 157.0);
+    const auto y = b.again->periodic_gain_of_set(ChauvinKalman::kModelMissSet, k, 157.0);
+    for (int i = 0; i < ChauvinKalman::kStates; ++i) EXPECT_TRUE(same_bytes(x(i), y(i))) << k << " " << i;
   }
 }
 
