@@ -1,14 +1,16 @@
 #pragma once
 // The two waits of the fast replay's threads (sink_thread.hpp, read_ahead_merger.hpp). back_off(): the replay
-// (the chain's thread) waiting for a helper that is behind: spin first, 4096 `pause` instructions (tens of
-// µs: the helper runs on the other core), then give the core away 64 times, then sleep 20 µs at a time. The
-// spin is long because a thread that sleeps lets its virtual CPU halt, and waking it in this VM costs more
-// than the wait: spinning 64 times only, the recording thread alone made the 20 s steady_3000_mid replay
-// slower under SCHED_FIFO (loop 23.0 -> 30.1 ms, best of 20). rest(): a helper with nothing to do sleeps,
-// never spins (with both waits: 23.6 -> 17.7 ms). No lock, no allocation.
+// (the chain's thread) waiting for a helper that is behind: spin first, 4096 `pause` instructions
+// (cpu_relax(), rt/clocks.hpp) (tens of µs: the helper runs on the other core), then give the core away 64
+// times, then sleep 20 µs at a time. The spin is long because a thread that sleeps lets its virtual CPU halt,
+// and waking it in this VM costs more than the wait: spinning 64 times only, the recording thread alone made
+// the 20 s steady_3000_mid replay slower under SCHED_FIFO (loop 23.0 -> 30.1 ms, best of 20). rest(): a
+// helper with nothing to do sleeps, never spins (with both waits: 23.6 -> 17.7 ms). No lock, no allocation.
 #include <time.h>
 
 #include <thread>
+
+#include "clocks.hpp"  // cpu_relax()
 
 namespace torqued {
 
@@ -17,7 +19,7 @@ namespace torqued {
 /// and the spin of a thread waiting for a descheduled one is counted as its instructions).
 [[gnu::noinline]] inline void back_off(unsigned& round) noexcept {
   if (round < 4096) {
-    __builtin_ia32_pause();
+    cpu_relax();
   } else if (round < 4160) {
     std::this_thread::yield();
   } else {
