@@ -3,9 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
-#include <cstring>
 #include <initializer_list>
 #include <numbers>
 #include <random>
@@ -473,13 +474,16 @@ void expect_same_table(const ToothErrorLearner& a, const ToothErrorLearner& b, c
   std::vector<double> ea(static_cast<std::size_t>(a.teeth())), eb(ea.size());
   a.edge_corrections(ea);
   b.edge_corrections(eb);
-  EXPECT_EQ(std::memcmp(ea.data(), eb.data(), ea.size() * sizeof(double)), 0) << what;
+  for (std::size_t p = 0; p < ea.size(); ++p)
+    EXPECT_EQ(std::bit_cast<std::uint64_t>(ea[p]), std::bit_cast<std::uint64_t>(eb[p]))
+        << what << " tooth " << p;
   ASSERT_EQ(a.order_ids().size(), b.order_ids().size());
   for (std::size_t k = 0; k < a.order_ids().size(); ++k) {
     const ToothOrderId &x = a.order_ids()[k], &y = b.order_ids()[k];
     EXPECT_EQ(x.source, y.source) << what << " order " << x.order;
     EXPECT_EQ(x.cycles, y.cycles) << what << " order " << x.order;
-    EXPECT_EQ(std::memcmp(&x.firing_se_frac, &y.firing_se_frac, sizeof(double)), 0) << what << " " << x.order;
+    EXPECT_EQ(std::bit_cast<std::uint64_t>(x.firing_se_frac), std::bit_cast<std::uint64_t>(y.firing_se_frac))
+        << what << " order " << x.order;
     EXPECT_FALSE(y.spark) << what << " order " << x.order;
   }
 }
@@ -504,7 +508,8 @@ TEST(ToothErrorLearner, ASparkStaleAtRandomTeethOrInAllButAFewCyclesFallsBackToT
   std::vector<int> fresh_cycles;
   while (fresh_cycles.size() < 7) {
     const int c = static_cast<int>(rng() % 50);
-    if (std::find(fresh_cycles.begin(), fresh_cycles.end(), c) == fresh_cycles.end()) fresh_cycles.push_back(c);
+    if (std::find(fresh_cycles.begin(), fresh_cycles.end(), c) == fresh_cycles.end())
+      fresh_cycles.push_back(c);
   }
   feed_spark_map_at(few, [&](int c, int tooth) {
     return tooth != 57 || std::find(fresh_cycles.begin(), fresh_cycles.end(), c) != fresh_cycles.end();
@@ -531,7 +536,8 @@ TEST(ToothErrorLearner, TheSparkLawTakesExactlyTheCyclesWithAFreshSparkAtEveryTo
   std::mt19937 rng(77);
   std::vector<bool> stale(64);
   for (std::size_t c = 0; c < stale.size(); ++c) stale[c] = rng() % 2 == 0;
-  feed_spark_map_at(half, [&](int c, int tooth) { return tooth != 30 || !stale[static_cast<std::size_t>(c)]; });
+  feed_spark_map_at(half,
+                    [&](int c, int tooth) { return tooth != 30 || !stale[static_cast<std::size_t>(c)]; });
   int spark_orders = 0;
   for (std::size_t k = 0; k < half.order_ids().size(); ++k) {
     const ToothOrderId &h = half.order_ids()[k], &p = plain.order_ids()[k];

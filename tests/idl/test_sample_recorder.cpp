@@ -129,8 +129,8 @@ TEST_F(RecorderFullDisk, BoundedSyncAtStopWritesEveryBufferAndReportsNothingPend
 
 TEST_F(RecorderFullDisk, AFileThatCannotBeOpenedIsAWriteErrorWithItsRowsCounted) {
   // GIVEN a record directory where estimator_torque.csv cannot be opened for writing (a directory of that
-  // name: refused even to root, as a read-only file system refuses it) WHEN a crank row and two estimator rows
-  // are recorded and flushed THEN write_failed() is set (the daemon's exit code 3 and its message), the
+  // name: refused even to root, as a read-only file system refuses it) WHEN a crank row and two estimator
+  // rows are recorded and flushed THEN write_failed() is set (the daemon's exit code 3 and its message), the
   // error names the file and the reason, and all three rows are counted as not recorded.
   fs::create_directory(dir_ / "estimator_torque.csv");
   SampleRecorder rec(dir_.string());

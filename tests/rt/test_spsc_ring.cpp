@@ -176,7 +176,8 @@ TEST(SpscRing, RandomOperationsMatchAReferenceQueueAcrossManyWrapArounds) {
   // then publish or abandon, try_push, try_pop, front/pop_front, peek(i), full(), size()) with records
   // written in part (random lengths) THEN every answer matches the reference: a claim is refused exactly when
   // the ring holds capacity() records, a claim not published is invisible and the next claim returns the
-  // same slot, every record comes out once, in order, with its own bytes, and drops counts the refused pushes.
+  // same slot, every record comes out once, in order, with its own bytes, and drops counts the refused
+  // pushes.
   std::mt19937_64 rng(12345);
   for (const std::size_t cap : {2u, 4u, 8u, 16u}) {
     SpscRing<VarRecord> r(cap);

@@ -347,7 +347,8 @@ TEST_F(FastReplayTest, ASourceErrorIsReportedAndReplayedAlikeOnOneThreadAndThree
     const std::string tag = edge_fails ? "edges" : "can";
     const ReplayResult one = replay(1, dir_ / ("one_" + tag));
     const ReplayResult three = replay(3, dir_ / ("three_" + tag));
-    EXPECT_EQ(one.error, edge_fails ? "edges.csv: read error: Input/output error" : "can.log: read error: EIO");
+    EXPECT_EQ(one.error,
+              edge_fails ? "edges.csv: read error: Input/output error" : "can.log: read error: EIO");
     EXPECT_EQ(three.error, one.error);
     EXPECT_EQ(one.counters.can_frames, edge_fails ? 199u : 100u) << tag << ": the other source to its end";
     EXPECT_EQ(one.counters.edges, three.counters.edges) << tag;
