@@ -83,8 +83,9 @@ SampleRecorder::File* SampleRecorder::open_file(const AnySample& s, int i) {
     return nullptr;
   }
   f.fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-  if (f.fd < 0) {
-    error_ = "cannot write '" + path + "': " + std::strerror(errno);
+  if (f.fd < 0) {  // a write error like any other (a read-only or full file system): flagged, row counted
+    fail(i, "open", errno);
+    dropped_.fetch_add(1, std::memory_order_relaxed);
     return nullptr;
   }
   f.buf = std::make_unique<char[]>(kBufBytes);

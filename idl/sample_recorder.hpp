@@ -9,11 +9,11 @@
 // a DaemonStatus sample is recorded (each status period, 1 s by default) and when kFlushPeriodNs has passed
 // since the last timed write (checked every kClockCheckRows rows). So a kill -9 loses at most the rows of the
 // last max(0.25 s, status period) (1 s by default). Not real-time: used by the publisher thread / fast replay
-// / torque-echo. A file is created with its header on its first sample. Write errors (a full disk, EIO): the
-// first one is kept (error()), write_failed() turns true at once (for another thread to report it: the
-// supervisor polls it), the file it happened in is cut back to its last complete row, and recording stops
-// (every later row is counted in rows_dropped()): a recording is always a prefix of complete rows. The caller
-// goes on estimating and publishing.
+// / torque-echo. A file is created with its header on its first sample. Write errors (a full disk, EIO, a
+// file that cannot be opened: a read-only file system): the first one is kept (error()), write_failed() turns
+// true at once (for another thread to report it: the supervisor polls it), the file it happened in is cut
+// back to its last complete row, and recording stops (every later row is counted in rows_dropped()): a
+// recording is always a prefix of complete rows. The caller goes on estimating and publishing.
 #include <array>
 #include <atomic>
 #include <cstdint>

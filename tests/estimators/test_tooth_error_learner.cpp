@@ -2,10 +2,14 @@
 // widths make the Chauvin observers meet the in-cycle targets; table export/import round trip; no allocation.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <initializer_list>
 #include <numbers>
+#include <random>
 #include <utility>
 #include <vector>
 
@@ -443,6 +447,107 @@ TEST(ToothErrorLearner, TheSparkColumnTakesTheSparkMapOutOfTheFiringOrders) {
   for (const ToothOrderId& id : stale.order_ids()) EXPECT_FALSE(id.spark) << id.order;
   EXPECT_GT(stale.stats().cycles_no_spark, 0u);
   EXPECT_DOUBLE_EQ(r_stale, r_plain);
+}
+
+/// feed_spark_map with the spark advance fresh only where fresh(cycle, tooth) says (cycle counted from the
+/// first tooth 0): a spark signal that goes stale at some teeth of some cycles. Solved at the end (the table
+/// and its cycle counts from every cycle in).
+template <class Fresh>
+void feed_spark_map_at(ToothErrorLearner& learner, Fresh fresh) {
+  int cycle = -1;
+  for (const auto& [rpm, bar] : kLoadsApartFromSpeed) {
+    test::SyntheticSpec sp = steady_spec(rpm, bar);
+    const double spark_deg = 15.0 + 3.0 * (rpm - 1000.0) / 1000.0;
+    sp.burn_peak_rad = (35.0 - spark_deg) * kDeg;
+    learner.set_map(1e3 * bar, true);
+    for (const auto& s : test::make_synthetic(sp).samples) {
+      if (s.tooth == 0) ++cycle;
+      learner.set_spark(spark_deg, fresh(cycle, s.tooth));
+      learner.update(s);
+    }
+  }
+  learner.solve();
+}
+
+/// The learned tables and order sources of two learners are the same bits.
+void expect_same_table(const ToothErrorLearner& a, const ToothErrorLearner& b, const char* what) {
+  std::vector<double> ea(static_cast<std::size_t>(a.teeth())), eb(ea.size());
+  a.edge_corrections(ea);
+  b.edge_corrections(eb);
+  for (std::size_t p = 0; p < ea.size(); ++p)
+    EXPECT_EQ(std::bit_cast<std::uint64_t>(ea[p]), std::bit_cast<std::uint64_t>(eb[p]))
+        << what << " tooth " << p;
+  ASSERT_EQ(a.order_ids().size(), b.order_ids().size());
+  for (std::size_t k = 0; k < a.order_ids().size(); ++k) {
+    const ToothOrderId &x = a.order_ids()[k], &y = b.order_ids()[k];
+    EXPECT_EQ(x.source, y.source) << what << " order " << x.order;
+    EXPECT_EQ(x.cycles, y.cycles) << what << " order " << x.order;
+    EXPECT_EQ(std::bit_cast<std::uint64_t>(x.firing_se_frac), std::bit_cast<std::uint64_t>(y.firing_se_frac))
+        << what << " order " << x.order;
+    EXPECT_FALSE(y.spark) << what << " order " << x.order;
+  }
+}
+
+TEST(ToothErrorLearner, ASparkStaleAtRandomTeethOrInAllButAFewCyclesFallsBackToTheLawWithoutItBitForBit) {
+  // GIVEN the spark-map runs learned without the column, and with it where the spark advance is stale at one
+  // random tooth (or more) of every cycle, or fresh over whole cycles in only 7 random cycles (fewer than the
+  // spark law's 8): THEN the column-on tables are the column-off table to the bit, no order is taken from the
+  // spark law, and the cycles without a fresh spark are counted.
+  ToothLearnParams with;
+  with.spark_column = true;
+  ToothErrorLearner plain(EngineGeometry{}, WheelGeometry{}, ToothLearnParams{});
+  ToothErrorLearner stale_teeth(EngineGeometry{}, WheelGeometry{}, with);
+  ToothErrorLearner few(EngineGeometry{}, WheelGeometry{}, with);
+  feed_spark_map_at(plain, [](int, int) { return true; });
+  std::mt19937 rng(2024);
+  std::vector<int> stale_tooth(64);  // per cycle: one tooth surely stale, others stale at random (1 in 5)
+  for (int& t : stale_tooth) t = static_cast<int>(rng() % 116);
+  feed_spark_map_at(stale_teeth, [&](int c, int tooth) {
+    return tooth != stale_tooth[static_cast<std::size_t>(c) % stale_tooth.size()] && rng() % 5 != 0;
+  });
+  std::vector<int> fresh_cycles;
+  while (fresh_cycles.size() < 7) {
+    const int c = static_cast<int>(rng() % 50);
+    if (std::find(fresh_cycles.begin(), fresh_cycles.end(), c) == fresh_cycles.end())
+      fresh_cycles.push_back(c);
+  }
+  feed_spark_map_at(few, [&](int c, int tooth) {
+    return tooth != 57 || std::find(fresh_cycles.begin(), fresh_cycles.end(), c) != fresh_cycles.end();
+  });
+  expect_same_table(plain, stale_teeth, "stale at random teeth");
+  expect_same_table(plain, few, "7 fresh cycles");
+  const ToothOrderId* fire = nullptr;
+  for (const ToothOrderId& id : plain.order_ids())
+    if (id.firing && id.source == ToothOrderSource::kFiring) fire = &id;
+  ASSERT_NE(fire, nullptr) << "the firing orders come from the load law here";
+  EXPECT_EQ(static_cast<double>(stale_teeth.stats().cycles_no_spark), fire->cycles);
+  EXPECT_GE(static_cast<double>(few.stats().cycles_no_spark), fire->cycles - 7.0);
+}
+
+TEST(ToothErrorLearner, TheSparkLawTakesExactlyTheCyclesWithAFreshSparkAtEveryTooth) {
+  // GIVEN the spark-map runs with the column on, the spark advance stale at one tooth of a random half of the
+  // cycles WHEN the firing orders come from the spark law THEN it rests on the other cycles only: its cycle
+  // count plus the cycles counted without a spark is the law's count without the column.
+  ToothLearnParams with;
+  with.spark_column = true;
+  ToothErrorLearner plain(EngineGeometry{}, WheelGeometry{}, ToothLearnParams{});
+  ToothErrorLearner half(EngineGeometry{}, WheelGeometry{}, with);
+  feed_spark_map_at(plain, [](int, int) { return true; });
+  std::mt19937 rng(77);
+  std::vector<bool> stale(64);
+  for (std::size_t c = 0; c < stale.size(); ++c) stale[c] = rng() % 2 == 0;
+  feed_spark_map_at(half,
+                    [&](int c, int tooth) { return tooth != 30 || !stale[static_cast<std::size_t>(c)]; });
+  int spark_orders = 0;
+  for (std::size_t k = 0; k < half.order_ids().size(); ++k) {
+    const ToothOrderId &h = half.order_ids()[k], &p = plain.order_ids()[k];
+    if (!h.spark) continue;
+    ++spark_orders;
+    ASSERT_EQ(p.source, ToothOrderSource::kFiring) << p.order;
+    EXPECT_EQ(h.cycles + static_cast<double>(half.stats().cycles_no_spark), p.cycles) << h.order;
+    EXPECT_GT(half.stats().cycles_no_spark, 0u);
+  }
+  EXPECT_GT(spark_orders, 0) << "half of the cycles identify the spark law";
 }
 
 }  // namespace

@@ -127,5 +127,22 @@ TEST_F(RecorderFullDisk, BoundedSyncAtStopWritesEveryBufferAndReportsNothingPend
   EXPECT_EQ(std::count(cr.begin(), cr.end(), '\n'), 2) << cr;
 }
 
+TEST_F(RecorderFullDisk, AFileThatCannotBeOpenedIsAWriteErrorWithItsRowsCounted) {
+  // GIVEN a record directory where estimator_torque.csv cannot be opened for writing (a directory of that
+  // name: refused even to root, as a read-only file system refuses it) WHEN a crank row and two estimator
+  // rows are recorded and flushed THEN write_failed() is set (the daemon's exit code 3 and its message), the
+  // error names the file and the reason, and all three rows are counted as not recorded.
+  fs::create_directory(dir_ / "estimator_torque.csv");
+  SampleRecorder rec(dir_.string());
+  ASSERT_TRUE(rec.ok());
+  rec.record(crank(1));
+  rec.record(estimator(1));
+  rec.record(estimator(2));
+  rec.flush(false);
+  ASSERT_TRUE(rec.write_failed()) << "an unopenable file was silently not recorded";
+  EXPECT_NE(rec.error().find("estimator_torque.csv: Is a directory"), std::string::npos) << rec.error();
+  EXPECT_EQ(rec.rows_dropped(), 3u);
+}
+
 }  // namespace
 }  // namespace torqued::dds

@@ -10,6 +10,8 @@
 #include <fstream>
 #include <numbers>
 #include <sstream>
+#include <string>
+#include <utility>
 
 #include "alloc_counter.hpp"
 #include "candump_source.hpp"
@@ -283,6 +285,82 @@ TEST_F(FastReplayTest, GenuineClockJumpKeepsEveryEdgeAndBoundsTheOutput) {
   // 10 s of extra time steps at most (10 000 steps / decimation 10 for each time method, status samples):
   // about 3800 samples here, not the 1.4 M of 3600 s.
   EXPECT_LT(r.samples, clean.samples + 5000) << clean.samples;
+}
+
+/// A file source that fails (kError, as a read error does) after `ok_records` records, the rest unread.
+template <class Base, class Record>
+class FailsAfter final : public Base {
+ public:
+  FailsAfter(Base& inner, std::uint64_t ok_records, std::string error)
+      : inner_(inner), left_(ok_records), error_(std::move(error)) {}
+  SourceStatus next(Record& out) noexcept override {
+    if (failed_) return SourceStatus::kEnd;
+    if (left_ == 0) {
+      failed_ = true;
+      return SourceStatus::kError;
+    }
+    --left_;
+    return inner_.next(out);
+  }
+  [[nodiscard]] const SourceStats& stats() const noexcept override { return inner_.stats(); }
+  [[nodiscard]] std::string describe() const override { return "fails after some records"; }
+  [[nodiscard]] std::string last_error() const override { return failed_ ? error_ : std::string(); }
+
+ private:
+  Base& inner_;
+  std::uint64_t left_;
+  std::string error_;
+  bool failed_ = false;
+};
+
+// GIVEN the 2 s 60-2 wheel and a CAN log of 199 frames WHEN the edge source fails part of the way in (or
+// the CAN source half way) on one thread and on three THEN both replays report the same error message, keep
+// going with the other source to its end, and record the same bytes and counts.
+TEST_F(FastReplayTest, ASourceErrorIsReportedAndReplayedAlikeOnOneThreadAndThree) {
+  const std::string can_path = (dir_ / "can.log").string();
+  {
+    std::ofstream f(can_path);
+    for (int k = 1; k < 200; ++k) {
+      char line[64];
+      std::snprintf(line, sizeof line, "(%d.%06d) can0 100#0102030405060708\n", k / 100, (k % 100) * 10000);
+      f << line;
+    }
+  }
+  for (const bool edge_fails : {true, false}) {
+    auto replay = [&](int threads, const fs::path& out) {
+      StageSettings s;
+      s.crank_decimation = 1;
+      s.fast_threads = threads;
+      EdgeCsvSource src(edges_, {});
+      CandumpSource can(can_path);
+      FailsAfter<EdgeSource, EdgeEvent> edges(src, edge_fails ? static_cast<std::uint64_t>(rising_) : ~0ull,
+                                              "edges.csv: read error: Input/output error");
+      FailsAfter<CanSource, CanFrame> frames(can, edge_fails ? ~0ull : 100u, "can.log: read error: EIO");
+      dds::SampleRecorder rec(out.string());
+      OutputFanout fanout(&rec, nullptr);
+      if (threads == 1) return run_fast_replay(s, &edges, &frames, 0, nullptr, fanout);
+      SinkThread writer(fanout);
+      ReplayResult r = run_fast_replay(s, &edges, &frames, 0, nullptr, writer);
+      writer.flush();
+      return r;
+    };
+    const std::string tag = edge_fails ? "edges" : "can";
+    const ReplayResult one = replay(1, dir_ / ("one_" + tag));
+    const ReplayResult three = replay(3, dir_ / ("three_" + tag));
+    EXPECT_EQ(one.error,
+              edge_fails ? "edges.csv: read error: Input/output error" : "can.log: read error: EIO");
+    EXPECT_EQ(three.error, one.error);
+    EXPECT_EQ(one.counters.can_frames, edge_fails ? 199u : 100u) << tag << ": the other source to its end";
+    EXPECT_EQ(one.counters.edges, three.counters.edges) << tag;
+    EXPECT_EQ(one.counters.can_frames, three.counters.can_frames) << tag;
+    EXPECT_EQ(one.counters.cycles, three.counters.cycles) << tag;
+    EXPECT_EQ(one.samples, three.samples) << tag;
+    EXPECT_EQ(one.last_t_ns, three.last_t_ns) << tag;
+    for (const auto& e : fs::directory_iterator(dir_ / ("one_" + tag))) {
+      const auto other = dir_ / ("three_" + tag) / e.path().filename();
+      EXPECT_TRUE(slurp(e.path()) == slurp(other)) << tag << ": " << e.path().filename() << " differs";
+    }
+  }
 }
 
 }  // namespace
