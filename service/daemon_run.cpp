@@ -5,6 +5,7 @@
 #include <time.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cinttypes>
 #include <memory>
@@ -36,8 +37,11 @@
 namespace torqued {
 namespace {
 
-volatile bool g_fast_stop = false;
-void on_fast_signal(int) { g_fast_stop = true; }
+// Set by SIGINT/SIGTERM during a fast replay. An atomic, not a volatile: with the read-ahead and writer threads the
+// handler may run on another thread than the chain's, which reads it (lock-free, so safe in a handler).
+std::atomic<bool> g_fast_stop{false};
+static_assert(std::atomic<bool>::is_always_lock_free);
+void on_fast_signal(int) { g_fast_stop.store(true, std::memory_order_relaxed); }
 
 void wait_for_subscribers(DdsPublisher& pub, const RunOptions& opt) {
   if (opt.wait_subscribers <= 0) return;

@@ -120,7 +120,7 @@ struct Stages {
 /// The replay loop, from the first record to the last DaemonStatus; the same code for both inputs
 /// (InlineInput, ReadAheadMerger), so one thread and three give the same bytes.
 template <class Input>
-void replay_loop(const StageSettings& s, Stages& g, Input& input, const volatile bool* stop, ReplayResult& r,
+void replay_loop(const StageSettings& s, Stages& g, Input& input, const std::atomic<bool>* stop, ReplayResult& r,
                  std::chrono::steady_clock::time_point& t0) {
   t0 = std::chrono::steady_clock::now();  // the input built (a reader thread started)
   TimeStage& time = g.time;
@@ -132,7 +132,7 @@ void replay_loop(const StageSettings& s, Stages& g, Input& input, const volatile
   bool source_failed = false;
   auto counters = [&] { return replay_counters(angle.chain(), input); };
   for (;;) {
-    if (stop && *stop) break;
+    if (stop && stop->load(std::memory_order_relaxed)) break;
     const SourceStatus st = input.next(item);
     if (st == SourceStatus::kEnd) break;
     if (st == SourceStatus::kError) {
@@ -204,7 +204,7 @@ FastThreadsChoice resolve_fast_threads(int setting, int cpus) {
 
 ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSource* can,
                              std::int64_t can_offset_ns, const DbcDatabase* dbc, SampleSink& out,
-                             const volatile bool* stop, LearnedState* state, AngleChainSink* tap) {
+                             const std::atomic<bool>* stop, LearnedState* state, AngleChainSink* tap) {
   ReplayResult r;
   r.threads = resolve_fast_threads(s.fast_threads, usable_cpus());
   r.transitions.events.reserve(ReplayResult::Transitions::kMaxKept);

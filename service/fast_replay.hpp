@@ -6,6 +6,7 @@
 // gives the recorder a thread of its own (sink_thread.hpp); with one, everything runs on the calling thread.
 // Deterministic: no wall-clock time enters the outputs (ingest/publish times are 0), ties are broken by the
 // merger (edges first), so the same input gives byte-identical CSV output, on one thread or three.
+#include <atomic>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -62,7 +63,7 @@ struct ReplayResult {
 /// (optional): receives the angle chain's records too (torque-accuracy reads the full CycleOutput there).
 ReplayResult run_fast_replay(const StageSettings& s, EdgeSource* edges, CanSource* can,
                              std::int64_t can_offset_ns, const DbcDatabase* dbc, SampleSink& out,
-                             const volatile bool* stop = nullptr, LearnedState* state = nullptr,
+                             const std::atomic<bool>* stop = nullptr, LearnedState* state = nullptr,
                              AngleChainSink* tap = nullptr);
 
 }  // namespace torqued
