@@ -37,8 +37,9 @@
 namespace torqued {
 namespace {
 
-// Set by SIGINT/SIGTERM during a fast replay. An atomic, not a volatile: with the read-ahead and writer threads the
-// handler may run on another thread than the chain's, which reads it (lock-free, so safe in a handler).
+// Set by SIGINT/SIGTERM during a fast replay. An atomic, not a volatile: with the read-ahead and writer
+// threads the handler may run on another thread than the chain's, which reads it (lock-free, so safe in a
+// handler).
 std::atomic<bool> g_fast_stop{false};
 static_assert(std::atomic<bool>::is_always_lock_free);
 void on_fast_signal(int) { g_fast_stop.store(true, std::memory_order_relaxed); }

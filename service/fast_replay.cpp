@@ -120,8 +120,8 @@ struct Stages {
 /// The replay loop, from the first record to the last DaemonStatus; the same code for both inputs
 /// (InlineInput, ReadAheadMerger), so one thread and three give the same bytes.
 template <class Input>
-void replay_loop(const StageSettings& s, Stages& g, Input& input, const std::atomic<bool>* stop, ReplayResult& r,
-                 std::chrono::steady_clock::time_point& t0) {
+void replay_loop(const StageSettings& s, Stages& g, Input& input, const std::atomic<bool>* stop,
+                 ReplayResult& r, std::chrono::steady_clock::time_point& t0) {
   t0 = std::chrono::steady_clock::now();  // the input built (a reader thread started)
   TimeStage& time = g.time;
   AngleStage& angle = g.angle;
