@@ -4,6 +4,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
 #include <string>
 
 #include "angle_stage.hpp"
@@ -183,11 +186,68 @@ void replay_loop(const StageSettings& s, Stages& g, Input& input, const std::ato
 
 }  // namespace
 
+namespace {
+
+// The quota of one cgroup directory in whole CPUs (floor, at least 1), 0 if none or unreadable.
+int quota_cpus_in(const std::string& dir, bool v2) {
+  double quota = -1, period = 0;
+  if (v2) {
+    std::ifstream f(dir + "/cpu.max");
+    std::string q;
+    if (!(f >> q >> period) || q == "max") return 0;
+    quota = std::strtod(q.c_str(), nullptr);
+  } else {
+    std::ifstream fq(dir + "/cpu.cfs_quota_us"), fp(dir + "/cpu.cfs_period_us");
+    if (!(fq >> quota) || !(fp >> period)) return 0;
+  }
+  if (!(quota > 0) || !(period > 0)) return 0;
+  return std::max(1, static_cast<int>(quota / period));
+}
+
+}  // namespace
+
+int cgroup_quota_cpus(const std::string& proc_self_cgroup, const std::string& root) {
+  int cpus = 0;
+  std::istringstream lines(proc_self_cgroup);
+  for (std::string line; std::getline(lines, line);) {
+    // "0::/path" (v2) or "N:cpu,cpuacct:/path" (v1 with the cpu controller)
+    const auto a = line.find(':'), b = line.find(':', a == std::string::npos ? a : a + 1);
+    if (a == std::string::npos || b == std::string::npos) continue;
+    const std::string ctrl = line.substr(a + 1, b - a - 1), path = line.substr(b + 1);
+    const bool v2 = ctrl.empty();
+    bool has_cpu = v2;
+    for (std::size_t p = 0; !v2 && p <= ctrl.size();) {
+      const auto e = std::min(ctrl.find(',', p), ctrl.size());
+      has_cpu = has_cpu || ctrl.compare(p, e - p, "cpu") == 0;
+      p = e + 1;
+    }
+    if (!has_cpu || path.empty() || path[0] != '/') continue;
+    const std::string base = v2 ? root : root + "/" + ctrl;
+    for (std::string p = path;;) {  // the cgroup and each parent up to the root: the smallest quota holds
+      const int c = quota_cpus_in(base + (p == "/" ? "" : p), v2);
+      if (c > 0) cpus = cpus == 0 ? c : std::min(cpus, c);
+      if (p == "/" || p.empty()) break;
+      const auto slash = p.rfind('/');
+      p = slash == 0 ? "/" : p.substr(0, slash);
+    }
+  }
+  return cpus;
+}
+
 int usable_cpus() noexcept {
   cpu_set_t set;
   CPU_ZERO(&set);
   if (sched_getaffinity(0, sizeof(set), &set) != 0) return 1;
-  return std::max(1, CPU_COUNT(&set));
+  int cpus = std::max(1, CPU_COUNT(&set));
+  try {
+    std::ifstream f("/proc/self/cgroup");
+    std::stringstream text;
+    text << f.rdbuf();
+    const int quota = cgroup_quota_cpus(text.str(), "/sys/fs/cgroup");
+    if (quota > 0) cpus = std::min(cpus, quota);
+  } catch (...) {  // start-up only (allocation): an unreadable cgroup leaves the affinity's count
+  }
+  return cpus;
 }
 
 FastThreadsChoice resolve_fast_threads(int setting, int cpus) {

@@ -30,8 +30,16 @@ struct FastThreadsChoice {
 /// replay.fast_threads (`setting`: 0 = auto, 1 or 3) for a process that may run on `cpus` CPUs: 1 and 3 as
 /// given; auto is 3 with at least 2 CPUs, else 1 (on one CPU a helper only takes turns with the chain).
 [[nodiscard]] FastThreadsChoice resolve_fast_threads(int setting, int cpus);
-/// CPUs this process may run on (sched_getaffinity: a container's or taskset's limit; 1 if unknown).
+/// CPUs this process may use: the CPUs it may run on (sched_getaffinity: taskset's or a cpuset's limit; 1 if
+/// unknown), and no more than its cgroup's CPU quota allows (cgroup_quota_cpus: a container started with
+/// `--cpus=1` may run on every CPU but only one CPU's time in total).
 [[nodiscard]] int usable_cpus() noexcept;
+/// Whole CPUs of run time the cgroup CPU quota allows, floor(quota / period) and at least 1, the smallest
+/// along the process's cgroup and its parents; 0 if there is no quota. `proc_self_cgroup`: the text of
+/// /proc/self/cgroup; `root`: the cgroup mount (/sys/fs/cgroup). cgroup v2: `<root><path>/cpu.max` ("QUOTA
+/// PERIOD" or "max PERIOD"); v1: `<root>/<controllers>/<path>/cpu.cfs_quota_us` and `cpu.cfs_period_us`
+/// (quota -1: none). Not real-time.
+[[nodiscard]] int cgroup_quota_cpus(const std::string& proc_self_cgroup, const std::string& root);
 
 struct ReplayResult {
   FastThreadsChoice threads;  ///< the threads this replay used (StageSettings::fast_threads resolved)

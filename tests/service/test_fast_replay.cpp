@@ -184,6 +184,37 @@ TEST(FastThreads, AutoIsThreeFromTwoCpusAndOneBelow) {
   EXPECT_GE(usable_cpus(), 1);
 }
 
+// auto's CPU count also follows a cgroup CPU quota (a container started with --cpus=1 may run on every CPU,
+// but only one CPU's time in all): on fake cgroup trees, v2 (cpu.max, the smallest along the path) and v1
+// (cfs files).
+TEST(FastThreads, ACgroupCpuQuotaLimitsTheUsableCpus) {
+  const fs::path root = fs::path(testing::TempDir()) / "fake_cgroup";
+  fs::remove_all(root);
+  const auto put = [](const fs::path& f, const std::string& text) {
+    fs::create_directories(f.parent_path());
+    std::ofstream(f) << text;
+  };
+  put(root / "v2" / "cpu.max", "max 100000\n");
+  put(root / "v2" / "ctr" / "cpu.max", "150000 100000\n");  // 1.5 CPUs: one whole CPU
+  put(root / "v2" / "ctr" / "job" / "cpu.max", "max 100000\n");
+  EXPECT_EQ(cgroup_quota_cpus("0::/ctr/job\n", (root / "v2").string()), 1);
+  put(root / "v2" / "ctr" / "cpu.max", "400000 100000\n");
+  EXPECT_EQ(cgroup_quota_cpus("0::/ctr/job\n", (root / "v2").string()), 4);
+  put(root / "v2" / "ctr" / "job" / "cpu.max", "200000 100000\n");  // the smaller, lower down
+  EXPECT_EQ(cgroup_quota_cpus("0::/ctr/job\n", (root / "v2").string()), 2);
+  EXPECT_EQ(cgroup_quota_cpus("0::/\n", (root / "v2").string()), 0);            // no quota at the root
+  EXPECT_EQ(cgroup_quota_cpus("0::/nosuch\n", (root / "v2").string()), 0);      // unreadable: none
+  put(root / "v1" / "cpu,cpuacct" / "docker" / "cpu.cfs_quota_us", "50000\n");  // half a CPU: at least 1
+  put(root / "v1" / "cpu,cpuacct" / "docker" / "cpu.cfs_period_us", "100000\n");
+  put(root / "v1" / "cpu,cpuacct" / "cpu.cfs_quota_us", "-1\n");
+  put(root / "v1" / "cpu,cpuacct" / "cpu.cfs_period_us", "100000\n");
+  const std::string v1 = "12:pids:/docker\n3:cpu,cpuacct:/docker\n1:name=systemd:/docker\n";
+  EXPECT_EQ(cgroup_quota_cpus(v1, (root / "v1").string()), 1);
+  EXPECT_EQ(cgroup_quota_cpus("3:cpu,cpuacct:/\n", (root / "v1").string()), 0);
+  EXPECT_EQ(cgroup_quota_cpus("garbage\n", (root / "v1").string()), 0);
+  fs::remove_all(root);
+}
+
 /// Counts samples and keeps the last one, allocation-free.
 class NullSink final : public SampleSink {
  public:
