@@ -17,8 +17,10 @@ struct RunOptions {
   std::optional<double> speed;            ///< override replay.speed
   std::optional<std::string> record_dir;  ///< override output.record_dir
   std::optional<std::string> state_dir;   ///< override output.state_dir
-  bool fresh_state = false;     ///< do not load the learned state (learn from the prior); still saved
-  bool no_dds = false;          ///< do not create a DDS participant (recording only)
+  bool fresh_state = false;  ///< do not load the learned state (learn from the prior); still saved
+  bool no_dds = false;       ///< do not create a DDS participant (recording only)
+  std::string
+      stage_trace;  ///< paced/live: write each CrankState's stamps in the daemon here at exit ("" off)
   bool exit_when_done = false;  ///< paced replay: exit once the input is consumed
   int wait_subscribers = 0;     ///< wait until this many readers matched EngineTorque (or time-out)
   double wait_subscribers_timeout_s = 10.0;

@@ -89,6 +89,11 @@ void add_options(CLI::App& app, Cli& c) {
   app.add_flag("--fresh-state", c.run.fresh_state,
                "do not load the learned state: learn from the prior (the state is still saved)");
   app.add_flag("--no-dds", c.run.no_dds, "do not publish on DDS (record only)");
+  app.add_option(
+      "--stage-trace", c.run.stage_trace,
+      "paced/live: write each CrankState's stamps inside the daemon (edge due, angle thread, "
+      "output ring, publisher, dds_write returned; CSV, up to 131072 samples) to this file at exit "
+      "(torque-latency's tail stages)");
   app.add_flag("--exit-when-done", c.run.exit_when_done, "paced replay: exit once the recording is consumed");
   app.add_option("--wait-subscribers", c.run.wait_subscribers,
                  "wait (up to 10 s) for this many EngineTorque readers");

@@ -21,14 +21,21 @@ namespace torqued {
 /// Stage output -> SPSC ring towards the publisher (drop newest + count when full), then wake it.
 class Runtime::RingSink final : public SampleSink {
  public:
-  RingSink(SpscRing<dds::AnySample>& r, Wakeup& w) : r_(r), w_(w) {}
+  /// stamps/angle_ns: the stage trace (nullptr: off), CrankState's stamps go first into `stamps`.
+  RingSink(SpscRing<dds::AnySample>& r, Wakeup& w, SpscRing<AngleStamps>* stamps = nullptr,
+           const std::int64_t* angle_ns = nullptr)
+      : r_(r), w_(w), stamps_(stamps), angle_ns_(angle_ns) {}
   void emit(const dds::AnySample& s) noexcept override {
+    if (stamps_ && s.topic == dds::Topic::kCrankState)  // one clock read per CrankState, only when tracing
+      (void)stamps_->try_push(AngleStamps{s.u.crank.seq, *angle_ns_, realtime_ns()});
     if (r_.try_push(s)) w_.notify();
   }
 
  private:
   SpscRing<dds::AnySample>& r_;
   Wakeup& w_;
+  SpscRing<AngleStamps>* stamps_;
+  const std::int64_t* angle_ns_;
 };
 
 /// Angle stage tooth samples -> time thread (which polls on its timer; no wake-up needed).
@@ -56,9 +63,13 @@ Runtime::Runtime(const StageSettings& s, const RuntimeOptions& opt, EdgeSource* 
       out_angle_ring_(opt.out_ring),
       out_time_ring_(opt.out_ring),
       out_status_ring_(64),
-      clock_(opt.speed, !opt.replay) {
+      clock_(opt.speed, !opt.replay),
+      stamp_ring_(opt.stage_trace > 0 ? opt.out_ring : 2) {
   edge_timeout_ns_.store(s_.edge_timeout_ns, std::memory_order_relaxed);
-  angle_sink_ = std::make_unique<RingSink>(out_angle_ring_, pub_wake_);
+  angle_sink_ = opt_.stage_trace > 0
+                    ? std::make_unique<RingSink>(out_angle_ring_, pub_wake_, &stamp_ring_, &angle_take_ns_)
+                    : std::make_unique<RingSink>(out_angle_ring_, pub_wake_);
+  trace_.reserve(opt_.stage_trace);
   time_sink_ = std::make_unique<RingSink>(out_time_ring_, pub_wake_);
   tooth_sink_ = std::make_unique<ToothRingSink>(tooth_ring_);
   time_ = std::make_unique<TimeStage>(s_, dbc, *time_sink_);
@@ -277,8 +288,10 @@ Runtime::DueItem Runtime::angle_process_due() noexcept {
         next = next_wakeup(e->e, due);
         break;
       }
-      ingest =
-          realtime_ns() + (due - mono_ns());  // the edge "happens" at its due time (includes our wake-up)
+      angle_take_ns_ = realtime_ns();
+      ingest = angle_take_ns_ + (due - mono_ns());  // the edge "happens" at its due time (incl. our wake-up)
+    } else if (opt_.stage_trace > 0) {
+      angle_take_ns_ = realtime_ns();
     }
     while (const FrameIn* f = can_angle_ring_.front()) {
       if (f->f.t_ns > e->e.t_ns) break;
@@ -427,12 +440,31 @@ bool Runtime::drain_out() noexcept {
   for (SpscRing<dds::AnySample>* r : {&out_status_ring_, &out_angle_ring_, &out_time_ring_}) {
     while (r->try_pop(s)) {
       any = true;
+      const bool trace = opt_.stage_trace > 0 && s.topic == dds::Topic::kCrankState;
+      const std::int64_t taken = trace ? realtime_ns() : 0;
       final_out_.emit(s);
       const std::int64_t ingest = s.visit([](const auto& v) { return v.ingest_t_ns; });
-      if (ingest > 0 && s.topic != dds::Topic::kDaemonStatus) latency_.note(realtime_ns() - ingest);
+      const std::int64_t written = realtime_ns();
+      if (ingest > 0 && s.topic != dds::Topic::kDaemonStatus) latency_.note(written - ingest);
+      if (trace) trace_crank(s, taken, written);
     }
   }
   return any;
+}
+
+// Stage trace: this CrankState's stamps, joined with those the angle thread pushed before the sample (older
+// ones, of samples the output ring dropped, are skipped). Kept while the reserved vector has room.
+void Runtime::trace_crank(const dds::AnySample& s, std::int64_t taken_ns, std::int64_t written_ns) noexcept {
+  const std::uint64_t seq = s.u.crank.seq;
+  AngleStamps a{};
+  while (const AngleStamps* f = stamp_ring_.front()) {
+    if (f->seq > seq) break;
+    a = *f;
+    stamp_ring_.pop_front();
+    if (a.seq == seq) break;
+  }
+  if (a.seq != seq || trace_.size() == trace_.capacity()) return;
+  trace_.push_back(StageStamps{seq, s.u.crank.ingest_t_ns, a.angle_ns, a.pushed_ns, taken_ns, written_ns});
 }
 
 void Runtime::publisher_loop() {

@@ -50,8 +50,22 @@ struct RuntimeOptions {
   /// wake-ups).
   std::int64_t publisher_spin_ns = 0;
   std::size_t edge_ring = 1 << 16, can_ring = 1 << 12, tooth_ring = 1 << 13, out_ring = 1 << 13;
+  /// `torqued --stage-trace`: keep the stamps (StageStamps) of up to this many CrankState samples (0: off;
+  /// then no stamp is taken and nothing is allocated for them).
+  std::size_t stage_trace = 0;
   /// Test hook: called on each real-time thread right after its set-up and right before it exits.
   std::function<void(const char* thread, bool exiting)> rt_thread_hook;
+};
+
+/// One CrankState sample's way through the daemon (CLOCK_REALTIME ns), kept for `torqued --stage-trace` so
+/// `torque-latency` can split edge -> dds_write into its stages for the samples of its tail (joined on seq).
+struct StageStamps {
+  std::uint64_t seq = 0;        ///< CrankState seq (the subscriber's sample has it too)
+  std::int64_t ingest_ns = 0;   ///< the edge's due time (ingest_t_ns)
+  std::int64_t angle_ns = 0;    ///< the angle thread takes the edge (after its wake-up)
+  std::int64_t pushed_ns = 0;   ///< the sample pushed into the output ring
+  std::int64_t taken_ns = 0;    ///< the publisher takes it from the ring
+  std::int64_t written_ns = 0;  ///< dds_write (and the recorder, if any) returned
 };
 
 /// Liveness counters of the threads (monotonic; the supervisor pings the watchdog only while they move).
@@ -103,6 +117,8 @@ class Runtime {
   }
   /// Supervisor -> publisher (status samples). Non-blocking.
   void push_status(const dds::AnySample& s) noexcept;
+  /// The stamps kept with RuntimeOptions::stage_trace, in publishing order; complete after stop_and_drain().
+  [[nodiscard]] const std::vector<StageStamps>& stage_trace() const noexcept { return trace_; }
   /// Test-only: freeze the angle thread (it stops making progress) to check the watchdog stops pinging.
   void test_stall(bool on) noexcept { stall_.store(on, std::memory_order_relaxed); }
   /// Applies learned tooth corrections in the angle thread at its next wake-up (copied; not real-time).
@@ -116,6 +132,11 @@ class Runtime {
   struct FrameIn {
     CanFrame f;
     std::int64_t ingest_ns;
+  };
+  /// Angle thread -> publisher (stage trace only): a CrankState's stamps taken before it was pushed.
+  struct AngleStamps {
+    std::uint64_t seq;
+    std::int64_t angle_ns, pushed_ns;
   };
   class RingSink;
   class ToothRingSink;
@@ -148,6 +169,7 @@ class Runtime {
   void time_loop();
   void publisher_loop();
   bool drain_out() noexcept;
+  void trace_crank(const dds::AnySample& s, std::int64_t taken_ns, std::int64_t written_ns) noexcept;
   void take_latency_period() noexcept;
   void start_thread(std::thread& t, const ThreadRt& rt, void (Runtime::*fn)(), bool realtime);
 
@@ -199,7 +221,10 @@ class Runtime {
   std::atomic<std::int64_t> last_t_ns_{0};
   std::atomic<std::int64_t> lat_p50_{0}, lat_p99_{0}, lat_max_{0};
   std::atomic<std::int64_t> lat_run_p50_{0}, lat_run_p99_{0}, lat_run_max_{0};
-  LatencyHistogram latency_;  ///< publisher thread only
+  LatencyHistogram latency_;          ///< publisher thread only
+  std::int64_t angle_take_ns_ = 0;    ///< stage trace: when the angle thread took the edge it is processing
+  SpscRing<AngleStamps> stamp_ring_;  ///< stage trace: angle thread -> publisher (2 slots when off)
+  std::vector<StageStamps> trace_;    ///< stage trace: publisher thread only, reserved in the constructor
   std::int64_t lat_period_start_ns_ = 0;
 };
 

@@ -5,9 +5,12 @@
 #include <time.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cinttypes>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <memory>
 #include <string>
 #include <thread>
@@ -73,6 +76,7 @@ RuntimeOptions runtime_options(const Config& cfg, const RunOptions& opt) {
   ro.source = thread_rt(cfg.realtime.source, "torqued-source");
   ro.publisher = thread_rt(cfg.realtime.publisher, "torqued-pub");
   ro.publisher_spin_ns = static_cast<std::int64_t>(cfg.realtime.publisher_spin_us) * 1000;
+  ro.stage_trace = opt.stage_trace.empty() ? 0 : std::size_t{1} << 17;
   return ro;
 }
 
@@ -118,6 +122,28 @@ void reload(const std::string& path, Config& current, StageSettings& settings, R
       n.engine.cylinders != current.engine.cylinders)
     spdlog::warn("SIGHUP: inputs/dds/engine/wheel changes need a restart; they are not applied");
   spdlog::info("SIGHUP: configuration {} reloaded", path);
+}
+
+/// `torqued --stage-trace FILE`: the CrankState samples' stamps in the daemon, one CSV row each (not
+/// real-time: after the threads have ended). False (logged) when the file cannot be written.
+bool write_stage_trace(const std::string& path, const std::vector<StageStamps>& trace) {
+  FILE* f = std::fopen(path.c_str(), "w");
+  if (!f) {
+    spdlog::error("stage trace: cannot write {}: {}", path, std::strerror(errno));
+    return false;
+  }
+  std::fprintf(f, "seq,ingest_ns,angle_ns,pushed_ns,taken_ns,written_ns\n");
+  for (const StageStamps& t : trace)
+    std::fprintf(f, "%llu,%lld,%lld,%lld,%lld,%lld\n", static_cast<unsigned long long>(t.seq),
+                 static_cast<long long>(t.ingest_ns), static_cast<long long>(t.angle_ns),
+                 static_cast<long long>(t.pushed_ns), static_cast<long long>(t.taken_ns),
+                 static_cast<long long>(t.written_ns));
+  if (std::fclose(f) != 0) {
+    spdlog::error("stage trace: cannot write {}: {}", path, std::strerror(errno));
+    return false;
+  }
+  spdlog::info("stage trace: {} CrankState samples written to {}", trace.size(), path);
+  return true;
 }
 
 void notify_status(const RuntimeCounters& c, double uptime_s) {
@@ -358,6 +384,7 @@ int Supervisor::shutdown() {
                            t.use.major_faults, t.use.voluntary_switches, t.use.forced_switches);
   spdlog::info("threads over the run (page faults minor/major, context switches voluntary/preempted): {}",
                threads.empty() ? "none" : threads);
+  if (!opt_.stage_trace.empty() && !write_stage_trace(opt_.stage_trace, rt_.stage_trace())) exit_code = 1;
   return exit_code;
 }
 

@@ -4,15 +4,17 @@
 // loads the other core (stress-ng --cpu 1) and runs cyclictest and ddsperf alongside, printing their figures
 // side by side with ours, and the ratio of ours to those floors.
 // It subscribes on the daemon's own DDS domain and topic prefix (from --config) and keeps only the samples of
-// its engine_id; its logs and the daemon's state directory are in a private temporary directory (mkdtemp,
-// removed at the end unless --keep-logs), so two runs or another daemon on the machine do not mix their
-// figures.
+// its engine_id; its logs and the daemon's state directory are in a private temporary directory (mkdtemp in
+// $TMPDIR or /tmp, removed at the end unless --keep-logs or the run failed), so two runs or another daemon on
+// the machine do not mix their figures. The daemon writes its per-sample stamps there (--stage-trace), from
+// which the tail's stages are printed.
 //   CYCLONEDDS_URI=file://$PWD/config/cyclonedds-loopback.xml torque-latency --torqued build/service/torqued
 //   --config config/demo.yaml --duration 15 --stress --cyclictest [--plot latency.png]
 // It says which path the samples took: shared memory (iceoryx: CYCLONEDDS_URI with SharedMemory, RouDi
 // running, QoS iceoryx carries) or the network path, for this subscriber's readers and the daemon's writers,
 // and ends with one `summary:` line per run; tools/scripts/latency_shm_vs_net.sh runs it both ways and prints
 // them side by side.
+#include <fcntl.h>
 #include <sched.h>
 #include <signal.h>
 #include <sys/mman.h>
@@ -26,7 +28,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <string>
 #include <thread>
 #include <vector>
@@ -36,6 +40,7 @@
 #include "dds/dds.h"
 #include "dds/ddsc/dds_loan_api.h"
 #include "dds_from_config.hpp"
+#include "latency_stages.hpp"
 #include "qos.hpp"
 #include "share_dir.hpp"
 #include "topics.hpp"
@@ -49,7 +54,11 @@ std::int64_t now_realtime() {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
-pid_t spawn(const std::vector<std::string>& argv, const char* log, const std::vector<std::string>& env = {}) {
+/// Starts argv[0] (PATH searched) with stdout/stderr into `log`. When `exec_errno_fd` >= 0 (the write end of
+/// a close-on-exec pipe), a failed exec writes its errno there, so the parent can tell "could not start" from
+/// "started".
+pid_t spawn(const std::vector<std::string>& argv, const char* log, const std::vector<std::string>& env = {},
+            int exec_errno_fd = -1) {
   const pid_t p = fork();
   if (p == 0) {
     for (const auto& e : env) putenv(const_cast<char*>(e.c_str()));  // the child's copy: ours stays unchanged
@@ -71,6 +80,10 @@ pid_t spawn(const std::vector<std::string>& argv, const char* log, const std::ve
     for (const auto& s : argv) a.push_back(const_cast<char*>(s.c_str()));
     a.push_back(nullptr);
     execvp(a[0], a.data());
+    if (exec_errno_fd >= 0) {
+      const int err = errno;
+      (void)!write(exec_errno_fd, &err, sizeof err);
+    }
     _exit(127);
   }
   return p;
@@ -98,6 +111,7 @@ struct TopicLatency {
   std::size_t other_engines = 0;
   Stats total, in_daemon, dds;
   std::vector<std::array<double, 3>> split;  ///< per stamped sample: total, in the daemon, DDS (us), aligned
+  std::vector<std::uint64_t> split_seq;      ///< ... and its seq (joins the daemon's --stage-trace)
   std::array<Sample, 64> buf{};
   std::array<void*, 64> ptr{};
   std::array<dds_sample_info_t, 64> info{};
@@ -105,6 +119,7 @@ struct TopicLatency {
     for (std::size_t i = 0; i < buf.size(); ++i) ptr[i] = &buf[i];
     for (Stats* st : {&total, &in_daemon, &dds}) st->us.reserve(1 << 18);
     split.reserve(1 << 18);
+    split_seq.reserve(1 << 18);
   }
   void take(std::int64_t now) {
     const int n = dds_take(reader, ptr.data(), info.data(), buf.size(), buf.size());
@@ -120,6 +135,7 @@ struct TopicLatency {
         in_daemon.add(static_cast<double>(v.publish_t_ns - v.ingest_t_ns) * 1e-3);
         dds.add(static_cast<double>(now - v.publish_t_ns) * 1e-3);
         split.push_back({total.us.back(), in_daemon.us.back(), dds.us.back()});
+        split_seq.push_back(v.seq);
       }
     }
   }
@@ -324,7 +340,7 @@ void remove_dir(const std::string& dir, bool keep) {
 
 /// What the command line asks for (see add_options for each one's meaning).
 struct Options {
-  std::string torqued = "torqued", config;
+  std::string torqued, config;  ///< torqued: "" = next to this executable, else from PATH (default_torqued)
   bool keep_logs = false;
   std::vector<std::string> daemon_env;
   std::string plot, plot_script = torqued::tools::share_path("plot_latency.py"), title;
@@ -334,7 +350,9 @@ struct Options {
 };
 
 void add_options(CLI::App& app, Options& o) {
-  app.add_option("--torqued", o.torqued, "torqued executable");
+  app.add_option("--torqued", o.torqued,
+                 "torqued executable (default: the one next to this tool: PREFIX/bin/torqued installed, "
+                 "../service/torqued in the build tree; else torqued from PATH)");
   app.add_option("--config", o.config, "daemon configuration (paced replay)")->required();
   app.add_option("--duration", o.duration_s, "measurement time (s)");
   app.add_option("--speed", o.speed, "replay speed factor");
@@ -383,7 +401,7 @@ void add_options(CLI::App& app, Options& o) {
 
 /// The private temporary directory: logs of the daemon and the helpers, the daemon's state directory.
 struct Paths {
-  std::string dir, daemon_log, cyclic_log, ddsperf_log, state_dir;
+  std::string dir, daemon_log, cyclic_log, ddsperf_log, state_dir, stage_trace;
 };
 
 /// The subscriber's own CPU and scheduling: Cyclone's receive threads inherit the policy of the thread that
@@ -481,11 +499,71 @@ std::vector<pid_t> start_helpers(const Options& o, const dds::DdsSettings& s, co
   return helpers;
 }
 
-/// Receives for the run's length plus 1.5 s, then stops the listener, the daemon and the helpers.
-void measure(const Options& o, Receiver& rx, dds_entity_t ws, pid_t daemon,
-             const std::vector<pid_t>& helpers) {
-  const auto t_end = std::chrono::steady_clock::now() + std::chrono::duration<double>(o.duration_s + 1.5);
+/// The daemon when --torqued is not given: next to this executable (installed: PREFIX/bin/torqued), then
+/// the build tree's (BUILD/tools/torque-latency -> BUILD/service/torqued), else "torqued" from PATH.
+std::string default_torqued() {
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    for (const std::filesystem::path& c :
+         {exe.parent_path() / "torqued", exe.parent_path().parent_path() / "service" / "torqued"})
+      if (access(c.c_str(), X_OK) == 0) return c.string();
+  }
+  return "torqued";
+}
+
+/// How the daemon ended, when it ended before the measurement did: exec failed, or it exited early. Status 0
+/// is the end of its recording (replay.exit_when_done): the samples up to there are measured, not a failure.
+struct DaemonEnd {
+  bool early = false;
+  int exec_errno = 0;  ///< exec failed with this errno (0: it started)
+  int status = 0;      ///< waitpid status when it exited early
+  double after_s = 0;  ///< when it ended, seconds after the start of the measurement
+  [[nodiscard]] bool failed() const {
+    return early && (exec_errno != 0 || !WIFEXITED(status) || WEXITSTATUS(status) != 0);
+  }
+};
+
+/// Reads the exec-error pipe (its write end already closed here): an errno if the exec failed, else EOF.
+int exec_error(int fd) {
+  int err = 0;
+  ssize_t n = 0;
+  do n = read(fd, &err, sizeof err);
+  while (n < 0 && errno == EINTR);
+  close(fd);
+  return n == static_cast<ssize_t>(sizeof err) ? err : 0;
+}
+
+/// Says that the daemon could not be started or ended before the run, naming it and its log.
+void print_daemon_end(const std::string& torqued, const Paths& p, const DaemonEnd& d) {
+  if (d.exec_errno != 0)
+    std::fprintf(stderr, "torque-latency: cannot start the daemon '%s': %s (give --torqued PATH); log %s\n",
+                 torqued.c_str(), std::strerror(d.exec_errno), p.daemon_log.c_str());
+  else if (WIFEXITED(d.status))
+    std::fprintf(stderr,
+                 "torque-latency: the daemon '%s' exited with status %d before the run ended; see its "
+                 "log %s\n",
+                 torqued.c_str(), WEXITSTATUS(d.status), p.daemon_log.c_str());
+  else
+    std::fprintf(stderr,
+                 "torque-latency: the daemon '%s' was killed by signal %d before the run ended; see "
+                 "its log %s\n",
+                 torqued.c_str(), WTERMSIG(d.status), p.daemon_log.c_str());
+}
+
+/// Receives for the run's length plus 1.5 s, then stops the listener, the daemon and the helpers. A daemon
+/// that ends on its own before that is an early end (returned; the run stops there).
+DaemonEnd measure(const Options& o, Receiver& rx, dds_entity_t ws, pid_t daemon,
+                  const std::vector<pid_t>& helpers) {
+  DaemonEnd end;
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto t_end = t0 + std::chrono::duration<double>(o.duration_s + 1.5);
   while (std::chrono::steady_clock::now() < t_end) {
+    if (waitpid(daemon, &end.status, WNOHANG) == daemon) {
+      end.early = true;
+      end.after_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      break;
+    }
     if (o.use_waitset) {
       dds_waitset_wait(ws, nullptr, 0, DDS_MSECS(100));
       rx.take_all();
@@ -497,16 +575,20 @@ void measure(const Options& o, Receiver& rx, dds_entity_t ws, pid_t daemon,
     dds_set_listener(rx.crank.reader, nullptr);
     dds_set_listener(rx.engine.reader, nullptr);
   }
-  kill(daemon, SIGTERM);
   int st = 0;
-  waitpid(daemon, &st, 0);
+  if (!end.early) {
+    kill(daemon, SIGTERM);
+    waitpid(daemon, &st, 0);
+  }
   for (pid_t h : helpers) {
     kill(h, SIGINT);
     waitpid(h, &st, 0);
   }
+  return end;
 }
 
-void print_paths(const Options& o, const dds::DdsSettings& s, const Receiver& rx, bool sub_shm) {
+void print_paths(const Options& o, const dds::DdsSettings& s, const Paths& p, const Receiver& rx,
+                 bool sub_shm) {
   std::printf("torque-latency: %.0f s paced replay at %.1fx%s; DDS domain %u, topics %s/*, engine_id %u\n",
               o.duration_s, o.speed, o.stress ? ", stress-ng --cpu 1" : "", s.domain_id,
               s.topic_prefix.c_str(), static_cast<unsigned>(s.engine_id));
@@ -526,6 +608,7 @@ void print_paths(const Options& o, const dds::DdsSettings& s, const Receiver& rx
   row("  dds_write -> received (DDS)", rx.engine.dds);
   print_tail_owner("CrankState", rx.crank.split);
   print_tail_owner("EngineTorque", rx.engine.split);
+  tools::print_tail_stages(rx.crank.split, rx.crank.split_seq, p.stage_trace);
   std::printf("subscriber: %s, %s; its readers on %s\n",
               o.use_waitset ? "waitset" : "listener (receive thread)",
               o.sub_prio > 0 ? "SCHED_FIFO requested" : "SCHED_OTHER",
@@ -623,7 +706,7 @@ bool write_plot(const Options& o, const Paths& p, const Receiver& rx) {
 /// the histogram and the plot. Returns the exit status.
 int report(const Options& o, const dds::DdsSettings& s, const Paths& p, const Receiver& rx, bool sub_shm) {
   bool keep_logs = o.keep_logs;
-  print_paths(o, s, rx, sub_shm);
+  print_paths(o, s, p, rx, sub_shm);
   const Floors fl = print_floors_measured(o, p, keep_logs);
   const Stats& crank_us = rx.crank.total;
   print_floors(crank_us, rx.crank.in_daemon, rx.crank.dds, fl.cyc_p50, fl.cyc_p999, fl.dds_one_way);
@@ -665,14 +748,20 @@ int main(int argc, char** argv) {
   }
   // Its QoS too: the readers below keep 256 and request no deadline (both what iceoryx carries).
   const dds::DdsSettings s = tools::dds_settings_from(*cfg.config);
-  char tmpl[] = "/tmp/torque-latency-XXXXXX";
-  const char* tmp = mkdtemp(tmpl);
+  const char* tmpdir = std::getenv("TMPDIR");
+  std::string tmpl = std::string(tmpdir && *tmpdir ? tmpdir : "/tmp") + "/torque-latency-XXXXXX";
+  const char* tmp = mkdtemp(tmpl.data());
   if (!tmp) {
     std::fprintf(stderr, "torque-latency: mkdtemp: %s\n", std::strerror(errno));
     return 2;
   }
   const std::string dir = tmp;
-  const Paths p{dir, dir + "/torqued.log", dir + "/cyclictest.log", dir + "/ddsperf.log", dir + "/state"};
+  const Paths p{dir,
+                dir + "/torqued.log",
+                dir + "/cyclictest.log",
+                dir + "/ddsperf.log",
+                dir + "/state",
+                dir + "/stages.csv"};
   pin_and_prioritise(o);
   const dds_entity_t pp = dds_create_participant(s.domain_id, nullptr, nullptr);
   if (pp < 0) {
@@ -683,10 +772,36 @@ int main(int argc, char** argv) {
   bool sub_shm = false;
   const dds_entity_t ws = open_readers(o, s, pp, rx, sub_shm);
   const std::vector<pid_t> helpers = start_helpers(o, s, p);
-  const pid_t daemon = spawn({o.torqued, "--config", o.config, "--speed", std::to_string(o.speed),
-                              "--wait-subscribers", "1", "--state-dir", p.state_dir},
-                             p.daemon_log.c_str(), o.daemon_env);
-  measure(o, rx, ws, daemon, helpers);
+  if (o.torqued.empty()) o.torqued = default_torqued();
+  int exec_pipe[2] = {-1, -1};
+  if (pipe2(exec_pipe, O_CLOEXEC) != 0) exec_pipe[0] = exec_pipe[1] = -1;
+  const pid_t daemon =
+      spawn({o.torqued, "--config", o.config, "--speed", std::to_string(o.speed), "--wait-subscribers", "1",
+             "--state-dir", p.state_dir, "--stage-trace", p.stage_trace},
+            p.daemon_log.c_str(), o.daemon_env, exec_pipe[1]);
+  if (exec_pipe[1] >= 0) close(exec_pipe[1]);
+  DaemonEnd end;
+  if (exec_pipe[0] >= 0) end.exec_errno = exec_error(exec_pipe[0]);
+  if (end.exec_errno != 0) {
+    int st = 0;
+    waitpid(daemon, &st, 0);
+    end.early = true;
+    for (pid_t h : helpers) {
+      kill(h, SIGINT);
+      waitpid(h, &st, 0);
+    }
+  } else {
+    end = measure(o, rx, ws, daemon, helpers);
+  }
   dds_delete(pp);
+  if (end.failed()) {
+    print_daemon_end(o.torqued, p, end);
+    remove_dir(p.dir, true);
+    return 1;
+  }
+  if (end.early)
+    std::printf(
+        "torque-latency: the daemon's replay ended (exit 0) %.1f s into the run: measured up to there\n",
+        end.after_s);
   return report(o, s, p, rx, sub_shm);
 }

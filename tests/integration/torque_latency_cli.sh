@@ -3,7 +3,8 @@
 # its own process, prints the split table with a consistent split (edge -> dds_write and dds_write -> received
 # both below edge -> received at p50), the daemon's final counters with no ring drops, and writes the PNG.
 # It takes the DDS domain, topic prefix and engine_id from the config (here 7, lat, 3: samples arrive only if it
-# does), prints the floors and the ratio to them when cyclictest is installed, and leaves no temporary files.
+# does), prints the floors and the ratio to them when cyclictest is installed, the tail's stages from the daemon's
+# stamps (all samples joined on seq), and leaves no temporary files.
 # Timing figures are not asserted (shared machine). Args: torque-latency torqued source-dir.
 set -u
 lat=$1 torqued=$2 src=$3
@@ -29,6 +30,9 @@ awk -v t="$total" -v a="$daemon" -v b="$dds" 'BEGIN { exit !(t > 0 && a > 0 && b
   { echo "inconsistent split: total $total, daemon $daemon, DDS $dds: $out"; exit 1; }
 echo "$out" | grep -Eq "daemon: stopped: .* drops edge/can/out/source 0/0/0/" || { echo "ring drops or no counters: $out"; exit 1; }
 echo "$out" | grep -q "DDS domain 7, topics lat/\*, engine_id 3" || { echo "not the config's DDS settings: $out"; exit 1; }
+# The tail's stages: every CrankState joined with the daemon's stamps (--stage-trace), one stage named owner.
+echo "$out" | grep -Eq "the tail's stages \(CrankState, [0-9]+ samples >= p99.9 [0-9.]+ us; ([0-9]+) of \1 joined" &&
+  echo "$out" | grep -q "the tail's stages: owned by \"" || { echo "no tail stages: $out"; exit 1; }
 if [ -n "$floors" ]; then
   echo "$out" | grep -Eq "vs floor: edge -> dds_write p50 [0-9.]+ us = cyclictest p50 [-+][0-9.]+ us" ||
     { echo "no floor comparison: $out"; exit 1; }

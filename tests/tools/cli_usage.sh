@@ -6,7 +6,8 @@
 #   - torque-eval: an unknown column lists the columns that exist (exit 1); the table calls max |error| max|err|;
 #   - the plot: one panel per quantity, identical estimates merged, a PNG written;
 #   - torque-dash like the others (exit 2 on a bad option, exit statuses and defaults in --help);
-#   - paced replay reports its end and exits with replay.exit_when_done.
+#   - paced replay reports its end and exits with replay.exit_when_done;
+#   - torque-latency: a daemon that cannot start or exits early is named with its log, exit 1.
 #   cli_usage.sh BUILD_DIR SOURCE_DIR
 set -uo pipefail
 build=$1 src=$2
@@ -71,4 +72,18 @@ sed -e "s#\.\./data/demo#$src/data/demo#" -e "s#dbc: demo.dbc#dbc: $src/config/d
 timeout 30 "$build/service/torqued" --config "$tmp/paced.yaml" --no-dds --fresh-state >"$tmp/paced.log" 2>&1; rc=$?
 ((rc == 0)) && grep -q "end of the recording reached; stopping" "$tmp/paced.log" ||
   fail "paced replay with replay.exit_when_done: exit $rc, $(tail -3 "$tmp/paced.log")"
+# torque-latency: a --torqued that cannot be started, or a daemon that exits before the run's end, is said (the
+# path and the log named) and exits 1 (it used to print a table of zeros); the logs stay in $TMPDIR.
+if [[ -x "$build/tools/torque-latency" ]]; then
+  export CYCLONEDDS_URI="file://$src/config/cyclonedds-loopback.xml"
+  TMPDIR=$tmp "$build/tools/torque-latency" --torqued "$tmp/no-such-torqued" --config "$tmp/paced.yaml" \
+    --duration 1 >"$tmp/lat.out" 2>&1; rc=$?
+  ((rc == 1)) && grep -q "cannot start the daemon '$tmp/no-such-torqued': No such file or directory" "$tmp/lat.out" &&
+    grep -q "log $tmp/torque-latency-.*/torqued.log" "$tmp/lat.out" ||
+    fail "torque-latency --torqued missing: exit $rc, $(cat "$tmp/lat.out")"
+  TMPDIR=$tmp "$build/tools/torque-latency" --torqued /bin/false --config "$tmp/paced.yaml" --duration 5 \
+    >"$tmp/lat.out" 2>&1; rc=$?
+  ((rc == 1)) && grep -q "the daemon '/bin/false' exited with status 1 before the run ended; see its log $tmp/" \
+    "$tmp/lat.out" || fail "torque-latency --torqued /bin/false: exit $rc, $(cat "$tmp/lat.out")"
+fi
 echo "PASS"
