@@ -230,7 +230,7 @@ TEST_F(FastReplayTest, NoAllocationPerRecord) {
   // GIVEN a replay of 1 s and one of 2 s WHEN counting heap allocations THEN both make the same number
   // (construction only): nothing on the per-edge path allocates.
   auto count = [&](double dur) {
-    const std::string path = (dir_ / ("e" + std::to_string(dur) + ".csv")).string();
+    const std::string path = (dir_ / std::string("e").append(std::to_string(dur)).append(".csv")).string();
     test::write_edge_csv(path, test::WheelRun{2000.0, 4000.0, dur});
     StageSettings s;
     NullSink sink;
