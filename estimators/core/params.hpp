@@ -59,7 +59,8 @@ struct PreprocessParams {
 /// added to the gas model's burn centroid so that the model's firing-order phase agrees with the Kalman's
 /// estimate's (docs/angle_estimators.md (7)).
 struct BurnPhaseParams {
-  bool learn = false;          ///< learn the offset and apply it to the in-cycle gas model's burn centroid
+  bool learn = true;  ///< learn the offset and apply it to the in-cycle gas model's burn centroid (the
+                      ///< tuning rule of docs/angle_estimators.md (7), with tooth_learn.spark_column)
   double gain = 1.0;           ///< integrator gain: offset step = −gain × the cycle's phase difference (deg/deg)
   double max_step_deg = 0.5;   ///< largest offset step per used cycle (deg)
   double min_offset_deg = -12.0;  ///< learned offset bounds (deg of burn centroid, later positive)
@@ -321,9 +322,10 @@ struct ToothLearnParams {
       true;  ///< an order nothing else identifies is learned from ALL steady firing cycles
              ///< (any load): intercept against u = (MAP/100 kPa)/ω̄² (ToothOrderSource::kFiring)
   bool spark_column =
-      false;  ///< the firing orders' load law gets a column u·(spark − spark_ref) from the firing cycles with
-              ///< a fresh spark advance (the combustion's phase, so the ripple's firing-order phase, moves
-              ///< with the spark); without a spark advance the law [1, u, x] (docs/angle_estimators.md)
+      true;  ///< the firing orders' load law gets a column u·(spark − spark_ref) from the firing cycles with
+             ///< a fresh spark advance (the combustion's phase, so the ripple's firing-order phase, moves
+             ///< with the spark); without a spark advance the law [1, u, x] (docs/angle_estimators.md (6);
+             ///< on with the burn-phasing learner, (7))
   double firing_law_min_load_spread =
       0.05;  ///< the firing orders' load law [1, u, x] (x = 1/ω̄²) is used only when this share of the
              ///< variance of u is not explained by x (1 − r²): loads that vary apart from the speed. At
