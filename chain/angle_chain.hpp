@@ -17,9 +17,9 @@
 // input: the electric machine's CAN torque (can.signals.em_torque × can.e_machine.ratio × sign) folded into
 // the net load of every balance (fold_e_machine, estimators/core/e_machine.hpp; the time stage folds the
 // same), and motoring by the machine → friction learner; a stale machine signal holds what rests on it with
-// STALE_CAN, as the load signal; (6) the in-cycle Kalman's estimate and the gas model inside it → burn-phasing
-// learner (kalman.burn_phase_learn) → the gas model's burn centroid offset, applied at the cycle boundary.
-// on_edge/on_frame/poll/set_time_estimate are real-time safe: no allocation, no lock, no blocking.
+// STALE_CAN, as the load signal; (6) the in-cycle Kalman's estimate and the gas model inside it →
+// burn-phasing learner (kalman.burn_phase_learn) → the gas model's burn centroid offset, applied at the cycle
+// boundary. on_edge/on_frame/poll/set_time_estimate are real-time safe: no allocation, no lock, no blocking.
 #include <array>
 #include <cstdint>
 #include <memory>

@@ -356,7 +356,7 @@ class AnglePipeline {
   double held_map_pa_ = 0.0;  ///< last fresh MAP (Pa), held while CAN is lost
   bool have_map_ = false;
   double burn_offset_deg_ = 0.0;  ///< set_burn_offset_deg (deg)
-  double held_spark_deg_ = 0.0;  ///< last fresh spark advance (deg), NaN until one arrived
+  double held_spark_deg_ = 0.0;   ///< last fresh spark advance (deg), NaN until one arrived
   bool have_prev_load_ = false;
 };
 

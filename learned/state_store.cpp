@@ -361,8 +361,9 @@ bool check_inertia(const LearnedState& s, const StateContext& ctx, std::string* 
 bool check_burn_phase(const LearnedState& s, const StateContext& ctx, std::string* what) {
   const auto& v = *s.burn_phase;
   if (v[0] >= ctx.min_burn_offset_deg && v[0] <= ctx.max_burn_offset_deg && v[1] >= 0.0) return true;
-  *what = "burn phase offset " + fmt("%g", v[0]) + " deg not in [" + fmt("%g", ctx.min_burn_offset_deg) + ", " +
-          fmt("%g", ctx.max_burn_offset_deg) + "], or its cycle count " + fmt("%g", v[1]) + " negative";
+  *what = "burn phase offset " + fmt("%g", v[0]) + " deg not in [" + fmt("%g", ctx.min_burn_offset_deg) +
+          ", " + fmt("%g", ctx.max_burn_offset_deg) + "], or its cycle count " + fmt("%g", v[1]) +
+          " negative";
   return false;
 }
 

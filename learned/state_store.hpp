@@ -19,7 +19,8 @@
 //   crank_error_var <N m^2>                          (optional: measured variance of the crank-only chain)
 //   inertia <k> <information 1/k^2> <J_spec kg m^2>  (optional: J = k x J_spec, InertiaLearner; J_spec is the
 //                                                    engine.j_rot_kgm2 it was learned against)
-//   burn_phase <offset deg> <used cycles>           (optional: BurnPhaseLearner, the in-cycle gas model's burn
+//   burn_phase <offset deg> <used cycles>           (optional: BurnPhaseLearner, the in-cycle gas model's
+//   burn
 //                                                    centroid offset)
 //   saved_at_t_ns <edge-clock time>
 //   checksum crc32 <8 hex digits of CRC-32 (IEEE) over every byte before this line>
@@ -72,7 +73,8 @@ struct StateContext {
   double max_torque_sd_nm = 0;   ///< bound of a learned 1 sigma (N m): the torque of kMaxFrictionMepPa
   double min_inertia_scale = 0;  ///< bounds of the learned inertia scale (estimators.energies.inertia)
   double max_inertia_scale = 0;
-  double min_burn_offset_deg = 0;  ///< bounds of the learned burn-phase offset (estimators.kalman.burn_phase_*)
+  double min_burn_offset_deg =
+      0;  ///< bounds of the learned burn-phase offset (estimators.kalman.burn_phase_*)
   double max_burn_offset_deg = 0;
 };
 

@@ -197,14 +197,15 @@ void print_burn_phase(const torqued::eval::BurnPhaseSummary& b) {
   if (!b.on) return;
   static constexpr const char* kState[] = {"not used", "learning", "converged"};
   const auto& st = b.stats;
-  std::printf("  burn phase: offset %+.2f deg, %s, %llu cycles used (mean model lag %+.2f deg; not used: cut %llu, "
-              "map %llu, spark %llu, model %llu, incomplete %llu, small %llu)\n",
-              b.offset_deg, kState[static_cast<int>(st.state)], static_cast<unsigned long long>(st.cycles_used),
-              st.mean_phase_deg, static_cast<unsigned long long>(st.cycles_cutoff),
-              static_cast<unsigned long long>(st.cycles_no_map), static_cast<unsigned long long>(st.cycles_no_spark),
-              static_cast<unsigned long long>(st.cycles_no_model),
-              static_cast<unsigned long long>(st.cycles_incomplete),
-              static_cast<unsigned long long>(st.cycles_small_ripple));
+  std::printf(
+      "  burn phase: offset %+.2f deg, %s, %llu cycles used (mean model lag %+.2f deg; not used: cut %llu, "
+      "map %llu, spark %llu, model %llu, incomplete %llu, small %llu)\n",
+      b.offset_deg, kState[static_cast<int>(st.state)], static_cast<unsigned long long>(st.cycles_used),
+      st.mean_phase_deg, static_cast<unsigned long long>(st.cycles_cutoff),
+      static_cast<unsigned long long>(st.cycles_no_map), static_cast<unsigned long long>(st.cycles_no_spark),
+      static_cast<unsigned long long>(st.cycles_no_model),
+      static_cast<unsigned long long>(st.cycles_incomplete),
+      static_cast<unsigned long long>(st.cycles_small_ripple));
 }
 
 int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& base, const std::string& only,

@@ -61,12 +61,13 @@ struct PreprocessParams {
 struct BurnPhaseParams {
   bool learn = true;  ///< learn the offset and apply it to the in-cycle gas model's burn centroid (the
                       ///< tuning rule of docs/angle_estimators.md (7), with tooth_learn.spark_column)
-  double gain = 1.0;           ///< integrator gain: offset step = −gain × the cycle's phase difference (deg/deg)
-  double max_step_deg = 0.5;   ///< largest offset step per used cycle (deg)
+  double gain = 1.0;  ///< integrator gain: offset step = −gain × the cycle's phase difference (deg/deg)
+  double max_step_deg = 0.5;      ///< largest offset step per used cycle (deg)
   double min_offset_deg = -12.0;  ///< learned offset bounds (deg of burn centroid, later positive)
   double max_offset_deg = 12.0;
-  double min_ripple_nm = 5.0;  ///< firing-order amplitude of the model's ripple below which a cycle is not used
-  int quality_cycles = 10;     ///< time constant of the mean phase difference that decides "converged" (cycles)
+  double min_ripple_nm =
+      5.0;                  ///< model's firing-order ripple amplitude below which a cycle is not used (N m)
+  int quality_cycles = 10;  ///< time constant of the mean phase difference deciding "converged" (cycles)
   double converged_deg = 0.25;  ///< |mean phase difference| at or below which the offset is converged (deg)
   int min_cycles = 20;          ///< used cycles before "converged" may be reported
 };

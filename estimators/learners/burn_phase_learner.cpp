@@ -95,7 +95,8 @@ bool BurnPhaseLearner::end_cycle() noexcept {
   ++stats_.cycles_used;
   stats_.last_phase_deg = d_deg;
   const double a = 1.0 / std::max(p_.quality_cycles, 1);
-  stats_.mean_phase_deg = stats_.cycles_used == 1 ? d_deg : stats_.mean_phase_deg + a * (d_deg - stats_.mean_phase_deg);
+  stats_.mean_phase_deg =
+      stats_.cycles_used == 1 ? d_deg : stats_.mean_phase_deg + a * (d_deg - stats_.mean_phase_deg);
   const double step = std::clamp(-p_.gain * d_deg, -p_.max_step_deg, p_.max_step_deg);
   const double before = offset_deg_;
   offset_deg_ = std::clamp(offset_deg_ + step, p_.min_offset_deg, p_.max_offset_deg);

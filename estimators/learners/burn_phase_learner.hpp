@@ -56,15 +56,15 @@ enum class BurnPhaseState : std::uint8_t {
 
 /// Counters and quality (never silent).
 struct BurnPhaseStats {
-  std::uint64_t cycles_used = 0;         ///< cycles that moved the offset
-  std::uint64_t cycles_cutoff = 0;       ///< not used: a fuel cut-off in the cycle or the one before
-  std::uint64_t cycles_no_map = 0;       ///< not used: MAP stale or absent at some sample
-  std::uint64_t cycles_no_spark = 0;     ///< not used: spark advance stale or absent at some sample
-  std::uint64_t cycles_no_model = 0;     ///< not used: estimate invalid or without the gas model at some sample
-  std::uint64_t cycles_incomplete = 0;   ///< not used: fewer than K samples (lost teeth, sync)
+  std::uint64_t cycles_used = 0;      ///< cycles that moved the offset
+  std::uint64_t cycles_cutoff = 0;    ///< not used: a fuel cut-off in the cycle or the one before
+  std::uint64_t cycles_no_map = 0;    ///< not used: MAP stale or absent at some sample
+  std::uint64_t cycles_no_spark = 0;  ///< not used: spark advance stale or absent at some sample
+  std::uint64_t cycles_no_model = 0;  ///< not used: estimate invalid or without the gas model at some sample
+  std::uint64_t cycles_incomplete = 0;    ///< not used: fewer than K samples (lost teeth, sync)
   std::uint64_t cycles_small_ripple = 0;  ///< not used: firing-order ripple below min_ripple_nm
-  double last_phase_deg = 0.0;           ///< d of the last used cycle (deg, + = model later)
-  double mean_phase_deg = 0.0;           ///< d̄ (deg)
+  double last_phase_deg = 0.0;            ///< d of the last used cycle (deg, + = model later)
+  double mean_phase_deg = 0.0;            ///< d̄ (deg)
   BurnPhaseState state = BurnPhaseState::kNotUsed;
 };
 
@@ -103,7 +103,7 @@ class BurnPhaseLearner {
 
   BurnPhaseParams p_;
   int samples_ = 0;
-  double order_ = 0.0;  ///< h: firing order per revolution
+  double order_ = 0.0;               ///< h: firing order per revolution
   std::vector<double> wcos_, wsin_;  ///< Δ_k cos ψ_k, Δ_k sin ψ_k
   double offset_deg_ = 0.0;
   BurnPhaseStats stats_;

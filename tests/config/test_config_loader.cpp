@@ -149,7 +149,8 @@ const BadCase kBad[] = {
      "(1/rad, range [0.001, 1000])",
      1},
     {"burn_phase_offset_beyond_tables",
-     "burn_phase_offset_beyond_tables.yaml:5:32: key 'estimators.kalman.burn_phase_max_offset_deg': found '40', "
+     "burn_phase_offset_beyond_tables.yaml:5:32: key 'estimators.kalman.burn_phase_max_offset_deg': found "
+     "'40', "
      "expected a finite number (deg, range [0, 28])",
      1},
     {"free_coast_band_inverted",

@@ -58,7 +58,8 @@ LoopResult run_loop(double truth_deg, bool learn, Fresh fresh, double tolerance_
   auto set_model = [&](double off) {  // the model's zero-mean ripple at this offset
     model.burn_peak_rad = (kModelPeakDeg + off) * kDeg;
     model_mean = 0.0;
-    for (int i = 0; i < 1440; ++i) model_mean += test::synthetic_t_ind(kin, model, i * 4.0 * kPi / 1440) / 1440;
+    for (int i = 0; i < 1440; ++i)
+      model_mean += test::synthetic_t_ind(kin, model, i * 4.0 * kPi / 1440) / 1440;
   };
   set_model(0.0);
   LoopResult r;
@@ -73,7 +74,7 @@ LoopResult run_loop(double truth_deg, bool learn, Fresh fresh, double tolerance_
       const test::AllocationScope scope;
       learner.set_signals(fresh.map, fresh.spark, false);
       learner.update(kf.estimate_tooth(), kf.estimate().torque_nm, kf.output_model_nm(),
-                      kf.estimate().health == Health::kValid && kf.model_active());
+                     kf.estimate().health == Health::kValid && kf.model_active());
       if (s.tooth == kk - 1) (void)learner.end_cycle();
       r.allocations += scope.count();
     }
@@ -116,9 +117,10 @@ TEST(BurnPhaseLearner, ABurnLaterOrEarlierThanTheModelsIsLearnedAndItsFiringOrde
     // WHEN the learner's offset feeds the model at each cycle end, or does not
     const LoopResult on = run_loop(truth, true, Fresh{}, kOffsetTolDeg);
     const LoopResult off = run_loop(truth, false, Fresh{}, kOffsetTolDeg);
-    std::printf("true shift %+.0f deg: learned %+.2f deg within %.1f deg after %d cycles, lag %+.2f deg "
-                "(without the learner %+.2f deg)\n",
-                truth, on.offset_deg, kOffsetTolDeg, on.cycles_to_tolerance, on.lag_deg, off.lag_deg);
+    std::printf(
+        "true shift %+.0f deg: learned %+.2f deg within %.1f deg after %d cycles, lag %+.2f deg "
+        "(without the learner %+.2f deg)\n",
+        truth, on.offset_deg, kOffsetTolDeg, on.cycles_to_tolerance, on.lag_deg, off.lag_deg);
     // THEN the offset is within 1° of the true shift from cycle 30 on, and converged
     EXPECT_NEAR(on.offset_deg, truth, kOffsetTolDeg);
     EXPECT_GE(on.cycles_to_tolerance, 1);

@@ -87,10 +87,10 @@ TEST_P(InCycleRegimes, KalmanWithinSixPercentThroughTransientsTenThroughACutOffA
   EXPECT_LE(std::abs(r.transient.kalman.lag_deg), 1.5);
   EXPECT_LE(std::abs(r.cutoff.kalman.lag_deg), 1.5);
   // AND its claimed 1σ holds there: at least 60 % of the teeth within it (0 % before: the APS filter
-  // claimed 0), and not a bound so loose that every tooth is within it (99.9 %, was 99 % before the burn-phasing
-  // learner: with it rep_i4_60's model misses so little, 1.6 / 2.0 % of p2p, that the model-miss σ chosen on
-  // the tuning engines, kalman.model_torque_sd_nm 20 N m, covers 99.3 / 99.5 % there; docs/angle_estimators.md
-  // (7))
+  // claimed 0), and not a bound so loose that every tooth is within it (99.9 %, was 99 % before the
+  // burn-phasing learner: with it rep_i4_60's model misses so little, 1.6 / 2.0 % of p2p, that the model-miss
+  // σ chosen on the tuning engines, kalman.model_torque_sd_nm 20 N m, covers 99.3 / 99.5 % there;
+  // docs/angle_estimators.md (7))
   for (const eval::InCycleRegime& g : {r.transient, r.cutoff}) {
     EXPECT_GE(g.kalman_cover_pct, 60.0);
     EXPECT_LE(g.kalman_cover_pct, 99.9);
