@@ -25,6 +25,9 @@ AngleChain::AngleChain(const StageSettings& s, const DbcDatabase* dbc, AngleChai
     ac.spark_on_can =
         store_ && !s_.signals[static_cast<std::size_t>(Quantity::kSparkAdvance)].message.empty();
     pipeline_ = std::make_unique<AnglePipeline>(ac);
+    const KalmanParams& kp = s_.angle.kalman;
+    if (s_.angle.run_kalman && kp.gas_model && kp.burn_phase.learn)
+      burn_ = std::make_unique<BurnPhaseLearner>(s_.engine, s_.wheel, kp.burn_phase);
   }
   if (s_.tooth_learn_enabled) {
     learner_ = std::make_unique<ToothErrorLearner>(s_.engine, s_.wheel, s_.tooth_learn);
@@ -99,6 +102,7 @@ void AngleChain::on_tooth(const ToothEvent& te) noexcept {
     learner_->update(ts);
   }
   const std::uint8_t ready = pipeline_ ? pipeline_->on_tooth(ts, sig) : 0;
+  if (burn_ && synced) feed_burn_phase(sig);  // feedback (6): the Kalman's estimate against its gas model
   const bool est_valid = pipeline_ && pipeline_->tooth_output().valid;
   if (est_valid) {
     ct.accel_rad_s2 = pipeline_->tooth_output().accel_rad_s2;
@@ -133,9 +137,23 @@ void AngleChain::emit_segment(const ToothEvent& te) noexcept {
   out_.on_segment(cs);
 }
 
-// Feedback (1): the learned tooth table goes to the decoder at each cycle boundary.
+// Feedback (6), per tooth: the Kalman's estimate and the gas model inside it, with the signals the model
+// rests on (a stale or absent MAP or spark advance, or a cut-off, keeps the cycle out of the learner).
+void AngleChain::feed_burn_phase(const EngineSignals& sig) noexcept {
+  const ChauvinKalman& kf = pipeline_->kalman();
+  const TorqueEstimate& e = kf.estimate();
+  burn_->set_signals(sig.map_valid && std::isfinite(sig.map_pa),
+                     sig.spark_valid && std::isfinite(sig.spark_advance_deg),
+                     sig.fuel_cutoff_valid && sig.fuel_cutoff);
+  const bool valid = pipeline_->tooth_output().kalman_ind.health == Health::kValid && kf.model_active();
+  burn_->update(kf.estimate_tooth(), e.torque_nm, kf.output_model_nm(), valid);
+}
+
+// Feedback (1): the learned tooth table goes to the decoder at each cycle boundary; (6) the burn-phasing
+// learner's offset goes to the gas model.
 void AngleChain::on_cycle_end() noexcept {
   ++cycles_;
+  if (burn_ && burn_->end_cycle()) pipeline_->set_burn_offset_deg(burn_->offset_deg());
   if (learner_ && learner_->import_distrusted() && !import_distrust_applied_) {
     // The engine contradicted the imported table: the decoder drops it, the angle-domain observers say
     // "not converged" until the fresh table is ready (below, at a later cycle end), the state no longer holds
@@ -188,7 +206,10 @@ bool AngleChain::snapshot(LearnedState& st) const noexcept {
     if (inertia_imported_ || !in.is_prior())
       st.inertia = std::array<double, 3>{in.scale(), in.information(), s_.engine.j_rot_kgm2};
   }
-  return st.friction || !st.tooth_corrections_rad.empty() || st.fuel || st.crank_error_var || st.inertia;
+  if (burn_ && (burn_imported_ || burn_->cycles_behind() > 0))
+    st.burn_phase = std::array<double, 2>{burn_->offset_deg(), static_cast<double>(burn_->cycles_behind())};
+  return st.friction || !st.tooth_corrections_rad.empty() || st.fuel || st.crank_error_var || st.inertia ||
+         st.burn_phase;
 }
 
 std::string AngleChain::import_state(const LearnedState& st) {
@@ -245,6 +266,17 @@ std::string AngleChain::import_state(const LearnedState& st) {
     } else {
       what += std::string(what.empty() ? "" : ", ") + "inertia scale REJECTED (" + std::to_string(v[0] * r) +
               " x engine.j_rot_kgm2, not within its configured limits)";
+    }
+  }
+  if (st.burn_phase && burn_) {
+    const auto& b = *st.burn_phase;
+    if (burn_->import_state(b[0], b[1])) {
+      pipeline_->set_burn_offset_deg(burn_->offset_deg());
+      burn_imported_ = true;
+      what += (what.empty() ? "" : ", ") + std::string("burn phase offset ") + std::to_string(b[0]) + " deg";
+    } else {
+      what += std::string(what.empty() ? "" : ", ") + "burn phase offset REJECTED (" + std::to_string(b[0]) +
+              " deg, not within kalman.burn_phase_min/max_offset_deg)";
     }
   }
   state_changed_ = !what.empty();

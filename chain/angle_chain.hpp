@@ -17,8 +17,9 @@
 // input: the electric machine's CAN torque (can.signals.em_torque × can.e_machine.ratio × sign) folded into
 // the net load of every balance (fold_e_machine, estimators/core/e_machine.hpp; the time stage folds the
 // same), and motoring by the machine → friction learner; a stale machine signal holds what rests on it with
-// STALE_CAN, as the load signal. on_edge/on_frame/poll/set_time_estimate are real-time safe: no allocation,
-// no lock, no blocking.
+// STALE_CAN, as the load signal; (6) the in-cycle Kalman's estimate and the gas model inside it →
+// burn-phasing learner (kalman.burn_phase_learn) → the gas model's burn centroid offset, applied at the cycle
+// boundary. on_edge/on_frame/poll/set_time_estimate are real-time safe: no allocation, no lock, no blocking.
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -27,6 +28,7 @@
 #include <vector>
 
 #include "angle_pipeline.hpp"
+#include "burn_phase_learner.hpp"
 #include "crank_decoder.hpp"
 #include "dbc.hpp"
 #include "decoder_events.hpp"
@@ -103,6 +105,8 @@ class AngleChain {
   [[nodiscard]] ChainStatus status() const noexcept;
   [[nodiscard]] const AnglePipeline* pipeline() const noexcept { return pipeline_.get(); }
   [[nodiscard]] const ToothErrorLearner* learner() const noexcept { return learner_.get(); }
+  /// The burn-phasing learner (null: kalman.burn_phase_learn off, or no Kalman with a gas model).
+  [[nodiscard]] const BurnPhaseLearner* burn_phase() const noexcept { return burn_.get(); }
   /// Imported tooth tables the running engine contradicted (discarded and relearned; 0 or 1 per run).
   [[nodiscard]] std::uint64_t tooth_tables_distrusted() const noexcept {
     return learner_ ? learner_->stats().tables_distrusted : 0;
@@ -130,6 +134,7 @@ class AngleChain {
  private:
   void on_tooth(const ToothEvent& te) noexcept;
   void on_cycle_end() noexcept;
+  void feed_burn_phase(const EngineSignals& sig) noexcept;
   void emit_segment(const ToothEvent& te) noexcept;
   [[nodiscard]] bool friction_learned() const noexcept;
 
@@ -141,6 +146,7 @@ class AngleChain {
   std::unique_ptr<SignalStore> store_;
   std::unique_ptr<AnglePipeline> pipeline_;
   std::unique_ptr<ToothErrorLearner> learner_;
+  std::unique_ptr<BurnPhaseLearner> burn_;
   std::string error_;
 
   bool import_distrust_applied_ = false;
@@ -156,6 +162,7 @@ class AngleChain {
   bool fuel_imported_ = false;
   bool crank_var_imported_ = false;
   bool inertia_imported_ = false;
+  bool burn_imported_ = false;
   bool state_changed_ = false;
 };
 

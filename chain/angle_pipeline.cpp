@@ -192,10 +192,11 @@ double AnglePipeline::gas_ripple_nm(int k, bool works_ok) const noexcept {
 
 // The in-cycle model's burn centroid (docs/angle_estimators.md, "What limits the I6"): the spark advance's,
 // centroid = burn_delay_deg − advance as in the RLS closure (energies.incycle_spark_phasing), else, or while
-// no spark advance has arrived, energies.burn_centroid_atdc_deg.
+// no spark advance has arrived, energies.burn_centroid_atdc_deg; plus the burn-phasing learner's offset
+// (set_burn_offset_deg, 0 without it).
 double AnglePipeline::ripple_centroid_deg() const noexcept {
   if (!cfg_.energies.incycle_spark_phasing) return cfg_.energies.burn_centroid_atdc_deg;
-  return rls_.centroid_deg(held_spark_deg_);
+  return rls_.centroid_deg(held_spark_deg_) + burn_offset_deg_;
 }
 
 std::uint8_t AnglePipeline::on_tooth(const ToothSample& s, const EngineSignals& sig) noexcept {

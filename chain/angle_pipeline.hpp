@@ -147,6 +147,15 @@ class AnglePipeline {
 
   /// Whether the wheel's tooth table is learned (or imported): until it is, the in-cycle observers and the
   /// per-cylinder record say so in their health. Default: learned (no learner in use).
+  /// Feedback (6) of the angle chain: the burn-phasing learner's offset of the in-cycle gas model's burn
+  /// centroid (deg, + = later; BurnPhaseLearner), added to the spark-phased centroid
+  /// (energies.incycle_spark_phasing). Real-time safe; takes effect at the next tooth.
+  void set_burn_offset_deg(double offset_deg) noexcept {
+    if (offset_deg == burn_offset_deg_) return;
+    burn_offset_deg_ = offset_deg;
+    ripple_pair_ok_ = false;  // the centroid's table pair is recomputed
+  }
+  [[nodiscard]] double burn_offset_deg() const noexcept { return burn_offset_deg_; }
   void set_wheel_learned(bool learned) noexcept {
     cyl_.set_wheel_learned(learned);
     kalman_.set_wheel_learned(learned);
@@ -346,7 +355,8 @@ class AnglePipeline {
   double prev_load_ = 0.0;    ///< previous window's mean CAN load (N m)
   double held_map_pa_ = 0.0;  ///< last fresh MAP (Pa), held while CAN is lost
   bool have_map_ = false;
-  double held_spark_deg_ = 0.0;  ///< last fresh spark advance (deg), NaN until one arrived
+  double burn_offset_deg_ = 0.0;  ///< set_burn_offset_deg (deg)
+  double held_spark_deg_ = 0.0;   ///< last fresh spark advance (deg), NaN until one arrived
   bool have_prev_load_ = false;
 };
 

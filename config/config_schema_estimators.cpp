@@ -121,6 +121,31 @@ void add_angle_observers(std::vector<SchemaEntry>& t) {
          "highest speed of the APS gain schedule");
   TQ_INT("kalman.speed_bins", kalman.params.speed_bins, closed(1, 256), "",
          "APS gain sets, log-spaced in speed");
+  // The gas model's burn-phasing learner (estimators/learners/burn_phase_learner.hpp).
+  TQ_BOOL(
+      "kalman.burn_phase_learn", kalman.params.burn_phase.learn,
+      "learn an offset of the gas model's burn centroid from the firing-order phase of the estimate against "
+      "the model (with kalman.gas_model and energies.incycle_spark_phasing)");
+  TQ_NUM("kalman.burn_phase_gain", kalman.params.burn_phase.gain, open_closed(0.0, 10.0), "deg/deg",
+         "integrator gain: offset step = -gain x the cycle's model-behind-estimate firing-order lag");
+  TQ_NUM("kalman.burn_phase_max_step_deg", kalman.params.burn_phase.max_step_deg, open_closed(0.0, 5.0),
+         "deg", "largest offset step per used cycle");
+  TQ_NUM("kalman.burn_phase_min_offset_deg", kalman.params.burn_phase.min_offset_deg, closed(-16.0, 0.0),
+         "deg",
+         "lower bound of the learned offset (the ripple tables reach 16 deg before "
+         "energies.burn_centroid_atdc_deg)");
+  TQ_NUM("kalman.burn_phase_max_offset_deg", kalman.params.burn_phase.max_offset_deg, closed(0.0, 28.0),
+         "deg",
+         "upper bound of the learned offset (the ripple tables reach 28 deg after "
+         "energies.burn_centroid_atdc_deg)");
+  TQ_NUM("kalman.burn_phase_min_ripple_nm", kalman.params.burn_phase.min_ripple_nm, closed(0.0, 1e5), "N m",
+         "firing-order amplitude of the model's ripple below which a cycle does not move the offset");
+  TQ_INT("kalman.burn_phase_quality_cycles", kalman.params.burn_phase.quality_cycles, closed(1, 10000),
+         "cycles", "time constant of the mean phase difference that decides converged");
+  TQ_NUM("kalman.burn_phase_converged_deg", kalman.params.burn_phase.converged_deg, open_closed(0.0, 10.0),
+         "deg", "mean |model-behind-estimate lag| at or below which the offset reads converged");
+  TQ_INT("kalman.burn_phase_min_cycles", kalman.params.burn_phase.min_cycles, closed(0, 100000), "cycles",
+         "used cycles before the offset may read converged");
   TQ_BOOL("fourier.enabled", fourier.enabled, "run the adaptive Fourier observer (CF)");
   TQ_INT("fourier.harmonics", fourier.params.harmonics, closed(1, 64), "",
          "n_h harmonics of the 720 deg cycle (CF §V.B)");

@@ -104,6 +104,8 @@ constexpr void visit_fields(const torque_DaemonStatus& s, F&& f) {
   f("cam_phase_errors", s.cam_phase_errors);
   f("fuel_references", s.fuel_references);
   f("fuel_cells", s.fuel_cells);
+  f("burn_phase_state", s.burn_phase_state);
+  f("burn_phase_offset_deg", s.burn_phase_offset_deg);
 }
 
 /// CSV header line (with '\n') of a topic: "t_ns,engine_id,seq,...".

@@ -1,11 +1,12 @@
 #pragma once
 // The learned state: ONE record for everything the daemon learns and keeps across restarts (friction law, its
 // idle correction and motoring residual scale, the tooth table, the fuel model, the crank-only error
-// variance, the inertia scale). Fixed size and trivially copyable: the angle chain fills it on the real-time
-// angle thread without allocating (AngleChain::snapshot), the angle stage hands it to the supervisor through
-// a LatestValue<LearnedState> (rt/latest_value.hpp), and the file format (learned/state_store.hpp) reads and
-// writes the same record. Each optional quantity carries its own validity flag (Opt<T>); the tooth table is a
-// fixed array and a count (FixedVec); the identity read from a file is a fixed string (FixedString).
+// variance, the inertia scale, the gas model's burn-phase offset). Fixed size and trivially copyable: the
+// angle chain fills it on the real-time angle thread without allocating (AngleChain::snapshot), the angle
+// stage hands it to the supervisor through a LatestValue<LearnedState> (rt/latest_value.hpp), and the file
+// format (learned/state_store.hpp) reads and writes the same record. Each optional quantity carries its own
+// validity flag (Opt<T>); the tooth table is a fixed array and a count (FixedVec); the identity read from a
+// file is a fixed string (FixedString).
 //
 // Adding a learned quantity (the three edits, nothing else):
 //   1. its field here, in LearnedState (an Opt<...> when it may be absent);
@@ -144,10 +145,11 @@ struct LearnedState {
   /// imported as converged): restored, the law stays "not converged" until the count is reached.
   Opt<double> friction_observations;
   FixedVec<double, kMaxToothCorrections> tooth_corrections_rad;  ///< ToothErrorLearner table (empty: none)
-  Opt<FuelTorqueState> fuel;           ///< FuelTorque learned efficiency / pumping / covariance
-  Opt<double> crank_error_var;         ///< measured crank-only indicated error variance (N m^2)
-  Opt<std::array<double, 3>> inertia;  ///< InertiaLearner k, its information (1/sigma^2), J_spec (kg m^2)
-  std::int64_t saved_at_t_ns = 0;      ///< edge-clock time of the save
+  Opt<FuelTorqueState> fuel;              ///< FuelTorque learned efficiency / pumping / covariance
+  Opt<double> crank_error_var;            ///< measured crank-only indicated error variance (N m^2)
+  Opt<std::array<double, 3>> inertia;     ///< InertiaLearner k, its information (1/sigma^2), J_spec (kg m^2)
+  Opt<std::array<double, 2>> burn_phase;  ///< BurnPhaseLearner offset (deg) and the used cycles behind it
+  std::int64_t saved_at_t_ns = 0;         ///< edge-clock time of the save
   FixedString<kMaxIdentityChars> identity;  ///< read from the file (version 2); written from StateContext
   int version = 2;                          ///< read from the file
 };

@@ -134,6 +134,8 @@ StateContext state_context_from(const Config& cfg) {
   ctx.max_torque_sd_nm = kMaxFrictionMepPa * vd / (4.0 * std::numbers::pi);
   ctx.min_inertia_scale = cfg.estimators.energies.params.inertia.min_scale;
   ctx.max_inertia_scale = cfg.estimators.energies.params.inertia.max_scale;
+  ctx.min_burn_offset_deg = cfg.estimators.kalman.params.burn_phase.min_offset_deg;
+  ctx.max_burn_offset_deg = cfg.estimators.kalman.params.burn_phase.max_offset_deg;
   return ctx;
 }
 
@@ -356,6 +358,15 @@ bool check_inertia(const LearnedState& s, const StateContext& ctx, std::string* 
   return false;
 }
 
+bool check_burn_phase(const LearnedState& s, const StateContext& ctx, std::string* what) {
+  const auto& v = *s.burn_phase;
+  if (v[0] >= ctx.min_burn_offset_deg && v[0] <= ctx.max_burn_offset_deg && v[1] >= 0.0) return true;
+  *what = "burn phase offset " + fmt("%g", v[0]) + " deg not in [" + fmt("%g", ctx.min_burn_offset_deg) +
+          ", " + fmt("%g", ctx.max_burn_offset_deg) + "], or its cycle count " + fmt("%g", v[1]) +
+          " negative";
+  return false;
+}
+
 using S = LearnedState;
 const Line kLines[] = {
     {"friction", "gggg", 0, "expected 4 finite friction coefficients", has_opt<&S::friction>,
@@ -405,6 +416,8 @@ const Line kLines[] = {
      get_reals<&S::crank_error_var>, set_reals<&S::crank_error_var>, check_crank_var},
     {"inertia", "ggg", 0, "expected an inertia scale, its information (1/sigma^2) and the spec J (kg m^2)",
      has_opt<&S::inertia>, get_reals<&S::inertia>, set_reals<&S::inertia>, check_inertia},
+    {"burn_phase", "gc", 0, "expected a burn phase offset (deg) and the used cycles behind it",
+     has_opt<&S::burn_phase>, get_reals<&S::burn_phase>, set_reals<&S::burn_phase>, check_burn_phase},
     {"saved_at_t_ns", "i", 0, "expected an integer time", [](const S&) { return true; },
      [](const S& s, Nums& v) { v.push_back({.n = s.saved_at_t_ns}); },
      [](S& s, const Nums& v) {

@@ -19,6 +19,9 @@
 //   crank_error_var <N m^2>                          (optional: measured variance of the crank-only chain)
 //   inertia <k> <information 1/k^2> <J_spec kg m^2>  (optional: J = k x J_spec, InertiaLearner; J_spec is the
 //                                                    engine.j_rot_kgm2 it was learned against)
+//   burn_phase <offset deg> <used cycles>           (optional: BurnPhaseLearner, the in-cycle gas model's
+//   burn
+//                                                    centroid offset)
 //   saved_at_t_ns <edge-clock time>
 //   checksum crc32 <8 hex digits of CRC-32 (IEEE) over every byte before this line>
 // fuel_model, crank_error_var, inertia and friction_residual were added to version 2 (learning without a load
@@ -70,6 +73,9 @@ struct StateContext {
   double max_torque_sd_nm = 0;   ///< bound of a learned 1 sigma (N m): the torque of kMaxFrictionMepPa
   double min_inertia_scale = 0;  ///< bounds of the learned inertia scale (estimators.energies.inertia)
   double max_inertia_scale = 0;
+  double min_burn_offset_deg =
+      0;  ///< bounds of the learned burn-phase offset (estimators.kalman.burn_phase_*)
+  double max_burn_offset_deg = 0;
 };
 
 /// Friction mean effective pressure no engine reaches (Pa): 50 bar. Motored friction is 1-3 bar fmep at rated

@@ -17,6 +17,8 @@ struct RuntimeCounters {
   std::uint64_t rejected_edges = 0, cam_phase_errors = 0;  ///< decoder: glitches rejected, cam disagreements
   std::uint32_t fuel_references = 0;  ///< references the fuel model rests on (0: prior only)
   std::uint16_t fuel_cells = 0;
+  std::uint8_t burn_phase_state = 0;   ///< BurnPhaseState of the burn-phasing learner (0 also: off)
+  double burn_phase_offset_deg = 0.0;  ///< its learned offset (deg)
   /// Imported tooth tables the running engine contradicted (discarded, relearned); not in DaemonStatus.
   std::uint64_t tooth_tables_distrusted =
       0;  ///< learned speed × MAP cells of the fuel model (FuelTorque::learned_cells)
@@ -60,6 +62,8 @@ inline dds::AnySample make_status(const RuntimeCounters& c, const RuntimeCounter
   s.cam_phase_errors = c.cam_phase_errors;
   s.fuel_references = c.fuel_references;
   s.fuel_cells = c.fuel_cells;
+  s.burn_phase_state = c.burn_phase_state;
+  s.burn_phase_offset_deg = c.burn_phase_offset_deg;
   s.flags = c.flags;
   const auto dropped = [](const RuntimeCounters& x) {
     return x.ring_drops_edge + x.ring_drops_can + x.ring_drops_out + x.source_drops;

@@ -96,6 +96,10 @@ RuntimeCounters replay_counters(const AngleChain& chain, const Input& input) noe
     c.fuel_references = p->fuel_model().state().references;
     c.fuel_cells = p->fuel_model().learned_cells();
   }
+  if (const BurnPhaseLearner* b = chain.burn_phase()) {
+    c.burn_phase_state = static_cast<std::uint8_t>(b->stats().state);
+    c.burn_phase_offset_deg = b->offset_deg();
+  }
   c.can_frames = input.frames_out();
   c.source_drops = input.source_drops();
   c.sensor_timeouts = chain.status().stale_mask;

@@ -374,6 +374,10 @@ void Runtime::angle_publish_counters() noexcept {
     fuel_refs_.store(p->fuel_model().state().references, std::memory_order_relaxed);
     fuel_cells_.store(p->fuel_model().learned_cells(), std::memory_order_relaxed);
   }
+  if (const BurnPhaseLearner* b = chain.burn_phase()) {
+    burn_state_.store(static_cast<std::uint8_t>(b->stats().state), std::memory_order_relaxed);
+    burn_offset_deg_.store(b->offset_deg(), std::memory_order_relaxed);
+  }
   frames_.store(angle_frames_, std::memory_order_relaxed);
   stale_mask_.store(chain.status().stale_mask, std::memory_order_relaxed);
   synced_.store(chain.decoder().state() == SyncState::kSynced, std::memory_order_relaxed);
@@ -550,6 +554,8 @@ RuntimeCounters Runtime::counters() const noexcept {
   c.cam_phase_errors = cam_phase_errors_.load(std::memory_order_relaxed);
   c.fuel_references = fuel_refs_.load(std::memory_order_relaxed);
   c.fuel_cells = fuel_cells_.load(std::memory_order_relaxed);
+  c.burn_phase_state = burn_state_.load(std::memory_order_relaxed);
+  c.burn_phase_offset_deg = burn_offset_deg_.load(std::memory_order_relaxed);
   c.ring_drops_edge = edge_ring_.drops() + tooth_ring_.drops();
   c.ring_drops_can = can_angle_ring_.drops() + can_time_ring_.drops();
   c.ring_drops_out = out_angle_ring_.drops() + out_time_ring_.drops() + out_status_ring_.drops();

@@ -217,6 +217,8 @@ class Runtime {
   std::atomic<std::uint64_t> source_drops_{0}, stale_mask_{0}, rejected_edges_{0}, cam_phase_errors_{0};
   std::atomic<std::uint32_t> fuel_refs_{0};   ///< fuel-model references (DaemonStatus.fuel_references)
   std::atomic<std::uint16_t> fuel_cells_{0};  ///< its learned speed × MAP cells (DaemonStatus.fuel_cells)
+  std::atomic<std::uint8_t> burn_state_{0};   ///< burn-phasing learner state (DaemonStatus.burn_phase_state)
+  std::atomic<double> burn_offset_deg_{0.0};  ///< its offset (DaemonStatus.burn_phase_offset_deg)
   std::atomic<bool> synced_{false}, edge_timeout_{false};
   std::atomic<std::int64_t> last_t_ns_{0};
   std::atomic<std::int64_t> lat_p50_{0}, lat_p99_{0}, lat_max_{0};

@@ -192,6 +192,22 @@ int run_bed_fuel(bool all, bool short_run, const torqued::eval::EvalOptions& bas
 }
 
 /// In-cycle torque from a fresh start without any fuel cut-off (incycle_bed.hpp).
+/// The burn-phasing learner's end state under an in-cycle bed row (only when it ran).
+void print_burn_phase(const torqued::eval::BurnPhaseSummary& b) {
+  if (!b.on) return;
+  static constexpr const char* kState[] = {"not used", "learning", "converged"};
+  const auto& st = b.stats;
+  std::printf(
+      "  burn phase: offset %+.2f deg, %s, %llu cycles used (mean model lag %+.2f deg; not used: cut %llu, "
+      "map %llu, spark %llu, model %llu, incomplete %llu, small %llu)\n",
+      b.offset_deg, kState[static_cast<int>(st.state)], static_cast<unsigned long long>(st.cycles_used),
+      st.mean_phase_deg, static_cast<unsigned long long>(st.cycles_cutoff),
+      static_cast<unsigned long long>(st.cycles_no_map), static_cast<unsigned long long>(st.cycles_no_spark),
+      static_cast<unsigned long long>(st.cycles_no_model),
+      static_cast<unsigned long long>(st.cycles_incomplete),
+      static_cast<unsigned long long>(st.cycles_small_ripple));
+}
+
 int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& base, const std::string& only,
                     int digits) {
   std::printf(
@@ -220,6 +236,7 @@ int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& 
                 r.kalman.lag_deg, r.fourier.rms_pct_p2p, r.fourier.bias_pct_p2p, r.fourier.lag_deg,
                 r.ready_at_s, r.tooth_edge_resid_deg, static_cast<unsigned long long>(r.cycles_used),
                 r.orders.c_str(), torqued::to_string(r.quality));
+    print_burn_phase(r.burn);
     std::fflush(stdout);
   }
   return 0;
@@ -248,6 +265,7 @@ int run_bed_incycle_regimes(bool all, const torqued::eval::EvalOptions& base, co
                   g.kalman_cover_pct, g.kalman_slow_pct, g.kalman_worst_s_pct, g.fourier.rms_pct_p2p,
                   g.fourier.lag_deg);
     }
+    print_burn_phase(r.burn);
     std::fflush(stdout);
   }
   return 0;
@@ -495,6 +513,7 @@ struct Args {
   torqued::ToothLearnParams learn;
   bool no_firing_law = false;
   bool spark_column = false, no_spark_column = false;
+  bool burn_phase_learn = false, no_burn_phase_learn = false;
   torqued::KalmanParams kalman;
   torqued::FourierParams fourier;
   double burn_duration_deg = -1.0, evo_deg = -1.0, centroid_deg = -1000.0, burn_delay = -1.0;
@@ -622,6 +641,10 @@ void add_observer_options(CLI::App& app, Args& a) {
       "tooth learner: the firing orders' load law with the spark advance column (tooth_learn.spark_column)");
   app.add_flag("--no-spark-column", a.no_spark_column,
                "tooth learner: the firing orders' load law without the spark advance column");
+  app.add_flag("--burn-phase-learn", a.burn_phase_learn,
+               "in-cycle beds: learn the gas model's burn-centroid offset (kalman.burn_phase_learn)");
+  app.add_flag("--no-burn-phase-learn", a.no_burn_phase_learn,
+               "in-cycle beds: the gas model's burn centroid without the learned offset");
   app.add_option("--speed-weight-exp", a.learn.speed_weight_exp,
                  "tooth learner: residuals weighted by speed^p");
   app.add_option("--kalman-lag", a.kalman.smoother_lag, "Kalman fixed-lag smoother (teeth)");
@@ -840,6 +863,8 @@ int main(int argc, char** argv) {
   a.learn.firing_load_law = !a.no_firing_law;
   if (a.spark_column) a.learn.spark_column = true;
   if (a.no_spark_column) a.learn.spark_column = false;
+  if (a.burn_phase_learn) a.kalman.burn_phase.learn = true;
+  if (a.no_burn_phase_learn) a.kalman.burn_phase.learn = false;
   if (!a.rec.config_path.empty()) {
     if (a.rec.out_dir.empty()) a.rec.out_dir = "accuracy-out";
     return torqued::eval::run_recording(a.rec);

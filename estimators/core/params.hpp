@@ -55,6 +55,23 @@ struct PreprocessParams {
   double jitter_s = 0.3e-6;       ///< edge timestamp jitter, 1σ (s)
 };
 /// Chauvin angle-domain estimators (docs/equations.md §2).
+/// The burn-phasing learner of the in-cycle model (estimators/learners/burn_phase_learner.hpp): an offset
+/// added to the gas model's burn centroid so that the model's firing-order phase agrees with the Kalman's
+/// estimate's (docs/angle_estimators.md (7)).
+struct BurnPhaseParams {
+  bool learn = true;  ///< learn the offset and apply it to the in-cycle gas model's burn centroid (the
+                      ///< tuning rule of docs/angle_estimators.md (7), with tooth_learn.spark_column)
+  double gain = 1.0;  ///< integrator gain: offset step = −gain × the cycle's phase difference (deg/deg)
+  double max_step_deg = 0.5;      ///< largest offset step per used cycle (deg)
+  double min_offset_deg = -12.0;  ///< learned offset bounds (deg of burn centroid, later positive)
+  double max_offset_deg = 12.0;
+  double min_ripple_nm =
+      5.0;                  ///< model's firing-order ripple amplitude below which a cycle is not used (N m)
+  int quality_cycles = 10;  ///< time constant of the mean phase difference deciding "converged" (cycles)
+  double converged_deg = 0.25;  ///< |mean phase difference| at or below which the offset is converged (deg)
+  int min_cycles = 20;          ///< used cycles before "converged" may be reported
+};
+
 struct KalmanParams {
   double delta = 3.0;         ///< coloured-noise pole δ (1/rad) of h(z) (CK-18)
   double model_delta = 16.0;  ///< coloured-noise pole δ (1/rad) while the gas model is valid (the model-miss
@@ -83,6 +100,7 @@ struct KalmanParams {
   double min_rpm = 500.0;   ///< lowest speed of the APS gain schedule (rpm)
   double max_rpm = 8000.0;  ///< highest speed of the APS gain schedule (rpm)
   int speed_bins = 32;      ///< APS gain sets, log-spaced in speed, interpolated (R depends on speed)
+  BurnPhaseParams burn_phase{};  ///< the gas model's burn-phasing learner (run by the angle chain)
 };
 struct FourierParams {
   int harmonics = 12;  ///< n_h (CF §V.B); 4-cyl fires at i = 4: keep 4, 8, 12 and the imbalance sub-harmonics
@@ -305,9 +323,10 @@ struct ToothLearnParams {
       true;  ///< an order nothing else identifies is learned from ALL steady firing cycles
              ///< (any load): intercept against u = (MAP/100 kPa)/ω̄² (ToothOrderSource::kFiring)
   bool spark_column =
-      false;  ///< the firing orders' load law gets a column u·(spark − spark_ref) from the firing cycles with
-              ///< a fresh spark advance (the combustion's phase, so the ripple's firing-order phase, moves
-              ///< with the spark); without a spark advance the law [1, u, x] (docs/angle_estimators.md)
+      true;  ///< the firing orders' load law gets a column u·(spark − spark_ref) from the firing cycles with
+             ///< a fresh spark advance (the combustion's phase, so the ripple's firing-order phase, moves
+             ///< with the spark); without a spark advance the law [1, u, x] (docs/angle_estimators.md (6);
+             ///< on with the burn-phasing learner, (7))
   double firing_law_min_load_spread =
       0.05;  ///< the firing orders' load law [1, u, x] (x = 1/ω̄²) is used only when this share of the
              ///< variance of u is not explained by x (1 − r²): loads that vary apart from the speed. At

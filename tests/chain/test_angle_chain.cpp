@@ -124,6 +124,29 @@ TEST_F(AngleChainTest, ImportedToothTableReachesTheDecoderAndTheSnapshot) {
   EXPECT_EQ(chain.decoder().stats().sync_losses, 0u);  // the imported table does not break the decoding
 }
 
+TEST_F(AngleChainTest, ImportedBurnPhaseOffsetReachesTheGasModelAndTheSnapshotAndABadOneIsRejected) {
+  // GIVEN the burn-phasing learner on (the default) WHEN a persisted offset within its bounds is imported
+  // THEN the pipeline's gas model takes it (feedback (6)) and the snapshot holds it with its cycles; WHEN one
+  // beyond kalman.burn_phase_max_offset_deg THEN the message says REJECTED and nothing is applied.
+  StageSettings s;
+  Recorder rec;
+  AngleChain chain(s, nullptr, rec, nullptr);
+  ASSERT_NE(chain.burn_phase(), nullptr);
+  LearnedState st;
+  st.burn_phase = std::array<double, 2>{4.25, 300.0};
+  EXPECT_NE(chain.import_state(st).find("burn phase offset 4.25"), std::string::npos);
+  EXPECT_EQ(chain.pipeline()->burn_offset_deg(), 4.25);
+  LearnedState back;
+  ASSERT_TRUE(chain.snapshot(back));
+  ASSERT_TRUE(back.burn_phase.has_value());
+  EXPECT_EQ((*back.burn_phase)[0], 4.25);
+  EXPECT_EQ((*back.burn_phase)[1], 300.0);
+  AngleChain other(s, nullptr, rec, nullptr);
+  st.burn_phase = std::array<double, 2>{30.0, 10.0};
+  EXPECT_NE(other.import_state(st).find("burn phase offset REJECTED"), std::string::npos);
+  EXPECT_EQ(other.pipeline()->burn_offset_deg(), 0.0);
+}
+
 TEST_F(AngleChainTest, UnlearnedWheelIsSaidUntilATableIsLearnedOrImported) {
   // GIVEN tooth learning on WHEN no table was learned or imported THEN the in-cycle Kalman estimate is not
   // converged until the learner's table is applied (≥ 20 cycles of 50: ≥ 40 % of the teeth); WHEN a table for

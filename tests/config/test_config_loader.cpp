@@ -148,6 +148,11 @@ const BadCase kBad[] = {
      "number "
      "(1/rad, range [0.001, 1000])",
      1},
+    {"burn_phase_offset_beyond_tables",
+     "burn_phase_offset_beyond_tables.yaml:5:32: key 'estimators.kalman.burn_phase_max_offset_deg': found "
+     "'40', "
+     "expected a finite number (deg, range [0, 28])",
+     1},
     {"free_coast_band_inverted",
      "free_coast_band_inverted.yaml:4:3: key 'can.load_reference.free_coast_decel_max': found '1.8' "
      "(default), "

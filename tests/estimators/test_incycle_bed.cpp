@@ -55,7 +55,9 @@ TEST_P(InCycleFreshStart, KalmanWithinFivePercentOfPeakToPeakAndOneDegreeWithout
 // (energies.incycle_spark_phasing; docs/angle_estimators.md, "What limits the I6"): 4.7 / 4.4 % at −0.8 /
 // +0.1° on this 20 s run with the Wiebe 55° burn, kalman.model_delta 16 and model_torque_sd_nm 20 ("A pole of
 // its own"; raised cosine 40°, δ 3, σ 60: 4.6 / 4.6 % at +0.1 / +0.3°; fixed centroid, --fixed-burn-centroid:
-// 6.6 / 5.4 %, failing).
+// 6.6 / 5.4 %, failing). With the burn-phasing learner and the spark column (kalman.burn_phase_learn,
+// tooth_learn.spark_column; docs/angle_estimators.md (7)): 2.6 / 3.6 % at +0.3 / −0.3° (the column alone:
+// rep_i6_60's lag −1.15°, failing).
 INSTANTIATE_TEST_SUITE_P(ReportEngines, InCycleFreshStart,
                          ::testing::Values("rep_i4_60", "rep_i4_36", "rep_i3_60", "rep_i3_36", "rep_i6_60",
                                            "rep_i6_36"));
@@ -85,15 +87,21 @@ TEST_P(InCycleRegimes, KalmanWithinSixPercentThroughTransientsTenThroughACutOffA
   EXPECT_LE(std::abs(r.transient.kalman.lag_deg), 1.5);
   EXPECT_LE(std::abs(r.cutoff.kalman.lag_deg), 1.5);
   // AND its claimed 1σ holds there: at least 60 % of the teeth within it (0 % before: the APS filter
-  // claimed 0), and not a bound so loose that every tooth is within it
+  // claimed 0), and not a bound so loose that every tooth is within it (99.9 %, was 99 % before the
+  // burn-phasing learner: with it rep_i4_60's model misses so little, 1.6 / 2.0 % of p2p, that the model-miss
+  // σ chosen on the tuning engines, kalman.model_torque_sd_nm 20 N m, covers 99.3 / 99.5 % there;
+  // docs/angle_estimators.md (7))
   for (const eval::InCycleRegime& g : {r.transient, r.cutoff}) {
     EXPECT_GE(g.kalman_cover_pct, 60.0);
-    EXPECT_LE(g.kalman_cover_pct, 99.0);
+    EXPECT_LE(g.kalman_cover_pct, 99.9);
   }
 }
 
+// The I6 report engines since the gas model's burn-phasing learner (kalman.burn_phase_learn, with
+// tooth_learn.spark_column; docs/angle_estimators.md (7)): rep_i6_60 through transients 6.2 → 4.0 %.
 INSTANTIATE_TEST_SUITE_P(ReportEngines, InCycleRegimes,
-                         ::testing::Values("rep_i4_60", "rep_i4_36", "rep_i3_60", "rep_i3_36"));
+                         ::testing::Values("rep_i4_60", "rep_i4_36", "rep_i3_60", "rep_i3_36", "rep_i6_60",
+                                           "rep_i6_36"));
 
 // The per-tooth dump of the fresh start (EvalOptions::incycle_dump, torque-accuracy --bed-incycle-dump) holds
 // what the bed scores: the Kalman's error over its scored rows is the bed's figure.

@@ -495,7 +495,9 @@ TEST(ToothErrorLearner, ASparkStaleAtRandomTeethOrInAllButAFewCyclesFallsBackToT
   // spark law, and the cycles without a fresh spark are counted.
   ToothLearnParams with;
   with.spark_column = true;
-  ToothErrorLearner plain(EngineGeometry{}, WheelGeometry{}, ToothLearnParams{});
+  ToothLearnParams without;
+  without.spark_column = false;  // the column is on by default (docs/angle_estimators.md (7))
+  ToothErrorLearner plain(EngineGeometry{}, WheelGeometry{}, without);
   ToothErrorLearner stale_teeth(EngineGeometry{}, WheelGeometry{}, with);
   ToothErrorLearner few(EngineGeometry{}, WheelGeometry{}, with);
   feed_spark_map_at(plain, [](int, int) { return true; });
@@ -530,7 +532,9 @@ TEST(ToothErrorLearner, TheSparkLawTakesExactlyTheCyclesWithAFreshSparkAtEveryTo
   // count plus the cycles counted without a spark is the law's count without the column.
   ToothLearnParams with;
   with.spark_column = true;
-  ToothErrorLearner plain(EngineGeometry{}, WheelGeometry{}, ToothLearnParams{});
+  ToothLearnParams without;
+  without.spark_column = false;  // the column is on by default (docs/angle_estimators.md (7))
+  ToothErrorLearner plain(EngineGeometry{}, WheelGeometry{}, without);
   ToothErrorLearner half(EngineGeometry{}, WheelGeometry{}, with);
   feed_spark_map_at(plain, [](int, int) { return true; });
   std::mt19937 rng(77);

@@ -58,6 +58,7 @@ class StateStore : public ::testing::Test {
     s.tooth_corrections_rad.assign(58, 0.0);
     s.tooth_corrections_rad[3] = 7.123456789012345e-4 * scale;
     s.inertia = std::array<double, 3>{1.0873456789012345, 4321.5, 0.146722};
+    s.burn_phase = std::array<double, 2>{-3.998678044526581, 315.0};
     s.saved_at_t_ns = 12'345'678'901;
     s.identity = ctx_.identity;
     return s;
@@ -85,6 +86,7 @@ TEST_F(StateStore, RoundTripIsExactForEveryFieldAndPassesTheChecks) {
   EXPECT_EQ(r->friction_observations, s.friction_observations);
   EXPECT_EQ(r->tooth_corrections_rad, s.tooth_corrections_rad);
   EXPECT_EQ(r->inertia, s.inertia);
+  EXPECT_EQ(r->burn_phase, s.burn_phase);
   EXPECT_EQ(r->saved_at_t_ns, s.saved_at_t_ns);
   EXPECT_EQ(r->identity, ctx_.identity);
   EXPECT_TRUE(check_state(*r, ctx_, path_, &err)) << err;
@@ -195,6 +197,9 @@ TEST_F(StateStore, ValuesOutsidePhysicalBoundsAreRejectedEvenWithAValidChecksum)
   s = good();
   (*s.inertia)[0] = 3.0;  // J three times the spec sheet's
   rejects(s, "inertia scale 3");
+  s = good();
+  (*s.burn_phase)[0] = 14.0;  // beyond kalman.burn_phase_max_offset_deg (12 deg)
+  rejects(s, "burn phase offset 14 deg not in [-12, 12]");
   s = good();
   (*s.inertia)[2] = 0.0;
   rejects(s, "spec J 0");

@@ -5,9 +5,11 @@
 #include <cstdio>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <unordered_map>
 
 #include "angle_pipeline.hpp"
+#include "burn_phase_learner.hpp"
 #include "tooth_error_learner.hpp"
 
 namespace torqued::eval {
@@ -174,6 +176,7 @@ struct LearnSummary {
   bool low_orders = false;
   ToothLearnQuality quality = ToothLearnQuality::kNone;
   std::string orders;
+  BurnPhaseSummary burn;
 };
 
 /// The daemon's angle chain on `sc` from a fresh start (tooth learner empty, its table applied at each
@@ -205,7 +208,13 @@ LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, co
   const bool dumping = !dump_path.empty() && !windows.empty();
   if (dumping) dump.resize(std::min(samples.size(), out.teeth.size()));
   const int output_state = ChauvinKalman::kTorqueState + pipe.config().kalman.smoother_lag;
-  int prev_tooth = -1;
+  int prev_tooth = -1, prev_burn_tooth = -1;
+  // The chain's feedback (6) (chain/angle_chain.cpp): the burn-phasing learner after the pipeline, its offset
+  // applied at the cycle end.
+  const KalmanParams& kp = pipe.config().kalman;
+  std::optional<BurnPhaseLearner> burn;
+  if (pipe.config().run_kalman && kp.gas_model && kp.burn_phase.learn)
+    burn.emplace(engine.spec, sc.wheel, kp.burn_phase);
   for (std::size_t i = 0; i < samples.size() && i < out.teeth.size(); ++i) {
     ToothSample s = samples[i];
     const auto p = static_cast<std::size_t>(s.tooth % teeth);
@@ -227,6 +236,15 @@ LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, co
     s.width_rad *= ratio[p];
     pipe.on_tooth(s, sig);
     const ToothOutput& to = pipe.tooth_output();
+    if (burn) {
+      const ChauvinKalman& kf = pipe.kalman();
+      burn->set_signals(sig.map_valid, sig.spark_valid, sig.fuel_cutoff_valid && sig.fuel_cutoff);
+      burn->update(kf.estimate_tooth(), kf.estimate().torque_nm, kf.output_model_nm(),
+                   to.kalman_ind.health == Health::kValid && kf.model_active());
+      if (prev_burn_tooth >= 0 && s.tooth < prev_burn_tooth && burn->end_cycle())
+        pipe.set_burn_offset_deg(burn->offset_deg());
+      prev_burn_tooth = s.tooth;
+    }
     if (dumping) {
       const auto it = index.find(to.kalman_ind.t_ns);
       dump.record(i, pipe, sig, it != index.end() ? it->second : dump.kalman.size(), output_state);
@@ -256,6 +274,11 @@ LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, co
   r.low_orders = learner.low_orders_learned();
   r.quality = learned ? learner.quality() : ToothLearnQuality::kNone;
   for (const ToothOrderId& id : learner.order_ids()) r.orders += order_letter(id.source);
+  if (burn) {
+    r.burn.on = true;
+    r.burn.offset_deg = burn->offset_deg();
+    r.burn.stats = burn->stats();
+  }
   return r;
 }
 
@@ -290,6 +313,7 @@ InCycleBedResult evaluate_incycle_fresh(const sim::BedEngine& engine, const Eval
   r.low_orders = l.low_orders;
   r.quality = l.quality;
   r.orders = l.orders;
+  r.burn = l.burn;
   return r;
 }
 
@@ -308,6 +332,7 @@ InCycleRegimesResult evaluate_incycle_regimes(const sim::BedEngine& engine, cons
   r.cutoff = score(windows[1], step);
   r.ready_at_s = l.ready_at_s;
   r.quality = l.quality;
+  r.burn = l.burn;
   return r;
 }
 

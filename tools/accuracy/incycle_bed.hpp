@@ -7,12 +7,20 @@
 // Not real-time code.
 #include <string>
 
+#include "burn_phase_learner.hpp"
 #include "cylinder_eval.hpp"
 #include "pipeline_eval.hpp"
 #include "tooth_error_learner.hpp"
 #include "unseen_engines.hpp"
 
 namespace torqued::eval {
+
+/// The burn-phasing learner at the end of a run (kalman.burn_phase_learn; on false: not run).
+struct BurnPhaseSummary {
+  bool on = false;
+  double offset_deg = 0.0;
+  BurnPhaseStats stats;
+};
 
 struct InCycleBedResult {
   std::string engine;
@@ -26,6 +34,7 @@ struct InCycleBedResult {
   bool low_orders = false;  ///< every per-revolution order inside the fit identified at the end
   ToothLearnQuality quality = ToothLearnQuality::kNone;  ///< what the final table rests on
   std::string orders;  ///< per order: source letter (h held, o overrun, O overrun-speeds, s speeds, f firing)
+  BurnPhaseSummary burn;
 };
 
 /// One scored regime: the in-cycle Kalman and Fourier figures, and the share of the Kalman's samples within
@@ -45,6 +54,7 @@ struct InCycleRegimesResult {
   InCycleRegime transient, cutoff;
   double ready_at_s = -1.0;
   ToothLearnQuality quality = ToothLearnQuality::kNone;
+  BurnPhaseSummary burn;
 };
 
 /// `table`: kLearned (fresh learner on the recording, the figure), kTrue (the simulator's wheel: the floor),
