@@ -54,6 +54,8 @@ TEST(Metrics, ExpositionReflectsSamplesAndStatus) {
   s.flags = torque_STATUS_CAN_TIMEOUT;
   s.sensor_timeouts = 1u << 1;  // maf
   s.latency_p99_ns = 150'000;
+  s.burn_phase_state = 2;  // converged
+  s.burn_phase_offset_deg = -3.5;
   dds::AnySample st;  // DaemonStatus reaches the tap like every other sample
   st.topic = dds::Topic::kDaemonStatus;
   st.u.status = s;
@@ -72,6 +74,8 @@ TEST(Metrics, ExpositionReflectsSamplesAndStatus) {
   EXPECT_TRUE(has_line(t, "torqued_sensor_timeout{signal=\"maf\"} 1"));
   EXPECT_TRUE(has_line(t, "torqued_sensor_timeout{signal=\"map\"} 0"));
   EXPECT_TRUE(has_line(t, "torqued_latency_period_seconds{stat=\"p99\"} 0.00015"));
+  EXPECT_TRUE(has_line(t, "torqued_burn_phase_state 2"));
+  EXPECT_TRUE(has_line(t, "torqued_burn_phase_offset_degrees -3.5"));
   EXPECT_EQ(t.find("quantile="), std::string::npos);  // only a summary may carry quantile labels
   EXPECT_TRUE(has_line(t, "torqued_estimator_in_cycle_torque_nm{method=\"kalman\"} 123.5"));  // in-cycle
   EXPECT_EQ(t.find("torqued_estimator_torque_nm{method=\"kalman\"}"), std::string::npos);

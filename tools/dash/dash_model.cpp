@@ -60,6 +60,10 @@ void append_status(std::string& out, const torque_DaemonStatus& s) {
     out += "\":";
     num(out, v);
   }
+  out += ",\"burn_phase_state\":";
+  num(out, static_cast<std::uint64_t>(s.burn_phase_state));
+  out += ",\"burn_phase_offset_deg\":";
+  num(out, s.burn_phase_offset_deg, "%.2f");
   out += ",\"latency_us\":[";
   num(out, static_cast<double>(s.latency_p50_ns) * 1e-3, "%.1f");
   out += ',';

@@ -256,6 +256,8 @@ function drawStatus(st) {
     ['source drops', s.source_drops], ['overruns', s.overruns],
     ['latency p50 / p99 / max', `${s.latency_us.map(v => fmt(v, 0)).join(' / ')} µs`],
     ['stale CAN signals (mask)', s.sensor_timeouts],
+    ['burn phase (in-cycle model)',
+     `${['not used', 'learning', 'converged'][s.burn_phase_state] ?? s.burn_phase_state}, ${fmt(s.burn_phase_offset_deg, 1)}°`],
   ];
   let html = '';
   for (let i = 0; i < rows.length; i += 3)
