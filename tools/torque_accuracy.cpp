@@ -584,9 +584,11 @@ void add_bed_options(CLI::App& app, Args& a) {
          "with --bed unseen: an electric machine of this ratio (machine/crank speed) is the load; brake "
          "with the machine torque bound (sole load) and a control run with it unbound")
       ->check(CLI::PositiveNumber);
-  app.add_flag("--bed-misfire", a.bed_misfire,
-               "with --bed unseen: misfire found/true/false at idle, 2500 and 6000 rpm (single and paired) "
-               "and the per-cylinder imbalance of an engine with one weak cylinder");
+  app.add_flag(
+      "--bed-misfire", a.bed_misfire,
+      "with --bed unseen: misfire found/true/false at idle, 2500 and 6000 rpm (single and paired) "
+      "and the per-cylinder imbalance of an engine with one weak cylinder (with --bed-incycle: after the "
+      "in-cycle tables, the in-cycle targets' whole table from one command)");
   app.add_flag(
       "--bed-incycle", a.bed_incycle,
       "with --bed unseen: in-cycle Kalman/Fourier torque from a fresh start without any fuel cut-off "
@@ -709,8 +711,11 @@ int run_unseen_bed(Args& a) {
   torqued::eval::EvalOptions bo;
   bo.skip_cycles = a.skip;
   if (a.bed_fuel) return run_bed_fuel(a.bed_all, a.bed_short, bo, a.csv_dir);
-  if (a.bed_misfire) return run_bed_misfire(a.bed_all, bo);
-  if (a.bed_incycle || a.regimes_only) {
+  const bool incycle = a.bed_incycle || a.regimes_only;
+  if (a.bed_misfire && !incycle) return run_bed_misfire(a.bed_all, bo);
+  if (incycle) {
+    const torqued::eval::EvalOptions misfire_bo =
+        bo;  // the misfire bed's own defaults, not the in-cycle flags
     bo.tooth_table = a.raw_teeth    ? torqued::eval::ToothTable::kNone
                      : a.true_teeth ? torqued::eval::ToothTable::kTrue
                                     : torqued::eval::ToothTable::kLearned;
@@ -731,9 +736,12 @@ int run_unseen_bed(Args& a) {
     torqued::eval::EvalOptions fresh = bo;
     fresh.incycle_dump = a.incycle_dump;
     bo.incycle_regimes_dump = a.incycle_regimes_dump;
-    const int rc =
+    int rc =
         a.regimes_only ? 0 : run_bed_incycle(a.bed_all, a.bed_short, fresh, a.bed_engine, a.incycle_digits);
-    return rc != 0 ? rc : run_bed_incycle_regimes(a.bed_all, bo, a.bed_engine, a.incycle_digits);
+    if (rc == 0) rc = run_bed_incycle_regimes(a.bed_all, bo, a.bed_engine, a.incycle_digits);
+    // with --bed-misfire too: the misfire and weak-cylinder table after the in-cycle ones, one command for
+    // all
+    return rc != 0 || !a.bed_misfire ? rc : run_bed_misfire(a.bed_all, misfire_bo);
   }
   if (a.bed_motoring)
     return run_bed_motoring(a.bed_all, a.bed_short, bo, a.bed_machine > 0.0 ? a.bed_machine : 1.0);
