@@ -236,6 +236,12 @@ int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& 
                 r.kalman.lag_deg, r.fourier.rms_pct_p2p, r.fourier.bias_pct_p2p, r.fourier.lag_deg,
                 r.ready_at_s, r.tooth_edge_resid_deg, static_cast<unsigned long long>(r.cycles_used),
                 r.orders.c_str(), torqued::to_string(r.quality));
+    const torqued::eval::InCycleRegime& ea = r.early;
+    if (r.ready_at_s >= 0.0)  // a learned table (not --true-tooth-errors / --no-tooth-table)
+      std::printf(
+          "  early 8 s after ready: kalman %.*f %% %+.*f deg cover %.0f%%, fourier %.*f %% %+.*f deg\n",
+          digits, ea.kalman.rms_pct_p2p, digits, ea.kalman.lag_deg, ea.kalman_cover_pct, digits,
+          ea.fourier.rms_pct_p2p, digits, ea.fourier.lag_deg);
     print_burn_phase(r.burn);
     std::fflush(stdout);
   }

@@ -104,7 +104,8 @@ INSTANTIATE_TEST_SUITE_P(ReportEngines, InCycleRegimes,
                                            "rep_i6_36"));
 
 // The per-tooth dump of the fresh start (EvalOptions::incycle_dump, torque-accuracy --bed-incycle-dump) holds
-// what the bed scores: the Kalman's error over its scored rows is the bed's figure.
+// what the bed scores: the Kalman's error over its scored rows is the bed's figure, over the 8 s after ready
+// its early-window figure.
 TEST(InCycleDump, ScoredRowsReproduceTheBedsKalmanFigure) {
   eval::EvalOptions o;
   o.incycle_dump = "/tmp/torqued_incycle_dump_" + std::to_string(::getpid()) + ".csv";
@@ -115,8 +116,8 @@ TEST(InCycleDump, ScoredRowsReproduceTheBedsKalmanFigure) {
   std::getline(f, line);
   EXPECT_EQ(line.rfind("t_s,cycle,tooth,angle720_deg,speed_rpm,t_ind_nm,t_mass_nm,ripple_nm,kalman_nm,", 0),
             0u);
-  double se = 0.0, ripple_sq = 0.0;
-  int n = 0, rows = 0;
+  double se = 0.0, ripple_sq = 0.0, se_early = 0.0;
+  int n = 0, rows = 0, n_early = 0;
   while (std::getline(f, line)) {
     std::vector<double> v;
     std::stringstream ss(line);
@@ -129,6 +130,10 @@ TEST(InCycleDump, ScoredRowsReproduceTheBedsKalmanFigure) {
       se += (v[8] - v[5]) * (v[8] - v[5]);
       ++n;
     }
+    if (v[0] >= r.ready_at_s && v[0] < r.ready_at_s + 8.0 && std::isfinite(v[8])) {  // the early window
+      se_early += (v[8] - v[5]) * (v[8] - v[5]);
+      ++n_early;
+    }
   }
   std::remove(o.incycle_dump.c_str());
   // THEN every tooth is a row, the model's ripple is there, and the scored rows give the bed's Kalman RMS
@@ -139,6 +144,13 @@ TEST(InCycleDump, ScoredRowsReproduceTheBedsKalmanFigure) {
   ASSERT_GT(n, 1000);
   EXPECT_NEAR(n, r.kalman.n, 4);
   EXPECT_NEAR(100.0 * std::sqrt(se / n) / r.kalman.p2p_nm, r.kalman.rms_pct_p2p, 0.05);
+  // and the rows of the 8 s after the table was first applied give the bed's early-window figure (same
+  // tolerance)
+  ASSERT_GE(r.ready_at_s, 0.0);
+  ASSERT_GT(n_early, 1000);
+  EXPECT_NEAR(n_early, r.early.kalman.n, 4);
+  EXPECT_NEAR(100.0 * std::sqrt(se_early / n_early) / r.early.kalman.p2p_nm, r.early.kalman.rms_pct_p2p,
+              0.05);
 }
 
 // The per-tooth dump of the transient and cut-off run (EvalOptions::incycle_regimes_dump, torque-accuracy

@@ -177,7 +177,31 @@ struct LearnSummary {
   ToothLearnQuality quality = ToothLearnQuality::kNone;
   std::string orders;
   BurnPhaseSummary burn;
+  Window early;  ///< the kEarlyWindowS after the table was first applied (the young table's phase)
 };
+
+/// Length of the early window after ready (s): the young wheel table's phase, where the demo's loss sits.
+constexpr double kEarlyWindowS = 8.0;
+
+/// Collects the pipeline's in-cycle outputs of this tooth into `w` when it holds them.
+void collect(Window& w, const ToothOutput& to, const sim::SimOutput& out,
+             const std::unordered_map<std::int64_t, std::size_t>& index, std::size_t i, double t_s) {
+  if (to.kalman_ind.health == Health::kValid) {
+    const auto it = index.find(to.kalman_ind.t_ns);
+    if (it != index.end() && w.holds(static_cast<double>(to.kalman_ind.t_ns) * 1e-9)) {
+      w.ek.push_back(to.kalman_ind.torque_nm);
+      w.tk.push_back(out.teeth[it->second].t_ind_nm);
+      w.ck.push_back(out.teeth[it->second].cycle);
+      w.sk.push_back(to.kalman_ind.uncertainty);
+      w.tek.push_back(static_cast<double>(to.kalman_ind.t_ns) * 1e-9);
+    }
+  }
+  if (to.fourier_ind.health == Health::kValid && w.holds(t_s)) {
+    w.ef.push_back(to.fourier_ind.torque_nm);
+    w.tf.push_back(out.teeth[i].t_ind_nm);
+    w.cf.push_back(out.teeth[i].cycle);
+  }
+}
 
 /// The daemon's angle chain on `sc` from a fresh start (tooth learner empty, its table applied at each
 /// cycle end), the in-cycle outputs collected into `windows`.
@@ -229,7 +253,10 @@ LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, co
       if (prev_tooth >= 0 && s.tooth < prev_tooth && learner.ready()) {  // cycle end: table applied
         for (int q = 0; q < teeth; ++q) ratio[static_cast<std::size_t>(q)] = learner.width_ratio(q);
         pipe.set_wheel_learned(true);
-        if (r.ready_at_s < 0.0) r.ready_at_s = t_s;
+        if (r.ready_at_s < 0.0) {
+          r.ready_at_s = t_s;
+          r.early.spans = {{t_s, t_s + kEarlyWindowS}};
+        }
       }
       prev_tooth = s.tooth;
     }
@@ -249,23 +276,8 @@ LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, co
       const auto it = index.find(to.kalman_ind.t_ns);
       dump.record(i, pipe, sig, it != index.end() ? it->second : dump.kalman.size(), output_state);
     }
-    for (Window& w : windows) {
-      if (to.kalman_ind.health == Health::kValid) {
-        const auto it = index.find(to.kalman_ind.t_ns);
-        if (it != index.end() && w.holds(static_cast<double>(to.kalman_ind.t_ns) * 1e-9)) {
-          w.ek.push_back(to.kalman_ind.torque_nm);
-          w.tk.push_back(out.teeth[it->second].t_ind_nm);
-          w.ck.push_back(out.teeth[it->second].cycle);
-          w.sk.push_back(to.kalman_ind.uncertainty);
-          w.tek.push_back(static_cast<double>(to.kalman_ind.t_ns) * 1e-9);
-        }
-      }
-      if (to.fourier_ind.health == Health::kValid && w.holds(t_s)) {
-        w.ef.push_back(to.fourier_ind.torque_nm);
-        w.tf.push_back(out.teeth[i].t_ind_nm);
-        w.cf.push_back(out.teeth[i].cycle);
-      }
-    }
+    for (Window& w : windows) collect(w, to, out, index, i, t_s);
+    collect(r.early, to, out, index, i, t_s);
   }
   if (dumping) write_dump(dump_path, out, dump, windows, sc.engine.cylinders);
   r.edge_resid_deg = edge_residual_deg(out, ratio, nominal);
@@ -314,6 +326,7 @@ InCycleBedResult evaluate_incycle_fresh(const sim::BedEngine& engine, const Eval
   r.quality = l.quality;
   r.orders = l.orders;
   r.burn = l.burn;
+  r.early = score(l.early, 360.0 / sc.wheel.positions);
   return r;
 }
 

@@ -22,6 +22,15 @@ struct BurnPhaseSummary {
   BurnPhaseStats stats;
 };
 
+/// One scored regime: the in-cycle Kalman and Fourier figures, and the share of the Kalman's samples within
+/// its claimed 1σ.
+struct InCycleRegime {
+  InCycleStats kalman, fourier;
+  double kalman_cover_pct = 0.0;    ///< |T̂ − T| ≤ claimed 1σ (% of the scored teeth; 68 when honest)
+  double kalman_slow_pct = 0.0;     ///< RMS of the per-cycle mean error (% of p2p): the load-like part
+  double kalman_worst_s_pct = 0.0;  ///< worst RMS over 1 s spans of the window (% of p2p)
+};
+
 struct InCycleBedResult {
   std::string engine;
   bool report = false;
@@ -35,15 +44,7 @@ struct InCycleBedResult {
   ToothLearnQuality quality = ToothLearnQuality::kNone;  ///< what the final table rests on
   std::string orders;  ///< per order: source letter (h held, o overrun, O overrun-speeds, s speeds, f firing)
   BurnPhaseSummary burn;
-};
-
-/// One scored regime: the in-cycle Kalman and Fourier figures, and the share of the Kalman's samples within
-/// its claimed 1σ.
-struct InCycleRegime {
-  InCycleStats kalman, fourier;
-  double kalman_cover_pct = 0.0;    ///< |T̂ − T| ≤ claimed 1σ (% of the scored teeth; 68 when honest)
-  double kalman_slow_pct = 0.0;     ///< RMS of the per-cycle mean error (% of p2p): the load-like part
-  double kalman_worst_s_pct = 0.0;  ///< worst RMS over 1 s spans of the window (% of p2p)
+  InCycleRegime early;  ///< the first 8 s after ready (the young table's phase; cover, slow, worst1s too)
 };
 
 /// In-cycle torque through transients and a fuel cut-off entry/exit (sim::bed_incycle_regimes_run): the
