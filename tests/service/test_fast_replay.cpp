@@ -53,6 +53,47 @@ class FastReplayTest : public ::testing::Test {
     return run_fast_replay(s, &src, nullptr, 0, nullptr, sink);
   }
 
+  // A candump log of 199 frames, 10 ms apart; a "garbage" line after frame garbage_after (0: none).
+  std::string write_can_log(int garbage_after = 0) {
+    const std::string path = (dir_ / "can.log").string();
+    std::ofstream f(path);
+    for (int k = 1; k < 200; ++k) {
+      char line[64];
+      std::snprintf(line, sizeof line, "(%d.%06d) can0 100#0102030405060708\n", k / 100, (k % 100) * 10000);
+      f << line;
+      if (k == garbage_after) f << "garbage\n";
+    }
+    return path;
+  }
+
+  // Fast replay recorded into `out` on one thread (recorder called directly) or on three (a reader thread,
+  // and the recording written by a SinkThread as daemon_run.cpp does).
+  static ReplayResult replay_on(int threads, EdgeSource& edges, CanSource& can, const fs::path& out) {
+    StageSettings s;
+    s.crank_decimation = 1;
+    s.fast_threads = threads;
+    dds::SampleRecorder rec(out.string());
+    OutputFanout fanout(&rec, nullptr);
+    if (threads == 1) return run_fast_replay(s, &edges, &can, 0, nullptr, fanout);
+    SinkThread writer(fanout);
+    ReplayResult r = run_fast_replay(s, &edges, &can, 0, nullptr, writer);
+    writer.flush();
+    EXPECT_EQ(writer.written(), r.samples);
+    return r;
+  }
+
+  // Every file recorded in `a` is in `b` with the same bytes; returns how many.
+  static int expect_same_files(const fs::path& a, const fs::path& b, const std::string& tag) {
+    int files = 0;
+    for (const auto& e : fs::directory_iterator(a)) {
+      const auto other = b / e.path().filename();
+      EXPECT_TRUE(fs::exists(other)) << tag << ": " << other;
+      EXPECT_TRUE(slurp(e.path()) == slurp(other)) << tag << ": " << e.path().filename() << " differs";
+      ++files;
+    }
+    return files;
+  }
+
   fs::path dir_;
   std::string edges_;
   int rising_ = 0;
@@ -95,14 +136,7 @@ TEST_F(FastReplayTest, TwoRunsAreByteIdentical) {
   const ReplayResult b = replay_to(dir_ / "b");
   ASSERT_GT(a.samples, 0u);
   EXPECT_EQ(a.samples, b.samples);
-  int files = 0;
-  for (const auto& e : fs::directory_iterator(dir_ / "a")) {
-    const auto other = dir_ / "b" / e.path().filename();
-    ASSERT_TRUE(fs::exists(other)) << other;
-    EXPECT_TRUE(slurp(e.path()) == slurp(other))
-        << e.path().filename() << " differs between runs";  // no multi-MB diff
-    ++files;
-  }
+  const int files = expect_same_files(dir_ / "a", dir_ / "b", "between runs");  // no multi-MB diff
   EXPECT_GE(files, 3);  // engine_cycle, crank_state, daemon_status
 }
 
@@ -115,30 +149,11 @@ TEST_F(FastReplayTest, OneThreadAndThreeGiveTheSameBytesAndCounts) {
     std::ofstream f(edges_, std::ios::app);
     f << "not,a,row\n";
   }
-  const std::string can_path = (dir_ / "can.log").string();
-  {
-    std::ofstream f(can_path);
-    for (int k = 1; k < 200; ++k) {
-      char line[64];
-      std::snprintf(line, sizeof line, "(%d.%06d) can0 100#0102030405060708\n", k / 100, (k % 100) * 10000);
-      f << line;
-      if (k == 50) f << "garbage\n";
-    }
-  }
+  const std::string can_path = write_can_log(50);
   auto replay = [&](int threads, const fs::path& out) {
-    StageSettings s;
-    s.crank_decimation = 1;
-    s.fast_threads = threads;
     EdgeCsvSource src(edges_, {});
     CandumpSource can(can_path);
-    dds::SampleRecorder rec(out.string());
-    OutputFanout fanout(&rec, nullptr);
-    if (threads == 1) return run_fast_replay(s, &src, &can, 0, nullptr, fanout);
-    SinkThread writer(fanout);
-    ReplayResult r = run_fast_replay(s, &src, &can, 0, nullptr, writer);
-    writer.flush();
-    EXPECT_EQ(writer.written(), r.samples);
-    return r;
+    return replay_on(threads, src, can, out);
   };
   const ReplayResult one = replay(1, dir_ / "one");
   const ReplayResult three = replay(3, dir_ / "three");
@@ -159,13 +174,7 @@ TEST_F(FastReplayTest, OneThreadAndThreeGiveTheSameBytesAndCounts) {
   EXPECT_EQ(a.flags, b.flags);
   EXPECT_EQ(one.samples, three.samples);
   EXPECT_EQ(one.input_problems, three.input_problems);
-  int files = 0;
-  for (const auto& e : fs::directory_iterator(dir_ / "one")) {
-    const auto other = dir_ / "three" / e.path().filename();
-    ASSERT_TRUE(fs::exists(other)) << other;
-    EXPECT_TRUE(slurp(e.path()) == slurp(other)) << e.path().filename() << " differs between 1 and 3 threads";
-    ++files;
-  }
+  const int files = expect_same_files(dir_ / "one", dir_ / "three", "1 vs 3 threads");
   EXPECT_GE(files, 3);  // engine_cycle, crank_state, daemon_status
   EXPECT_TRUE(fs::exists(dir_ / "one" / "daemon_status.csv"));
 }
@@ -348,32 +357,15 @@ class FailsAfter final : public Base {
 // the CAN source half way) on one thread and on three THEN both replays report the same error message, keep
 // going with the other source to its end, and record the same bytes and counts.
 TEST_F(FastReplayTest, ASourceErrorIsReportedAndReplayedAlikeOnOneThreadAndThree) {
-  const std::string can_path = (dir_ / "can.log").string();
-  {
-    std::ofstream f(can_path);
-    for (int k = 1; k < 200; ++k) {
-      char line[64];
-      std::snprintf(line, sizeof line, "(%d.%06d) can0 100#0102030405060708\n", k / 100, (k % 100) * 10000);
-      f << line;
-    }
-  }
+  const std::string can_path = write_can_log();
   for (const bool edge_fails : {true, false}) {
     auto replay = [&](int threads, const fs::path& out) {
-      StageSettings s;
-      s.crank_decimation = 1;
-      s.fast_threads = threads;
       EdgeCsvSource src(edges_, {});
       CandumpSource can(can_path);
       FailsAfter<EdgeSource, EdgeEvent> edges(src, edge_fails ? static_cast<std::uint64_t>(rising_) : ~0ull,
                                               "edges.csv: read error: Input/output error");
       FailsAfter<CanSource, CanFrame> frames(can, edge_fails ? ~0ull : 100u, "can.log: read error: EIO");
-      dds::SampleRecorder rec(out.string());
-      OutputFanout fanout(&rec, nullptr);
-      if (threads == 1) return run_fast_replay(s, &edges, &frames, 0, nullptr, fanout);
-      SinkThread writer(fanout);
-      ReplayResult r = run_fast_replay(s, &edges, &frames, 0, nullptr, writer);
-      writer.flush();
-      return r;
+      return replay_on(threads, edges, frames, out);
     };
     const std::string tag = edge_fails ? "edges" : "can";
     const ReplayResult one = replay(1, dir_ / ("one_" + tag));
@@ -387,10 +379,7 @@ TEST_F(FastReplayTest, ASourceErrorIsReportedAndReplayedAlikeOnOneThreadAndThree
     EXPECT_EQ(one.counters.cycles, three.counters.cycles) << tag;
     EXPECT_EQ(one.samples, three.samples) << tag;
     EXPECT_EQ(one.last_t_ns, three.last_t_ns) << tag;
-    for (const auto& e : fs::directory_iterator(dir_ / ("one_" + tag))) {
-      const auto other = dir_ / ("three_" + tag) / e.path().filename();
-      EXPECT_TRUE(slurp(e.path()) == slurp(other)) << tag << ": " << e.path().filename() << " differs";
-    }
+    expect_same_files(dir_ / ("one_" + tag), dir_ / ("three_" + tag), tag);
   }
 }
 
