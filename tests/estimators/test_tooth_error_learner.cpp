@@ -469,6 +469,14 @@ void feed_spark_map_at(ToothErrorLearner& learner, Fresh fresh) {
   learner.solve();
 }
 
+/// The learner's defaults with the spark column on or off (it is on by default: docs/angle_estimators.md
+/// (7)).
+ToothLearnParams spark_column_params(bool on) {
+  ToothLearnParams p;
+  p.spark_column = on;
+  return p;
+}
+
 /// The learned tables and order sources of two learners are the same bits.
 void expect_same_table(const ToothErrorLearner& a, const ToothErrorLearner& b, const char* what) {
   std::vector<double> ea(static_cast<std::size_t>(a.teeth())), eb(ea.size());
@@ -493,10 +501,7 @@ TEST(ToothErrorLearner, ASparkStaleAtRandomTeethOrInAllButAFewCyclesFallsBackToT
   // random tooth (or more) of every cycle, or fresh over whole cycles in only 7 random cycles (fewer than the
   // spark law's 8): THEN the column-on tables are the column-off table to the bit, no order is taken from the
   // spark law, and the cycles without a fresh spark are counted.
-  ToothLearnParams with;
-  with.spark_column = true;
-  ToothLearnParams without;
-  without.spark_column = false;  // the column is on by default (docs/angle_estimators.md (7))
+  const ToothLearnParams with = spark_column_params(true), without = spark_column_params(false);
   ToothErrorLearner plain(EngineGeometry{}, WheelGeometry{}, without);
   ToothErrorLearner stale_teeth(EngineGeometry{}, WheelGeometry{}, with);
   ToothErrorLearner few(EngineGeometry{}, WheelGeometry{}, with);
@@ -530,10 +535,7 @@ TEST(ToothErrorLearner, TheSparkLawTakesExactlyTheCyclesWithAFreshSparkAtEveryTo
   // GIVEN the spark-map runs with the column on, the spark advance stale at one tooth of a random half of the
   // cycles WHEN the firing orders come from the spark law THEN it rests on the other cycles only: its cycle
   // count plus the cycles counted without a spark is the law's count without the column.
-  ToothLearnParams with;
-  with.spark_column = true;
-  ToothLearnParams without;
-  without.spark_column = false;  // the column is on by default (docs/angle_estimators.md (7))
+  const ToothLearnParams with = spark_column_params(true), without = spark_column_params(false);
   ToothErrorLearner plain(EngineGeometry{}, WheelGeometry{}, without);
   ToothErrorLearner half(EngineGeometry{}, WheelGeometry{}, with);
   feed_spark_map_at(plain, [](int, int) { return true; });
