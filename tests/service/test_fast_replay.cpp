@@ -55,7 +55,7 @@ class FastReplayTest : public ::testing::Test {
 
   // A candump log of 199 frames, 10 ms apart; a "garbage" line after frame garbage_after (0: none).
   std::string write_can_log(int garbage_after = 0) {
-    const std::string path = (dir_ / "can.log").string();
+    std::string path = (dir_ / "can.log").string();
     std::ofstream f(path);
     for (int k = 1; k < 200; ++k) {
       char line[64];
