@@ -105,7 +105,8 @@ bool BurnPhaseLearner::end_cycle() noexcept {
 }
 
 BurnPhaseState BurnPhaseLearner::quality() const noexcept {
-  if (stats_.cycles_used == 0) return BurnPhaseState::kNotUsed;
+  if (stats_.cycles_used == 0)
+    return imported_cycles_ > 0 || offset_deg_ != 0.0 ? BurnPhaseState::kImported : BurnPhaseState::kNotUsed;
   const bool enough = stats_.cycles_used + imported_cycles_ >= static_cast<std::uint64_t>(p_.min_cycles);
   const bool agrees = std::abs(stats_.mean_phase_deg) <= p_.converged_deg;
   return enough && agrees ? BurnPhaseState::kConverged : BurnPhaseState::kLearning;
@@ -117,6 +118,7 @@ bool BurnPhaseLearner::import_state(double offset_deg, double cycles_used) noexc
   if (!in_bounds) return false;
   offset_deg_ = offset_deg;
   imported_cycles_ = static_cast<std::uint64_t>(cycles_used);
+  stats_.state = quality();
   return true;
 }
 

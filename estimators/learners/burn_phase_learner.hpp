@@ -49,9 +49,10 @@ namespace torqued {
 
 /// What the offset rests on (BurnPhaseStats::state).
 enum class BurnPhaseState : std::uint8_t {
-  kNotUsed = 0,    ///< learning off, or no cycle used yet (the offset is the imported one or 0)
+  kNotUsed = 0,    ///< learning off, or no cycle used yet and nothing imported (the offset is 0)
   kLearning = 1,   ///< cycles used, the mean phase difference not yet within converged_deg
   kConverged = 2,  ///< min_cycles used and |mean phase difference| ≤ converged_deg
+  kImported = 3,   ///< an imported offset applied (learned state), no cycle of this run used yet
 };
 
 /// Counters and quality (never silent).
@@ -94,7 +95,8 @@ class BurnPhaseLearner {
   [[nodiscard]] int samples() const noexcept { return samples_; }
   /// Used cycles behind the offset, the imported ones included (persisted with it).
   [[nodiscard]] std::uint64_t cycles_behind() const noexcept { return stats_.cycles_used + imported_cycles_; }
-  /// Restores a persisted offset and the used cycles behind it; false (nothing changed) outside the bounds.
+  /// Restores a persisted offset and the used cycles behind it (state kImported until a cycle of this run is
+  /// used); false (nothing changed) outside the bounds.
   bool import_state(double offset_deg, double cycles_used) noexcept;
 
  private:

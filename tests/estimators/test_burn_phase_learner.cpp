@@ -154,13 +154,19 @@ TEST(BurnPhaseLearner, ImportRespectsTheBounds) {
   const test::SyntheticSpec sp;
   BurnPhaseLearner l(sp.engine, sp.wheel, BurnPhaseParams{});
   // WHEN a persisted offset inside, then outside, the bounds is imported
-  // THEN the first is taken with its cycles, the second refused and the offset unchanged
+  // THEN the first is taken with its cycles, the second refused and the offset unchanged; the state says the
+  // offset rests on the import (not "not used") until a cycle of this run is used, and reset forgets it
+  EXPECT_EQ(l.stats().state, BurnPhaseState::kNotUsed);
   EXPECT_TRUE(l.import_state(3.5, 200.0));
   EXPECT_EQ(l.offset_deg(), 3.5);
   EXPECT_EQ(l.cycles_behind(), 200u);
+  EXPECT_EQ(l.stats().state, BurnPhaseState::kImported);
   EXPECT_FALSE(l.import_state(20.0, 10.0));
   EXPECT_FALSE(l.import_state(std::nan(""), 10.0));
   EXPECT_EQ(l.offset_deg(), 3.5);
+  EXPECT_EQ(l.stats().state, BurnPhaseState::kImported);
+  l.reset();
+  EXPECT_EQ(l.stats().state, BurnPhaseState::kNotUsed);
 }
 
 }  // namespace

@@ -257,7 +257,7 @@ function drawStatus(st) {
     ['latency p50 / p99 / max', `${s.latency_us.map(v => fmt(v, 0)).join(' / ')} µs`],
     ['stale CAN signals (mask)', s.sensor_timeouts],
     ['burn phase (in-cycle model)',
-     `${['not used', 'learning', 'converged'][s.burn_phase_state] ?? s.burn_phase_state}, ${fmt(s.burn_phase_offset_deg, 1)}°`],
+     `${['not used', 'learning', 'converged', 'imported'][s.burn_phase_state] ?? s.burn_phase_state}, ${fmt(s.burn_phase_offset_deg, 1)}°`],
   ];
   let html = '';
   for (let i = 0; i < rows.length; i += 3)
