@@ -81,11 +81,12 @@ void status_families(const torque_DaemonStatus& s, bool have, std::vector<Metric
   static constexpr const char* kMap[] = {"lt40kPa", "lt60kPa", "lt80kPa", "ge80kPa"};
   for (int i = 0; i < 16; ++i)
     add(cells, (s.fuel_cells >> i) & 1u, {{"speed", kSpeed[i / 4]}, {"map", kMap[i % 4]}});
-  single(out, "torqued_burn_phase_state",
-         "the burn-phasing learner of the in-cycle gas model: 0 not used (off, or no cycle used yet and "
-         "nothing imported), 1 learning, 2 converged, 3 imported (the learned state's offset, no cycle of this "
-         "run used yet)",
-         G, s.burn_phase_state);
+  single(
+      out, "torqued_burn_phase_state",
+      "the burn-phasing learner of the in-cycle gas model: 0 not used (off, or no cycle used yet and "
+      "nothing imported), 1 learning, 2 converged, 3 imported (the learned state's offset, no cycle of this "
+      "run used yet)",
+      G, s.burn_phase_state);
   single(out, "torqued_burn_phase_offset_degrees", "its learned offset of the gas model's burn centroid", G,
          s.burn_phase_offset_deg);
   auto& drops = family(out, "torqued_ring_drops_total", "records dropped because a ring was full", C);
