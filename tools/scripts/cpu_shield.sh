@@ -16,8 +16,9 @@
 # Not done by a shield: the timer tick and RCU callbacks still run on the shielded CPUs (that needs `nohz_full=`
 # and `rcu_nocbs=` at boot), and "managed" interrupts (a virtio or NVMe queue bound to a CPU by its driver) cannot
 # move: they are named. A task's own affinity (taskset, sched_setaffinity) is replaced by its cpuset's when it moves,
-# both ways: start what must stay pinned elsewhere after `on`, or pin it again after `off`. On a cgroup v2 system with systemd the same is `systemctl set-property --runtime` with
-# `AllowedCPUs=` on init.scope, system.slice and user.slice (and the daemon's unit in a slice of its own).
+# both ways: start what must stay pinned elsewhere after `on`, or pin it again after `off`. On a cgroup v2 system
+# with systemd the same is `systemctl set-property --runtime` with `AllowedCPUs=` on init.scope, system.slice and
+# user.slice (and the daemon's unit in a slice of its own).
 #
 # Exit status: 0 done; 1 not possible here (no cpuset hierarchy, not root, a shield already on / none to undo,
 # a CPU that is not online); 2 usage error; with `run`, COMMAND's own status.
