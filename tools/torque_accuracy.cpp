@@ -250,7 +250,7 @@ int run_bed_incycle(bool all, bool short_run, const torqued::eval::EvalOptions& 
 
 /// In-cycle torque through transients and a fuel cut-off entry/exit after a fresh start (incycle_bed.hpp).
 int run_bed_incycle_regimes(bool all, const torqued::eval::EvalOptions& base, const std::string& only,
-                            int digits) {
+                            int digits, const std::string& ramp_dump) {
   std::printf(
       "\nin-cycle indicated torque after the 20 s fresh start (tooth table learned on the recording), then "
       "bed_eval_run:\nTRANSIENTS (20.5-27 s: speed ramps 1500-3500 rpm, throttle steps 35-90 kPa) and a FUEL "
@@ -258,7 +258,8 @@ int run_bed_incycle_regimes(bool all, const torqued::eval::EvalOptions& base, co
       "its "
       "entry to 2.5 s after its exit.\nRMS %% of p2p, lag deg, cover: Kalman teeth within its claimed 1 "
       "sigma "
-      "(%%); slow: RMS of the per-cycle mean\nerror, worst1s: worst RMS over 1 s (%% of p2p).\n");
+      "(%%); slow: RMS of the per-cycle mean\nerror, worst1s: worst RMS over 1 s (%% of p2p).\n"
+      "RAMP: a fresh start in the demo's shape (idle, ramps to 3500 rpm at 35-90 kPa, a cut-off), 0-15 s.\n");
   std::printf("%-11s | %-9s | %-20s | %-11s | %-13s\n", "engine", "regime", "kalman % lag cover",
               "slow worst1s", "fourier % lag");
   for (const auto& e : torqued::sim::unseen_engines()) {
@@ -272,6 +273,13 @@ int run_bed_incycle_regimes(bool all, const torqued::eval::EvalOptions& base, co
                   g.fourier.lag_deg);
     }
     print_burn_phase(r.burn);
+    const auto m = torqued::eval::evaluate_incycle_ramp(e, base, ramp_dump);
+    const auto& g = m.ramp;
+    std::printf("%-11s | %-9s | %5.*f %+5.*f %5.0f%% | %5.1f %5.1f | %5.1f %+5.1f | ready %.1fs\n",
+                m.engine.c_str(), "ramp", digits, g.kalman.rms_pct_p2p, digits, g.kalman.lag_deg,
+                g.kalman_cover_pct, g.kalman_slow_pct, g.kalman_worst_s_pct, g.fourier.rms_pct_p2p,
+                g.fourier.lag_deg, m.ready_at_s);
+    print_burn_phase(m.burn);
     std::fflush(stdout);
   }
   return 0;
@@ -513,7 +521,7 @@ struct Args {
   double bed_machine = 0.0;
   bool bed_motoring = false, bed_fuel = false, bed_incycle = false, bed_misfire = false;
   bool regimes_only = false;
-  std::string bed_engine, incycle_dump, incycle_regimes_dump;
+  std::string bed_engine, incycle_dump, incycle_regimes_dump, ramp_dump;
   int incycle_digits = 1;
   int cylinder_seeds = 1;
   torqued::ToothLearnParams learn;
@@ -601,7 +609,7 @@ void add_bed_options(CLI::App& app, Args& a) {
       "(tooth learner empty at start; --true-tooth-errors / --raw-teeth for the floor / no table), then "
       "through transients and a fuel cut-off entry/exit");
   app.add_flag("--bed-incycle-regimes", a.regimes_only,
-               "with --bed unseen: only the transient and fuel cut-off rows of --bed-incycle");
+               "with --bed unseen: only the transient, fuel cut-off and ramp rows of --bed-incycle");
   app.add_option("--bed-engine", a.bed_engine,
                  "with --bed-incycle / --bed-incycle-regimes: only this bed engine (tuning or report)");
   app.add_option(
@@ -616,6 +624,8 @@ void add_bed_options(CLI::App& app, Args& a) {
       "--bed-incycle-regimes-dump", a.incycle_regimes_dump,
       "with --bed-incycle or --bed-incycle-regimes and --bed-engine: the same per-tooth CSV for that "
       "engine's transient and cut-off run (scored 1 transient, 2 cut-off; docs/eval.md)");
+  app.add_option("--bed-incycle-ramp-dump", a.ramp_dump,
+                 "with --bed-incycle(-regimes) and --bed-engine: the same CSV for the ramp from idle");
   app.add_flag(
       "--bed-fuel", a.bed_fuel,
       "with --bed unseen: the fuel model without a load signal, taught at one operating point and never "
@@ -744,7 +754,7 @@ int run_unseen_bed(Args& a) {
     bo.incycle_regimes_dump = a.incycle_regimes_dump;
     int rc =
         a.regimes_only ? 0 : run_bed_incycle(a.bed_all, a.bed_short, fresh, a.bed_engine, a.incycle_digits);
-    if (rc == 0) rc = run_bed_incycle_regimes(a.bed_all, bo, a.bed_engine, a.incycle_digits);
+    if (rc == 0) rc = run_bed_incycle_regimes(a.bed_all, bo, a.bed_engine, a.incycle_digits, a.ramp_dump);
     // with --bed-misfire too: the misfire and weak-cylinder table after the in-cycle ones, one command for
     // all
     return rc != 0 || !a.bed_misfire ? rc : run_bed_misfire(a.bed_all, misfire_bo);

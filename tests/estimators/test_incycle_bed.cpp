@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -230,4 +231,53 @@ TEST(InCycleDump, RegimesDumpHoldsBothWindowsAndTheKalmansParts) {
   EXPECT_NEAR(100.0 * std::sqrt(se[2] / n[2]) / r.cutoff.kalman.p2p_nm, r.cutoff.kalman.rms_pct_p2p, 0.05);
   EXPECT_GT(gained, rows / 2);
   EXPECT_GT(innov_sq, 0.0);
+}
+
+// The ramp from idle after a fresh start (sim::bed_ramp_start_run: the demo's speed and MAP schedule on a bed
+// engine; torque-accuracy --bed-incycle-regimes prints it as the "ramp" row; docs/angle_estimators.md (10)):
+// the same recording gives the same figures, and its dump's scored rows are the bed's figure.
+TEST(InCycleRamp, RepeatsExactlyAndItsDumpReproducesTheFigure) {
+  const std::string dump = "/tmp/torqued_incycle_ramp_dump_" + std::to_string(::getpid()) + ".csv";
+  const eval::InCycleRampResult r =
+      eval::evaluate_incycle_ramp(engine("tune_i3_36"), eval::EvalOptions{}, dump);
+  const eval::InCycleRampResult again =
+      eval::evaluate_incycle_ramp(engine("tune_i3_36"), eval::EvalOptions{});
+  // THEN a second run without the dump gives the same figures to the last bit (the dump changes nothing)
+  EXPECT_EQ(r.ramp.kalman.rms_pct_p2p, again.ramp.kalman.rms_pct_p2p);
+  EXPECT_EQ(r.ramp.kalman.lag_deg, again.ramp.kalman.lag_deg);
+  EXPECT_EQ(r.ramp.fourier.rms_pct_p2p, again.ramp.fourier.rms_pct_p2p);
+  EXPECT_EQ(r.ramp.kalman_cover_pct, again.ramp.kalman_cover_pct);
+  EXPECT_EQ(r.ready_at_s, again.ready_at_s);
+  std::ifstream f(dump);
+  ASSERT_TRUE(f.good());
+  std::string line;
+  std::getline(f, line);
+  double se = 0.0, max_rpm = 0.0, rpm_at_ready = 0.0;
+  int n = 0;
+  while (std::getline(f, line)) {
+    std::vector<double> v;
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) v.push_back(cell == "nan" ? std::nan("") : std::stod(cell));
+    ASSERT_GE(v.size(), 14u);
+    if (v[12] != 1.0) continue;
+    if (v[0] <= r.ready_at_s) rpm_at_ready = v[4];
+    max_rpm = std::max(max_rpm, v[4]);
+    if (std::isfinite(v[8])) {  // scored, with a Kalman estimate
+      se += (v[8] - v[5]) * (v[8] - v[5]);
+      ++n;
+    }
+  }
+  std::remove(dump.c_str());
+  // AND the table is young when the ramp starts: first applied at idle or on the first ramp (≤ 5 s, below
+  // 1500 rpm), and the scored window then reaches the 3500 rpm plateau (the tooth speed, with its in-cycle
+  // ripple: at least 3400 rpm)
+  ASSERT_GE(r.ready_at_s, 0.0);
+  EXPECT_LE(r.ready_at_s, 5.0);
+  EXPECT_LT(rpm_at_ready, 1500.0);
+  EXPECT_GE(max_rpm, 3400.0);
+  // AND the scored rows give the bed's Kalman RMS (within 0.05 pp, as the fresh start's dump)
+  ASSERT_GT(n, 1000);
+  EXPECT_NEAR(n, r.ramp.kalman.n, 4);
+  EXPECT_NEAR(100.0 * std::sqrt(se / n) / r.ramp.kalman.p2p_nm, r.ramp.kalman.rms_pct_p2p, 0.05);
 }

@@ -349,4 +349,21 @@ InCycleRegimesResult evaluate_incycle_regimes(const sim::BedEngine& engine, cons
   return r;
 }
 
+InCycleRampResult evaluate_incycle_ramp(const sim::BedEngine& engine, const EvalOptions& opt,
+                                        const std::string& dump_path) {
+  InCycleRampResult r;
+  r.engine = engine.name;
+  r.report = engine.report;
+  std::vector<Window> windows(1);
+  windows[0].spans.resize(1);
+  const sim::Scenario sc = sim::bed_ramp_start_run(engine, &windows[0].spans[0]);
+  const sim::SimOutput out = sim::simulate(sc);
+  const LearnSummary l = run_fresh(engine, sc, out, opt, windows, dump_path);
+  r.ramp = score(windows[0], 360.0 / sc.wheel.positions);
+  r.ready_at_s = l.ready_at_s;
+  r.quality = l.quality;
+  r.burn = l.burn;
+  return r;
+}
+
 }  // namespace torqued::eval

@@ -58,6 +58,17 @@ struct InCycleRegimesResult {
   BurnPhaseSummary burn;
 };
 
+/// In-cycle torque on a ramp from idle after a fresh start (sim::bed_ramp_start_run: the demo's shape on a
+/// bed engine), scored over its first 15 s: the young wheel table through speed ramps to 3500 rpm.
+struct InCycleRampResult {
+  std::string engine;
+  bool report = false;
+  InCycleRegime ramp;
+  double ready_at_s = -1.0;
+  ToothLearnQuality quality = ToothLearnQuality::kNone;
+  BurnPhaseSummary burn;
+};
+
 /// `table`: kLearned (fresh learner on the recording, the figure), kTrue (the simulator's wheel: the floor),
 /// kNone (no correction). `short_run`: a 20 s recording instead of 60 s.
 [[nodiscard]] InCycleBedResult evaluate_incycle_fresh(const sim::BedEngine& engine,
@@ -65,5 +76,10 @@ struct InCycleRegimesResult {
 /// Transient and cut-off entry/exit regimes after a fresh start (tooth table learned on the recording).
 [[nodiscard]] InCycleRegimesResult evaluate_incycle_regimes(const sim::BedEngine& engine,
                                                             const EvalOptions& options);
+/// The ramp from idle after a fresh start (tooth table learned on the recording). `dump_path`: the per-tooth
+/// CSV of run (EvalOptions::incycle_dump's columns; empty: none).
+[[nodiscard]] InCycleRampResult evaluate_incycle_ramp(const sim::BedEngine& engine,
+                                                      const EvalOptions& options,
+                                                      const std::string& dump_path = {});
 
 }  // namespace torqued::eval

@@ -230,6 +230,25 @@ Scenario bed_incycle_regimes_run(const BedEngine& e, std::pair<double, double>* 
   return s;
 }
 
+Scenario bed_ramp_start_run(const BedEngine& e, std::pair<double, double>* ramp_s) {
+  Scenario s = e.truth;
+  s.name = e.name + "_ramp_start";
+  s.seed = e.truth.seed;  // the same wheel
+  s.duration_s = 16.0;
+  s.warmup_s = 1.5;
+  s.idle_control = true;
+  s.load_phases = {{0.0, LoadMode::kTorque}, {3.0, LoadMode::kDynoSpeed}};
+  s.load_torque_nm = {{0.0, 0.0}};
+  s.speed_rpm = {{0.0, 800.0},  {3.0, 800.0},  {4.0, 1500.0},  {6.0, 1500.0},  {7.0, 2500.0},
+                 {9.0, 2500.0}, {9.4, 3500.0}, {11.0, 3500.0}, {12.0, 2000.0}, {16.0, 2000.0}};
+  s.map_target_kpa = {{0.0, 15.0},   {3.0, 15.0},  {3.2, 35.0},  {5.0, 35.0},  {5.02, 70.0},  {6.0, 70.0},
+                      {6.2, 50.0},   {8.5, 50.0},  {8.52, 90.0}, {9.0, 90.0},  {9.2, 60.0},   {11.0, 60.0},
+                      {11.05, 20.0}, {12.0, 20.0}, {12.2, 45.0}, {14.0, 45.0}, {14.02, 80.0}, {16.0, 80.0}};
+  s.fuel_cuts = {{11.1, 11.9, 1100.0}};
+  if (ramp_s) *ramp_s = {0.0, 15.0};
+  return s;
+}
+
 Scenario bed_vehicle_run(const BedEngine& e, bool short_run) {
   Scenario s = e.truth;
   s.name = e.name + (short_run ? "_vehicle_short" : "_vehicle");

@@ -68,6 +68,13 @@ struct BedEngine {
 /// 0.2 s before the entry to the end, 2.5 s after the exit.
 [[nodiscard]] Scenario bed_incycle_regimes_run(const BedEngine& e, std::pair<double, double>* transient_s,
                                                std::pair<double, double>* cutoff_s);
+/// A fresh start that ramps from idle as a driven engine does, the demo scenario's first 16 s as a SHAPE (its
+/// speed and MAP schedule, not its engine): idle at 800 rpm (idle controller, free engine) to 3 s, then
+/// dyno-held ramps to 1500, 2500 and 3500 rpm (9.4 s) with throttle steps 35-90 kPa, a fuel cut-off at 3500
+/// rpm (11.1-11.9 s, closed throttle) and 2000 rpm at 45-80 kPa; the spark follows the simulator's map of
+/// speed and MAP. 16 s. `ramp_s` (may be null): [0, 15) s, where the young wheel table meets the ramp (scored
+/// from the moment the tooth learner's table is first applied, as the observers are valid from then on).
+[[nodiscard]] Scenario bed_ramp_start_run(const BedEngine& e, std::pair<double, double>* ramp_s);
 /// Evaluated recording: steady plateaus at several speeds and loads, throttle and load transients, a fuel
 /// cut-off. `short_run`: a 4 s subset (ctest).
 [[nodiscard]] Scenario bed_eval_run(const BedEngine& e, bool short_run = false);
