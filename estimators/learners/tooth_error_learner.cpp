@@ -160,6 +160,7 @@ void ToothErrorLearner::reset() noexcept {
     id.cycles = 0.0;
     id.edge_amplitude_rad = 0.0;
     id.firing_se_frac = -1.0;
+    id.edge_se_rad = -1.0;
     id.spark = false;
   }
   std::fill(eps_.begin(), eps_.end(), 0.0);
@@ -524,6 +525,16 @@ bool ToothErrorLearner::slot_intercept(std::size_t j0, bool firing, double* v, d
   return true;
 }
 
+double wheel_table_accel_var(std::span<const ToothOrderId> ids) noexcept {
+  double v = 0.0;
+  for (const ToothOrderId& id : ids) {
+    if (id.edge_se_rad < 0.0) continue;
+    const double r2 = static_cast<double>(id.order) * id.order;
+    v += r2 * r2 * id.edge_se_rad * id.edge_se_rad;
+  }
+  return v;
+}
+
 void ToothErrorLearner::identify_orders(double* low, double hf_rms) noexcept {
   const bool learn = params_.learn_low_orders;
   // Overrun: mean (non-firing orders) or linear regression on x (firing orders, needs a spread of speeds).
@@ -578,6 +589,11 @@ void ToothErrorLearner::identify_orders(double* low, double hf_rms) noexcept {
       id.source = ToothOrderSource::kSpeeds;
       id.cycles = cycles;
     }
+    // The used law's standard error per coefficient (z domain; over the order: edge angle).
+    const double se_z = id.source == ToothOrderSource::kSpeeds ? std::sqrt(var)
+                        : fire_fit                              ? std::sqrt(fvar)
+                                                                : -1.0;
+    id.edge_se_rad = se_z >= 0.0 ? se_z / id.order : -1.0;
     for (std::size_t j = j0; j < j0 + 2; ++j) {
       double v = 0.0;
       switch (id.source) {
@@ -764,6 +780,7 @@ void ToothErrorLearner::recompute() noexcept {
       for (std::size_t j = j0; j < j0 + 2; ++j)
         low_coef_[j] =
             (import_weight_ * imp_coef_[j] + id.cycles * low_coef_[j]) / (import_weight_ + id.cycles);
+      if (id.edge_se_rad > 0.0) id.edge_se_rad *= id.cycles / (import_weight_ + id.cycles);
     }
     id.edge_amplitude_rad = std::hypot(low_coef_[j0], low_coef_[j0 + 1]) / id.order;
   }
