@@ -370,14 +370,15 @@ TEST_F(AnglePipelineSim, InCycleKalmanCycleMeansFollowAThrottleStepAndASpeedRamp
 
 TEST_F(AnglePipelineSim, TableStandardErrorWidensTheKalmanSigmaByJOmegaSquaredOnly) {
   // GIVEN a tooth table whose firing order 2 has a known edge-angle standard error (1e-4 rad per cos/sin
-  // coefficient), order 1 not estimable, and the same table fully identified with zero standard error
+  // coefficient), a non-firing order 1 (not counted: not read as torque), and the same table fully
+  // identified with zero standard error
   sim::Scenario sc = sim::scenario_by_name("steady_2000_mid");
   sc.duration_s = 1.0;
   const auto out = sim::simulate(sc);
   const auto samples = samples_with_true_tooth_errors(out, sc);
   std::array<ToothOrderId, 2> ids{};
   ids[0].order = 1;
-  ids[0].edge_se_rad = -1.0;
+  ids[0].edge_se_rad = 5e-4;
   ids[1].order = 2;
   ids[1].firing = true;
   ids[1].edge_se_rad = 1e-4;
