@@ -601,8 +601,8 @@ void ToothErrorLearner::identify_orders(double* low, double hf_rms) noexcept {
     // widths' higher orders (z_p ≈ (e_p − e_{p−1})/w, w = 2π/teeth), and a Fourier coefficient of N such
     // edges has 1σ σ_e·√(2/N) = hf_rms·w/√N (rad) whatever the order.
     const double se_z = id.source == ToothOrderSource::kSpeeds ? std::sqrt(var)
-                        : fire_fit                              ? std::sqrt(fvar)
-                                                                : -1.0;
+                        : fire_fit                             ? std::sqrt(fvar)
+                                                               : -1.0;
     id.edge_se_rad = se_z >= 0.0 ? se_z / id.order : -1.0;
     if (id.source == ToothOrderSource::kHeld && import_weight_ <= 0.0)
       id.edge_se_rad = held_edge_se_rad(hf_rms, table_.teeth);
