@@ -329,8 +329,8 @@ struct ToothLearnParams {
              ///< on with the burn-phasing learner, (7))
   bool incycle_sd =
       false;  ///< the in-cycle observers' published 1σ also carries the table's own standard error: the
-              ///< per-revolution orders' edge-angle standard errors (ToothOrderId::edge_se_rad) read as
-              ///< torque J·ω̄²·r²·ε_r (wheel_table_accel_var; docs/angle_estimators.md (11)); output only
+              ///< firing orders' edge-angle standard errors (ToothOrderId::edge_se_rad) read as torque
+              ///< J·ω̄²·r²·ε_r (wheel_table_accel_var; docs/angle_estimators.md (11)); output only
   double firing_law_min_load_spread =
       0.05;  ///< the firing orders' load law [1, u, x] (x = 1/ω̄²) is used only when this share of the
              ///< variance of u is not explained by x (1 − r²): loads that vary apart from the speed. At
