@@ -164,6 +164,7 @@ void AngleChain::on_cycle_end() noexcept {
     (void)decoder_.set_tooth_corrections(std::span<const double>(corr_.data(), n));
     corr_n_ = 0;
     if (pipeline_) pipeline_->set_wheel_learned(false);
+    if (pipeline_) pipeline_->set_wheel_table_var(0.0);
   }
   if (learner_ && learner_->ready()) {
     const int n = learner_->teeth();
@@ -172,6 +173,9 @@ void AngleChain::on_cycle_end() noexcept {
         decoder_.set_tooth_corrections(std::span<const double>(corr_.data(), static_cast<std::size_t>(n)));
     corr_n_ = applied ? n : 0;
     if (applied && pipeline_) pipeline_->set_wheel_learned(true);
+    // The table's own standard error in the in-cycle observers' published 1σ (docs/angle_estimators.md (11)).
+    if (applied && pipeline_ && s_.tooth_learn.incycle_sd)
+      pipeline_->set_wheel_table_var(wheel_table_accel_var(learner_->order_ids()));
   }
   state_changed_ = true;
 }

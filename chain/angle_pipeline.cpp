@@ -72,7 +72,8 @@ AnglePipeline::AnglePipeline(const AnglePipelineConfig& config)
       fusion_(config.fusion),
       pre_(config.engine, config.wheel, config.preprocess),
       kalman_(config.engine, config.wheel, config.kalman),
-      fourier_(config.engine, config.wheel, config.fourier) {
+      fourier_(config.engine, config.wheel, config.fourier),
+      j_mean_kgm2_(mean_inertia_kgm2(config.engine)) {
   // CF-14: refuse unstable Fourier gains (the config loader reports the reason; here the method is just off).
   fourier_ok_ =
       config.run_fourier && !FourierObserver::check_stability(config.fourier, config.engine, config.wheel);
@@ -303,6 +304,7 @@ bool AnglePipeline::feed_incycle_observers(const ToothSample& s, const EngineSig
     kalman_.set_model_torque(cfg_.kalman.gas_model ? ripple : 0.0, have_map_);
     kalman_.update_checked(s);
     copy_estimate(tooth_.kalman_ind, kalman_.estimate());
+    add_table_sd(tooth_.kalman_ind);  // the tooth table's own uncertainty (docs/angle_estimators.md (11))
   } else {
     tooth_.kalman_ind.health = Health::kDisabled;
   }

@@ -42,6 +42,7 @@
 #include "methods.hpp"
 #include "params.hpp"
 #include "samples.hpp"
+#include "time_pipeline.hpp"
 #include "tooth_preprocessor.hpp"
 #include "torque_fusion.hpp"
 
@@ -162,6 +163,12 @@ class AnglePipeline {
     fourier_.set_wheel_learned(learned);
   }
 
+  /// The applied tooth table's own uncertainty (wheel_table_accel_var, rad²; 0: none): the in-cycle Kalman's
+  /// published 1σ gains J̄·ω̄²·√var in quadrature (docs/angle_estimators.md (11)); its estimate does not
+  /// change. Real-time safe; kept through reset() (the chain sets it where it applies the table).
+  void set_wheel_table_var(double accel_var) noexcept {
+    wheel_accel_sd_ = std::isfinite(accel_var) && accel_var > 0.0 ? std::sqrt(accel_var) : 0.0;
+  }
   [[nodiscard]] const ToothOutput& tooth_output() const noexcept { return tooth_; }
   [[nodiscard]] const CycleOutput& cycle_output() const noexcept { return cycle_; }
   [[nodiscard]] const AnglePipelineStats& stats() const noexcept { return stats_; }
@@ -313,6 +320,14 @@ class AnglePipeline {
   /// position).
   bool cut_flag_ = false;
   double last_ripple_nm_ = 0.0;  ///< last_ripple_nm()
+  double wheel_accel_sd_ = 0.0;  ///< √wheel_table_accel_var of the applied table (rad; set_wheel_table_var)
+  double j_mean_kgm2_ = 0.0;     ///< cycle-mean crank inertia J̄ of the specification (kg m²)
+  /// Output only: the table's standard error read as torque, J̄·ω̄²·√var, joins a published 1σ in quadrature.
+  void add_table_sd(TorqueEstimate& e) const noexcept {
+    const double w = tooth_.speed_lp_rad_s;
+    if (wheel_accel_sd_ > 0.0 && e.uncertainty > 0.0)
+      e.uncertainty = std::hypot(e.uncertainty, j_mean_kgm2_ * w * w * wheel_accel_sd_);
+  }
   /// The in-cycle model's combustion phasing (energies.incycle_spark_phasing): the table pair around the
   /// current burn centroid (ripple_t_, ripple_t_ + 1; ripple_p3b_ the second's p3), and fired_p3_'s table.
   mutable int ripple_t_ = LoadRls::kRippleBase;

@@ -536,6 +536,10 @@ void add_tooth_learn(std::vector<SchemaEntry>& t) {
       "the firing orders' load law gets a column (MAP/100 kPa)/speed^2 * (spark advance - 15 deg) from the "
       "firing cycles with a fresh spark advance on CAN (the combustion's phase, so the ripple's phase at "
       "the firing orders, moves with the spark); without a spark advance the law without it");
+  TQ_BOOL("tooth_learn.incycle_sd", tooth_learn.params.incycle_sd,
+          "the in-cycle observers' published 1 sigma also carries the tooth table's own standard error (each "
+          "firing order's edge-angle standard error read as torque J * speed^2 * order^2 * error); the "
+          "estimate is unchanged");
   TQ_NUM("tooth_learn.firing_law_min_load_spread", tooth_learn.params.firing_law_min_load_spread,
          closed(0.0, 1.0), "",
          "the firing orders' load law is used only when this share of the variance of (MAP/100 kPa)/speed^2 "

@@ -651,6 +651,7 @@ void add_cylinder_options(CLI::App& app, Args& a) {
 
 void add_observer_options(CLI::App& app, Args& a) {
   app.add_option("--fit-harmonics", a.learn.fit_harmonics, "tooth learner: harmonics of the per-cycle fit");
+  app.add_option("--incycle-sd", a.learn.incycle_sd, "in-cycle 1σ with the table's (tooth_learn.incycle_sd)");
   app.add_flag(
       "--no-firing-load-law", a.no_firing_law,
       "tooth learner: orders are not learned from the firing cycles' load law (the learner before it)");

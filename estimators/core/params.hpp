@@ -327,6 +327,10 @@ struct ToothLearnParams {
              ///< a fresh spark advance (the combustion's phase, so the ripple's firing-order phase, moves
              ///< with the spark); without a spark advance the law [1, u, x] (docs/angle_estimators.md (6);
              ///< on with the burn-phasing learner, (7))
+  bool incycle_sd =
+      false;  ///< the in-cycle observers' published 1σ also carries the table's own standard error: the
+              ///< firing orders' edge-angle standard errors (ToothOrderId::edge_se_rad) read as torque
+              ///< J·ω̄²·r²·ε_r (wheel_table_accel_var; docs/angle_estimators.md (11)); output only
   double firing_law_min_load_spread =
       0.05;  ///< the firing orders' load law [1, u, x] (x = 1/ω̄²) is used only when this share of the
              ///< variance of u is not explained by x (1 − r²): loads that vary apart from the speed. At

@@ -39,6 +39,12 @@ const char* to_string(ToothLearnQuality q) noexcept {
 
 namespace {
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
+/// Prior 1σ of a per-revolution order's edge-angle coefficient (rad) for independent edge errors, from the
+/// RMS hf_rms of the widths' higher orders (identify_orders, ToothOrderId::edge_se_rad).
+double held_edge_se_rad(double hf_rms, int teeth) noexcept {
+  const double n = teeth > 0 ? static_cast<double>(teeth) : 1.0;
+  return hf_rms > 0.0 ? hf_rms * (kTwoPi / n) / std::sqrt(n) : -1.0;
+}
 
 // The wheel's part of z = −½(E/Ē − 1) for a width ratio ρ = w_true/w is ½(1 − ρ⁻²) up to a constant: E is
 // measured with the nominal width, E ∝ (w/dt)² = ρ⁻²·E_true. It is ln ρ − (ln ρ)² + …, not ln ρ: taking z for
@@ -160,6 +166,7 @@ void ToothErrorLearner::reset() noexcept {
     id.cycles = 0.0;
     id.edge_amplitude_rad = 0.0;
     id.firing_se_frac = -1.0;
+    id.edge_se_rad = -1.0;
     id.spark = false;
   }
   std::fill(eps_.begin(), eps_.end(), 0.0);
@@ -524,6 +531,16 @@ bool ToothErrorLearner::slot_intercept(std::size_t j0, bool firing, double* v, d
   return true;
 }
 
+double wheel_table_accel_var(std::span<const ToothOrderId> ids) noexcept {
+  double v = 0.0;
+  for (const ToothOrderId& id : ids) {
+    if (id.edge_se_rad < 0.0 || !id.firing) continue;
+    const double r2 = static_cast<double>(id.order) * id.order;
+    v += r2 * r2 * id.edge_se_rad * id.edge_se_rad;
+  }
+  return v;
+}
+
 void ToothErrorLearner::identify_orders(double* low, double hf_rms) noexcept {
   const bool learn = params_.learn_low_orders;
   // Overrun: mean (non-firing orders) or linear regression on x (firing orders, needs a spread of speeds).
@@ -578,6 +595,17 @@ void ToothErrorLearner::identify_orders(double* low, double hf_rms) noexcept {
       id.source = ToothOrderSource::kSpeeds;
       id.cycles = cycles;
     }
+    // The used law's standard error per coefficient (z domain; over the order: edge angle). A held order
+    // without an imported table holds zero against a wheel error of unknown size: the prior of edges with
+    // independent errors (as the plausibility check in recompute() assumes), σ_e ≈ hf_rms·w/√2 from the
+    // widths' higher orders (z_p ≈ (e_p − e_{p−1})/w, w = 2π/teeth), and a Fourier coefficient of N such
+    // edges has 1σ σ_e·√(2/N) = hf_rms·w/√N (rad) whatever the order.
+    const double se_z = id.source == ToothOrderSource::kSpeeds ? std::sqrt(var)
+                        : fire_fit                             ? std::sqrt(fvar)
+                                                               : -1.0;
+    id.edge_se_rad = se_z >= 0.0 ? se_z / id.order : -1.0;
+    if (id.source == ToothOrderSource::kHeld && import_weight_ <= 0.0)
+      id.edge_se_rad = held_edge_se_rad(hf_rms, table_.teeth);
     for (std::size_t j = j0; j < j0 + 2; ++j) {
       double v = 0.0;
       switch (id.source) {
@@ -716,7 +744,8 @@ void ToothErrorLearner::recompute() noexcept {
   double hf_ms = 0.0;  // mean square of the learned higher orders per sample (the variance check's scale)
   for (std::size_t k = 0; k < resid_sum_.size(); ++k)
     hf_ms += (resid_sum_[k] / wsum0) * (resid_sum_[k] / wsum0);
-  identify_orders(low_coef_.data(), std::sqrt(hf_ms / static_cast<double>(resid_sum_.size())));
+  const double hf_rms = std::sqrt(hf_ms / static_cast<double>(resid_sum_.size()));
+  identify_orders(low_coef_.data(), hf_rms);
   // Plausibility of the 1/ω̄² regressions (firing or overrun): machining errors are independent per edge, so
   // the width error holds little at the low orders (a few % of its RMS). A larger part means the ripple did
   // not follow 1/ω̄² (mixed loads, a coast-down with falling MAP, transients): hold those orders instead.
@@ -750,6 +779,7 @@ void ToothErrorLearner::recompute() noexcept {
       if (!regressed(id.source)) continue;
       id.source = ToothOrderSource::kHeld;
       id.cycles = 0.0;
+      if (import_weight_ <= 0.0) id.edge_se_rad = held_edge_se_rad(hf_rms, t);
       const auto j0 = static_cast<std::size_t>(4 * id.order);
       low_coef_[j0] = imp_coef_[j0];
       low_coef_[j0 + 1] = imp_coef_[j0 + 1];
@@ -764,6 +794,7 @@ void ToothErrorLearner::recompute() noexcept {
       for (std::size_t j = j0; j < j0 + 2; ++j)
         low_coef_[j] =
             (import_weight_ * imp_coef_[j] + id.cycles * low_coef_[j]) / (import_weight_ + id.cycles);
+      if (id.edge_se_rad > 0.0) id.edge_se_rad *= id.cycles / (import_weight_ + id.cycles);
     }
     id.edge_amplitude_rad = std::hypot(low_coef_[j0], low_coef_[j0 + 1]) / id.order;
   }

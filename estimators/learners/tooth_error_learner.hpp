@@ -86,10 +86,22 @@ struct ToothOrderId {
   /// Convergence of the firing-cycle load law for this order: standard error of its intercept / RMS of the
   /// learned higher orders (the variance check takes it at ≤ max_low_order_se_frac); < 0: not estimable yet.
   double firing_se_frac = -1.0;
+  /// 1σ of each of this order's cos/sin edge-angle coefficients (rad): the standard error of the law the
+  /// value comes from (load law, spark law, same-load speed law; an overrun order: the load law's where it
+  /// fits), over the order, shrunk by the import's weight as the value is; a held order without an import:
+  /// the prior of independent edge errors from the higher orders' RMS; < 0: not estimable.
+  double edge_se_rad = -1.0;
   /// A firing order taken from the load law with the spark column (ToothLearnParams::spark_column): false
   /// when the column is off, or too few cycles with a fresh spark advance identify the order with it.
   bool spark = false;
 };
+
+/// Variance of the apparent crank acceleration over ω̄² (rad²) the table's standard errors leave: an
+/// edge-angle error ε(θ) = a·cos rθ + b·sin rθ makes the observer read θ̈ off by ω̄²·ε''(θ) = −ω̄²·r²·ε(θ), so
+/// torque J·ω̄²·r²·ε; with a and b each of 1σ edge_se_rad the time-mean variance of r²·ε is r⁴·se², summed
+/// over the firing orders (independent; the errors that look like torque to the in-cycle observers, whose
+/// model is the firing ripple). Orders with edge_se_rad < 0 add nothing. Real-time safe.
+[[nodiscard]] double wheel_table_accel_var(std::span<const ToothOrderId> ids) noexcept;
 
 /// What the tooth table rests on, worst order first (ToothErrorLearner::quality()).
 enum class ToothLearnQuality : std::uint8_t {

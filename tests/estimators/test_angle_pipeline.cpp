@@ -7,6 +7,7 @@
 // learned). Friction is learned on the fuel_cut coast-down from a zero prior.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -16,6 +17,7 @@
 #include "angle_pipeline.hpp"
 #include "engine_sim.hpp"
 #include "pipeline_eval.hpp"
+#include "tooth_error_learner.hpp"
 
 using namespace torqued;
 using eval::EvalOptions;
@@ -364,4 +366,55 @@ TEST_F(AnglePipelineSim, InCycleKalmanCycleMeansFollowAThrottleStepAndASpeedRamp
   // THEN the in-cycle Kalman's cycle means follow (2.3 N m RMS): its extended load is this tooth's CAN load
   // plus friction (12.8 N m with the last segment's cycle mean, a cycle behind)
   EXPECT_LT(rms, 4.0);
+}
+
+TEST_F(AnglePipelineSim, TableStandardErrorWidensTheKalmanSigmaByJOmegaSquaredOnly) {
+  // GIVEN a tooth table whose firing order 2 has a known edge-angle standard error (1e-4 rad per cos/sin
+  // coefficient), a non-firing order 1 (not counted: not read as torque), and the same table fully
+  // identified with zero standard error
+  sim::Scenario sc = sim::scenario_by_name("steady_2000_mid");
+  sc.duration_s = 1.0;
+  const auto out = sim::simulate(sc);
+  const auto samples = samples_with_true_tooth_errors(out, sc);
+  std::array<ToothOrderId, 2> ids{};
+  ids[0].order = 1;
+  ids[0].edge_se_rad = 5e-4;
+  ids[1].order = 2;
+  ids[1].firing = true;
+  ids[1].edge_se_rad = 1e-4;
+  const double var = wheel_table_accel_var(ids);
+  EXPECT_DOUBLE_EQ(var, 16.0 * 1e-8);  // r⁴·se² at r = 2
+  std::array<ToothOrderId, 2> exact = ids;
+  exact[0].edge_se_rad = exact[1].edge_se_rad = 0.0;
+  EXPECT_EQ(wheel_table_accel_var(exact), 0.0);
+  AnglePipeline base(pipeline_config(sc)), with(pipeline_config(sc)), zero(pipeline_config(sc));
+  with.set_wheel_table_var(var);
+  zero.set_wheel_table_var(wheel_table_accel_var(exact));
+  const double j = mean_inertia_kgm2(sc.engine);
+  int checked = 0;
+  // WHEN the three run the same teeth
+  for (const auto& s : samples) {
+    const EngineSignals sig = sim::signals_at(out, static_cast<double>(s.t_ns) * 1e-9);
+    base.on_tooth(s, sig);
+    with.on_tooth(s, sig);
+    zero.on_tooth(s, sig);
+    const TorqueEstimate &a = base.tooth_output().kalman_ind, &b = with.tooth_output().kalman_ind,
+                         &z = zero.tooth_output().kalman_ind;
+    // THEN the estimate is bit-identical, the zero-error table leaves the 1σ as it was, and the known
+    // error adds J̄·ω̄²·r²·se in quadrature (relative 1e-9)
+    ASSERT_TRUE(same(a, z));
+    ASSERT_EQ(a.torque_nm, b.torque_nm);
+    ASSERT_EQ(a.health, b.health);
+    ASSERT_EQ(a.t_ns, b.t_ns);
+    if (a.uncertainty <= 0.0) {
+      EXPECT_EQ(b.uncertainty, a.uncertainty);
+      continue;
+    }
+    const double w = with.tooth_output().speed_lp_rad_s;
+    const double extra = j * w * w * 4.0 * 1e-4;
+    EXPECT_NEAR(b.uncertainty * b.uncertainty - a.uncertainty * a.uncertainty, extra * extra,
+                1e-9 * b.uncertainty * b.uncertainty);
+    ++checked;
+  }
+  EXPECT_GT(checked, 100);
 }

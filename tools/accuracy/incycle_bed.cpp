@@ -253,6 +253,7 @@ LearnSummary run_fresh(const sim::BedEngine& engine, const sim::Scenario& sc, co
       if (prev_tooth >= 0 && s.tooth < prev_tooth && learner.ready()) {  // cycle end: table applied
         for (int q = 0; q < teeth; ++q) ratio[static_cast<std::size_t>(q)] = learner.width_ratio(q);
         pipe.set_wheel_learned(true);
+        if (opt.tooth_learn.incycle_sd) pipe.set_wheel_table_var(wheel_table_accel_var(learner.order_ids()));
         if (r.ready_at_s < 0.0) {
           r.ready_at_s = t_s;
           r.early.spans = {{t_s, t_s + kEarlyWindowS}};
