@@ -29,6 +29,14 @@ const sim::BedEngine& engine(const std::string& name) {
   if (e == nullptr) throw std::invalid_argument(name);
   return *e;
 }
+/// One row of a bed dump's CSV as numbers ("nan" for an empty estimate).
+std::vector<double> csv_row(const std::string& line) {
+  std::vector<double> v;
+  std::stringstream ss(line);
+  std::string cell;
+  while (std::getline(ss, cell, ',')) v.push_back(cell == "nan" ? std::nan("") : std::stod(cell));
+  return v;
+}
 }  // namespace
 
 class InCycleFreshStart : public ::testing::TestWithParam<const char*> {};
@@ -120,10 +128,7 @@ TEST(InCycleDump, ScoredRowsReproduceTheBedsKalmanFigure) {
   double se = 0.0, ripple_sq = 0.0, se_early = 0.0;
   int n = 0, rows = 0, n_early = 0;
   while (std::getline(f, line)) {
-    std::vector<double> v;
-    std::stringstream ss(line);
-    std::string cell;
-    while (std::getline(ss, cell, ',')) v.push_back(cell == "nan" ? std::nan("") : std::stod(cell));
+    const std::vector<double> v = csv_row(line);
     ASSERT_GE(v.size(), 14u);
     ++rows;
     ripple_sq += v[7] * v[7];
@@ -198,10 +203,7 @@ TEST(InCycleDump, RegimesDumpHoldsBothWindowsAndTheKalmansParts) {
   int gained = 0, rows = 0;
   double innov_sq = 0.0;
   while (std::getline(f, line)) {
-    std::vector<double> v;
-    std::stringstream ss(line);
-    std::string cell;
-    while (std::getline(ss, cell, ',')) v.push_back(cell == "nan" ? std::nan("") : std::stod(cell));
+    const std::vector<double> v = csv_row(line);
     ASSERT_EQ(v.size(), names.size());
     ++rows;
     const auto bits = static_cast<unsigned>(v[ix("scored")]);
@@ -255,10 +257,7 @@ TEST(InCycleRamp, RepeatsExactlyAndItsDumpReproducesTheFigure) {
   double se = 0.0, max_rpm = 0.0, rpm_at_ready = 0.0;
   int n = 0;
   while (std::getline(f, line)) {
-    std::vector<double> v;
-    std::stringstream ss(line);
-    std::string cell;
-    while (std::getline(ss, cell, ',')) v.push_back(cell == "nan" ? std::nan("") : std::stod(cell));
+    const std::vector<double> v = csv_row(line);
     ASSERT_GE(v.size(), 14u);
     if (v[12] != 1.0) continue;
     if (v[0] <= r.ready_at_s) rpm_at_ready = v[4];
